@@ -1,0 +1,19 @@
+#!/usr/bin/env bash
+# Install the Debian packages that headless MuJoCo rendering needs (EGL + Mesa's llvmpipe),
+# only when they are missing. Needs root (or sudo) the first time only.
+set -euo pipefail
+pkgs=(libegl1 libgl1 libegl-mesa0 libgl1-mesa-dri libglx-mesa0)
+missing=()
+for p in "${pkgs[@]}"; do
+  dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
+done
+[ ${#missing[@]} -eq 0 ] && exit 0
+if ! command -v apt-get >/dev/null; then
+  echo "system-deps: missing ${missing[*]} and no apt-get; install them with your package manager" >&2
+  exit 1
+fi
+sudo=""
+[ "$(id -u)" -eq 0 ] || sudo="sudo"
+echo "system-deps: installing ${missing[*]}"
+$sudo apt-get update -qq
+DEBIAN_FRONTEND=noninteractive $sudo apt-get install -y -qq --no-install-recommends "${missing[@]}"
