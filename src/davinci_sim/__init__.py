@@ -7,4 +7,10 @@ Packages, one concept each (see ``docs/architecture.md``):
 * :mod:`davinci_sim.sim`: physics, joint servos and the dVRK/CRTK arm API.
 """
 
+import os
+
+# Headless by default: MuJoCo renders offscreen through EGL (Mesa's llvmpipe on a machine
+# with no GPU). A user who has set MUJOCO_GL keeps their choice.
+os.environ.setdefault("MUJOCO_GL", "egl")
+
 __version__ = "0.1.0"

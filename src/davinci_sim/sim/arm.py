@@ -1,0 +1,562 @@
+"""A simulated dVRK arm with the CRTK API (dvrk.md sections 2.2, 2.4, 3.2).
+
+The arm owns its operating state, its setpoints and its trajectories; the joints move
+through real dynamics: setpoints go to the :class:`~davinci_sim.sim.servo.JointServo` and
+MuJoCo integrates. Every command is validated first; a refused command leaves the setpoint
+unchanged and puts a message on the arm's ``error`` channel.
+
+Frames (dvrk.md 1.1): ``local/measured_cp`` = FK(q) in the chain base (the RCM for PSM/ECM);
+``measured_cp`` = base frame · local. The base frame comes from the setup joints (PSM: the
+RCM in the ECM tip/camera frame; ECM: in the cart), the console (MTM: in HRSV), or
+``set_base_frame``.
+"""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from davinci_sim.kinematics import fk
+from davinci_sim.kinematics.arms import ArmKinematics
+from davinci_sim.kinematics.ik import inverse_kinematics
+from davinci_sim.sim import operating_state as ops
+from davinci_sim.sim.channels import Channels
+from davinci_sim.sim.trajectory import JointTrajectory, plan_trajectory
+from davinci_sim.sim.types import (
+    ACCEPTED,
+    CartesianPose,
+    CartesianTwist,
+    CommandResult,
+    JointState,
+    OperatingState,
+)
+from davinci_sim.sim.validation import as_transform, as_vector, check_limits
+
+if TYPE_CHECKING:
+    from davinci_sim.sim.simulation import Simulation
+
+#: A joint whose position stays further than this from its setpoint (rad, m) for
+#: ``TRACKING_FAULT_TIME`` s puts the arm in FAULT, as a PID tracking error does on the dVRK.
+TRACKING_FAULT_TOLERANCE = {"revolute": 0.35, "prismatic": 0.03}
+TRACKING_FAULT_TIME = 0.05
+
+
+class Arm:
+    """One arm of the simulation; see the module docstring. Created by the simulation."""
+
+    def __init__(self, name: str, kin: ArmKinematics, sim: Simulation) -> None:
+        self.name = name
+        self.kin = kin
+        self.chain = kin.chain
+        self._sim = sim
+        servo = sim.servo
+        self._idx = servo.indices([f"{name}/{j}" for j in self.chain.joint_names])
+        self._qposadr = servo.qposadr[self._idx]
+        self._dofadr = servo.dofadr[self._idx]
+        self.channels = Channels(name)
+        self._state = ops.DISABLED
+        self._homed = False
+        self._paused_from: str | None = None
+        self._traj: JointTrajectory | None = None
+        self._traj_t0 = 0.0
+        self._traj_homing = False
+        self._wrench: tuple[str, np.ndarray] | None = None
+        self._body_cf_absolute = False
+        self._T_user_base: tuple[np.ndarray, str] | None = None
+        self._tol = np.array([TRACKING_FAULT_TOLERANCE[j.joint_type] for j in self.chain.joints])
+        self._tracking_bad_since: float | None = None
+        self._trajectory_ratio = 1.0
+        servo.q_ref[self._idx] = self._q()
+        self.local = _LocalView(self)
+        self.body = _WrenchView(self, "body")
+        self.spatial = _WrenchView(self, "spatial")
+
+    # ------------------------------------------------------------------ helpers
+    @property
+    def dof(self) -> int:
+        return self.chain.dof
+
+    def _now(self) -> float:
+        return self._sim.time
+
+    def _q(self) -> np.ndarray:
+        return self._sim.measured_qpos()[self._qposadr].copy()
+
+    def _qd(self) -> np.ndarray:
+        return self._sim.data.qvel[self._dofadr].copy()
+
+    def _effort(self) -> np.ndarray:
+        return self._sim.data.actuator_force[self._idx].copy()
+
+    def _q_set(self) -> np.ndarray:
+        return self._sim.servo.q_ref[self._idx].copy()
+
+    def _refuse(self, command: str, message: str) -> CommandResult:
+        text = f"{command}: {message}"
+        self.channels.message("error", text, self._now())
+        return CommandResult(False, f"{self.name}: {text}")
+
+    def _status(self, text: str) -> None:
+        self.channels.message("status", text, self._now())
+
+    def _publish_state(self) -> None:
+        self.channels.emit("operating_state", self.operating_state())
+
+    def _not_ready(self, cartesian: bool = False) -> str:
+        """Why joint (or Cartesian) commands are refused now, or ``""`` (dvrk.md 2.4)."""
+        if self._state != ops.ENABLED:
+            return f"arm not ready: operating state is {self._state}, needs ENABLED"
+        if not self._homed:
+            return "arm not ready: not homed (send state_command 'home' first)"
+        if self._traj_homing:
+            return "arm not ready: homing in progress"
+        if cartesian:
+            return self._cartesian_unsafe()
+        return ""
+
+    def _cartesian_unsafe(self) -> str:
+        """Arm-specific check before Cartesian control (dvrk.md 2.4); ``""`` if safe."""
+        return ""
+
+    # --------------------------------------------------------- operating state
+    def operating_state(self) -> OperatingState:
+        """``crtk_msgs/OperatingState``: state, is_homed, is_busy (dvrk.md 2.4)."""
+        return OperatingState(self._state, self._homed, self.is_busy(), self._now())
+
+    def is_busy(self) -> bool:
+        return self._traj is not None
+
+    def is_homed(self) -> bool:
+        return self._homed
+
+    def state_command(self, command: str) -> CommandResult:
+        """``enable``, ``disable``, ``home``, ``unhome``, ``pause`` or ``resume`` (dvrk.md 2.4)."""
+        if not isinstance(command, str):
+            return self._refuse("state_command", f"command must be a string, got {command!r}")
+        new_state, message = ops.transition(self._state, command)
+        if new_state is None:
+            self.channels.message("warning", message, self._now())
+            return CommandResult(False, f"{self.name}: {message}")
+        if command == "enable":
+            self._enter(ops.ENABLED, hold=self._state != ops.ENABLED)
+        elif command == "disable":
+            self._homed = False  # is_homed needs power (dvrk.md 2.4)
+            self._enter(ops.DISABLED, hold=True)
+        elif command == "home":
+            self._start_homing()
+        elif command == "unhome":
+            self._homed = False
+            self._publish_state()
+        elif command == "pause":
+            if self._state != ops.PAUSED:
+                self._paused_from = self._state
+            self._enter(ops.PAUSED, hold=True)
+        elif command == "resume":
+            self._enter(self._paused_from or ops.ENABLED, hold=False)
+        return ACCEPTED
+
+    def _enter(self, state: str, hold: bool) -> None:
+        if hold:
+            self._hold_here()
+        self._state = state
+        self._status(f"operating state {state}")
+        self._publish_state()
+
+    def _hold_here(self) -> None:
+        """Stop any trajectory or effort control and servo the current measured position."""
+        self._cancel_trajectory()
+        self._wrench = None
+        servo = self._sim.servo
+        servo.effort_mode[self._idx] = False
+        servo.tau_ff[self._idx] = 0.0
+        servo.q_ref[self._idx] = self._q()
+        servo.qd_ref[self._idx] = 0.0
+        self._tracking_bad_since = None
+
+    def _cancel_trajectory(self) -> None:
+        was_busy = self._traj is not None
+        self._traj = None
+        self._traj_homing = False
+        if was_busy:
+            self._publish_state()
+
+    def _start_homing(self) -> None:
+        # Simulated homing goal (dvrk.md 1.7): a trajectory, is_busy while it runs.
+        self._homed = False
+        self._start_trajectory(self.kin.home, homing=True)
+        self._status("homing")
+
+    def _start_trajectory(self, goal: np.ndarray, homing: bool = False) -> None:
+        servo = self._sim.servo
+        servo.effort_mode[self._idx] = False
+        servo.tau_ff[self._idx] = 0.0
+        self._wrench = None
+        r = self._trajectory_ratio
+        self._traj = plan_trajectory(self._q_set(), goal, self.kin.v_max * r, self.kin.a_max * r)
+        self._traj_t0 = self._now()
+        self._traj_homing = homing
+        self._publish_state()
+
+    # -------------------------------------------------------------- per tick
+    def _pre_step(self, t: float) -> None:
+        """Update servo references for the coming physics step (called by the simulation)."""
+        servo = self._sim.servo
+        if self._traj is not None:
+            q, qd = self._traj.sample(t - self._traj_t0)
+            servo.q_ref[self._idx] = q
+            servo.qd_ref[self._idx] = qd
+            if t - self._traj_t0 >= self._traj.duration:
+                homing = self._traj_homing
+                self._traj = None
+                self._traj_homing = False
+                if homing:
+                    self._homed = True
+                    self._status("homed")
+                self._publish_state()
+        if self._wrench is not None:
+            servo.tau_ff[self._idx] = self._wrench_to_effort(*self._wrench)
+        if self._state == ops.ENABLED:
+            self._check_tracking(t)
+
+    def _check_tracking(self, t: float) -> None:
+        servo = self._sim.servo
+        err = np.abs(self._q() - servo.q_ref[self._idx])
+        bad = (err > self._tol) & ~servo.effort_mode[self._idx]
+        if not bad.any():
+            self._tracking_bad_since = None
+            return
+        if self._tracking_bad_since is None:
+            self._tracking_bad_since = t
+        elif t - self._tracking_bad_since >= TRACKING_FAULT_TIME:
+            i = int(np.flatnonzero(bad)[0])
+            self.channels.message(
+                "error",
+                f"tracking error on joint {self.chain.joint_names[i]!r}: {err[i]:.4g} exceeds "
+                f"{self._tol[i]:.4g}; arm in FAULT",
+                t,
+            )
+            self._hold_here()
+            self._state = ops.FAULT
+            self._publish_state()
+
+    # ------------------------------------------------------------ joint space
+    def measured_js(self) -> JointState:
+        """Joint positions, velocities and efforts (``sensor_msgs/JointState``)."""
+        return JointState(self.chain.joint_names, self._q(), self._qd(), self._effort(), self._now())
+
+    def setpoint_js(self) -> JointState:
+        servo = self._sim.servo
+        return JointState(
+            self.chain.joint_names,
+            servo.q_ref[self._idx],
+            servo.qd_ref[self._idx],
+            servo.tau_ff[self._idx],
+            self._now(),
+        )
+
+    def measured_jp(self) -> np.ndarray:
+        return self._q()
+
+    def setpoint_jp(self) -> np.ndarray:
+        return self._q_set()
+
+    def _joint_goal(self, command: str, value, relative: bool) -> tuple[np.ndarray | None, str]:
+        why = self._not_ready()
+        if why:
+            return None, why
+        v, msg = as_vector(value, self.dof, "position" if not relative else "increment")
+        if v is None:
+            return None, msg
+        goal = self._q_set() + v if relative else v
+        msg = check_limits(goal, self.chain.qmin, self.chain.qmax, self.chain.joint_names, "goal")
+        return (None, msg) if msg else (goal, "")
+
+    def servo_jp(self, position, velocity=None) -> CommandResult:
+        """Joint position setpoint for the next tick (optional velocity feed-forward)."""
+        goal, msg = self._joint_goal("servo_jp", position, relative=False)
+        if goal is None:
+            return self._refuse("servo_jp", msg)
+        qd = np.zeros(self.dof)
+        if velocity is not None and len(np.atleast_1d(velocity)) > 0:
+            qd, msg = as_vector(velocity, self.dof, "velocity")
+            if qd is None:
+                return self._refuse("servo_jp", msg)
+        self._servo_position(goal, qd)
+        return ACCEPTED
+
+    def servo_jr(self, increment) -> CommandResult:
+        """Add ``increment`` to the current joint setpoint."""
+        goal, msg = self._joint_goal("servo_jr", increment, relative=True)
+        if goal is None:
+            return self._refuse("servo_jr", msg)
+        self._servo_position(goal, np.zeros(self.dof))
+        return ACCEPTED
+
+    def _servo_position(self, goal: np.ndarray, qd: np.ndarray) -> None:
+        self._cancel_trajectory()
+        self._wrench = None
+        servo = self._sim.servo
+        servo.effort_mode[self._idx] = False
+        servo.tau_ff[self._idx] = 0.0
+        servo.q_ref[self._idx] = goal
+        servo.qd_ref[self._idx] = qd
+
+    def servo_jf(self, effort) -> CommandResult:
+        """Joint efforts (N·m, N) on top of gravity compensation; no position control."""
+        why = self._not_ready()
+        if why:
+            return self._refuse("servo_jf", why)
+        e, msg = as_vector(effort, self.dof, "effort")
+        if e is None:
+            return self._refuse("servo_jf", msg)
+        self._set_effort(np.clip(e, -self.chain.ftmax, self.chain.ftmax))
+        return ACCEPTED
+
+    def _set_effort(self, effort: np.ndarray) -> None:
+        self._cancel_trajectory()
+        self._wrench = None
+        servo = self._sim.servo
+        servo.effort_mode[self._idx] = True
+        servo.tau_ff[self._idx] = effort
+        servo.qd_ref[self._idx] = 0.0
+
+    def move_jp(self, goal) -> CommandResult:
+        """Trajectory to ``goal`` within the dVRK limits (dvrk.md 1.9); ``is_busy`` meanwhile."""
+        q, msg = self._joint_goal("move_jp", goal, relative=False)
+        if q is None:
+            return self._refuse("move_jp", msg)
+        self._start_trajectory(q)
+        return ACCEPTED
+
+    def move_jr(self, increment) -> CommandResult:
+        """Trajectory to the current setpoint + ``increment``."""
+        q, msg = self._joint_goal("move_jr", increment, relative=True)
+        if q is None:
+            return self._refuse("move_jr", msg)
+        self._start_trajectory(q)
+        return ACCEPTED
+
+    def hold(self) -> CommandResult:
+        """Stop moving and keep the current position."""
+        if self._state != ops.ENABLED:
+            return self._refuse("hold", f"arm not ready: operating state is {self._state}")
+        self._hold_here()
+        return ACCEPTED
+
+    def free(self) -> CommandResult:
+        """Zero effort plus gravity compensation: the arm can be moved by hand."""
+        if self._state != ops.ENABLED:
+            return self._refuse("free", f"arm not ready: operating state is {self._state}")
+        self._set_effort(np.zeros(self.dof))
+        return ACCEPTED
+
+    def use_gravity_compensation(self, enabled: bool) -> CommandResult:
+        self._sim.servo.gravity_compensation[self._idx] = bool(enabled)
+        return ACCEPTED
+
+    def trajectory_j_set_ratio(self, ratio: float) -> CommandResult:
+        """Scale the ``move_*`` velocity and acceleration limits, ratio in ]0, 1] (dvrk.md 1.9)."""
+        try:
+            r = float(ratio)
+        except (TypeError, ValueError):
+            return self._refuse("trajectory_j/set_ratio", f"ratio must be a number, got {ratio!r}")
+        if not (0.0 < r <= 1.0):
+            return self._refuse("trajectory_j/set_ratio", f"ratio must be in ]0, 1], got {r}")
+        self._trajectory_ratio = r
+        return ACCEPTED
+
+    def trajectory_j_ratio(self) -> float:
+        return self._trajectory_ratio
+
+    # -------------------------------------------------------------- Cartesian
+    def base_frame(self) -> tuple[np.ndarray, str]:
+        """``(T_reference_base, reference frame name)`` used for ``measured_cp``."""
+        if self._T_user_base is not None:
+            return self._T_user_base
+        return self._sim.default_base_frame(self.name)
+
+    def set_base_frame(self, T_reference_base, reference_frame: str = "") -> CommandResult:
+        """Runtime base frame, as the dVRK ``set_base_frame`` (dvrk.md 1.1)."""
+        T, msg = as_transform(T_reference_base, "base frame")
+        if T is None:
+            return self._refuse("set_base_frame", msg)
+        self._T_user_base = (T, reference_frame or f"{self.name}_reference")
+        return ACCEPTED
+
+    def _pose(self, q: np.ndarray, moving: str, local: bool) -> CartesianPose:
+        T_base_tip = fk.forward_kinematics(self.chain, q)
+        if local:
+            return CartesianPose(T_base_tip, f"{self.name}_base", moving, self._now())
+        T_ref_base, ref = self.base_frame()
+        return CartesianPose(T_ref_base @ T_base_tip, ref, moving, self._now())
+
+    def measured_cp(self) -> CartesianPose:
+        """Tool tip in the base frame's reference (PSM: camera, ECM: cart, MTM: HRSV)."""
+        return self._pose(self._q(), self.name, local=False)
+
+    def setpoint_cp(self) -> CartesianPose:
+        return self._pose(self._q_set(), f"{self.name}_setpoint", local=False)
+
+    def measured_cv(self) -> CartesianTwist:
+        """Tip twist (linear m/s, angular rad/s) in the base frame's orientation (dvrk.md 2.2)."""
+        v = fk.jacobian_spatial(self.chain, self._q()) @ self._qd()
+        R = self.base_frame()[0][:3, :3]
+        return CartesianTwist(
+            np.concatenate([R @ v[:3], R @ v[3:]]), self.base_frame()[1], self.name, self._now()
+        )
+
+    def _cartesian_goal(self, command: str, T_goal, seed: np.ndarray):
+        why = self._not_ready(cartesian=True)
+        if why:
+            return None, why
+        T, msg = as_transform(T_goal, "goal")
+        if T is None:
+            return None, msg
+        T_ref_base, _ = self.base_frame()
+        T_base_goal = np.linalg.inv(T_ref_base) @ T  # IK works in the chain base (dvrk.md 1.8)
+        result = inverse_kinematics(self.kin, T_base_goal, seed)
+        if not result.success:
+            return None, f"inverse kinematics failed: {result.message}"
+        msg = check_limits(result.q, self.chain.qmin, self.chain.qmax, self.chain.joint_names, "IK")
+        return (None, msg) if msg else (result.q, "")
+
+    def servo_cp(self, T_goal, twist=None) -> CommandResult:
+        """Cartesian setpoint in the base frame's reference; IK seeded with measured joints."""
+        q, msg = self._cartesian_goal("servo_cp", T_goal, self._q())
+        if q is None:
+            return self._refuse("servo_cp", msg)
+        qd = np.zeros(self.dof)
+        if twist is not None:
+            tw, msg = as_vector(twist, 6, "twist")
+            if tw is None:
+                return self._refuse("servo_cp", msg)
+            R = self.base_frame()[0][:3, :3].T
+            local = np.concatenate([R @ tw[:3], R @ tw[3:]])
+            qd = np.linalg.lstsq(fk.jacobian_spatial(self.chain, q), local, rcond=None)[0]
+        self._servo_position(q, qd)
+        return ACCEPTED
+
+    def move_cp(self, T_goal) -> CommandResult:
+        """IK once, then a joint trajectory (not a straight line, as the dVRK; dvrk.md 1.9)."""
+        q, msg = self._cartesian_goal("move_cp", T_goal, self._q_set())
+        if q is None:
+            return self._refuse("move_cp", msg)
+        self._start_trajectory(q)
+        return ACCEPTED
+
+    def forward_kinematics(self, jp) -> tuple[CartesianPose | None, CommandResult]:
+        """Pose of the frame after ``len(jp)`` joints, with the base frame (dvrk.md 2.2)."""
+        q = np.asarray(jp, dtype=float) if np.ndim(jp) == 1 else None
+        if q is None or not (1 <= q.shape[0] <= self.dof) or not np.all(np.isfinite(q)):
+            return None, self._refuse(
+                "forward_kinematics", f"needs 1..{self.dof} finite joint values, got {jp!r}"
+            )
+        chain = self.chain.truncated(q.shape[0], with_tool=True)
+        T_ref_base, ref = self.base_frame()
+        T = T_ref_base @ fk.forward_kinematics(chain, q)
+        return CartesianPose(T, ref, self.name, self._now()), ACCEPTED
+
+    def inverse_kinematics(self, jp, T_goal) -> tuple[np.ndarray | None, CommandResult]:
+        """Joints reaching ``T_goal`` (base frame's reference) seeded with ``jp``."""
+        seed, msg = as_vector(jp, self.dof, "reference joints")
+        T, msg2 = as_transform(T_goal, "goal")
+        if seed is None or T is None:
+            return None, self._refuse("inverse_kinematics", msg or msg2)
+        result = inverse_kinematics(self.kin, np.linalg.inv(self.base_frame()[0]) @ T, seed)
+        if not result.success:
+            return None, self._refuse("inverse_kinematics", result.message)
+        return result.q, ACCEPTED
+
+    # -------------------------------------------------------------- wrenches
+    def _wrench_to_effort(self, kind: str, w: np.ndarray) -> np.ndarray:
+        q = self._q()
+        Js = fk.jacobian_spatial(self.chain, q)
+        if kind == "body" and not self._body_cf_absolute:
+            R_base_tip = fk.forward_kinematics(self.chain, q)[:3, :3]
+        else:  # expressed in the reference (base-frame) orientation
+            R_base_tip = self.base_frame()[0][:3, :3].T
+        w_base = np.concatenate([R_base_tip @ w[:3], R_base_tip @ w[3:]])
+        return np.clip(Js.T @ w_base, -self.chain.ftmax, self.chain.ftmax)
+
+    def _servo_cf(self, kind: str, wrench) -> CommandResult:
+        why = self._not_ready()
+        if why:
+            return self._refuse(f"{kind}/servo_cf", why)
+        w, msg = as_vector(wrench, 6, "wrench")
+        if w is None:
+            return self._refuse(f"{kind}/servo_cf", msg)
+        self._set_effort(np.zeros(self.dof))
+        self._wrench = (kind, w)
+        self._sim.servo.tau_ff[self._idx] = self._wrench_to_effort(kind, w)
+        return ACCEPTED
+
+    def _measured_cf(self, kind: str) -> np.ndarray:
+        """Wrench at the tip estimated from joint efforts minus gravity compensation."""
+        q = self._q()
+        tau = self._effort() - self._sim.data.qfrc_bias[self._dofadr]
+        Js = fk.jacobian_spatial(self.chain, q)
+        w = np.linalg.lstsq(Js.T, tau, rcond=None)[0]
+        if kind == "body" and not self._body_cf_absolute:
+            R = fk.forward_kinematics(self.chain, q)[:3, :3].T
+        else:
+            R = self.base_frame()[0][:3, :3]
+        return np.concatenate([R @ w[:3], R @ w[3:]])
+
+    def body_set_cf_orientation_absolute(self, absolute: bool) -> CommandResult:
+        """Express ``body`` wrenches in the base frame's orientation instead of the tip's."""
+        self._body_cf_absolute = bool(absolute)
+        return ACCEPTED
+
+
+class _LocalView:
+    """``arm.local.*``: the same quantities without the base frame (dvrk.md 2.2)."""
+
+    def __init__(self, arm: Arm) -> None:
+        self._arm = arm
+
+    def measured_cp(self) -> CartesianPose:
+        return self._arm._pose(self._arm._q(), self._arm.name, local=True)
+
+    def setpoint_cp(self) -> CartesianPose:
+        return self._arm._pose(self._arm._q_set(), f"{self._arm.name}_setpoint", local=True)
+
+    def measured_cv(self) -> CartesianTwist:
+        """Twist in the tip (body) frame."""
+        arm = self._arm
+        q = arm._q()
+        v = fk.jacobian_body(arm.chain, q) @ arm._qd()
+        return CartesianTwist(v, arm.name, arm.name, arm._now())
+
+    def forward_kinematics(self, jp) -> tuple[CartesianPose | None, CommandResult]:
+        arm = self._arm
+        q = np.asarray(jp, dtype=float) if np.ndim(jp) == 1 else None
+        if q is None or not (1 <= q.shape[0] <= arm.dof) or not np.all(np.isfinite(q)):
+            return None, arm._refuse(
+                "local/forward_kinematics", f"needs 1..{arm.dof} finite joint values, got {jp!r}"
+            )
+        T = fk.forward_kinematics(arm.chain.truncated(q.shape[0], with_tool=True), q)
+        return CartesianPose(T, f"{arm.name}_base", arm.name, arm._now()), ACCEPTED
+
+
+class _WrenchView:
+    """``arm.body.*`` and ``arm.spatial.*``: Cartesian wrench commands, readings, Jacobians."""
+
+    def __init__(self, arm: Arm, kind: str) -> None:
+        self._arm = arm
+        self._kind = kind
+
+    def servo_cf(self, wrench) -> CommandResult:
+        """Force (N) then torque (N·m) at the tip; body: tip frame, spatial: base orientation."""
+        return self._arm._servo_cf(self._kind, wrench)
+
+    def measured_cf(self) -> np.ndarray:
+        return self._arm._measured_cf(self._kind)
+
+    def jacobian(self) -> np.ndarray:
+        q = self._arm._q()
+        if self._kind == "body":
+            return fk.jacobian_body(self._arm.chain, q)
+        J = fk.jacobian_spatial(self._arm.chain, q)
+        R = self._arm.base_frame()[0][:3, :3]
+        return np.vstack([R @ J[:3], R @ J[3:]])

@@ -1,0 +1,159 @@
+"""The 1-DOF jaw of a PSM instrument and the gripper of an MTM (dvrk.md 1.2, 1.5).
+
+The model has two fingers (``<ARM>/jaw_1``, ``<ARM>/jaw_2`` or ``gripper_1/2``); the dVRK
+angle is the opening between them, their sum. A command of angle θ servoes each finger to θ/2.
+"""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from davinci_sim.kinematics.arms import GripperSpec
+from davinci_sim.sim.trajectory import JointTrajectory, plan_trajectory
+from davinci_sim.sim.types import ACCEPTED, CommandResult, JointState
+from davinci_sim.sim.validation import as_vector, check_limits
+
+if TYPE_CHECKING:
+    from davinci_sim.sim.arm import Arm
+
+
+class Jaw:
+    """``arm.jaw.*`` (PSM) or ``arm.gripper.*`` (MTM)."""
+
+    def __init__(
+        self,
+        arm: Arm,
+        spec: GripperSpec,
+        prefix: str,
+        v_max: float = np.inf,
+        a_max: float = np.inf,
+        *,
+        requires_ready: bool = True,
+    ) -> None:
+        self._arm = arm
+        self.spec = spec
+        servo = arm._sim.servo
+        self._idx = servo.indices([f"{arm.name}/{prefix}_1", f"{arm.name}/{prefix}_2"])
+        self._qposadr = servo.qposadr[self._idx]
+        self._dofadr = servo.dofadr[self._idx]
+        self._v_max = v_max
+        self._a_max = a_max
+        self._traj: JointTrajectory | None = None
+        self._traj_t0 = 0.0
+        # PSM jaw commands need a Cartesian-ready arm (dvrk.md 2.2); MTM fingers need nothing.
+        self._requires_ready = requires_ready
+        self._command_prefix = spec.name
+
+    @property
+    def name(self) -> str:
+        return self.spec.name
+
+    def _angle(self) -> float:
+        return float(self._arm._sim.data.qpos[self._qposadr].sum())
+
+    def measured_js(self) -> JointState:
+        """Opening angle (rad), its rate (rad/s) and the mean finger effort (N·m)."""
+        data = self._arm._sim.data
+        return JointState(
+            (self.spec.name,),
+            [self._angle()],
+            [float(data.qvel[self._dofadr].sum())],
+            [float(data.actuator_force[self._idx].mean())],
+            self._arm._now(),
+        )
+
+    def setpoint_js(self) -> JointState:
+        servo = self._arm._sim.servo
+        return JointState(
+            (self.spec.name,),
+            [float(servo.q_ref[self._idx].sum())],
+            [float(servo.qd_ref[self._idx].sum())],
+            [float(servo.tau_ff[self._idx].mean())],
+            self._arm._now(),
+        )
+
+    def measured_jp(self) -> float:
+        return self._angle()
+
+    def _goal(self, command: str, value) -> tuple[float | None, CommandResult]:
+        why = self._arm._not_ready(cartesian=True) if self._requires_ready else ""
+        if why:
+            return None, self._arm._refuse(f"{self._command_prefix}/{command}", why)
+        v, msg = as_vector(np.atleast_1d(value) if np.ndim(value) == 0 else value, 1, "angle")
+        if v is None:
+            return None, self._arm._refuse(f"{self._command_prefix}/{command}", msg)
+        msg = check_limits(
+            v, np.array([self.spec.qmin]), np.array([self.spec.qmax]), (self.spec.name,), "goal"
+        )
+        if msg:
+            return None, self._arm._refuse(f"{self._command_prefix}/{command}", msg)
+        return float(v[0]), ACCEPTED
+
+    def servo_jp(self, angle) -> CommandResult:
+        """Opening angle setpoint (rad) for the next tick."""
+        goal, result = self._goal("servo_jp", angle)
+        if goal is None:
+            return result
+        self._traj = None
+        self._set(goal, 0.0, effort=None)
+        return ACCEPTED
+
+    def move_jp(self, angle) -> CommandResult:
+        """Trajectory to the opening angle (rad) within the jaw limits (dvrk.md 1.9)."""
+        goal, result = self._goal("move_jp", angle)
+        if goal is None:
+            return result
+        self._start(goal)
+        return ACCEPTED
+
+    def servo_jf(self, effort) -> CommandResult:
+        """Effort (N·m) on each finger, positive opens; no position control."""
+        why = self._arm._not_ready(cartesian=True) if self._requires_ready else ""
+        if why:
+            return self._arm._refuse(f"{self._command_prefix}/servo_jf", why)
+        v, msg = as_vector(np.atleast_1d(effort) if np.ndim(effort) == 0 else effort, 1, "effort")
+        if v is None:
+            return self._arm._refuse(f"{self._command_prefix}/servo_jf", msg)
+        self._traj = None
+        self._set(None, 0.0, effort=float(np.clip(v[0], -self.spec.ftmax, self.spec.ftmax)))
+        return ACCEPTED
+
+    # ------------------------------------------------------------ internals
+    def _set(self, angle: float | None, rate: float, effort: float | None) -> None:
+        servo = self._arm._sim.servo
+        if effort is not None:
+            servo.effort_mode[self._idx] = True
+            servo.tau_ff[self._idx] = effort
+            return
+        servo.effort_mode[self._idx] = False
+        servo.tau_ff[self._idx] = 0.0
+        servo.q_ref[self._idx] = 0.5 * angle
+        servo.qd_ref[self._idx] = 0.5 * rate
+
+    def _start(self, goal: float) -> None:
+        servo = self._arm._sim.servo
+        start = float(servo.q_ref[self._idx].sum())
+        if servo.effort_mode[self._idx].any():
+            start = self._angle()
+        self._traj = plan_trajectory([start], [goal], [self._v_max], [self._a_max])
+        self._traj_t0 = self._arm._now()
+        servo.effort_mode[self._idx] = False
+        servo.tau_ff[self._idx] = 0.0
+
+    def _hold(self) -> None:
+        self._traj = None
+        self._set(self._angle(), 0.0, effort=None)
+
+    def is_busy(self) -> bool:
+        return self._traj is not None
+
+    def _pre_step(self, t: float) -> None:
+        if self._traj is None:
+            return
+        q, qd = self._traj.sample(t - self._traj_t0)
+        self._set(float(q[0]), float(qd[0]), effort=None)
+        if t - self._traj_t0 >= self._traj.duration:
+            self._traj = None
+            self._arm._publish_state()

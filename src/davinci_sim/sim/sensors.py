@@ -1,0 +1,71 @@
+"""Sensors beyond joint states: contact forces on instruments and offscreen cameras."""
+
+from __future__ import annotations
+
+import mujoco
+import numpy as np
+
+#: Bodies of an instrument (PSM) or endoscope (ECM) whose contacts count as tool contacts.
+INSTRUMENT_BODIES = {
+    "PSM": ("roll", "wrist_pitch", "wrist_yaw", "jaw_1", "jaw_2"),
+    "ECM": ("roll",),
+}
+
+
+def body_ids(model: mujoco.MjModel, names) -> np.ndarray:
+    """Ids of the named bodies that exist in ``model``."""
+    ids = [mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, n) for n in names]
+    return np.array([i for i in ids if i >= 0], dtype=int)
+
+
+def contact_force(model: mujoco.MjModel, data: mujoco.MjData, bodies: np.ndarray) -> np.ndarray:
+    """Total contact force (N, world frame) that the environment exerts on ``bodies``.
+
+    Contacts between two of ``bodies`` (e.g. jaw against jaw) cancel out and are skipped.
+    """
+    total = np.zeros(3)
+    if data.ncon == 0 or bodies.size == 0:
+        return total
+    geom_body = model.geom_bodyid
+    f6 = np.zeros(6)
+    for i in range(data.ncon):
+        c = data.contact[i]
+        b1 = geom_body[c.geom1] in bodies
+        b2 = geom_body[c.geom2] in bodies
+        if b1 == b2:
+            continue
+        mujoco.mj_contactForce(model, data, i, f6)
+        # f6 is in the contact frame (rows of c.frame); it acts on geom2, from geom1.
+        f_world = c.frame.reshape(3, 3).T @ f6[:3]
+        total += f_world if b2 else -f_world
+    return total
+
+
+class CameraRenderer:
+    """Offscreen renderer for named cameras of one model, one GL context per image size."""
+
+    def __init__(self, model: mujoco.MjModel) -> None:
+        self._model = model
+        self._renderers: dict[tuple[int, int], mujoco.Renderer] = {}
+
+    def render(
+        self, data: mujoco.MjData, camera: str, width: int = 640, height: int = 480
+    ) -> np.ndarray:
+        """RGB image (height x width x 3, uint8) from the named camera."""
+        if mujoco.mj_name2id(self._model, mujoco.mjtObj.mjOBJ_CAMERA, camera) < 0:
+            names = [self._model.camera(i).name for i in range(self._model.ncam)]
+            raise KeyError(f"no camera {camera!r}; cameras: {names}")
+        key = (width, height)
+        if key not in self._renderers:
+            vis = self._model.vis.global_
+            vis.offwidth = max(vis.offwidth, width)
+            vis.offheight = max(vis.offheight, height)
+            self._renderers[key] = mujoco.Renderer(self._model, height, width)
+        r = self._renderers[key]
+        r.update_scene(data, camera=camera)
+        return r.render()
+
+    def close(self) -> None:
+        for r in self._renderers.values():
+            r.close()
+        self._renderers.clear()

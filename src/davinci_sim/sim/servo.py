@@ -1,0 +1,60 @@
+"""The joint servo of every actuated joint: PD + gravity compensation + feed-forward effort.
+
+Each MuJoCo actuator of the generated model is a ``general`` actuator with force
+``kp·(ctrl − q) − kv·q̇``, clamped to the joint's dVRK ``ftmax``. Setting
+
+    ctrl = q_ref + (kv·q̇_ref + τ_gravity + τ_ff) / kp
+
+gives force = kp·(q_ref − q) + kv·(q̇_ref − q̇) + τ_gravity + τ_ff, with the damping term
+integrated implicitly by MuJoCo (stable at 1 ms). τ_gravity is MuJoCo's own inverse dynamics
+at zero acceleration (``qfrc_bias``: gravity and Coriolis). In effort mode a joint gets no
+PD term (q_ref = q, q̇_ref = q̇): only gravity compensation and the feed-forward effort, as the
+dVRK's ``free`` and ``servo_jf``/``servo_cf`` do.
+"""
+
+from __future__ import annotations
+
+import mujoco
+import numpy as np
+
+
+class JointServo:
+    """Vectorised servo over all actuators of a model, in actuator order."""
+
+    def __init__(self, model: mujoco.MjModel) -> None:
+        n = model.nu
+        self.actuator_names = tuple(model.actuator(i).name for i in range(n))
+        self.index = {name: i for i, name in enumerate(self.actuator_names)}
+        joint_ids = model.actuator_trnid[:, 0]
+        self.qposadr = model.jnt_qposadr[joint_ids].copy()
+        self.dofadr = model.jnt_dofadr[joint_ids].copy()
+        self.kp = model.actuator_gainprm[:, 0].copy()
+        self.kv = -model.actuator_biasprm[:, 2].copy()
+        if np.any(self.kp <= 0):
+            bad = [self.actuator_names[i] for i in np.flatnonzero(self.kp <= 0)]
+            raise ValueError(f"actuators need kp > 0 for the servo, got kp <= 0 for {bad}")
+        self.q_ref = np.zeros(n)
+        """Position setpoint of each joint (rad or m)."""
+        self.qd_ref = np.zeros(n)
+        """Velocity feed-forward (rad/s or m/s)."""
+        self.tau_ff = np.zeros(n)
+        """Feed-forward effort added to the PD and gravity terms (N·m or N)."""
+        self.effort_mode = np.zeros(n, dtype=bool)
+        """True: no PD term for this joint (free / effort control)."""
+        self.gravity_compensation = np.ones(n, dtype=bool)
+
+    def indices(self, names) -> np.ndarray:
+        """Actuator indices for the given actuator names."""
+        try:
+            return np.array([self.index[n] for n in names], dtype=int)
+        except KeyError as e:
+            raise KeyError(f"no actuator {e.args[0]!r}; actuators: {self.actuator_names}") from None
+
+    def apply(self, data: mujoco.MjData) -> None:
+        """Write ``data.ctrl`` for the current state (call right before ``mj_step``)."""
+        q = data.qpos[self.qposadr]
+        qd = data.qvel[self.dofadr]
+        tau_g = np.where(self.gravity_compensation, data.qfrc_bias[self.dofadr], 0.0)
+        q_ref = np.where(self.effort_mode, q, self.q_ref)
+        qd_ref = np.where(self.effort_mode, qd, self.qd_ref)
+        data.ctrl[:] = q_ref + (self.kv * qd_ref + tau_g + self.tau_ff) / self.kp

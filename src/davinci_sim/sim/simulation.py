@@ -1,0 +1,193 @@
+"""The simulation: a MuJoCo model of the da Vinci system stepped at 1 kHz with dVRK arms.
+
+Each :meth:`Simulation.tick` runs: arm setpoints (trajectories, wrench-to-effort) → joint
+servo (PD + gravity compensation) → one ``mj_step`` of 1 ms. Arms read their state from
+MuJoCo on demand, so a tick costs only what the physics and the active setpoints need.
+"""
+
+from __future__ import annotations
+
+import mujoco
+import numpy as np
+
+from davinci_sim.kinematics import fk
+from davinci_sim.kinematics.arms import load_arm, load_suj
+from davinci_sim.model import build_model
+from davinci_sim.sim.arm import Arm
+from davinci_sim.sim.arms import ECM, MTM, PSM, SUJArm
+from davinci_sim.sim.sensors import INSTRUMENT_BODIES, CameraRenderer, body_ids, contact_force
+from davinci_sim.sim.servo import JointServo
+
+ARM_NAMES = ("PSM1", "PSM2", "PSM3", "ECM", "MTML", "MTMR")
+_ARM_CLASSES = {"PSM": PSM, "ECM": ECM, "MTM": MTM}
+
+
+def _has_joint(model: mujoco.MjModel, name: str) -> bool:
+    return mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, name) >= 0
+
+
+class Simulation:
+    """The whole simulated system.
+
+    Args:
+        scene: a scene name of :data:`davinci_sim.model.SCENES` (``"full"`` …) or a
+            ``SceneConfig``.
+        seed: seeds :attr:`rng`, the only source of randomness (encoder noise, and what
+            tasks and operators draw); the same seed and commands give the same trajectory.
+        encoder_noise_std: standard deviation of the noise added to measured joint
+            positions (rad or m), 0 by default. The servo itself sees the true positions.
+        **scene_overrides: passed to :func:`davinci_sim.model.build_model`.
+    """
+
+    def __init__(
+        self,
+        scene="full",
+        *,
+        seed: int = 0,
+        encoder_noise_std: float = 0.0,
+        **scene_overrides,
+    ) -> None:
+        self.model = build_model(scene, **scene_overrides)
+        self.data = mujoco.MjData(self.model)
+        self.dt = float(self.model.opt.timestep)
+        self.seed = seed
+        self.rng = np.random.default_rng(seed)
+        if not (np.isfinite(encoder_noise_std) and encoder_noise_std >= 0):
+            raise ValueError(f"encoder_noise_std must be >= 0, got {encoder_noise_std!r}")
+        self.encoder_noise_std = float(encoder_noise_std)
+        self.tick_count = 0
+        self._suj = load_suj()
+        self._set_initial_configuration()
+        mujoco.mj_forward(self.model, self.data)
+        self.servo = JointServo(self.model)
+        self._noisy_qpos: np.ndarray | None = None
+        self._base_cache: tuple[int, dict] = (-1, {})
+        self.arms: dict[str, Arm] = {}
+        for name in ARM_NAMES:
+            kin = load_arm(name)
+            if _has_joint(self.model, f"{name}/{kin.chain.joint_names[0]}"):
+                self.arms[name] = _ARM_CLASSES[kin.arm_type](name, kin, self)
+        for name, suj in self._suj.items():
+            if _has_joint(self.model, f"SUJ/{name}/J0"):
+                self.arms[f"SUJ/{name}"] = SUJArm(f"SUJ/{name}", suj, self)
+        # Fingers (PSM jaws, MTM grippers) hold their initial opening.
+        self.servo.q_ref[:] = self.data.qpos[self.servo.qposadr]
+        self._instrument_bodies = {
+            name: body_ids(self.model, [f"{name}/{b}" for b in INSTRUMENT_BODIES[arm.kin.arm_type]])
+            for name, arm in self.arms.items()
+            if arm.kin.arm_type in INSTRUMENT_BODIES
+        }
+        self._cameras: CameraRenderer | None = None
+
+    # ------------------------------------------------------------ set-up
+    def _set_initial_configuration(self) -> None:
+        """SUJ joints at their simulated positions (dvrk.md 1.6); arms at zero joints."""
+        for name, suj in self._suj.items():
+            for i, jname in enumerate(suj.chain.joint_names):
+                full = f"SUJ/{name}/{jname}"
+                if _has_joint(self.model, full):
+                    self.data.qpos[self.model.joint(full).qposadr[0]] = suj.simulated_position[i]
+
+    # ------------------------------------------------------------ time
+    @property
+    def time(self) -> float:
+        """Simulation time in s."""
+        return float(self.data.time)
+
+    def tick(self) -> None:
+        """One 1 ms control tick: setpoints → servo → physics."""
+        t = self.data.time
+        for arm in self.arms.values():
+            arm._pre_step(t)
+        self.servo.apply(self.data)
+        mujoco.mj_step(self.model, self.data)
+        self.tick_count += 1
+        if self.encoder_noise_std > 0:
+            self._noisy_qpos = self.data.qpos + self.rng.normal(
+                0.0, self.encoder_noise_std, self.data.qpos.shape
+            )
+
+    def step(self, n: int = 1) -> None:
+        """``n`` ticks."""
+        for _ in range(n):
+            self.tick()
+
+    def run_for(self, seconds: float) -> None:
+        """Tick for ``seconds`` of simulation time."""
+        self.step(max(0, round(seconds / self.dt)))
+
+    def run_until(self, predicate, timeout: float) -> bool:
+        """Tick until ``predicate()`` is true or ``timeout`` s of sim time pass; returns it."""
+        end = self.time + timeout
+        while not predicate():
+            if self.time >= end:
+                return False
+            self.tick()
+        return True
+
+    def measured_qpos(self) -> np.ndarray:
+        """Joint positions as the encoders read them (with noise when enabled)."""
+        return self.data.qpos if self._noisy_qpos is None else self._noisy_qpos
+
+    # ------------------------------------------------------------ frames
+    def _T_cart_rcm(self, arm: str) -> np.ndarray:
+        suj_arm = self.arms[f"SUJ/{arm}"]
+        T_cart_tip = fk.forward_kinematics(suj_arm.chain, suj_arm.measured_jp())
+        return self._suj[arm].T_cart_sujbase @ T_cart_tip
+
+    def default_base_frame(self, arm: str) -> tuple[np.ndarray, str]:
+        """Base frame of ``arm`` as the dVRK system computes it (dvrk.md 1.6, 1.5).
+
+        PSM: its RCM in the ECM tip (camera) frame, reference ``ECM``; ECM: its RCM in the
+        cart, reference ``Cart``; MTM: its base in ``HRSV``; SUJ arm: its base in the cart.
+        """
+        tick, cache = self._base_cache
+        if tick != self.tick_count:
+            cache = {}
+            self._base_cache = (self.tick_count, cache)
+        if arm in cache:
+            return cache[arm]
+        kin_type = self.arms[arm].kin.arm_type
+        if kin_type == "MTM":
+            result = (self.arms[arm].kin.T_reference_base, "HRSV")
+        elif kin_type == "SUJ":
+            result = (self._suj[arm.split("/", 1)[1]].T_cart_sujbase, "Cart")
+        elif f"SUJ/{arm}" not in self.arms:
+            result = (np.eye(4), f"{arm}_base")
+        elif kin_type == "ECM":
+            result = (self._T_cart_rcm("ECM"), "Cart")
+        elif "ECM" in self.arms and "SUJ/ECM" in self.arms:
+            ecm = self.arms["ECM"]
+            T_cart_ecmtip = self.default_base_frame("ECM")[0] @ fk.forward_kinematics(
+                ecm.chain, ecm.measured_jp()
+            )
+            result = (np.linalg.inv(T_cart_ecmtip) @ self._T_cart_rcm(arm), "ECM")
+        else:
+            result = (self._T_cart_rcm(arm), "Cart")
+        cache[arm] = result
+        return result
+
+    # ------------------------------------------------------------ sensors
+    def contact_force(self, arm: str) -> np.ndarray:
+        """Contact force (N, cart/world frame) on the instrument of ``arm`` (PSM) or the scope."""
+        if arm not in self._instrument_bodies:
+            raise KeyError(f"no instrument on {arm!r}; arms with one: {list(self._instrument_bodies)}")
+        return contact_force(self.model, self.data, self._instrument_bodies[arm])
+
+    def camera_names(self) -> list[str]:
+        return [self.model.camera(i).name for i in range(self.model.ncam)]
+
+    def render(self, camera: str, width: int = 640, height: int = 480) -> np.ndarray:
+        """RGB image from a named camera (``ECM/left``, ``ECM/right``, ``overview`` …)."""
+        if self._cameras is None:
+            self._cameras = CameraRenderer(self.model)
+        return self._cameras.render(self.data, camera, width, height)
+
+    def render_stereo(self, width: int = 640, height: int = 480) -> tuple[np.ndarray, np.ndarray]:
+        """Left and right endoscope images."""
+        return self.render("ECM/left", width, height), self.render("ECM/right", width, height)
+
+    def close(self) -> None:
+        if self._cameras is not None:
+            self._cameras.close()
+            self._cameras = None

@@ -1,0 +1,56 @@
+"""Joint trajectories: limits respected, synchronised arrival, exact end points."""
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from davinci_sim.sim.trajectory import plan_trajectory
+
+vec = st.lists(st.floats(-2.0, 2.0), min_size=3, max_size=3)
+lim = st.lists(st.floats(0.05, 5.0), min_size=3, max_size=3)
+
+
+@settings(max_examples=150, deadline=None)
+@given(vec, vec, lim, lim)
+def test_trajectory_respects_limits_and_arrives_together(q0, q1, v, a):
+    q0, q1, v, a = map(np.array, (q0, q1, v, a))
+    tr = plan_trajectory(q0, q1, v, a)
+    ts = np.linspace(0.0, tr.duration, 801)
+    samples = [tr.sample(t) for t in ts]
+    Q = np.array([s[0] for s in samples])
+    V = np.array([s[1] for s in samples])
+    assert np.allclose(Q[0], q0) and np.allclose(Q[-1], q1)
+    assert np.all(np.abs(V) <= v * (1 + 1e-9) + 1e-12)
+    if tr.duration > 0:
+        dt = ts[1] - ts[0]
+        # Acceleration from the sampled velocity (a kink can straddle one sample).
+        acc = np.abs(np.diff(V, axis=0)) / dt
+        assert np.all(acc <= a * (1 + 1e-6) + 1e-9)
+        # Velocity is the derivative of position (trapezoid rule on the samples).
+        dq = np.diff(Q, axis=0) / dt
+        assert np.allclose(dq, 0.5 * (V[1:] + V[:-1]), atol=1e-6 + 0.25 * a.max() * dt)
+
+
+def test_minimum_time_matches_trapezoid_formula():
+    # One joint, 1 rad at 1 rad/s and 1 rad/s^2: accelerate 1 s (0.5 rad), cruise 0 s,
+    # decelerate 1 s -> triangle of 2 s exactly; 3 rad -> 1 + 2 + 1 = 4 s.
+    assert plan_trajectory([0.0], [1.0], [1.0], [1.0]).duration == pytest.approx(2.0)
+    assert plan_trajectory([0.0], [3.0], [1.0], [1.0]).duration == pytest.approx(4.0)
+
+
+def test_slow_joint_sets_the_duration_and_others_slow_down():
+    tr = plan_trajectory([0.0, 0.0], [3.0, 0.1], [1.0, 1.0], [1.0, 1.0])
+    assert tr.duration == pytest.approx(4.0)
+    q_mid, _ = tr.sample(2.0)
+    assert q_mid[1] == pytest.approx(0.05)  # symmetric profile: half way at half time
+
+
+def test_zero_motion_and_bad_limits():
+    tr = plan_trajectory([1.0, 2.0], [1.0, 2.0], [1.0, 1.0], [1.0, 1.0])
+    assert tr.duration == 0.0
+    assert np.array_equal(tr.sample(0.3)[0], [1.0, 2.0])
+    with pytest.raises(ValueError, match="v_max"):
+        plan_trajectory([0.0], [1.0], [0.0], [1.0])
+    with pytest.raises(ValueError, match="a_max"):
+        plan_trajectory([0.0], [1.0], [1.0], [np.inf])
