@@ -1,0 +1,17 @@
+"""Run every benchmark; each writes ``benchmarks/results/<name>.json``."""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+
+import bench_kinematics  # noqa: E402
+import bench_render  # noqa: E402
+import bench_tick  # noqa: E402
+
+if __name__ == "__main__":
+    bench_kinematics.main()
+    bench_tick.main()
+    bench_render.main()

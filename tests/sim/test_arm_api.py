@@ -1,0 +1,230 @@
+"""The dVRK/CRTK arm API on the simulated system: states, motions, frames, refusals."""
+
+import numpy as np
+import pytest
+from conftest import home
+
+from davinci_sim.kinematics import fk
+from davinci_sim.kinematics.arms import load_arm
+from davinci_sim.sim.simulation import Simulation
+
+
+def test_arms_start_disabled_and_home_to_the_dvrk_home_pose():
+    sim = Simulation("psm1")
+    psm = sim.arms["PSM1"]
+    assert psm.operating_state().state == "DISABLED"
+    assert not psm.is_homed()
+    states = []
+    psm.channels.subscribe(lambda ev, p: states.append(p) if ev == "operating_state" else None)
+    assert psm.state_command("enable")
+    assert psm.state_command("home")
+    assert psm.is_busy()
+    assert sim.run_until(lambda: psm.is_homed() and not psm.is_busy(), 10)
+    sim.run_for(0.5)
+    # dvrk.md 1.7: simulated home = zeros with insertion 0.12 m; steady state within 1e-4.
+    assert np.max(np.abs(psm.measured_jp() - load_arm("PSM1").home)) < 1e-4
+    assert [s.state for s in states][:1] == ["ENABLED"]
+    assert any(s.is_busy for s in states) and not states[-1].is_busy and states[-1].is_homed
+
+
+def test_home_is_refused_when_disabled_and_changes_nothing():
+    sim = Simulation("psm1")
+    psm = sim.arms["PSM1"]
+    before = psm.setpoint_jp()
+    result = psm.state_command("home")
+    assert not result and "not supported in state DISABLED" in result.message
+    sim.run_for(0.05)
+    assert np.array_equal(before, psm.setpoint_jp())
+
+
+@pytest.mark.parametrize("arm", ["PSM1", "ECM"])
+def test_move_jp_reaches_goal_within_tolerance_and_limits(psm_sim, arm):
+    a = psm_sim.arms[arm]
+    goal = a.setpoint_jp() + (0.2 if arm == "PSM1" else 0.1)
+    goal[2] = 0.15
+    assert a.move_jp(goal)
+    assert a.is_busy()
+    max_speed = np.zeros(a.dof)
+    while a.is_busy():
+        psm_sim.tick()
+        max_speed = np.maximum(max_speed, np.abs(a.setpoint_js().velocity))
+    psm_sim.run_for(0.5)
+    assert np.max(np.abs(a.measured_jp() - goal)) < 1e-4  # steady-state tracking
+    assert np.all(max_speed <= a.kin.v_max * (1 + 1e-9))  # dvrk.md 1.9 limits
+
+
+def test_servo_cp_moves_the_tip_in_the_camera_frame(psm_sim):
+    psm = psm_sim.arms["PSM1"]
+    start = psm.measured_cp()
+    assert start.reference_frame == "ECM"
+    goal = start.T.copy()
+    goal[:3, 3] += [0.01, -0.005, 0.01]
+    for _ in range(400):
+        assert psm.servo_cp(goal)
+        psm_sim.tick()
+    psm_sim.run_for(0.3)
+    reached = psm.measured_cp().T
+    assert np.linalg.norm(reached[:3, 3] - goal[:3, 3]) < 1e-4
+    assert np.allclose(reached[:3, :3], goal[:3, :3], atol=1e-3)
+
+
+def test_measured_cp_is_base_frame_times_local(psm_sim):
+    psm = psm_sim.arms["PSM1"]
+    T_base, ref = psm.base_frame()
+    assert ref == "ECM"
+    assert np.allclose(psm.measured_cp().T, T_base @ psm.local.measured_cp().T, atol=1e-12)
+    # dvrk.md 1.6 [derived]: PSM1 RCM in the camera frame with the ECM at home.
+    assert np.allclose(T_base[:3, 3], [-0.0877, -0.0060, -0.0771], atol=1.5e-4)
+    ecm = psm_sim.arms["ECM"]
+    assert ecm.measured_cp().reference_frame == "Cart"
+    assert np.allclose(ecm.measured_cp().position, [0.0560, 1.1569, 0.9088], atol=1.5e-4)
+
+
+def test_moving_the_ecm_changes_psm_poses_in_the_camera_frame(psm_sim):
+    psm, ecm = psm_sim.arms["PSM1"], psm_sim.arms["ECM"]
+    q_before = psm.measured_jp()
+    p_before = psm.measured_cp().position.copy()
+    ecm.move_jr([0.1, 0.0, 0.0, 0.0])
+    psm_sim.run_until(lambda: not ecm.is_busy(), 10)
+    psm_sim.run_for(0.3)
+    assert np.max(np.abs(psm.measured_jp() - q_before)) < 2e-4
+    assert np.linalg.norm(psm.measured_cp().position - p_before) > 0.005
+
+
+@pytest.mark.parametrize(
+    ("command", "args", "expected"),
+    [
+        ("servo_jp", ([np.nan, 0, 0.12, 0, 0, 0],), "NaN"),
+        ("servo_jp", ([0, 0, 0.12],), "6 values"),
+        ("servo_jp", ([0, 0, 0.3, 0, 0, 0],), "outside its limits"),
+        ("move_jp", ([np.inf, 0, 0.12, 0, 0, 0],), "NaN or inf"),
+        ("servo_jr", ("abc",), "numbers"),
+        ("servo_cp", (np.full((4, 4), np.nan),), "NaN"),
+        ("servo_cp", (np.eye(3),), "4x4"),
+        ("move_cp", (np.diag([1.0, 1.0, 2.0, 1.0]),), "rotation"),
+    ],
+)
+def test_bad_commands_are_refused_and_change_nothing(psm_sim, command, args, expected):
+    psm = psm_sim.arms["PSM1"]
+    before = psm.setpoint_jp()
+    result = getattr(psm, command)(*args)
+    assert not result
+    assert expected in result.message
+    assert expected in psm.channels.last("error").text
+    psm_sim.run_for(0.05)
+    assert np.array_equal(before, psm.setpoint_jp())
+
+
+def test_cartesian_goal_at_the_rcm_is_refused(psm_sim):
+    psm = psm_sim.arms["PSM1"]
+    T_base, _ = psm.base_frame()
+    goal = psm.measured_cp().T.copy()
+    goal[:3, 3] = T_base[:3, 3]  # the RCM itself
+    before = psm.setpoint_jp()
+    result = psm.servo_cp(goal)
+    assert not result and "inverse kinematics" in result.message
+    assert np.array_equal(before, psm.setpoint_jp())
+
+
+def test_cartesian_control_needs_the_tool_past_the_cannula(psm_sim):
+    psm = psm_sim.arms["PSM1"]
+    psm.move_jp([0, 0, 0.03, 0, 0, 0])
+    psm_sim.run_until(lambda: not psm.is_busy(), 5)
+    psm_sim.run_for(0.2)
+    result = psm.servo_cp(psm.measured_cp().T)
+    assert not result and "inserted past the cannula" in result.message
+    assert not psm.jaw.move_jp(0.5)
+
+
+def test_commands_need_an_enabled_homed_arm():
+    sim = Simulation("psm1")
+    psm = sim.arms["PSM1"]
+    assert "ENABLED" in psm.servo_jp([0, 0, 0.12, 0, 0, 0]).message
+    psm.state_command("enable")
+    assert "not homed" in psm.move_jp([0, 0, 0.12, 0, 0, 0]).message
+    assert "not homed" in psm.servo_cp(np.eye(4)).message
+
+
+def test_pause_resume_and_disable(psm_sim):
+    psm = psm_sim.arms["PSM1"]
+    psm.move_jr([0.3, 0, 0, 0, 0, 0])
+    psm_sim.run_for(0.1)
+    assert psm.state_command("pause")
+    assert psm.operating_state().state == "PAUSED" and not psm.is_busy()
+    assert not psm.servo_jr([0.01, 0, 0, 0, 0, 0])
+    assert psm.state_command("resume")
+    assert psm.operating_state().state == "ENABLED" and psm.is_homed()
+    assert psm.state_command("disable")
+    assert not psm.is_homed()
+
+
+def test_jaw_follows_commands(psm_sim):
+    psm = psm_sim.arms["PSM1"]
+    assert psm.jaw.move_jp(np.radians(60))
+    psm_sim.run_until(lambda: not psm.is_busy(), 5)
+    psm_sim.run_for(0.3)
+    assert psm.jaw.measured_js().position[0] == pytest.approx(np.radians(60), abs=2e-3)
+    assert not psm.jaw.servo_jp(np.radians(100))  # beyond the 80 deg jaw limit
+
+
+def test_hold_and_free_keep_the_arm_up(psm_sim):
+    psm = psm_sim.arms["PSM1"]
+    q0 = psm.measured_jp()
+    assert psm.free()
+    psm_sim.run_for(0.5)
+    # Gravity compensation alone: the arm does not fall (drift well under a degree).
+    assert np.max(np.abs(psm.measured_jp() - q0)) < 0.01
+    assert psm.hold()
+    psm_sim.run_for(0.3)
+    assert psm.setpoint_js().effort is not None
+
+
+def test_tracking_error_puts_the_arm_in_fault():
+    sim = Simulation("psm1")
+    home(sim, ["PSM1"])
+    psm = sim.arms["PSM1"]
+    # A 1.5 rad step in one tick cannot be tracked with the 3.3 N·m yaw motor (dvrk.md 1.2).
+    psm.servo_jp([1.5, 0, 0.12, 0, 0, 0])
+    sim.run_for(0.3)
+    assert psm.operating_state().state == "FAULT"
+    assert "tracking error" in psm.channels.last("error").text
+    assert psm.state_command("enable")
+
+
+def test_forward_and_inverse_kinematics_services(psm_sim):
+    psm = psm_sim.arms["PSM1"]
+    q = np.array([0.2, -0.1, 0.14, 0.3, 0.2, -0.1])
+    cp, ok = psm.forward_kinematics(q)
+    assert ok
+    T_expected = psm.base_frame()[0] @ fk.forward_kinematics(psm.chain, q)
+    assert np.allclose(cp.T, T_expected)
+    q_ik, ok = psm.inverse_kinematics(q + 0.01, cp.T)
+    assert ok and np.allclose(q_ik, q, atol=1e-6)
+    shaft, ok = psm.local.forward_kinematics(q[:4])
+    assert ok and np.linalg.norm(shaft.position) == pytest.approx(q[2] - 0.0156, abs=1e-9)
+    assert not psm.forward_kinematics([np.nan])[1]
+
+
+def test_deterministic_for_the_same_seed_and_commands():
+    def run(seed):
+        sim = Simulation("psm1", seed=seed, encoder_noise_std=1e-5)
+        home(sim, ["PSM1"])
+        psm = sim.arms["PSM1"]
+        goal = psm.measured_cp().T.copy()
+        for k in range(300):
+            goal[0, 3] += 2e-5
+            psm.servo_cp(goal)
+            sim.tick()
+        return sim.data.qpos.copy(), psm.measured_jp()
+
+    a, b, c = run(3), run(3), run(4)
+    assert a[0].tobytes() == b[0].tobytes() and a[1].tobytes() == b[1].tobytes()
+    assert a[1].tobytes() != c[1].tobytes()
+
+
+def test_suj_arms_report_the_rcm_in_the_cart(psm_sim):
+    suj = psm_sim.arms["SUJ/PSM1"]
+    st = suj.operating_state()
+    assert st.state == "ENABLED" and st.is_homed
+    # dvrk.md 1.6 [derived]: PSM1 RCM in the cart (0.0288 m precision of the table).
+    assert np.allclose(suj.measured_cp().position, [-0.0288, 1.2198, 0.9591], atol=2e-4)
