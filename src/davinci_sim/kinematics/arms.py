@@ -134,7 +134,9 @@ def load_suj() -> dict[str, SUJArmKinematics]:
     data = load_data(SUJ_FILE)
     out = {}
     for name, a in data["arms"].items():
-        chain = chain_from_json({"convention": data["convention"], "joints": a["links"]}, f"SUJ/{name}")
+        chain = chain_from_json(
+            {"convention": data["convention"], "joints": a["links"]}, f"SUJ/{name}"
+        )
         out[name] = SUJArmKinematics(
             name=name,
             plug_number=int(a["plug_number"]),

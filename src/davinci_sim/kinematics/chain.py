@@ -120,7 +120,10 @@ def _joint_from_json(j: dict) -> DHJoint:
 
 
 def chain_from_json(data: dict, name: str | None = None) -> DHChain:
-    """Build a chain from a dVRK-style JSON object (``convention``, ``joints``, ``tooltip_offset``)."""
+    """Build a chain from a dVRK-style JSON object.
+
+    Keys: ``convention``, ``joints`` (or ``links``), optional ``tooltip_offset``.
+    """
     return DHChain(
         name=name or data.get("name", "chain"),
         convention=data["convention"],

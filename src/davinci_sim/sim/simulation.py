@@ -12,6 +12,7 @@ import numpy as np
 
 from davinci_sim.kinematics import fk
 from davinci_sim.kinematics.arms import load_arm, load_suj
+from davinci_sim.kinematics.suj import T_cart_rcm, invert_transform
 from davinci_sim.model import build_model
 from davinci_sim.sim.arm import Arm
 from davinci_sim.sim.arms import ECM, MTM, PSM, SUJArm
@@ -131,9 +132,7 @@ class Simulation:
 
     # ------------------------------------------------------------ frames
     def _T_cart_rcm(self, arm: str) -> np.ndarray:
-        suj_arm = self.arms[f"SUJ/{arm}"]
-        T_cart_tip = fk.forward_kinematics(suj_arm.chain, suj_arm.measured_jp())
-        return self._suj[arm].T_cart_sujbase @ T_cart_tip
+        return T_cart_rcm(self._suj[arm], self.arms[f"SUJ/{arm}"].measured_jp())
 
     def default_base_frame(self, arm: str) -> tuple[np.ndarray, str]:
         """Base frame of ``arm`` as the dVRK system computes it (dvrk.md 1.6, 1.5).
@@ -161,7 +160,7 @@ class Simulation:
             T_cart_ecmtip = self.default_base_frame("ECM")[0] @ fk.forward_kinematics(
                 ecm.chain, ecm.measured_jp()
             )
-            result = (np.linalg.inv(T_cart_ecmtip) @ self._T_cart_rcm(arm), "ECM")
+            result = (invert_transform(T_cart_ecmtip) @ self._T_cart_rcm(arm), "ECM")
         else:
             result = (self._T_cart_rcm(arm), "Cart")
         cache[arm] = result

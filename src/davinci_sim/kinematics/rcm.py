@@ -1,0 +1,58 @@
+"""Shared geometry of the RCM arms (PSM, ECM): the first three links, as plain floats.
+
+Both arms start with yaw, pitch (revolute, about axes through the RCM) and insertion along the
+shaft (dvrk.md 1.2, 1.4). Rotations here are row-major 3x3 tuples of floats: at this size,
+numpy call overhead costs more than the arithmetic.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+
+
+def mat3_mul(A: Sequence[float], B: Sequence[float]) -> tuple[float, ...]:
+    """A·B for row-major 3x3 tuples."""
+    a0, a1, a2, a3, a4, a5, a6, a7, a8 = A
+    b0, b1, b2, b3, b4, b5, b6, b7, b8 = B
+    return (
+        a0 * b0 + a1 * b3 + a2 * b6, a0 * b1 + a1 * b4 + a2 * b7, a0 * b2 + a1 * b5 + a2 * b8,
+        a3 * b0 + a4 * b3 + a5 * b6, a3 * b1 + a4 * b4 + a5 * b7, a3 * b2 + a4 * b5 + a5 * b8,
+        a6 * b0 + a7 * b3 + a8 * b6, a6 * b1 + a7 * b4 + a8 * b7, a6 * b2 + a7 * b5 + a8 * b8,
+    )  # fmt: skip
+
+
+def rxrz(ca: float, sa: float, th: float) -> tuple[float, ...]:
+    """Rx(α)·Rz(θ), the rotation of a modified-DH link (dvrk.md 1.1)."""
+    ct, st = math.cos(th), math.sin(th)
+    return (ct, -st, 0.0, st * ca, ct * ca, -sa, st * sa, ct * sa, ca)
+
+
+def shaft_angles(
+    ca: tuple[float, ...], sa: tuple[float, ...], z: tuple[float, float, float]
+) -> list[tuple[float, float]]:
+    """All (θ₁, θ₂) with Rx(α₁)Rz(θ₁)Rx(α₂)Rz(θ₂)Rx(α₃)·ẑ = z (unit vector), exact for any α.
+
+    Shared by the PSM and ECM closed forms (same first three links). Empty if unreachable.
+    """
+    vy, vz = -sa[2], ca[2]  # Rx(α₃)ẑ = (0, −sα₃, cα₃)
+    wx = z[0]
+    wy = ca[0] * z[1] + sa[0] * z[2]  # w = Rx(−α₁) z
+    wz = -sa[0] * z[1] + ca[0] * z[2]
+    # Rx(α₂)Rz(θ₂)v has z component sα₂·vy·cθ₂ + cα₂·vz, which must equal wz.
+    den = sa[1] * vy
+    if den == 0.0:
+        return []
+    c2 = (wz - ca[1] * vz) / den
+    if abs(c2) > 1.0:
+        if abs(c2) > 1.0 + 1e-12:
+            return []
+        c2 = math.copysign(1.0, c2)
+    s2 = math.sqrt(max(0.0, 1.0 - c2 * c2))
+    out = []
+    for s in (s2, -s2) if s2 > 0.0 else (s2,):
+        mx = -vy * s  # m = Rx(α₂)Rz(θ₂)v, x and y
+        my = ca[1] * vy * c2 - sa[1] * vz
+        th1 = math.atan2(wy, wx) - math.atan2(my, mx)
+        out.append((th1, math.atan2(s, c2)))
+    return out
