@@ -1,0 +1,73 @@
+"""Cameras: the ECM stereo endoscope, the overview camera and user-defined external views."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from davinci_sim.model.frames import look_at_rotation, rot_y, set_pose, transform
+
+#: Classic SD 12 mm stereo endoscope: a diagonal field of view of about 70° is typical for
+#: laparoscopes of that generation; on a 4:3 sensor that is 2·atan(0.6·tan 35°) ≈ 45°
+#: vertically (≈ 57° horizontally).
+DEFAULT_ENDOSCOPE_FOVY_DEG = 45.0
+
+
+@dataclass(frozen=True)
+class CameraConfig:
+    """The stereo endoscope: image size (pixels), vertical field of view, stereo baseline."""
+
+    width: int = 640
+    height: int = 480
+    fovy_deg: float = DEFAULT_ENDOSCOPE_FOVY_DEG
+    baseline_m: float = 0.005
+
+    def __post_init__(self) -> None:
+        if self.width <= 0 or self.height <= 0:
+            raise ValueError(f"image size must be positive, got {self.width}x{self.height}")
+        if not 0.0 < self.fovy_deg < 180.0:
+            raise ValueError(f"fovy_deg must be in (0, 180), got {self.fovy_deg!r}")
+        if self.baseline_m < 0.0:
+            raise ValueError(f"baseline_m must be >= 0, got {self.baseline_m!r}")
+
+
+@dataclass(frozen=True)
+class ExternalCamera:
+    """A fixed named camera in the world (cart) frame looking at ``target``."""
+
+    name: str
+    position: tuple[float, float, float]
+    target: tuple[float, float, float]
+    fovy_deg: float = 45.0
+
+
+#: The default overview: the patient cart, the table and the surgeon console.
+OVERVIEW = ExternalCamera("overview", (2.3, -2.9, 2.5), (-0.45, 0.2, 0.75), 50.0)
+
+
+def T_tip_camera(side: float, baseline_m: float) -> np.ndarray:
+    """Pose of one endoscope camera in the ECM tip frame (side +1 = left, −1 = right).
+
+    The tip frame follows the ISI/HRSV convention (x to the left of the image, y up, z into
+    the scene); a MuJoCo camera looks along −z with y up, hence the 180° turn about y. The
+    left camera is half a baseline towards +x (the image's left).
+    """
+    return transform(p=[side * baseline_m / 2, 0.0, 0.0]) @ transform(rot_y(np.pi))
+
+
+def add_endoscope_cameras(roll_body, T_roll_tip: np.ndarray, config: CameraConfig) -> None:
+    """``ECM/left`` and ``ECM/right`` on the ECM roll body."""
+    for name, side in (("left", 1.0), ("right", -1.0)):
+        cam = roll_body.add_camera(name=f"ECM/{name}")
+        set_pose(cam, np.asarray(T_roll_tip) @ T_tip_camera(side, config.baseline_m))
+        cam.fovy = config.fovy_deg
+        cam.resolution = [config.width, config.height]
+
+
+def add_external_camera(world, camera: ExternalCamera) -> None:
+    """A fixed world camera."""
+    cam = world.add_camera(name=camera.name)
+    R = look_at_rotation(camera.position, camera.target)
+    set_pose(cam, transform(R, camera.position))
+    cam.fovy = camera.fovy_deg
