@@ -49,7 +49,7 @@ def add_materials(spec: mujoco.MjSpec) -> None:
         width=256,
         height=256,
     )
-    floor = spec.add_material(name="floor", texrepeat=[8, 8], reflectance=0.05)
+    floor = spec.add_material(name="floor", texrepeat=[8, 8])
     floor.textures[mujoco.mjtTextureRole.mjTEXROLE_RGB] = "floor_checker"
     spec.add_texture(
         name="sky",

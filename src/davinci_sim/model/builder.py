@@ -40,8 +40,10 @@ from davinci_sim.model.suj import add_cart, add_suj_arm
 
 TIMESTEP = 0.001
 
-#: ECM setup joints J0…J5 of the ``surgical`` keyframe: the ECM port moved 13 cm away from
-#: the cart so that the 45°-down endoscope at its home insertion looks at the PSM tips.
+#: ECM setup joints J0…J5 of the ``surgical`` keyframe. Solved (least squares, offline) so
+#: that the optical axis of the endoscope at its home insertion passes ≈ 0.2 m from the
+#: camera through the middle of the three PSM tips at home; the ECM port (RCM) moves from
+#: (0.06, 1.24, 0.99) to (0.27, 1.38, 1.05) m and all tips fall within the 45° view.
 ECM_SUJ_SURGICAL = np.array([0.7101, -0.0996, 0.0, 2.5138, 0.2744, 0.0])
 
 #: Natural frequency (Hz) and armature of each joint servo, by joint name. Armature stands

@@ -50,19 +50,21 @@ def add_console(world, mtms: tuple[str, ...]):
     for x in (-0.48, 0.48):
         paint.box([x, 0.62, 1.0], [0.03, 0.26, 0.30], "console")
     paint.box([0.0, 0.58, 1.45], [0.50, 0.32, 0.17], "console")
-    paint.box([0.0, 0.25, 1.33], [0.30, 0.12, 0.10], "console_dark")
-    # Arm rest in front of the operator.
-    paint.capsule([-0.42, 0.22, 0.82], [0.42, 0.22, 0.82], 0.035, "console_dark")
-    paint.box([0.0, 0.40, 0.80], [0.40, 0.18, 0.02], "console_dark")
+    # Arm rest in front of the operator, below the hands (MTM grips at ≈ 0.9 m at q = 0).
+    paint.capsule([-0.42, 0.12, 0.70], [0.42, 0.12, 0.70], 0.035, "console_dark")
+    for x in (-0.42, 0.42):
+        paint.capsule([x, 0.12, 0.70], [x, 0.36, 0.70], 0.03, "console_dark")
     hrsv = console.add_body(name="console/HRSV")
     set_pose(hrsv, transform(R_C_HRSV, [0.0, 0.0, EYE_HEIGHT]))
     site = hrsv.add_site(name="console/HRSV", size=[0.01, 0, 0])
     site.group = 5
-    # Stereo viewer eyepieces, 64 mm apart, looking along +z_h.
+    # Stereo viewer: eyepieces 64 mm apart just in front of the eyes, looking along +z_h,
+    # and the viewer housing that joins the head housing above.
     view = Painter(hrsv, prefix="console/")
     for x in (0.032, -0.032):
-        view.cylinder([x, 0, 0.03], [x, 0, 0.08], 0.018, "viewer_glass")
-    view.box([0.0, 0.0, 0.13], [0.11, 0.06, 0.05], "console_dark")
+        view.cylinder([x, 0, 0.015], [x, 0, 0.05], 0.017, "viewer_glass")
+    view.box([0.0, 0.01, 0.10], [0.13, 0.06, 0.05], "console_dark")
+    view.box([0.0, 0.10, 0.12], [0.13, 0.06, 0.09], "console_dark")
     for name in mtms:
         add_mtm(hrsv, name, load_arm(name))
     return hrsv

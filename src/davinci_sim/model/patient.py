@@ -39,9 +39,7 @@ def bead_rest_height() -> float:
 
 def add_floor(world) -> None:
     """An infinite floor plane (it collides: a dropped bead stops on it)."""
-    Painter(world)._add(
-        "env", "floor", "floor", type=mujoco.mjtGeom.mjGEOM_PLANE, size=[0, 0, 0.05]
-    )
+    Painter(world).add("env", "floor", "floor", type=mujoco.mjtGeom.mjGEOM_PLANE, size=[0, 0, 0.05])
 
 
 def add_table(world):

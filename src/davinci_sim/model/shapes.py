@@ -29,7 +29,8 @@ class Painter:
     def _point(self, p) -> np.ndarray:
         return self.T_body_design[:3, :3] @ np.asarray(p, dtype=float) + self.T_body_design[:3, 3]
 
-    def _add(self, kind, material, name, **kw):
+    def add(self, kind, material, name, **kw):
+        """Add a geom of any type (``kw``: MjSpec geom attributes in body coordinates)."""
         geom = self.body.add_geom(**kw)
         if name:
             geom.name = f"{self.prefix}{name}"
@@ -39,7 +40,7 @@ class Painter:
 
     def capsule(self, p0, p1, radius, material, *, kind="visual", name=""):
         """Capsule between two points."""
-        return self._add(
+        return self.add(
             kind,
             material,
             name,
@@ -50,7 +51,7 @@ class Painter:
 
     def cylinder(self, p0, p1, radius, material, *, kind="visual", name=""):
         """Cylinder between two points."""
-        return self._add(
+        return self.add(
             kind,
             material,
             name,
@@ -72,7 +73,7 @@ class Painter:
             y = y - np.dot(y, z) * z
             y /= np.linalg.norm(y)
             R = np.column_stack([np.cross(y, z), y, z])
-        return self._add(
+        return self.add(
             kind,
             material,
             name,
@@ -85,7 +86,7 @@ class Painter:
     def box(self, center, half_sizes, material, *, R=None, kind="visual", name=""):
         """Box at ``center`` with ``half_sizes``; ``R`` rotates it in the design frame."""
         R_body = self.T_body_design[:3, :3] @ (np.eye(3) if R is None else np.asarray(R))
-        return self._add(
+        return self.add(
             kind,
             material,
             name,
@@ -97,7 +98,7 @@ class Painter:
 
     def sphere(self, center, radius, material, *, kind="visual", name=""):
         """Sphere at ``center``."""
-        return self._add(
+        return self.add(
             kind,
             material,
             name,
@@ -109,7 +110,7 @@ class Painter:
     def ellipsoid(self, center, radii, material, *, R=None, kind="visual", name=""):
         """Ellipsoid at ``center`` with semi-axes ``radii``."""
         R_body = self.T_body_design[:3, :3] @ (np.eye(3) if R is None else np.asarray(R))
-        return self._add(
+        return self.add(
             kind,
             material,
             name,
