@@ -5,8 +5,8 @@ from __future__ import annotations
 import time
 
 import numpy as np
-from common import summary, time_each, write
 
+from common import summary, time_each, write
 from davinci_sim.kinematics.arms import load_arm
 from davinci_sim.kinematics.fk import forward_kinematics
 from davinci_sim.kinematics.ik import inverse_kinematics

@@ -5,7 +5,6 @@ from __future__ import annotations
 import time
 
 from common import write
-
 from davinci_sim.sim.simulation import Simulation
 
 
@@ -21,7 +20,12 @@ def main(seconds: float = 5.0) -> None:
     elapsed = time.perf_counter() - t0
     write(
         "render",
-        {"stereo_pairs_per_s": frames / elapsed, "width_px": 640, "height_px": 480, "frames": frames},
+        {
+            "stereo_pairs_per_s": frames / elapsed,
+            "width_px": 640,
+            "height_px": 480,
+            "frames": frames,
+        },
     )
     sim.close()
 

@@ -3,8 +3,8 @@
 from __future__ import annotations
 
 import mujoco
-from common import summary, time_each, write
 
+from common import summary, time_each, write
 from davinci_sim.sim.simulation import Simulation
 
 

@@ -211,7 +211,7 @@ def test_deterministic_for_the_same_seed_and_commands():
         home(sim, ["PSM1"])
         psm = sim.arms["PSM1"]
         goal = psm.measured_cp().T.copy()
-        for k in range(300):
+        for _k in range(300):
             goal[0, 3] += 2e-5
             psm.servo_cp(goal)
             sim.tick()

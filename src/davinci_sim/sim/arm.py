@@ -243,7 +243,9 @@ class Arm:
     # ------------------------------------------------------------ joint space
     def measured_js(self) -> JointState:
         """Joint positions, velocities and efforts (``sensor_msgs/JointState``)."""
-        return JointState(self.chain.joint_names, self._q(), self._qd(), self._effort(), self._now())
+        return JointState(
+            self.chain.joint_names, self._q(), self._qd(), self._effort(), self._now()
+        )
 
     def setpoint_js(self) -> JointState:
         servo = self._sim.servo

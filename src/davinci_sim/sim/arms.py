@@ -76,7 +76,8 @@ class ECM(Arm):
         if ins <= ECM_SAFE_CARTESIAN_INSERTION:
             return (
                 f"endoscope needs to be inserted past the cannula for Cartesian control: "
-                f"insertion {1000 * ins:.1f} mm, needs > {1000 * ECM_SAFE_CARTESIAN_INSERTION:.0f} mm"
+                f"insertion {1000 * ins:.1f} mm, "
+                f"needs > {1000 * ECM_SAFE_CARTESIAN_INSERTION:.0f} mm"
             )
         return ""
 
@@ -98,9 +99,7 @@ class MTM(Arm):
         super().__init__(name, kin, sim)
         assert kin.gripper is not None
         # The fingers are not the arm: they move whatever the arm's state.
-        self.gripper = Jaw(
-            self, kin.gripper, "gripper", 4 * np.pi, 8 * np.pi, requires_ready=False
-        )
+        self.gripper = Jaw(self, kin.gripper, "gripper", 4 * np.pi, 8 * np.pi, requires_ready=False)
 
     def _pre_step(self, t: float) -> None:
         super()._pre_step(t)
@@ -129,8 +128,9 @@ def suj_arm_kinematics(suj: SUJArmKinematics) -> ArmKinematics:
 class SUJArm(Arm):
     """One setup-joint arm (``SUJ/PSM1`` …): ``measured_cp`` is the carried arm's RCM in the cart.
 
-    SUJ arms start ENABLED and homed: they are passive, braked arms on the real system and
-    their joints are at the simulated positions of dvrk.md 1.6.
+    SUJ arms start ENABLED and homed and ``home`` does not move them: they are passive,
+    braked arms on the real system. ``servo_jp``/``move_jp`` move them (simulation only, as
+    on the dVRK, dvrk.md 1.6).
     """
 
     def __init__(self, name: str, suj: SUJArmKinematics, sim: Simulation) -> None:
@@ -138,3 +138,8 @@ class SUJArm(Arm):
         self.suj = suj
         self._state = "ENABLED"
         self._homed = True
+
+    def _start_homing(self) -> None:
+        # Setup joints are passive and braked: homing them is not a motion.
+        self._homed = True
+        self._publish_state()

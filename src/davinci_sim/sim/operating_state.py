@@ -19,7 +19,13 @@ COMMANDS: Final = ("enable", "disable", "home", "unhome", "pause", "resume")
 # dvrk.md 2.4, table "Allowed commands per state" (prmOperatingState.cpp). None = stay.
 _TABLE: Final[dict[str, dict[str, str | None]]] = {
     DISABLED: {"enable": ENABLED, "disable": DISABLED, "unhome": None},
-    ENABLED: {"enable": ENABLED, "disable": DISABLED, "pause": PAUSED, "unhome": None, "home": None},
+    ENABLED: {
+        "enable": ENABLED,
+        "disable": DISABLED,
+        "pause": PAUSED,
+        "unhome": None,
+        "home": None,
+    },
     PAUSED: {"disable": DISABLED, "pause": PAUSED, "resume": ENABLED, "unhome": None},
     FAULT: {"enable": ENABLED, "disable": DISABLED, "unhome": None},
 }

@@ -37,6 +37,9 @@ class Simulation:
             tasks and operators draw); the same seed and commands give the same trajectory.
         encoder_noise_std: standard deviation of the noise added to measured joint
             positions (rad or m), 0 by default. The servo itself sees the true positions.
+        keyframe: initial state: ``"home"`` (SUJ at the dVRK simulated positions, dvrk.md
+            1.6; arms at their simulated home, dvrk.md 1.7) or ``"surgical"`` (the same with
+            the ECM's setup joints posed so that the endoscope sees the instruments).
         **scene_overrides: passed to :func:`davinci_sim.model.build_model`.
     """
 
@@ -46,10 +49,16 @@ class Simulation:
         *,
         seed: int = 0,
         encoder_noise_std: float = 0.0,
+        keyframe: str = "home",
         **scene_overrides,
     ) -> None:
         self.model = build_model(scene, **scene_overrides)
         self.data = mujoco.MjData(self.model)
+        key = mujoco.mj_name2id(self.model, mujoco.mjtObj.mjOBJ_KEY, keyframe)
+        if key < 0:
+            names = [self.model.key(i).name for i in range(self.model.nkey)]
+            raise ValueError(f"unknown keyframe {keyframe!r}; keyframes: {names}")
+        mujoco.mj_resetDataKeyframe(self.model, self.data, key)
         self.dt = float(self.model.opt.timestep)
         self.seed = seed
         self.rng = np.random.default_rng(seed)
@@ -58,7 +67,6 @@ class Simulation:
         self.encoder_noise_std = float(encoder_noise_std)
         self.tick_count = 0
         self._suj = load_suj()
-        self._set_initial_configuration()
         mujoco.mj_forward(self.model, self.data)
         self.servo = JointServo(self.model)
         self._noisy_qpos: np.ndarray | None = None
@@ -79,15 +87,6 @@ class Simulation:
             if arm.kin.arm_type in INSTRUMENT_BODIES
         }
         self._cameras: CameraRenderer | None = None
-
-    # ------------------------------------------------------------ set-up
-    def _set_initial_configuration(self) -> None:
-        """SUJ joints at their simulated positions (dvrk.md 1.6); arms at zero joints."""
-        for name, suj in self._suj.items():
-            for i, jname in enumerate(suj.chain.joint_names):
-                full = f"SUJ/{name}/{jname}"
-                if _has_joint(self.model, full):
-                    self.data.qpos[self.model.joint(full).qposadr[0]] = suj.simulated_position[i]
 
     # ------------------------------------------------------------ time
     @property
@@ -170,7 +169,9 @@ class Simulation:
     def contact_force(self, arm: str) -> np.ndarray:
         """Contact force (N, cart/world frame) on the instrument of ``arm`` (PSM) or the scope."""
         if arm not in self._instrument_bodies:
-            raise KeyError(f"no instrument on {arm!r}; arms with one: {list(self._instrument_bodies)}")
+            raise KeyError(
+                f"no instrument on {arm!r}; arms with one: {list(self._instrument_bodies)}"
+            )
         return contact_force(self.model, self.data, self._instrument_bodies[arm])
 
     def camera_names(self) -> list[str]:
