@@ -42,27 +42,45 @@ def contact_force(model: mujoco.MjModel, data: mujoco.MjData, bodies: np.ndarray
 
 
 class CameraRenderer:
-    """Offscreen renderer for named cameras of one model, one GL context per image size."""
+    """Offscreen renderer for named cameras of one model, one GL context per image size.
+
+    ``fast=True`` (used for the endoscope) renders without shadows and without multisample
+    anti-aliasing: on a CPU renderer (llvmpipe) shadow maps cost most of the frame, and an
+    endoscope's light sits at the lens, so its own shadows are hardly visible anyway.
+    """
 
     def __init__(self, model: mujoco.MjModel) -> None:
         self._model = model
-        self._renderers: dict[tuple[int, int], mujoco.Renderer] = {}
+        self._renderers: dict[tuple[int, int, bool], mujoco.Renderer] = {}
 
     def render(
-        self, data: mujoco.MjData, camera: str, width: int = 640, height: int = 480
+        self,
+        data: mujoco.MjData,
+        camera: str,
+        width: int = 640,
+        height: int = 480,
+        *,
+        fast: bool = False,
     ) -> np.ndarray:
         """RGB image (height x width x 3, uint8) from the named camera."""
         if mujoco.mj_name2id(self._model, mujoco.mjtObj.mjOBJ_CAMERA, camera) < 0:
             names = [self._model.camera(i).name for i in range(self._model.ncam)]
             raise KeyError(f"no camera {camera!r}; cameras: {names}")
-        key = (width, height)
+        key = (width, height, fast)
         if key not in self._renderers:
-            vis = self._model.vis.global_
-            vis.offwidth = max(vis.offwidth, width)
-            vis.offheight = max(vis.offheight, height)
-            self._renderers[key] = mujoco.Renderer(self._model, height, width)
+            vis = self._model.vis
+            vis.global_.offwidth = max(vis.global_.offwidth, width)
+            vis.global_.offheight = max(vis.global_.offheight, height)
+            samples = vis.quality.offsamples
+            if fast:  # the sample count is read when the GL context is made
+                vis.quality.offsamples = 0
+            try:
+                self._renderers[key] = mujoco.Renderer(self._model, height, width)
+            finally:
+                vis.quality.offsamples = samples
         r = self._renderers[key]
         r.update_scene(data, camera=camera)
+        r.scene.flags[mujoco.mjtRndFlag.mjRND_SHADOW] = not fast
         return r.render()
 
     def close(self) -> None:

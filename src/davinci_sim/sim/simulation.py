@@ -13,7 +13,7 @@ import numpy as np
 from davinci_sim.kinematics import fk
 from davinci_sim.kinematics.arms import load_arm, load_suj
 from davinci_sim.kinematics.suj import T_cart_rcm, invert_transform
-from davinci_sim.model import build_model
+from davinci_sim.model import build_model, resolve_scene
 from davinci_sim.sim.arm import Arm
 from davinci_sim.sim.arms import ECM, MTM, PSM, SUJArm
 from davinci_sim.sim.sensors import INSTRUMENT_BODIES, CameraRenderer, body_ids, contact_force
@@ -52,7 +52,9 @@ class Simulation:
         keyframe: str = "home",
         **scene_overrides,
     ) -> None:
-        self.model = build_model(scene, **scene_overrides)
+        self.config = resolve_scene(scene, **scene_overrides)
+        self.endoscope = self.config.endoscope
+        self.model = build_model(self.config)
         self.data = mujoco.MjData(self.model)
         key = mujoco.mj_name2id(self.model, mujoco.mjtObj.mjOBJ_KEY, keyframe)
         if key < 0:
@@ -177,15 +179,27 @@ class Simulation:
     def camera_names(self) -> list[str]:
         return [self.model.camera(i).name for i in range(self.model.ncam)]
 
-    def render(self, camera: str, width: int = 640, height: int = 480) -> np.ndarray:
-        """RGB image from a named camera (``ECM/left``, ``ECM/right``, ``overview`` …)."""
+    def render(
+        self, camera: str, width: int = 640, height: int = 480, *, fast: bool = False
+    ) -> np.ndarray:
+        """RGB image from a named camera (``ECM/left``, ``ECM/right``, ``overview`` …).
+
+        ``fast``: no shadows and no anti-aliasing (see :class:`CameraRenderer`).
+        """
         if self._cameras is None:
             self._cameras = CameraRenderer(self.model)
-        return self._cameras.render(self.data, camera, width, height)
+        return self._cameras.render(self.data, camera, width, height, fast=fast)
 
-    def render_stereo(self, width: int = 640, height: int = 480) -> tuple[np.ndarray, np.ndarray]:
-        """Left and right endoscope images."""
-        return self.render("ECM/left", width, height), self.render("ECM/right", width, height)
+    def render_stereo(
+        self, width: int | None = None, height: int | None = None
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """Left and right endoscope images (default size: the scene's endoscope config)."""
+        width = width or self.endoscope.width
+        height = height or self.endoscope.height
+        return (
+            self.render("ECM/left", width, height, fast=True),
+            self.render("ECM/right", width, height, fast=True),
+        )
 
     def close(self) -> None:
         if self._cameras is not None:
