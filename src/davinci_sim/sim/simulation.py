@@ -89,6 +89,9 @@ class Simulation:
             if arm.kin.arm_type in INSTRUMENT_BODIES
         }
         self._cameras: CameraRenderer | None = None
+        self.components: dict[str, object] = {}
+        """Other parts ticked with the arms (console, teleops …), by name. Each has
+        ``pre_step(t)`` (called before the arms, every tick) and ``snapshot()``."""
 
     # ------------------------------------------------------------ time
     @property
@@ -99,6 +102,8 @@ class Simulation:
     def tick(self) -> None:
         """One 1 ms control tick: setpoints → servo → physics."""
         t = self.data.time
+        for component in self.components.values():
+            component.pre_step(t)
         for arm in self.arms.values():
             arm._pre_step(t)
         self.servo.apply(self.data)

@@ -1,0 +1,241 @@
+"""A handle on a running simulation for code outside the tick: bridges, GUIs, scripts.
+
+The loop that ticks a :class:`~davinci_sim.sim.simulation.Simulation` owns it; nothing else
+touches it. Other code goes through a :class:`SimHandle`:
+
+* :meth:`SimHandle.call` queues ``target.method(*args)``; the loop runs it between two ticks
+  and resolves the returned future with the result (or the exception);
+* :meth:`SimHandle.snapshot` returns the latest :class:`Snapshot` the loop published (immutable
+  values, safe to read from any thread and to send to another process);
+* :meth:`SimHandle.subscribe` delivers arm events (``error``, ``warning``, ``status``,
+  ``operating_state``) as ``callback(source, event, payload)``. Callbacks run in the loop's
+  thread: they must be quick and thread-safe (hand the event over, e.g. with
+  ``loop.call_soon_threadsafe``).
+
+:class:`ThreadedSimulation` is the in-process implementation: the loop in a daemon thread,
+paced at real time or as fast as possible.
+"""
+
+from __future__ import annotations
+
+import queue
+import threading
+import time
+from collections.abc import Callable, Mapping
+from concurrent.futures import Future
+from dataclasses import dataclass, field
+from typing import TYPE_CHECKING, Any, Protocol
+
+from davinci_sim.sim.types import CartesianPose, CartesianTwist, JointState, OperatingState
+
+if TYPE_CHECKING:
+    from davinci_sim.sim.simulation import Simulation
+
+EventCallback = Callable[[str, str, object], None]
+
+#: Attribute paths a call may use below an arm, e.g. ``PSM1/jaw`` or ``MTMR/body``.
+ARM_SUBTARGETS = ("jaw", "gripper", "local", "body", "spatial")
+
+
+@dataclass(frozen=True)
+class ArmSnapshot:
+    """State of one arm at one tick, as the dVRK publishes it (dvrk.md 2.2)."""
+
+    name: str
+    arm_type: str
+    operating_state: OperatingState
+    measured_js: JointState
+    setpoint_js: JointState
+    measured_cp: CartesianPose
+    setpoint_cp: CartesianPose
+    local_measured_cp: CartesianPose
+    local_setpoint_cp: CartesianPose
+    measured_cv: CartesianTwist
+    jaw_measured_js: JointState | None = None
+    jaw_setpoint_js: JointState | None = None
+    gripper_measured_js: JointState | None = None
+
+
+@dataclass(frozen=True)
+class Snapshot:
+    """Everything published at one tick: sim time (s), tick count, arms, other components."""
+
+    time: float
+    tick: int
+    arms: Mapping[str, ArmSnapshot]
+    extras: Mapping[str, Any] = field(default_factory=dict)
+    """Published state of other components (console, teleops …), by component name."""
+
+
+def take_snapshot(sim: Simulation) -> Snapshot:
+    """The :class:`Snapshot` of ``sim`` now (call from the loop's thread)."""
+    arms = {}
+    for name, arm in sim.arms.items():
+        jaw = getattr(arm, "jaw", None)
+        gripper = getattr(arm, "gripper", None)
+        arms[name] = ArmSnapshot(
+            name=name,
+            arm_type=arm.kin.arm_type,
+            operating_state=arm.operating_state(),
+            measured_js=arm.measured_js(),
+            setpoint_js=arm.setpoint_js(),
+            measured_cp=arm.measured_cp(),
+            setpoint_cp=arm.setpoint_cp(),
+            local_measured_cp=arm.local.measured_cp(),
+            local_setpoint_cp=arm.local.setpoint_cp(),
+            measured_cv=arm.measured_cv(),
+            jaw_measured_js=jaw.measured_js() if jaw else None,
+            jaw_setpoint_js=jaw.setpoint_js() if jaw else None,
+            gripper_measured_js=gripper.measured_js() if gripper else None,
+        )
+    extras = {name: comp.snapshot() for name, comp in sim.components.items()}
+    return Snapshot(sim.time, sim.tick_count, arms, extras)
+
+
+def resolve_target(sim: Simulation, target: str) -> object:
+    """The object a call's ``target`` names: an arm (``PSM1``), an arm part (``PSM1/jaw``,
+    ``MTMR/body`` …), a registered component (``console``, ``MTMR_PSM1``) or ``sim``.
+
+    Raises:
+        KeyError: for an unknown target (the message lists the known ones).
+    """
+    if target == "sim":
+        return sim
+    if target in sim.components:
+        return sim.components[target]
+    head, _, sub = target.rpartition("/")
+    if target in sim.arms:
+        return sim.arms[target]
+    if head in sim.arms and sub in ARM_SUBTARGETS and hasattr(sim.arms[head], sub):
+        return getattr(sim.arms[head], sub)
+    known = sorted([*sim.arms, *sim.components, "sim"])
+    raise KeyError(f"unknown target {target!r}; known: {known} (+ '<arm>/{{jaw,local,body,...}}')")
+
+
+def execute(sim: Simulation, target: str, method: str, args: tuple, kwargs: dict) -> Any:
+    """Run one call in the loop's thread. Only public methods can be called."""
+    if method.startswith("_"):
+        raise AttributeError(f"{method!r} is not a public method")
+    fn = getattr(resolve_target(sim, target), method, None)
+    if not callable(fn):
+        raise AttributeError(f"{target!r} has no method {method!r}")
+    return fn(*args, **kwargs)
+
+
+class SimHandle(Protocol):
+    """What code outside the loop may do with a running simulation."""
+
+    def call(self, target: str, method: str, *args: Any, **kwargs: Any) -> Future: ...
+
+    def snapshot(self) -> Snapshot: ...
+
+    def subscribe(self, callback: EventCallback) -> Callable[[], None]: ...
+
+
+@dataclass(frozen=True)
+class _Call:
+    target: str
+    method: str
+    args: tuple
+    kwargs: dict
+    future: Future
+
+
+class ThreadedSimulation:
+    """Runs a simulation in a daemon thread and serves it as a :class:`SimHandle`.
+
+    Args:
+        sim: the simulation (the thread owns it from :meth:`start` on).
+        real_time: pace ticks by the wall clock (1 tick per ``sim.dt``); else as fast as
+            possible.
+        snapshot_period: sim-time interval between published snapshots, s.
+    """
+
+    def __init__(self, sim: Simulation, *, real_time: bool = True, snapshot_period: float = 0.001):
+        self.sim = sim
+        self.real_time = real_time
+        self._snapshot_ticks = max(1, round(snapshot_period / sim.dt))
+        self._calls: queue.SimpleQueue[_Call] = queue.SimpleQueue()
+        self._subscribers: list[EventCallback] = []
+        self._lock = threading.Lock()
+        self._stop = threading.Event()
+        self._thread: threading.Thread | None = None
+        self._snapshot = take_snapshot(sim)
+        for name, arm in sim.arms.items():
+            arm.channels.subscribe(lambda ev, payload, name=name: self._emit(name, ev, payload))
+
+    # ------------------------------------------------------------- SimHandle
+    def call(self, target: str, method: str, *args: Any, **kwargs: Any) -> Future:
+        future: Future = Future()
+        self._calls.put(_Call(target, method, args, kwargs, future))
+        return future
+
+    def snapshot(self) -> Snapshot:
+        return self._snapshot
+
+    def subscribe(self, callback: EventCallback) -> Callable[[], None]:
+        with self._lock:
+            self._subscribers.append(callback)
+
+        def unsubscribe() -> None:
+            with self._lock:
+                if callback in self._subscribers:
+                    self._subscribers.remove(callback)
+
+        return unsubscribe
+
+    # ------------------------------------------------------------- lifecycle
+    def start(self) -> ThreadedSimulation:
+        if self._thread is None:
+            self._stop.clear()
+            self._thread = threading.Thread(target=self._run, name="davinci-sim", daemon=True)
+            self._thread.start()
+        return self
+
+    def stop(self, timeout: float = 5.0) -> None:
+        self._stop.set()
+        if self._thread is not None:
+            self._thread.join(timeout)
+            self._thread = None
+
+    def __enter__(self) -> ThreadedSimulation:
+        return self.start()
+
+    def __exit__(self, *exc) -> None:
+        self.stop()
+
+    # ------------------------------------------------------------- the loop
+    def _emit(self, source: str, event: str, payload: object) -> None:
+        with self._lock:
+            subscribers = list(self._subscribers)
+        for cb in subscribers:
+            cb(source, event, payload)
+
+    def _run_calls(self) -> None:
+        while True:
+            try:
+                c = self._calls.get_nowait()
+            except queue.Empty:
+                return
+            if not c.future.set_running_or_notify_cancel():
+                continue
+            try:
+                c.future.set_result(execute(self.sim, c.target, c.method, c.args, c.kwargs))
+            except Exception as e:  # the caller gets the error; the loop carries on
+                c.future.set_exception(e)
+
+    def _run(self) -> None:
+        sim = self.sim
+        t0 = time.perf_counter()
+        n = 0
+        while not self._stop.is_set():
+            self._run_calls()
+            sim.tick()
+            n += 1
+            if n % self._snapshot_ticks == 0:
+                self._snapshot = take_snapshot(sim)
+            if self.real_time:
+                delay = t0 + n * sim.dt - time.perf_counter()
+                if delay > 0:
+                    time.sleep(delay)
+        self._run_calls()
