@@ -1,0 +1,56 @@
+"""Sensors: endoscope images, named monitoring cameras, instrument contact forces."""
+
+import numpy as np
+import pytest
+from conftest import home
+
+from davinci_sim.model import CameraConfig, ExternalCamera
+from davinci_sim.sim.simulation import Simulation
+
+
+def test_named_monitoring_cameras_render_offscreen():
+    cams = (
+        ExternalCamera("side", (1.2, 1.2, 1.3), (0.05, 1.2, 0.85)),
+        ExternalCamera("top", (0.05, 1.2, 2.2), (0.05, 1.2, 0.8), fovy_deg=60.0),
+    )
+    sim = Simulation("psm1", cameras=cams)
+    assert {"side", "top", "overview", "ECM/left", "ECM/right"} <= set(sim.camera_names())
+    side = sim.render("side", 320, 240)
+    top = sim.render("top", 320, 240)
+    assert side.shape == (240, 320, 3) and side.dtype == np.uint8
+    assert side.std() > 5 and top.std() > 5  # not a blank image
+    assert not np.array_equal(side, top)
+    with pytest.raises(KeyError, match="cameras"):
+        sim.render("nope")
+    sim.close()
+
+
+def test_stereo_pair_sees_the_instruments_from_two_viewpoints():
+    sim = Simulation("psm1", keyframe="surgical", endoscope=CameraConfig(width=320, height=240))
+    left, right = sim.render_stereo()
+    assert left.shape == right.shape == (240, 320, 3)
+    assert left.std() > 5
+    # A 5 mm baseline: close but not identical images.
+    diff = np.abs(left.astype(int) - right.astype(int)).mean()
+    assert 0.5 < diff < 60
+    sim.close()
+
+
+def test_contact_force_on_an_instrument_pressed_into_tissue():
+    sim = Simulation("psm1")
+    home(sim, ["PSM1"])
+    psm = sim.arms["PSM1"]
+    assert np.allclose(sim.contact_force("PSM1"), 0.0)
+    # Drive the tip 5 cm down in the cart frame: into the tissue pad below it.
+    goal = psm.setpoint_jp()
+    for _ in range(1500):
+        goal[2] = min(goal[2] + 0.0001, 0.24)
+        psm.servo_jp(goal)
+        sim.tick()
+        if np.linalg.norm(sim.contact_force("PSM1")) > 0.5:
+            break
+    f = sim.contact_force("PSM1")
+    assert np.linalg.norm(f) > 0.5
+    assert f[2] > 0  # the tissue pushes the instrument up
+    with pytest.raises(KeyError, match="instrument"):
+        sim.contact_force("MTMR")
