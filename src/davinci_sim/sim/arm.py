@@ -40,6 +40,11 @@ if TYPE_CHECKING:
 #: ``TRACKING_FAULT_TIME`` s puts the arm in FAULT, as a PID tracking error does on the dVRK.
 TRACKING_FAULT_TOLERANCE = {"revolute": 0.35, "prismatic": 0.03}
 TRACKING_FAULT_TIME = 0.05
+#: Streaming commands (``servo_*``) arrive every tick: after one of them is refused on the
+#: error channel, further refusals of the same command within this time (s) are counted
+#: and reported with the next message instead of flooding the channel (the dVRK throttles
+#: its repeated "arm not ready" warnings the same way, every 2 s, dvrk.md 2.4).
+STREAMING_REFUSAL_INTERVAL = 1.0
 
 
 class Arm:
@@ -67,6 +72,7 @@ class Arm:
         self._tol = np.array([TRACKING_FAULT_TOLERANCE[j.joint_type] for j in self.chain.joints])
         self._tracking_bad_since: float | None = None
         self._trajectory_ratio = 1.0
+        self._refusals: dict[str, tuple[float, int]] = {}
         servo.q_ref[self._idx] = self._q()
         self.local = _LocalView(self)
         self.body = _WrenchView(self, "body")
@@ -94,7 +100,16 @@ class Arm:
 
     def _refuse(self, command: str, message: str) -> CommandResult:
         text = f"{command}: {message}"
-        self.channels.message("error", text, self._now())
+        now = self._now()
+        if command.rpartition("/")[2].startswith("servo"):
+            last, suppressed = self._refusals.get(command, (-np.inf, 0))
+            if now - last < STREAMING_REFUSAL_INTERVAL:
+                self._refusals[command] = (last, suppressed + 1)
+                return CommandResult(False, f"{self.name}: {text}")
+            if suppressed:
+                text += f" ({suppressed} more refusals of {command} in the last {now - last:.3g} s)"
+            self._refusals[command] = (now, 0)
+        self.channels.message("error", text, now)
         return CommandResult(False, f"{self.name}: {text}")
 
     def _status(self, text: str) -> None:
@@ -435,7 +450,7 @@ class Arm:
                 return self._refuse("servo_cp", msg)
             R = self.base_frame()[0][:3, :3].T
             local = np.concatenate([R @ tw[:3], R @ tw[3:]])
-            qd = np.linalg.lstsq(fk.jacobian_spatial(self.chain, q), local, rcond=None)[0]
+            qd = _joint_velocity(fk.jacobian_spatial(self.chain, q), local)
         self._servo_position(q, qd)
         return ACCEPTED
 
@@ -509,6 +524,18 @@ class Arm:
         """Express ``body`` wrenches in the base frame's orientation instead of the tip's."""
         self._body_cf_absolute = bool(absolute)
         return ACCEPTED
+
+
+def _joint_velocity(J: np.ndarray, twist: np.ndarray) -> np.ndarray:
+    """Joint velocities giving ``twist`` (least squares; a direct solve when J is square)."""
+    if J.shape[0] == J.shape[1]:
+        try:
+            qd = np.linalg.solve(J, twist)
+            if np.all(np.isfinite(qd)) and np.linalg.norm(qd) < 1e6:
+                return qd
+        except np.linalg.LinAlgError:
+            pass  # singular: fall back to the least-squares solution
+    return np.linalg.lstsq(J, twist, rcond=None)[0]
 
 
 class _LocalView:

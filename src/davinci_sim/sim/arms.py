@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -9,9 +10,10 @@ import numpy as np
 from davinci_sim.kinematics import fk
 from davinci_sim.kinematics.arms import ArmKinematics, SUJArmKinematics
 from davinci_sim.kinematics.chain import DHChain
+from davinci_sim.sim import so3
 from davinci_sim.sim.arm import Arm
 from davinci_sim.sim.jaw import Jaw
-from davinci_sim.sim.types import CommandResult
+from davinci_sim.sim.types import ACCEPTED, CommandResult
 
 if TYPE_CHECKING:
     from davinci_sim.sim.simulation import Simulation
@@ -34,8 +36,8 @@ class PSM(Arm):
 
     def shaft_end_distance(self) -> float:
         """Distance (m) from the RCM to the end of the shaft (link-4 frame), dvrk.md 1.7."""
-        q = self.measured_jp()[:4]
-        return float(np.linalg.norm(fk.forward_kinematics(self._shaft_chain, q)[:3, 3]))
+        f = fk.fk_tuple(self._shaft_chain, self.measured_jp()[:4].tolist())
+        return math.sqrt(f[9] * f[9] + f[10] * f[10] + f[11] * f[11])
 
     def _cartesian_unsafe(self) -> str:
         d = self.shaft_end_distance()
@@ -87,12 +89,26 @@ class ECM(Arm):
         return self.move_jp(goal)
 
 
+#: MTM joints that orient the handle: wrist platform, pitch, yaw, roll (dvrk.md 1.5). Their
+#: axes cross at the tip, so they turn the handle without moving it.
+MTM_WRIST_JOINTS = slice(3, 7)
+#: Damped-least-squares steps per tick of the orientation lock, and their damping (rad²).
+_LOCK_STEPS = 2
+_LOCK_DAMPING = 1e-4
+
+
 class MTM(Arm):
     """Master tool manipulator of the surgeon console, with its gripper (``mtm.gripper``).
 
     The gripper is an input: on the real console the operator's fingers set it. Here
     ``mtm.gripper.servo_jp`` stands for the fingers (simulation only); ``gripper.measured_js``
     is what the dVRK publishes.
+
+    ``lock_orientation(R)`` (dvrk.md 2.2, MTM-specific) holds the handle's orientation while the
+    arm is in effort mode (``free``, ``body/servo_cf``, ``spatial/servo_cf``): the four wrist
+    joints are then position-servoed to an orientation IK solution at every tick and the
+    three positioning joints stay in effort mode, so the hand still moves the handle freely.
+    In position modes the lock is kept but has no effect, as on the dVRK.
     """
 
     def __init__(self, name: str, kin: ArmKinematics, sim: Simulation) -> None:
@@ -100,10 +116,57 @@ class MTM(Arm):
         assert kin.gripper is not None
         # The fingers are not the arm: they move whatever the arm's state.
         self.gripper = Jaw(self, kin.gripper, "gripper", 4 * np.pi, 8 * np.pi, requires_ready=False)
+        self._R_lock: np.ndarray | None = None
+        self._wrist_idx = self._idx[MTM_WRIST_JOINTS]
+
+    def lock_orientation(self, R_reference_tip) -> CommandResult:
+        """Hold the handle at orientation ``R_reference_tip`` (3x3, in the ``measured_cp``
+        reference frame, HRSV by default) while in effort mode."""
+        R = np.asarray(R_reference_tip, dtype=float) if _is_array_like(R_reference_tip) else None
+        if R is None or not so3.is_rotation(R):
+            return self._refuse(
+                "lock_orientation", f"needs a 3x3 rotation matrix, got {R_reference_tip!r}"
+            )
+        self._R_lock = R.copy()
+        return ACCEPTED
+
+    def unlock_orientation(self) -> CommandResult:
+        """Let the handle turn freely again in effort mode."""
+        self._R_lock = None
+        return ACCEPTED
+
+    def orientation_locked(self) -> bool:
+        return self._R_lock is not None
 
     def _pre_step(self, t: float) -> None:
         super()._pre_step(t)
         self.gripper._pre_step(t)
+        servo = self._sim.servo
+        if self._R_lock is not None and servo.effort_mode[self._idx[0]]:
+            servo.effort_mode[self._wrist_idx] = False
+            servo.q_ref[self._wrist_idx] = self._locked_wrist_goal()
+            servo.qd_ref[self._wrist_idx] = 0.0
+
+    def _locked_wrist_goal(self) -> np.ndarray:
+        """Wrist joints giving the locked orientation with the current arm joints (DLS)."""
+        assert self._R_lock is not None
+        R_base_goal = self.base_frame()[0][:3, :3].T @ self._R_lock
+        q = self._q()
+        for _ in range(_LOCK_STEPS):
+            R = fk.forward_kinematics(self.chain, q)[:3, :3]
+            err = so3.rotation_vector(R_base_goal @ R.T)  # spatial error, base frame
+            J = fk.jacobian_spatial(self.chain, q)[3:, MTM_WRIST_JOINTS]
+            q[MTM_WRIST_JOINTS] += J.T @ np.linalg.solve(J @ J.T + _LOCK_DAMPING * np.eye(3), err)
+        wrist = q[MTM_WRIST_JOINTS]
+        return np.clip(wrist, self.chain.qmin[MTM_WRIST_JOINTS], self.chain.qmax[MTM_WRIST_JOINTS])
+
+
+def _is_array_like(value) -> bool:
+    try:
+        np.asarray(value, dtype=float)
+    except (TypeError, ValueError):
+        return False
+    return True
 
 
 def suj_arm_kinematics(suj: SUJArmKinematics) -> ArmKinematics:

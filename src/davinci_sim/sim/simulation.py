@@ -1,8 +1,9 @@
 """The simulation: a MuJoCo model of the da Vinci system stepped at 1 kHz with dVRK arms.
 
-Each :meth:`Simulation.tick` runs: arm setpoints (trajectories, wrench-to-effort) → joint
-servo (PD + gravity compensation) → one ``mj_step`` of 1 ms. Arms read their state from
-MuJoCo on demand, so a tick costs only what the physics and the active setpoints need.
+Each :meth:`Simulation.tick` runs: components' ``pre_step`` (console, teleoperation …) → arm
+setpoints (trajectories, wrench-to-effort) → joint servo (PD + gravity compensation) → one
+``mj_step`` of 1 ms → components' ``post_step`` (haptic force fields …). Arms read their state
+from MuJoCo on demand, so a tick costs only what the physics and the active setpoints need.
 """
 
 from __future__ import annotations
@@ -91,7 +92,9 @@ class Simulation:
         self._cameras: CameraRenderer | None = None
         self.components: dict[str, object] = {}
         """Other parts ticked with the arms (console, teleops …), by name. Each has
-        ``pre_step(t)`` (called before the arms, every tick) and ``snapshot()``."""
+        ``pre_step(t)`` (called before the arms, every tick, in registration order),
+        ``snapshot()`` and optionally ``post_step(t)`` (called after the physics step with the
+        new time, e.g. to compute haptic forces from the state the step produced)."""
 
     # ------------------------------------------------------------ time
     @property
@@ -100,7 +103,7 @@ class Simulation:
         return float(self.data.time)
 
     def tick(self) -> None:
-        """One 1 ms control tick: setpoints → servo → physics."""
+        """One 1 ms control tick: components → arm setpoints → servo → physics → components."""
         t = self.data.time
         for component in self.components.values():
             component.pre_step(t)
@@ -113,6 +116,11 @@ class Simulation:
             self._noisy_qpos = self.data.qpos + self.rng.normal(
                 0.0, self.encoder_noise_std, self.data.qpos.shape
             )
+        t = self.data.time
+        for component in self.components.values():
+            post_step = getattr(component, "post_step", None)
+            if post_step is not None:
+                post_step(t)
 
     def step(self, n: int = 1) -> None:
         """``n`` ticks."""

@@ -6,6 +6,8 @@ command on its error channel without raising.
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 
@@ -42,11 +44,27 @@ def as_transform(value, what: str) -> tuple[np.ndarray | None, str]:
         return None, f"{what} must be a 4x4 transform, got {value!r}"
     if T.shape != (4, 4):
         return None, f"{what} must be a 4x4 transform, got shape {T.shape}"
-    if not np.all(np.isfinite(T)):
+    # Float arithmetic: this check runs on every servo_cp, at 1 kHz.
+    f = T.ravel().tolist()
+    if not all(map(math.isfinite, f)):
         return None, f"{what} contains NaN or inf"
-    R = T[:3, :3]
-    if np.max(np.abs(R.T @ R - np.eye(3))) > 1e-6 or np.linalg.det(R) < 0:
+    c0, c1, c2 = (f[0], f[4], f[8]), (f[1], f[5], f[9]), (f[2], f[6], f[10])
+    gram = (
+        _dot(c0, c0) - 1.0,
+        _dot(c1, c1) - 1.0,
+        _dot(c2, c2) - 1.0,
+        _dot(c0, c1),
+        _dot(c0, c2),
+        _dot(c1, c2),
+    )
+    det = _dot(c2, (c0[1] * c1[2] - c0[2] * c1[1], c0[2] * c1[0] - c0[0] * c1[2],
+                    c0[0] * c1[1] - c0[1] * c1[0]))  # fmt: skip
+    if max(map(abs, gram)) > 1e-6 or det < 0:
         return None, f"{what}: rotation part is not a proper rotation matrix"
-    if np.max(np.abs(T[3] - (0, 0, 0, 1))) > 1e-12:
+    if max(abs(f[12]), abs(f[13]), abs(f[14]), abs(f[15] - 1.0)) > 1e-12:
         return None, f"{what}: last row must be (0, 0, 0, 1)"
     return T, ""
+
+
+def _dot(a, b) -> float:
+    return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]

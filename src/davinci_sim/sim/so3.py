@@ -1,0 +1,64 @@
+"""Rotation helpers on 3x3 matrices: angle, rotation vector (axis·angle), Rodrigues.
+
+Pure float math, fast enough for the 1 kHz teleoperation and haptic paths (a few µs each).
+Angles are in rad.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+
+def rotation_angle(R) -> float:
+    """Angle (rad, in [0, π]) of the rotation ``R`` (the axis-angle magnitude)."""
+    c = 0.5 * (float(R[0][0]) + float(R[1][1]) + float(R[2][2]) - 1.0)
+    return math.acos(max(-1.0, min(1.0, c)))
+
+
+def angle_between(R_a, R_b) -> float:
+    """Angle (rad) of ``R_aᵀ·R_b``: how far orientation ``b`` is from ``a``."""
+    # trace(AᵀB) = Σ A_ij B_ij
+    a = np.asarray(R_a, dtype=float)
+    b = np.asarray(R_b, dtype=float)
+    c = 0.5 * (float(np.einsum("ij,ij->", a, b)) - 1.0)
+    return math.acos(max(-1.0, min(1.0, c)))
+
+
+def rotation_vector(R) -> np.ndarray:
+    """Rotation vector ``axis·angle`` (3,) of ``R``; exact also near 0 and π."""
+    r = np.asarray(R, dtype=float)
+    angle = rotation_angle(r)
+    skew = np.array([r[2, 1] - r[1, 2], r[0, 2] - r[2, 0], r[1, 0] - r[0, 1]])
+    s = math.sin(angle)
+    if s > 1e-6:
+        return skew * (0.5 * angle / s)
+    if angle < 0.5:  # near 0: sin θ ≈ θ
+        return 0.5 * skew
+    # Near π: R ≈ 2·a·aᵀ − I; take the column of the largest diagonal element.
+    B = 0.5 * (r + np.eye(3))
+    i = int(np.argmax(np.diag(B)))
+    axis = B[:, i] / math.sqrt(max(B[i, i], 1e-300))
+    if np.dot(axis, skew) < 0:
+        axis = -axis
+    return axis * angle
+
+
+def rotation_from_vector(w) -> np.ndarray:
+    """Rotation matrix of the rotation vector ``w`` (axis·angle, rad), by Rodrigues' formula."""
+    w = np.asarray(w, dtype=float)
+    angle = float(np.linalg.norm(w))
+    if angle < 1e-12:
+        return np.eye(3)
+    k = w / angle
+    K = np.array([[0.0, -k[2], k[1]], [k[2], 0.0, -k[0]], [-k[1], k[0], 0.0]])
+    return np.eye(3) + math.sin(angle) * K + (1.0 - math.cos(angle)) * (K @ K)
+
+
+def is_rotation(R, tolerance: float = 1e-6) -> bool:
+    """True for a finite 3x3 orthonormal matrix with determinant +1."""
+    r = np.asarray(R, dtype=float)
+    if r.shape != (3, 3) or not np.all(np.isfinite(r)):
+        return False
+    return bool(np.max(np.abs(r.T @ r - np.eye(3))) <= tolerance and np.linalg.det(r) > 0)
