@@ -1,0 +1,209 @@
+"""The rosbridge v2 WebSocket server: a thread with its own event loop.
+
+``RosbridgeServer(config, nodes=[...]).start()`` binds (127.0.0.1:9090 by default), runs
+the :class:`~davinci_sim.bridge.core.Bridge` and the given internal nodes in a daemon
+thread, and serves every client until :meth:`RosbridgeServer.stop`. Any path and origin are
+accepted; there is no permessage-deflate, as rosbridge_server (rosbridge.md §1.1, §6.1).
+"""
+
+from __future__ import annotations
+
+import asyncio
+import atexit
+import concurrent.futures
+import logging
+import threading
+from collections.abc import Callable, Coroutine, Sequence
+from typing import Any, Protocol
+
+from websockets.asyncio.server import serve
+
+from davinci_sim.bridge.config import BridgeConfig
+from davinci_sim.bridge.core import Bridge
+from davinci_sim.bridge.rosapi import RosapiNode
+from davinci_sim.bridge.session import Session
+from davinci_sim.bridge.types import TypeRegistry
+
+_log = logging.getLogger("davinci_sim.bridge")
+
+
+class Node(Protocol):
+    """Something that lives in the bridge's loop: the dVRK API, the endoscope …"""
+
+    def attach(self, bridge: Bridge) -> None:
+        """Advertise topics and services (called in the loop's thread at start)."""
+
+    async def detach(self) -> None:
+        """Stop tasks and release resources (called in the loop's thread at stop)."""
+
+
+class RosbridgeServer:
+    """A rosbridge v2 server in its own thread.
+
+    Args:
+        config: options (address, dialect, limits, authentication …).
+        nodes: internal nodes to attach, in order (rosapi is always there).
+        registry: message definitions (default: the built-in ones).
+        clock: ROS time for stamps and ``/rosapi/get_time`` (default: wall clock, or
+            what a node such as the dVRK node sets with ``bridge.clock``).
+    """
+
+    def __init__(
+        self,
+        config: BridgeConfig | None = None,
+        *,
+        nodes: Sequence[Node] = (),
+        registry: TypeRegistry | None = None,
+        clock: Callable[[], float] | None = None,
+    ) -> None:
+        self.config = config or BridgeConfig()
+        self._nodes: list[Node] = [RosapiNode(), *nodes]
+        self._registry = registry
+        self._clock = clock
+        self.bridge: Bridge | None = None
+        self.loop: asyncio.AbstractEventLoop | None = None
+        self._thread: threading.Thread | None = None
+        self._ready = threading.Event()
+        self._stop_event: asyncio.Event | None = None
+        self._error: BaseException | None = None
+        self._port: int | None = None
+
+    # ------------------------------------------------------------------ lifecycle
+    def start(self, timeout: float = 10.0) -> RosbridgeServer:
+        """Bind and serve; returns when clients can connect.
+
+        Raises:
+            OSError: if the address cannot be bound (e.g. the port is taken).
+        """
+        if self._thread is not None:
+            return self
+        self._ready.clear()
+        self._error = None
+        self._thread = threading.Thread(target=self._run, name="rosbridge", daemon=True)
+        self._thread.start()
+        if not self._ready.wait(timeout):
+            raise TimeoutError("the rosbridge server did not start in time")
+        if self._error is not None:
+            self._thread.join(timeout)
+            self._thread = None
+            raise self._error
+        atexit.register(self.stop)
+        _log.info("rosbridge server on %s (ROS %d)", self.url, self.config.ros_version)
+        return self
+
+    def stop(self, timeout: float = 10.0) -> None:
+        """Close every connection, detach the nodes, free the port."""
+        thread = self._thread
+        if thread is None:
+            return
+        if self.loop is not None and self._stop_event is not None:
+            self.loop.call_soon_threadsafe(self._stop_event.set)
+        thread.join(timeout)
+        self._thread = None
+        atexit.unregister(self.stop)
+
+    def __enter__(self) -> RosbridgeServer:
+        return self.start()
+
+    def __exit__(self, *exc) -> None:
+        self.stop()
+
+    @property
+    def port(self) -> int:
+        """The bound port (the real one when the config asked for 0)."""
+        if self._port is None:
+            raise RuntimeError("the server is not started")
+        return self._port
+
+    @property
+    def url(self) -> str:
+        return f"ws://{self.config.host}:{self.port}"
+
+    @property
+    def running(self) -> bool:
+        return self._thread is not None and self._thread.is_alive()
+
+    # ------------------------------------------------------------------ helpers
+    def run_coroutine(self, coro: Coroutine) -> concurrent.futures.Future:
+        """Run ``coro`` in the server's loop (from another thread)."""
+        assert self.loop is not None
+        return asyncio.run_coroutine_threadsafe(coro, self.loop)
+
+    def call(self, fn: Callable[[], Any], timeout: float = 5.0) -> Any:
+        """Run ``fn()`` in the server's loop and return its result (from another thread)."""
+
+        async def wrapper():
+            return fn()
+
+        return self.run_coroutine(wrapper()).result(timeout)
+
+    def stats(self) -> dict:
+        """Per-client queues, drops and counts; messages published per topic."""
+        return self.call(lambda: self.bridge.stats())
+
+    # ------------------------------------------------------------------ the thread
+    def _run(self) -> None:
+        loop = asyncio.new_event_loop()
+        self.loop = loop
+        try:
+            loop.run_until_complete(self._main())
+        except BaseException as e:  # reported to start() if it happened there
+            if not self._ready.is_set():
+                self._error = e
+                self._ready.set()
+            else:
+                _log.exception("rosbridge server stopped on an error")
+        finally:
+            try:
+                pending = asyncio.all_tasks(loop)
+                for task in pending:
+                    task.cancel()
+                if pending:
+                    loop.run_until_complete(asyncio.gather(*pending, return_exceptions=True))
+            finally:
+                loop.close()
+                self.loop = None
+
+    async def _main(self) -> None:
+        cfg = self.config
+        self._stop_event = asyncio.Event()
+        kwargs = {"clock": self._clock} if self._clock is not None else {}
+        bridge = Bridge(cfg, self._registry, **kwargs)
+        self.bridge = bridge
+        bridge.setup_rosout()
+        attached: list[Node] = []
+        try:
+            for node in self._nodes:
+                node.attach(bridge)
+                attached.append(node)
+            async with serve(
+                self._handler,
+                cfg.host,
+                cfg.port,
+                compression=None,
+                max_size=4 * cfg.max_message_size + 65536,
+                max_queue=64,
+                ping_interval=None,
+                close_timeout=2,
+            ) as server:
+                self._port = server.sockets[0].getsockname()[1]
+                self._ready.set()
+                await self._stop_event.wait()
+                server.close(close_connections=True)
+                await server.wait_closed()
+        finally:
+            for node in reversed(attached):
+                try:
+                    await node.detach()
+                except Exception:
+                    _log.exception("detaching %r failed", node)
+
+    async def _handler(self, ws) -> None:
+        bridge = self.bridge
+        assert bridge is not None
+        session = Session(bridge, ws)
+        bridge.add_session(session)
+        try:
+            await session.run()
+        finally:
+            bridge.remove_session(session)
