@@ -1,0 +1,531 @@
+"""The dVRK CRTK ROS API of every simulated arm, served by the bridge (dvrk.md §2).
+
+For each arm of the simulation (``PSM1..3``, ``ECM``, ``MTML``, ``MTMR``, ``SUJ/*``), under
+``/<ARM>/``:
+
+* state topics from the handle's snapshots, published at ``rate`` (100 Hz by default, the
+  dVRK's; up to 1 kHz) and only while someone subscribes: ``measured_js``, ``setpoint_js``,
+  ``measured_cp``, ``setpoint_cp``, ``local/*_cp``, ``measured_cv``, ``local/measured_cv``,
+  ``jaw/*_js`` (PSM), ``gripper/measured_js`` (MTM); ``/tf`` at ``tf_rate`` (50 Hz) with every
+  ``measured_cp`` (dvrk.md 2.1);
+* values the snapshot lacks, asked from the loop only while subscribed: ``body|spatial/
+  measured_cf``, ``body|spatial/jacobian``, ``trajectory_j/ratio``, ``orientation_locked``;
+* events: ``operating_state`` (latched, so a new subscriber gets the current state),
+  ``error``/``warning``/``status``, ``goal_reached`` at the end of a move;
+* commands (the tables below) and the services ``forward_kinematics``,
+  ``local/forward_kinematics``, ``inverse_kinematics``, ``operating_state``, ``crtk_version``.
+
+A message that does not validate never reaches the simulation; a command the arm refuses is
+reported on the arm's ``error`` topic (by the arm) and, if asked for, as a ``status`` to the
+client that sent it.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import logging
+import time
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+from davinci_sim.bridge import dvrk_messages as m
+from davinci_sim.bridge.core import ServiceFailure
+from davinci_sim.bridge.graph import Topic
+from davinci_sim.bridge.publisher import PeriodicTask
+
+if TYPE_CHECKING:
+    from davinci_sim.bridge.core import Bridge
+    from davinci_sim.bridge.session import Session
+    from davinci_sim.sim.handle import ArmSnapshot, SimHandle, Snapshot
+
+_log = logging.getLogger("davinci_sim.bridge")
+
+NODE = "/davinci_sim"
+CRTK_VERSION = "1.1.0"  # dvrk.md 1.7
+ALL = frozenset({"PSM", "ECM", "MTM", "SUJ"})
+ARMS = frozenset({"PSM", "ECM", "MTM"})
+PSM = frozenset({"PSM"})
+MTM = frozenset({"MTM"})
+
+
+@dataclass(frozen=True)
+class ArmInfo:
+    name: str
+    arm_type: str
+    joint_names: tuple[str, ...]
+
+
+# =========================================================================== tables
+@dataclass(frozen=True)
+class StateTopic:
+    """A topic built from the arm's snapshot."""
+
+    suffix: str
+    type: str
+    build: Callable[[m.Dialect, ArmSnapshot, float, int], dict | None]
+    arm_types: frozenset[str] = ALL
+
+
+def _local_cv(d, a, t, s):
+    return m.twist_stamped(d, m.local_twist(a.measured_cv, a.measured_cp), t, s)
+
+
+STATE_TOPICS: tuple[StateTopic, ...] = (
+    StateTopic("measured_js", "sensor_msgs/JointState",
+               lambda d, a, t, s: m.joint_state(d, a.measured_js, t, s)),
+    StateTopic("setpoint_js", "sensor_msgs/JointState",
+               lambda d, a, t, s: m.joint_state(d, a.setpoint_js, t, s)),
+    StateTopic("measured_cp", "geometry_msgs/PoseStamped",
+               lambda d, a, t, s: m.pose_stamped(d, a.measured_cp, t, s)),
+    StateTopic("setpoint_cp", "geometry_msgs/PoseStamped",
+               lambda d, a, t, s: m.pose_stamped(d, a.setpoint_cp, t, s)),
+    StateTopic("local/measured_cp", "geometry_msgs/PoseStamped",
+               lambda d, a, t, s: m.pose_stamped(d, a.local_measured_cp, t, s)),
+    StateTopic("local/setpoint_cp", "geometry_msgs/PoseStamped",
+               lambda d, a, t, s: m.pose_stamped(d, a.local_setpoint_cp, t, s)),
+    StateTopic("measured_cv", "geometry_msgs/TwistStamped",
+               lambda d, a, t, s: m.twist_stamped(d, a.measured_cv, t, s), ARMS),
+    StateTopic("local/measured_cv", "geometry_msgs/TwistStamped", _local_cv, ARMS),
+    StateTopic("jaw/measured_js", "sensor_msgs/JointState",
+               lambda d, a, t, s: m.joint_state(d, a.jaw_measured_js, t, s)
+               if a.jaw_measured_js else None, PSM),
+    StateTopic("jaw/setpoint_js", "sensor_msgs/JointState",
+               lambda d, a, t, s: m.joint_state(d, a.jaw_setpoint_js, t, s)
+               if a.jaw_setpoint_js else None, PSM),
+    StateTopic("gripper/measured_js", "sensor_msgs/JointState",
+               lambda d, a, t, s: m.joint_state(d, a.gripper_measured_js, t, s)
+               if a.gripper_measured_js else None, MTM),
+)  # fmt: skip
+
+
+@dataclass(frozen=True)
+class PolledTopic:
+    """A topic whose value is asked from the loop (``target`` below the arm, ``method``)."""
+
+    suffix: str
+    type: str
+    target: str
+    method: str
+    build: Callable[[m.Dialect, Any, str, float, int], dict]
+    arm_types: frozenset[str] = ARMS
+
+
+def _wrench(d, w, arm, t, s):
+    return m.wrench_stamped(d, w, arm, t, s)
+
+
+POLLED_TOPICS: tuple[PolledTopic, ...] = (
+    PolledTopic("body/measured_cf", "geometry_msgs/WrenchStamped", "body", "measured_cf",
+                _wrench),
+    PolledTopic("spatial/measured_cf", "geometry_msgs/WrenchStamped", "spatial", "measured_cf",
+                _wrench),
+    PolledTopic("body/jacobian", "std_msgs/Float64MultiArray", "body", "jacobian",
+                lambda d, J, arm, t, s: m.float64_multiarray(J)),
+    PolledTopic("spatial/jacobian", "std_msgs/Float64MultiArray", "spatial", "jacobian",
+                lambda d, J, arm, t, s: m.float64_multiarray(J)),
+    PolledTopic("trajectory_j/ratio", "std_msgs/Float64", "", "trajectory_j_ratio",
+                lambda d, r, arm, t, s: {"data": float(r)}),
+    PolledTopic("orientation_locked", "std_msgs/Bool", "", "orientation_locked",
+                lambda d, b, arm, t, s: {"data": bool(b)}, MTM),
+)  # fmt: skip
+
+
+@dataclass(frozen=True)
+class CommandTopic:
+    """A topic a client publishes to command the arm: ``target.method(*convert(msg))``."""
+
+    suffix: str
+    type: str
+    target: str
+    method: str
+    convert: Callable[[dict, ArmInfo], tuple]
+    arm_types: frozenset[str] = ARMS
+
+
+def _positions(field: str):
+    def convert(msg: dict, arm: ArmInfo) -> tuple:
+        values = m.ordered(msg[field], msg["name"], arm.joint_names, field)
+        return (values,)
+
+    return convert
+
+
+def _servo_jp(msg: dict, arm: ArmInfo) -> tuple:
+    position = m.ordered(msg["position"], msg["name"], arm.joint_names, "position")
+    velocity = msg["velocity"]
+    if velocity:
+        return position, m.ordered(velocity, msg["name"], arm.joint_names, "velocity")
+    return (position,)
+
+
+def _jaw(field: str):
+    def convert(msg: dict, arm: ArmInfo) -> tuple:
+        values = msg[field]
+        if len(values) != 1:
+            raise m.CommandError(f"jaw {field} needs exactly 1 value, got {len(values)}")
+        return (values[0],)
+
+    return convert
+
+
+def _servo_cs(msg: dict, arm: ArmInfo) -> tuple:
+    if not msg["pose_is_valid"]["data"]:
+        raise m.CommandError("servo_cs: pose_is_valid is false; only pose goals are supported")
+    T = m.pose_matrix(msg["pose"])
+    if msg["twist_is_valid"]["data"]:
+        return T, m.twist_vector(msg["twist"])
+    return (T,)
+
+
+def _quaternion(msg: dict, arm: ArmInfo) -> tuple:
+    return (m.matrix_from_quaternion(msg["x"], msg["y"], msg["z"], msg["w"]),)
+
+
+COMMAND_TOPICS: tuple[CommandTopic, ...] = (
+    CommandTopic("state_command", "crtk_msgs/StringStamped", "", "state_command",
+                 lambda msg, a: (msg["string"],), ALL),
+    CommandTopic("hold", "std_msgs/Empty", "", "hold", lambda msg, a: (), ALL),
+    CommandTopic("free", "std_msgs/Empty", "", "free", lambda msg, a: ()),
+    CommandTopic("servo_jp", "sensor_msgs/JointState", "", "servo_jp", _servo_jp, ALL),
+    CommandTopic("servo_jr", "sensor_msgs/JointState", "", "servo_jr", _positions("position")),
+    CommandTopic("move_jp", "sensor_msgs/JointState", "", "move_jp", _positions("position"),
+                 ALL),
+    CommandTopic("move_jr", "sensor_msgs/JointState", "", "move_jr", _positions("position")),
+    CommandTopic("servo_jf", "sensor_msgs/JointState", "", "servo_jf", _positions("effort")),
+    CommandTopic("servo_cp", "geometry_msgs/PoseStamped", "", "servo_cp",
+                 lambda msg, a: (m.pose_matrix(msg["pose"]),)),
+    CommandTopic("servo_cs", "crtk_msgs/CartesianState", "", "servo_cp", _servo_cs),
+    CommandTopic("move_cp", "geometry_msgs/PoseStamped", "", "move_cp",
+                 lambda msg, a: (m.pose_matrix(msg["pose"]),)),
+    CommandTopic("body/servo_cf", "geometry_msgs/WrenchStamped", "body", "servo_cf",
+                 lambda msg, a: (m.wrench_vector(msg["wrench"]),)),
+    CommandTopic("spatial/servo_cf", "geometry_msgs/WrenchStamped", "spatial", "servo_cf",
+                 lambda msg, a: (m.wrench_vector(msg["wrench"]),)),
+    CommandTopic("use_gravity_compensation", "std_msgs/Bool", "", "use_gravity_compensation",
+                 lambda msg, a: (msg["data"],)),
+    CommandTopic("set_base_frame", "geometry_msgs/PoseStamped", "", "set_base_frame",
+                 lambda msg, a: (m.pose_matrix(msg["pose"]), msg["header"]["frame_id"])),
+    CommandTopic("trajectory_j/set_ratio", "std_msgs/Float64", "", "trajectory_j_set_ratio",
+                 lambda msg, a: (msg["data"],)),
+    CommandTopic("body/set_cf_orientation_absolute", "std_msgs/Bool", "",
+                 "body_set_cf_orientation_absolute", lambda msg, a: (msg["data"],)),
+    CommandTopic("jaw/servo_jp", "sensor_msgs/JointState", "jaw", "servo_jp", _jaw("position"),
+                 PSM),
+    CommandTopic("jaw/move_jp", "sensor_msgs/JointState", "jaw", "move_jp", _jaw("position"),
+                 PSM),
+    CommandTopic("jaw/servo_jf", "sensor_msgs/JointState", "jaw", "servo_jf", _jaw("effort"),
+                 PSM),
+    CommandTopic("lock_orientation", "geometry_msgs/Quaternion", "", "lock_orientation",
+                 _quaternion, MTM),
+    CommandTopic("unlock_orientation", "std_msgs/Empty", "", "unlock_orientation",
+                 lambda msg, a: (), MTM),
+)  # fmt: skip
+
+EVENT_TOPICS = {"error": "std_msgs/String", "warning": "std_msgs/String",
+                "status": "std_msgs/String"}  # fmt: skip
+
+
+# =========================================================================== the node
+class _Arm:
+    """The topics of one arm."""
+
+    def __init__(self, info: ArmInfo) -> None:
+        self.info = info
+        self.state: list[tuple[Topic, StateTopic]] = []
+        self.polled: list[tuple[Topic, PolledTopic]] = []
+        self.events: dict[str, Topic] = {}
+        self.operating_state: Topic | None = None
+        self.goal_reached: Topic | None = None
+        self.busy = False
+        self.last_event_time = -1.0
+
+
+class DvrkNode:
+    """Serves the dVRK API of every arm of ``handle``'s simulation.
+
+    Args:
+        handle: the running simulation.
+        rate: publish rate of the state topics, Hz (the dVRK's default 100; up to 1000).
+        tf_rate: publish rate of ``/tf``, Hz (the dVRK's default 50).
+        arms: the arms to serve (default: all of the simulation).
+    """
+
+    def __init__(
+        self,
+        handle: SimHandle,
+        *,
+        rate: float = 100.0,
+        tf_rate: float = 50.0,
+        arms: tuple[str, ...] | None = None,
+    ) -> None:
+        if not 0 < rate <= 1000:
+            raise ValueError(f"rate must be in ]0, 1000] Hz, got {rate!r}")
+        if not 0 < tf_rate <= 1000:
+            raise ValueError(f"tf_rate must be in ]0, 1000] Hz, got {tf_rate!r}")
+        self.handle = handle
+        self.rate = rate
+        self.tf_rate = tf_rate
+        self._only = arms
+        self.arms: dict[str, _Arm] = {}
+        self._tasks: list[PeriodicTask] = []
+        self._unsubscribe: Callable[[], None] | None = None
+        self._polling: set[Topic] = set()
+        self.event_sinks: list[Callable[[str, str, object], bool]] = []
+        """Handlers for events of non-arm sources (console, teleops): return True if used."""
+        self.published = 0
+
+    # ------------------------------------------------------------------ setup
+    def attach(self, bridge: Bridge) -> None:
+        self.bridge = bridge
+        self.loop = asyncio.get_running_loop()
+        d = bridge.dialect
+        snap = self.handle.snapshot()
+        if bridge.config.stamp_clock == "sim":
+            bridge.clock = lambda: self.handle.snapshot().time
+        for name, a in snap.arms.items():
+            if self._only is not None and name not in self._only:
+                continue
+            arm = _Arm(ArmInfo(name, a.arm_type, tuple(a.measured_js.name)))
+            self.arms[name] = arm
+            self._advertise_arm(arm)
+            s = a.operating_state
+            bridge.publish(arm.operating_state, m.operating_state(d, s, bridge.now()))
+            arm.busy = s.is_busy
+        self.tf = bridge.advertise("/tf", "tf2_msgs/TFMessage", node=NODE)
+        self._unsubscribe = self.handle.subscribe(self._event_from_loop)
+        self._tasks = [
+            PeriodicTask(1.0 / self.rate, self._publish_state),
+            PeriodicTask(1.0 / self.tf_rate, self._publish_tf),
+        ]
+        for task in self._tasks:
+            task.start()
+
+    async def detach(self) -> None:
+        if self._unsubscribe is not None:
+            self._unsubscribe()
+        for task in self._tasks:
+            await task.stop()
+        self.bridge.remove_node(NODE)
+
+    def _topic(self, arm: _Arm, suffix: str) -> str:
+        return f"/{arm.info.name}/{suffix}"
+
+    def _advertise_arm(self, arm: _Arm) -> None:
+        b, kind = self.bridge, arm.info.arm_type
+        for spec in STATE_TOPICS:
+            if kind in spec.arm_types:
+                arm.state.append((b.advertise(self._topic(arm, spec.suffix), spec.type,
+                                              node=NODE), spec))  # fmt: skip
+        for spec in POLLED_TOPICS:
+            if kind in spec.arm_types:
+                arm.polled.append((b.advertise(self._topic(arm, spec.suffix), spec.type,
+                                               node=NODE), spec))  # fmt: skip
+        for spec in COMMAND_TOPICS:
+            if kind in spec.arm_types:
+                b.listen(self._topic(arm, spec.suffix), spec.type,
+                         self._command_listener(arm, spec), node=NODE)  # fmt: skip
+        for event, type_name in EVENT_TOPICS.items():
+            arm.events[event] = b.advertise(self._topic(arm, event), type_name, node=NODE)
+        arm.operating_state = b.advertise(
+            self._topic(arm, "operating_state"), "crtk_msgs/OperatingState", node=NODE, latch=True
+        )
+        arm.goal_reached = b.advertise(self._topic(arm, "goal_reached"), "std_msgs/Bool",
+                                       node=NODE)  # fmt: skip
+        self._advertise_services(arm)
+
+    # ------------------------------------------------------------------ publishing
+    def _stamp(self, sim_time: float) -> float:
+        return sim_time if self.bridge.config.stamp_clock == "sim" else time.time()
+
+    def _publish_state(self) -> None:
+        b, d = self.bridge, self.bridge.dialect
+        snap: Snapshot | None = None
+        for arm in self.arms.values():
+            for topic, spec in arm.state:
+                if not topic.subscriptions:
+                    continue
+                if snap is None:
+                    snap = self.handle.snapshot()
+                a = snap.arms.get(arm.info.name)
+                if a is None:
+                    continue
+                msg = spec.build(d, a, self._stamp(snap.time), topic.next_seq())
+                if msg is not None:
+                    b.publish(topic, msg)
+                    self.published += 1
+            for topic, spec in arm.polled:
+                if topic.subscriptions and topic not in self._polling:
+                    self._poll(arm, topic, spec)
+        if snap is not None:
+            self._check_operating_states(snap)
+
+    def _poll(self, arm: _Arm, topic: Topic, spec: PolledTopic) -> None:
+        target = arm.info.name + (f"/{spec.target}" if spec.target else "")
+        self._polling.add(topic)
+        future = self.handle.call(target, spec.method)
+
+        def done(f) -> None:
+            self._polling.discard(topic)
+            if f.exception() is not None:
+                _log.warning("%s: %s", topic.name, f.exception())
+                return
+            value = f.result()
+            d = self.bridge.dialect
+            self.bridge.publish(
+                topic, spec.build(d, value, arm.info.name, self._stamp(0.0), topic.next_seq())
+            )
+
+        future.add_done_callback(lambda f: self.loop.call_soon_threadsafe(done, f))
+
+    def _publish_tf(self) -> None:
+        if not self.tf.subscriptions:
+            return
+        snap = self.handle.snapshot()
+        d = self.bridge.dialect
+        stamp = self._stamp(snap.time)
+        transforms = [
+            m.transform_stamped(d, a.measured_cp, stamp)
+            for name, a in snap.arms.items()
+            if name in self.arms
+        ]
+        self.bridge.publish(self.tf, {"transforms": transforms})
+
+    # ------------------------------------------------------------------ events
+    def _event_from_loop(self, source: str, event: str, payload: object) -> None:
+        """Called in the simulation's thread: hand over to the bridge's loop."""
+        try:
+            self.loop.call_soon_threadsafe(self._on_event, source, event, payload)
+        except RuntimeError:  # the loop is closed: we are stopping
+            pass
+
+    def _on_event(self, source: str, event: str, payload: Any) -> None:
+        arm = self.arms.get(source)
+        if arm is None:
+            for sink in self.event_sinks:
+                if sink(source, event, payload):
+                    return
+            return
+        b = self.bridge
+        if event == "operating_state":
+            self._publish_operating_state(arm, payload)
+        elif event in arm.events:
+            topic = arm.events[event]
+            b.publish(topic, {"data": getattr(payload, "text", str(payload))})
+
+    def _publish_operating_state(self, arm: _Arm, s) -> None:
+        b, d = self.bridge, self.bridge.dialect
+        assert arm.operating_state is not None and arm.goal_reached is not None
+        arm.last_event_time = s.timestamp
+        b.publish(
+            arm.operating_state,
+            m.operating_state(d, s, self._stamp(s.timestamp), arm.operating_state.next_seq()),
+        )
+        if arm.busy and not s.is_busy:  # end of a move (dvrk.md 2.2 goal_reached)
+            b.publish(arm.goal_reached, {"data": True})
+        arm.busy = s.is_busy
+
+    def _check_operating_states(self, snap: Snapshot) -> None:
+        """Safety net for a handle that loses events: publish a state the snapshot shows
+        only if no event came for it (snapshots may be a tick behind the events)."""
+        for name, arm in self.arms.items():
+            a = snap.arms.get(name)
+            topic = arm.operating_state
+            if a is None or topic is None or topic.last is None:
+                continue
+            s = a.operating_state
+            last = topic.last.msg
+            same = (last["state"], last["is_homed"], last["is_busy"]) == (
+                s.state, s.is_homed, s.is_busy)  # fmt: skip
+            if not same and snap.time > arm.last_event_time + 0.05:
+                self._publish_operating_state(arm, s)
+
+    # ------------------------------------------------------------------ commands
+    def _command_listener(self, arm: _Arm, spec: CommandTopic):
+        target = arm.info.name + (f"/{spec.target}" if spec.target else "")
+        topic_name = self._topic(arm, spec.suffix)
+
+        def on_message(msg: dict, session: Session | None) -> None:
+            try:
+                args = spec.convert(msg, arm.info)
+            except m.CommandError as e:
+                self._refused(arm, session, f"{spec.suffix}: {e}", publish_error=True)
+                return
+            future = self.handle.call(target, spec.method, *args)
+            future.add_done_callback(
+                lambda f: self.loop.call_soon_threadsafe(
+                    self._command_done, arm, session, topic_name, f
+                )  # fmt: skip
+            )
+
+        return on_message
+
+    def _command_done(self, arm: _Arm, session: Session | None, topic: str, future) -> None:
+        exc = future.exception()
+        if exc is not None:
+            _log.error("%s: %s", topic, exc)
+            self._refused(arm, session, f"{topic}: {exc}", publish_error=True)
+            return
+        result = future.result()
+        if result is not None and hasattr(result, "accepted") and not result.accepted:
+            self._refused(arm, session, result.message, publish_error=False)
+
+    def _refused(self, arm: _Arm, session: Session | None, text: str, publish_error: bool):
+        """A command that moved nothing: tell the client (status) and, when the arm did not
+        already say it on its error channel, publish it on ``/<arm>/error``."""
+        if publish_error:
+            self.bridge.publish(arm.events["error"], {"data": f"{arm.info.name}: {text}"})
+        if session is not None:
+            session.report("error", text)
+        else:
+            _log.warning("%s", text)
+
+    # ------------------------------------------------------------------ services
+    def _advertise_services(self, arm: _Arm) -> None:
+        b, name = self.bridge, arm.info.name
+
+        async def call(target: str, method: str, *args):
+            return await asyncio.wrap_future(self.handle.call(target, method, *args))
+
+        async def crtk_version(req, session) -> dict:
+            return {"success": True, "message": CRTK_VERSION}
+
+        async def operating_state(req, session) -> dict:
+            s = self.handle.snapshot().arms[name].operating_state
+            return {"operating_state": m.operating_state(b.dialect, s, self._stamp(s.timestamp))}
+
+        def fk(target: str):
+            async def handler(req, session) -> dict:
+                jp = req["jp"]
+                if not jp:
+                    raise ServiceFailure("forward_kinematics: jp is empty")
+                cp, result = await call(target, "forward_kinematics", np.asarray(jp))
+                if cp is None:
+                    return {"result": False, "message": result.message}
+                return {"cp": m.pose(cp.T), "result": True, "message": ""}
+
+            return handler
+
+        async def ik(req, session) -> dict:
+            try:
+                T = m.pose_matrix(req["cp"])
+            except m.CommandError as e:
+                return {"result": False, "message": str(e)}
+            q, result = await call(name, "inverse_kinematics", np.asarray(req["jp"]), T)
+            if q is None:
+                return {"result": False, "message": result.message}
+            return {"jp": np.asarray(q).tolist(), "result": True, "message": ""}
+
+        b.provide_service(f"/{name}/crtk_version", "std_srvs/Trigger", crtk_version, node=NODE)
+        b.provide_service(f"/{name}/operating_state", "crtk_msgs/TriggerOperatingState",
+                          operating_state, node=NODE)  # fmt: skip
+        if arm.info.arm_type in ARMS:
+            b.provide_service(f"/{name}/forward_kinematics", "crtk_msgs/QueryForwardKinematics",
+                              fk(name), node=NODE)  # fmt: skip
+            b.provide_service(f"/{name}/local/forward_kinematics",
+                              "crtk_msgs/QueryForwardKinematics", fk(f"{name}/local"),
+                              node=NODE)  # fmt: skip
+            b.provide_service(f"/{name}/inverse_kinematics", "crtk_msgs/QueryInverseKinematics",
+                              ik, node=NODE)  # fmt: skip
