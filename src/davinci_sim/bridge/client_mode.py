@@ -1,0 +1,330 @@
+"""Client mode: the simulator joins an existing ROS system through its rosbridge_server.
+
+As the seed's Unity simulator does, the simulator connects as a rosbridge client (roslibpy)
+to ``ws://HOST:9090`` and:
+
+* subscribes the real console's MTMs (``/<MTM>/measured_cp``, ``/<MTM>/measured_js``,
+  ``/<MTM>/gripper/measured_js``) and pedals (``/footpedals/<pedal>``,
+  ``/console/operator_present``; dvrk.md 2.2, 2.3). With a network master device in the
+  simulation (a component ``<MTM>/device`` whose snapshot ``kind`` is ``network``, issue 3),
+  poses, gripper and pedals are pushed into it, so the simulated teleoperation follows the
+  real MTMs. Without one, the simulated MTM arms are servoed to the real MTMs' joints.
+* publishes the guidance wrench that the simulation sends to each master device to the real
+  MTM's ``body/servo_cf`` (rotated from display axes into the handle's body frame), only
+  while it is non-zero (plus one zero to release), so an idle simulation never switches a
+  real MTM into effort mode;
+* publishes the simulated PSM, ECM and SUJ states (``measured_js``, ``measured_cp``,
+  ``setpoint_cp``, ``jaw/measured_js``, ``operating_state``) under a namespace (``/sim``) so
+  dVRK tools see them next to the real robot's.
+"""
+
+from __future__ import annotations
+
+import logging
+import threading
+import time
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import TYPE_CHECKING, Any, Literal
+
+import numpy as np
+
+from davinci_sim.bridge import dvrk_messages as m
+from davinci_sim.bridge.convert import MessageError, from_wire
+from davinci_sim.bridge.dialect import dialect
+from davinci_sim.bridge.types import TypeRegistry
+
+if TYPE_CHECKING:
+    from davinci_sim.sim.handle import SimHandle, Snapshot
+
+_log = logging.getLogger("davinci_sim.bridge.client")
+
+PEDAL_TOPICS = {
+    "clutch": "/footpedals/clutch",
+    "camera": "/footpedals/camera",
+    "coag": "/footpedals/coag",
+    "cam_minus": "/footpedals/cam_minus",
+    "cam_plus": "/footpedals/cam_plus",
+    "bicoag": "/footpedals/bicoag",
+    "operator_present": "/console/operator_present",
+}
+"""Pedal/button → topic on the real system (dvrk.md 2.3)."""
+
+#: ``wrench_source(snapshot) -> {mtm: wrench (6,) in HRSV axes}``.
+WrenchSource = Callable[["Snapshot"], dict[str, np.ndarray]]
+
+
+@dataclass(frozen=True)
+class ClientModeConfig:
+    """Options of :class:`RosClientMode`."""
+
+    url: str
+    """The remote rosbridge_server, ``ws://HOST:9090``."""
+    namespace: str = "/sim"
+    """Prefix of the simulated arms' topics on the remote system."""
+    mtms: tuple[str, ...] = ("MTML", "MTMR")
+    """Real MTMs to follow (same names as the simulated ones)."""
+    arms: tuple[str, ...] | None = None
+    """Simulated arms to publish (default: every PSM, the ECM and the SUJ arms)."""
+    rate: float = 50.0
+    """Publish rate of the simulated states, Hz."""
+    wrench_rate: float = 100.0
+    """Publish rate of the guidance wrench, Hz."""
+    ros_version: Literal[1, 2] = 2
+    """Dialect of the remote system."""
+    drive: Literal["auto", "device", "joints"] = "auto"
+    """How the real MTMs drive the simulation: through the network master devices
+    (``device``), by servoing the simulated MTM arms (``joints``), or ``auto``."""
+
+    def __post_init__(self) -> None:
+        if not self.url.startswith(("ws://", "wss://")):
+            raise ValueError(f"url must be ws://HOST:PORT, got {self.url!r}")
+        if not 0 < self.rate <= 1000 or not 0 < self.wrench_rate <= 1000:
+            raise ValueError("rate and wrench_rate must be in ]0, 1000] Hz")
+        if self.drive not in ("auto", "device", "joints"):
+            raise ValueError(f"drive must be auto, device or joints, got {self.drive!r}")
+        if not self.namespace.startswith("/"):
+            raise ValueError(f"namespace must start with '/', got {self.namespace!r}")
+
+
+def default_wrench_source(snap: Snapshot) -> dict[str, np.ndarray]:
+    """The wrench each network master device ``<MTM>/device`` renders (issue 3)."""
+    out = {}
+    for name, state in (snap.extras or {}).items():
+        if name.endswith("/device") and getattr(state, "wrench", None) is not None:
+            out[name.split("/")[0]] = np.asarray(state.wrench, dtype=float)
+    return out
+
+
+class RosClientMode:
+    """The simulator as a client of a remote rosbridge (see the module docstring).
+
+    Args:
+        handle: the running simulation.
+        config: where to connect and what to exchange.
+        wrench_source: the guidance wrench per MTM (default: the network devices').
+    """
+
+    def __init__(
+        self,
+        handle: SimHandle,
+        config: ClientModeConfig,
+        *,
+        wrench_source: WrenchSource = default_wrench_source,
+    ) -> None:
+        self.handle = handle
+        self.config = config
+        self.wrench_source = wrench_source
+        self.dialect = dialect(config.ros_version)
+        self.registry = TypeRegistry(self.dialect)
+        self.ros: Any = None
+        self._thread: threading.Thread | None = None
+        self._stop = threading.Event()
+        self._remote_R: dict[str, np.ndarray] = {}
+        self._wrench_on: dict[str, bool] = {}
+        self._last_state: dict[str, tuple] = {}
+        self._topics: dict[str, Any] = {}
+        self._subscribed: list[Any] = []
+        self.received: dict[str, int] = {}
+        self.errors = 0
+        snap = handle.snapshot()
+        self.arms = config.arms or tuple(
+            n for n, a in snap.arms.items() if a.arm_type in ("PSM", "ECM", "SUJ")
+        )
+        self.mode: dict[str, str] = {}
+        for mtm in config.mtms:
+            device = (snap.extras or {}).get(f"{mtm}/device")
+            is_network = getattr(device, "kind", None) == "network"
+            if config.drive == "device" and not is_network:
+                raise ValueError(f"drive='device' needs a network device '{mtm}/device'")
+            self.mode[mtm] = "device" if (is_network and config.drive != "joints") else "joints"
+        self.has_console = "console" in (snap.extras or {})
+
+    # ------------------------------------------------------------------ lifecycle
+    def start(self, timeout: float = 10.0) -> RosClientMode:
+        import roslibpy
+
+        c = self.config
+        self.ros = roslibpy.Ros(c.url)
+        self.ros.run(timeout)
+        for mtm in c.mtms:
+            if self.mode[mtm] == "joints" and mtm in self.handle.snapshot().arms:
+                self.handle.call(mtm, "state_command", "enable")
+                self.handle.call(mtm, "state_command", "home")
+            self._sub(f"/{mtm}/measured_cp", "geometry_msgs/PoseStamped",
+                      lambda msg, mtm=mtm: self._on_pose(mtm, msg))  # fmt: skip
+            self._sub(f"/{mtm}/measured_js", "sensor_msgs/JointState",
+                      lambda msg, mtm=mtm: self._on_joints(mtm, msg))  # fmt: skip
+            self._sub(f"/{mtm}/gripper/measured_js", "sensor_msgs/JointState",
+                      lambda msg, mtm=mtm: self._on_gripper(mtm, msg))  # fmt: skip
+        for button, topic in PEDAL_TOPICS.items():
+            self._sub(topic, "sensor_msgs/Joy", lambda msg, b=button: self._on_button(b, msg))
+        self._stop.clear()
+        self._thread = threading.Thread(target=self._run, name="ros-client-mode", daemon=True)
+        self._thread.start()
+        _log.info("client mode: connected to %s (namespace %s)", c.url, c.namespace)
+        return self
+
+    def stop(self) -> None:
+        self._stop.set()
+        if self._thread is not None:
+            self._thread.join(5)
+            self._thread = None
+        if self.ros is not None:
+            for topic in self._subscribed:
+                topic.unsubscribe()
+            for topic in self._topics.values():
+                topic.unadvertise()
+            try:
+                self.ros.close()
+            except Exception:
+                pass
+            self.ros = None
+
+    def __enter__(self) -> RosClientMode:
+        return self.start()
+
+    def __exit__(self, *exc) -> None:
+        self.stop()
+
+    # ------------------------------------------------------------------ incoming
+    def _sub(self, name: str, type_name: str, callback: Callable[[dict], None]) -> None:
+        import roslibpy
+
+        spec = self.registry.message(type_name)
+
+        def checked(msg: dict) -> None:
+            try:
+                value = from_wire(self.registry, spec, msg)
+            except MessageError as e:
+                self.errors += 1
+                _log.error("client mode: bad message on %s: %s", name, e)
+                return
+            self.received[name] = self.received.get(name, 0) + 1
+            try:
+                callback(value)
+            except (m.CommandError, ValueError) as e:
+                self.errors += 1
+                _log.error("client mode: %s: %s", name, e)
+
+        topic = roslibpy.Topic(self.ros, name, type_name, queue_length=1)
+        topic.subscribe(checked)
+        self._subscribed.append(topic)
+
+    def _on_pose(self, mtm: str, msg: dict) -> None:
+        T = m.pose_matrix(msg["pose"])
+        self._remote_R[mtm] = T[:3, :3]
+        if self.mode[mtm] == "device":
+            self.handle.call(f"{mtm}/device", "push", T)
+
+    def _on_joints(self, mtm: str, msg: dict) -> None:
+        if self.mode[mtm] != "joints":
+            return
+        a = self.handle.snapshot().arms.get(mtm)
+        if a is None or not (a.operating_state.is_homed and not a.operating_state.is_busy):
+            return  # not ready yet (homing): do not flood its error channel
+        q = m.ordered(msg["position"], msg["name"], a.measured_js.name, "position")
+        self.handle.call(mtm, "servo_jp", q)
+
+    def _on_gripper(self, mtm: str, msg: dict) -> None:
+        if not msg["position"]:
+            return
+        angle = msg["position"][0]
+        if self.mode[mtm] == "device":
+            self.handle.call(f"{mtm}/device", "push", gripper=angle)
+        elif mtm in self.handle.snapshot().arms:
+            self.handle.call(f"{mtm}/gripper", "servo_jp", angle)
+
+    def _on_button(self, button: str, msg: dict) -> None:
+        buttons = list(msg["buttons"])
+        if len(buttons) != 1 or buttons[0] not in (0, 1, 2):
+            raise ValueError(f"{button}: a pedal Joy has buttons [0], [1] or [2], got {buttons}")
+        if self.has_console:
+            self.handle.call("console", "button", button, buttons)
+        else:
+            for mtm, mode in self.mode.items():
+                if mode == "device":
+                    self.handle.call(f"{mtm}/device", "push", buttons={button: buttons})
+                    break
+
+    # ------------------------------------------------------------------ outgoing
+    def _publisher(self, name: str, type_name: str):
+        import roslibpy
+
+        topic = self._topics.get(name)
+        if topic is None:
+            topic = roslibpy.Topic(self.ros, name, type_name)
+            topic.advertise()
+            self._topics[name] = topic
+        return topic
+
+    def _run(self) -> None:
+        c = self.config
+        period = 1.0 / max(c.rate, c.wrench_rate)
+        next_state = next_wrench = time.monotonic()
+        while not self._stop.wait(max(0.0, min(next_state, next_wrench) - time.monotonic())):
+            now = time.monotonic()
+            try:
+                snap = self.handle.snapshot()
+                if now >= next_wrench:
+                    next_wrench += 1.0 / c.wrench_rate
+                    self._publish_wrenches(snap)
+                if now >= next_state:
+                    next_state += 1.0 / c.rate
+                    self._publish_states(snap)
+            except Exception:
+                self.errors += 1
+                _log.exception("client mode: publishing failed")
+            # never burst to catch up after a stall
+            next_state = max(next_state, now - period)
+            next_wrench = max(next_wrench, now - period)
+
+    def _publish_states(self, snap: Snapshot) -> None:
+        import roslibpy
+
+        d, ns, stamp = self.dialect, self.config.namespace, time.time()
+        for name in self.arms:
+            a = snap.arms.get(name)
+            if a is None:
+                continue
+            base = f"{ns}/{name}"
+            msgs = [
+                ("measured_js", "sensor_msgs/JointState", m.joint_state(d, a.measured_js, stamp)),
+                ("measured_cp", "geometry_msgs/PoseStamped",
+                 m.pose_stamped(d, a.measured_cp, stamp)),
+                ("setpoint_cp", "geometry_msgs/PoseStamped",
+                 m.pose_stamped(d, a.setpoint_cp, stamp)),
+            ]  # fmt: skip
+            if a.jaw_measured_js is not None:
+                msgs.append(("jaw/measured_js", "sensor_msgs/JointState",
+                             m.joint_state(d, a.jaw_measured_js, stamp)))  # fmt: skip
+            s = a.operating_state
+            key = (s.state, s.is_homed, s.is_busy)
+            if self._last_state.get(name) != key:
+                self._last_state[name] = key
+                msgs.append(("operating_state", "crtk_msgs/OperatingState",
+                             m.operating_state(d, s, stamp)))  # fmt: skip
+            for suffix, type_name, msg in msgs:
+                self._publisher(f"{base}/{suffix}", type_name).publish(roslibpy.Message(msg))
+
+    def _publish_wrenches(self, snap: Snapshot) -> None:
+        import roslibpy
+
+        for mtm, w in self.wrench_source(snap).items():
+            if mtm not in self.config.mtms:
+                continue
+            w = np.asarray(w, dtype=float)
+            on = bool(np.any(w != 0.0)) and bool(np.all(np.isfinite(w)))
+            if not on and not self._wrench_on.get(mtm, False):
+                continue  # idle: leave the real MTM's mode alone
+            self._wrench_on[mtm] = on
+            R = self._remote_R.get(mtm)
+            if R is None:
+                continue  # no pose yet: cannot express the wrench in the body frame
+            if not on:
+                w = np.zeros(6)
+            body = np.concatenate([R.T @ w[:3], R.T @ w[3:]])  # HRSV axes → handle frame
+            msg = m.wrench_stamped(self.dialect, body, mtm, time.time())
+            self._publisher(f"/{mtm}/body/servo_cf", "geometry_msgs/WrenchStamped").publish(
+                roslibpy.Message(msg)
+            )
