@@ -1,4 +1,4 @@
-"""The ``davinci-sim`` command line: ``info``, ``snapshot`` and ``demo``."""
+"""The ``davinci-sim`` command line: ``info``, ``snapshot``, ``demo`` and ``serve``."""
 
 from __future__ import annotations
 
@@ -165,6 +165,70 @@ def cmd_demo(args: argparse.Namespace) -> int:
     return 0 if report["homed"] and report.get("refused_ok", True) else 1
 
 
+def cmd_serve(args: argparse.Namespace) -> int:
+    """The simulation with its ROS interfaces (rosbridge server, UDP, client mode)."""
+    import logging
+    import os
+    import signal
+    import threading
+
+    from davinci_sim.bridge.app import ServeOptions, serve
+    from davinci_sim.bridge.config import BridgeConfig
+    from davinci_sim.bridge.udp import parse_ports
+
+    logging.basicConfig(level=logging.INFO if args.verbose else logging.WARNING,
+                        format="%(asctime)s %(levelname)s %(name)s: %(message)s")  # fmt: skip
+    token = args.token or os.environ.get("DAVINCI_SIM_TOKEN") or None
+    try:
+        options = ServeOptions(
+            scene=args.scene,
+            keyframe=args.keyframe,
+            seed=args.seed,
+            real_time=not args.fast,
+            home=args.home,
+            server=not args.no_server,
+            bridge=BridgeConfig(
+                host=args.host,
+                port=args.port,
+                ros_version=args.ros_version,
+                max_message_size=args.max_message_size,
+                auth_token=token,
+                stamp_clock=args.stamps,
+            ),
+            rate=args.rate,
+            tf_rate=args.tf_rate,
+            images=args.images,
+            image_rate=args.image_rate,
+            rig=args.rig,
+            udp=args.udp,
+            udp_ports=parse_ports(args.udp_ports),
+            udp_ip=args.udp_ip,
+            ros_connect=args.ros_connect,
+            namespace=args.namespace,
+            remote_ros_version=args.remote_ros_version,
+            duration=args.duration,
+        )
+    except ValueError as e:
+        print(f"davinci-sim serve: {e}", file=sys.stderr)
+        return 2
+    stop = threading.Event()
+    signal.signal(signal.SIGINT, lambda *_: stop.set())
+    signal.signal(signal.SIGTERM, lambda *_: stop.set())
+
+    def ready(info: dict) -> None:
+        if "url" in info:
+            print(f"rosbridge server: {info['url']} (ROS {args.ros_version})", flush=True)
+        for arm, (ip, port, local) in info.get("udp", {}).items():
+            print(f"UDP {arm}: streaming to {ip}:{port}, commands to port {local}", flush=True)
+        if "ros_connect" in info:
+            print(f"client mode: connected to {info['ros_connect']}", flush=True)
+        print("ready (Ctrl-C to stop)", flush=True)
+
+    info = serve(options, stop=stop, on_ready=ready)
+    print(f"stopped; simulation ran at {info.get('sim_over_wall', 0):.3f}x real time", flush=True)
+    return 0
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(
         prog="davinci-sim", description="Simulator of the da Vinci Research Kit (dVRK)."
@@ -189,6 +253,79 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--keyframe", default="home", choices=["home", "surgical"])
     p.set_defaults(func=cmd_demo)
+    p = sub.add_parser(
+        "serve",
+        help="run the simulation with its ROS interfaces (rosbridge v2 server, UDP, client mode)",
+    )
+    p.add_argument("--scene", default="full", choices=_scene_names())
+    p.add_argument("--keyframe", default="surgical", choices=["surgical", "home"])
+    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--fast", action="store_true", help="as fast as possible, not real time")
+    p.add_argument("--home", action="store_true", help="enable and home every arm at start")
+    p.add_argument(
+        "--host", default="127.0.0.1", help="interface to bind (default loopback; 0.0.0.0 for all)"
+    )
+    p.add_argument("--port", type=int, default=9090)
+    p.add_argument(
+        "--ros-version",
+        type=int,
+        choices=[1, 2],
+        default=2,
+        help="dialect: 1 (pkg/Type, secs/nsecs, Header seq) or 2 (default)",
+    )
+    p.add_argument(
+        "--rate",
+        type=float,
+        default=100.0,
+        help="publish rate of the arms' state topics, Hz (dVRK default 100, max 1000)",
+    )
+    p.add_argument("--tf-rate", type=float, default=50.0)
+    p.add_argument(
+        "--images",
+        default="jpeg",
+        choices=["jpeg", "raw", "both", "none"],
+        help="endoscope topics: CompressedImage JPEG (default), raw Image, both, none",
+    )
+    p.add_argument("--image-rate", type=float, default=30.0)
+    p.add_argument("--rig", default="jhu_daVinci", help="namespace of the stereo image topics")
+    p.add_argument(
+        "--max-message-size", type=int, default=10_000_000, help="largest incoming message, bytes"
+    )
+    p.add_argument(
+        "--token",
+        default=None,
+        help="require rosbridge 'auth' with this token (or $DAVINCI_SIM_TOKEN)",
+    )
+    p.add_argument(
+        "--stamps",
+        default="wall",
+        choices=["wall", "sim"],
+        help="header stamps: wall clock (ROS time, default) or simulation time",
+    )
+    p.add_argument("--no-server", action="store_true", help="no rosbridge server")
+    p.add_argument(
+        "--udp",
+        action="store_true",
+        help="dVRK socket-streamer UDP JSON streams (PSM1 48051, PSM2 48052, ECM "
+        "48053, MTML 48054, MTMR 48055, PSM3 48056)",
+    )
+    p.add_argument("--udp-ports", default="", help="override ports, e.g. PSM1=49051,ECM=49053")
+    p.add_argument("--udp-ip", default="127.0.0.1", help="destination of the UDP streams")
+    p.add_argument(
+        "--ros-connect",
+        default=None,
+        metavar="ws://HOST:9090",
+        help="client mode: connect to an existing rosbridge_server",
+    )
+    p.add_argument(
+        "--namespace",
+        default="/sim",
+        help="client mode: prefix of the simulated arms' topics on the remote",
+    )
+    p.add_argument("--remote-ros-version", type=int, choices=[1, 2], default=2)
+    p.add_argument("--duration", type=float, default=None, help="stop after this many seconds")
+    p.add_argument("-v", "--verbose", action="store_true")
+    p.set_defaults(func=cmd_serve)
     args = parser.parse_args(argv)
     return args.func(args)
 
