@@ -132,7 +132,7 @@ class Session:
         except OpError as e:
             self.report("error", str(e), e.id)
             return
-        if not self.authenticated and not isinstance(op, Auth):
+        if not self.authenticated and not isinstance(op, Auth | SetLevel):
             self.report("error", f"{op.op}: not authenticated (send an 'auth' op first)", _id(op))
             return
         if isinstance(op, Auth):

@@ -1,0 +1,71 @@
+"""Helpers of the bridge tests (imported by the tests and by conftest.py)."""
+
+import json
+import time
+
+from websockets.sync.client import connect
+
+
+def wait_for(predicate, timeout=5.0, period=0.01):
+    """Poll ``predicate`` until true or ``timeout`` s pass; returns its last value."""
+    end = time.monotonic() + timeout
+    while True:
+        value = predicate()
+        if value or time.monotonic() > end:
+            return value
+        time.sleep(period)
+
+
+class RawClient:
+    """A bare websocket client speaking rosbridge JSON, to send what roslibpy cannot."""
+
+    def __init__(self, server, level="info"):
+        self._cm = connect(server.url, compression=None, max_size=None)
+        self.ws = self._cm.__enter__()
+        if level:
+            self.send({"op": "set_level", "level": level})
+
+    def send(self, obj):
+        self.ws.send(obj if isinstance(obj, str | bytes) else json.dumps(obj))
+
+    def recv(self, timeout=5.0):
+        data = self.ws.recv(timeout)
+        return (
+            data if isinstance(data, bytes) and data[:1] not in (b"{", b"[") else json.loads(data)
+        )
+
+    def recv_until(self, predicate, timeout=5.0):
+        """Messages until one satisfies ``predicate``; returns it (TimeoutError if none)."""
+        end = time.monotonic() + timeout
+        while True:
+            left = end - time.monotonic()
+            if left <= 0:
+                raise TimeoutError("no matching message")
+            msg = self.recv(left)
+            if predicate(msg):
+                return msg
+
+    def status(self, timeout=5.0):
+        return self.recv_until(lambda m: isinstance(m, dict) and m.get("op") == "status", timeout)
+
+    def call(self, service, args=None, id="c1", timeout=5.0):
+        self.send({"op": "call_service", "service": service, "args": args or {}, "id": id})
+        return self.recv_until(
+            lambda m: (
+                isinstance(m, dict) and m.get("op") == "service_response" and m.get("id") == id
+            ),
+            timeout,
+        )
+
+    def close(self):
+        self._cm.__exit__(None, None, None)
+
+
+def enable_and_home(handle, arm="PSM1", timeout=10.0):
+    handle.call(arm, "state_command", "enable").result(5)
+    handle.call(arm, "state_command", "home").result(5)
+    ok = wait_for(
+        lambda: (s := handle.snapshot().arms[arm].operating_state).is_homed and not s.is_busy,
+        timeout,
+    )
+    assert ok, f"{arm} did not home"
