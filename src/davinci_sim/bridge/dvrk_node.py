@@ -282,6 +282,9 @@ class DvrkNode:
         self.bridge = bridge
         self.loop = asyncio.get_running_loop()
         d = bridge.dialect
+        # Events first, then the snapshot: an event between the two is queued on the loop
+        # and applied after this (a snapshot may be a few ticks old).
+        self._unsubscribe = self.handle.subscribe(self._event_from_loop)
         snap = self.handle.snapshot()
         if bridge.config.stamp_clock == "sim":
             bridge.clock = lambda: self.handle.snapshot().time
@@ -295,7 +298,6 @@ class DvrkNode:
             bridge.publish(arm.operating_state, m.operating_state(d, s, bridge.now()))
             arm.busy = s.is_busy
         self.tf = bridge.advertise("/tf", "tf2_msgs/TFMessage", node=NODE)
-        self._unsubscribe = self.handle.subscribe(self._event_from_loop)
         self._tasks = [
             PeriodicTask(1.0 / self.rate, self._publish_state),
             PeriodicTask(1.0 / self.tf_rate, self._publish_tf),
@@ -342,13 +344,12 @@ class DvrkNode:
 
     def _publish_state(self) -> None:
         b, d = self.bridge, self.bridge.dialect
-        snap: Snapshot | None = None
+        snap: Snapshot = self.handle.snapshot()
+        self._check_operating_states(snap)
         for arm in self.arms.values():
             for topic, spec in arm.state:
                 if not topic.subscriptions:
                     continue
-                if snap is None:
-                    snap = self.handle.snapshot()
                 a = snap.arms.get(arm.info.name)
                 if a is None:
                     continue
@@ -359,8 +360,6 @@ class DvrkNode:
             for topic, spec in arm.polled:
                 if topic.subscriptions and topic not in self._polling:
                     self._poll(arm, topic, spec)
-        if snap is not None:
-            self._check_operating_states(snap)
 
     def _poll(self, arm: _Arm, topic: Topic, spec: PolledTopic) -> None:
         target = arm.info.name + (f"/{spec.target}" if spec.target else "")

@@ -1,0 +1,147 @@
+"""Client mode against the project's own server standing in for a real dVRK's rosbridge."""
+
+import threading
+import time
+
+import numpy as np
+import pytest
+import roslibpy
+from bridge_helpers import wait_for
+
+from davinci_sim.bridge import dvrk_messages as m
+from davinci_sim.bridge.client_mode import ClientModeConfig, RosClientMode
+from davinci_sim.sim.handle import ThreadedSimulation
+from davinci_sim.sim.simulation import Simulation
+
+
+class FakeConsole:
+    """The real system: an MTM publishing its state at 100 Hz, pedals, and listeners."""
+
+    def __init__(self, ros, names):
+        self.ros = ros
+        self.names = names
+        self.q = np.zeros(len(names))
+        self.T = np.eye(4)
+        self.T[:3, 3] = (-0.18, 0.02, 0.4)
+        self.js = roslibpy.Topic(ros, "/MTMR/measured_js", "sensor_msgs/JointState")
+        self.cp = roslibpy.Topic(ros, "/MTMR/measured_cp", "geometry_msgs/PoseStamped")
+        self.grip = roslibpy.Topic(ros, "/MTMR/gripper/measured_js", "sensor_msgs/JointState")
+        self.clutch = roslibpy.Topic(ros, "/footpedals/clutch", "sensor_msgs/Joy")
+        for t in (self.js, self.cp, self.grip, self.clutch):
+            t.advertise()
+        self.wrenches, self.sim_js, self.sim_state = [], [], []
+        roslibpy.Topic(ros, "/MTMR/body/servo_cf", "geometry_msgs/WrenchStamped").subscribe(
+            self.wrenches.append
+        )
+        roslibpy.Topic(ros, "/sim/PSM1/measured_js", "sensor_msgs/JointState").subscribe(
+            self.sim_js.append
+        )
+        roslibpy.Topic(ros, "/sim/PSM1/operating_state", "crtk_msgs/OperatingState").subscribe(
+            self.sim_state.append
+        )
+        self._stop = threading.Event()
+        self._thread = threading.Thread(target=self._run, daemon=True)
+        self._thread.start()
+
+    def _run(self):
+        while not self._stop.wait(0.01):
+            self.js.publish(roslibpy.Message({"name": self.names, "position": self.q.tolist()}))
+            self.cp.publish(roslibpy.Message({"header": {"frame_id": "HRSV"},
+                                              "pose": m.pose(self.T)}))  # fmt: skip
+            self.grip.publish(roslibpy.Message({"name": ["gripper"], "position": [0.5]}))
+
+    def stop(self):
+        self._stop.set()
+        self._thread.join(2)
+
+
+@pytest.fixture
+def remote(make_server, make_ros):
+    server = make_server()  # a bare rosbridge: the remote ROS system
+    return server, make_ros(server)
+
+
+def test_client_mode_drives_the_simulated_mtm_and_publishes_states(remote):
+    server, remote_ros = remote
+    handle = ThreadedSimulation(Simulation("psm1_ecm_mtmr"), real_time=True).start()
+    names = list(handle.snapshot().arms["MTMR"].measured_js.name)
+    fake = FakeConsole(remote_ros, names)
+    wrench = np.array([1.0, 0.0, -2.0, 0.0, 0.0, 0.0])
+    client = RosClientMode(
+        handle,
+        ClientModeConfig(server.url, mtms=("MTMR",), rate=50),
+        wrench_source=lambda snap: {"MTMR": wrench},
+    )
+    try:
+        client.start()
+        assert client.mode == {"MTMR": "joints"}  # no network device in this simulation
+        assert wait_for(lambda: handle.snapshot().arms["MTMR"].operating_state.is_homed, 10)
+        fake.q = np.array([0.1, 0.2, -0.1, 0.3, 0.2, 0.1, 0.4])
+        assert wait_for(
+            lambda: np.allclose(handle.snapshot().arms["MTMR"].measured_js.position, fake.q,
+                                atol=5e-3), 10)  # fmt: skip
+        assert wait_for(
+            lambda: abs(handle.snapshot().arms["MTMR"].gripper_measured_js.position[0] - 0.5)
+            < 0.02, 5)  # fmt: skip
+        # simulated PSM state on the remote, under /sim
+        assert wait_for(lambda: len(fake.sim_js) > 10 and fake.sim_state, 5)
+        assert fake.sim_js[-1]["name"][2] == "insertion"
+        assert fake.sim_state[-1]["state"] == "DISABLED"
+        # the guidance wrench, rotated into the handle's frame
+        R = m.matrix_from_quaternion(0.0, 0.0, np.sin(0.25), np.cos(0.25))  # 0.5 rad about z
+        fake.T[:3, :3] = R
+        time.sleep(0.2)
+        assert wait_for(lambda: fake.wrenches, 5)
+        w = fake.wrenches[-1]["wrench"]
+        assert np.allclose([w["force"][k] for k in "xyz"], R.T @ wrench[:3], atol=1e-6)
+        # the wrench goes to zero: one zero is sent, then nothing
+        wrench[:] = 0.0
+        assert wait_for(lambda: fake.wrenches[-1]["wrench"]["force"]["x"] == 0.0, 5)
+        n = len(fake.wrenches)
+        time.sleep(0.3)
+        assert len(fake.wrenches) == n
+        assert client.received.get("/MTMR/measured_js", 0) > 10 and client.errors == 0
+    finally:
+        client.stop()
+        fake.stop()
+        handle.stop()
+
+
+def test_client_mode_pushes_into_a_network_device(remote):
+    network = pytest.importorskip("davinci_sim.devices.network")
+    server, remote_ros = remote
+    sim = Simulation("psm1_ecm_mtmr")
+    sim.components["MTMR/device"] = network.NetworkDevice("MTMR/device", watchdog=None)
+    handle = ThreadedSimulation(sim, real_time=True).start()
+    fake = FakeConsole(remote_ros, list(handle.snapshot().arms["MTMR"].measured_js.name))
+    client = RosClientMode(handle, ClientModeConfig(server.url, mtms=("MTMR",)))
+    try:
+        client.start()
+        assert client.mode == {"MTMR": "device"}
+
+        def device_input():
+            return handle.snapshot().extras["MTMR/device"].input
+
+        assert wait_for(lambda: device_input() is not None, 5)
+        assert np.allclose(device_input().T_hrsv_tip, fake.T)
+        assert wait_for(lambda: abs(device_input().gripper - 0.5) < 1e-9, 5)
+        fake.clutch.publish(roslibpy.Message({"buttons": [1]}))
+        assert wait_for(lambda: device_input().buttons.get("clutch") is True, 5)
+        # the wrench the simulation sends to the device goes to the real MTM
+        # (after the device's own safety limits: the rate limit may clamp a step)
+        handle.call("MTMR/device", "servo_cf", [0.0, 0.0, 1.5, 0.0, 0.0, 0.0]).result(5)
+        assert wait_for(lambda: fake.wrenches, 5)
+        sent = handle.snapshot().extras["MTMR/device"].wrench
+        assert 0 < sent[2] <= 1.5
+        assert fake.wrenches[-1]["wrench"]["force"]["z"] == pytest.approx(sent[2])
+    finally:
+        client.stop()
+        fake.stop()
+        handle.stop()
+
+
+def test_config_is_checked():
+    with pytest.raises(ValueError, match="ws://"):
+        ClientModeConfig("http://localhost:9090")
+    with pytest.raises(ValueError, match="namespace"):
+        ClientModeConfig("ws://localhost:9090", namespace="sim")

@@ -1,0 +1,92 @@
+"""The dVRK-style example script over rosbridge, and ``davinci-sim serve``."""
+
+import json
+import socket
+import subprocess
+import sys
+import threading
+from pathlib import Path
+
+import roslibpy
+from bridge_helpers import wait_for
+
+from davinci_sim import cli
+from davinci_sim.bridge.app import ServeOptions, serve
+from davinci_sim.bridge.config import BridgeConfig
+
+EXAMPLE = Path(__file__).resolve().parents[2] / "examples" / "dvrk_psm_rosbridge.py"
+
+
+def test_dvrk_style_script_runs_unchanged(dvrk_server):
+    """enable, home, move_jp + wait on is_busy, servo_cp loop, jaw, measured_cp (dvrk.md §3)."""
+    result = subprocess.run(
+        [sys.executable, str(EXAMPLE), "--port", str(dvrk_server.port), "--arm", "PSM1"],
+        capture_output=True,
+        text=True,
+        timeout=90,
+    )
+    assert result.returncode == 0, result.stdout + result.stderr
+    lines = result.stdout.splitlines()
+    assert lines[-1] == "done"
+    assert not any(line.startswith("FAIL") for line in lines)
+    assert sum(line.startswith("ok") for line in lines) == 9
+
+
+def free_port():
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+def test_serve_runs_server_udp_and_stops(make_ros):
+    stop = threading.Event()
+    ready = {}
+    udp_port = free_port()
+    listener = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    listener.bind(("127.0.0.1", udp_port))
+    listener.settimeout(3)
+    options = ServeOptions(scene="psm1", images="none", home=True, udp=True,
+                           udp_ports={"PSM1": udp_port, "ECM": free_port()},
+                           bridge=BridgeConfig(port=0, ros_version=1))  # fmt: skip
+    thread = threading.Thread(
+        target=lambda: ready.update(done=serve(options, stop=stop, on_ready=ready.update))
+    )
+    thread.start()
+    try:
+        assert wait_for(lambda: "url" in ready, 20)
+        port = int(ready["url"].rsplit(":", 1)[1])
+
+        class S:
+            pass
+
+        s = S()
+        s.port = port
+        ros = make_ros(s)
+        states = []
+        roslibpy.Topic(ros, "/PSM1/operating_state", "crtk_msgs/OperatingState").subscribe(
+            states.append
+        )
+        assert wait_for(lambda: states and states[-1]["is_homed"], 10)  # --home
+        data, _ = listener.recvfrom(65536)
+        assert len(json.loads(data)) == 1
+    finally:
+        stop.set()
+        thread.join(20)
+        listener.close()
+    assert ready["done"]["sim_over_wall"] > 0.5
+    with socket.socket() as sock:  # the port is free again
+        sock.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
+        sock.bind(("127.0.0.1", port))
+
+
+def test_cli_serve_with_duration(capsys):
+    code = cli.main(["serve", "--scene", "psm1", "--port", "0", "--images", "none",
+                     "--duration", "0.5"])  # fmt: skip
+    out = capsys.readouterr().out
+    assert code == 0
+    assert "rosbridge server: ws://127.0.0.1:" in out and "stopped" in out
+
+
+def test_cli_serve_rejects_bad_options(capsys):
+    assert cli.main(["serve", "--udp-ports", "PSM1:1", "--duration", "0"]) == 2
+    assert "ARM=PORT" in capsys.readouterr().err
