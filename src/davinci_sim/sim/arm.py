@@ -20,6 +20,7 @@ import numpy as np
 from davinci_sim.kinematics import fk
 from davinci_sim.kinematics.arms import ArmKinematics
 from davinci_sim.kinematics.ik import inverse_kinematics
+from davinci_sim.kinematics.suj import invert_transform
 from davinci_sim.sim import operating_state as ops
 from davinci_sim.sim.channels import Channels
 from davinci_sim.sim.trajectory import JointTrajectory, plan_trajectory
@@ -73,6 +74,8 @@ class Arm:
         self._tracking_bad_since: float | None = None
         self._trajectory_ratio = 1.0
         self._refusals: dict[str, tuple[float, int]] = {}
+        self._kin_cache: list | None = None
+        self._inv_base: tuple[np.ndarray, np.ndarray] | None = None
         servo.q_ref[self._idx] = self._q()
         self.local = _LocalView(self)
         self.body = _WrenchView(self, "body")
@@ -88,6 +91,26 @@ class Arm:
 
     def _q(self) -> np.ndarray:
         return self._sim.measured_qpos()[self._qposadr].copy()
+
+    def _measured_kinematics(
+        self, jacobian: bool = False
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
+        """``(q, T_base_tip, J_spatial)`` at the measured joints (read-only arrays; J only if
+        asked). Computed once per joint configuration: the device, the teleoperation, the
+        wrench and the haptic loop all ask for them within one tick."""
+        q = self._q()
+        key = q.tobytes()
+        c = self._kin_cache
+        if c is None or c[0] != key:
+            q.setflags(write=False)
+            T = fk.forward_kinematics(self.chain, q)
+            T.setflags(write=False)
+            c = self._kin_cache = [key, q, T, None]
+        if jacobian and c[3] is None:
+            J = fk.jacobian_spatial(self.chain, c[1])
+            J.setflags(write=False)
+            c[3] = J
+        return c[1], c[2], c[3]
 
     def _qd(self) -> np.ndarray:
         return self._sim.data.qvel[self._dofadr].copy()
@@ -393,6 +416,14 @@ class Arm:
             return self._T_user_base
         return self._sim.default_base_frame(self.name)
 
+    def _T_base_reference(self) -> np.ndarray:
+        """Inverse of the base frame, recomputed only when the base frame changes."""
+        T_ref_base = self.base_frame()[0]
+        cached = self._inv_base
+        if cached is None or cached[0] is not T_ref_base:
+            cached = self._inv_base = (T_ref_base, invert_transform(T_ref_base))
+        return cached[1]
+
     def set_base_frame(self, T_reference_base, reference_frame: str = "") -> CommandResult:
         """Runtime base frame, as the dVRK ``set_base_frame`` (dvrk.md 1.1)."""
         T, msg = as_transform(T_reference_base, "base frame")
@@ -410,14 +441,16 @@ class Arm:
 
     def measured_cp(self) -> CartesianPose:
         """Tool tip in the base frame's reference (PSM: camera, ECM: cart, MTM: HRSV)."""
-        return self._pose(self._q(), self.name, local=False)
+        _, T_base_tip, _ = self._measured_kinematics()
+        T_ref_base, ref = self.base_frame()
+        return CartesianPose(T_ref_base @ T_base_tip, ref, self.name, self._now())
 
     def setpoint_cp(self) -> CartesianPose:
         return self._pose(self._q_set(), f"{self.name}_setpoint", local=False)
 
     def measured_cv(self) -> CartesianTwist:
         """Tip twist (linear m/s, angular rad/s) in the base frame's orientation (dvrk.md 2.2)."""
-        v = fk.jacobian_spatial(self.chain, self._q()) @ self._qd()
+        v = self._measured_kinematics(jacobian=True)[2] @ self._qd()
         R = self.base_frame()[0][:3, :3]
         return CartesianTwist(
             np.concatenate([R @ v[:3], R @ v[3:]]), self.base_frame()[1], self.name, self._now()
@@ -430,8 +463,7 @@ class Arm:
         T, msg = as_transform(T_goal, "goal")
         if T is None:
             return None, msg
-        T_ref_base, _ = self.base_frame()
-        T_base_goal = np.linalg.inv(T_ref_base) @ T  # IK works in the chain base (dvrk.md 1.8)
+        T_base_goal = self._T_base_reference() @ T  # IK works in the chain base (dvrk.md 1.8)
         result = inverse_kinematics(self.kin, T_base_goal, seed)
         if not result.success:
             return None, f"inverse kinematics failed: {result.message}"
@@ -450,7 +482,8 @@ class Arm:
                 return self._refuse("servo_cp", msg)
             R = self.base_frame()[0][:3, :3].T
             local = np.concatenate([R @ tw[:3], R @ tw[3:]])
-            qd = _joint_velocity(fk.jacobian_spatial(self.chain, q), local)
+            # The Jacobian at the measured joints (cached this tick), as a servo loop does.
+            qd = _joint_velocity(self._measured_kinematics(jacobian=True)[2], local)
         self._servo_position(q, qd)
         return ACCEPTED
 
@@ -487,10 +520,9 @@ class Arm:
 
     # -------------------------------------------------------------- wrenches
     def _wrench_to_effort(self, kind: str, w: np.ndarray) -> np.ndarray:
-        q = self._q()
-        Js = fk.jacobian_spatial(self.chain, q)
+        _, T_base_tip, Js = self._measured_kinematics(jacobian=True)
         if kind == "body" and not self._body_cf_absolute:
-            R_base_tip = fk.forward_kinematics(self.chain, q)[:3, :3]
+            R_base_tip = T_base_tip[:3, :3]
         else:  # expressed in the reference (base-frame) orientation
             R_base_tip = self.base_frame()[0][:3, :3].T
         w_base = np.concatenate([R_base_tip @ w[:3], R_base_tip @ w[3:]])
@@ -510,15 +542,21 @@ class Arm:
 
     def _measured_cf(self, kind: str) -> np.ndarray:
         """Wrench at the tip estimated from joint efforts minus gravity compensation."""
-        q = self._q()
+        _, T_base_tip, Js = self._measured_kinematics(jacobian=True)
         tau = self._effort() - self._sim.data.qfrc_bias[self._dofadr]
-        Js = fk.jacobian_spatial(self.chain, q)
         w = np.linalg.lstsq(Js.T, tau, rcond=None)[0]
         if kind == "body" and not self._body_cf_absolute:
-            R = fk.forward_kinematics(self.chain, q)[:3, :3].T
+            R = T_base_tip[:3, :3].T
         else:
             R = self.base_frame()[0][:3, :3]
         return np.concatenate([R @ w[:3], R @ w[3:]])
+
+    def wrench_setpoint(self) -> tuple[str, np.ndarray] | None:
+        """The wrench ``body/servo_cf`` or ``spatial/servo_cf`` applies now: ``(kind, wrench)``,
+        or None when the arm is in another mode."""
+        if self._wrench is None:
+            return None
+        return self._wrench[0], self._wrench[1].copy()
 
     def body_set_cf_orientation_absolute(self, absolute: bool) -> CommandResult:
         """Express ``body`` wrenches in the base frame's orientation instead of the tip's."""
@@ -545,7 +583,9 @@ class _LocalView:
         self._arm = arm
 
     def measured_cp(self) -> CartesianPose:
-        return self._arm._pose(self._arm._q(), self._arm.name, local=True)
+        arm = self._arm
+        T = arm._measured_kinematics()[1].copy()
+        return CartesianPose(T, f"{arm.name}_base", arm.name, arm._now())
 
     def setpoint_cp(self) -> CartesianPose:
         return self._arm._pose(self._arm._q_set(), f"{self._arm.name}_setpoint", local=True)
@@ -553,8 +593,9 @@ class _LocalView:
     def measured_cv(self) -> CartesianTwist:
         """Twist in the tip (body) frame."""
         arm = self._arm
-        q = arm._q()
-        v = fk.jacobian_body(arm.chain, q) @ arm._qd()
+        _, T, J = arm._measured_kinematics(jacobian=True)
+        R = T[:3, :3].T
+        v = np.concatenate([R @ J[:3], R @ J[3:]]) @ arm._qd()
         return CartesianTwist(v, arm.name, arm.name, arm._now())
 
     def forward_kinematics(self, jp) -> tuple[CartesianPose | None, CommandResult]:
@@ -583,9 +624,9 @@ class _WrenchView:
         return self._arm._measured_cf(self._kind)
 
     def jacobian(self) -> np.ndarray:
-        q = self._arm._q()
+        _, T, J = self._arm._measured_kinematics(jacobian=True)
         if self._kind == "body":
-            return fk.jacobian_body(self._arm.chain, q)
-        J = fk.jacobian_spatial(self._arm.chain, q)
+            R = T[:3, :3].T
+            return np.vstack([R @ J[:3], R @ J[3:]])
         R = self._arm.base_frame()[0][:3, :3]
         return np.vstack([R @ J[:3], R @ J[3:]])

@@ -33,11 +33,16 @@ class PSM(Arm):
         assert kin.jaw is not None
         self.jaw = Jaw(self, kin.jaw, "jaw", kin.jaw_v_max, kin.jaw_a_max)
         self._shaft_chain = self.chain.truncated(4)
+        self._shaft_cache: tuple[bytes, float] = (b"", 0.0)
 
     def shaft_end_distance(self) -> float:
         """Distance (m) from the RCM to the end of the shaft (link-4 frame), dvrk.md 1.7."""
-        f = fk.fk_tuple(self._shaft_chain, self.measured_jp()[:4].tolist())
-        return math.sqrt(f[9] * f[9] + f[10] * f[10] + f[11] * f[11])
+        q = self.measured_jp()[:4]
+        key = q.tobytes()
+        if key != self._shaft_cache[0]:
+            f = fk.fk_tuple(self._shaft_chain, q.tolist())
+            self._shaft_cache = (key, math.sqrt(f[9] * f[9] + f[10] * f[10] + f[11] * f[11]))
+        return self._shaft_cache[1]
 
     def _cartesian_unsafe(self) -> str:
         d = self.shaft_end_distance()

@@ -26,18 +26,19 @@ def contact_force(model: mujoco.MjModel, data: mujoco.MjData, bodies: np.ndarray
     total = np.zeros(3)
     if data.ncon == 0 or bodies.size == 0:
         return total
-    geom_body = model.geom_bodyid
+    # Vectorised selection of the contacts between ``bodies`` and the rest (this runs every
+    # tick in the haptic loop).
+    member = np.zeros(model.nbody, dtype=bool)
+    member[bodies] = True
+    contacts = data.contact
+    b1 = member[model.geom_bodyid[contacts.geom1]]
+    b2 = member[model.geom_bodyid[contacts.geom2]]
     f6 = np.zeros(6)
-    for i in range(data.ncon):
-        c = data.contact[i]
-        b1 = geom_body[c.geom1] in bodies
-        b2 = geom_body[c.geom2] in bodies
-        if b1 == b2:
-            continue
-        mujoco.mj_contactForce(model, data, i, f6)
-        # f6 is in the contact frame (rows of c.frame); it acts on geom2, from geom1.
-        f_world = c.frame.reshape(3, 3).T @ f6[:3]
-        total += f_world if b2 else -f_world
+    for i in np.flatnonzero(b1 != b2):
+        mujoco.mj_contactForce(model, data, int(i), f6)
+        # f6 is in the contact frame (rows of frame); it acts on geom2, from geom1.
+        f_world = contacts.frame[i].reshape(3, 3).T @ f6[:3]
+        total += f_world if b2[i] else -f_world
     return total
 
 

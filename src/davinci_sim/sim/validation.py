@@ -26,10 +26,16 @@ def as_vector(value, n: int, what: str) -> tuple[np.ndarray | None, str]:
 
 def check_limits(q: np.ndarray, qmin: np.ndarray, qmax: np.ndarray, names, what: str) -> str:
     """Message naming the first joint outside [qmin, qmax], or ``""``."""
-    bad = np.flatnonzero((q < qmin - 1e-9) | (q > qmax + 1e-9))
-    if bad.size == 0:
+    # Floats: this runs on every streaming command, at 1 kHz.
+    values, lo, hi = np.asarray(q).tolist(), np.asarray(qmin).tolist(), np.asarray(qmax).tolist()
+    bad = [
+        i
+        for i, (x, a, b) in enumerate(zip(values, lo, hi, strict=True))
+        if x < a - 1e-9 or x > b + 1e-9
+    ]
+    if not bad:
         return ""
-    i = int(bad[0])
+    i = bad[0]
     return (
         f"{what}: joint {names[i]!r} = {q[i]:.6g} is outside its limits "
         f"[{qmin[i]:.6g}, {qmax[i]:.6g}]"

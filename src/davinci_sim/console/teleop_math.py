@@ -1,0 +1,103 @@
+"""The pure laws of PSM teleoperation (dvrk.md 4.2): goal pose, jaw mapping, operator activity.
+
+Frames: the MTM pose is in the display frame HRSV, the PSM pose in the camera (ECM tip)
+frame. The two frames have the same axes by construction (x left, y up, z into the scene),
+so the MTM displacement in HRSV *is* the tool displacement in the camera frame, scaled:
+moving the camera keeps the mapping intuitive.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+#: dvrk.md 4.2: after a clutch, the jaw catches up slowly until within 2° of the gripper.
+JAW_CATCH_UP_TOLERANCE = math.radians(2.0)
+#: dvrk.md 4.2: sum rule of the operator-activity detection.
+ACTIVITY_SUM_RATIO = 0.8
+
+
+def alignment_offset(R_hrsv_mtm: np.ndarray, R_camera_psm: np.ndarray) -> np.ndarray:
+    """``R_mtmᵀ·R_psm``: the constant rotation from MTM to PSM orientation (dvrk.md 4.2)."""
+    return R_hrsv_mtm.T @ R_camera_psm
+
+
+def follow_pose(
+    T_camera_psm0: np.ndarray,
+    T_hrsv_mtm0: np.ndarray,
+    T_hrsv_mtm: np.ndarray,
+    R_offset: np.ndarray,
+    scale: float,
+    *,
+    translation_locked: bool = False,
+    rotation_locked: bool = False,
+) -> np.ndarray:
+    """PSM goal in the camera frame while following (dvrk.md 4.2).
+
+    Translation: ``p_psm0 + scale·(p_mtm − p_mtm0)`` (or ``p_psm0`` if locked).
+    Rotation: ``R_mtm·R_offset`` (or ``R_psm0`` if locked).
+    """
+    T = np.empty((4, 4))
+    T[3] = (0.0, 0.0, 0.0, 1.0)
+    if translation_locked:
+        T[:3, 3] = T_camera_psm0[:3, 3]
+    else:
+        T[:3, 3] = T_camera_psm0[:3, 3] + scale * (T_hrsv_mtm[:3, 3] - T_hrsv_mtm0[:3, 3])
+    T[:3, :3] = T_camera_psm0[:3, :3] if rotation_locked else T_hrsv_mtm[:3, :3] @ R_offset
+    return T
+
+
+def follow_twist(
+    twist_hrsv_mtm: np.ndarray,
+    scale: float,
+    *,
+    use_linear: bool = True,
+    use_angular: bool = False,
+    translation_locked: bool = False,
+    rotation_locked: bool = False,
+) -> np.ndarray:
+    """Velocity feed-forward sent with ``servo_cp`` (camera axes): the scaled MTM linear
+    velocity and, if asked, the MTM angular velocity (dvrk.md 4.2); zero where locked."""
+    out = np.zeros(6)
+    if use_linear and not translation_locked:
+        out[:3] = scale * twist_hrsv_mtm[:3]
+    if use_angular and not rotation_locked:
+        out[3:] = twist_hrsv_mtm[3:]
+    return out
+
+
+def jaw_mapping(jaw_qmax: float, gripper_zero: float, gripper_max: float) -> tuple[float, float]:
+    """``(s, o)`` with ``jaw = s·gripper + o``: gripper_zero -> 0, gripper_max -> jaw_qmax
+    (dvrk.md 4.2; 80°/60° ≈ 1.333 for the large needle driver)."""
+    s = jaw_qmax / (gripper_max - gripper_zero)
+    return s, -gripper_zero * s
+
+
+def step_toward(x: float, target: float, max_step: float) -> float:
+    """``x`` moved towards ``target`` by at most ``max_step`` (>= 0)."""
+    d = target - x
+    if d > max_step:
+        return x + max_step
+    if d < -max_step:
+        return x - max_step
+    return target
+
+
+def roll_angle(R_camera_psm: np.ndarray, R_hrsv_mtm: np.ndarray) -> float:
+    """Angle (rad) between the y axes of the PSM and MTM orientations: the "roll" the
+    operator-activity detection tracks (dvrk.md 4.2)."""
+    c = float(R_camera_psm[:, 1] @ R_hrsv_mtm[:, 1])
+    return math.acos(max(-1.0, min(1.0, c)))
+
+
+def operator_active(
+    gripper_range: float, roll_range: float, gripper_threshold: float, roll_threshold: float
+) -> bool:
+    """The dVRK rule (dvrk.md 4.2): the operator is active once the gripper moved over its
+    threshold, or the roll over its threshold, or both together over 80% of the sum."""
+    return (
+        gripper_range >= gripper_threshold
+        or roll_range >= roll_threshold
+        or gripper_range + roll_range > ACTIVITY_SUM_RATIO * (gripper_threshold + roll_threshold)
+    )

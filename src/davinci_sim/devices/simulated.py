@@ -1,0 +1,234 @@
+"""The simulated MTML/MTMR of the console model as a master device.
+
+The device reads the MTM arm of the simulation (``measured_cp`` in HRSV, ``measured_cv``,
+``gripper/measured_js``) and renders wrenches with ``spatial/servo_cf``. The operator is
+simulated too: a *hand* that holds the handle and pulls it towards a target pose through a
+spring-damper (:mod:`davinci_sim.devices.hand`), or pushes it with a given wrench, applied to
+the handle body as an external force (MuJoCo ``xfrc_applied``); the fingers set the gripper.
+Synthetic trainees, tests and the web console move the MTM this way, and the MTM answers
+with its own dynamics, the teleoperation's effort modes and the haptic wrench.
+"""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
+import mujoco
+import numpy as np
+
+from davinci_sim.devices.device import MasterDevice
+from davinci_sim.devices.hand import HandImpedance, hand_wrench
+from davinci_sim.devices.state import DeviceInput
+from davinci_sim.haptics.safety import WrenchLimits
+from davinci_sim.sim.arms import MTM
+from davinci_sim.sim.types import CommandResult
+from davinci_sim.sim.validation import as_transform
+
+if TYPE_CHECKING:
+    from davinci_sim.sim.simulation import Simulation
+
+#: The body the hand holds: the last gimbal link, which carries the handle (model/mtm.py).
+HANDLE_BODY = "wrist_roll"
+
+
+class SimulatedMTM(MasterDevice):
+    """The MTM ``mtm`` of ``sim`` as a master device, with a simulated hand.
+
+    Args:
+        sim: the simulation.
+        mtm: ``"MTML"`` or ``"MTMR"``.
+        name: component name (default ``"<mtm>/device"``).
+        limits: safety limits on rendered wrenches.
+        hand: the simulated hand's impedance.
+    """
+
+    kind = "simulated"
+    can_align = True
+    is_haptic = True
+
+    def __init__(
+        self,
+        sim: Simulation,
+        mtm: str = "MTMR",
+        *,
+        name: str | None = None,
+        limits: WrenchLimits | None = None,
+        hand: HandImpedance | None = None,
+    ) -> None:
+        arm = sim.arms.get(mtm)
+        if not isinstance(arm, MTM):
+            mtms = [n for n, a in sim.arms.items() if isinstance(a, MTM)]
+            raise KeyError(f"no MTM {mtm!r} in this simulation; MTMs: {mtms}")
+        super().__init__(name or f"{mtm}/device", limits=limits, dt=sim.dt)
+        self.sim = sim
+        self.arm = arm
+        self.mtm = mtm
+        self.hand = hand or HandImpedance()
+        model, data = sim.model, sim.data
+        self._body = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, f"{mtm}/{HANDLE_BODY}")
+        if self._body < 0:
+            raise KeyError(f"the model has no body {mtm}/{HANDLE_BODY!r} for the hand")
+        hrsv = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, "console/HRSV")
+        # HRSV is fixed to the console: its world pose from the initial forward pass.
+        self._R_world_hrsv = data.xmat[hrsv].reshape(3, 3).copy()
+        self._p_world_hrsv = data.xpos[hrsv].copy()
+        self._hand_target: np.ndarray | None = None
+        self._hand_on = False
+        self._hold_orientation = True
+        self._push = np.zeros(6)
+        self._hand_wrench = np.zeros(6)
+        self._hand_applied = False
+
+    # ------------------------------------------------------------ the operator's hand
+    def grasp(self, target=None, *, hold_orientation: bool = True) -> None:
+        """The hand takes the handle and pulls it to ``target``.
+
+        Args:
+            target: a 4x4 pose in HRSV, a position (3,) in HRSV (the orientation target is
+                the handle's current orientation), or None for where the handle is now.
+            hold_orientation: False leaves the wrist relaxed (no torque towards a target
+                orientation; e.g. while the MTM aligns itself).
+
+        Raises:
+            ValueError: for a target that is not a proper pose or a finite position.
+        """
+        self._hand_target = self._as_target(target)
+        self._hold_orientation = bool(hold_orientation)
+        self._hand_on = True
+
+    def move_hand(self, target) -> None:
+        """Move the hand's target: a 4x4 pose, or a position (3,) keeping the target
+        orientation. Grasps the handle if the hand was off."""
+        T = self._as_target(target, keep_orientation=True)
+        self._hand_target = T
+        self._hand_on = True
+
+    def release(self) -> None:
+        """The hand lets go of the handle (pushes stop too)."""
+        self._hand_on = False
+        self._hand_target = None
+        self._push = np.zeros(6)
+        self._hand_wrench = np.zeros(6)
+        self._hand_applied = False
+        self.sim.data.xfrc_applied[self._body] = 0.0
+
+    def push(self, wrench) -> None:
+        """An extra constant wrench the hand applies at the tip: force (N) [then torque
+        (N·m)] in HRSV axes, shape (3,) or (6,); zeros to stop pushing."""
+        w = np.asarray(wrench, dtype=float)
+        if w.shape == (3,):
+            w = np.concatenate([w, np.zeros(3)])
+        if w.shape != (6,) or not np.all(np.isfinite(w)):
+            raise ValueError(f"push needs 3 or 6 finite numbers (N, N·m), got {wrench!r}")
+        self._push = w
+
+    def squeeze(self, angle: float) -> CommandResult:
+        """The fingers set the gripper opening, rad (0 closed … 60°, dvrk.md 1.5)."""
+        return self.arm.gripper.servo_jp(angle)
+
+    def hand_target(self) -> np.ndarray | None:
+        """The hand's target pose in HRSV (None when the hand is off)."""
+        return None if self._hand_target is None else self._hand_target.copy()
+
+    def hand_wrench(self) -> np.ndarray:
+        """The wrench the hand applied at the last tick (HRSV axes)."""
+        return self._hand_wrench.copy()
+
+    def _as_target(self, target, keep_orientation: bool = False) -> np.ndarray:
+        if target is None:
+            return self.arm.measured_cp().T.copy()
+        arr = np.asarray(target, dtype=float)
+        if arr.shape == (3,):
+            if not np.all(np.isfinite(arr)):
+                raise ValueError(f"hand target position must be finite, got {target!r}")
+            if keep_orientation and self._hand_target is not None:
+                T = self._hand_target.copy()
+            else:
+                T = self.arm.measured_cp().T.copy()
+            T[:3, 3] = arr
+            return T
+        T, msg = as_transform(arr, "hand target")
+        if T is None:
+            raise ValueError(msg)
+        return T.copy()
+
+    # ------------------------------------------------------------ MasterDevice
+    def _read(self, t: float) -> DeviceInput:
+        arm = self.arm
+        T = arm.measured_cp().T
+        twist = arm.measured_cv().twist
+        if self._hand_on or self._pushing or self._hand_applied:
+            w = self._push.copy()
+            if self._hand_on:
+                w += hand_wrench(
+                    self._hand_target, T, twist, self.hand, hold_orientation=self._hold_orientation
+                )
+            self._apply_hand(w, T)
+        return DeviceInput(T, twist, arm.gripper.measured_jp(), t)
+
+    @property
+    def _pushing(self) -> bool:
+        return bool(np.any(self._push))
+
+    def _apply_hand(self, w: np.ndarray, T_hrsv_tip: np.ndarray) -> None:
+        self._hand_wrench = w
+        self._hand_applied = bool(np.any(w))
+        R = self._R_world_hrsv
+        fx, fy, fz = (R @ w[:3]).tolist()
+        p_tip = R @ T_hrsv_tip[:3, 3] + self._p_world_hrsv
+        # xfrc_applied acts at the body's centre of mass: move the force to the tip.
+        lx, ly, lz = (p_tip - self.sim.data.xipos[self._body]).tolist()
+        tx, ty, tz = (R @ w[3:]).tolist()
+        self.sim.data.xfrc_applied[self._body] = (
+            fx,
+            fy,
+            fz,
+            tx + ly * fz - lz * fy,
+            ty + lz * fx - lx * fz,
+            tz + lx * fy - ly * fx,
+        )
+
+    def is_ready(self) -> bool:
+        state = self.arm.operating_state()
+        return state.state == "ENABLED" and state.is_homed
+
+    def not_ready_reason(self) -> str:
+        state = self.arm.operating_state()
+        if state.state != "ENABLED":
+            return f"{self.mtm} is {state.state}"
+        if not state.is_homed:
+            return f"{self.mtm} is not homed"
+        return ""
+
+    def prepare(self) -> None:
+        state = self.arm.operating_state()
+        if state.state != "ENABLED":
+            self.arm.state_command("enable")
+        if not state.is_homed and not self.arm.is_busy():
+            self.arm.state_command("home")
+
+    def is_busy(self) -> bool:
+        return self.arm.is_busy()
+
+    def move_cp(self, T_hrsv_tip) -> CommandResult:
+        return self.arm.move_cp(T_hrsv_tip)
+
+    def hold(self) -> None:
+        if self.arm.operating_state().state == "ENABLED":
+            self.arm.hold()
+
+    def enter_effort_mode(self) -> None:
+        self.arm.use_gravity_compensation(True)
+        super().enter_effort_mode()
+
+    def lock_orientation(self, R_hrsv_tip) -> None:
+        self.arm.lock_orientation(R_hrsv_tip)
+
+    def unlock_orientation(self) -> None:
+        self.arm.unlock_orientation()
+
+    def _apply_wrench(self, wrench: np.ndarray) -> None:
+        current = self.arm.wrench_setpoint()
+        if current is not None and current[0] == "spatial" and np.array_equal(current[1], wrench):
+            return  # already applied (the arm re-applies it every tick)
+        self.arm.spatial.servo_cf(wrench)

@@ -1,0 +1,76 @@
+"""Values a master input device reports: its input at one tick, and its published state."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from types import MappingProxyType
+
+import numpy as np
+
+
+def _frozen(a, shape: tuple[int, ...]) -> np.ndarray:
+    """A read-only float array of ``shape`` (no copy if ``a`` already is one)."""
+    if isinstance(a, np.ndarray) and not a.flags.writeable and a.dtype == float:
+        arr = a
+    else:
+        arr = np.array(a, dtype=float)
+    if arr.shape != shape:
+        raise ValueError(f"expected shape {shape}, got {arr.shape}")
+    arr.setflags(write=False)
+    return arr
+
+
+@dataclass(frozen=True, eq=False)
+class DeviceInput:
+    """What the operator's hand gives a master device at one tick.
+
+    Frames: the display frame HRSV of the console (dvrk.md 1.5: x to the operator's left, y
+    up, z away from the operator). The teleoperation maps motion in HRSV to tool motion in
+    the camera frame with the same axes.
+    """
+
+    T_hrsv_tip: np.ndarray
+    """Handle (tip) pose in HRSV, 4x4, m."""
+    twist_hrsv_tip: np.ndarray
+    """Handle velocity in HRSV axes: linear (m/s) then angular (rad/s), (6,)."""
+    gripper: float
+    """Gripper opening, rad (0 = closed, dvrk.md 4.1 ``gripper_scaling``)."""
+    timestamp: float
+    """Simulation time (s) at which this input was read."""
+    buttons: MappingProxyType = field(default_factory=lambda: MappingProxyType({}))
+    """Buttons on the device (name -> pressed), e.g. a gamepad's clutch button."""
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "T_hrsv_tip", _frozen(self.T_hrsv_tip, (4, 4)))
+        object.__setattr__(self, "twist_hrsv_tip", _frozen(self.twist_hrsv_tip, (6,)))
+        object.__setattr__(self, "gripper", float(self.gripper))
+        if not isinstance(self.buttons, MappingProxyType):
+            object.__setattr__(self, "buttons", MappingProxyType(dict(self.buttons)))
+
+    @property
+    def position(self) -> np.ndarray:
+        return self.T_hrsv_tip[:3, 3]
+
+    @property
+    def rotation(self) -> np.ndarray:
+        return self.T_hrsv_tip[:3, :3]
+
+
+@dataclass(frozen=True, eq=False)
+class DeviceSnapshot:
+    """A device's published state (``snapshot()``), for bridges and GUIs."""
+
+    name: str
+    kind: str
+    """``simulated``, ``network`` or ``udp``."""
+    input: DeviceInput | None
+    """The last input, None before the first one."""
+    ready: bool
+    stale: bool
+    """True when the watchdog tripped (network devices, dvrk.md 1.7)."""
+    input_age: float
+    """Simulation time since the last input, s (inf before the first)."""
+    wrench: np.ndarray
+    """Last wrench sent to the device (6,), N and N·m, HRSV axes."""
+    wrench_limited: bool
+    """Whether the safety limits clamped that wrench."""

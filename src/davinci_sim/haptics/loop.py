@@ -1,0 +1,185 @@
+"""The haptic loop: force fields → safety limits → wrench on each MTM, every tick.
+
+Registered as the ``haptics`` component after the console and the teleoperations, it runs in
+``post_step`` (after the physics step of the tick): for each PSM teleoperation that is
+following and has fields, it builds the :class:`~davinci_sim.haptics.field.HapticState`,
+sums the fields' wrenches and sends the sum through the device's
+:meth:`~davinci_sim.devices.MasterDevice.servo_cf`, which clamps it (magnitude and rate,
+:mod:`davinci_sim.haptics.safety`) and refuses it for a stale device. When following stops
+the teleoperation itself zeroes the wrench (clutch) or takes the MTM back (alignment).
+With no field registered the loop costs nothing.
+
+A field that raises or returns something other than 3 or 6 finite numbers is skipped for
+that tick (its contribution is zero) and reported on the ``haptics`` error channel, at most
+once per second per field.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from davinci_sim.haptics.field import HapticState, as_wrench
+from davinci_sim.sim.channels import Channels
+from davinci_sim.sim.types import ACCEPTED, CommandResult
+
+if TYPE_CHECKING:
+    from davinci_sim.console.console import Console
+    from davinci_sim.console.teleop_psm import TeleopPSM
+    from davinci_sim.sim.simulation import Simulation
+
+#: Errors of one field are reported at most this often (s).
+FIELD_ERROR_INTERVAL = 1.0
+
+
+@dataclass
+class _Entry:
+    name: str
+    field: object
+    mtm: str | None
+    last_error: float = -math.inf
+
+
+@dataclass(frozen=True, eq=False)
+class HapticsState:
+    """What the haptic loop publishes."""
+
+    fields: tuple[tuple[str, str | None], ...]
+    """(field name, MTM or None for all) of each registered field."""
+    requested: dict[str, np.ndarray] = field(default_factory=dict)
+    """MTM -> the fields' summed wrench at the last tick it was computed (6,)."""
+    sent: dict[str, np.ndarray] = field(default_factory=dict)
+    """MTM -> the wrench the device got after the safety limits (6,)."""
+
+
+class HapticLoop:
+    """The ``haptics`` component of a console; see the module docstring."""
+
+    name = "haptics"
+
+    def __init__(self, sim: Simulation, console: Console) -> None:
+        self.sim = sim
+        self.console = console
+        self.channels = Channels(self.name)
+        self._fields: dict[str, _Entry] = {}
+        self._requested: dict[str, np.ndarray] = {}
+
+    # ------------------------------------------------------------ fields
+    def add_field(self, force_field, *, mtm: str | None = None, name: str | None = None) -> str:
+        """Register ``force_field`` for ``mtm`` (None: every MTM); returns its name.
+
+        Raises:
+            TypeError: if it is not callable.
+            ValueError: for a name already in use or an unknown MTM.
+        """
+        if not callable(force_field):
+            raise TypeError(
+                f"a force field must be callable (state -> wrench), got {force_field!r}"
+            )
+        mtms = {t.mtm_name for t in self.console.psm_teleops.values()}
+        if mtm is not None and mtm not in mtms:
+            raise ValueError(f"unknown MTM {mtm!r}; MTMs with a teleoperation: {sorted(mtms)}")
+        if name is None:
+            base = getattr(force_field, "__name__", type(force_field).__name__)
+            name, i = base, 2
+            while name in self._fields:
+                name, i = f"{base}_{i}", i + 1
+        if name in self._fields:
+            raise ValueError(f"a force field named {name!r} is already registered")
+        self._fields[name] = _Entry(name, force_field, mtm)
+        return name
+
+    def remove_field(self, name: str) -> CommandResult:
+        if name not in self._fields:
+            text = f"remove_field: no field {name!r}; fields: {list(self._fields)}"
+            self.channels.message("error", text, self.sim.time)
+            return CommandResult(False, f"{self.name}: {text}")
+        del self._fields[name]
+        return ACCEPTED
+
+    def field_names(self) -> list[str]:
+        return list(self._fields)
+
+    # ------------------------------------------------------------ component
+    def pre_step(self, t: float) -> None:
+        """Nothing before the physics step: the loop runs in :meth:`post_step`."""
+
+    def post_step(self, t: float) -> None:
+        if not self._fields:
+            return
+        T_world_camera = None
+        for teleop in self.console.psm_teleops.values():
+            if not teleop.is_following():
+                continue
+            entries = [e for e in self._fields.values() if e.mtm in (None, teleop.mtm_name)]
+            if not entries:
+                continue
+            if T_world_camera is None:
+                T_world_camera = self._T_world_camera()
+            state = self.state(teleop, t, T_world_camera)
+            total = np.zeros(6)
+            for entry in entries:
+                try:
+                    total += as_wrench(entry.field(state))
+                except Exception as e:  # a faulty field must not stop the loop
+                    self._field_error(entry, e, t)
+            self._requested[teleop.mtm_name] = total
+            teleop.device.servo_cf(total)
+
+    def snapshot(self) -> HapticsState:
+        sent = {}
+        for teleop in self.console.psm_teleops.values():
+            sent.setdefault(teleop.mtm_name, teleop.device.wrench())
+        return HapticsState(
+            fields=tuple((e.name, e.mtm) for e in self._fields.values()),
+            requested={k: v.copy() for k, v in self._requested.items()},
+            sent=sent,
+        )
+
+    # ------------------------------------------------------------ state
+    def _T_world_camera(self) -> np.ndarray:
+        if "ECM" not in self.sim.arms:
+            return np.eye(4)
+        T = self.sim.T_cart_camera()  # the cart frame is the world frame
+        T.setflags(write=False)
+        return T
+
+    def state(
+        self, teleop: TeleopPSM, t: float, T_world_camera: np.ndarray | None = None
+    ) -> HapticState:
+        """The :class:`HapticState` of ``teleop`` now (also useful to test a field)."""
+        psm = teleop.psm
+        sim = self.sim
+        if T_world_camera is None:
+            T_world_camera = self._T_world_camera()
+
+        def tip() -> tuple[np.ndarray, np.ndarray]:
+            return psm.measured_cp().T, psm.measured_cv().twist
+
+        def contact() -> np.ndarray:
+            return T_world_camera[:3, :3].T @ sim.contact_force(psm.name)
+
+        inp = teleop.device.input()
+        return HapticState(
+            time=t,
+            mtm=teleop.mtm_name,
+            psm=psm.name,
+            T_world_camera=T_world_camera,
+            T_hrsv_mtm=inp.T_hrsv_tip,
+            twist_hrsv_mtm=inp.twist_hrsv_tip,
+            gripper=inp.gripper,
+            following=teleop.is_following(),
+            tip=tip,
+            jaw_provider=psm.jaw.measured_jp,
+            contact_provider=contact,
+        )
+
+    def _field_error(self, entry: _Entry, error: Exception, t: float) -> None:
+        if t - entry.last_error >= FIELD_ERROR_INTERVAL:
+            entry.last_error = t
+            self.channels.message(
+                "error", f"force field {entry.name!r} failed: {type(error).__name__}: {error}", t
+            )
