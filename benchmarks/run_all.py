@@ -7,6 +7,7 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
+import bench_bridge  # noqa: E402
 import bench_kinematics  # noqa: E402
 import bench_render  # noqa: E402
 import bench_tick  # noqa: E402
@@ -15,3 +16,4 @@ if __name__ == "__main__":
     bench_kinematics.main()
     bench_tick.main()
     bench_render.main()
+    bench_bridge.main()

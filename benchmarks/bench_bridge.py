@@ -1,0 +1,242 @@
+"""rosbridge server: publish-to-receive latency of measured_js, and the highest sustained rate
+of 7 arms' measured_js to 4 subscribers while the 1 kHz loop keeps real time.
+
+The clients run in a separate process (a lean websockets client speaking rosbridge JSON), so
+they do not share the server's interpreter lock. Latency = arrival time at the client minus the
+header stamp, which the server sets (wall clock) when it builds the message. The loop's period
+is measured by a probe component in the simulation (wall time at each tick).
+
+Two set-ups for the rate: the whole simulator (full scene, in-process ``ThreadedSimulation``:
+the loop, its snapshots and the bridge share one interpreter), and the bridge alone fed from
+a fixed snapshot (what the server itself sustains).
+"""
+
+from __future__ import annotations
+
+import json
+import statistics
+import subprocess
+import sys
+import time
+
+from common import write
+from davinci_sim.bridge import BridgeConfig, RosbridgeServer
+from davinci_sim.bridge.dvrk_node import DvrkNode
+from davinci_sim.bridge.endoscope import EndoscopeNode, QposProbe
+from davinci_sim.sim.handle import ThreadedSimulation, take_snapshot
+from davinci_sim.sim.simulation import Simulation
+
+ARMS = ("PSM1", "PSM2", "PSM3", "ECM", "MTML", "MTMR", "SUJ/PSM1")
+
+CLIENT = r"""
+import asyncio, json, sys, time
+from websockets.asyncio.client import connect
+
+url, topics = sys.argv[1], sys.argv[2].split(",")
+n_clients, seconds, warmup = int(sys.argv[3]), float(sys.argv[4]), float(sys.argv[5])
+
+async def one(k, out):
+    counts = {t: 0 for t in topics}
+    lat = []
+    async with connect(url, compression=None, max_size=None, max_queue=None) as ws:
+        for t in topics:
+            await ws.send(json.dumps({"op": "subscribe", "topic": t, "id": f"{k}:{t}"}))
+        t_start = time.time() + warmup
+        t_end = t_start + seconds
+        while True:
+            left = t_end - time.time()
+            if left <= 0:
+                break
+            try:
+                data = await asyncio.wait_for(ws.recv(), left)
+            except asyncio.TimeoutError:
+                break
+            now = time.time()
+            if now < t_start:
+                continue
+            msg = json.loads(data)
+            counts[msg["topic"]] += 1
+            if k == 0 and msg["topic"] == topics[0]:
+                s = msg["msg"]["header"]["stamp"]
+                lat.append(now - (s["sec"] + 1e-9 * s["nanosec"]))
+    out[k] = {"counts": counts, "latency": lat}
+
+async def main():
+    out = {}
+    await asyncio.gather(*(one(k, out) for k in range(n_clients)))
+    print(json.dumps(out))
+
+asyncio.run(main())
+"""
+
+
+class TickProbe:
+    """A simulation component recording the wall time of every tick."""
+
+    def __init__(self) -> None:
+        self.times: list[float] = []
+
+    def pre_step(self, t: float) -> None:
+        self.times.append(time.perf_counter())
+
+    def snapshot(self) -> None:
+        return None
+
+
+class FixedHandle:
+    """A handle whose snapshot never changes: the bridge alone, without a simulation loop."""
+
+    def __init__(self, snap) -> None:
+        self._snap = snap
+
+    def snapshot(self):
+        return self._snap
+
+    def subscribe(self, callback):
+        return lambda: None
+
+    def call(self, *args, **kwargs):
+        raise RuntimeError("no simulation")
+
+
+def run_clients(url: str, topics, n_clients: int, seconds: float, warmup: float = 1.0) -> dict:
+    out = subprocess.run(
+        [sys.executable, "-c", CLIENT, url, ",".join(topics), str(n_clients), str(seconds),
+         str(warmup)],
+        capture_output=True, text=True, timeout=seconds + warmup + 60, check=True,
+    )  # fmt: skip
+    return json.loads(out.stdout)
+
+
+def percentile(values, q: float) -> float:
+    s = sorted(values)
+    return s[min(len(s) - 1, int(q * len(s)))] if s else float("nan")
+
+
+def loop_figures(probe: TickProbe, t0: float, t1: float) -> dict:
+    times = [t for t in probe.times if t0 <= t <= t1]
+    periods = [1000 * (b - a) for a, b in zip(times, times[1:], strict=False)]
+    if not periods:
+        return {}
+    return {
+        "loop_rate_hz": (len(times) - 1) / (times[-1] - times[0]),
+        "loop_period_p50_ms": statistics.median(periods),
+        "loop_period_p99_ms": percentile(periods, 0.99),
+        "loop_period_max_ms": max(periods),
+    }
+
+
+def measure(handle, rate: float, n_clients: int, seconds: float, probe=None) -> dict:
+    server = RosbridgeServer(BridgeConfig(port=0), nodes=[DvrkNode(handle, rate=rate)]).start()
+    try:
+        topics = [f"/{a}/measured_js" for a in ARMS]
+        t0 = time.perf_counter() + 1.0
+        result = run_clients(server.url, topics, n_clients, seconds)
+        t1 = t0 + seconds
+        stats = server.stats()
+    finally:
+        server.stop()
+    received = [sum(r["counts"].values()) for r in result.values()]
+    expected = rate * len(topics) * seconds
+    lat = [1000 * x for x in result["0"]["latency"]]
+    out = {
+        "rate_hz": rate,
+        "received_fraction_min": min(received) / expected,
+        "dropped": sum(s["dropped"] for s in stats["sessions"]),
+        "latency_p50_ms": statistics.median(lat) if lat else float("nan"),
+        "latency_p99_ms": percentile(lat, 0.99),
+    }
+    if probe is not None:
+        out.update(loop_figures(probe, t0, t1))
+    return out
+
+
+def sustained(rows: list[dict], with_loop: bool) -> float:
+    """Highest rate with >= 95 % delivered to every client, nothing dropped (queues did not
+    overflow) and, with the simulation, the loop still at >= 995 Hz (real time)."""
+    best = 0.0
+    for r in rows:
+        ok = r["received_fraction_min"] >= 0.95 and r["dropped"] == 0
+        if with_loop:
+            ok = ok and r.get("loop_rate_hz", 0) >= 995
+        if ok:
+            best = max(best, r["rate_hz"])
+    return best
+
+
+def measure_images(seconds: float) -> dict:
+    """Stereo JPEG at 30 Hz plus measured_js at 100 Hz to one client, full scene."""
+    sim = Simulation("full", keyframe="surgical")
+    probe = TickProbe()
+    sim.components["probe"] = probe
+    sim.components["qpos"] = QposProbe(sim)
+    handle = ThreadedSimulation(sim, real_time=True, snapshot_period=0.01).start()
+    endo = EndoscopeNode(handle, "full", rate=30.0)
+    server = RosbridgeServer(BridgeConfig(port=0), nodes=[DvrkNode(handle), endo]).start()
+    try:
+        topics = ["/PSM1/measured_js", "/jhu_daVinci/left/image_raw/compressed",
+                  "/jhu_daVinci/right/image_raw/compressed"]  # fmt: skip
+        t0 = time.perf_counter() + 3.0
+        result = run_clients(server.url, topics, 1, seconds, warmup=3.0)  # render start-up
+        loop = loop_figures(probe, t0, t0 + seconds)
+        render_ms = 1000 * statistics.median(endo.render_times) if endo.render_times else 0.0
+    finally:
+        server.stop()
+        handle.stop()
+    counts = result["0"]["counts"]
+    return {
+        "images_left_per_s": counts[topics[1]] / seconds,
+        "images_right_per_s": counts[topics[2]] / seconds,
+        "images_render_encode_ms_p50": render_ms,
+        **{f"images_{k}": v for k, v in loop.items()},
+    }
+
+
+def main(seconds: float = 5.0) -> None:
+    figures: dict = {}
+    figures.update(measure_images(seconds))
+    print(figures, flush=True)
+    # -- the whole simulator: full scene, in-process loop -------------------------------
+    rows = []
+    for rate in (100.0, 250.0, 500.0, 1000.0):
+        sim = Simulation("full")
+        probe = TickProbe()
+        sim.components["probe"] = probe
+        handle = ThreadedSimulation(sim, real_time=True, snapshot_period=1.0 / rate).start()
+        try:
+            if rate == 100.0:  # latency at the dVRK's default rate, one subscriber
+                one = measure(handle, rate, 1, seconds)
+                figures["latency_100hz_p50_ms"] = one["latency_p50_ms"]
+                figures["latency_100hz_p99_ms"] = one["latency_p99_ms"]
+            probe.times.clear()
+            rows.append(measure(handle, rate, 4, seconds, probe))
+        finally:
+            handle.stop()
+        print(rows[-1], flush=True)
+    for r in rows:
+        tag = f"sim_{int(r['rate_hz'])}hz"
+        for k, v in r.items():
+            if k != "rate_hz":
+                figures[f"{tag}_{k}"] = v
+    figures["sustained_rate_7_arms_4_clients_with_sim_hz"] = sustained(rows, True)
+    # -- the bridge alone ----------------------------------------------------------------
+    sim = Simulation("full")
+    handle = FixedHandle(take_snapshot(sim))
+    rows = []
+    for rate in (250.0, 500.0, 1000.0):
+        rows.append(measure(handle, rate, 4, seconds))
+        print(rows[-1], flush=True)
+    for r in rows:
+        tag = f"bridge_only_{int(r['rate_hz'])}hz"
+        for k, v in r.items():
+            if k != "rate_hz":
+                figures[f"{tag}_{k}"] = v
+    figures["sustained_rate_7_arms_4_clients_bridge_only_hz"] = sustained(rows, False)
+    figures["latency_1khz_bridge_only_p50_ms"] = rows[-1]["latency_p50_ms"]
+    figures["latency_1khz_bridge_only_p99_ms"] = rows[-1]["latency_p99_ms"]
+    figures["seconds_per_point"] = seconds
+    write("bridge", figures)
+
+
+if __name__ == "__main__":
+    main()
