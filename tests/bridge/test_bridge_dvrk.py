@@ -55,6 +55,30 @@ def test_topics_types_and_services_of_every_arm(handle, make_server, make_ros):
     )
     v = roslibpy.Service(ros, "/PSM1/crtk_version", "std_srvs/Trigger").call({})
     assert v == {"success": True, "message": "1.1.0"}
+    tool = subscribe(ros, "/PSM1/tool_type", "std_msgs/String")
+    scope = subscribe(ros, "/ECM/endoscope_type", "std_msgs/String")
+    assert wait_for(lambda: tool and scope)  # latched
+    assert tool[0]["data"] == "LARGE_NEEDLE_DRIVER:400006"
+
+
+def test_mtm_gripper_topics(make_server, make_ros):
+    from davinci_sim.sim.handle import ThreadedSimulation
+
+    handle = ThreadedSimulation(Simulation("psm1_ecm_mtmr"), real_time=True).start()
+    try:
+        server = make_server(handle)
+        ros = make_ros(server)
+        closed = subscribe(ros, "/MTMR/gripper/closed", "std_msgs/Bool")
+        grip = subscribe(ros, "/MTMR/gripper/measured_js", "sensor_msgs/JointState")
+        assert wait_for(lambda: closed and grip)
+        assert grip[-1]["name"] == ["gripper"]
+        handle.call("MTMR/gripper", "servo_jp", 0.8).result(5)
+        assert wait_for(lambda: closed[-1] == {"data": False}, 5)
+        handle.call("MTMR/gripper", "servo_jp", 0.0).result(5)
+        assert wait_for(lambda: closed[-1] == {"data": True}, 5)
+        assert "/MTMR/lock_orientation" in ros.get_topics()
+    finally:
+        handle.stop()
 
 
 @pytest.mark.parametrize("rate", [50.0, 200.0])

@@ -224,6 +224,15 @@ COMMAND_TOPICS: tuple[CommandTopic, ...] = (
                  lambda msg, a: (), MTM),
 )  # fmt: skip
 
+#: Latched constants (dvrk.md 1.2, 1.4: the simulated tool and endoscope).
+CONSTANT_TOPICS = {
+    "PSM": ("tool_type", "LARGE_NEEDLE_DRIVER:400006"),
+    "ECM": ("endoscope_type", "Classic_SD_STRAIGHT"),
+}
+#: ``gripper/closed`` threshold, rad: the dVRK's ``gripper_events_zero`` default 0 (dvrk.md
+#: 2.2) plus 0.3° because the simulated fingers settle a hair above their closed stop.
+GRIPPER_CLOSED_BELOW = 0.005
+
 EVENT_TOPICS = {"error": "std_msgs/String", "warning": "std_msgs/String",
                 "status": "std_msgs/String"}  # fmt: skip
 
@@ -241,6 +250,8 @@ class _Arm:
         self.goal_reached: Topic | None = None
         self.busy = False
         self.last_event_time = -1.0
+        self.gripper_closed: Topic | None = None
+        self.closed: bool | None = None
 
 
 class DvrkNode:
@@ -336,6 +347,13 @@ class DvrkNode:
         )
         arm.goal_reached = b.advertise(self._topic(arm, "goal_reached"), "std_msgs/Bool",
                                        node=NODE)  # fmt: skip
+        if kind in CONSTANT_TOPICS:
+            suffix, value = CONSTANT_TOPICS[kind]
+            topic = b.advertise(self._topic(arm, suffix), "std_msgs/String", node=NODE, latch=True)
+            b.publish(topic, {"data": value})
+        if kind == "MTM":
+            arm.gripper_closed = b.advertise(self._topic(arm, "gripper/closed"), "std_msgs/Bool",
+                                             node=NODE, latch=True)  # fmt: skip
         self._advertise_services(arm)
 
     # ------------------------------------------------------------------ publishing
@@ -346,6 +364,7 @@ class DvrkNode:
         b, d = self.bridge, self.bridge.dialect
         snap: Snapshot = self.handle.snapshot()
         self._check_operating_states(snap)
+        self._check_grippers(snap)
         for arm in self.arms.values():
             for topic, spec in arm.state:
                 if not topic.subscriptions:
@@ -440,6 +459,17 @@ class DvrkNode:
                 s.state, s.is_homed, s.is_busy)  # fmt: skip
             if not same and snap.time > arm.last_event_time + 0.05:
                 self._publish_operating_state(arm, s)
+
+    def _check_grippers(self, snap: Snapshot) -> None:
+        """``gripper/closed`` of the MTMs, published when it changes (dvrk.md 2.2)."""
+        for name, arm in self.arms.items():
+            a = snap.arms.get(name)
+            if arm.gripper_closed is None or a is None or a.gripper_measured_js is None:
+                continue
+            closed = bool(a.gripper_measured_js.position[0] <= GRIPPER_CLOSED_BELOW)
+            if closed != arm.closed:
+                arm.closed = closed
+                self.bridge.publish(arm.gripper_closed, {"data": closed})
 
     # ------------------------------------------------------------------ commands
     def _command_listener(self, arm: _Arm, spec: CommandTopic):
