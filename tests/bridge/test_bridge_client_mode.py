@@ -145,3 +145,58 @@ def test_config_is_checked():
         ClientModeConfig("http://localhost:9090")
     with pytest.raises(ValueError, match="namespace"):
         ClientModeConfig("ws://localhost:9090", namespace="sim")
+
+
+def test_a_remote_console_teleoperates_the_simulated_psm(remote, make_server, make_ros):
+    """The whole chain: real MTM pose (remote topics) → client mode → network device →
+    simulated teleoperation (enabled through the local console topics) → PSM motion, seen
+    on the local bridge's dVRK topics."""
+    setup = pytest.importorskip("davinci_sim.console.setup")
+    network = pytest.importorskip("davinci_sim.devices.network")
+    from davinci_sim.bridge.console_node import ConsoleNode
+    from davinci_sim.bridge.dvrk_node import DvrkNode
+
+    remote_server, remote_ros = remote
+    sim = Simulation("psm1_ecm_mtmr", keyframe="surgical")
+    device = network.NetworkDevice("MTMR/device", watchdog=0.5)
+    setup.install_console(sim, devices={"MTMR": device})
+    handle = ThreadedSimulation(sim, real_time=True).start()
+    local = make_server(nodes=[DvrkNode(handle), ConsoleNode(handle)])
+    ros = make_ros(local)
+    fake = FakeConsole(remote_ros, list(handle.snapshot().arms["MTMR"].measured_js.name))
+    client = RosClientMode(handle, ClientModeConfig(remote_server.url, mtms=("MTMR",)))
+    try:
+        client.start()
+        assert client.mode == {"MTMR": "device"}
+        following, cp, clutch = [], [], []
+        roslibpy.Topic(ros, "/MTMR_PSM1/following", "std_msgs/Bool").subscribe(following.append)
+        roslibpy.Topic(ros, "/PSM1/measured_cp", "geometry_msgs/PoseStamped").subscribe(cp.append)
+        roslibpy.Topic(ros, "/console/clutch", "sensor_msgs/Joy").subscribe(clutch.append)
+
+        def pub(name, type_name, msg):
+            roslibpy.Topic(ros, name, type_name).publish(roslibpy.Message(msg))
+
+        time.sleep(0.3)
+        pub("/PSM1/state_command", "crtk_msgs/StringStamped", {"string": "enable"})
+        pub("/PSM1/state_command", "crtk_msgs/StringStamped", {"string": "home"})
+        assert wait_for(lambda: handle.snapshot().arms["PSM1"].operating_state.is_homed, 10)
+        pub("/console/teleop/enable", "std_msgs/Bool", {"data": True})
+        pub("/console/emulate_operator_present", "sensor_msgs/Joy", {"buttons": [1]})
+        assert wait_for(lambda: following and following[-1]["data"], 10), following
+        time.sleep(0.3)
+        p0 = m.pose_matrix(cp[-1]["pose"])[:3, 3]
+        start = fake.T[:3, 3].copy()
+        for k in range(1, 51):  # the real MTM moves 2 cm along HRSV x in 0.5 s
+            fake.T[:3, 3] = start + [0.02 * k / 50, 0.0, 0.0]
+            time.sleep(0.01)
+        time.sleep(0.5)
+        moved = m.pose_matrix(cp[-1]["pose"])[:3, 3] - p0
+        # scale 0.2: 4 mm, along the camera's x (motion in the display = motion in the image)
+        assert np.linalg.norm(moved) == pytest.approx(0.004, abs=0.001), moved
+        assert moved[0] > 0.003
+        fake.clutch.publish(roslibpy.Message({"buttons": [1]}))  # the real clutch pedal
+        assert wait_for(lambda: clutch and clutch[-1]["buttons"] == [1], 5)
+    finally:
+        client.stop()
+        fake.stop()
+        handle.stop()

@@ -82,3 +82,47 @@ def test_no_render_process_without_image_subscribers(probed_handle, make_server,
     assert endo.worker == []  # camera_info alone does not start rendering
     with pytest.raises(ValueError, match="encoding"):
         EndoscopeNode(probed_handle, "psm1", encoding="png")
+
+
+class RenderingHandle:
+    """A handle whose runner renders by itself (the ``stereo_frame()`` of a process runner)."""
+
+    def __init__(self, inner):
+        self.inner = inner
+        self.number = 0
+
+    def snapshot(self):
+        return self.inner.snapshot()
+
+    def subscribe(self, cb):
+        return self.inner.subscribe(cb)
+
+    def call(self, *a, **k):
+        return self.inner.call(*a, **k)
+
+    def stereo_frame(self):
+        from types import SimpleNamespace
+
+        self.number += 1
+        left = np.full((48, 64, 3), 200, np.uint8)
+        left[:, :32] = 20
+        return SimpleNamespace(left=left, right=left[:, ::-1].copy(), time=1.0,
+                               frame=self.number // 2, render_time=0.01)  # fmt: skip
+
+
+def test_frames_from_a_rendering_runner(handle, make_server, make_ros):
+    h = RenderingHandle(handle)
+    endo = EndoscopeNode(h, "psm1", encoding="both")
+    server = make_server(nodes=[endo])
+    ros = make_ros(server)
+    left, raw = [], []
+    roslibpy.Topic(ros, "/jhu_daVinci/left/image_raw/compressed",
+                   "sensor_msgs/CompressedImage").subscribe(left.append)  # fmt: skip
+    roslibpy.Topic(ros, "/jhu_daVinci/right/image_raw", "sensor_msgs/Image").subscribe(raw.append)
+    assert wait_for(lambda: len(left) >= 3 and raw, 10)
+    assert endo.worker == []  # no render process of ours
+    img = np.asarray(Image.open(io.BytesIO(base64.b64decode(left[-1]["data"]))))
+    assert img.shape == (48, 64, 3) and img[:, :20].mean() < 60 and img[:, 44:].mean() > 150
+    r = raw[-1]
+    right = np.frombuffer(base64.b64decode(r["data"]), np.uint8).reshape(48, 64, 3)
+    assert right[:, :32].mean() == 200 and right[:, 32:].mean() == 20  # mirrored, exact

@@ -97,6 +97,11 @@ TELEOP_PSM_FIELDS = (
           _quaternion),
 )  # fmt: skip
 TELEOP_ECM_FIELDS = TELEOP_PSM_FIELDS[:4]
+#: Fields a teleoperation also announces as events (the others are only in its snapshots).
+TELEOP_EVENTS = frozenset(
+    ("current_state", "desired_state", "following", "scale", "rotation_locked",
+     "translation_locked", "align_mtm")
+)  # fmt: skip
 
 
 @dataclass(frozen=True)
@@ -232,8 +237,10 @@ class ConsoleNode:
                 continue
             if c.kind == "console":
                 self._console_changes(c, state)
-            elif not c.evented:
-                for attr, (topic, f) in c.fields.items():
+                continue
+            for attr, (topic, f) in c.fields.items():
+                # Event-driven fields are not diffed: a snapshot may be older than the event.
+                if not (c.evented and attr in TELEOP_EVENTS):
                     self._changed(c, attr, getattr(state, attr, None), topic, f)
 
     def _changed(self, c: _Component, attr: str, value: Any, topic: Topic, f: Field) -> None:
@@ -323,8 +330,9 @@ class ConsoleNode:
                 self._button(c, event, [int(payload[0])], now, d)
             return
         entry = c.fields.get(event)
-        if entry is not None:
+        if entry is not None and event in TELEOP_EVENTS:
             topic, f = entry
+            c.last[event] = payload
             b.publish(topic, f.build(d, payload, now))
 
     # ------------------------------------------------------------------ commands

@@ -11,6 +11,10 @@ the 1 kHz loop, and in this process it would hold the GIL. So a :class:`RenderWo
 builds the same MuJoCo model, receives joint positions (``qpos``) at the image rate, renders
 both cameras and JPEG-encodes them; the bridge only forwards bytes. Frames are requested
 only while someone subscribes, one at a time (the rate is capped by the worker).
+
+A handle that renders by itself (a runner with ``stereo_frame()``, such as the process
+runner of :mod:`davinci_sim.sim.runtime`) is used instead: its latest frame is taken at the
+image rate and JPEG-encoded in a worker thread (Pillow releases the interpreter lock).
 """
 
 from __future__ import annotations
@@ -92,6 +96,26 @@ def camera_info(
 
 
 # =========================================================================== the worker
+def _encode_pair(left, right, encoding: str, quality: int):
+    """``(jpeg pair | None, raw pair | None, seconds)`` of two RGB arrays."""
+    import io
+
+    from PIL import Image
+
+    t0 = time.perf_counter()
+    jpeg = raw = None
+    if encoding in ("jpeg", "both"):
+        out = []
+        for rgb in (left, right):
+            buf = io.BytesIO()
+            Image.fromarray(np.ascontiguousarray(rgb)).save(buf, format="JPEG", quality=quality)
+            out.append(buf.getvalue())
+        jpeg = (out[0], out[1])
+    if encoding in ("raw", "both"):
+        raw = (np.ascontiguousarray(left).tobytes(), np.ascontiguousarray(right).tobytes())
+    return jpeg, raw, time.perf_counter() - t0
+
+
 @dataclass(frozen=True)
 class Frame:
     """One rendered stereo pair: JPEG and/or raw RGB bytes (left, right), with its timing."""
@@ -106,10 +130,8 @@ class Frame:
 
 def _worker_main(conn: Connection) -> None:
     """The render process: build the model, then render each ``qpos`` it is sent."""
-    import io
 
     import mujoco
-    from PIL import Image
 
     from davinci_sim.model import build_model
     from davinci_sim.sim.sensors import CameraRenderer
@@ -132,23 +154,9 @@ def _worker_main(conn: Connection) -> None:
         try:
             data.qpos[:] = qpos
             mujoco.mj_forward(model, data)
-            jpeg, raw = [], []
-            for _, camera in CAMERAS:
-                rgb = renderer.render(data, camera, w, h, fast=True)
-                if encoding in ("jpeg", "both"):
-                    buf = io.BytesIO()
-                    Image.fromarray(rgb).save(buf, format="JPEG", quality=quality)
-                    jpeg.append(buf.getvalue())
-                if encoding in ("raw", "both"):
-                    raw.append(np.ascontiguousarray(rgb).tobytes())
-            frame = Frame(
-                stamp,
-                (jpeg[0], jpeg[1]) if jpeg else None,
-                (raw[0], raw[1]) if raw else None,
-                w,
-                h,
-                time.perf_counter() - t0,
-            )
+            left, right = (renderer.render(data, camera, w, h, fast=True) for _, camera in CAMERAS)
+            jpeg, raw, _ = _encode_pair(left, right, encoding, quality)
+            frame = Frame(stamp, jpeg, raw, w, h, time.perf_counter() - t0)
             conn.send(("frame", dataclasses.astuple(frame)))  # plain data: see __main__
         except Exception as e:  # report and carry on
             conn.send(("error", f"{type(e).__name__}: {e}"))
@@ -245,6 +253,9 @@ class EndoscopeNode:
         self._started = 0.0
         self._retry_at = 0.0
         self._last_request = 0.0
+        self._external = callable(getattr(handle, "stereo_frame", None))
+        self._last_frame_number: int | None = None
+        self._encoding_external = False
 
     def attach(self, bridge: Bridge) -> None:
         self.bridge = bridge
@@ -303,6 +314,9 @@ class EndoscopeNode:
         if not self._image_wanted():
             self._publish_info(self.bridge.now())
             return
+        if self._external:
+            self._tick_external()
+            return
         if time.monotonic() < self._retry_at:
             return
         try:
@@ -314,6 +328,37 @@ class EndoscopeNode:
         if w.busy or self._pending_qpos:
             return
         self._request(w)
+
+    def _tick_external(self) -> None:
+        """Frames rendered by the handle's own renderer: encode and publish new ones."""
+        if self._encoding_external:
+            return
+        try:
+            frame = self.handle.stereo_frame()
+        except Exception as e:  # e.g. a runner started without a renderer: use ours
+            _log.warning("endoscope: the handle does not render (%s); rendering here", e)
+            self._external = False
+            return
+        number = getattr(frame, "frame", None)
+        if frame is None or number == self._last_frame_number:
+            return
+        self._last_frame_number = number
+        stamp = time.time() if self.bridge.config.stamp_clock == "wall" else frame.time
+        self._encoding_external = True
+        future = self.loop.run_in_executor(
+            None, _encode_pair, frame.left, frame.right, self.encoding, self.quality
+        )
+
+        def done(f) -> None:
+            self._encoding_external = False
+            if f.exception() is not None:
+                _log.error("endoscope: encoding failed: %s", f.exception())
+                return
+            jpeg, raw, seconds = f.result()
+            h, w = frame.left.shape[:2]
+            self._publish_frame(Frame(stamp, jpeg, raw, w, h, frame.render_time + seconds))
+
+        future.add_done_callback(done)
 
     def _request(self, w: RenderWorker) -> None:
         self._last_request = time.monotonic()
