@@ -6,13 +6,15 @@ they do not share the server's interpreter lock. Latency = arrival time at the c
 header stamp, which the server sets (wall clock) when it builds the message. The loop's period
 is measured by a probe component in the simulation (wall time at each tick).
 
-Two set-ups for the rate: the whole simulator (full scene, in-process ``ThreadedSimulation``:
-the loop, its snapshots and the bridge share one interpreter), and the bridge alone fed from
-a fixed snapshot (what the server itself sustains).
+Three set-ups for the rate: the whole simulator with the in-process ``ThreadedSimulation``
+(the loop, its snapshots and the bridge share one interpreter), the same with the loop in its
+own process (issue 3's ``ProcessSimulation``, when present), and the bridge alone fed from a
+fixed snapshot (what the server itself sustains).
 """
 
 from __future__ import annotations
 
+import functools
 import json
 import statistics
 import subprocess
@@ -219,6 +221,35 @@ def main(seconds: float = 5.0) -> None:
             if k != "rate_hz":
                 figures[f"{tag}_{k}"] = v
     figures["sustained_rate_7_arms_4_clients_with_sim_hz"] = sustained(rows, True)
+    # -- the loop in its own process (issue 3's runner) ---------------------------------
+    try:
+        from davinci_sim.sim.runtime.process import ProcessSimulation
+    except ImportError:
+        ProcessSimulation = None
+    if ProcessSimulation is not None:
+        rows = []
+        for rate in (100.0, 250.0, 500.0, 1000.0):
+            handle = ProcessSimulation(functools.partial(Simulation, "full"),
+                                       snapshot_period=1.0 / rate).start()  # fmt: skip
+            try:
+                time.sleep(1.0)
+                before = handle.period_statistics()
+                row = measure(handle, rate, 4, seconds)
+                after = handle.period_statistics()
+            finally:
+                handle.stop()
+            ticks = after.ticks - before.ticks
+            row["loop_rate_hz"] = ticks / (after.elapsed - before.elapsed)
+            row["loop_period_p99_ms"] = 1000 * after.period_p99
+            row["loop_period_max_ms"] = 1000 * after.period_max
+            rows.append(row)
+            print(row, flush=True)
+        for r in rows:
+            tag = f"process_{int(r['rate_hz'])}hz"
+            for k, v in r.items():
+                if k != "rate_hz":
+                    figures[f"{tag}_{k}"] = v
+        figures["sustained_rate_7_arms_4_clients_process_runner_hz"] = sustained(rows, True)
     # -- the bridge alone ----------------------------------------------------------------
     sim = Simulation("full")
     handle = FixedHandle(take_snapshot(sim))

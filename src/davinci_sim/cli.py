@@ -207,6 +207,8 @@ def cmd_serve(args: argparse.Namespace) -> int:
             namespace=args.namespace,
             remote_ros_version=args.remote_ros_version,
             duration=args.duration,
+            console=args.console,
+            runner=args.runner,
         )
     except ValueError as e:
         print(f"davinci-sim serve: {e}", file=sys.stderr)
@@ -226,6 +228,13 @@ def cmd_serve(args: argparse.Namespace) -> int:
 
     info = serve(options, stop=stop, on_ready=ready)
     print(f"stopped; simulation ran at {info.get('sim_over_wall', 0):.3f}x real time", flush=True)
+    stats = info.get("period_statistics")
+    if stats is not None:
+        print(
+            f"loop: {stats.achieved_rate_hz:.1f} Hz, p99 period {1000 * stats.period_p99:.2f} ms, "
+            f"max {1000 * stats.period_max:.2f} ms",
+            flush=True,
+        )
     return 0
 
 
@@ -323,6 +332,18 @@ def main(argv: list[str] | None = None) -> int:
         help="client mode: prefix of the simulated arms' topics on the remote",
     )
     p.add_argument("--remote-ros-version", type=int, choices=[1, 2], default=2)
+    p.add_argument(
+        "--console",
+        action="store_true",
+        help="install the surgeon console and teleoperations (MTMs fed by the "
+        "client mode with --ros-connect)",
+    )
+    p.add_argument(
+        "--runner",
+        default="thread",
+        choices=["thread", "process"],
+        help="the loop in a thread of this process, or in its own process",
+    )
     p.add_argument("--duration", type=float, default=None, help="stop after this many seconds")
     p.add_argument("-v", "--verbose", action="store_true")
     p.set_defaults(func=cmd_serve)

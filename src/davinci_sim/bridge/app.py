@@ -1,14 +1,16 @@
 """``davinci-sim serve``: a simulation with its ROS interfaces, assembled from options.
 
-One function, :func:`serve`, builds the simulation (with a :class:`QposProbe` for the
-endoscope renderer), runs it in its loop, and starts what the options ask for: the rosbridge
-server with the dVRK, console and endoscope nodes, the UDP streams, the client mode. It runs
-until ``stop`` is set (Ctrl-C in the CLI) or ``duration`` passes, then stops everything in
-reverse order.
+One function, :func:`serve`, builds the simulation (optionally with the surgeon console and
+its teleoperations, issue 3), runs it in its loop (a thread of this process, or its own
+process with the process runner when available), and starts what the options ask for: the
+rosbridge server with the dVRK, console and endoscope nodes, the UDP streams, the client
+mode. It runs until ``stop`` is set (Ctrl-C in the CLI) or ``duration`` passes, then stops
+everything in reverse order.
 """
 
 from __future__ import annotations
 
+import functools
 import logging
 import threading
 import time
@@ -46,6 +48,37 @@ class ServeOptions:
     namespace: str = "/sim"
     remote_ros_version: Literal[1, 2] = 2
     duration: float | None = None
+    console: bool = False
+    """Install the surgeon console and teleoperations (MTMs as network devices fed by the
+    client mode when ``ros_connect`` is set, else the simulated MTMs)."""
+    runner: Literal["thread", "process"] = "thread"
+    """Loop in a thread of this process, or in its own process (issue 3's runner)."""
+
+
+def build_simulation(
+    scene: str, keyframe: str, seed: int, home: bool, console: bool, network_mtms: bool,
+    qpos_probe: bool,
+):  # fmt: skip
+    """The simulation of :func:`serve` (top level and picklable for the process runner)."""
+    from davinci_sim.bridge.endoscope import QposProbe
+    from davinci_sim.sim.simulation import Simulation
+
+    sim = Simulation(scene, seed=seed, keyframe=keyframe)
+    if console:
+        from davinci_sim.console.setup import install_console
+        from davinci_sim.devices.network import NetworkDevice
+
+        devices = {}
+        if network_mtms:
+            devices = {m: NetworkDevice(f"{m}/device") for m in ("MTML", "MTMR") if m in sim.arms}
+        install_console(sim, devices=devices)
+    if qpos_probe:
+        sim.components["qpos"] = QposProbe(sim)
+    if home:
+        for arm in sim.arms.values():
+            arm.state_command("enable")
+            arm.state_command("home")
+    return sim
 
 
 def serve(
@@ -62,29 +95,36 @@ def serve(
     from davinci_sim.bridge.client_mode import ClientModeConfig, RosClientMode
     from davinci_sim.bridge.console_node import ConsoleNode
     from davinci_sim.bridge.dvrk_node import DvrkNode
-    from davinci_sim.bridge.endoscope import EndoscopeNode, QposProbe
+    from davinci_sim.bridge.endoscope import EndoscopeNode
     from davinci_sim.bridge.server import RosbridgeServer
     from davinci_sim.bridge.udp import UdpStreamer, default_streams
     from davinci_sim.sim.handle import ThreadedSimulation
-    from davinci_sim.sim.simulation import Simulation
 
     stop = stop or threading.Event()
-    sim = Simulation(options.scene, seed=options.seed, keyframe=options.keyframe)
-    sim.components["qpos"] = QposProbe(sim)
-    if options.home:
-        for arm in sim.arms.values():
-            arm.state_command("enable")
-            arm.state_command("home")
+    process = options.runner == "process"
+    factory = functools.partial(
+        build_simulation, options.scene, options.keyframe, options.seed, options.home,
+        options.console, options.ros_connect is not None, options.images != "none",
+    )  # fmt: skip
     # Snapshots cost ~0.9 ms for the full system (every arm's FK): take them at the publish
     # rate, not every tick, so the 1 kHz loop keeps real time.
-    handle = ThreadedSimulation(
-        sim, real_time=options.real_time, snapshot_period=1.0 / max(options.rate, 1.0)
-    )
+    period = 1.0 / max(options.rate, 1.0)
+    sim = None
+    if process:
+        from davinci_sim.sim.runtime.process import ProcessSimulation
+
+        # Images: our render worker (render + JPEG in one process) from the published qpos.
+        handle = ProcessSimulation(factory, real_time=options.real_time, snapshot_period=period)
+    else:
+        sim = factory()
+        handle = ThreadedSimulation(sim, real_time=options.real_time, snapshot_period=period)
+    arm_names = set()
     started: list = []
     info: dict = {}
     try:
         handle.start()
         started.append(handle)
+        arm_names = set(handle.snapshot().arms)
         if options.server:
             nodes: list = [
                 DvrkNode(handle, rate=options.rate, tf_rate=options.tf_rate),
@@ -92,12 +132,13 @@ def serve(
             ]
             if options.images != "none":
                 nodes.append(EndoscopeNode(handle, options.scene, rate=options.image_rate,
-                                           encoding=options.images, rig=options.rig))  # fmt: skip
+                                           encoding=options.images, rig=options.rig,
+                                           handle_frames=False))  # fmt: skip
             server = RosbridgeServer(options.bridge, nodes=nodes).start()
             started.append(server)
             info["url"] = server.url
         if options.udp:
-            arms = [a for a in ("PSM1", "PSM2", "PSM3", "ECM", "MTML", "MTMR") if a in sim.arms]
+            arms = [a for a in ("PSM1", "PSM2", "PSM3", "ECM", "MTML", "MTMR") if a in arm_names]
             streams = default_streams(arms, options.udp_ports)
             streams = [
                 type(s)(s.arm, s.port, ip=options.udp_ip) if options.udp_ip != s.ip else s
@@ -113,7 +154,7 @@ def serve(
                     options.ros_connect,
                     namespace=options.namespace,
                     ros_version=options.remote_ros_version,
-                    mtms=tuple(n for n in ("MTML", "MTMR") if n in sim.arms) or ("MTML", "MTMR"),
+                    mtms=tuple(n for n in ("MTML", "MTMR") if n in arm_names) or ("MTML", "MTMR"),
                 ),
             ).start()
             started.append(client)
@@ -127,11 +168,15 @@ def serve(
                 break
         wall = time.monotonic() - t0_wall
         info["sim_over_wall"] = (handle.snapshot().time - t0_sim) / wall if wall > 0 else 0.0
+        stats = getattr(handle, "period_statistics", None)
+        if callable(stats):
+            info["period_statistics"] = stats()
     finally:
         for part in reversed(started):
             try:
                 part.stop()
             except Exception:
                 _log.exception("stopping %r failed", part)
-        sim.close()
+        if sim is not None:
+            sim.close()
     return info

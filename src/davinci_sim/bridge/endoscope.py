@@ -219,6 +219,8 @@ class EndoscopeNode:
         encoding: ``"jpeg"`` (``image_raw/compressed``), ``"raw"`` (``image_raw``) or
             ``"both"``.
         rig: namespace of the stereo pair (``/<rig>/left/…``).
+        handle_frames: take the frames the handle renders (``stereo_frame()``) instead of
+            rendering in a worker process; None: if the handle has ``stereo_frame``.
     """
 
     def __init__(
@@ -230,6 +232,7 @@ class EndoscopeNode:
         encoding: Literal["jpeg", "raw", "both"] = "jpeg",
         rig: str = "jhu_daVinci",
         quality: int = 85,
+        handle_frames: bool | None = None,
     ) -> None:
         from davinci_sim.model import resolve_scene
 
@@ -253,7 +256,8 @@ class EndoscopeNode:
         self._started = 0.0
         self._retry_at = 0.0
         self._last_request = 0.0
-        self._external = callable(getattr(handle, "stereo_frame", None))
+        has_frames = callable(getattr(handle, "stereo_frame", None))
+        self._external = has_frames if handle_frames is None else handle_frames and has_frames
         self._last_frame_number: int | None = None
         self._encoding_external = False
 
