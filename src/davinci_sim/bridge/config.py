@@ -22,7 +22,8 @@ class BridgeConfig:
     ``sec``/``nanosec``). Both spellings are accepted on input."""
     max_message_size: int = 10_000_000
     """Largest incoming message, bytes (rosbridge's default). A larger one is refused with an
-    error and the connection carries on; beyond 4x this the websocket layer closes it."""
+    error and the connection carries on; beyond twice this (+1 MiB) the websocket layer closes
+    the connection (close code 1009, message too big)."""
     send_queue_length: int = 100
     """Messages kept per subscription when a client reads too slowly (oldest dropped). A
     subscription's own ``queue_length`` (> 0) replaces it."""

@@ -181,8 +181,10 @@ class RosbridgeServer:
                 cfg.host,
                 cfg.port,
                 compression=None,
-                max_size=4 * cfg.max_message_size + 65536,
-                max_queue=64,
+                # Up to twice the limit is read and refused with an error (the connection goes
+                # on); beyond that the websocket layer closes it (1009, message too big).
+                max_size=2 * cfg.max_message_size + (1 << 20),
+                max_queue=16,
                 ping_interval=None,
                 close_timeout=2,
             ) as server:
