@@ -122,3 +122,17 @@ def test_config_helpers():
 def test_unknown_arm_fails_at_start(handle):
     with pytest.raises(ValueError, match="no arm 'PSM7'"):
         UdpStreamer(handle, [StreamConfig("PSM7", 49999)]).start()
+
+
+def test_stop_frees_the_command_port(handle, listener):
+    probe = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    probe.bind(("127.0.0.1", 0))
+    port = probe.getsockname()[1]
+    probe.close()
+    cfg = StreamConfig("PSM1", listener.getsockname()[1], bind_port=port)
+    streamer = UdpStreamer(handle, [cfg]).start()
+    assert streamer.local_port("PSM1") == port
+    streamer.stop()
+    again = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    again.bind(("127.0.0.1", port))  # raises if the streamer still held it
+    again.close()

@@ -13,6 +13,7 @@ import base64
 import binascii
 import math
 import struct
+import time
 from typing import Any
 
 from davinci_sim.bridge.types import FLOATS, INT_RANGES, Field, MsgSpec, TypeRegistry
@@ -109,9 +110,7 @@ def _scalar(registry: TypeRegistry, typ: str, value: Any, path: str) -> Any:
 def _time(registry: TypeRegistry, value: Any, path: str, signed: bool) -> dict:
     d = registry.dialect
     if value == "now":  # rosbridge accepts "now" for a time
-        import time as _time_mod
-
-        return d.stamp(_time_mod.time())
+        return d.stamp(time.time())
     if not isinstance(value, dict):
         raise MessageError(f"{path}: expected a time object, got {_type_label(value)}")
     keys = set(value)

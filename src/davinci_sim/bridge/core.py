@@ -121,7 +121,6 @@ class Bridge:
         return self.clock()
 
     def _topic_for(self, name: str, type_name: str, owner: str | None) -> Topic:
-        canonical, kind = split_type(type_name)
         spec = self.registry.message(type_name)
         topic = self.topics.get(name)
         if topic is None:

@@ -391,10 +391,8 @@ class DvrkNode:
                 _log.warning("%s: %s", topic.name, f.exception())
                 return
             value = f.result()
-            d = self.bridge.dialect
-            self.bridge.publish(
-                topic, spec.build(d, value, arm.info.name, self._stamp(0.0), topic.next_seq())
-            )
+            d, stamp = self.bridge.dialect, self._stamp(self.handle.snapshot().time)
+            self.bridge.publish(topic, spec.build(d, value, arm.info.name, stamp, topic.next_seq()))
 
         future.add_done_callback(lambda f: self.loop.call_soon_threadsafe(done, f))
 
