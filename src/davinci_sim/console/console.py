@@ -1,11 +1,13 @@
 """The surgeon console: foot pedals, console events, teleoperation selection (dvrk.md 2.3).
 
 * Buttons: the pedals ``clutch``, ``camera``, ``cam_minus``, ``cam_plus``, ``bicoag``,
-  ``coag`` and the head sensor ``operator_present``. Each takes press, release and quick-tap
-  events with the Joy convention (``[1]``, ``[0]``, ``[2]``) through ``emulate_<button>``
-  (the dVRK's ``/console/emulate_*``) or from a master device's buttons; a press shorter than
-  ``tap_duration`` also produces a quick tap, as a pedal does. Every event is published on
-  the console's channel under the button's name with its Joy ``buttons`` list.
+  ``coag`` and the head sensor ``operator_present``. Console events come with the Joy
+  convention (``[1]`` pressed, ``[0]`` released, ``[2]`` quick tap) through
+  ``emulate_<button>`` / :meth:`Console.button` (the dVRK's ``/console/emulate_*``), as they
+  are. Raw inputs (:meth:`Console.press`/:meth:`Console.release`, and the buttons of master
+  devices) are like the pedal hardware: a press shorter than ``tap_duration`` also produces a
+  quick tap. Every event is published on the console's channel under the button's name with
+  its Joy ``buttons`` list.
 * Clutch press/release goes to every teleoperation; a quick tap swaps the first MTM that has
   exactly two PSM teleoperations (MTML: PSM2/PSM3) between them.
 * Camera pressed: the PSM teleoperations are disabled (the PSMs hold) and the ECM
@@ -58,8 +60,8 @@ class Console:
 
     Args:
         sim: the simulation.
-        tap_duration: a press shorter than this (s) also counts as a quick tap; None: only
-            explicit quick-tap events do.
+        tap_duration: a raw press shorter than this (s) also counts as a quick tap; None:
+            only explicit quick-tap events do.
         scale: initial scale of every teleoperation (None: keep each one's own).
     """
 
@@ -204,6 +206,22 @@ class Console:
         self._handle(name, ev)
         return ACCEPTED
 
+    def press(self, name: str) -> CommandResult:
+        """A raw button/pedal goes down (hardware-like: see :meth:`release`)."""
+        return self._raw(name, ButtonEvent.PRESSED)
+
+    def release(self, name: str) -> CommandResult:
+        """A raw button/pedal goes up; after a press shorter than ``tap_duration`` this also
+        produces a quick tap (``[2]``), as the pedal hardware does."""
+        return self._raw(name, ButtonEvent.RELEASED)
+
+    def _raw(self, name: str, event: ButtonEvent) -> CommandResult:
+        name = _ALIASES.get(name, name)
+        if name not in self._pressed:
+            return self._refuse("button", f"unknown button {name!r}; buttons: {list(BUTTONS)}")
+        self._handle(name, event, raw=True)
+        return ACCEPTED
+
     def is_pressed(self, name: str) -> bool:
         """Whether button ``name`` is held."""
         if name not in self._pressed:
@@ -220,7 +238,7 @@ class Console:
             for name, event in device.pop_button_events():
                 name = _ALIASES.get(name, name)
                 if name in self._pressed:
-                    self._handle(name, event)
+                    self._handle(name, event, raw=True)
 
     def snapshot(self) -> ConsoleState:
         return ConsoleState(
@@ -240,7 +258,7 @@ class Console:
     def _unknown(self, name) -> str:
         return f"unknown teleoperation {name!r}; PSM teleoperations: {list(self.psm_teleops)}"
 
-    def _handle(self, name: str, event: ButtonEvent) -> None:
+    def _handle(self, name: str, event: ButtonEvent, raw: bool = False) -> None:
         now = self.sim.time
         if event == ButtonEvent.CLICKED:
             self.channels.emit(name, event.to_joy())
@@ -259,7 +277,7 @@ class Console:
         elif name in ("camera", "operator_present"):
             self._update_teleops()
         quick = self.tap_duration is not None and now - self._pressed_at[name] < self.tap_duration
-        if not pressed and quick:
+        if raw and not pressed and quick:
             self.channels.emit(name, ButtonEvent.CLICKED.to_joy())
             self._clicked(name)
 

@@ -116,6 +116,9 @@ class TeleopECM:
     def scale(self) -> float:
         return self._scale
 
+    def is_clutched(self) -> bool:
+        return self._clutched
+
     def clutch(self, pressed: bool) -> None:
         pressed = bool(pressed)
         if pressed == self._clutched:

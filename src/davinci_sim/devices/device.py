@@ -157,8 +157,14 @@ class MasterDevice(ABC):
         return CommandResult(False, f"{self.name}: a {self.kind} device cannot be moved")
 
     def hold(self) -> None:
-        """Keep the handle where it is (position control), if the device can."""
-        return  # nothing to do for a device without motors
+        """Keep the handle where it is (position control) if the device can; in any case
+        stop rendering wrenches (teleoperation ends)."""
+        self.zero_wrench()
+
+    def _wrench_dropped(self) -> None:
+        """The device left effort mode by itself: no wrench is rendered any more."""
+        self._limiter.reset()
+        self._wrench = np.zeros(6)
 
     def enter_effort_mode(self) -> None:
         """Gravity compensation and a zero wrench: the hand moves the handle (teleop on)."""

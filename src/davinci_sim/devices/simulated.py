@@ -211,11 +211,15 @@ class SimulatedMTM(MasterDevice):
         return self.arm.is_busy()
 
     def move_cp(self, T_hrsv_tip) -> CommandResult:
-        return self.arm.move_cp(T_hrsv_tip)
+        result = self.arm.move_cp(T_hrsv_tip)
+        if result:
+            self._wrench_dropped()  # position control now
+        return result
 
     def hold(self) -> None:
         if self.arm.operating_state().state == "ENABLED":
             self.arm.hold()
+        self._wrench_dropped()
 
     def enter_effort_mode(self) -> None:
         self.arm.use_gravity_compensation(True)
@@ -226,6 +230,11 @@ class SimulatedMTM(MasterDevice):
 
     def unlock_orientation(self) -> None:
         self.arm.unlock_orientation()
+
+    def wrench(self) -> np.ndarray:
+        """The wrench the MTM renders now (zero unless in ``spatial/servo_cf`` mode)."""
+        current = self.arm.wrench_setpoint()
+        return current[1] if current is not None and current[0] == "spatial" else np.zeros(6)
 
     def _apply_wrench(self, wrench: np.ndarray) -> None:
         current = self.arm.wrench_setpoint()

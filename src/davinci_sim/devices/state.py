@@ -2,8 +2,8 @@
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass, field
-from types import MappingProxyType
 
 import numpy as np
 
@@ -37,15 +37,16 @@ class DeviceInput:
     """Gripper opening, rad (0 = closed, dvrk.md 4.1 ``gripper_scaling``)."""
     timestamp: float
     """Simulation time (s) at which this input was read."""
-    buttons: MappingProxyType = field(default_factory=lambda: MappingProxyType({}))
-    """Buttons on the device (name -> pressed), e.g. a gamepad's clutch button."""
+    buttons: Mapping[str, bool] = field(default_factory=dict)
+    """Buttons on the device (name -> pressed), e.g. a gamepad's clutch button (a copy:
+    changing it changes nothing)."""
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "T_hrsv_tip", _frozen(self.T_hrsv_tip, (4, 4)))
         object.__setattr__(self, "twist_hrsv_tip", _frozen(self.twist_hrsv_tip, (6,)))
         object.__setattr__(self, "gripper", float(self.gripper))
-        if not isinstance(self.buttons, MappingProxyType):
-            object.__setattr__(self, "buttons", MappingProxyType(dict(self.buttons)))
+        if self.buttons:
+            object.__setattr__(self, "buttons", dict(self.buttons))
 
     @property
     def position(self) -> np.ndarray:

@@ -8,7 +8,9 @@ touches it. Other code goes through a :class:`SimHandle`:
 * :meth:`SimHandle.snapshot` returns the latest :class:`Snapshot` the loop published (immutable
   values, safe to read from any thread and to send to another process);
 * :meth:`SimHandle.subscribe` delivers arm events (``error``, ``warning``, ``status``,
-  ``operating_state``) as ``callback(source, event, payload)``. Callbacks run in the loop's
+  ``operating_state``), and the events of components that have ``channels`` (console,
+  teleoperations, devices: ``clutch``, ``current_state``, ``following`` …), as
+  ``callback(source, event, payload)``. Callbacks run in the loop's
   thread: they must be quick and thread-safe (hand the event over, e.g. with
   ``loop.call_soon_threadsafe``).
 
@@ -92,6 +94,16 @@ def take_snapshot(sim: Simulation) -> Snapshot:
     return Snapshot(sim.time, sim.tick_count, arms, extras)
 
 
+def event_sources(sim: Simulation) -> dict[str, Any]:
+    """Name -> ``Channels`` of every arm and of every component that has ``channels``."""
+    sources: dict[str, Any] = {name: arm.channels for name, arm in sim.arms.items()}
+    for name, component in sim.components.items():
+        channels = getattr(component, "channels", None)
+        if channels is not None and hasattr(channels, "subscribe"):
+            sources[name] = channels
+    return sources
+
+
 def resolve_target(sim: Simulation, target: str) -> object:
     """The object a call's ``target`` names: an arm (``PSM1``), an arm part (``PSM1/jaw``,
     ``MTMR/body`` …), a registered component (``console``, ``MTMR_PSM1``) or ``sim``.
@@ -161,8 +173,8 @@ class ThreadedSimulation:
         self._stop = threading.Event()
         self._thread: threading.Thread | None = None
         self._snapshot = take_snapshot(sim)
-        for name, arm in sim.arms.items():
-            arm.channels.subscribe(lambda ev, payload, name=name: self._emit(name, ev, payload))
+        for name, source in event_sources(sim).items():
+            source.subscribe(lambda ev, payload, name=name: self._emit(name, ev, payload))
 
     # ------------------------------------------------------------- SimHandle
     def call(self, target: str, method: str, *args: Any, **kwargs: Any) -> Future:

@@ -1,0 +1,177 @@
+"""Running the tick loop: real time (paced by the wall clock) or as fast as possible.
+
+:class:`Pacer` waits for the next period boundary: it sleeps until shortly before it, then
+spins on the clock for the last ``spin`` seconds (a sleep alone overshoots by 50-100 µs on a
+virtual machine). A loop that falls behind catches up by running ticks back to back, so sim
+time keeps up with wall time; if it falls more than ``max_lag`` behind (a long stall), it
+drops the backlog instead (counted as a *resync*).
+
+:class:`LoopRunner` ticks a simulation with a pacer (or none), records the period
+statistics (:mod:`~davinci_sim.sim.runtime.stats`) and runs inputs scheduled for given ticks
+(:meth:`LoopRunner.call_at`), so a scripted run gives the same results in both modes: the
+simulation never reads the wall clock.
+"""
+
+from __future__ import annotations
+
+import ctypes
+import heapq
+import itertools
+import math
+import sys
+import time
+from collections.abc import Callable
+from typing import TYPE_CHECKING
+
+from davinci_sim.sim.runtime.stats import PeriodRecorder, PeriodStatistics
+
+if TYPE_CHECKING:
+    from davinci_sim.sim.simulation import Simulation
+
+#: Spin on the clock for the last 200 µs before a deadline (sleep overshoot on a VM).
+DEFAULT_SPIN = 200e-6
+#: Drop the backlog when more than 50 ms behind (a long stall: better to skip than to race).
+DEFAULT_MAX_LAG = 0.05
+
+_PR_SET_TIMERSLACK = 29
+
+
+def reduce_timer_slack(nanoseconds: int = 1) -> bool:
+    """Ask Linux for precise sleeps in this thread (``prctl(PR_SET_TIMERSLACK)``; the default
+    slack of 50 µs delays every wake-up). Returns False where unsupported."""
+    if not sys.platform.startswith("linux"):
+        return False
+    try:
+        libc = ctypes.CDLL(None, use_errno=True)
+        return libc.prctl(_PR_SET_TIMERSLACK, nanoseconds, 0, 0, 0) == 0
+    except (OSError, AttributeError):
+        return False
+
+
+class Pacer:
+    """Wall-clock pacing of a periodic loop; see the module docstring.
+
+    Args:
+        period: s.
+        spin: busy-wait this long before each deadline, s.
+        max_lag: drop the backlog beyond this lag, s.
+        clock: monotonic clock in s.
+    """
+
+    def __init__(
+        self,
+        period: float,
+        *,
+        spin: float = DEFAULT_SPIN,
+        max_lag: float = DEFAULT_MAX_LAG,
+        clock: Callable[[], float] = time.perf_counter,
+    ) -> None:
+        if not (math.isfinite(period) and period > 0):
+            raise ValueError(f"period must be > 0 s, got {period!r}")
+        if not (spin >= 0 and max_lag > 0):
+            raise ValueError(f"spin must be >= 0 and max_lag > 0, got {spin!r}, {max_lag!r}")
+        self.period = period
+        self.spin = spin
+        self.max_lag = max_lag
+        self.clock = clock
+        self._t0 = clock()
+        self._n = 0
+
+    def start(self) -> None:
+        """The next deadline is one period from now."""
+        self._t0 = self.clock()
+        self._n = 0
+
+    def wait(self) -> bool:
+        """Wait for the next deadline; True if the backlog was dropped instead."""
+        self._n += 1
+        deadline = self._t0 + self._n * self.period
+        now = self.clock()
+        if now - deadline > self.max_lag:
+            self._t0 = now - self._n * self.period
+            return True
+        remaining = deadline - now - self.spin
+        if remaining > 0:
+            time.sleep(remaining)
+        while self.clock() < deadline:
+            pass
+        return False
+
+
+class LoopRunner:
+    """Ticks ``sim`` in this thread; see the module docstring.
+
+    Args:
+        sim: the simulation.
+        real_time: pace at one tick per ``sim.dt`` of wall time; else as fast as possible.
+        recorder: where the period statistics go (default: a private recorder).
+        spin, max_lag: see :class:`Pacer`.
+    """
+
+    def __init__(
+        self,
+        sim: Simulation,
+        *,
+        real_time: bool = True,
+        recorder: PeriodRecorder | None = None,
+        spin: float = DEFAULT_SPIN,
+        max_lag: float = DEFAULT_MAX_LAG,
+    ) -> None:
+        self.sim = sim
+        self.real_time = real_time
+        self.recorder = recorder or PeriodRecorder(sim.dt, real_time=real_time)
+        self.pacer = Pacer(sim.dt, spin=spin, max_lag=max_lag) if real_time else None
+        self._scheduled: list[tuple[int, int, Callable[[], object]]] = []
+        self._seq = itertools.count()
+
+    def call_at(self, tick: int, fn: Callable, *args, **kwargs) -> None:
+        """Run ``fn(*args, **kwargs)`` right before the simulation's tick number ``tick``
+        (when ``sim.tick_count == tick``), in either mode.
+
+        Raises:
+            ValueError: if that tick has already run.
+        """
+        if tick < self.sim.tick_count:
+            raise ValueError(f"tick {tick} has already run (now at tick {self.sim.tick_count})")
+        heapq.heappush(self._scheduled, (int(tick), next(self._seq), lambda: fn(*args, **kwargs)))
+
+    def pending(self) -> int:
+        """Scheduled calls not run yet."""
+        return len(self._scheduled)
+
+    def run(
+        self,
+        *,
+        ticks: int | None = None,
+        until: Callable[[], bool] | None = None,
+        before_tick: Callable[[], None] | None = None,
+        after_tick: Callable[[], None] | None = None,
+    ) -> PeriodStatistics:
+        """Tick ``ticks`` times (or until ``until()``; at least one must be given).
+
+        ``before_tick``/``after_tick`` run around every tick, inside the measured compute
+        time (the process runner serves its commands and publishes there).
+        """
+        if ticks is None and until is None:
+            raise ValueError("run needs ticks or until")
+        clock = time.perf_counter
+        pacer = self.pacer
+        sim = self.sim
+        scheduled = self._scheduled
+        if pacer is not None:
+            pacer.start()
+        n = 0
+        while (ticks is None or n < ticks) and (until is None or not until()):
+            if pacer is not None and pacer.wait():
+                self.recorder.resynced()
+            start = clock()
+            while scheduled and scheduled[0][0] <= sim.tick_count:
+                heapq.heappop(scheduled)[2]()
+            if before_tick is not None:
+                before_tick()
+            sim.tick()
+            if after_tick is not None:
+                after_tick()
+            self.recorder.tick(start, clock())  # (the recorder may be replaced meanwhile)
+            n += 1
+        return self.recorder.statistics()

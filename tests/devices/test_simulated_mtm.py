@@ -1,0 +1,132 @@
+"""The simulated MTM device: the hand moves the handle, wrenches are limited, the MTM's
+orientation lock, and bad inputs."""
+
+import math
+import pickle
+
+import numpy as np
+import pytest
+
+from davinci_sim.devices import HandImpedance, SimulatedMTM, hand_wrench
+from davinci_sim.haptics import WrenchLimits
+from davinci_sim.sim import so3
+from davinci_sim.sim.simulation import Simulation
+
+
+@pytest.fixture
+def mtm_sim():
+    """MTMR enabled, homed and free (effort mode, gravity compensated), as when following."""
+    sim = Simulation("psm1_ecm_mtmr", keyframe="surgical")
+    arm = sim.arms["MTMR"]
+    assert arm.state_command("enable") and arm.state_command("home")
+    assert sim.run_until(lambda: arm.is_homed() and not arm.is_busy(), 10)
+    device = SimulatedMTM(sim, "MTMR", limits=WrenchLimits(max_force=4.0, max_force_rate=500.0))
+    sim.components[device.name] = device
+    device.enter_effort_mode()
+    sim.tick()
+    return sim, device
+
+
+def test_the_hand_moves_the_handle_to_its_target(mtm_sim):
+    sim, device = mtm_sim
+    p0 = device.input().position.copy()
+    device.grasp(p0 + [0.04, -0.03, 0.02])
+    sim.run_for(1.0)
+    assert np.linalg.norm(device.input().position - (p0 + [0.04, -0.03, 0.02])) < 0.004
+    assert device.input().T_hrsv_tip[:3, 3] @ [1, 0, 0] > p0[0]
+    # Orientation target: the hand turns the handle too.
+    target = device.input().T_hrsv_tip.copy()
+    R_target = so3.rotation_from_vector([0.0, 0.0, 0.3]) @ target[:3, :3]
+    target[:3, :3] = R_target
+    device.grasp(target)
+    sim.run_for(1.0)
+    assert so3.angle_between(device.input().rotation, R_target) < math.radians(3)
+    assert device.squeeze(math.radians(25))
+    sim.run_for(0.3)
+    assert device.input().gripper == pytest.approx(math.radians(25), abs=2e-3)
+    device.release()
+    assert device.hand_target() is None
+    assert not np.any(sim.data.xfrc_applied)
+
+
+def test_a_push_moves_the_handle_along_the_force(mtm_sim):
+    sim, device = mtm_sim
+    p0 = device.input().position.copy()
+    device.push([0.0, 0.0, 1.5])  # 1.5 N away from the operator (HRSV z)
+    sim.run_for(0.15)
+    d = device.input().position - p0
+    assert d[2] > 0.005 and abs(d[0]) < 0.5 * d[2]
+    device.push(np.zeros(3))
+    sim.tick()
+    assert not np.any(sim.data.xfrc_applied)
+
+
+def test_wrenches_are_clamped_in_magnitude_and_rate(mtm_sim):
+    sim, device = mtm_sim
+    assert device.servo_cf([30.0, 0.0, 0.0, 0.0, 0.0, 0.0])
+    np.testing.assert_allclose(device.wrench(), [0.5, 0, 0, 0, 0, 0])  # 500 N/s x 1 ms
+    kind, applied = sim.arms["MTMR"].wrench_setpoint()
+    assert kind == "spatial"
+    np.testing.assert_allclose(applied, device.wrench())
+    for _ in range(20):
+        device.servo_cf([30.0, 0.0, 0.0, 0.0, 0.0, 0.0])
+    np.testing.assert_allclose(device.wrench(), [4.0, 0, 0, 0, 0, 0])  # max_force
+    assert device.snapshot().wrench_limited
+    result = device.servo_cf([np.nan] * 6)
+    assert not result and "finite" in result.message
+    np.testing.assert_allclose(device.wrench(), [4.0, 0, 0, 0, 0, 0])  # unchanged
+    device.zero_wrench()
+    np.testing.assert_array_equal(device.wrench(), np.zeros(6))
+    snap = pickle.loads(pickle.dumps(device.snapshot()))
+    assert snap.kind == "simulated" and snap.ready and not snap.stale
+
+
+def test_locked_orientation_holds_while_the_hand_moves_the_handle(mtm_sim):
+    sim, device = mtm_sim
+    arm = sim.arms["MTMR"]
+    R0 = device.input().rotation.copy()
+    device.lock_orientation(R0)
+    assert arm.orientation_locked()
+    device.grasp(device.input().position + [0.05, 0.03, -0.02], hold_orientation=False)
+    sim.run_for(1.0)
+    assert np.linalg.norm(device.input().position - device.hand_target()[:3, 3]) < 0.005
+    assert so3.angle_between(device.input().rotation, R0) < math.radians(1.0)
+    assert not arm.lock_orientation(np.eye(3) * 2)  # not a rotation: refused
+    assert arm.orientation_locked()
+    device.unlock_orientation()
+    assert not arm.orientation_locked()
+
+
+def test_bad_hand_inputs_raise_and_change_nothing(mtm_sim):
+    sim, device = mtm_sim
+    device.grasp()
+    target = device.hand_target()
+    with pytest.raises(ValueError, match="finite"):
+        device.move_hand([np.nan, 0.0, 0.0])
+    with pytest.raises(ValueError, match="rotation"):
+        device.grasp(np.diag([1.0, 2.0, 1.0, 1.0]))
+    with pytest.raises(ValueError, match="3 or 6"):
+        device.push([1.0, 2.0])
+    np.testing.assert_array_equal(device.hand_target(), target)
+    with pytest.raises(KeyError, match="MTMs"):
+        SimulatedMTM(sim, "MTML")
+    with pytest.raises(ValueError, match="damping"):
+        HandImpedance(damping=-1.0)
+
+
+def test_hand_law():
+    T = np.eye(4)
+    target = np.eye(4)
+    target[:3, 3] = [0.01, 0.0, 0.0]
+    imp = HandImpedance(stiffness=100.0, damping=2.0, max_force=5.0)
+    w = hand_wrench(target, T, np.array([0.1, 0, 0, 0, 0, 0]), imp)
+    np.testing.assert_allclose(w, [100 * 0.01 - 2 * 0.1, 0, 0, 0, 0, 0])
+    far = np.eye(4)
+    far[:3, 3] = [1.0, 0.0, 0.0]
+    assert np.linalg.norm(hand_wrench(far, T, np.zeros(6), imp)[:3]) == pytest.approx(5.0)
+    turned = np.eye(4)
+    turned[:3, :3] = so3.rotation_from_vector([0, 0, 0.2])
+    w = hand_wrench(turned, T, np.zeros(6), imp)
+    np.testing.assert_allclose(w[3:], [0, 0, imp.rotational_stiffness * 0.2], atol=1e-12)
+    assert not hand_wrench(turned, T, np.zeros(6), imp, hold_orientation=False)[3:].any()
+    np.testing.assert_allclose(hand_wrench(None, T, np.array([1.0, 0, 0, 0, 0, 0]), imp)[0], -2.0)

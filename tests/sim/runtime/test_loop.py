@@ -1,0 +1,89 @@
+"""The in-process loop runner: pacing, statistics of a paced loop, scheduled inputs, and the
+same results in real-time and as-fast-as-possible runs."""
+
+import numpy as np
+import pytest
+
+from davinci_sim.console import SIMULATED_SYSTEM, install_console
+from davinci_sim.sim.runtime import LoopRunner, Pacer
+from davinci_sim.sim.simulation import Simulation
+
+
+def test_paced_loop_statistics_are_consistent():
+    sim = Simulation("psm1")
+    stats = LoopRunner(sim, real_time=True).run(ticks=200)
+    assert stats.ticks == 200 and stats.real_time
+    assert sim.tick_count == 200 and sim.time == pytest.approx(0.2)
+    # Paced: tick k starts no earlier than k periods after the first deadline.
+    assert stats.elapsed >= 199 * sim.dt - 1e-6
+    assert stats.achieved_rate_hz == pytest.approx(199 / stats.elapsed)
+    assert stats.period_mean == pytest.approx(stats.elapsed / 199)
+    assert stats.period_p50 <= stats.period_p99 <= stats.period_max
+    assert stats.compute_p50 <= stats.compute_max
+    assert 0 <= stats.late_periods <= 199 and stats.overruns >= 0
+
+
+def test_fast_loop_and_until():
+    sim = Simulation("psm1")
+    runner = LoopRunner(sim, real_time=False)
+    stats = runner.run(until=lambda: sim.tick_count >= 50)
+    assert stats.ticks == 50 and not stats.real_time
+    with pytest.raises(ValueError, match="ticks or until"):
+        runner.run()
+
+
+def test_pacer_resyncs_after_a_long_stall(monkeypatch):
+    now = [0.0]
+    monkeypatch.setattr(
+        "davinci_sim.sim.runtime.loop.time.sleep", lambda s: now.__setitem__(0, now[0] + s)
+    )
+
+    def clock():
+        now[0] += 1e-6
+        return now[0]
+
+    pacer = Pacer(0.001, spin=0.0, max_lag=0.05, clock=clock)
+    pacer.start()
+    assert not pacer.wait()
+    assert now[0] >= 0.001
+    now[0] += 0.2  # a 200 ms stall
+    assert pacer.wait()  # the backlog is dropped
+    assert not pacer.wait()  # and pacing goes on from now
+    with pytest.raises(ValueError):
+        Pacer(0.0)
+
+
+def test_call_at_runs_before_the_given_tick():
+    sim = Simulation("psm1")
+    runner = LoopRunner(sim, real_time=False)
+    seen = []
+    runner.call_at(3, lambda: seen.append(sim.tick_count))
+    runner.call_at(0, lambda: seen.append(sim.tick_count))
+    runner.run(ticks=5)
+    assert seen == [0, 3] and runner.pending() == 0
+    with pytest.raises(ValueError, match="already run"):
+        runner.call_at(2, print)
+
+
+def scripted_teleop_run(real_time: bool) -> Simulation:
+    sim = Simulation("psm1_ecm_mtmr", keyframe="surgical")
+    console = install_console(sim, teleop_config=SIMULATED_SYSTEM.replace(align_mtm=False))
+    device = sim.components["MTMR/device"]
+    runner = LoopRunner(sim, real_time=real_time)
+    runner.call_at(2, console.emulate_operator_present, [1])
+    runner.call_at(2, console.teleop_enable, True)
+    runner.call_at(20, device.grasp)
+    runner.call_at(40, lambda: device.move_hand(device.input().position + [0.01, 0.0, 0.0]))
+    runner.call_at(150, device.squeeze, 0.4)
+    runner.call_at(200, console.emulate_clutch, [1])
+    runner.run(ticks=300)
+    return sim
+
+
+def test_real_time_and_fast_runs_give_identical_results():
+    paced = scripted_teleop_run(real_time=True)
+    fast = scripted_teleop_run(real_time=False)
+    assert paced.components["MTMR_PSM1"].current_state() == "ENABLED"
+    assert np.linalg.norm(paced.arms["PSM1"].setpoint_jp() - paced.arms["PSM1"].kin.home) > 1e-3
+    np.testing.assert_array_equal(paced.data.qpos, fast.data.qpos)
+    np.testing.assert_array_equal(paced.data.qvel, fast.data.qvel)

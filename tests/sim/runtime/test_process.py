@@ -1,0 +1,109 @@
+"""The loop in its own process behind the SimHandle protocol: calls, snapshots, events,
+deterministic scheduled inputs, statistics and the stereo render process."""
+
+import functools
+
+import numpy as np
+import pytest
+
+from davinci_sim.console import SIMULATED_SYSTEM, build_teleop_simulation
+from davinci_sim.sim.runtime import LoopProcessError, ProcessSimulation
+from davinci_sim.sim.simulation import Simulation
+
+FACTORY = functools.partial(
+    build_teleop_simulation,
+    "psm1_ecm_mtmr",
+    teleop_config=SIMULATED_SYSTEM.replace(align_mtm=False),
+)
+
+
+def scripted(real_time: bool):
+    """Inputs at given ticks; the loop stops by itself before tick 400."""
+    handle = ProcessSimulation(
+        FACTORY, real_time=real_time, stop_at_tick=400, start_paused=True
+    ).start()
+    try:
+        futures = [
+            handle.call_at(2, "console", "emulate_operator_present", [1]),
+            handle.call_at(2, "console", "teleop_enable", True),
+            handle.call_at(30, "MTMR/device", "grasp"),
+            handle.call_at(60, "MTMR/device", "push", [0.0, 0.5, 0.0]),
+            handle.call_at(200, "console", "emulate_clutch", [1]),
+        ]
+        handle.resume()
+        assert handle.wait_stopped(60)
+        assert all(f.result(5) is None or bool(f.result(5)) for f in futures)
+        return handle.snapshot(), handle.period_statistics()
+    finally:
+        handle.stop()
+
+
+def test_real_time_and_fast_processes_give_identical_results():
+    fast, fast_stats = scripted(real_time=False)
+    paced, paced_stats = scripted(real_time=True)
+    assert fast.tick == paced.tick == 400
+    assert paced_stats.real_time and not fast_stats.real_time and paced_stats.ticks == 400
+    for name, arm in fast.arms.items():
+        np.testing.assert_array_equal(
+            arm.measured_js.position, paced.arms[name].measured_js.position
+        )
+        np.testing.assert_array_equal(
+            arm.setpoint_js.position, paced.arms[name].setpoint_js.position
+        )
+    teleop = paced.extras["MTMR_PSM1"]
+    assert teleop.current_state == "ENABLED" and teleop.clutched and not teleop.following
+    assert paced.extras["console"].buttons["clutch"]
+
+
+def test_calls_snapshots_events_and_errors():
+    with ProcessSimulation(FACTORY, real_time=False, snapshot_period=0.002) as handle:
+        events = []
+        handle.subscribe(lambda source, event, payload: events.append((source, event)))
+        assert handle.call("console", "emulate_operator_present", [1]).result(10)
+        assert handle.call("console", "teleop_enable", True).result(10)
+        snap = handle.snapshot()
+        assert handle.wait_for_tick(snap.tick + 300, 30)
+        snap = handle.snapshot()
+        assert snap.extras["MTMR_PSM1"].following
+        assert snap.arms["PSM1"].measured_cp.reference_frame == "ECM"
+        assert snap.arms["PSM1"].operating_state.is_homed
+        q = handle.call("PSM1", "measured_jp").result(10)
+        assert q.shape == (6,)
+        with pytest.raises(KeyError, match="unknown target"):
+            handle.call("PSM9", "hold").result(10)
+        with pytest.raises(AttributeError, match="public"):
+            handle.call("console", "_handle", "clutch", 1).result(10)
+        assert not handle.call("MTMR_PSM1", "set_scale", 7.0).result(10)  # refused, no raise
+        with pytest.raises(ValueError, match="already run"):
+            handle.call_at(1, "console", "teleop_enable", False).result(10)
+        stats = handle.period_statistics()
+        assert stats.ticks > 0 and stats.period_p50 <= stats.period_p99 <= stats.period_max
+        with pytest.raises(LoopProcessError, match="render_hz"):
+            handle.stereo_frame()
+    sources = {s for s, _ in events}
+    assert {"MTMR_PSM1", "console", "PSM1"} <= sources
+    assert ("MTMR_PSM1", "following") in events
+    assert handle.stop().ticks == stats.ticks or handle.stop().ticks >= stats.ticks
+
+
+def test_a_failing_factory_reports_its_traceback():
+    handle = ProcessSimulation(functools.partial(Simulation, "no_such_scene"))
+    with pytest.raises(LoopProcessError, match="unknown scene"):
+        handle.start()
+    handle.stop()
+
+
+def test_stereo_rendering_in_its_own_process():
+    with ProcessSimulation(FACTORY, real_time=True, render_hz=30) as handle:
+        frame = None
+        for _ in range(400):
+            handle.wait_for_tick(handle.snapshot().tick + 10, 5)
+            frame = handle.stereo_frame()
+            if frame is not None and frame.frame >= 2:
+                break
+        assert frame is not None and frame.frame >= 2
+        assert frame.left.shape == frame.right.shape == (480, 640, 3)
+        assert frame.left.std() > 10 and not np.array_equal(frame.left, frame.right)
+        assert 0 <= frame.tick <= handle.snapshot().tick
+        rs = handle.render_statistics()
+        assert rs.frames >= 2 and rs.render_mean > 0
