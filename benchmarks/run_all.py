@@ -9,7 +9,9 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 import bench_bridge  # noqa: E402
 import bench_kinematics  # noqa: E402
+import bench_realtime  # noqa: E402
 import bench_render  # noqa: E402
+import bench_teleop  # noqa: E402
 import bench_tick  # noqa: E402
 
 if __name__ == "__main__":
@@ -17,3 +19,5 @@ if __name__ == "__main__":
     bench_tick.main()
     bench_render.main()
     bench_bridge.main()
+    bench_teleop.main()
+    bench_realtime.main()  # 60 s of real time (plus warm-up)

@@ -13,6 +13,7 @@
 
 from __future__ import annotations
 
+import math
 from collections.abc import Mapping
 
 from davinci_sim.console.console import Console
@@ -20,6 +21,7 @@ from davinci_sim.console.teleop_config import SIMULATED_SYSTEM, TeleopECMConfig,
 from davinci_sim.console.teleop_ecm import TeleopECM
 from davinci_sim.console.teleop_psm import TeleopPSM
 from davinci_sim.devices.device import MasterDevice
+from davinci_sim.devices.scripted import HandScript, circle
 from davinci_sim.devices.simulated import SimulatedMTM
 from davinci_sim.haptics.contact import ContactFeedback
 from davinci_sim.haptics.loop import HapticLoop
@@ -108,10 +110,46 @@ def install_console(
 
 
 def build_teleop_simulation(
-    scene="psm1_ecm_mtmr", *, keyframe: str = "surgical", seed: int = 0, **console_options
+    scene="psm1_ecm_mtmr",
+    *,
+    keyframe: str = "surgical",
+    seed: int = 0,
+    scripted_hands: bool = False,
+    **console_options,
 ) -> Simulation:
     """A simulation with a console installed (a picklable factory for process runners:
-    ``functools.partial(build_teleop_simulation, "full", teleop_enabled=True)``)."""
+    ``functools.partial(build_teleop_simulation, "full", teleop_enabled=True)``).
+
+    ``scripted_hands``: the simulated hands draw circles (2 cm, 0.5 Hz) and work the
+    grippers once their teleoperation follows (demos, benchmarks; see
+    :func:`~davinci_sim.devices.scripted.add_scripted_hands`).
+    """
     sim = Simulation(scene, seed=seed, keyframe=keyframe)
-    install_console(sim, **console_options)
+    console = install_console(sim, **console_options)
+    if scripted_hands:
+        add_scripted_hands(sim, console)
     return sim
+
+
+def add_scripted_hands(
+    sim: Simulation, console: Console, *, radius: float = 0.02, frequency: float = 0.5
+) -> list[HandScript]:
+    """A :class:`~davinci_sim.devices.HandScript` on each simulated MTM whose PSM
+    teleoperation is selected: circles in the display plane and a gripper opening and
+    closing between 6° and 40°; registered first, so each tick uses the new targets."""
+    scripts = []
+    for teleop in console.psm_teleops.values():
+        device = teleop.device
+        if not teleop.selected or not isinstance(device, SimulatedMTM):
+            continue
+        script = HandScript(
+            device,
+            circle(radius, frequency),
+            gripper=lambda s: 0.4 + 0.3 * math.sin(2.0 * math.pi * 0.7 * s),
+            when=teleop.is_following,
+        )
+        if script.name in sim.components:
+            raise ValueError(f"component {script.name!r} already registered")
+        scripts.append(script)
+    sim.components = {**{s.name: s for s in scripts}, **sim.components}
+    return scripts

@@ -395,6 +395,16 @@ def jacobian_spatial(chain: DHChain, q: np.ndarray) -> np.ndarray:
     return np.concatenate([np.swapaxes(lin, -1, -2), np.swapaxes(ang, -1, -2)], axis=-2)
 
 
+def forward_kinematics_and_jacobian(chain: DHChain, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``(T_base_tip (4, 4), spatial Jacobian (6, n))`` of one configuration in one pass over
+    the chain (the 1 kHz teleoperation path needs both: pose and twist of the same joints)."""
+    q = _check_q(chain, q)
+    if q.ndim != 1:
+        raise ValueError(f"one configuration (n,) expected, got shape {q.shape}")
+    J, tip = _jacobian_spatial_floats(chain, q.tolist())
+    return _to_matrix(tip), np.array(J)
+
+
 def _jacobian_spatial_floats(chain: DHChain, q) -> tuple[list[list[float]], tuple[float, ...]]:
     """Spatial Jacobian (6 row lists) and the tip pose tuple of one configuration, as floats."""
     cc = _consts(chain)

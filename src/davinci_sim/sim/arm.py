@@ -16,6 +16,7 @@ from __future__ import annotations
 from typing import TYPE_CHECKING
 
 import numpy as np
+from scipy.linalg.lapack import dgesv
 
 from davinci_sim.kinematics import fk
 from davinci_sim.kinematics.arms import ArmKinematics
@@ -76,6 +77,9 @@ class Arm:
         self._refusals: dict[str, tuple[float, int]] = {}
         self._kin_cache: list | None = None
         self._inv_base: tuple[np.ndarray, np.ndarray] | None = None
+        self._effort_cache: tuple[tuple, np.ndarray] | None = None
+        self._base_tick = -1
+        self._base: tuple[np.ndarray, str] | None = None
         servo.q_ref[self._idx] = self._q()
         self.local = _LocalView(self)
         self.body = _WrenchView(self, "body")
@@ -90,36 +94,35 @@ class Arm:
         return self._sim.time
 
     def _q(self) -> np.ndarray:
-        return self._sim.measured_qpos()[self._qposadr].copy()
+        return self._sim.measured_qpos()[self._qposadr]  # fancy indexing: a new array
 
     def _measured_kinematics(
         self, jacobian: bool = False
     ) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
-        """``(q, T_base_tip, J_spatial)`` at the measured joints (read-only arrays; J only if
-        asked). Computed once per joint configuration: the device, the teleoperation, the
-        wrench and the haptic loop all ask for them within one tick."""
+        """``(q, T_base_tip, J_spatial)`` at the measured joints (read-only arrays). Computed
+        once per joint configuration: the device, the teleoperation, the wrench and the
+        haptic loop all ask for them within one tick. (``jacobian`` is kept for callers
+        that document that they need it; both are always computed.)"""
         q = self._q()
         key = q.tobytes()
         c = self._kin_cache
         if c is None or c[0] != key:
             q.setflags(write=False)
-            T = fk.forward_kinematics(self.chain, q)
+            # Both in one pass: whoever asks for the pose this tick asks for the twist too.
+            T, J = fk.forward_kinematics_and_jacobian(self.chain, q)
             T.setflags(write=False)
-            c = self._kin_cache = [key, q, T, None]
-        if jacobian and c[3] is None:
-            J = fk.jacobian_spatial(self.chain, c[1])
             J.setflags(write=False)
-            c[3] = J
+            c = self._kin_cache = [key, q, T, J]
         return c[1], c[2], c[3]
 
     def _qd(self) -> np.ndarray:
-        return self._sim.data.qvel[self._dofadr].copy()
+        return self._sim.data.qvel[self._dofadr]
 
     def _effort(self) -> np.ndarray:
-        return self._sim.data.actuator_force[self._idx].copy()
+        return self._sim.data.actuator_force[self._idx]
 
     def _q_set(self) -> np.ndarray:
-        return self._sim.servo.q_ref[self._idx].copy()
+        return self._sim.servo.q_ref[self._idx]
 
     def _refuse(self, command: str, message: str) -> CommandResult:
         text = f"{command}: {message}"
@@ -414,7 +417,11 @@ class Arm:
         """``(T_reference_base, reference frame name)`` used for ``measured_cp``."""
         if self._T_user_base is not None:
             return self._T_user_base
-        return self._sim.default_base_frame(self.name)
+        tick = self._sim.tick_count
+        if self._base_tick != tick:  # asked many times per tick: once to the simulation
+            self._base = self._sim.default_base_frame(self.name)
+            self._base_tick = tick
+        return self._base
 
     def _T_base_reference(self) -> np.ndarray:
         """Inverse of the base frame, recomputed only when the base frame changes."""
@@ -520,13 +527,30 @@ class Arm:
 
     # -------------------------------------------------------------- wrenches
     def _wrench_to_effort(self, kind: str, w: np.ndarray) -> np.ndarray:
-        _, T_base_tip, Js = self._measured_kinematics(jacobian=True)
+        # Cached: servo_cf and the next _pre_step ask for the same joints and wrench.
+        q, T_base_tip, Js = self._measured_kinematics(jacobian=True)
+        # The same cached q and base-frame objects mean the same joints and frame.
+        key = (q, self.base_frame()[0], kind, w.tobytes(), self._body_cf_absolute)
+        cached = self._effort_cache
+        if (
+            cached is not None
+            and cached[0][0] is key[0]
+            and cached[0][1] is key[1]
+            and cached[0][2:] == key[2:]
+        ):
+            return cached[1].copy()
+        tau = self._compute_effort(kind, w, T_base_tip, Js)
+        self._effort_cache = (key, tau)
+        return tau.copy()
+
+    def _compute_effort(self, kind: str, w: np.ndarray, T_base_tip, Js) -> np.ndarray:
         if kind == "body" and not self._body_cf_absolute:
             R_base_tip = T_base_tip[:3, :3]
         else:  # expressed in the reference (base-frame) orientation
             R_base_tip = self.base_frame()[0][:3, :3].T
         w_base = np.concatenate([R_base_tip @ w[:3], R_base_tip @ w[3:]])
-        return np.clip(Js.T @ w_base, -self.chain.ftmax, self.chain.ftmax)
+        ftmax = self.chain.ftmax
+        return np.minimum(np.maximum(Js.T @ w_base, -ftmax), ftmax)
 
     def _servo_cf(self, kind: str, wrench) -> CommandResult:
         why = self._not_ready()
@@ -535,7 +559,8 @@ class Arm:
         w, msg = as_vector(wrench, 6, "wrench")
         if w is None:
             return self._refuse(f"{kind}/servo_cf", msg)
-        self._set_effort(np.zeros(self.dof))
+        if self._wrench is None or self._wrench[0] != kind:  # entering this wrench mode
+            self._set_effort(np.zeros(self.dof))
         self._wrench = (kind, w)
         self._sim.servo.tau_ff[self._idx] = self._wrench_to_effort(kind, w)
         return ACCEPTED
@@ -565,14 +590,16 @@ class Arm:
 
 
 def _joint_velocity(J: np.ndarray, twist: np.ndarray) -> np.ndarray:
-    """Joint velocities giving ``twist`` (least squares; a direct solve when J is square)."""
+    """Joint velocities giving ``twist`` (least squares; a direct solve when J is square).
+
+    The square case calls LAPACK's ``dgesv`` directly: ``np.linalg.solve``'s Python checks
+    cost 4x more than the solve itself, and this runs for every teleoperated PSM at 1 kHz.
+    """
     if J.shape[0] == J.shape[1]:
-        try:
-            qd = np.linalg.solve(J, twist)
-            if np.all(np.isfinite(qd)) and np.linalg.norm(qd) < 1e6:
-                return qd
-        except np.linalg.LinAlgError:
-            pass  # singular: fall back to the least-squares solution
+        _, _, qd, info = dgesv(J, twist)
+        if info == 0 and np.all(np.isfinite(qd)) and np.abs(qd).max() < 1e6:
+            return qd
+        # singular: fall back to the least-squares solution
     return np.linalg.lstsq(J, twist, rcond=None)[0]
 
 

@@ -6,6 +6,7 @@ import math
 from typing import TYPE_CHECKING
 
 import numpy as np
+from scipy.linalg.lapack import dgesv
 
 from davinci_sim.kinematics import fk
 from davinci_sim.kinematics.arms import ArmKinematics, SUJArmKinematics
@@ -33,16 +34,16 @@ class PSM(Arm):
         assert kin.jaw is not None
         self.jaw = Jaw(self, kin.jaw, "jaw", kin.jaw_v_max, kin.jaw_a_max)
         self._shaft_chain = self.chain.truncated(4)
-        self._shaft_cache: tuple[bytes, float] = (b"", 0.0)
+        self._shaft_offset = _shaft_offset(self._shaft_chain)
 
     def shaft_end_distance(self) -> float:
         """Distance (m) from the RCM to the end of the shaft (link-4 frame), dvrk.md 1.7."""
-        q = self.measured_jp()[:4]
-        key = q.tobytes()
-        if key != self._shaft_cache[0]:
-            f = fk.fk_tuple(self._shaft_chain, q.tolist())
-            self._shaft_cache = (key, math.sqrt(f[9] * f[9] + f[10] * f[10] + f[11] * f[11]))
-        return self._shaft_cache[1]
+        q = self._sim.measured_qpos()[self._qposadr[:4]]
+        if self._shaft_offset is not None:
+            # The link-4 origin lies on the shaft axis at insertion + a constant (psm_ik).
+            return abs(float(q[2]) + self._shaft_offset)
+        f = fk.fk_tuple(self._shaft_chain, q.tolist())
+        return math.sqrt(f[9] * f[9] + f[10] * f[10] + f[11] * f[11])
 
     def _cartesian_unsafe(self) -> str:
         d = self.shaft_end_distance()
@@ -73,6 +74,21 @@ class PSM(Arm):
         goal = self.setpoint_jp()
         goal[2] = depth
         return self.move_jp(goal)
+
+
+def _shaft_offset(shaft_chain: DHChain) -> float | None:
+    """``c`` with RCM-to-link-4 distance = |q3 + c| for this chain, checked by FK at sample
+    joints (None if the chain does not have that structure: FK is used then)."""
+
+    def distance(q) -> float:
+        f = fk.fk_tuple(shaft_chain, list(q))
+        return math.sqrt(f[9] * f[9] + f[10] * f[10] + f[11] * f[11])
+
+    c = distance((0.0, 0.0, 1.0, 0.0)) - 1.0
+    samples = ((0.3, -0.4, 0.05, 1.0), (-0.8, 0.6, 0.12, -2.0), (0.1, 0.2, 0.24, 0.5))
+    if all(abs(distance(q) - abs(q[2] + c)) < 1e-12 for q in samples):
+        return c
+    return None
 
 
 class ECM(Arm):
@@ -161,7 +177,7 @@ class MTM(Arm):
             R = fk.forward_kinematics(self.chain, q)[:3, :3]
             err = so3.rotation_vector(R_base_goal @ R.T)  # spatial error, base frame
             J = fk.jacobian_spatial(self.chain, q)[3:, MTM_WRIST_JOINTS]
-            q[MTM_WRIST_JOINTS] += J.T @ np.linalg.solve(J @ J.T + _LOCK_DAMPING * np.eye(3), err)
+            q[MTM_WRIST_JOINTS] += J.T @ dgesv(J @ J.T + _LOCK_DAMPING * np.eye(3), err)[2]
         wrist = q[MTM_WRIST_JOINTS]
         return np.clip(wrist, self.chain.qmin[MTM_WRIST_JOINTS], self.chain.qmax[MTM_WRIST_JOINTS])
 

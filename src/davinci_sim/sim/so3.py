@@ -29,13 +29,17 @@ def angle_between(R_a, R_b) -> float:
 def rotation_vector(R) -> np.ndarray:
     """Rotation vector ``axis·angle`` (3,) of ``R``; exact also near 0 and π."""
     r = np.asarray(R, dtype=float)
-    angle = rotation_angle(r)
-    skew = np.array([r[2, 1] - r[1, 2], r[0, 2] - r[2, 0], r[1, 0] - r[0, 1]])
+    (a, b, c), (d, e, f), (g, h, i) = r.tolist()
+    cos = max(-1.0, min(1.0, 0.5 * (a + e + i - 1.0)))
+    angle = math.acos(cos)
+    sx, sy, sz = h - f, c - g, d - b
     s = math.sin(angle)
     if s > 1e-6:
-        return skew * (0.5 * angle / s)
+        k = 0.5 * angle / s
+        return np.array([sx * k, sy * k, sz * k])
     if angle < 0.5:  # near 0: sin θ ≈ θ
-        return 0.5 * skew
+        return np.array([0.5 * sx, 0.5 * sy, 0.5 * sz])
+    skew = np.array([sx, sy, sz])
     # Near π: R ≈ 2·a·aᵀ − I; take the column of the largest diagonal element.
     B = 0.5 * (r + np.eye(3))
     i = int(np.argmax(np.diag(B)))

@@ -97,6 +97,9 @@ class ProcessSimulation:
         start_paused: the loop waits for :meth:`resume` before its first tick (schedule
             inputs with :meth:`call_at` first, for a reproducible run).
         loop_cpu, render_cpu: pin the processes to these CPUs (None: let the OS choose).
+        render_threads: rasteriser threads of the renderer (Mesa llvmpipe; None: its default,
+            one per core). With the loop on SCHED_FIFO, an unpinned renderer with one thread
+            per core also uses the loop core's idle time without delaying the loop.
         realtime_priority: SCHED_FIFO priority for the loop process (needs the privilege;
             :attr:`info` tells whether it was applied).
         state_capacity: bytes for one published state.
@@ -114,6 +117,7 @@ class ProcessSimulation:
         start_paused: bool = False,
         loop_cpu: int | None = None,
         render_cpu: int | None = None,
+        render_threads: int | None = None,
         realtime_priority: int | None = None,
         state_capacity: int = 4 << 20,
         start_timeout: float = 120.0,
@@ -135,6 +139,7 @@ class ProcessSimulation:
         )
         self._render_hz = render_hz
         self._render_cpu = render_cpu
+        self._render_threads = render_threads
         self._state_capacity = state_capacity
         self._start_timeout = start_timeout
         self.info: dict[str, Any] = {}
@@ -216,6 +221,7 @@ class ProcessSimulation:
                 self._render_hz,
                 self._render_stop,
                 self._render_cpu,
+                self._render_threads,
             ),
             name="davinci-sim-render",
             daemon=True,

@@ -80,20 +80,25 @@ def render_statistics(buffer: SharedBuffer) -> RenderStatistics:
     )
 
 
-def render_main(scene, qpos_path: str, frames_path: str, rate_hz: float, stop, cpu) -> None:
-    """Entry point of the render process (``multiprocessing``, spawn)."""
+def render_main(
+    scene, qpos_path: str, frames_path: str, rate_hz: float, stop, cpu, threads
+) -> None:
+    """Entry point of the render process (``multiprocessing``, spawn).
+
+    ``cpu``: pin the process to this CPU; ``threads``: rasteriser threads of Mesa's llvmpipe
+    (``LP_NUM_THREADS``; one per core by default).
+    """
     import os
 
+    if cpu is not None and hasattr(os, "sched_setaffinity"):
+        os.sched_setaffinity(0, {cpu})
+    if threads is not None:
+        os.environ["LP_NUM_THREADS"] = str(int(threads))
     import mujoco
 
     from davinci_sim.model import build_model
     from davinci_sim.sim.sensors import CameraRenderer
 
-    if cpu is not None and hasattr(os, "sched_setaffinity"):
-        os.sched_setaffinity(0, {cpu})
-    # One rasteriser thread: Mesa's llvmpipe otherwise starts one per core and takes the
-    # loop's core too.
-    os.environ.setdefault("LP_NUM_THREADS", "1")
     model = build_model(scene)
     data = mujoco.MjData(model)
     renderer = CameraRenderer(model)
