@@ -20,7 +20,6 @@ image rate and JPEG-encoded in a worker thread (Pillow releases the interpreter 
 from __future__ import annotations
 
 import asyncio
-import dataclasses
 import logging
 import math
 import os
@@ -128,43 +127,8 @@ class Frame:
     render_s: float
 
 
-def _worker_main(conn: Connection) -> None:
-    """The render process: build the model, then render each ``qpos`` it is sent."""
-
-    import mujoco
-
-    from davinci_sim.model import build_model
-    from davinci_sim.sim.sensors import CameraRenderer
-
-    scene, encoding, quality = conn.recv()
-    model = build_model(scene)
-    data = mujoco.MjData(model)
-    renderer = CameraRenderer(model)
-    w, h = scene.endoscope.width, scene.endoscope.height
-    conn.send(("ready", model.nq))
-    while True:
-        try:
-            request = conn.recv()
-        except (EOFError, OSError):
-            break
-        if request is None:
-            break
-        stamp, qpos = request
-        t0 = time.perf_counter()
-        try:
-            data.qpos[:] = qpos
-            mujoco.mj_forward(model, data)
-            left, right = (renderer.render(data, camera, w, h, fast=True) for _, camera in CAMERAS)
-            jpeg, raw, _ = _encode_pair(left, right, encoding, quality)
-            frame = Frame(stamp, jpeg, raw, w, h, time.perf_counter() - t0)
-            conn.send(("frame", dataclasses.astuple(frame)))  # plain data: see __main__
-        except Exception as e:  # report and carry on
-            conn.send(("error", f"{type(e).__name__}: {e}"))
-    renderer.close()
-
-
 class RenderWorker:
-    """The render process (``python -m davinci_sim.bridge.endoscope``) and its socket.
+    """The render process (``python -m davinci_sim.bridge.render_worker``) and its socket.
 
     A plain subprocess rather than ``multiprocessing``: it does not re-import the caller's
     main module, so any script can serve images.
@@ -175,7 +139,7 @@ class RenderWorker:
         env = dict(os.environ)
         env.setdefault("MUJOCO_GL", "egl")
         self.process = subprocess.Popen(
-            [sys.executable, "-m", "davinci_sim.bridge.endoscope", str(child.fileno())],
+            [sys.executable, "-m", "davinci_sim.bridge.render_worker", str(child.fileno())],
             pass_fds=(child.fileno(),),
             env=env,
         )
@@ -431,7 +395,3 @@ class EndoscopeNode:
                 b.publish(topic, {"header": header, "height": frame.height, "width": frame.width,
                                   "encoding": "rgb8", "is_bigendian": 0, "step": 3 * frame.width,
                                   "data": frame.raw[i]})  # fmt: skip
-
-
-if __name__ == "__main__":
-    _worker_main(Connection(int(sys.argv[1])))
