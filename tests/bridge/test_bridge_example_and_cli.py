@@ -7,6 +7,7 @@ import sys
 import threading
 from pathlib import Path
 
+import pytest
 import roslibpy
 from bridge_helpers import wait_for
 
@@ -17,10 +18,13 @@ from davinci_sim.bridge.config import BridgeConfig
 EXAMPLE = Path(__file__).resolve().parents[2] / "examples" / "dvrk_psm_rosbridge.py"
 
 
-def test_dvrk_style_script_runs_unchanged(dvrk_server):
-    """enable, home, move_jp + wait on is_busy, servo_cp loop, jaw, measured_cp (dvrk.md §3)."""
+@pytest.mark.parametrize("ros_version", [1, 2])
+def test_dvrk_style_script_runs_unchanged(handle, make_server, ros_version):
+    """enable, home, move_jp + wait on is_busy, servo_cp loop, jaw, measured_cp (dvrk.md §3),
+    in both dialects."""
+    server = make_server(handle, ros_version=ros_version)
     result = subprocess.run(
-        [sys.executable, str(EXAMPLE), "--port", str(dvrk_server.port), "--arm", "PSM1"],
+        [sys.executable, str(EXAMPLE), "--port", str(server.port), "--arm", "PSM1"],
         capture_output=True,
         text=True,
         timeout=90,
