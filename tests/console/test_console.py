@@ -1,5 +1,6 @@
 """The console: pedal events with the Joy convention, selection, quick tap, camera pedal."""
 
+import numpy as np
 import pytest
 from console_helpers import events_of
 
@@ -139,3 +140,24 @@ def test_event_forms_and_unknown_buttons():
         assert not console.emulate_coag(bad)
     assert not console.button("turbo", [1])
     assert console.button("head", [1]) and console.operator_present()  # 2.2 alias
+
+
+def test_install_options_and_scripted_hands():
+    from davinci_sim.console import build_teleop_simulation
+    from davinci_sim.devices import NetworkDevice
+
+    sim = Simulation("psm1", keyframe="surgical")
+    with pytest.raises(ValueError, match="nothing to teleoperate"):
+        install_console(sim)
+    with pytest.raises(ValueError, match="unknown MTMs"):
+        install_console(sim, devices={"MTMX": NetworkDevice("x")})
+    sim = build_teleop_simulation(
+        "psm1_ecm_mtmr", operator_present=True, teleop_enabled=True, scripted_hands=True
+    )
+    assert list(sim.components)[0] == "MTMR/device/script"
+    teleop = sim.components["MTMR_PSM1"]
+    assert sim.run_until(teleop.is_following, 10)
+    p0 = sim.arms["PSM1"].setpoint_cp().position.copy()
+    sim.run_for(0.5)  # a quarter of the 0.5 Hz circle of 2 cm: the tool moved ~0.2 x 2.8 cm
+    assert 0.002 < np.linalg.norm(sim.arms["PSM1"].setpoint_cp().position - p0) < 0.01
+    assert sim.components["MTMR/device/script"].snapshot()["started"]

@@ -490,9 +490,9 @@ class TeleopPSM:
             self._set_following(True)
 
     def _run_enabled(self) -> None:
-        if not self._following:
-            return
         inp = self.device.input()
+        if not self._following or inp is None:
+            return
         goal = tm.follow_pose(
             self._T_camera_psm0,
             self._T_hrsv_mtm0,

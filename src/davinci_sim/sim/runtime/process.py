@@ -102,6 +102,9 @@ class ProcessSimulation:
             per core also uses the loop core's idle time without delaying the loop.
         realtime_priority: SCHED_FIFO priority for the loop process (needs the privilege;
             :attr:`info` tells whether it was applied).
+        spin: the pacer busy-waits this long before each deadline, s (default: 200 µs, or
+            50 µs with ``realtime_priority``: a real-time thread wakes up on time, and its
+            spinning counts against the kernel's real-time budget of 95% of a core).
         state_capacity: bytes for one published state.
         start_timeout: s to wait for the child to build the simulation.
     """
@@ -119,6 +122,7 @@ class ProcessSimulation:
         render_cpu: int | None = None,
         render_threads: int | None = None,
         realtime_priority: int | None = None,
+        spin: float | None = None,
         state_capacity: int = 4 << 20,
         start_timeout: float = 120.0,
     ) -> None:
@@ -136,6 +140,7 @@ class ProcessSimulation:
             start_paused=start_paused,
             cpu=loop_cpu,
             realtime_priority=realtime_priority,
+            spin=spin if spin is not None else (50e-6 if realtime_priority else DEFAULT_SPIN),
         )
         self._render_hz = render_hz
         self._render_cpu = render_cpu
