@@ -43,6 +43,8 @@ if TYPE_CHECKING:
 _log = logging.getLogger("davinci_sim.bridge")
 
 NODE = "/davinci_sim/endoscope"
+PIPELINE_DEPTH = 2
+"""Requests sent ahead to the render process, so it never waits for the next one."""
 CAMERAS = (("left", "ECM/left"), ("right", "ECM/right"))
 
 
@@ -146,13 +148,14 @@ class RenderWorker:
         child.close()
         self._conn = Connection(parent.detach())
         self._conn.send((scene, encoding, quality))
-        self.busy = True  # until "ready"
+        self.ready = False
+        self.in_flight = 0
 
     def fileno(self) -> int:
         return self._conn.fileno()
 
     def request(self, stamp: float, qpos: np.ndarray) -> None:
-        self.busy = True
+        self.in_flight += 1
         self._conn.send((stamp, np.asarray(qpos, dtype=float)))
 
     def receive(self) -> tuple[str, Any]:
@@ -262,7 +265,6 @@ class EndoscopeNode:
         if not self.worker:
             w = RenderWorker(self.scene, self.encoding, self.quality)
             self.loop.add_reader(w.fileno(), self._on_readable, w)
-            w.busy = True  # until "ready"
             self.worker.append(w)
             self._started = time.perf_counter()
         return self.worker[0]
@@ -293,7 +295,10 @@ class EndoscopeNode:
             _log.exception("endoscope: cannot start the render process; retrying in 10 s")
             self._retry_at = time.monotonic() + 10.0
             return
-        if w.busy or self._pending_qpos:
+        # Two requests in flight: the worker starts the next pair as soon as it has sent one.
+        if not w.ready or w.in_flight >= PIPELINE_DEPTH or self._pending_qpos:
+            return
+        if time.monotonic() < self._last_request + 1.0 / self.rate - 0.002:
             return
         self._request(w)
 
@@ -357,18 +362,18 @@ class EndoscopeNode:
             w.close()
             self._retry_at = time.monotonic() + 10.0
             return
-        w.busy = False
         if kind == "ready":
+            w.ready = True
             _log.info("endoscope: render process ready in %.2f s",
                       time.perf_counter() - self._started)  # fmt: skip
-        elif kind == "error":
-            _log.error("endoscope: %s", payload)
-        elif kind == "frame":
-            self._publish_frame(Frame(*payload))
-            # Ask for the next one now if it is due: the worker, not the timer, sets the pace.
-            due = self._last_request + 1.0 / self.rate - 0.002
-            if self._image_wanted() and time.monotonic() >= due and not self._pending_qpos:
-                self._request(w)
+        else:
+            w.in_flight = max(0, w.in_flight - 1)
+            if kind == "error":
+                _log.error("endoscope: %s", payload)
+            elif kind == "frame":
+                self._publish_frame(Frame(*payload))
+        if self._image_wanted():
+            self._tick()  # the next request now if it is due
 
     # ------------------------------------------------------------------ publishing
     def _publish_info(self, stamp: float) -> None:
