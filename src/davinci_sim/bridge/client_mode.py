@@ -248,12 +248,12 @@ class RosClientMode:
                     break
 
     # ------------------------------------------------------------------ outgoing
-    def _publisher(self, name: str, type_name: str):
+    def _publisher(self, name: str, type_name: str, latch: bool = False):
         import roslibpy
 
         topic = self._topics.get(name)
         if topic is None:
-            topic = roslibpy.Topic(self.ros, name, type_name)
+            topic = roslibpy.Topic(self.ros, name, type_name, latch=latch)
             topic.advertise()
             self._topics[name] = topic
         return topic
@@ -305,7 +305,10 @@ class RosClientMode:
                 msgs.append(("operating_state", "crtk_msgs/OperatingState",
                              m.operating_state(d, s, stamp)))  # fmt: skip
             for suffix, type_name, msg in msgs:
-                self._publisher(f"{base}/{suffix}", type_name).publish(roslibpy.Message(msg))
+                # operating_state goes out on change only: latched for late subscribers
+                latch = suffix == "operating_state"
+                topic = self._publisher(f"{base}/{suffix}", type_name, latch)
+                topic.publish(roslibpy.Message(msg))
 
     def _publish_wrenches(self, snap: Snapshot) -> None:
         import roslibpy
