@@ -24,8 +24,8 @@ run: install
 	$(BIN)/davinci-sim demo
 
 lint: install
-	$(BIN)/ruff check src tests benchmarks
-	$(BIN)/ruff format --check src tests benchmarks
+	$(BIN)/ruff check src tests benchmarks examples
+	$(BIN)/ruff format --check src tests benchmarks examples
 
 test: install lint
 	$(BIN)/python -m pytest -q
