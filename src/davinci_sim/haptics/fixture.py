@@ -1,0 +1,98 @@
+"""Virtual fixtures as batch force laws, and their adapter to the haptic loop's force fields.
+
+A *fixture* is any object with ``force(position, velocity) -> force``: tool tip positions
+(m) and velocities (m/s), ``(..., 3)``, in the fixture's frame, to forces on the hand
+``(..., 3)`` (N) in the same axes; pure and vectorised, so that one fixture serves one
+haptic tick or a batch of simulated trials. The fixtures of this package:
+:class:`~davinci_sim.haptics.viscous.ViscousGuidance` (the seed's),
+:class:`~davinci_sim.haptics.spring.SpringGuidance`,
+:class:`~davinci_sim.haptics.wall.PlaneWall`, :class:`~davinci_sim.haptics.wall.SphereWall`,
+and sums of them (:func:`~davinci_sim.haptics.combine.combine`).
+
+:class:`FixtureField` wraps a fixture as a
+:class:`~davinci_sim.haptics.field.ForceField` (``field(state) -> force``) for the console's
+haptic loop: it reads the tool tip from the :class:`~davinci_sim.haptics.field.HapticState`
+(camera frame), moves it into the fixture's frame, and returns the force in camera axes,
+which are the HRSV axes of the hand (see :mod:`davinci_sim.haptics.field`). Forces act at
+the hand as computed from the *tool's* motion, as in the seed (no scaling by the teleop).
+"""
+
+from __future__ import annotations
+
+from typing import Literal, Protocol, runtime_checkable
+
+import numpy as np
+
+from davinci_sim.haptics.field import HapticState
+from davinci_sim.haptics.velocity import DEFAULT_CUTOFF_HZ, VelocityFilter
+
+Frame = Literal["camera", "world"]
+VelocitySource = Literal["measured", "filtered"]
+
+
+@runtime_checkable
+class Fixture(Protocol):
+    """``force(position, velocity) -> force``, all ``(..., 3)`` in the fixture's frame."""
+
+    def force(self, position, velocity) -> np.ndarray: ...
+
+
+class FixtureField:
+    """A fixture as a haptic-loop force field (``field(state) -> (3,) force``, HRSV axes).
+
+    Args:
+        fixture: the batch force law.
+        frame: the fixture's frame: ``"camera"`` (ECM tip; the fixture moves with the
+            endoscope) or ``"world"`` (the cart; e.g. a path on the phantom, which stays put
+            when the endoscope moves).
+        velocity: ``"filtered"`` (default): low-pass filtered finite differences of the
+            measured tip positions (:mod:`davinci_sim.haptics.velocity`), one filter per PSM;
+            ``"measured"``: the PSM's ``measured_cv`` (the simulator's exact tip velocity).
+        cutoff_hz, dt: of the velocity filter.
+    """
+
+    def __init__(
+        self,
+        fixture: Fixture,
+        *,
+        frame: Frame = "world",
+        velocity: VelocitySource = "filtered",
+        cutoff_hz: float = DEFAULT_CUTOFF_HZ,
+        dt: float = 0.001,
+    ) -> None:
+        if not callable(getattr(fixture, "force", None)):
+            raise TypeError(f"a fixture needs a force(position, velocity) method, got {fixture!r}")
+        if frame not in ("camera", "world"):
+            raise ValueError(f"unknown frame {frame!r}; frames: ['camera', 'world']")
+        if velocity not in ("measured", "filtered"):
+            raise ValueError(f"unknown velocity source {velocity!r}; ['measured', 'filtered']")
+        self.fixture = fixture
+        self.frame = frame
+        self.velocity_source = velocity
+        self.cutoff_hz = cutoff_hz
+        self.dt = dt
+        self._filters: dict[str, VelocityFilter] = {}
+        self.__name__ = type(fixture).__name__
+
+    def tip_velocity_camera(self, state: HapticState) -> np.ndarray:
+        """The tool tip velocity this field uses, camera axes, m/s."""
+        if self.velocity_source == "measured":
+            return np.asarray(state.v_camera_tip, dtype=float)
+        f = self._filters.get(state.psm)
+        if f is None:
+            f = self._filters[state.psm] = VelocityFilter(dt=self.dt, cutoff_hz=self.cutoff_hz)
+        return f.update(state.p_camera_tip)
+
+    def __call__(self, state: HapticState) -> np.ndarray:
+        p = np.asarray(state.p_camera_tip, dtype=float)
+        v = self.tip_velocity_camera(state)
+        if self.frame == "camera":
+            return np.asarray(self.fixture.force(p, v), dtype=float)
+        T = np.asarray(state.T_world_camera, dtype=float)
+        R = T[:3, :3]
+        f_world = self.fixture.force(R @ p + T[:3, 3], R @ v)
+        return R.T @ np.asarray(f_world, dtype=float)
+
+    def reset(self) -> None:
+        """Forget the velocity filters' history (e.g. after a clutch or a new repetition)."""
+        self._filters.clear()

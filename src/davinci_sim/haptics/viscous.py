@@ -1,0 +1,173 @@
+"""The viscous guidance virtual fixture of the seed paper (§II-C, equations (1)-(7)).
+
+The force pulls the tool tip back towards a reference path, with a magnitude that grows with
+the tool's speed (hence "viscous"): a static tool feels nothing. With v the tool tip velocity
+(m/s), φ the deviation (the vector from the tool tip to the closest point of the path, m),
+v̂ = v/‖v‖ and φ̂ = φ/‖φ‖ their unit vectors (the seed prints (3)-(6) with v and φ; as the
+text and Fig. 3 make clear they are directions, and only unit vectors keep b in [0, B] and
+θ in [0, π]):
+
+* (3) anisotropic coefficient ``b = B·sqrt((1 − v̂·φ̂)/2)``, in [0, B]: B when moving straight
+  away from the path, 0 when moving straight towards it. With α the angle between v̂ and φ̂,
+  b = B·sin(α/2).
+* (1)-(2) magnitude ``G = min(G_max, ‖b·v‖)``. **Erratum**: as printed, (1)-(2) select the
+  *larger* of G_max and ‖b·v‖, which would make every force at least G_max, even for a
+  static tool; the text says the maximum force is constrained "to prevent the assistance
+  force from being too aggressive" and the authors' prototype computes ``min(b·|v|, F)``,
+  so G_max is a cap (``/work/shared/seed/README.md``).
+* (4) direction ``φ̂`` when moving away from the path (v̂·φ̂ < 0), else
+  ``rotate(v̂, θ, n)``, with (5) ``θ = (1 + v̂·φ̂)·π/2`` and (6) ``n = v̂ × φ̂``: the velocity
+  direction turned towards φ̂ by θ. Sideways motion (v̂·φ̂ = 0, θ = π/2) gives φ̂, so the two
+  cases of (4) meet continuously; motion straight at the path (θ → π) gives −v̂, a brake.
+* (7) ``G = G·direction``.
+
+Degenerate cases, all continuous and finite:
+
+* v = 0: G = 0 (the seed relies on this: "the user will not be affected by force when
+  staying static").
+* v̂ ∥ φ̂, where n = 0 and the rotation axis is undefined: moving straight away is the
+  first case of (4) (direction φ̂, no rotation needed); moving straight at the path has
+  b = 0, so G = 0. The rotation is computed in closed form in the plane of v̂ and φ̂,
+  ``cos θ·v̂ + sin θ·(φ̂ − (v̂·φ̂)v̂)/sin α``, where ``sin θ/sin α → 0`` as α → 0: no division
+  by zero, no jump.
+* φ = 0 (tool on the path): φ̂ is undefined and, as printed, the seed's force does not
+  vanish there (sideways motion on the path gives b·‖v‖ = B‖v‖/√2): it flips direction as
+  the tool crosses the path, a discontinuity of up to 2·min(G_max, B‖v‖/√2). We scale G
+  by ``min(1, ‖φ‖/transition)``: zero on the path, growing linearly over the first
+  ``transition`` metres, exactly the seed's law beyond. ``transition = 0`` gives the law as
+  printed (and G = 0 only exactly on the path).
+
+The remaining discontinuity is the path's, not the law's: on the medial axis of the path
+(points equidistant from two parts of it, see :mod:`davinci_sim.haptics.path`) φ itself
+jumps, and so does the force.
+
+Frames: v, φ and the force share one frame (the path's, or the camera's: the law commutes
+with rotations); forces in N.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import NamedTuple
+
+import numpy as np
+
+from davinci_sim.haptics.path import Polyline
+
+#: Default width of the ramp that makes the force vanish on the path, m (our choice: below
+#: the deviations the seed's task measures, mm, above the tremor, ~0.1 mm).
+DEFAULT_TRANSITION = 0.0005
+
+_EPS = 1e-12
+
+
+class ViscousTerms(NamedTuple):
+    """The intermediate quantities of (1)-(7), each over the batch shape."""
+
+    force: np.ndarray
+    """Guidance force G, (..., 3), N."""
+    magnitude: np.ndarray
+    """‖G‖ = G of (1) after the cap and the on-path ramp, (...), N."""
+    b: np.ndarray
+    """Anisotropic coefficient of (3), (...), N·s/m."""
+    direction: np.ndarray
+    """Unit force direction of (4), (..., 3) (φ̂ when v = 0; 0 when φ = 0)."""
+    cos_angle: np.ndarray
+    """v̂·φ̂ (0 when v or φ is zero)."""
+
+
+def _unit(x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    n = np.linalg.norm(x, axis=-1)
+    safe = np.where(n > _EPS, n, 1.0)
+    return np.where((n > _EPS)[..., None], x / safe[..., None], 0.0), n
+
+
+def viscous_guidance_terms(
+    velocity, deviation, *, B, G_max, transition: float = DEFAULT_TRANSITION
+) -> ViscousTerms:
+    """Equations (1)-(7) with their intermediate terms; see the module docstring.
+
+    Args:
+        velocity: tool tip velocity v, (..., 3), m/s.
+        deviation: φ, from the tool tip to the closest point of the path, (..., 3), m.
+        B: viscosity coefficient, N·s/m (≥ 0), scalar or broadcastable to the batch shape
+            (e.g. one condition per trial).
+        G_max: force cap, N (≥ 0), scalar or broadcastable to the batch shape.
+        transition: width of the on-path ramp, m (0: the law as printed).
+    """
+    v = np.asarray(velocity, dtype=float)
+    phi = np.asarray(deviation, dtype=float)
+    if v.shape[-1:] != (3,) or phi.shape[-1:] != (3,):
+        raise ValueError(
+            f"velocity and deviation must have shape (..., 3), got {v.shape} and {phi.shape}"
+        )
+    B = np.asarray(B, dtype=float)
+    G_max = np.asarray(G_max, dtype=float)
+    if np.any(B < 0) or np.any(G_max < 0) or not (transition >= 0):
+        raise ValueError(
+            f"B, G_max and transition must be >= 0, got {B!r}, {G_max!r}, {transition!r}"
+        )
+    v_hat, speed = _unit(v)
+    phi_hat, dist = _unit(phi)
+    c = np.clip(np.einsum("...j,...j->...", v_hat, phi_hat), -1.0, 1.0)
+    b = B * np.sqrt((1.0 - c) / 2.0)  # (3)
+    G = np.minimum(G_max, b * speed)  # (1)-(2), with G_max as the cap (erratum)
+    if transition > 0:
+        G = G * np.minimum(1.0, dist / transition)
+    else:
+        G = np.where(dist > _EPS, G, 0.0)
+    # (4)-(6): rotate v̂ by θ = (1 + c)π/2 about n = v̂ × φ̂, written in the (v̂, ŵ) plane with
+    # ŵ = (φ̂ − c v̂)/sin α. cos θ = −sin(cπ/2), sin θ = cos(cπ/2) = sin((1 − c)π/2).
+    sin_alpha = np.sqrt(np.clip((1.0 - c) * (1.0 + c), 0.0, None))
+    safe_sin = np.where(sin_alpha > 1e-9, sin_alpha, 1.0)
+    ratio = np.where(sin_alpha > 1e-9, np.sin((1.0 - c) * math.pi / 2) / safe_sin, 0.0)
+    rotated = -np.sin(c * math.pi / 2)[..., None] * v_hat + ratio[..., None] * (
+        phi_hat - c[..., None] * v_hat
+    )
+    direction = np.where((c < 0.0)[..., None] | (speed <= _EPS)[..., None], phi_hat, rotated)
+    return ViscousTerms(G[..., None] * direction, G, b, direction, c)  # (7)
+
+
+def viscous_guidance(
+    velocity, deviation, *, B, G_max, transition: float = DEFAULT_TRANSITION
+) -> np.ndarray:
+    """Guidance force (..., 3), N, of equations (1)-(7) (see :func:`viscous_guidance_terms`)."""
+    return viscous_guidance_terms(
+        velocity, deviation, B=B, G_max=G_max, transition=transition
+    ).force
+
+
+@dataclass(frozen=True, eq=False)
+class ViscousGuidance:
+    """The seed's viscous fixture along ``path``: ``force(p, v)`` in the path's frame.
+
+    Table I of the seed: (B, G_max) = (0, 0), (20, 2), (40, 5), (60, 8) N·s/m and N.
+    """
+
+    path: Polyline
+    B: float
+    """Viscosity coefficient, N·s/m."""
+    G_max: float
+    """Force cap, N."""
+    transition: float = DEFAULT_TRANSITION
+    """Width of the on-path ramp, m."""
+
+    def __post_init__(self) -> None:
+        for name in ("B", "G_max", "transition"):
+            value = getattr(self, name)
+            if not (isinstance(value, int | float) and math.isfinite(value) and value >= 0):
+                raise ValueError(
+                    f"ViscousGuidance.{name} must be a finite number >= 0, got {value!r}"
+                )
+
+    def terms(self, position, velocity) -> ViscousTerms:
+        """(1)-(7) for tool tips at ``position`` (..., 3) moving at ``velocity`` (..., 3)."""
+        deviation = self.path.closest_point(position).deviation
+        return viscous_guidance_terms(
+            velocity, deviation, B=self.B, G_max=self.G_max, transition=self.transition
+        )
+
+    def force(self, position, velocity) -> np.ndarray:
+        """Force on the hand (..., 3), N, in the path's frame."""
+        return self.terms(position, velocity).force
