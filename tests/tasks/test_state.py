@@ -1,0 +1,71 @@
+"""The task state machine: idle → ready → running → finished → results, reset."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from davinci_sim.tasks import Phase, TaskMonitor, initial_state, load_task, reset_state, task_step
+
+
+@pytest.fixture(scope="module")
+def task():
+    return load_task("seed_path")
+
+
+def test_monitor_through_all_phases(task):
+    """Far away: idle; at point 1: ready (waiting there does not start the clock); leaving
+    point 1: running; along the path 2 mm off it: still running; at point 5: finished with
+    the metrics; then results until reset."""
+    mon = TaskMonitor(task)
+    assert mon.update(0.0, task.start + [0, 0, 0.03]) == Phase.IDLE
+    assert mon.update(0.1, task.start + [0.001, 0, 0]) == Phase.READY
+    assert mon.update(0.5, task.start) == Phase.READY
+    s = np.linspace(0.0, task.path.length, 2001)
+    offset = np.array([0.0, 0.0, 0.002])  # beside every run except the climb 3→4
+    times = 1.0 + np.arange(len(s)) * 0.001
+    phases = [
+        mon.update(tk, p + offset) for tk, p in zip(times, task.path.point_at(s), strict=True)
+    ]
+    first = phases.index(Phase.RUNNING)
+    k = phases.index(Phase.FINISHED)
+    assert set(phases[:first]) == {Phase.READY}
+    assert set(phases[first:k]) == {Phase.RUNNING}
+    assert set(phases[k + 1 :]) <= {Phase.RESULTS}
+    r = mon.results
+    assert r is not None
+    assert r.completion_time[0] == pytest.approx(times[k] - times[first])
+    assert 0.0015 < r.deviation_error[0] < 0.002 + 1e-9
+    assert r.path_length[0] == pytest.approx(s[k] - s[first], rel=0.02)
+    assert mon.update(times[-1] + 0.001, task.finish) == Phase.RESULTS
+    assert mon.update(times[-1] + 0.002, task.start) == Phase.RESULTS
+    mon.reset()
+    assert mon.phase == Phase.IDLE and mon.results is None
+
+
+def test_finish_needs_progress():
+    """A closed loop: being at the finish (= start) right after leaving does not finish."""
+    kw = dict(path_length=0.1, start_tolerance=0.003, finish_tolerance=0.003, min_progress=0.5)
+    st = initial_state(1)
+    st = task_step(st, 0.0, [0.0], [0.0], [0.0], **kw)
+    assert st.phase[0] == Phase.READY
+    st = task_step(st, 0.1, [0.004], [0.004], [0.004], **kw)
+    assert st.phase[0] == Phase.RUNNING and st.t_start[0] == 0.1
+    st = task_step(st, 0.2, [0.004], [0.002], [0.004], **kw)  # near the finish too early
+    assert st.phase[0] == Phase.RUNNING
+    st = task_step(st, 0.3, [0.05], [0.05], [0.06], **kw)
+    st = task_step(st, 0.4, [0.002], [0.002], [0.1], **kw)
+    assert st.phase[0] == Phase.FINISHED and st.t_finish[0] == 0.4
+
+
+def test_batch_step_and_partial_reset():
+    """Trials advance independently; reset of a subset leaves the others."""
+    kw = dict(path_length=0.1, start_tolerance=0.003, finish_tolerance=0.003)
+    st = initial_state(3)
+    st = task_step(st, 0.0, np.array([0.0, 0.01, 0.0]), np.full(3, 0.1), np.zeros(3), **kw)
+    assert st.phase.tolist() == [Phase.READY, Phase.IDLE, Phase.READY]
+    st = task_step(st, 0.1, np.array([0.01, 0.0, 0.0]), np.full(3, 0.1), np.zeros(3), **kw)
+    assert st.phase.tolist() == [Phase.RUNNING, Phase.READY, Phase.READY]
+    st = reset_state(st, np.array([True, False, False]))
+    assert st.phase.tolist() == [Phase.IDLE, Phase.READY, Phase.READY]
+    assert np.isnan(st.t_start[0])
