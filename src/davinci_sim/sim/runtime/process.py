@@ -34,7 +34,6 @@ import math
 import multiprocessing as mp
 import os
 import pickle
-import socket
 import struct
 import threading
 import time
@@ -622,13 +621,3 @@ def _loop_main(factory, options: LoopOptions, conn, paths: dict) -> None:
             conn.close()
         except OSError:
             pass
-
-
-def socket_buffer_hint() -> int:
-    """The send buffer size of a local socket pair, bytes (for diagnostics)."""
-    a, b = socket.socketpair()
-    try:
-        return a.getsockopt(socket.SOL_SOCKET, socket.SO_SNDBUF)
-    finally:
-        a.close()
-        b.close()
