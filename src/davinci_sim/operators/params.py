@@ -1,0 +1,168 @@
+"""Per-subject parameters of the synthetic trainees, drawn from documented distributions.
+
+Each subject is one draw of every parameter below; subject i of seed s depends only on
+(s, i) (its own random stream), so a population of 10 is the first 10 of a population of 20.
+Every distribution is clipped to [median / 2.5, median · 2.5] (normals: ±3 sd) so that no
+draw is physiologically absurd.
+
+=====================  ============================  =================================
+parameter              distribution (median, spread)  source
+=====================  ============================  =================================
+hand mass              lognormal 1.0 kg, ×/÷ 1.3      endpoint inertia of the arm of order
+                                                     1 kg (Tsuji, Morasso, Goto & Ito
+                                                     1995; Dolan, Friedman & Nagurka 1993)
+hand stiffness         lognormal 300 N/m, ×/÷ 1.4     relaxed-posture hand stiffness of a
+                                                     few hundred N/m (Mussa-Ivaldi, Hogan
+                                                     & Bizzi 1985; Tsuji et al. 1995)
+hand damping           0.05 s × stiffness             B = 0.05·K, the limb model of
+                                                     J. Neurosci. 29:12606 (2009),
+                                                     doi:10.1523/JNEUROSCI.2826-09.2009
+visuomotor delay       normal 150 ms, sd 20 ms        visual feedback corrections start
+                                                     100-200 ms after a perturbation
+                                                     (Saunders & Knill 2003; review:
+                                                     Franklin & Wolpert 2011); effective
+                                                     delays of the crossover model
+                                                     (McRuer & Jex 1967)
+crossover frequency    normal 4 rad/s, sd 0.5         crossover model of manual control:
+                                                     a few rad/s for position-controlled
+                                                     elements (McRuer & Jex 1967)
+signal-dependent       lognormal 0.10, ×/÷ 1.3        SD ∝ command (Harris & Wolpert
+noise coefficient k                                  1998); 0.1 gives an extent SD of ~5 %
+                                                     for a 0.5 s open-loop reach (see
+                                                     :mod:`davinci_sim.operators.noise`),
+                                                     the order of the variable errors of
+                                                     unseen reaches (Gordon, Ghilardi &
+                                                     Ghez 1994; van Beers, Haggard &
+                                                     Wolpert 2004)
+tremor amplitude       lognormal 60 µm, ×/÷ 1.5       hand tremor of 38 µm rms during
+(hand, 3-D rms)                                      retinal microsurgery (Singh &
+                                                     Riviere 2002), 49 µm rms holding an
+                                                     instrument still (Riviere, Rader &
+                                                     Khosla 1997), 50-200 µm rms as
+                                                     summarised in PMC3989364 (2014)
+tremor frequency       uniform 8-12 Hz                physiological tremor band (Elble &
+                                                     Koller 1990)
+tremor bandwidth       2 Hz (all subjects)            our choice: a narrow peak in the band
+reaction time          normal 250 ms, sd 30 ms        simple visual reaction times of
+                                                     ~200-250 ms (Luce 1986)
+practised tool speed   lognormal 15 mm/s, ×/÷ 1.3     **assumption**: no single published
+                                                     value; novices on the da Vinci are
+                                                     slower than experts and speed up with
+                                                     training (Judkins, Oleynikov &
+                                                     Stergiou 2009)
+novice excess E        lognormal 1.0, ×/÷ 1.3         **assumption**: first repetition about
+                                                     twice the practised time, as dVSS
+                                                     training curves roughly halve task
+                                                     times (e.g. Foell et al. 2013: ring
+                                                     transfer 181 s → 107 s)
+learning exponent α    uniform 0.2-0.6                power law of practice
+                                                     T(j) ∝ 1 + E·j^(−α) (Newell &
+                                                     Rosenbloom 1981); exponent range our
+                                                     assumption
+=====================  ============================  =================================
+
+Nothing here is fitted to the seed's results.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, fields
+
+import numpy as np
+
+#: Damping-to-stiffness ratio of the limb, s (B = 0.05·K, see the table).
+DAMPING_PER_STIFFNESS = 0.05
+#: Half-power bandwidth of the tremor peak, Hz (our choice).
+TREMOR_BANDWIDTH_HZ = 2.0
+
+
+@dataclass(frozen=True)
+class SubjectParams:
+    """Parameters of a batch of subjects (or trials), each an array of shape (n,)."""
+
+    mass: np.ndarray
+    """Effective mass of hand and arm at the MTM handle, kg."""
+    stiffness: np.ndarray
+    """Limb endpoint stiffness, N/m (isotropic)."""
+    damping: np.ndarray
+    """Limb endpoint damping, N·s/m."""
+    delay: np.ndarray
+    """Visuomotor delay, s."""
+    crossover: np.ndarray
+    """Crossover frequency of the visual correction loop when practised, rad/s."""
+    noise: np.ndarray
+    """Signal-dependent noise coefficient k when practised (SD / command magnitude)."""
+    tremor_amplitude: np.ndarray
+    """Physiological tremor of the free hand, rms of the 3-D displacement, m."""
+    tremor_frequency: np.ndarray
+    """Centre of the tremor peak, Hz."""
+    reaction_time: np.ndarray
+    """Pause between seeing the tool at point 1 and starting along the path, s."""
+    speed: np.ndarray
+    """Mean tool speed along the path when practised, m/s."""
+    novice_excess: np.ndarray
+    """E: the first repetition is 1 + E times slower, noisier and slower to correct."""
+    learning_exponent: np.ndarray
+    """α of the power law of practice."""
+
+    def __post_init__(self) -> None:
+        sizes = {np.shape(getattr(self, f.name)) for f in fields(self)}
+        if len(sizes) != 1 or len(next(iter(sizes))) != 1:
+            raise ValueError(f"all parameters must be 1-D arrays of one length, got {sizes}")
+        for f in fields(self):
+            a = np.asarray(getattr(self, f.name), dtype=float)
+            if not np.all(np.isfinite(a)) or np.any(a < 0):
+                raise ValueError(f"SubjectParams.{f.name} must be finite and >= 0")
+            a = a.copy()
+            a.setflags(write=False)
+            object.__setattr__(self, f.name, a)
+
+    def __len__(self) -> int:
+        return len(self.mass)
+
+    def take(self, index) -> SubjectParams:
+        """The subjects at ``index`` (e.g. one entry per trial: ``params.take(subject_of)``)."""
+        i = np.asarray(index, dtype=int)
+        return SubjectParams(**{f.name: getattr(self, f.name)[i] for f in fields(self)})
+
+    def practice_factor(self, repetition) -> np.ndarray:
+        """``1 + E·j^(−α)`` for repetition number ``j`` ≥ 1 (scalar or (n,))."""
+        j = np.maximum(np.asarray(repetition, dtype=float), 1.0)
+        return 1.0 + self.novice_excess * j ** (-self.learning_exponent)
+
+
+def _lognormal(rng: np.random.Generator, median: float, spread: float) -> float:
+    x = median * spread ** rng.standard_normal()
+    return float(np.clip(x, median / 2.5, median * 2.5))
+
+
+def _normal(rng: np.random.Generator, mean: float, sd: float) -> float:
+    return float(np.clip(rng.normal(mean, sd), mean - 3 * sd, mean + 3 * sd))
+
+
+def sample_subject(seed: int, index: int) -> dict[str, float]:
+    """The parameters of subject ``index`` of population ``seed`` (see the module table)."""
+    rng = np.random.default_rng([int(seed), int(index), 0x5EED])
+    stiffness = _lognormal(rng, 300.0, 1.4)
+    return {
+        "mass": _lognormal(rng, 1.0, 1.3),
+        "stiffness": stiffness,
+        "damping": DAMPING_PER_STIFFNESS * stiffness,
+        "delay": _normal(rng, 0.150, 0.020),
+        "crossover": _normal(rng, 4.0, 0.5),
+        "noise": _lognormal(rng, 0.10, 1.3),
+        "tremor_amplitude": _lognormal(rng, 60e-6, 1.5),
+        "tremor_frequency": float(rng.uniform(8.0, 12.0)),
+        "reaction_time": _normal(rng, 0.250, 0.030),
+        "speed": _lognormal(rng, 0.015, 1.3),
+        "novice_excess": _lognormal(rng, 1.0, 1.3),
+        "learning_exponent": float(rng.uniform(0.2, 0.6)),
+    }
+
+
+def sample_subjects(n: int, seed: int = 0) -> SubjectParams:
+    """``n`` subjects of population ``seed``."""
+    if n < 1:
+        raise ValueError(f"need at least one subject, got {n}")
+    draws = [sample_subject(seed, i) for i in range(n)]
+    return SubjectParams(**{k: np.array([d[k] for d in draws]) for k in draws[0]})

@@ -1,0 +1,278 @@
+"""A synthetic trainee: a person holding an MTM, following the task's path by sight.
+
+One :class:`SyntheticTrainee` object runs a batch of n trials (one trainee each, arrays of
+shape (n, ...)), stepped together at the haptic rate. Each step it is given what the
+endoscope shows now (the tool tip, camera frame) and the force the MTM applies to the hand
+(HRSV axes = camera axes), and returns the hand's position (HRSV, m) — the MTM handle's.
+
+The model, per trial (the parameters and their sources: :mod:`davinci_sim.operators.params`):
+
+1. **Perception.** The trainee sees the tool tip with a visuomotor delay τ: the observation
+   used at time t is the one taken at t − τ (a ring buffer of observations).
+2. **Intended motion** (:mod:`davinci_sim.operators.plan`). Once the tool is first seen,
+   a minimum-jerk reach brings it to point 1; when the trainee *sees* it within half the
+   start tolerance, they wait a reaction time, then follow the path with minimum-jerk
+   strokes between the numbered points (Flash & Hogan 1985). The plan is in the camera
+   frame; the hand moves by the tool motion divided by the teleop scale (the trainee knows
+   the scale and the axes: the dVRK aligns HRSV with the camera).
+3. **Visual correction.** The seen error between where the tool was meant to be τ ago (an
+   efference copy of the plan) and where it was seen, e = p_plan(t − τ) − y(t − τ), drives
+   a hand velocity ω_c·e/scale: with the delay, the loop is the crossover model of manual
+   control, ω_c·e^(−τs)/s (McRuer & Jex 1967).
+4. **Command and motor noise.** The hand velocity command u = u_plan + u_correction is
+   corrupted by signal-dependent noise k·‖u‖·n (Harris & Wolpert 1998,
+   :mod:`davinci_sim.operators.noise`) and integrated into the limb's equilibrium point
+   x_eq (the virtual trajectory of equilibrium-point control, Flash 1987).
+5. **Limb impedance.** The hand is a mass-spring-damper about the equilibrium (Hogan 1985):
+   ``m·ẍ = K·(x_eq − x) + D·(ẋ_eq − ẋ) + m·a_plan + F_tremor + F_mtm``. m·a_plan is the
+   feed-forward force of an internal model of the limb's inertia for the planned hand
+   acceleration (Shadmehr & Mussa-Ivaldi 1994; Wolpert, Miall & Kawato 1998), so that the
+   unperturbed hand follows the plan instead of lagging it by m·a/K. The MTM's force F_mtm
+   (the guidance) really moves the hand, by ~F/K at low frequency, until the visual
+   correction takes it back. F_tremor is physiological tremor, a narrow-band force scaled
+   so that the free hand trembles with the subject's rms amplitude at 8-12 Hz.
+6. **Practice.** Repetition j (1 = first) scales the practised values by the power law of
+   practice P(j) = 1 + E·j^(−α) (Newell & Rosenbloom 1981): speed / P, noise k · P,
+   crossover ω_c / P.
+
+Not modelled: depth misperception in the stereo view, grip and co-contraction changes under
+force, fatigue, clutching (a trainee never clutches: the seed task fits in the MTM's
+workspace at scale 0.6), the MTM's orientation.
+
+Two ways to couple it to an MTM: :meth:`step` integrates the limb itself (the handle follows
+the hand rigidly; put the handle's inertia into ``mass``); or call :meth:`command` each tick
+and apply :meth:`hand_force` at the simulated MTM's handle (the device integrates the
+dynamics, e.g. with the impedance of :class:`davinci_sim.devices.hand.HandImpedance`).
+"""
+
+from __future__ import annotations
+
+import math
+from typing import NamedTuple
+
+import numpy as np
+
+from davinci_sim.haptics.path import Polyline
+from davinci_sim.operators.noise import MotorNoise, Tremor, TrialNoise
+from davinci_sim.operators.params import TREMOR_BANDWIDTH_HZ, SubjectParams
+from davinci_sim.operators.plan import path_plan, straight_plan, stroke_durations
+
+#: Shortest reach to point 1, s (a minimum-jerk reach of a few mm still takes a while).
+MIN_REACH_TIME = 0.3
+
+
+class HandState(NamedTuple):
+    position: np.ndarray
+    """Hand (MTM handle) positions, (n, 3), m, HRSV."""
+    velocity: np.ndarray
+    """(n, 3), m/s."""
+
+
+class TraineePhase:
+    WAITING = 0
+    """No observation yet (the first τ)."""
+    TO_START = 1
+    """Reaching for / holding at point 1."""
+    FOLLOWING = 2
+    """Following the path."""
+    DONE = 3
+    """The plan has reached the last point (the trainee holds it there)."""
+
+
+class SyntheticTrainee:
+    """n trainees, one per trial (see the module docstring).
+
+    Args:
+        params: one entry per trial (e.g. ``subjects.take(subject_of_trial)``).
+        repetition: repetition number j ≥ 1 of each trial (n,), for the practice law.
+        path: the path in the camera frame.
+        knots: arc lengths of the numbered points on ``path`` (S + 1,), m
+            (``PathTask.marker_arc_lengths``).
+        hand_start: hand (MTM handle) positions at the start, (n, 3), m, HRSV.
+        scale: teleop motion scale, tool motion / hand motion.
+        start_tolerance: the task's, m.
+        noise_keys: one integer key per trial (sequence), seeding its noise streams.
+        dt: step, s.
+        motor_noise, tremor: switch the noise sources (for tests).
+    """
+
+    def __init__(
+        self,
+        params: SubjectParams,
+        *,
+        repetition,
+        path: Polyline,
+        knots,
+        hand_start,
+        scale: float,
+        start_tolerance: float,
+        noise_keys,
+        dt: float = 0.001,
+        motor_noise: bool = True,
+        tremor: bool = True,
+    ) -> None:
+        n = len(params)
+        self.n = n
+        self.params = params
+        self.dt = float(dt)
+        self.path = path
+        self.knots = np.asarray(knots, dtype=float)
+        if self.knots.ndim != 1 or len(self.knots) < 2 or np.any(np.diff(self.knots) <= 0):
+            raise ValueError(f"knots must be increasing arc lengths, got {knots!r}")
+        if not 0 < scale <= 1:
+            raise ValueError(f"scale must be in ]0, 1], got {scale!r}")
+        self.scale = float(scale)
+        self.start_tolerance = float(start_tolerance)
+        self.p_start = path.point_at(self.knots[0])
+        x0 = np.asarray(hand_start, dtype=float)
+        if x0.shape != (n, 3):
+            raise ValueError(f"hand_start must be ({n}, 3), got {x0.shape}")
+        keys = list(noise_keys)
+        if len(keys) != n:
+            raise ValueError(f"need one noise key per trial ({n}), got {len(keys)}")
+        factor = params.practice_factor(np.broadcast_to(np.asarray(repetition), (n,)))
+        self.practice = factor
+        self.speed = params.speed / factor
+        self.noise_k = params.noise * factor if motor_noise else np.zeros(n)
+        self.crossover = params.crossover / factor
+        self.durations = stroke_durations(np.diff(self.knots), self.speed)
+        # Tremor force gain: free-hand displacement rms per axis A/√3 at the tremor peak.
+        w = 2 * np.pi * params.tremor_frequency
+        impedance = np.abs(params.stiffness - params.mass * w**2 + 1j * params.damping * w)
+        self.tremor_gain = (params.tremor_amplitude / math.sqrt(3) * impedance) if tremor else 0
+        self.delay_steps = np.maximum(1, np.round(params.delay / self.dt)).astype(int)
+        size = int(self.delay_steps.max()) + 1
+        self._obs = np.zeros((n, size, 3))
+        self._noise = TrialNoise(keys, 6)
+        self._tremor = Tremor(params.tremor_frequency, bandwidth_hz=TREMOR_BANDWIDTH_HZ, dt=dt)
+        self._motor = MotorNoise(n, dt=dt)
+        self.k = 0
+        self.x = x0.copy()
+        self.v = np.zeros((n, 3))
+        self.x_eq = x0.copy()
+        self.v_eq = np.zeros((n, 3))
+        # Event times, +inf until they happen.
+        self.t_reach = np.full(n, np.inf)
+        """When the reach for point 1 started (the tool first seen), s."""
+        self.reach_from = np.zeros((n, 3))
+        self.reach_time = np.ones(n)
+        self.t_follow = np.full(n, np.inf)
+        """When following the path starts, s."""
+        self.last_tremor_force = np.zeros((n, 3))
+        self.feedforward_force = np.zeros((n, 3))
+        self._v_plan = np.zeros((n, 3))
+
+    # ------------------------------------------------------------ plan
+    @property
+    def time(self) -> float:
+        """Time of the next step since the start, s."""
+        return self.k * self.dt
+
+    @property
+    def phase(self) -> np.ndarray:
+        """:class:`TraineePhase` of each trial."""
+        t = self.time
+        phase = np.where(np.isinf(self.t_reach), TraineePhase.WAITING, TraineePhase.TO_START)
+        following = t >= self.t_follow
+        phase = np.where(following, TraineePhase.FOLLOWING, phase)
+        done = following & (t - self.t_follow >= self.durations.sum(axis=1))
+        return np.where(done, TraineePhase.DONE, phase)
+
+    def plan(self, t) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Intended tool position and velocity (camera frame) at times ``t`` (n,), and
+        whether there is a plan at all then (n,) (none before the tool was first seen)."""
+        t = np.broadcast_to(np.asarray(t, dtype=float), (self.n,))
+        valid = t >= self.t_reach
+        goal = np.broadcast_to(self.p_start, (self.n, 3))
+        p, v = straight_plan(
+            self.reach_from, goal, self.reach_time, np.where(valid, t - self.t_reach, 0.0)
+        )
+        following = t >= self.t_follow
+        if np.any(following):
+            since = np.where(following, t - self.t_follow, 0.0)
+            pp, vp, _ = path_plan(self.path, self.knots, self.durations, since)
+            p = np.where(following[:, None], pp, p)
+            v = np.where(following[:, None], vp, v)
+        return p, v, valid
+
+    # ------------------------------------------------------------ step
+    def command(self, dt: float, observed_tip) -> np.ndarray:
+        """Perceive, plan and command for one step; returns the equilibrium point (n, 3).
+
+        Args:
+            dt: the step, s (must be the ``dt`` given at construction: the delays are
+                counted in steps).
+            observed_tip: the tool tip as the endoscope shows it now, (n, 3), m, camera.
+        """
+        if abs(dt - self.dt) > 1e-12:
+            raise ValueError(f"this trainee steps every {self.dt} s, got dt={dt!r}")
+        y = np.asarray(observed_tip, dtype=float)
+        if y.shape != (self.n, 3):
+            raise ValueError(f"observed_tip must be ({self.n}, 3), got {y.shape}")
+        k, t = self.k, self.time
+        size = self._obs.shape[1]
+        self._obs[:, k % size] = y
+        seen = k >= self.delay_steps
+        rows = np.arange(self.n)
+        y_seen = self._obs[rows, (k - self.delay_steps) % size]
+        t_seen = t - self.delay_steps * self.dt
+        # First sight of the tool: reach for point 1 from where it is seen.
+        start = seen & np.isinf(self.t_reach)
+        if np.any(start):
+            self.t_reach[start] = t
+            self.reach_from[start] = y_seen[start]
+            distance = np.linalg.norm(self.p_start - y_seen[start], axis=1)
+            self.reach_time[start] = np.maximum(MIN_REACH_TIME, distance / self.speed[start])
+        # Seen at point 1 after the reach: start along the path after a reaction time.
+        ready = (
+            seen
+            & np.isinf(self.t_follow)
+            & (t >= self.t_reach + self.reach_time)
+            & (np.linalg.norm(y_seen - self.p_start, axis=1) <= 0.5 * self.start_tolerance)
+        )
+        self.t_follow[ready] = t + self.params.reaction_time[ready]
+        p_now, v_now, valid_now = self.plan(t)
+        v_now = np.where(valid_now[:, None], v_now, 0.0)
+        # Planned hand acceleration, by differencing the planned velocity (one step back).
+        a_plan = (v_now - self._v_plan) / (self.scale * dt)
+        self._v_plan = v_now
+        self.feedforward_force = self.params.mass[:, None] * a_plan
+        p_then, _, valid_then = self.plan(t_seen)
+        error = np.where((seen & valid_then)[:, None], p_then - y_seen, 0.0)
+        u = (v_now + self.crossover[:, None] * error) / self.scale
+        white = self._noise.next()
+        n_motor = self._motor.step(white[:, 3:])
+        u = u + (self.noise_k * np.linalg.norm(u, axis=1))[:, None] * n_motor
+        self.last_tremor_force = np.asarray(self.tremor_gain)[..., None] * self._tremor.step(
+            white[:, :3]
+        )
+        self.x_eq = self.x_eq + u * dt
+        self.v_eq = u
+        self.k += 1
+        return self.x_eq.copy()
+
+    def hand_force(self, position, velocity) -> np.ndarray:
+        """Force the hand applies to a handle at ``position``/``velocity`` (n, 3), HRSV, N:
+        the limb's spring and damper about the equilibrium, the inertia feed-forward and
+        the tremor."""
+        K = self.params.stiffness[:, None]
+        D = self.params.damping[:, None]
+        spring = K * (self.x_eq - position) + D * (self.v_eq - velocity)
+        return spring + self.feedforward_force + self.last_tremor_force
+
+    def step(self, dt: float, observed_tip, force_on_hand) -> HandState:
+        """One step with the limb integrated here (semi-implicit Euler).
+
+        Args:
+            dt: s.
+            observed_tip: tool tip shown by the endoscope now, (n, 3), m, camera frame.
+            force_on_hand: force the MTM applies to the hand, (n, 3), N, HRSV.
+
+        Returns:
+            The hand (MTM handle) position and velocity after the step, HRSV.
+        """
+        self.command(dt, observed_tip)
+        f = self.hand_force(self.x, self.v) + np.asarray(force_on_hand, dtype=float)
+        self.v = self.v + f / self.params.mass[:, None] * dt
+        self.x = self.x + self.v * dt
+        return HandState(self.x.copy(), self.v.copy())

@@ -1,0 +1,71 @@
+"""Subject parameter distributions and minimum-jerk plans."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from davinci_sim.haptics.path import Polyline
+from davinci_sim.operators.params import sample_subjects
+from davinci_sim.operators.plan import minimum_jerk, path_plan, straight_plan, stroke_durations
+
+
+def test_subjects_deterministic_and_independent_of_population_size():
+    a = sample_subjects(10, seed=3)
+    b = sample_subjects(20, seed=3)
+    c = sample_subjects(10, seed=4)
+    np.testing.assert_array_equal(a.stiffness, b.stiffness[:10])
+    np.testing.assert_array_equal(a.delay, sample_subjects(10, seed=3).delay)
+    assert not np.array_equal(a.stiffness, c.stiffness)
+    assert len(a.take([0, 0, 5])) == 3 and a.take([5]).mass[0] == a.mass[5]
+
+
+def test_distributions_match_the_documented_table():
+    """Medians and ranges of a large population are those of the module's table."""
+    s = sample_subjects(3000, seed=0)
+    assert np.median(s.stiffness) == pytest.approx(300.0, rel=0.05)
+    assert np.median(s.mass) == pytest.approx(1.0, rel=0.05)
+    np.testing.assert_allclose(s.damping, 0.05 * s.stiffness)
+    assert np.mean(s.delay) == pytest.approx(0.150, abs=0.003)
+    assert s.delay.min() >= 0.09 and s.delay.max() <= 0.21
+    assert np.median(s.tremor_amplitude) == pytest.approx(60e-6, rel=0.06)
+    assert 8.0 <= s.tremor_frequency.min() and s.tremor_frequency.max() <= 12.0
+    assert np.median(s.speed) == pytest.approx(0.015, rel=0.05)
+    assert s.stiffness.min() >= 300 / 2.5 and s.stiffness.max() <= 300 * 2.5
+    f1, f10 = s.practice_factor(1), s.practice_factor(10)
+    assert np.all(f1 > f10) and np.all(f10 > 1.0)
+    np.testing.assert_allclose(f1, 1 + s.novice_excess)
+
+
+def test_minimum_jerk_profile():
+    u = np.linspace(0, 1, 1001)
+    g, dg = minimum_jerk(u)
+    assert g[0] == 0 and g[-1] == pytest.approx(1.0) and g[500] == pytest.approx(0.5)
+    np.testing.assert_allclose(np.gradient(g, u), dg, atol=2e-3)
+    assert dg[0] == 0 and dg[-1] == 0 and dg.max() == pytest.approx(1.875)
+    dt = 0.001
+    p, v = straight_plan(
+        np.zeros((1, 3)), np.array([[0.03, 0, 0]]), np.array([0.6]), np.array([0.3])
+    )
+    np.testing.assert_allclose(p, [[0.015, 0, 0]])
+    assert v[0, 0] == pytest.approx(1.875 * 0.03 / 0.6)
+    p2, _ = straight_plan(
+        np.zeros((1, 3)), np.array([[0.03, 0, 0]]), np.array([0.6]), np.array([0.3 + dt])
+    )
+    assert (p2[0, 0] - p[0, 0]) / dt == pytest.approx(v[0, 0], rel=1e-4)
+
+
+def test_path_plan_strokes_stop_at_the_knots():
+    path = Polyline([[0, 0, 0], [0.03, 0, 0], [0.03, 0.02, 0]])
+    knots = np.array([0.0, 0.03, 0.05])
+    T = stroke_durations(np.diff(knots), np.array([0.01, 0.02]))
+    np.testing.assert_allclose(T, [[3.0, 2.0], [1.5, 1.0]])
+    t = np.array([3.0, 1.5])  # each trial at its first knot
+    p, v, s = path_plan(path, knots, T, t)
+    np.testing.assert_allclose(p, [[0.03, 0, 0]] * 2, atol=1e-12)
+    np.testing.assert_allclose(v, 0.0, atol=1e-12)
+    p, v, s = path_plan(path, knots, T, np.array([100.0, -1.0]))
+    np.testing.assert_allclose(p, [[0.03, 0.02, 0], [0, 0, 0]], atol=1e-12)
+    ts = np.arange(0, 5.0, 0.001)
+    traj = np.stack([path_plan(path, knots, T[:1], np.array([tk]))[0][0] for tk in ts[::50]])
+    assert np.max(np.linalg.norm(np.diff(traj, axis=0), axis=1)) < 0.05 * 1.875 * 0.01 * 1.01
