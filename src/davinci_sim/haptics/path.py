@@ -106,6 +106,16 @@ class Polyline:
         """Mean of the vertices (3,): the origin of the brute-force query's arithmetic."""
         return self.vertices.mean(axis=0)
 
+    @cached_property
+    def _brute_constants(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        A, E = self.starts - self.centre, self.edges
+        return (
+            np.concatenate([E, A]).T.copy(),
+            np.einsum("sj,sj->s", A, E),
+            np.einsum("sj,sj->s", A, A),
+            self.segment_lengths**2,
+        )
+
     @property
     def length(self) -> float:
         return float(self.cumulative_length[-1])
@@ -200,20 +210,21 @@ def closest_point_brute(path: Polyline, points, *, chunk: int = 2048) -> Closest
     p = _as_points(points)
     shape = p.shape[:-1]
     q = p.reshape(-1, 3) - path.centre
-    A, E = path.starts - path.centre, path.edges
-    AE = np.einsum("sj,sj->s", A, E)
-    AA = np.einsum("sj,sj->s", A, A)
-    EE = path.segment_lengths**2
+    basis, AE, AA, EE = path._brute_constants
     seg = np.empty(len(q), dtype=int)
     u = np.empty(len(q))
     for a in range(0, len(q), chunk):
-        qc = q[a : a + chunk]
-        qE = qc @ E.T - AE
+        qb = q[a : a + chunk] @ basis  # (m, 2S): q·E then q·A
+        qE = qb[:, : len(EE)]
+        qE -= AE  # (q − A)·E
         uu = np.clip(qE / EE, 0.0, 1.0)
-        # ‖q − A − uE‖² = ‖q − A‖² − 2u (q − A)·E + u² ‖E‖²
-        d2 = (np.einsum("mj,mj->m", qc, qc)[:, None] - 2.0 * (qc @ A.T) + AA) + uu * (
-            uu * EE - 2.0 * qE
-        )
+        # ‖q − A − uE‖² = ‖q‖² − 2q·A + ‖A‖² − 2u (q − A)·E + u²‖E‖²; ‖q‖² is the same for
+        # every segment of a query, so it is left out of the comparison.
+        d2 = uu * EE
+        d2 -= 2.0 * qE
+        d2 *= uu
+        d2 -= 2.0 * qb[:, len(EE) :]
+        d2 += AA
         k = np.argmin(d2, axis=1)  # first minimum: ties go to the lower arc length
         seg[a : a + chunk] = k
         u[a : a + chunk] = uu[np.arange(len(k)), k]

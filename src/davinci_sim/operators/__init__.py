@@ -7,8 +7,11 @@
 * :func:`sample_subjects`, :class:`SubjectParams` — per-subject parameters from documented
   distributions (params.py).
 * :func:`run_ideal` — trainees on an ideal teleoperation, without the simulator (offline.py).
+* :class:`TraineeHand`, :func:`hand_impedance` — one trainee's hand on a simulated MTM of the
+  console: the same teleoperation and force-field path as a person (console.py).
 """
 
+from davinci_sim.operators.console import TraineeHand, hand_impedance
 from davinci_sim.operators.offline import IdealRun, run_ideal
 from davinci_sim.operators.params import SubjectParams, sample_subject, sample_subjects
 from davinci_sim.operators.trainee import HandState, SyntheticTrainee, TraineePhase
@@ -18,7 +21,9 @@ __all__ = [
     "IdealRun",
     "SubjectParams",
     "SyntheticTrainee",
+    "TraineeHand",
     "TraineePhase",
+    "hand_impedance",
     "run_ideal",
     "sample_subject",
     "sample_subjects",

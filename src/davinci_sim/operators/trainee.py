@@ -162,6 +162,17 @@ class SyntheticTrainee:
         self.feedforward_force = np.zeros((n, 3))
         self._v_plan = np.zeros((n, 3))
 
+    def set_hand_start(self, hand_start) -> None:
+        """Where the hands are at the start, (n, 3), HRSV, m: only before the first step
+        (e.g. the MTM handle's position when the trainee takes it)."""
+        if self.k != 0:
+            raise RuntimeError("the hand start can only be set before the first step")
+        x0 = np.asarray(hand_start, dtype=float)
+        if x0.shape != (self.n, 3):
+            raise ValueError(f"hand_start must be ({self.n}, 3), got {x0.shape}")
+        self.x = x0.copy()
+        self.x_eq = x0.copy()
+
     # ------------------------------------------------------------ plan
     @property
     def time(self) -> float:
