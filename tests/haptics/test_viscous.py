@@ -170,6 +170,12 @@ def test_batched_conditions_broadcast():
     for i in range(4):
         np.testing.assert_allclose(batch[i], viscous_guidance(v[i], phi[i], B=B[i], G_max=G[i]))
     assert viscous_guidance(v[None, None], phi[None, None], B=20.0, G_max=2.0).shape == (1, 1, 4, 3)
+    path = Polyline([[-1.0, 0.0, 0.0], [1.0, 0.0, 0.0]])
+    p = rng.normal(0, 0.004, (4, 3))
+    fixture = ViscousGuidance(path, B=B, G_max=G)
+    for i in range(4):
+        one = ViscousGuidance(path, B=B[i], G_max=G[i])
+        np.testing.assert_allclose(fixture.force(p, v)[i], one.force(p[i], v[i]))
 
 
 def test_rejects_negative_parameters():

@@ -142,13 +142,15 @@ def viscous_guidance(
 class ViscousGuidance:
     """The seed's viscous fixture along ``path``: ``force(p, v)`` in the path's frame.
 
-    Table I of the seed: (B, G_max) = (0, 0), (20, 2), (40, 5), (60, 8) N·s/m and N.
+    Table I of the seed: (B, G_max) = (0, 0), (20, 2), (40, 5), (60, 8) N·s/m and N. ``B``
+    and ``G_max`` are numbers, or arrays of one value per trial (n,) for a batch of trials
+    in different conditions (positions and velocities then (n, 3)).
     """
 
     path: Polyline
-    B: float
+    B: float | np.ndarray
     """Viscosity coefficient, N·s/m."""
-    G_max: float
+    G_max: float | np.ndarray
     """Force cap, N."""
     transition: float = DEFAULT_TRANSITION
     """Width of the on-path ramp, m."""
@@ -156,10 +158,25 @@ class ViscousGuidance:
     def __post_init__(self) -> None:
         for name in ("B", "G_max", "transition"):
             value = getattr(self, name)
-            if not (isinstance(value, int | float) and math.isfinite(value) and value >= 0):
+            a = np.asarray(value, dtype=float)
+            if a.ndim > 1 or not np.all(np.isfinite(a)) or np.any(a < 0):
                 raise ValueError(
-                    f"ViscousGuidance.{name} must be a finite number >= 0, got {value!r}"
+                    f"ViscousGuidance.{name} must be finite and >= 0 (a number or one per "
+                    f"trial), got {value!r}"
                 )
+        if np.ndim(self.transition) != 0:
+            raise ValueError(
+                f"ViscousGuidance.transition must be a number, got {self.transition!r}"
+            )
+        object.__setattr__(self, "transition", float(self.transition))
+        for name in ("B", "G_max"):
+            value = getattr(self, name)
+            if np.ndim(value) == 0:
+                object.__setattr__(self, name, float(value))
+            else:
+                a = np.array(value, dtype=float)
+                a.setflags(write=False)
+                object.__setattr__(self, name, a)
 
     def terms(self, position, velocity) -> ViscousTerms:
         """(1)-(7) for tool tips at ``position`` (..., 3) moving at ``velocity`` (..., 3)."""

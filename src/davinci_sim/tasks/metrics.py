@@ -10,7 +10,9 @@ forces on the hand F_i (N) and the clutch pedal c_i. The metrics:
   1 kHz haptic loop's is);
 * **completion time** T = t_K − t_1, s;
 * **path length** of the tip Σ_{i≥2} ‖p_i − p_{i−1}‖, m — economy of motion, as commercial
-  trainers score it (the shortest possible is about the path's length);
+  trainers score it (the shortest possible is about the path's length). It depends on the
+  sampling: at 1 kHz it includes the tremor's back-and-forth (tens of µm at ~10 Hz add a few
+  mm per second), which a camera-rate tracker would not see;
 * **mean speed** = path length / T, m/s (nan if T = 0);
 * **peak force** max ‖F_i‖ and **mean force** (1/K)·Σ ‖F_i‖, N — of the guidance the hand
   feels;
