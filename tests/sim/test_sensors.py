@@ -54,3 +54,18 @@ def test_contact_force_on_an_instrument_pressed_into_tissue():
     assert f[2] > 0  # the tissue pushes the instrument up
     with pytest.raises(KeyError, match="instrument"):
         sim.contact_force("MTMR")
+
+
+def test_a_task_draws_its_path_into_the_scene_before_compiling():
+    from davinci_sim.tasks import add_path_visual, load_task
+
+    task = load_task("seed_path")
+    plain = Simulation("psm1", keyframe="surgical")
+    drawn = Simulation(
+        "psm1", keyframe="surgical", edit_spec=lambda spec: add_path_visual(spec, task)
+    )
+    assert drawn.model.ngeom > plain.model.ngeom
+    assert drawn.model.nq == plain.model.nq and drawn.model.nu == plain.model.nu
+    left_plain, _ = plain.render_stereo()
+    left_drawn, _ = drawn.render_stereo()
+    assert np.abs(left_plain.astype(int) - left_drawn.astype(int)).sum() > 0

@@ -8,13 +8,15 @@ from MuJoCo on demand, so a tick costs only what the physics and the active setp
 
 from __future__ import annotations
 
+from collections.abc import Callable
+
 import mujoco
 import numpy as np
 
 from davinci_sim.kinematics import fk
 from davinci_sim.kinematics.arms import load_arm, load_suj
 from davinci_sim.kinematics.suj import T_cart_rcm, invert_transform
-from davinci_sim.model import build_model, resolve_scene
+from davinci_sim.model import build_spec, resolve_scene
 from davinci_sim.sim.arm import Arm
 from davinci_sim.sim.arms import ECM, MTM, PSM, SUJArm
 from davinci_sim.sim.sensors import INSTRUMENT_BODIES, CameraRenderer, body_ids, contact_force
@@ -47,6 +49,8 @@ class Simulation:
         keyframe: initial state: ``"home"`` (SUJ at the dVRK simulated positions, dvrk.md
             1.6; arms at their simulated home, dvrk.md 1.7) or ``"surgical"`` (the same with
             the ECM's setup joints posed so that the endoscope sees the instruments).
+        edit_spec: called with the scene's ``MjSpec`` before it is compiled, to add what a
+            task needs (visual path, objects). It must not add joints or actuators.
         **scene_overrides: passed to :func:`davinci_sim.model.build_model`.
     """
 
@@ -57,11 +61,15 @@ class Simulation:
         seed: int = 0,
         encoder_noise_std: float = 0.0,
         keyframe: str = "home",
+        edit_spec: Callable[[mujoco.MjSpec], None] | None = None,
         **scene_overrides,
     ) -> None:
         self.config = resolve_scene(scene, **scene_overrides)
         self.endoscope = self.config.endoscope
-        self.model = build_model(self.config)
+        spec = build_spec(self.config)
+        if edit_spec is not None:
+            edit_spec(spec)  # e.g. draw a task's path (tasks.add_path_visual)
+        self.model = spec.compile()
         self.data = mujoco.MjData(self.model)
         key = mujoco.mj_name2id(self.model, mujoco.mjtObj.mjOBJ_KEY, keyframe)
         if key < 0:
