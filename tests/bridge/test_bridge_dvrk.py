@@ -90,7 +90,9 @@ def test_measured_js_at_the_configured_rate(handle, make_server, make_ros, rate)
     n0, t0 = len(got), time.monotonic()
     time.sleep(1.0)
     measured = (len(got) - n0) / (time.monotonic() - t0)
-    assert 0.6 * rate <= measured <= 1.2 * rate, measured
+    # Loose below (a busy machine delays sends), strict above (no duplicates); 50 and 200 Hz
+    # still fall in disjoint ranges.
+    assert 0.4 * rate <= measured <= 1.2 * rate, measured
     msg = got[-1]
     assert msg["name"] == ["yaw", "pitch", "insertion", "roll", "wrist_pitch", "wrist_yaw"]
     assert len(msg["position"]) == len(msg["velocity"]) == len(msg["effort"]) == 6

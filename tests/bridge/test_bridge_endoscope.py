@@ -45,8 +45,10 @@ def test_images_arrive_decode_and_do_not_stall_the_loop(probed_handle, make_serv
     time.sleep(2.0)
     rate = (len(left) - n0) / (time.monotonic() - t0_wall)
     real_time = (h.snapshot().time - t0_sim) / (time.monotonic() - t0_wall)
-    assert rate > 10, rate  # ~30 Hz on an idle machine (benchmarks/bench_bridge.py)
-    assert real_time > 0.9, real_time  # rendering happens elsewhere: the loop keeps pace
+    # ~30 Hz on an idle machine (benchmarks/bench_bridge.py); the bounds leave room for a
+    # busy test machine while still telling a stream from a trickle and a stalled loop.
+    assert rate > 5, rate
+    assert real_time > 0.75, real_time  # rendering happens elsewhere: the loop keeps pace
     msg = left[-1][1]
     assert msg["format"] == "jpeg" and msg["header"]["frame_id"] == "ECM_left"
     img = Image.open(io.BytesIO(base64.b64decode(msg["data"])))
