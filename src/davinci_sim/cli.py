@@ -1,4 +1,4 @@
-"""The ``davinci-sim`` command line: ``info``, ``snapshot``, ``demo`` and ``serve``."""
+"""The ``davinci-sim`` command line: ``info``, ``snapshot``, ``demo``, ``serve`` and ``study``."""
 
 from __future__ import annotations
 
@@ -238,6 +238,49 @@ def cmd_serve(args: argparse.Namespace) -> int:
     return 0
 
 
+def cmd_study(args: argparse.Namespace) -> int:
+    from davinci_sim.study import (
+        TABLE_I,
+        StudyConfig,
+        StudyError,
+        parse_conditions,
+        run_study,
+        write_outputs,
+    )
+
+    try:
+        config = StudyConfig(
+            conditions=parse_conditions(args.conditions) if args.conditions else TABLE_I,
+            n_subjects=args.subjects,
+            n_repetitions=args.repetitions,
+            task=args.task,
+            seed=args.seed,
+            order=args.order,
+            workers=args.workers,
+            backend=args.backend,
+            timeout=args.timeout,
+        )
+    except StudyError as e:
+        print(f"davinci-sim study: {e}", file=sys.stderr)
+        return 2
+    print(
+        f"study: {config.n_trials} trials ({config.n_subjects} subjects x "
+        f"{len(config.conditions)} conditions x {config.n_repetitions} repetitions), "
+        f"task {config.task}, backend {config.backend}, {config.workers} worker(s)",
+        flush=True,
+    )
+    try:
+        result = run_study(config, progress=not args.no_progress)
+    except ImportError as e:
+        print(f"davinci-sim study: {e}", file=sys.stderr)
+        return 2
+    for path in write_outputs(result, args.output):
+        print(path)
+    sim_time = sum(r["sim_time"] for r in result.rows)
+    print(f"wall time {result.wall_time:.1f} s, simulated time {sim_time:.1f} s", flush=True)
+    return 0
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(
         prog="davinci-sim", description="Simulator of the da Vinci Research Kit (dVRK)."
@@ -347,6 +390,32 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--duration", type=float, default=None, help="stop after this many seconds")
     p.add_argument("-v", "--verbose", action="store_true")
     p.set_defaults(func=cmd_serve)
+    p = sub.add_parser(
+        "study", help="the seed's user study with synthetic trainees (CSV, figures, report)"
+    )
+    p.add_argument("--subjects", type=int, default=10)
+    p.add_argument("--repetitions", type=int, default=10, help="repetitions per condition")
+    p.add_argument(
+        "--conditions",
+        default=None,
+        help="B:G_max pairs (N·s/m:N), e.g. '0:0,20:2,40:5,60:8' (default: the seed's Table I)",
+    )
+    p.add_argument("--task", default="seed_path", help="task name or task file")
+    p.add_argument("--seed", type=int, default=0)
+    p.add_argument(
+        "--order",
+        default="latin",
+        choices=["latin", "fixed"],
+        help="condition order: counterbalanced Williams Latin square per subject, or as listed",
+    )
+    p.add_argument("--workers", type=int, default=2)
+    p.add_argument("--backend", default="local", choices=["local", "ray"])
+    p.add_argument(
+        "--timeout", type=float, default=60.0, help="simulated seconds before a trial is unfinished"
+    )
+    p.add_argument("--output", "-o", default="study", help="output folder")
+    p.add_argument("--no-progress", action="store_true", help="no progress bar")
+    p.set_defaults(func=cmd_study)
     args = parser.parse_args(argv)
     return args.func(args)
 

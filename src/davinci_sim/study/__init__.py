@@ -1,0 +1,45 @@
+"""Simulated user studies: the seed's experiment (§II-D, III) with synthetic trainees.
+
+* :class:`StudyConfig`, :func:`plan_trials`, :func:`condition_order` — conditions (default
+  Table I), subjects, repetitions, task, seed, counterbalanced order (config.py).
+* :func:`run_trial`, :class:`TrialSpec` — one trial through the simulator, console, teleop
+  and haptic loop with a :class:`~davinci_sim.operators.TraineeHand` (trial.py).
+* :func:`run_study` — every trial on a local process pool or Ray (runner.py).
+* :func:`friedman`, :func:`pairwise_wilcoxon`, :func:`holm`, :func:`subject_means` (stats.py).
+* :func:`write_outputs` — ``trials.csv``, Figs 7-9, ``report.md`` (report.py).
+"""
+
+from davinci_sim.study.config import (
+    TABLE_I,
+    StudyConfig,
+    StudyError,
+    condition_order,
+    parse_conditions,
+    plan_trials,
+    williams_row,
+)
+from davinci_sim.study.report import claims, write_outputs
+from davinci_sim.study.runner import StudyResult, run_study
+from davinci_sim.study.stats import friedman, holm, pairwise_wilcoxon, subject_means
+from davinci_sim.study.trial import METRICS, TrialSpec, run_trial
+
+__all__ = [
+    "METRICS",
+    "TABLE_I",
+    "StudyConfig",
+    "StudyError",
+    "StudyResult",
+    "TrialSpec",
+    "claims",
+    "condition_order",
+    "friedman",
+    "holm",
+    "pairwise_wilcoxon",
+    "parse_conditions",
+    "plan_trials",
+    "run_study",
+    "run_trial",
+    "subject_means",
+    "williams_row",
+    "write_outputs",
+]

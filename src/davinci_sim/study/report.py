@@ -1,0 +1,345 @@
+"""The outputs of a study: ``trials.csv``, the figures like the seed's Figs 7-9, ``report.md``.
+
+The claims section compares the simulated study with the seed's results (§III) on the
+numbers only: each claim has a rule stated in the report, and the verdict is what the rule
+gives (``agrees``, ``direction agrees, not significant``, or ``does not agree``). The claims
+refer to Table I's conditions, so they are checked only for a study with 4 conditions whose
+first has no assistance (B = G_max = 0) and whose B increases.
+"""
+
+from __future__ import annotations
+
+import csv
+from pathlib import Path
+
+import numpy as np
+
+from davinci_sim.study.runner import StudyResult
+from davinci_sim.study.stats import friedman, pairwise_wilcoxon, subject_means
+from davinci_sim.study.trial import METRICS
+
+COLUMNS = (
+    "subject",
+    "condition",
+    "B",
+    "G_max",
+    "order",
+    "repetition",
+    "practice",
+    "seed",
+    "task",
+    "finished",
+    *METRICS,
+    "sim_time",
+    "wall_time",
+)
+#: Columns that depend on the machine, not on the seed (left out of comparisons).
+TIMING_COLUMNS = ("wall_time",)
+ALPHA = 0.05
+
+
+def write_csv(rows: list[dict], path: Path) -> None:
+    with open(path, "w", newline="") as f:
+        w = csv.DictWriter(f, fieldnames=COLUMNS)
+        w.writeheader()
+        for r in rows:
+            w.writerow({k: (repr(v) if isinstance(v, float) else v) for k, v in r.items()})
+
+
+def _label(c: tuple[float, float]) -> str:
+    return f"B={c[0]:g} Ns/m, Gmax={c[1]:g} N"
+
+
+def _by(rows, condition, key="repetition", metric="deviation_error"):
+    out: dict[int, list[float]] = {}
+    for r in rows:
+        if r["condition"] == condition and np.isfinite(r[metric]):
+            out.setdefault(r[key], []).append(float(r[metric]))
+    return out
+
+
+def plot_figures(result: StudyResult, folder: Path) -> list[Path]:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    cfg, rows = result.config, result.rows
+    C = len(cfg.conditions)
+    paths = []
+    # Fig. 7: mean deviation per repetition, 20th-80th percentile bars, a panel per condition.
+    fig, axes = plt.subplots(1, C, figsize=(3.2 * C, 3.2), sharey=True, squeeze=False)
+    for c, ax in enumerate(axes[0]):
+        per = _by(rows, c)
+        reps = sorted(per)
+        mean = np.array([np.mean(per[j]) for j in reps]) * 1e3
+        lo = np.array([np.percentile(per[j], 20) for j in reps]) * 1e3
+        hi = np.array([np.percentile(per[j], 80) for j in reps]) * 1e3
+        ax.errorbar(
+            reps,
+            mean,
+            yerr=[mean - lo, hi - mean],
+            fmt="o",
+            color="tab:blue",
+            ecolor="gray",
+            capsize=3,
+        )
+        ax.set_title(_label(cfg.conditions[c]), fontsize=9)
+        ax.set_xlabel("repetition")
+    axes[0][0].set_ylabel("deviation error e (mm)")
+    fig.tight_layout()
+    paths.append(folder / "fig7_deviation_per_repetition.png")
+    fig.savefig(paths[-1], dpi=120)
+    plt.close(fig)
+    # Fig. 8: distribution of the deviation per condition.
+    fig, ax = plt.subplots(figsize=(1.6 * C + 2, 3.5))
+    data = [
+        [
+            r["deviation_error"] * 1e3
+            for r in rows
+            if r["condition"] == c and np.isfinite(r["deviation_error"])
+        ]
+        for c in range(C)
+    ]
+    ax.boxplot(data, whis=(5, 95))
+    ax.set_xticks(range(1, C + 1), [f"B={b:g}" for b, _ in cfg.conditions])
+    ax.set_ylabel("deviation error e (mm)")
+    ax.set_title("all repetitions of all subjects (whiskers 5-95 %)", fontsize=9)
+    fig.tight_layout()
+    paths.append(folder / "fig8_deviation_distribution.png")
+    fig.savefig(paths[-1], dpi=120)
+    plt.close(fig)
+    # Fig. 9: mean completion time per condition (bars: sd over subjects' means).
+    table = subject_means(rows, "completion_time", cfg.n_subjects, C)
+    fig, ax = plt.subplots(figsize=(1.6 * C + 2, 3.5))
+    ax.bar(
+        range(C),
+        np.nanmean(table, axis=0),
+        yerr=np.nanstd(table, axis=0) if cfg.n_subjects > 1 else None,
+        color="tab:blue",
+        capsize=4,
+    )
+    ax.set_xticks(range(C), [f"B={b:g}" for b, _ in cfg.conditions])
+    ax.set_ylabel("completion time (s)")
+    ax.set_title("mean over subjects (bars: sd of the subjects' means)", fontsize=9)
+    fig.tight_layout()
+    paths.append(folder / "fig9_completion_time.png")
+    fig.savefig(paths[-1], dpi=120)
+    plt.close(fig)
+    return paths
+
+
+def _pair(pairs, a, b):
+    for p in pairs:
+        if (p.a, p.b) == (a, b) or (p.a, p.b) == (b, a):
+            return p
+    raise KeyError((a, b))
+
+
+def _lower(dev, pairs, a, b) -> str:
+    """Verdict for 'condition a has a lower deviation than b'."""
+    ma, mb = np.nanmean(dev[:, a]), np.nanmean(dev[:, b])
+    if not ma < mb:
+        return "does not agree"
+    return "agrees" if _pair(pairs, a, b).p_holm < ALPHA else "direction agrees, not significant"
+
+
+def claims(result: StudyResult) -> list[tuple[str, str, str]]:
+    """(claim of the seed, what the simulation gives, verdict) for Table I-like studies."""
+    cfg, rows = result.config, result.rows
+    C, n = len(cfg.conditions), cfg.n_subjects
+    b = [c[0] for c in cfg.conditions]
+    if C != 4 or cfg.conditions[0] != (0.0, 0.0) or b != sorted(b):
+        return []
+    dev = subject_means(rows, "deviation_error", n, C)
+    ct = subject_means(rows, "completion_time", n, C)
+    pairs = pairwise_wilcoxon(dev)
+    m = np.nanmean(dev, axis=0) * 1e3
+    out = []
+    per = _by(rows, 0)
+    reps = sorted(per)
+    means = [np.mean(per[j]) for j in reps]
+    if len(reps) >= 2:
+        slope = float(np.polyfit(reps, np.array(means) * 1e3, 1)[0])
+        verdict = "agrees" if slope < 0 else "does not agree"
+        out.append(
+            (
+                "Without assistance (B=0) the deviation decreases slightly with repetition.",
+                f"slope of the mean deviation over repetitions: {slope:+.4f} mm/repetition "
+                "(rule: < 0)",
+                verdict,
+            )
+        )
+    for k, text in (
+        (1, "B=20 reduces the deviation compared to B=0 (limited improvement)."),
+        (2, "B=40 gives a significant reduction of the deviation compared to B=0."),
+        (3, "B=60 also reduces the deviation compared to B=0."),
+    ):
+        p = _pair(pairs, 0, k)
+        out.append(
+            (
+                text,
+                f"mean of subjects' means {m[k]:.4f} mm vs {m[0]:.4f} mm, Wilcoxon p_Holm = "
+                f"{p.p_holm:.3g} (rule: lower, p_Holm < {ALPHA})",
+                _lower(dev, pairs, k, 0),
+            )
+        )
+    mono = bool(m[0] > m[1] > m[2])
+    out.append(
+        (
+            "The deviation decreases as the force increases (B = 0 → 20 → 40).",
+            f"means {m[0]:.4f} > {m[1]:.4f} > {m[2]:.4f} mm? {'yes' if mono else 'no'}",
+            "agrees" if mono else "does not agree",
+        )
+    )
+    p = _pair(pairs, 2, 3)
+    no_better = bool(not (m[3] < m[2] and p.p_holm < ALPHA))
+    out.append(
+        (
+            "B=60 does not improve the deviation compared to B=40 (it tends to increase).",
+            f"B=60 {m[3]:.4f} mm vs B=40 {m[2]:.4f} mm, p_Holm = {p.p_holm:.3g} "
+            "(rule: not significantly lower)",
+            ("agrees" if m[3] >= m[2] else "agrees (not significantly lower)")
+            if no_better
+            else "does not agree",
+        )
+    )
+    t = np.nanmean(ct, axis=0)
+    tp = pairwise_wilcoxon(ct)
+    p = _pair(tp, 2, 3)
+    if t[3] > t[2]:
+        v = "agrees" if p.p_holm < ALPHA else "direction agrees, not significant"
+    else:
+        v = "does not agree"
+    out.append(
+        (
+            "The task takes longer with B=60 than with B=40 (Fig. 9).",
+            f"mean completion time {t[3]:.2f} s vs {t[2]:.2f} s, p_Holm = {p.p_holm:.3g}",
+            v,
+        )
+    )
+    sd = np.nanstd(dev, axis=0) * 1e3
+    less = bool(np.all(sd[1:] < sd[0]))
+    out.append(
+        (
+            "The variability of the deviation among subjects is reduced with assistance.",
+            "sd of the subjects' means: "
+            + ", ".join(f"B={b[k]:g}: {sd[k]:.4f} mm" for k in range(C))
+            + " (rule: every assisted condition below B=0)",
+            "agrees" if less else "does not agree",
+        )
+    )
+    return out
+
+
+def _fmt(x: float, digits: int = 4) -> str:
+    return "nan" if not np.isfinite(x) else f"{x:.{digits}g}"
+
+
+def write_report(result: StudyResult, path: Path) -> None:
+    cfg, rows = result.config, result.rows
+    C, n = len(cfg.conditions), cfg.n_subjects
+    sim_time = sum(r["sim_time"] for r in rows)
+    trial_wall = sum(r["wall_time"] for r in rows)
+    L = [
+        "# Simulated user study",
+        "",
+        f"Task `{cfg.task}`, {n} subjects × {C} conditions × {cfg.n_repetitions} repetitions "
+        f"= {len(rows)} trials; seed {cfg.seed}; condition order `{cfg.order}`; backend "
+        f"`{cfg.backend}` with {cfg.workers} worker(s); trial timeout {cfg.timeout:g} s "
+        "(simulated).",
+        "",
+        "## Run time",
+        "",
+        f"- wall time of the study: {result.wall_time:.1f} s "
+        f"({result.wall_time / max(len(rows), 1):.2f} s per trial)",
+        f"- simulated time: {sim_time:.1f} s (set-up and reach to point 1 included); "
+        f"{sim_time / max(result.wall_time, 1e-9):.2f}× real time overall, "
+        f"{sim_time / max(trial_wall, 1e-9):.2f}× per worker",
+        f"- unfinished trials (timed out): {sum(not r['finished'] for r in rows)}",
+        "",
+        "## Summary",
+        "",
+        "Means over subjects of each subject's mean over its repetitions (± sd over subjects).",
+        "",
+        "| condition | deviation e (mm) | completion time (s) | path length (mm) "
+        "| mean speed (mm/s) | peak force (N) | mean force (N) | time outside (s) | finished |",
+        "|---|---|---|---|---|---|---|---|---|",
+    ]
+    tables = {k: subject_means(rows, k, n, C) for k in METRICS}
+    for c in range(C):
+
+        def cell(k, s=1.0, tables=tables, c=c):
+            col = tables[k][:, c] * s
+            return f"{_fmt(np.nanmean(col))} ± {_fmt(np.nanstd(col), 2)}"
+
+        fin = sum(r["finished"] for r in rows if r["condition"] == c)
+        tot = sum(1 for r in rows if r["condition"] == c)
+        L.append(
+            f"| {_label(cfg.conditions[c])} | {cell('deviation_error', 1e3)} | "
+            f"{cell('completion_time')} | {cell('path_length', 1e3)} | "
+            f"{cell('mean_speed', 1e3)} | {cell('peak_force')} | {cell('mean_force')} | "
+            f"{cell('time_outside')} | {fin}/{tot} |"
+        )
+    L += [
+        "",
+        "## Statistical tests",
+        "",
+        "Per-subject means; Friedman test across the conditions, then two-sided Wilcoxon "
+        f"signed-rank tests of every pair, Holm-corrected (α = {ALPHA}).",
+        "",
+    ]
+    for metric, unit, s in (("deviation_error", "mm", 1e3), ("completion_time", "s", 1.0)):
+        fr = friedman(tables[metric])
+        L.append(f"### {metric.replace('_', ' ')}")
+        L.append("")
+        L.append(f"Friedman χ² = {_fmt(fr.statistic)}, p = {_fmt(fr.pvalue)}.")
+        L.append("")
+        L.append(f"| pair | median difference ({unit}) | W | p | p (Holm) |")
+        L.append("|---|---|---|---|---|")
+        for p in pairwise_wilcoxon(tables[metric]):
+            L.append(
+                f"| B={cfg.conditions[p.a][0]:g} vs B={cfg.conditions[p.b][0]:g} | "
+                f"{_fmt(p.median_difference * s)} | {_fmt(p.statistic)} | {_fmt(p.pvalue)} | "
+                f"{_fmt(p.p_holm)} |"
+            )
+        L.append("")
+    L += ["## The seed's claims", ""]
+    found = claims(result)
+    if not found:
+        L.append(
+            "Not applicable: the claims refer to Table I's four conditions (the first "
+            "without assistance, B increasing); this study has other conditions."
+        )
+    else:
+        L.append(
+            "Each claim of the seed's §III, the rule applied to this study's numbers, and the "
+            f"verdict (significance: Wilcoxon on per-subject means, Holm, α = {ALPHA}). With "
+            "few subjects the tests have little power: read 'not significant' as 'no evidence "
+            "either way'."
+        )
+        L.append("")
+        L.append("| claim of the seed | simulated study | verdict |")
+        L.append("|---|---|---|")
+        for claim, numbers, verdict in found:
+            L.append(f"| {claim} | {numbers} | **{verdict}** |")
+    L += [
+        "",
+        "## Files",
+        "",
+        "- `trials.csv`: one row per trial, every metric",
+        "- `fig7_deviation_per_repetition.png`, `fig8_deviation_distribution.png`, "
+        "`fig9_completion_time.png`",
+        "",
+    ]
+    path.write_text("\n".join(L))
+
+
+def write_outputs(result: StudyResult, folder) -> list[Path]:
+    """Write ``trials.csv``, the three figures and ``report.md`` into ``folder``."""
+    folder = Path(folder)
+    folder.mkdir(parents=True, exist_ok=True)
+    write_csv(result.rows, folder / "trials.csv")
+    paths = [folder / "trials.csv", *plot_figures(result, folder)]
+    write_report(result, folder / "report.md")
+    return [*paths, folder / "report.md"]

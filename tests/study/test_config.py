@@ -1,0 +1,57 @@
+"""Study configuration, counterbalancing and the plan of trials."""
+
+import pytest
+
+from davinci_sim.study import (
+    TABLE_I,
+    StudyConfig,
+    StudyError,
+    condition_order,
+    parse_conditions,
+    plan_trials,
+    williams_row,
+)
+
+
+def test_defaults_are_the_seed_study():
+    c = StudyConfig()
+    assert c.conditions == TABLE_I == ((0, 0), (20, 2), (40, 5), (60, 8))
+    assert (c.n_subjects, c.n_repetitions, c.n_trials) == (10, 10, 400)
+
+
+def test_williams_square_is_latin_and_carry_over_balanced():
+    n = 4
+    rows = [williams_row(r, n) for r in range(n)]
+    for r in rows:
+        assert sorted(r) == list(range(n))
+    for col in zip(*rows, strict=True):
+        assert sorted(col) == list(range(n))
+    follows = {(a, b): 0 for a in range(n) for b in range(n) if a != b}
+    for r in rows:
+        for a, b in zip(r, r[1:], strict=False):
+            follows[(a, b)] += 1
+    assert set(follows.values()) == {1}
+
+
+def test_plan_practice_carries_across_conditions():
+    cfg = StudyConfig(n_subjects=3, n_repetitions=2)
+    specs = plan_trials(cfg)
+    assert len(specs) == cfg.n_trials == 24
+    s1 = [s for s in specs if s.subject == 1]
+    assert [s.condition for s in s1[::2]] == condition_order(cfg, 1) == williams_row(1, 4)
+    assert [s.practice for s in s1] == list(range(1, 9))
+    assert len({s.key for s in specs}) == len(specs)
+    fixed = StudyConfig(n_subjects=2, order="fixed")
+    assert condition_order(fixed, 1) == [0, 1, 2, 3]
+
+
+def test_bad_configs_fail_early():
+    assert parse_conditions("0:0, 20:2") == ((0, 0), (20, 2))
+    with pytest.raises(StudyError, match="B:G_max"):
+        parse_conditions("0,20")
+    with pytest.raises(StudyError, match="backends"):
+        StudyConfig(backend="dask")
+    with pytest.raises(StudyError, match="orders"):
+        StudyConfig(order="random")
+    with pytest.raises(StudyError):
+        StudyConfig(n_subjects=0)
