@@ -86,6 +86,7 @@ def plot_figures(result: StudyResult, folder: Path) -> list[Path]:
         )
         ax.set_title(_label(cfg.conditions[c]), fontsize=9)
         ax.set_xlabel("repetition")
+        ax.set_xticks(reps)
     axes[0][0].set_ylabel("deviation error e (mm)")
     fig.tight_layout()
     paths.append(folder / "fig7_deviation_per_repetition.png")
