@@ -2,7 +2,7 @@
 
 import numpy as np
 import pytest
-from conftest import home
+from sim_helpers import home
 
 from davinci_sim.kinematics import fk
 from davinci_sim.kinematics.arms import load_arm

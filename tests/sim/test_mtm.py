@@ -1,7 +1,7 @@
 """MTM: wrench commands act on the model, gripper, base frame in HRSV."""
 
 import numpy as np
-from conftest import home
+from sim_helpers import home
 
 from davinci_sim.sim.simulation import Simulation
 

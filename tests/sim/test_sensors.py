@@ -2,7 +2,7 @@
 
 import numpy as np
 import pytest
-from conftest import home
+from sim_helpers import home
 
 from davinci_sim.model import CameraConfig, ExternalCamera
 from davinci_sim.sim.simulation import Simulation
