@@ -14,7 +14,7 @@ text and Fig. 3 make clear they are directions, and only unit vectors keep b in 
   *larger* of G_max and ‖b·v‖, which would make every force at least G_max, even for a
   static tool; the text says the maximum force is constrained "to prevent the assistance
   force from being too aggressive" and the authors' prototype computes ``min(b·|v|, F)``,
-  so G_max is a cap (``/work/shared/seed/README.md``).
+  so G_max is a cap (the seed README).
 * (4) direction ``φ̂`` when moving away from the path (v̂·φ̂ < 0), else
   ``rotate(v̂, θ, n)``, with (5) ``θ = (1 + v̂·φ̂)·π/2`` and (6) ``n = v̂ × φ̂``: the velocity
   direction turned towards φ̂ by θ. Sideways motion (v̂·φ̂ = 0, θ = π/2) gives φ̂, so the two
