@@ -29,6 +29,7 @@ import numpy as np
 
 from davinci_sim.bridge import codec
 from davinci_sim.bridge.publisher import PeriodicTask
+from davinci_sim.devices.streamer import encode_joint_state, encode_pose
 
 if TYPE_CHECKING:
     from davinci_sim.sim.handle import ArmSnapshot, SimHandle
@@ -84,34 +85,23 @@ class StreamConfig:
 
 
 # =========================================================================== cisst JSON
-def _vec(a) -> list | None:
-    return None if a is None else np.asarray(a, dtype=float).tolist()
-
-
 def state_joint(js) -> dict:
-    """``prmStateJoint`` as cisst serialises it."""
-    return {
-        "Name": list(js.name),
-        "Position": _vec(js.position),
-        "Velocity": _vec(js.velocity),
-        "Effort": _vec(js.effort),
-        "Timestamp": js.timestamp,
-        "AutomaticTimestamp": True,
-        "Valid": True,
-    }
+    """``prmStateJoint`` as cisst serialises it (codec of :mod:`davinci_sim.devices.streamer`)."""
+    return encode_joint_state(
+        js.name,
+        js.position,
+        js.timestamp,
+        velocity=js.velocity,
+        effort=js.effort,
+        automatic_timestamp=True,
+    )
 
 
 def position_cartesian(cp) -> dict:
     """``prmPositionCartesianGet``."""
-    T = np.asarray(cp.T)
-    return {
-        "Position": {"Rotation": T[:3, :3].tolist(), "Translation": T[:3, 3].tolist()},
-        "ReferenceFrame": cp.reference_frame,
-        "MovingFrame": cp.moving_frame,
-        "Timestamp": cp.timestamp,
-        "AutomaticTimestamp": True,
-        "Valid": True,
-    }
+    return encode_pose(
+        cp.T, cp.reference_frame, cp.moving_frame, cp.timestamp, automatic_timestamp=True
+    )
 
 
 def velocity_cartesian(cv) -> dict:

@@ -144,7 +144,12 @@ def decode_button(payload) -> ButtonEvent:
 
 
 def encode_pose(
-    T, reference_frame: str = "HRSV", moving_frame: str = "", timestamp: float = 0.0
+    T,
+    reference_frame: str = "HRSV",
+    moving_frame: str = "",
+    timestamp: float = 0.0,
+    *,
+    automatic_timestamp: bool = False,
 ) -> dict:
     """A ``prmPositionCartesianGet`` object for ``T`` (4x4, m)."""
     T = np.asarray(T, dtype=float)
@@ -153,20 +158,32 @@ def encode_pose(
         "ReferenceFrame": reference_frame,
         "MovingFrame": moving_frame,
         "Timestamp": float(timestamp),
-        "AutomaticTimestamp": False,
+        "AutomaticTimestamp": automatic_timestamp,
         "Valid": True,
     }
 
 
-def encode_joint_state(names, position, timestamp: float = 0.0) -> dict:
-    """A ``prmStateJoint`` object with positions only."""
+def _floats(a) -> list[float] | None:
+    return None if a is None else [float(x) for x in np.atleast_1d(a)]
+
+
+def encode_joint_state(
+    names,
+    position,
+    timestamp: float = 0.0,
+    *,
+    velocity=None,
+    effort=None,
+    automatic_timestamp: bool = False,
+) -> dict:
+    """A ``prmStateJoint`` object (velocity and effort ``null`` unless given)."""
     return {
         "Name": list(names),
-        "Position": [float(x) for x in np.atleast_1d(position)],
-        "Velocity": None,
-        "Effort": None,
+        "Position": _floats(position),
+        "Velocity": _floats(velocity),
+        "Effort": _floats(effort),
         "Timestamp": float(timestamp),
-        "AutomaticTimestamp": False,
+        "AutomaticTimestamp": automatic_timestamp,
         "Valid": True,
     }
 
