@@ -21,7 +21,7 @@ from davinci_sim.sim.simulation import Simulation  # noqa: E402
 @pytest.fixture
 def handle():
     """PSM1 + ECM (+ SUJ) in real time (a fresh simulation per test: 40 ms to build)."""
-    h = ThreadedSimulation(Simulation("psm1"), real_time=True).start()
+    h = ThreadedSimulation(Simulation("psm1"), real_time=True, snapshot_period=0.001).start()
     yield h
     h.stop()
 
