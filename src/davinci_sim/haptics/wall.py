@@ -61,8 +61,32 @@ def _check(owner: str, **values) -> None:
             raise ValueError(f"{owner}.{name} must be a finite number >= 0, got {value!r}")
 
 
+class _Wall:
+    """The force of a wall from its ``penetration`` (depth, outward normal) and its gains."""
+
+    stiffness: float
+    damping: float
+    damping_depth: float
+    max_force: float
+
+    def penetration(self, position) -> tuple[np.ndarray, np.ndarray]:
+        raise NotImplementedError
+
+    def force(self, position, velocity) -> np.ndarray:
+        g, n = self.penetration(position)
+        return wall_force(
+            g,
+            n,
+            velocity,
+            stiffness=self.stiffness,
+            damping=self.damping,
+            damping_depth=self.damping_depth,
+            max_force=self.max_force,
+        )
+
+
 @dataclass(frozen=True, eq=False)
-class PlaneWall:
+class PlaneWall(_Wall):
     """The half-space behind a plane: forbidden where ``(p − point)·normal < 0``.
 
     ``normal`` points to the allowed side (it is normalised).
@@ -99,21 +123,9 @@ class PlaneWall:
         g = -np.einsum("...j,j->...", p - np.asarray(self.point, dtype=float), n)
         return g, np.broadcast_to(n, p.shape)
 
-    def force(self, position, velocity) -> np.ndarray:
-        g, n = self.penetration(position)
-        return wall_force(
-            g,
-            n,
-            velocity,
-            stiffness=self.stiffness,
-            damping=self.damping,
-            damping_depth=self.damping_depth,
-            max_force=self.max_force,
-        )
-
 
 @dataclass(frozen=True, eq=False)
-class SphereWall:
+class SphereWall(_Wall):
     """A sphere; ``keep_out`` (default) forbids its inside, else its outside.
 
     At the exact centre of a keep-out sphere the push direction is undefined; it is then
@@ -155,15 +167,3 @@ class SphereWall:
         if self.keep_out:
             return self.radius - d, radial
         return d - self.radius, -radial
-
-    def force(self, position, velocity) -> np.ndarray:
-        g, n = self.penetration(position)
-        return wall_force(
-            g,
-            n,
-            velocity,
-            stiffness=self.stiffness,
-            damping=self.damping,
-            damping_depth=self.damping_depth,
-            max_force=self.max_force,
-        )
