@@ -259,6 +259,7 @@ def cmd_study(args: argparse.Namespace) -> int:
             workers=args.workers,
             backend=args.backend,
             timeout=args.timeout,
+            engine=args.engine,
         )
     except StudyError as e:
         print(f"davinci-sim study: {e}", file=sys.stderr)
@@ -266,7 +267,8 @@ def cmd_study(args: argparse.Namespace) -> int:
     print(
         f"study: {config.n_trials} trials ({config.n_subjects} subjects x "
         f"{len(config.conditions)} conditions x {config.n_repetitions} repetitions), "
-        f"task {config.task}, backend {config.backend}, {config.workers} worker(s)",
+        f"task {config.task}, {config.engine} engine, backend {config.backend}, "
+        f"{config.workers} worker(s)",
         flush=True,
     )
     try:
@@ -410,6 +412,13 @@ def main(argv: list[str] | None = None) -> int:
     )
     p.add_argument("--workers", type=int, default=2)
     p.add_argument("--backend", default="local", choices=["local", "ray"])
+    p.add_argument(
+        "--engine",
+        default="batch",
+        choices=["batch", "live"],
+        help="batch: trials stepped together (fast); live: one full simulation per trial "
+        "(the slow reference)",
+    )
     p.add_argument(
         "--timeout", type=float, default=60.0, help="simulated seconds before a trial is unfinished"
     )

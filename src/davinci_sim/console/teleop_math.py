@@ -28,29 +28,37 @@ def follow_pose(
     T_hrsv_mtm0: np.ndarray,
     T_hrsv_mtm: np.ndarray,
     R_offset: np.ndarray,
-    scale: float,
+    scale,
     *,
     translation_locked: bool = False,
     rotation_locked: bool = False,
 ) -> np.ndarray:
-    """PSM goal in the camera frame while following (dvrk.md 4.2).
+    """PSM goal in the camera frame while following (dvrk.md 4.2); poses ``(..., 4, 4)``,
+    ``R_offset`` ``(..., 3, 3)`` and ``scale`` ``(...)`` broadcast over a batch of
+    teleoperations (the study steps many at once).
 
     Translation: ``p_psm0 + scale·(p_mtm − p_mtm0)`` (or ``p_psm0`` if locked).
     Rotation: ``R_mtm·R_offset`` (or ``R_psm0`` if locked).
     """
-    T = np.empty((4, 4))
-    T[3] = (0.0, 0.0, 0.0, 1.0)
+    shape = np.broadcast_shapes(np.shape(T_camera_psm0), np.shape(T_hrsv_mtm))
+    T = np.zeros(shape)
+    T[..., 3, 3] = 1.0
+    p0 = T_camera_psm0[..., :3, 3]
     if translation_locked:
-        T[:3, 3] = T_camera_psm0[:3, 3]
+        T[..., :3, 3] = p0
     else:
-        T[:3, 3] = T_camera_psm0[:3, 3] + scale * (T_hrsv_mtm[:3, 3] - T_hrsv_mtm0[:3, 3])
-    T[:3, :3] = T_camera_psm0[:3, :3] if rotation_locked else T_hrsv_mtm[:3, :3] @ R_offset
+        s = np.asarray(scale, dtype=float)[..., None]
+        T[..., :3, 3] = p0 + s * (T_hrsv_mtm[..., :3, 3] - T_hrsv_mtm0[..., :3, 3])
+    if rotation_locked:
+        T[..., :3, :3] = T_camera_psm0[..., :3, :3]
+    else:
+        T[..., :3, :3] = T_hrsv_mtm[..., :3, :3] @ R_offset
     return T
 
 
 def follow_twist(
     twist_hrsv_mtm: np.ndarray,
-    scale: float,
+    scale,
     *,
     use_linear: bool = True,
     use_angular: bool = False,
@@ -58,12 +66,14 @@ def follow_twist(
     rotation_locked: bool = False,
 ) -> np.ndarray:
     """Velocity feed-forward sent with ``servo_cp`` (camera axes): the scaled MTM linear
-    velocity and, if asked, the MTM angular velocity (dvrk.md 4.2); zero where locked."""
-    out = np.zeros(6)
+    velocity and, if asked, the MTM angular velocity (dvrk.md 4.2); zero where locked.
+    ``twist_hrsv_mtm`` ``(..., 6)`` and ``scale`` ``(...)`` broadcast over a batch."""
+    twist = np.asarray(twist_hrsv_mtm, dtype=float)
+    out = np.zeros(twist.shape)
     if use_linear and not translation_locked:
-        out[:3] = scale * twist_hrsv_mtm[:3]
+        out[..., :3] = np.asarray(scale, dtype=float)[..., None] * twist[..., :3]
     if use_angular and not rotation_locked:
-        out[3:] = twist_hrsv_mtm[3:]
+        out[..., 3:] = twist[..., 3:]
     return out
 
 

@@ -12,7 +12,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from davinci_sim.haptics.safety import limit_norms
 from davinci_sim.sim import so3
+from davinci_sim.sim.so3 import rotation_vectors
 
 
 @dataclass(frozen=True)
@@ -81,6 +83,33 @@ def hand_wrench(
     f = _clamp(f, impedance.max_force)
     tau = _clamp(tau, impedance.max_torque)
     return np.array(f + tau)
+
+
+def hand_wrenches(
+    T_target: np.ndarray,
+    T_tip: np.ndarray,
+    twist_tip: np.ndarray,
+    stiffness,
+    damping,
+    impedance: HandImpedance,
+    *,
+    hold_orientation: bool = True,
+) -> np.ndarray:
+    """:func:`hand_wrench` for a batch of hands ``(n, ...)`` (a study's trials), each with its
+    own translational ``stiffness`` (N/m) and ``damping`` (N·s/m), (n,); the rotational
+    values and the limits are ``impedance``'s. Poses ``(n, 4, 4)``, twists ``(n, 6)``; returns
+    ``(n, 6)``, force then torque, in the frame of the poses."""
+    twist = np.asarray(twist_tip, dtype=float)
+    k = np.asarray(stiffness, dtype=float)[:, None]
+    d = np.asarray(damping, dtype=float)[:, None]
+    f = k * (T_target[:, :3, 3] - T_tip[:, :3, 3]) - d * twist[:, :3]
+    tau = -impedance.rotational_damping * twist[:, 3:]
+    if hold_orientation:
+        R_error = T_target[:, :3, :3] @ np.swapaxes(T_tip[:, :3, :3], -1, -2)
+        tau = tau + impedance.rotational_stiffness * rotation_vectors(R_error)
+    return np.concatenate(
+        [limit_norms(f, impedance.max_force), limit_norms(tau, impedance.max_torque)], axis=1
+    )
 
 
 def _clamp(v: list[float], limit: float) -> list[float]:

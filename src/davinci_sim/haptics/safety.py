@@ -85,6 +85,28 @@ def clamp_wrench(wrench, previous, limits: WrenchLimits, dt: float) -> tuple[np.
     return np.array(out), clamped
 
 
+def clamp_wrenches(wrench, previous, limits: WrenchLimits, dt: float) -> np.ndarray:
+    """:func:`clamp_wrench` for a batch ``(n, 6)`` of finite wrenches (a study's trials, one
+    device each): the same two clamps, row by row; returns the clamped ``(n, 6)``."""
+    w = np.asarray(wrench, dtype=float)
+    prev = np.asarray(previous, dtype=float)
+    out = np.empty_like(w)
+    for part, limit, rate in (
+        (slice(0, 3), limits.max_force, limits.max_force_rate),
+        (slice(3, 6), limits.max_torque, limits.max_torque_rate),
+    ):
+        target = limit_norms(w[:, part], limit)
+        out[:, part] = prev[:, part] + limit_norms(target - prev[:, part], rate * dt)
+    return out
+
+
+def limit_norms(v: np.ndarray, limit: float) -> np.ndarray:
+    """Rows of ``v`` (n, 3) scaled down to norm ``limit`` where longer (direction kept)."""
+    n = np.sqrt(np.einsum("ij,ij->i", v, v))
+    long = n > limit
+    return v * np.where(long, limit / np.where(long, n, 1.0), 1.0)[:, None]
+
+
 class WrenchLimiter:
     """Applies :func:`clamp_wrench` tick after tick, remembering the last output."""
 

@@ -383,8 +383,26 @@ def jacobian_spatial(chain: DHChain, q: np.ndarray) -> np.ndarray:
     q = _check_q(chain, q)
     if q.ndim == 1:
         return np.array(_jacobian_spatial_floats(chain, q.tolist())[0])
+    return _fk_and_jacobian_batch(chain, q)[1]
+
+
+def forward_kinematics_and_jacobian(chain: DHChain, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``(T_base_tip (4, 4), spatial Jacobian (6, n))`` of one configuration in one pass over
+    the chain (the 1 kHz teleoperation path needs both: pose and twist of the same joints);
+    for a batch ``q`` (..., n): ``(..., 4, 4)`` and ``(..., 6, n)``."""
+    q = _check_q(chain, q)
+    if q.ndim != 1:
+        return _fk_and_jacobian_batch(chain, q)
+    J, tip = _jacobian_spatial_floats(chain, q.tolist())
+    return _to_matrix(tip), np.array(J)
+
+
+def _fk_and_jacobian_batch(chain: DHChain, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Batched :func:`forward_kinematics_and_jacobian`: ``(..., 4, 4)`` and ``(..., 6, n)``
+    from one set of joint frames (what :func:`jacobian_spatial` computes, plus the pose)."""
     F = joint_frames(chain, q)
-    p_tip = (F[..., -1, :, :] @ chain.T_last_tip)[..., :3, 3]
+    T = F[..., -1, :, :] @ chain.T_last_tip
+    p_tip = T[..., :3, 3]
     # Modified DH: joint i acts about z of frame i; standard DH: about z of frame i-1.
     axes_frames = F[..., 1:, :, :] if chain.convention == "modified" else F[..., :-1, :, :]
     z = axes_frames[..., :3, 2]  # (..., n, 3)
@@ -392,17 +410,8 @@ def jacobian_spatial(chain: DHChain, q: np.ndarray) -> np.ndarray:
     rev = chain.revolute[:, None]
     lin = np.where(rev, np.cross(z, p_tip[..., None, :] - o), z)
     ang = np.where(rev, z, 0.0)
-    return np.concatenate([np.swapaxes(lin, -1, -2), np.swapaxes(ang, -1, -2)], axis=-2)
-
-
-def forward_kinematics_and_jacobian(chain: DHChain, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """``(T_base_tip (4, 4), spatial Jacobian (6, n))`` of one configuration in one pass over
-    the chain (the 1 kHz teleoperation path needs both: pose and twist of the same joints)."""
-    q = _check_q(chain, q)
-    if q.ndim != 1:
-        raise ValueError(f"one configuration (n,) expected, got shape {q.shape}")
-    J, tip = _jacobian_spatial_floats(chain, q.tolist())
-    return _to_matrix(tip), np.array(J)
+    J = np.concatenate([np.swapaxes(lin, -1, -2), np.swapaxes(ang, -1, -2)], axis=-2)
+    return T, J
 
 
 def _jacobian_spatial_floats(chain: DHChain, q) -> tuple[list[list[float]], tuple[float, ...]]:

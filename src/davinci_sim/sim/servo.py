@@ -18,6 +18,17 @@ import mujoco
 import numpy as np
 
 
+def servo_ctrl(q, qd, tau_bias, q_ref, qd_ref, tau_ff, effort_mode, gravity_compensation, kp, kv):
+    """The actuators' ``ctrl`` realising the servo law (module docstring), any leading batch
+    axes: joint positions ``q`` and velocities ``qd`` (rad, m, per s), ``tau_bias`` MuJoCo's
+    ``qfrc_bias`` of the joints, setpoints ``q_ref``/``qd_ref``, feed-forward ``tau_ff``
+    (N·m, N), masks ``effort_mode``/``gravity_compensation``, gains ``kp``/``kv``."""
+    tau_g = np.where(gravity_compensation, tau_bias, 0.0)
+    q_ref = np.where(effort_mode, q, q_ref)
+    qd_ref = np.where(effort_mode, qd, qd_ref)
+    return q_ref + (kv * qd_ref + tau_g + tau_ff) / kp
+
+
 class JointServo:
     """Vectorised servo over all actuators of a model, in actuator order."""
 
@@ -52,9 +63,15 @@ class JointServo:
 
     def apply(self, data: mujoco.MjData) -> None:
         """Write ``data.ctrl`` for the current state (call right before ``mj_step``)."""
-        q = data.qpos[self.qposadr]
-        qd = data.qvel[self.dofadr]
-        tau_g = np.where(self.gravity_compensation, data.qfrc_bias[self.dofadr], 0.0)
-        q_ref = np.where(self.effort_mode, q, self.q_ref)
-        qd_ref = np.where(self.effort_mode, qd, self.qd_ref)
-        data.ctrl[:] = q_ref + (self.kv * qd_ref + tau_g + self.tau_ff) / self.kp
+        data.ctrl[:] = servo_ctrl(
+            data.qpos[self.qposadr],
+            data.qvel[self.dofadr],
+            data.qfrc_bias[self.dofadr],
+            self.q_ref,
+            self.qd_ref,
+            self.tau_ff,
+            self.effort_mode,
+            self.gravity_compensation,
+            self.kp,
+            self.kv,
+        )

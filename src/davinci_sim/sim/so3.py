@@ -49,6 +49,30 @@ def rotation_vector(R) -> np.ndarray:
     return axis * angle
 
 
+def rotation_vectors(R) -> np.ndarray:
+    """:func:`rotation_vector` of a batch of rotations ``(..., 3, 3)``, ``(..., 3)``.
+
+    Vectorised for angles below π − 1e-3 rad; the rare rotations near π (where the axis comes
+    from the symmetric part) go through :func:`rotation_vector` one by one.
+    """
+    r = np.asarray(R, dtype=float)
+    cos = np.clip(0.5 * (r[..., 0, 0] + r[..., 1, 1] + r[..., 2, 2] - 1.0), -1.0, 1.0)
+    angle = np.arccos(cos)
+    skew = np.stack(
+        [r[..., 2, 1] - r[..., 1, 2], r[..., 0, 2] - r[..., 2, 0], r[..., 1, 0] - r[..., 0, 1]],
+        axis=-1,
+    )
+    s = np.sin(angle)
+    # The scalar law: θ/(2 sin θ) when sin θ > 1e-6, 1/2 near 0 (sin θ ≈ θ).
+    k = np.where(s > 1e-6, 0.5 * angle / np.where(s > 1e-6, s, 1.0), 0.5)
+    out = skew * k[..., None]
+    near_pi = (s <= 1e-6) & (angle >= 0.5)
+    if np.any(near_pi):
+        for index in zip(*np.nonzero(near_pi), strict=True):
+            out[index] = rotation_vector(r[index])
+    return out
+
+
 def rotation_from_vector(w) -> np.ndarray:
     """Rotation matrix of the rotation vector ``w`` (axis·angle, rad), by Rodrigues' formula."""
     w = np.asarray(w, dtype=float)

@@ -23,6 +23,7 @@ from davinci_sim.study.trial import TrialSpec
 TABLE_I: tuple[tuple[float, float], ...] = ((0.0, 0.0), (20.0, 2.0), (40.0, 5.0), (60.0, 8.0))
 ORDERS = ("latin", "fixed")
 BACKENDS = ("local", "ray")
+ENGINES = ("batch", "live")
 
 
 class StudyError(ValueError):
@@ -48,6 +49,9 @@ class StudyConfig:
     """``local`` (a process pool) or ``ray``."""
     timeout: float = 60.0
     """Simulated time a trial may take before it is reported as unfinished, s."""
+    engine: str = "batch"
+    """``batch`` (trials stepped together, :mod:`davinci_sim.study.batch`) or ``live`` (one
+    live simulation per trial: the slow reference the batch is checked against)."""
 
     def __post_init__(self) -> None:
         conditions = tuple((float(b), float(g)) for b, g in self.conditions)
@@ -62,6 +66,8 @@ class StudyConfig:
             raise StudyError(f"unknown order {self.order!r}; orders: {ORDERS}")
         if self.backend not in BACKENDS:
             raise StudyError(f"unknown backend {self.backend!r}; backends: {BACKENDS}")
+        if self.engine not in ENGINES:
+            raise StudyError(f"unknown engine {self.engine!r}; engines: {ENGINES}")
         if self.workers < 1:
             raise StudyError(f"workers must be >= 1, got {self.workers!r}")
         if not self.timeout > 0:

@@ -75,15 +75,10 @@ def plot_figures(result: StudyResult, folder: Path) -> list[Path]:
         mean = np.array([np.mean(per[j]) for j in reps]) * 1e3
         lo = np.array([np.percentile(per[j], 20) for j in reps]) * 1e3
         hi = np.array([np.percentile(per[j], 80) for j in reps]) * 1e3
-        ax.errorbar(
-            reps,
-            mean,
-            yerr=[mean - lo, hi - mean],
-            fmt="o",
-            color="tab:blue",
-            ecolor="gray",
-            capsize=3,
-        )
+        # The bar is the 20th-80th percentile range itself: with a skewed distribution the
+        # mean can lie outside it, which an errorbar (offsets from the mean) cannot draw.
+        ax.vlines(reps, lo, hi, color="gray")
+        ax.plot(reps, mean, "o", color="tab:blue")
         ax.set_title(_label(cfg.conditions[c]), fontsize=9)
         ax.set_xlabel("repetition")
         ax.set_xticks(reps)

@@ -25,7 +25,13 @@ from pathlib import Path
 
 import numpy as np
 
+from davinci_sim.console.console import Console
+from davinci_sim.console.teleop_psm import TeleopPSM
+from davinci_sim.devices.simulated import SimulatedMTM
+from davinci_sim.model.config import SceneConfig
+from davinci_sim.sim.simulation import Simulation
 from davinci_sim.tasks import MetricsAccumulator, Phase, initial_state, load_task, task_step
+from davinci_sim.tasks.task import PathTask
 
 #: Metric columns of a trial's row, in order (see :mod:`davinci_sim.tasks.metrics`).
 METRICS = (
@@ -77,23 +83,54 @@ def condition_spec(B: float, G_max: float) -> dict:
     return {"type": "viscous", "B": float(B), "G_max": float(G_max)}
 
 
-def run_trial(spec: TrialSpec) -> dict:
-    """Run one trial; returns its row: the spec's fields, ``finished``, the metrics, and
-    ``sim_time`` / ``wall_time`` (s) of the whole trial including the set-up."""
-    from davinci_sim.console import SIMULATED_SYSTEM, install_console
-    from davinci_sim.devices.simulated import SimulatedMTM
-    from davinci_sim.haptics.fixture import FixtureField
-    from davinci_sim.operators import SyntheticTrainee, sample_subjects
-    from davinci_sim.operators.console import TraineeHand, hand_impedance
-    from davinci_sim.sim.simulation import Simulation
+def study_scene(task) -> SceneConfig:
+    """The scene of a study trial: the task's PSM, the ECM (camera frame) and the task's MTM
+    with the console; no patient (the path floats in free space, nothing to touch), which
+    also spares the contact search."""
+    return SceneConfig(arms=(task.teleop.psm, "ECM", task.teleop.mtm), include_patient=False)
 
-    wall0 = time.perf_counter()
-    task = load_task(spec.task if not Path(spec.task).suffix else Path(spec.task))
-    params = sample_subjects(spec.subject + 1, seed=spec.seed).take([spec.subject])
-    sim_seed = int(np.random.SeedSequence(list(spec.key)).generate_state(1)[0])
-    sim = Simulation("psm1_ecm_mtmr", keyframe=task.teleop.keyframe, seed=sim_seed)
-    mtm, psm = task.teleop.mtm, task.teleop.psm
-    device = SimulatedMTM(sim, mtm, hand=hand_impedance(params))
+
+@dataclass
+class TrialSetup:
+    """A simulation ready for a trial: the teleoperation follows and the tool is at point 1."""
+
+    sim: Simulation
+    console: Console
+    device: SimulatedMTM
+    teleop: TeleopPSM
+    T_world_camera: np.ndarray
+    """The camera (ECM tip) in the world (cart) frame: fixed during a trial."""
+
+
+def setup_trial(task: PathTask, *, seed: int = 0) -> TrialSetup:
+    """Build the study scene and bring it to the start of a trial, the same for every trial:
+
+    1. enable and home the PSM, then move its tool tip to point 1 (``move_cp``, orientation
+       kept): a trial starts where the task does, instead of spending simulated time on the
+       reach (which is not measured);
+    2. install the console with the task's motion scale (no MTM alignment: the hand holds
+       the handle as it is) and wait until the teleoperation follows.
+
+    Raises:
+        RuntimeError: if the PSM cannot reach point 1 or the teleoperation does not start.
+    """
+    from davinci_sim.console import SIMULATED_SYSTEM, install_console
+
+    sim = Simulation(study_scene(task), keyframe=task.teleop.keyframe, seed=seed)
+    mtm, psm_name = task.teleop.mtm, task.teleop.psm
+    psm = sim.arms[psm_name]
+    psm.state_command("enable")
+    psm.state_command("home")
+    if not sim.run_until(lambda: psm.is_homed() and not psm.is_busy(), 30.0):
+        raise RuntimeError(f"{psm_name} did not home")
+    T_world_camera = sim.T_cart_camera().copy()
+    T_camera_world = np.linalg.inv(T_world_camera)
+    goal = psm.setpoint_cp().T.copy()
+    goal[:3, 3] = (T_camera_world @ np.append(task.start, 1.0))[:3]
+    result = psm.move_cp(goal)
+    if not result or not sim.run_until(lambda: not psm.is_busy(), 30.0):
+        raise RuntimeError(f"{psm_name} cannot reach point 1 of {task.name}: {result.message}")
+    device = SimulatedMTM(sim, mtm)
     config = SIMULATED_SYSTEM.replace(align_mtm=False, scale=task.teleop.scale)
     console = install_console(
         sim,
@@ -102,35 +139,91 @@ def run_trial(spec: TrialSpec) -> dict:
         operator_present=True,
         teleop_enabled=True,
     )
-    teleop = console.psm_teleops[f"{mtm}_{psm}"]
-    if not sim.run_until(teleop.is_following, 10.0):
-        raise RuntimeError(f"trial {spec.key}: the teleoperation did not start following")
-    T_cart_camera = sim.T_cart_camera()
+    teleop = console.psm_teleops[f"{mtm}_{psm_name}"]
+    if not sim.run_until(teleop.is_following, 30.0):
+        raise RuntimeError("the teleoperation did not start following")
+    return TrialSetup(sim, console, device, teleop, T_world_camera)
+
+
+def trial_inputs(specs: list[TrialSpec], task: PathTask, T_world_camera, hand_start):
+    """The trainees of ``specs`` (one batch, one task and seed): ``(params, trainee)``."""
+    from davinci_sim.operators import SyntheticTrainee, sample_subjects
+
+    seeds = {s.seed for s in specs}
+    if len(seeds) != 1:
+        raise ValueError(f"one batch of trials needs one seed, got {sorted(seeds)}")
+    subjects = sample_subjects(max(s.subject for s in specs) + 1, seed=seeds.pop())
+    params = subjects.take([s.subject for s in specs])
     trainee = SyntheticTrainee(
         params,
-        repetition=[spec.practice],
-        path=task.path_in_camera(T_cart_camera),
+        repetition=[s.practice for s in specs],
+        path=task.path_in_camera(T_world_camera),
         knots=task.marker_arc_lengths,
-        hand_start=np.zeros((1, 3)),
+        hand_start=np.broadcast_to(np.asarray(hand_start, dtype=float), (len(specs), 3)),
         scale=task.teleop.scale,
         start_tolerance=task.start_tolerance,
-        noise_keys=[spec.key],
+        noise_keys=[s.key for s in specs],
     )
-    hand = TraineeHand(trainee, device, sim.arms[psm], when=teleop.is_following)
+    return params, trainee
+
+
+def trial_row(spec: TrialSpec, task: PathTask, result, i: int, finished: bool) -> dict:
+    """The CSV row of trial ``i`` of a batch's metrics ``result`` (without timings)."""
+    row = {
+        "subject": spec.subject,
+        "condition": spec.condition,
+        "B": spec.B,
+        "G_max": spec.G_max,
+        "order": spec.order,
+        "repetition": spec.repetition,
+        "practice": spec.practice,
+        "seed": spec.seed,
+        "task": task.name,
+        "finished": bool(finished),
+    }
+    for name in METRICS:
+        value = getattr(result, name)[i]
+        row[name] = int(value) if name in ("clutch_count", "samples") else float(value)
+    return row
+
+
+def load_spec_task(spec: TrialSpec) -> PathTask:
+    return load_task(spec.task if not Path(spec.task).suffix else Path(spec.task))
+
+
+def run_trial(spec: TrialSpec) -> dict:
+    """Run one trial on the live simulator (the reference engine; the study batches trials
+    with :mod:`davinci_sim.study.batch`, which must give the same results).
+
+    Returns its row: the spec's fields, ``finished``, the metrics, ``sim_time`` (s, from
+    the trainee taking the handle to the end) and ``wall_time`` (s, set-up included)."""
+    from davinci_sim.haptics.fixture import FixtureField
+    from davinci_sim.operators.console import TraineeHand, hand_impedance
+
+    wall0 = time.perf_counter()
+    task = load_spec_task(spec)
+    setup = setup_trial(task)
+    sim, device, teleop = setup.sim, setup.device, setup.teleop
+    mtm, psm = task.teleop.mtm, task.teleop.psm
+    T_world_camera = setup.T_world_camera
+    params, trainee = trial_inputs([spec], task, T_world_camera, np.zeros(3))
+    device.hand = hand_impedance(params)
+    hand = TraineeHand(trainee, device, sim.arms[psm])
     sim.components = {hand.name: hand, **sim.components}
     fixture = task.fixture(condition_spec(spec.B, spec.G_max))
-    console.haptics.add_field(FixtureField(fixture, frame="world"), mtm=mtm, name="guidance")
+    setup.console.haptics.add_field(FixtureField(fixture, frame="world"), mtm=mtm, name="guidance")
 
     arm = sim.arms[psm]
     state = initial_state(1)
     acc = MetricsAccumulator(1, tube_radius=task.tube_radius)
     no_force = np.zeros(6)
-    t_end = sim.time + spec.timeout
+    t_start = sim.time
+    t_end = t_start + spec.timeout
     path = task.path
-    while sim.time < t_end:
+    while sim.time < t_end and teleop.is_following():
         sim.tick()
         t = sim.time
-        tip = (T_cart_camera @ arm.measured_cp().T)[:3, 3].reshape(1, 3)
+        tip = (T_world_camera @ arm.measured_cp().T)[:3, 3].reshape(1, 3)
         cp = path.closest_point(tip)
         state = task_step(
             state,
@@ -145,27 +238,12 @@ def run_trial(spec: TrialSpec) -> dict:
         )
         phase = int(state.phase[0])
         if phase in (Phase.RUNNING, Phase.FINISHED):
-            force = console.haptics.snapshot().requested.get(mtm, no_force)[:3]
+            force = setup.console.haptics.snapshot().requested.get(mtm, no_force)[:3]
             acc.update(np.array([True]), t, tip, cp.distance, force.reshape(1, 3), [False])
         if phase >= Phase.FINISHED:
             break
-    result = acc.result()
-    row = {
-        "subject": spec.subject,
-        "condition": spec.condition,
-        "B": spec.B,
-        "G_max": spec.G_max,
-        "order": spec.order,
-        "repetition": spec.repetition,
-        "practice": spec.practice,
-        "seed": spec.seed,
-        "task": task.name,
-        "finished": bool(state.phase[0] >= Phase.FINISHED),
-    }
-    for name in METRICS:
-        value = getattr(result, name)[0]
-        row[name] = int(value) if name in ("clutch_count", "samples") else float(value)
-    row["sim_time"] = sim.time
+    row = trial_row(spec, task, acc.result(), 0, state.phase[0] >= Phase.FINISHED)
+    row["sim_time"] = sim.time - t_start
     row["wall_time"] = time.perf_counter() - wall0
     sim.close()
     return row

@@ -1,0 +1,360 @@
+"""Many trials at once: the study's engine, stepping a batch of trials together at 1 kHz.
+
+One trial on the live simulator (:func:`~davinci_sim.study.trial.run_trial`) spends almost
+all its time in Python calls that each handle one arm of one trial. :class:`TrialBatch`
+runs n trials as arrays instead:
+
+* The start is the same for every trial: :func:`~davinci_sim.study.trial.setup_trial` brings
+  one live simulation (console, teleoperation, tool at point 1) to the moment the trainee
+  takes the handle; each trial gets a copy of its ``MjData`` and of the servo, teleoperation,
+  device and haptic state read from the live objects.
+* Every tick applies, to all trials at once, the laws the live components apply to one:
+  the trainee (:class:`~davinci_sim.operators.SyntheticTrainee`, already batched) and its
+  hand on the MTM handle (:func:`~davinci_sim.devices.hand.hand_wrenches`), the teleoperation
+  following law (:func:`~davinci_sim.console.teleop_math.follow_pose` / ``follow_twist``) and
+  jaw mapping, the PSM's ``servo_cp`` (batched closed-form IK,
+  :func:`~davinci_sim.kinematics.psm_ik_batch.psm_ik_closed_form_batch`, and the twist
+  feed-forward), the MTM's ``spatial/servo_cf`` (Jᵀ·w), the joint servo
+  (:func:`~davinci_sim.sim.servo.servo_ctrl`), the fixture through the velocity filter
+  (:class:`~davinci_sim.haptics.fixture.FixtureField`'s path) and the device's safety clamp
+  (:func:`~davinci_sim.haptics.safety.clamp_wrenches`), the task state machine and the
+  metrics. Only ``mj_step`` runs per trial (MuJoCo's C), and only for trials still running.
+* The order within a tick is the live simulation's: trainee, hand, teleoperation, arms,
+  servo, physics, then the haptic loop and the task on the new state.
+
+What the batch does not do: anything the study's trials never reach on the live path
+(clutch, a refused or faulted arm recovering, alignment, locks). A PSM ``servo_cp`` whose IK
+fails keeps the previous setpoint, as the arm does; a PSM tracking fault (the arm would go to
+FAULT and the teleoperation stop) ends that trial, unfinished. ``tests/study`` checks that a
+batch reproduces :func:`~davinci_sim.study.trial.run_trial` on the same trials.
+"""
+
+from __future__ import annotations
+
+import copy
+import time
+from collections.abc import Callable
+
+import mujoco
+import numpy as np
+
+from davinci_sim.console import teleop_math as tm
+from davinci_sim.devices.hand import hand_wrenches
+from davinci_sim.haptics.safety import clamp_wrenches
+from davinci_sim.haptics.velocity import DEFAULT_CUTOFF_HZ, VelocityFilter
+from davinci_sim.kinematics import fk
+from davinci_sim.kinematics.psm_ik_batch import psm_ik_closed_form_batch
+from davinci_sim.sim.arm import TRACKING_FAULT_TIME
+from davinci_sim.sim.servo import servo_ctrl
+from davinci_sim.study.trial import (
+    TrialSpec,
+    condition_spec,
+    load_spec_task,
+    setup_trial,
+    trial_inputs,
+    trial_row,
+)
+from davinci_sim.tasks import MetricsAccumulator, Phase, initial_state, task_step
+
+
+class TrialBatch:
+    """n trials of one task and one seed, stepped together (see the module docstring).
+
+    Args:
+        specs: the trials (all with the same ``task`` and ``seed``).
+    """
+
+    def __init__(self, specs: list[TrialSpec]) -> None:
+        if not specs:
+            raise ValueError("a batch needs at least one trial")
+        tasks = {s.task for s in specs}
+        if len(tasks) != 1:
+            raise ValueError(f"one batch of trials needs one task, got {sorted(tasks)}")
+        self.specs = list(specs)
+        n = self.n = len(specs)
+        task = self.task = load_spec_task(specs[0])
+        setup = setup_trial(task)
+        self._setup = setup
+        sim, teleop, device = setup.sim, setup.teleop, setup.device
+        psm, mtm = teleop.psm, device.arm
+        self.dt = sim.dt
+        self.model = sim.model
+        # --- each trial's physics: a copy of the live data (derived quantities included)
+        self.datas = [copy.copy(sim.data) for _ in range(n)]
+        d = sim.data
+        self.Q = np.tile(d.qpos, (n, 1))
+        self.V = np.tile(d.qvel, (n, 1))
+        self.bias = np.tile(d.qfrc_bias, (n, 1))
+        self._body = device._body
+        self.xipos = np.tile(d.xipos[self._body], (n, 1))
+        # --- the joint servo (one row per trial)
+        servo = sim.servo
+        self._servo = servo
+        self.q_ref = np.tile(servo.q_ref, (n, 1))
+        self.qd_ref = np.tile(servo.qd_ref, (n, 1))
+        self.tau_ff = np.tile(servo.tau_ff, (n, 1))
+        self.effort_mode = servo.effort_mode.copy()
+        self.gravity = servo.gravity_compensation.copy()
+        # --- arms: joints, chains and the fixed base frames (the ECM does not move)
+        self.psm_chain, self.mtm_chain = psm.chain, mtm.chain
+        self.psm_act, self.mtm_act = psm._idx, mtm._idx
+        self.psm_q, self.mtm_q = psm._qposadr, mtm._qposadr
+        self.psm_v, self.mtm_v = psm._dofadr, mtm._dofadr
+        self.jaw_act = psm.jaw._idx
+        self.jaw_spec = psm.jaw.spec
+        self.gripper_q = mtm.gripper._qposadr
+        self.T_camera_rcm = psm.base_frame()[0].copy()
+        self.T_rcm_camera = np.linalg.inv(self.T_camera_rcm)
+        self.T_hrsv_mtmbase = mtm.base_frame()[0].copy()
+        # servo_cp refuses IK answers beyond the limits (sim.validation.check_limits, 1e-9).
+        self.psm_qmin = psm.chain.qmin - 1e-9
+        self.psm_qmax = psm.chain.qmax + 1e-9
+        self.psm_tol = psm._tol
+        self.mtm_ftmax = mtm.chain.ftmax
+        # --- the teleoperation as it follows now (dvrk.md 4.2)
+        config = teleop.config
+        if teleop.translation_locked() or teleop.rotation_locked():
+            raise NotImplementedError("a batch of trials does not run locked teleoperations")
+        self.scale = teleop.scale()
+        self.use_linear = config.use_mtm_linear_velocity
+        self.use_angular = config.use_mtm_angular_velocity
+        self.T_camera_psm0 = teleop._T_camera_psm0.copy()
+        self.T_hrsv_mtm0 = teleop._T_hrsv_mtm0.copy()
+        self.R_offset = teleop._R_offset.copy()
+        self.jaw_s, self.jaw_o = teleop._jaw_s, teleop._jaw_o
+        self.jaw_rate = config.jaw_rate_after_clutch if teleop._jaw_catching_up else config.jaw_rate
+        self.ghost = np.full(n, teleop._ghost)
+        self.jaw_sent = np.full(n, teleop._jaw_sent)
+        # --- the device: HRSV in the world, the hand's grasp, the safety clamp
+        self.R_world_hrsv = device._R_world_hrsv
+        self.p_world_hrsv = device._p_world_hrsv
+        self.limits = device.limits
+        self.wrench_sent = np.tile(device.wrench(), (n, 1))
+        # The hand takes the handle where the device last read it, holding the orientation
+        # the handle has now (what TraineeHand's grasp does on the live path).
+        hand_start = device.input().position
+        self.T_hand = np.tile(mtm.measured_cp().T, (n, 1, 1))
+        self.T_hand[:, :3, 3] = hand_start
+        # --- trainees, fixtures, task
+        self.T_world_camera = setup.T_world_camera
+        self.params, self.trainee = trial_inputs(specs, task, self.T_world_camera, hand_start)
+        # The subjects' limb stiffness and damping; the wrist's values and the hand's limits
+        # are the device's (operators.console.hand_impedance).
+        self.impedance = device.hand
+        self.K = self.params.stiffness
+        self.D = self.params.damping
+        self.fixtures = []
+        conditions = [(s.B, s.G_max) for s in specs]
+        for cond in sorted(set(conditions)):
+            rows = np.array([i for i, c in enumerate(conditions) if c == cond])
+            self.fixtures.append((rows, task.fixture(condition_spec(*cond))))
+        self.velocity = VelocityFilter((n,), dt=self.dt, cutoff_hz=DEFAULT_CUTOFF_HZ)
+        self.state = initial_state(n)
+        self.metrics = MetricsAccumulator(n, tube_radius=task.tube_radius)
+        self.time = sim.time
+        self.t_start = sim.time
+        self.t_end = self.t_start + np.array([s.timeout for s in specs])
+        self.active = np.ones(n, dtype=bool)
+        self.fault = np.zeros(n, dtype=bool)
+        self.ticks = np.zeros(n, dtype=np.int64)
+        self._bad_since = np.full(n, np.nan)
+        self.requested = np.zeros((n, 3))
+        self._kinematics()
+
+    # ------------------------------------------------------------ per tick
+    def _kinematics(self) -> None:
+        """Poses, Jacobians and twists of both arms at the current state (measured_cp / cv)."""
+        T, self.J_psm = fk.forward_kinematics_and_jacobian(self.psm_chain, self.Q[:, self.psm_q])
+        self.T_psm = self.T_camera_rcm @ T
+        T, J = fk.forward_kinematics_and_jacobian(self.mtm_chain, self.Q[:, self.mtm_q])
+        self.T_mtm = self.T_hrsv_mtmbase @ T
+        self.J_mtm = J
+        v = (J @ self.V[:, self.mtm_v, None])[..., 0]
+        R = self.T_hrsv_mtmbase[:3, :3]
+        self.twist_mtm = np.concatenate([v[:, :3] @ R.T, v[:, 3:] @ R.T], axis=1)
+
+    def _hand(self) -> np.ndarray:
+        """Trainee step and its hand on the handle: ``xfrc_applied`` of the handle (n, 6)."""
+        tr = self.trainee
+        x_eq = tr.command(self.dt, self.T_psm[:, :3, 3])
+        self.T_hand[:, :3, 3] = x_eq
+        push = self.D[:, None] * tr.v_eq + tr.feedforward_force + tr.last_tremor_force
+        w = hand_wrenches(self.T_hand, self.T_mtm, self.twist_mtm, self.K, self.D, self.impedance)
+        w[:, :3] += push
+        # SimulatedMTM: the wrench acts at the handle tip; xfrc_applied at the body's centre.
+        R, p = self.R_world_hrsv, self.p_world_hrsv
+        f = w[:, :3] @ R.T
+        lever = self.T_mtm[:, :3, 3] @ R.T + p - self.xipos
+        return np.concatenate([f, w[:, 3:] @ R.T + np.cross(lever, f)], axis=1)
+
+    def _teleop(self) -> None:
+        """The teleoperation's following tick: PSM ``servo_cp`` with feed-forward, jaw."""
+        goal = tm.follow_pose(
+            self.T_camera_psm0, self.T_hrsv_mtm0, self.T_mtm, self.R_offset, self.scale
+        )
+        twist = tm.follow_twist(
+            self.twist_mtm, self.scale, use_linear=self.use_linear, use_angular=self.use_angular
+        )
+        q_now = self.Q[:, self.psm_q]
+        ik = psm_ik_closed_form_batch(self.psm_chain, self.T_rcm_camera @ goal, q_now)
+        ok = ik.success & np.all((ik.q >= self.psm_qmin) & (ik.q <= self.psm_qmax), axis=1)
+        R = self.T_rcm_camera[:3, :3]
+        local = np.concatenate([twist[:, :3] @ R.T, twist[:, 3:] @ R.T], axis=1)
+        qd = _solve(self.J_psm, local)
+        rows = np.flatnonzero(ok)
+        self.q_ref[np.ix_(rows, self.psm_act)] = ik.q[rows]
+        self.qd_ref[np.ix_(rows, self.psm_act)] = qd[rows]
+        # Jaw from gripper within the jaw rate (dvrk.md 4.2), sent when it changes.
+        gripper = self.Q[:, self.gripper_q].sum(axis=1)
+        step = self.jaw_rate * self.dt
+        self.ghost = self.ghost + np.clip(gripper - self.ghost, -step, step)
+        jaw = np.clip(self.jaw_s * self.ghost + self.jaw_o, self.jaw_spec.qmin, self.jaw_spec.qmax)
+        changed = jaw != self.jaw_sent
+        if np.any(changed):
+            self.jaw_sent = np.where(changed, jaw, self.jaw_sent)
+            rows = np.flatnonzero(changed)
+            self.q_ref[np.ix_(rows, self.jaw_act)] = 0.5 * jaw[rows, None]
+            self.qd_ref[np.ix_(rows, self.jaw_act)] = 0.0
+
+    def _tracking(self) -> None:
+        """The PSM's tracking-error watch (Arm._check_tracking): a fault ends the trial."""
+        err = np.abs(self.Q[:, self.psm_q] - self.q_ref[:, self.psm_act])
+        bad = np.any(err > self.psm_tol, axis=1)
+        self._bad_since = np.where(bad, np.fmin(self._bad_since, self.time), np.nan)
+        fault = bad & (self.time - self._bad_since >= TRACKING_FAULT_TIME) & self.active
+        self.fault |= fault
+        self.active &= ~fault
+
+    def _haptics(self) -> None:
+        """The haptic loop on the new state: fixture force → safety clamp → MTM efforts."""
+        p = self.T_psm[:, :3, 3]
+        v = self.velocity.update(p)
+        R, t = self.T_world_camera[:3, :3], self.T_world_camera[:3, 3]
+        f_world = np.zeros((self.n, 3))
+        p_world, v_world = p @ R.T + t, v @ R.T
+        for rows, fixture in self.fixtures:
+            f_world[rows] = fixture.force(p_world[rows], v_world[rows])
+        self.requested = f_world @ R
+        w = np.concatenate([self.requested, np.zeros((self.n, 3))], axis=1)
+        self.wrench_sent = clamp_wrenches(w, self.wrench_sent, self.limits, self.dt)
+        # spatial/servo_cf: the wrench in the MTM base orientation, Jᵀ·w, clamped to ftmax.
+        R_base = self.T_hrsv_mtmbase[:3, :3]
+        w_base = np.concatenate(
+            [self.wrench_sent[:, :3] @ R_base, self.wrench_sent[:, 3:] @ R_base], axis=1
+        )
+        tau = np.einsum("nji,nj->ni", self.J_mtm, w_base)
+        self.tau_ff[:, self.mtm_act] = np.clip(tau, -self.mtm_ftmax, self.mtm_ftmax)
+
+    def _task(self) -> None:
+        task, path = self.task, self.task.path
+        tip = self.T_psm[:, :3, 3] @ self.T_world_camera[:3, :3].T + self.T_world_camera[:3, 3]
+        cp = path.closest_point(tip)
+        state = task_step(
+            self.state,
+            self.time,
+            np.linalg.norm(tip - task.start, axis=1),
+            np.linalg.norm(tip - task.finish, axis=1),
+            cp.arc_length,
+            path_length=path.length,
+            start_tolerance=task.start_tolerance,
+            finish_tolerance=task.finish_tolerance,
+            min_progress=task.min_progress,
+        )
+        # A trial that has ended keeps its state.
+        self.state = type(state)(
+            *(np.where(self.active, a, b) for a, b in zip(state, self.state, strict=True))
+        )
+        phase = self.state.phase
+        measure = self.active & ((phase == Phase.RUNNING) | (phase == Phase.FINISHED))
+        self.metrics.update(
+            measure, self.time, tip, cp.distance, self.requested, np.zeros(self.n, dtype=bool)
+        )
+        done = (phase >= Phase.FINISHED) | (self.time >= self.t_end - 1e-9)
+        self.active &= ~done
+
+    def tick(self) -> None:
+        """One 1 ms tick of every running trial."""
+        xfrc = self._hand()
+        self._teleop()
+        self._tracking()
+        ctrl = servo_ctrl(
+            self.Q[:, self._servo.qposadr],
+            self.V[:, self._servo.dofadr],
+            self.bias[:, self._servo.dofadr],
+            self.q_ref,
+            self.qd_ref,
+            self.tau_ff,
+            self.effort_mode,
+            self.gravity,
+            self._servo.kp,
+            self._servo.kv,
+        )
+        model, body = self.model, self._body
+        Q, V, bias, xipos = self.Q, self.V, self.bias, self.xipos
+        for i in np.flatnonzero(self.active).tolist():
+            d = self.datas[i]
+            d.ctrl[:] = ctrl[i]
+            d.xfrc_applied[body] = xfrc[i]
+            mujoco.mj_step(model, d)
+            Q[i] = d.qpos
+            V[i] = d.qvel
+            bias[i] = d.qfrc_bias
+            xipos[i] = d.xipos[body]
+        self.ticks += self.active
+        self.time += self.dt
+        self._kinematics()
+        self._haptics()
+        self._task()
+
+    def run(self, on_done: Callable[[int], None] | None = None) -> list[dict]:
+        """Tick until every trial has ended; returns the rows in ``specs`` order.
+
+        ``on_done(k)`` is called with the number of trials that ended at each tick (for a
+        progress bar). Row timings: ``sim_time`` is the trial's own simulated time (from
+        the handle taken to its end); ``wall_time`` is the batch's wall time (set-up
+        included) shared out in proportion to each trial's ticks.
+        """
+        wall0 = time.perf_counter()
+        running = int(self.active.sum())
+        while running:
+            self.tick()
+            now = int(self.active.sum())
+            if on_done is not None and now != running:
+                on_done(running - now)
+            running = now
+        wall = time.perf_counter() - wall0 + self.setup_wall
+        result = self.metrics.result()
+        finished = self.state.phase >= Phase.FINISHED
+        rows = []
+        total = max(int(self.ticks.sum()), 1)
+        for i, spec in enumerate(self.specs):
+            row = trial_row(spec, self.task, result, i, bool(finished[i]))
+            row["sim_time"] = float(self.ticks[i]) * self.dt
+            row["wall_time"] = wall * float(self.ticks[i]) / total
+            rows.append(row)
+        return rows
+
+    setup_wall = 0.0
+    """Wall time of building the batch, s (set by :func:`run_batch`)."""
+
+
+def _solve(J: np.ndarray, twist: np.ndarray) -> np.ndarray:
+    """Joint velocities (n, dof) giving ``twist`` (n, 6): a solve, least squares where
+    singular (the arm's ``_joint_velocity``)."""
+    try:
+        return np.linalg.solve(J, twist[..., None])[..., 0]
+    except np.linalg.LinAlgError:
+        return np.stack(
+            [np.linalg.lstsq(j, w, rcond=None)[0] for j, w in zip(J, twist, strict=True)]
+        )
+
+
+def run_batch(specs: list[TrialSpec], on_done: Callable[[int], None] | None = None) -> list[dict]:
+    """Run ``specs`` (one task and seed) as one :class:`TrialBatch`; rows in ``specs`` order."""
+    wall0 = time.perf_counter()
+    batch = TrialBatch(specs)
+    batch.setup_wall = time.perf_counter() - wall0
+    try:
+        return batch.run(on_done)
+    finally:
+        batch._setup.sim.close()
