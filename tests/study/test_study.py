@@ -9,6 +9,7 @@ import pytest
 from davinci_sim.cli import main
 from davinci_sim.study import StudyConfig, TrialSpec, plan_trials, run_study, run_trial
 from davinci_sim.study.report import COLUMNS, TIMING_COLUMNS
+from davinci_sim.study.runner import run_chunk
 
 
 def _rows(path):
@@ -79,15 +80,14 @@ def test_small_study_writes_every_output(small_study):
 
 
 def test_worker_count_does_not_change_results(small_study, short_task):
-    """A subset re-run in one process gives the same rows as the 2-worker study."""
+    """A subset re-run in one batch of its own gives the same rows as the 2-worker study."""
     cfg = StudyConfig(n_subjects=2, n_repetitions=2, task=short_task, seed=3, workers=1)
-    specs = [s for s in plan_trials(cfg) if s.subject == 1 and s.repetition == 2][:2]
+    specs = [s for s in plan_trials(cfg) if s.subject == 1 and s.repetition == 2][:3]
     rows = {
         (r["subject"], r["condition"], r["repetition"]): r
         for r in _rows(small_study / "trials.csv")
     }
-    for spec in specs:
-        got = run_trial(spec)
+    for spec, got in zip(specs, run_chunk(specs, "batch"), strict=True):
         want = rows[(str(spec.subject), str(spec.condition), str(spec.repetition))]
         for k in COLUMNS:
             if k not in TIMING_COLUMNS:

@@ -202,7 +202,7 @@ def _result(path: Polyline, q: np.ndarray, seg: np.ndarray, u: np.ndarray) -> Cl
 def closest_point_brute(path: Polyline, points, *, chunk: int = 2048) -> ClosestPoint:
     """Closest point by testing every segment (the reference; exact, O(M·S)).
 
-    The projections of all queries on all segments come from two matrix products
+    The projections of all queries on all segments come from two products
     (q·Aᵀ, q·Eᵀ for segment starts A and edges E, coordinates centred on the path so that
     the expansion of ‖q − A − uE‖² loses no precision at the mm scale), so a few hundred
     queries against a few hundred segments cost well under a millisecond.
@@ -214,7 +214,11 @@ def closest_point_brute(path: Polyline, points, *, chunk: int = 2048) -> Closest
     seg = np.empty(len(q), dtype=int)
     u = np.empty(len(q))
     for a in range(0, len(q), chunk):
-        qb = q[a : a + chunk] @ basis  # (m, 2S): q·E then q·A
+        # (m, 2S): q·E then q·A, as three elementwise products rather than one matrix
+        # product, so that a query's result does not depend on how many others come with
+        # it (BLAS rounds a product's rows differently with the matrix size).
+        qa = q[a : a + chunk]
+        qb = qa[:, 0:1] * basis[0] + qa[:, 1:2] * basis[1] + qa[:, 2:3] * basis[2]
         qE = qb[:, : len(EE)]
         qE -= AE  # (q − A)·E
         uu = np.clip(qE / EE, 0.0, 1.0)

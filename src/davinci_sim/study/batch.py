@@ -169,9 +169,9 @@ class TrialBatch:
         T, J = fk.forward_kinematics_and_jacobian(self.mtm_chain, self.Q[:, self.mtm_q])
         self.T_mtm = self.T_hrsv_mtmbase @ T
         self.J_mtm = J
-        v = (J @ self.V[:, self.mtm_v, None])[..., 0]
+        v = np.sum(J * self.V[:, None, self.mtm_v], axis=2)  # J·q̇ (elementwise: see _rotate)
         R = self.T_hrsv_mtmbase[:3, :3]
-        self.twist_mtm = np.concatenate([v[:, :3] @ R.T, v[:, 3:] @ R.T], axis=1)
+        self.twist_mtm = np.concatenate([_rotate(R, v[:, :3]), _rotate(R, v[:, 3:])], axis=1)
 
     def _hand(self) -> np.ndarray:
         """Trainee step and its hand on the handle: ``xfrc_applied`` of the handle (n, 6)."""
@@ -183,9 +183,9 @@ class TrialBatch:
         w[:, :3] += push
         # SimulatedMTM: the wrench acts at the handle tip; xfrc_applied at the body's centre.
         R, p = self.R_world_hrsv, self.p_world_hrsv
-        f = w[:, :3] @ R.T
-        lever = self.T_mtm[:, :3, 3] @ R.T + p - self.xipos
-        return np.concatenate([f, w[:, 3:] @ R.T + np.cross(lever, f)], axis=1)
+        f = _rotate(R, w[:, :3])
+        lever = _rotate(R, self.T_mtm[:, :3, 3]) + p - self.xipos
+        return np.concatenate([f, _rotate(R, w[:, 3:]) + np.cross(lever, f)], axis=1)
 
     def _teleop(self) -> None:
         """The teleoperation's following tick: PSM ``servo_cp`` with feed-forward, jaw."""
@@ -199,7 +199,7 @@ class TrialBatch:
         ik = psm_ik_closed_form_batch(self.psm_chain, self.T_rcm_camera @ goal, q_now)
         ok = ik.success & np.all((ik.q >= self.psm_qmin) & (ik.q <= self.psm_qmax), axis=1)
         R = self.T_rcm_camera[:3, :3]
-        local = np.concatenate([twist[:, :3] @ R.T, twist[:, 3:] @ R.T], axis=1)
+        local = np.concatenate([_rotate(R, twist[:, :3]), _rotate(R, twist[:, 3:])], axis=1)
         qd = _solve(self.J_psm, local)
         rows = np.flatnonzero(ok)
         self.q_ref[np.ix_(rows, self.psm_act)] = ik.q[rows]
@@ -231,23 +231,29 @@ class TrialBatch:
         v = self.velocity.update(p)
         R, t = self.T_world_camera[:3, :3], self.T_world_camera[:3, 3]
         f_world = np.zeros((self.n, 3))
-        p_world, v_world = p @ R.T + t, v @ R.T
+        p_world, v_world = _rotate(R, p) + t, _rotate(R, v)
         for rows, fixture in self.fixtures:
             f_world[rows] = fixture.force(p_world[rows], v_world[rows])
-        self.requested = f_world @ R
+        self.requested = _rotate(R.T, f_world)
         w = np.concatenate([self.requested, np.zeros((self.n, 3))], axis=1)
         self.wrench_sent = clamp_wrenches(w, self.wrench_sent, self.limits, self.dt)
         # spatial/servo_cf: the wrench in the MTM base orientation, Jᵀ·w, clamped to ftmax.
         R_base = self.T_hrsv_mtmbase[:3, :3]
         w_base = np.concatenate(
-            [self.wrench_sent[:, :3] @ R_base, self.wrench_sent[:, 3:] @ R_base], axis=1
+            [
+                _rotate(R_base.T, self.wrench_sent[:, :3]),
+                _rotate(R_base.T, self.wrench_sent[:, 3:]),
+            ],
+            axis=1,
         )
-        tau = np.einsum("nji,nj->ni", self.J_mtm, w_base)
+        tau = np.sum(np.swapaxes(self.J_mtm, 1, 2) * w_base[:, None, :], axis=2)  # Jᵀ·w
         self.tau_ff[:, self.mtm_act] = np.clip(tau, -self.mtm_ftmax, self.mtm_ftmax)
 
     def _task(self) -> None:
         task, path = self.task, self.task.path
-        tip = self.T_psm[:, :3, 3] @ self.T_world_camera[:3, :3].T + self.T_world_camera[:3, 3]
+        tip = (
+            _rotate(self.T_world_camera[:3, :3], self.T_psm[:, :3, 3]) + self.T_world_camera[:3, 3]
+        )
         cp = path.closest_point(tip)
         state = task_step(
             self.state,
@@ -336,6 +342,13 @@ class TrialBatch:
 
     setup_wall = 0.0
     """Wall time of building the batch, s (set by :func:`run_batch`)."""
+
+
+def _rotate(R: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """``R·v`` of each row of ``v`` (n, 3): elementwise, so that a row's result does not
+    depend on the batch's size (BLAS rounds a matrix product's rows differently with its
+    size; a trial must give the same result in any batch)."""
+    return v[:, 0:1] * R[:, 0] + v[:, 1:2] * R[:, 1] + v[:, 2:3] * R[:, 2]
 
 
 def _solve(J: np.ndarray, twist: np.ndarray) -> np.ndarray:
