@@ -85,3 +85,30 @@ def test_batch_refuses_mixed_tasks_and_seeds(short_task):
         TrialBatch([a, TrialSpec(**{**a.__dict__, "seed": 9})])
     with pytest.raises(ValueError, match="at least one"):
         TrialBatch([])
+
+
+def test_compacting_a_batch_keeps_every_trial_result(short_task):
+    """Trials that end early are dropped from the arrays (the batch halves itself): the
+    trials still running, and the ended ones' rows, are what they are on their own."""
+    base = _specs(short_task)[1]
+    specs = [
+        TrialSpec(**{**base.__dict__, "subject": i % 2, "timeout": 0.15 * (i + 1)})
+        for i in range(10)
+    ]
+    batch = TrialBatch(specs)
+    sizes = []
+    original = batch._compact
+
+    def compact():
+        original()
+        sizes.append(batch.n)
+
+    batch._compact = compact
+    rows = batch.run()
+    assert sizes and sizes[0] < 10  # it did compact
+    keys = [k for k in COLUMNS if k not in TIMING_COLUMNS]
+    assert np.isnan(rows[0]["deviation_error"]) and rows[9]["samples"] > 0
+    for i in (2, 5, 9):
+        alone = run_batch([specs[i]])[0]
+        assert {k: repr(rows[i][k]) for k in keys} == {k: repr(alone[k]) for k in keys}
+        assert rows[i]["sim_time"] == pytest.approx(specs[i].timeout, abs=0.0015)

@@ -20,6 +20,7 @@ trial), each resettable on its own.
 
 from __future__ import annotations
 
+import copy
 import math
 
 import numpy as np
@@ -83,6 +84,14 @@ class VelocityFilter:
         self._p = p.copy()
         self._started[...] = True
         return self._v.copy()
+
+    def take(self, rows) -> VelocityFilter:
+        """A filter of the tracks ``rows`` (indices along the first axis), in their state."""
+        rows = np.asarray(rows, dtype=int)
+        out = copy.copy(self)
+        out._p, out._v, out._started = self._p[rows], self._v[rows], self._started[rows]
+        out.shape = out._started.shape
+        return out
 
     def reset(self, mask=None) -> None:
         """Forget the history of all tracks, or of those where ``mask`` (``shape``) is true."""

@@ -19,6 +19,7 @@
 
 from __future__ import annotations
 
+import copy
 import math
 
 import numpy as np
@@ -44,6 +45,13 @@ class TrialNoise:
         self.block = int(block)
         self._buffer = np.empty((len(self.generators), self.block, self.channels))
         self._k = self.block
+
+    def take(self, rows) -> TrialNoise:
+        """The streams of ``rows`` (indices), continuing where they are."""
+        out = copy.copy(self)
+        out.generators = [self.generators[i] for i in rows]
+        out._buffer = self._buffer[np.asarray(rows, dtype=int)]
+        return out
 
     def next(self) -> np.ndarray:
         """This step's normals, (n_trials, channels)."""
@@ -95,6 +103,14 @@ class Tremor:
         self._y1 = np.zeros((2, n, 3))
         self._y2 = np.zeros((2, n, 3))
 
+    def take(self, rows) -> Tremor:
+        """The tremors of ``rows`` (indices), in their current state."""
+        rows = np.asarray(rows, dtype=int)
+        out = copy.copy(self)
+        out.a1, out.a2, out.gain = self.a1[rows], self.a2[rows], self.gain[rows]
+        out._x, out._y1, out._y2 = self._x[:, rows], self._y1[:, rows], self._y2[:, rows]
+        return out
+
     def step(self, white: np.ndarray) -> np.ndarray:
         x1, x2 = self._x
         y1 = self.a1 * self._y1[0] + self.a2 * self._y1[1] + white - x2
@@ -113,6 +129,12 @@ class MotorNoise:
         self.a = math.exp(-dt / time_constant)
         self.b = math.sqrt(1.0 - self.a**2)
         self.state = np.zeros((n, 3))
+
+    def take(self, rows) -> MotorNoise:
+        """The noises of ``rows`` (indices), in their current state."""
+        out = copy.copy(self)
+        out.state = self.state[np.asarray(rows, dtype=int)]
+        return out
 
     def step(self, white: np.ndarray) -> np.ndarray:
         self.state = self.a * self.state + self.b * white

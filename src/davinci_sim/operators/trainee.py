@@ -47,6 +47,7 @@ dynamics, e.g. with the impedance of :class:`davinci_sim.devices.hand.HandImpeda
 
 from __future__ import annotations
 
+import copy
 import math
 from typing import NamedTuple
 
@@ -172,6 +173,29 @@ class SyntheticTrainee:
             raise ValueError(f"hand_start must be ({self.n}, 3), got {x0.shape}")
         self.x = x0.copy()
         self.x_eq = x0.copy()
+
+    #: Attributes with one entry per trial along their first axis (see :meth:`take`).
+    _PER_TRIAL = (
+        "practice", "speed", "noise_k", "crossover", "durations", "delay_steps", "_obs",
+        "x", "v", "x_eq", "v_eq", "t_reach", "reach_from", "reach_time", "t_follow",
+        "last_tremor_force", "feedforward_force", "_v_plan",
+    )  # fmt: skip
+
+    def take(self, rows) -> SyntheticTrainee:
+        """The trainees of ``rows`` (indices), in their current state, as a new object
+        (e.g. to keep stepping the trials that are still running)."""
+        rows = np.asarray(rows, dtype=int)
+        out = copy.copy(self)
+        for name in self._PER_TRIAL:
+            setattr(out, name, getattr(self, name)[rows])
+        if np.ndim(self.tremor_gain):
+            out.tremor_gain = self.tremor_gain[rows]
+        out.n = len(rows)
+        out.params = self.params.take(rows)
+        out._noise = self._noise.take(rows)
+        out._tremor = self._tremor.take(rows)
+        out._motor = self._motor.take(rows)
+        return out
 
     # ------------------------------------------------------------ plan
     @property

@@ -34,27 +34,33 @@ from __future__ import annotations
 import copy
 import time
 from collections.abc import Callable
+from types import SimpleNamespace
 
 import mujoco
 import numpy as np
 
 from davinci_sim.console import teleop_math as tm
 from davinci_sim.devices.hand import hand_wrenches
+from davinci_sim.haptics.combine import combine
 from davinci_sim.haptics.safety import clamp_wrenches
 from davinci_sim.haptics.velocity import DEFAULT_CUTOFF_HZ, VelocityFilter
+from davinci_sim.haptics.viscous import ViscousGuidance
 from davinci_sim.kinematics import fk
 from davinci_sim.kinematics.psm_ik_batch import psm_ik_closed_form_batch
 from davinci_sim.sim.arm import TRACKING_FAULT_TIME
 from davinci_sim.sim.servo import servo_ctrl
 from davinci_sim.study.trial import (
+    METRICS,
     TrialSpec,
-    condition_spec,
     load_spec_task,
     setup_trial,
     trial_inputs,
     trial_row,
 )
 from davinci_sim.tasks import MetricsAccumulator, Phase, initial_state, task_step
+
+#: Below this many rows a batch is not compacted any more (the fixed cost per tick dominates).
+COMPACT_MIN_ROWS = 8
 
 
 class TrialBatch:
@@ -143,11 +149,13 @@ class TrialBatch:
         self.impedance = device.hand
         self.K = self.params.stiffness
         self.D = self.params.damping
-        self.fixtures = []
-        conditions = [(s.B, s.G_max) for s in specs]
-        for cond in sorted(set(conditions)):
-            rows = np.array([i for i, c in enumerate(conditions) if c == cond])
-            self.fixtures.append((rows, task.fixture(condition_spec(*cond))))
+        # One viscous guidance with each trial's (B, G_max), then the task's walls: the sum
+        # FixtureField computes for each trial's condition (condition_spec; (0, 0) is no
+        # force either way).
+        self.B = np.array([s.B for s in specs], dtype=float)
+        self.G_max = np.array([s.G_max for s in specs], dtype=float)
+        self.index = np.arange(n)
+        """Position of each current row in ``specs`` (rows of ended trials are dropped)."""
         self.velocity = VelocityFilter((n,), dt=self.dt, cutoff_hz=DEFAULT_CUTOFF_HZ)
         self.state = initial_state(n)
         self.metrics = MetricsAccumulator(n, tube_radius=task.tube_radius)
@@ -159,7 +167,47 @@ class TrialBatch:
         self.ticks = np.zeros(n, dtype=np.int64)
         self._bad_since = np.full(n, np.nan)
         self.requested = np.zeros((n, 3))
+        self._fixture()
         self._kinematics()
+        self._results = {name: np.full(n, np.nan) for name in METRICS}
+        self._finished = np.zeros(n, dtype=bool)
+        self._ticks = np.zeros(n, dtype=np.int64)
+
+    def _fixture(self) -> None:
+        self.fixture = combine(
+            ViscousGuidance(self.task.path, B=self.B, G_max=self.G_max),
+            self.task.fixture({"type": "none"}),
+        )
+
+    #: Arrays with one row per running trial (see :meth:`_compact`).
+    _ROWS = (
+        "Q", "V", "bias", "xipos", "q_ref", "qd_ref", "tau_ff", "ghost", "jaw_sent",
+        "wrench_sent", "T_hand", "K", "D", "B", "G_max", "t_end", "active", "fault", "ticks",
+        "_bad_since", "requested", "T_psm", "J_psm", "T_mtm", "J_mtm", "twist_mtm", "index",
+    )  # fmt: skip
+
+    def _retire(self, rows: np.ndarray) -> None:
+        """Keep the results of ``rows`` (current row indices)."""
+        result = self.metrics.result()
+        where = self.index[rows]
+        for name in METRICS:
+            self._results[name][where] = getattr(result, name)[rows]
+        self._finished[where] = self.state.phase[rows] >= Phase.FINISHED
+        self._ticks[where] = self.ticks[rows]
+
+    def _compact(self) -> None:
+        """Drop the rows of ended trials, so that the laws run on running trials only."""
+        keep = np.flatnonzero(self.active)
+        self._retire(np.flatnonzero(~self.active))
+        for name in self._ROWS:
+            setattr(self, name, getattr(self, name)[keep])
+        self.datas = [self.datas[i] for i in keep]
+        self.trainee = self.trainee.take(keep)
+        self.velocity = self.velocity.take(keep)
+        self.metrics = self.metrics.take(keep)
+        self.state = type(self.state)(*(a[keep] for a in self.state))
+        self.n = len(keep)
+        self._fixture()
 
     # ------------------------------------------------------------ per tick
     def _kinematics(self) -> None:
@@ -230,10 +278,8 @@ class TrialBatch:
         p = self.T_psm[:, :3, 3]
         v = self.velocity.update(p)
         R, t = self.T_world_camera[:3, :3], self.T_world_camera[:3, 3]
-        f_world = np.zeros((self.n, 3))
         p_world, v_world = _rotate(R, p) + t, _rotate(R, v)
-        for rows, fixture in self.fixtures:
-            f_world[rows] = fixture.force(p_world[rows], v_world[rows])
+        f_world = self.fixture.force(p_world, v_world)
         self.requested = _rotate(R.T, f_world)
         w = np.concatenate([self.requested, np.zeros((self.n, 3))], axis=1)
         self.wrench_sent = clamp_wrenches(w, self.wrench_sent, self.limits, self.dt)
@@ -321,22 +367,26 @@ class TrialBatch:
         included) shared out in proportion to each trial's ticks.
         """
         wall0 = time.perf_counter()
-        running = int(self.active.sum())
+        running = self.n
         while running:
             self.tick()
             now = int(self.active.sum())
             if on_done is not None and now != running:
                 on_done(running - now)
             running = now
+            # Halve the arrays whenever half the trials have ended: the per-tick cost of
+            # the laws grows with the rows, ended or not.
+            if running <= self.n // 2 and self.n >= COMPACT_MIN_ROWS:
+                self._compact()
+        self._retire(np.arange(self.n))
         wall = time.perf_counter() - wall0 + self.setup_wall
-        result = self.metrics.result()
-        finished = self.state.phase >= Phase.FINISHED
+        result = SimpleNamespace(**self._results)
+        total = max(int(self._ticks.sum()), 1)
         rows = []
-        total = max(int(self.ticks.sum()), 1)
         for i, spec in enumerate(self.specs):
-            row = trial_row(spec, self.task, result, i, bool(finished[i]))
-            row["sim_time"] = float(self.ticks[i]) * self.dt
-            row["wall_time"] = wall * float(self.ticks[i]) / total
+            row = trial_row(spec, self.task, result, i, bool(self._finished[i]))
+            row["sim_time"] = float(self._ticks[i]) * self.dt
+            row["wall_time"] = wall * float(self._ticks[i]) / total
             rows.append(row)
         return rows
 

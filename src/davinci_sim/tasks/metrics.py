@@ -30,6 +30,7 @@ trials, without storing the trajectories.
 
 from __future__ import annotations
 
+import copy
 from typing import NamedTuple
 
 import numpy as np
@@ -188,6 +189,16 @@ class MetricsAccumulator:
             (self._prev_in, False),
         ):
             a[m] = v
+
+    def take(self, rows) -> MetricsAccumulator:
+        """An accumulator of the trials ``rows`` (indices), with what they have so far."""
+        rows = np.asarray(rows, dtype=int)
+        out = copy.copy(self)
+        for name, value in vars(self).items():
+            if name.startswith("_") and isinstance(value, np.ndarray):
+                setattr(out, name, value[rows])
+        out.n = len(rows)
+        return out
 
     def update(self, mask, time, position, distance, force, clutch) -> None:
         """One sample of every trial; ``mask`` (n,) marks the trials whose repetition
