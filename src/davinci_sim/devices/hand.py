@@ -37,6 +37,10 @@ class HandImpedance:
     """A hand pushes at most this hard, N."""
     max_torque: float = 0.5
     """A hand twists at most this hard, N·m."""
+    mass: float = 0.0
+    """Endpoint mass of the hand and arm, kg, added to the handle while the hand holds it:
+    a held handle moves with the limb's inertia, not only its own few grams (0: a hand
+    without inertia, e.g. a scripted test hand)."""
 
     def __post_init__(self) -> None:
         for name in (
@@ -46,6 +50,7 @@ class HandImpedance:
             "rotational_damping",
             "max_force",
             "max_torque",
+            "mass",
         ):
             value = getattr(self, name)
             if not (isinstance(value, int | float) and math.isfinite(value) and value >= 0):

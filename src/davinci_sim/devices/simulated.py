@@ -68,6 +68,7 @@ class SimulatedMTM(MasterDevice):
         self._body = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, f"{mtm}/{HANDLE_BODY}")
         if self._body < 0:
             raise KeyError(f"the model has no body {mtm}/{HANDLE_BODY!r} for the hand")
+        self._hand_body = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, f"{mtm}/hand")
         hrsv = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, "console/HRSV")
         # HRSV is fixed to the console: its world pose from the initial forward pass.
         self._R_world_hrsv = data.xmat[hrsv].reshape(3, 3).copy()
@@ -80,6 +81,13 @@ class SimulatedMTM(MasterDevice):
         self._hand_applied = False
 
     # ------------------------------------------------------------ the operator's hand
+    def _hold(self, holding: bool) -> None:
+        """While the hand holds the handle, the model's hand body (``<MTM>/hand``, at the
+        grip, weight compensated) has the hand's mass (``hand.mass``)."""
+        self._hand_on = holding
+        if self._hand_body >= 0:
+            self.sim.model.body_mass[self._hand_body] = self.hand.mass if holding else 0.0
+
     def grasp(self, target=None, *, hold_orientation: bool = True) -> None:
         """The hand takes the handle and pulls it to ``target``.
 
@@ -94,18 +102,18 @@ class SimulatedMTM(MasterDevice):
         """
         self._hand_target = self._as_target(target)
         self._hold_orientation = bool(hold_orientation)
-        self._hand_on = True
+        self._hold(True)
 
     def move_hand(self, target) -> None:
         """Move the hand's target: a 4x4 pose, or a position (3,) keeping the target
         orientation. Grasps the handle if the hand was off."""
         T = self._as_target(target, keep_orientation=True)
         self._hand_target = T
-        self._hand_on = True
+        self._hold(True)
 
     def release(self) -> None:
         """The hand lets go of the handle (pushes stop too)."""
-        self._hand_on = False
+        self._hold(False)
         self._hand_target = None
         self._push = np.zeros(6)
         self._hand_wrench = np.zeros(6)

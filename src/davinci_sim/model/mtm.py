@@ -32,6 +32,9 @@ MTM_MASS = {
 }
 GRIPPER_MASS = 0.003
 HANDLE_LENGTH = 0.07
+#: Where the operator's hand holds the handle, in the ``wrist_roll`` frame, m: midway along
+#: the handle, between the fingers.
+HAND_GRIP = (0.0, 0.0, -0.035)
 
 
 def add_mtm(parent, name: str, arm: ArmKinematics, q_ref=None):
@@ -93,3 +96,11 @@ def _add_gimbal(bodies: dict, name: str) -> None:
         p.bar([side * 0.013, 0, 0], [side * 0.013, 0, 0.05], 0.003, 0.008, "mtm_dark")
         p.cylinder([side * 0.02, -0.012, 0.045], [side * 0.02, 0.012, 0.045], 0.012, "black")
         set_inertial(lever, GRIPPER_MASS, [side * 0.013, 0, 0.03], 2e-6)
+    # The operator's hand: a massless body at the grip until a simulated hand holds the
+    # handle and gives it the limb's mass (devices.SimulatedMTM). Its weight is compensated
+    # (gravcomp 1: the person carries their own arm), so the hand adds inertia, not load.
+    hand = roll.add_body(name=f"{name}/hand", pos=list(HAND_GRIP))
+    hand.explicitinertial = True
+    hand.mass = 0.0
+    hand.inertia = [0.0, 0.0, 0.0]
+    hand.gravcomp = 1.0

@@ -6,7 +6,8 @@ that, every tick before the MTM device reads its input, shows one trainee (a
 endoscope sees it (``measured_cp``, camera frame) and applies the trainee's hand to the
 MTM handle through the device's simulated hand: the hand's target is the trainee's
 equilibrium point and the device's hand impedance is the subject's
-(:func:`hand_impedance`), plus a push of the rest of the trainee's force (D·ẋ_eq, the inertia
+(:func:`hand_impedance`: the limb's mass rides on the handle, its stiffness and damping
+pull it), plus a push of the rest of the trainee's force (D·ẋ_eq, the inertia
 feed-forward and the tremor). The MTM's own dynamics integrate the motion, the console's
 teleoperation moves the PSM, and the haptic loop's force fields (e.g. a
 :class:`~davinci_sim.haptics.fixture.FixtureField`) push back on the handle: the same code
@@ -24,10 +25,12 @@ from davinci_sim.operators.trainee import SyntheticTrainee
 
 
 def hand_impedance(params: SubjectParams, index: int = 0) -> HandImpedance:
-    """The simulated hand of subject ``index``: its limb stiffness and damping (the wrist's
-    rotational values stay the device's defaults)."""
+    """The simulated hand of subject ``index``: its limb mass, stiffness and damping (the
+    wrist's rotational values stay the device's defaults)."""
     return HandImpedance(
-        stiffness=float(params.stiffness[index]), damping=float(params.damping[index])
+        stiffness=float(params.stiffness[index]),
+        damping=float(params.damping[index]),
+        mass=float(params.mass[index]),
     )
 
 

@@ -42,7 +42,9 @@ workspace at scale 0.6), the MTM's orientation.
 Two ways to couple it to an MTM: :meth:`step` integrates the limb itself (the handle follows
 the hand rigidly; put the handle's inertia into ``mass``); or call :meth:`command` each tick
 and apply :meth:`hand_force` at the simulated MTM's handle (the device integrates the
-dynamics, e.g. with the impedance of :class:`davinci_sim.devices.hand.HandImpedance`).
+dynamics, e.g. with the impedance of :class:`davinci_sim.devices.hand.HandImpedance`, whose
+``mass`` puts the limb's mass on the handle: without it the hand's spring would drive a
+handle of a few grams, a much lighter and livelier system than a held MTM).
 """
 
 from __future__ import annotations

@@ -7,9 +7,10 @@ Each MuJoCo actuator of the generated model is a ``general`` actuator with force
 
 gives force = kp·(q_ref − q) + kv·(q̇_ref − q̇) + τ_gravity + τ_ff, with the damping term
 integrated implicitly by MuJoCo (stable at 1 ms). τ_gravity is MuJoCo's own inverse dynamics
-at zero acceleration (``qfrc_bias``: gravity and Coriolis). In effort mode a joint gets no
-PD term (q_ref = q, q̇_ref = q̇): only gravity compensation and the feed-forward effort, as the
-dVRK's ``free`` and ``servo_jf``/``servo_cf`` do.
+at zero acceleration (``qfrc_bias``: gravity and Coriolis), less the weight of bodies the
+model compensates itself (``gravcomp``: an operator's hand on an MTM handle). In effort mode
+a joint gets no PD term (q_ref = q, q̇_ref = q̇): only gravity compensation and the
+feed-forward effort, as the dVRK's ``free`` and ``servo_jf``/``servo_cf`` do.
 """
 
 from __future__ import annotations
@@ -53,6 +54,9 @@ class JointServo:
         self.effort_mode = np.zeros(n, dtype=bool)
         """True: no PD term for this joint (free / effort control)."""
         self.gravity_compensation = np.ones(n, dtype=bool)
+        # Bodies whose weight the model compensates itself (gravcomp, e.g. an operator's hand
+        # on an MTM handle) must not be compensated twice.
+        self._model_gravcomp = model.ngravcomp > 0
 
     def indices(self, names) -> np.ndarray:
         """Actuator indices for the given actuator names."""
@@ -61,12 +65,19 @@ class JointServo:
         except KeyError as e:
             raise KeyError(f"no actuator {e.args[0]!r}; actuators: {self.actuator_names}") from None
 
+    def bias(self, data: mujoco.MjData) -> np.ndarray:
+        """The joints' bias forces the servo compensates: ``qfrc_bias`` less what the
+        model's own gravity compensation (``qfrc_gravcomp``) already cancels."""
+        if self._model_gravcomp:
+            return data.qfrc_bias[self.dofadr] - data.qfrc_gravcomp[self.dofadr]
+        return data.qfrc_bias[self.dofadr]
+
     def apply(self, data: mujoco.MjData) -> None:
         """Write ``data.ctrl`` for the current state (call right before ``mj_step``)."""
         data.ctrl[:] = servo_ctrl(
             data.qpos[self.qposadr],
             data.qvel[self.dofadr],
-            data.qfrc_bias[self.dofadr],
+            self.bias(data),
             self.q_ref,
             self.qd_ref,
             self.tau_ff,

@@ -84,14 +84,13 @@ class TrialBatch:
         sim, teleop, device = setup.sim, setup.teleop, setup.device
         psm, mtm = teleop.psm, device.arm
         self.dt = sim.dt
-        self.model = sim.model
         # --- each trial's physics: a copy of the live data (derived quantities included)
         self.datas = [copy.copy(sim.data) for _ in range(n)]
+        self._body = device._body
         d = sim.data
         self.Q = np.tile(d.qpos, (n, 1))
         self.V = np.tile(d.qvel, (n, 1))
-        self.bias = np.tile(d.qfrc_bias, (n, 1))
-        self._body = device._body
+        self.bias = np.tile(d.qfrc_bias - d.qfrc_gravcomp, (n, 1))
         self.xipos = np.tile(d.xipos[self._body], (n, 1))
         # --- the joint servo (one row per trial)
         servo = sim.servo
@@ -147,6 +146,13 @@ class TrialBatch:
         # The subjects' limb stiffness and damping; the wrist's values and the hand's limits
         # are the device's (operators.console.hand_impedance).
         self.impedance = device.hand
+        # Each trial's model: the subject's hand mass on the MTM's hand body, as SimulatedMTM
+        # puts it there when the hand takes the handle.
+        self.models = []
+        for mass in self.params.mass:
+            model = copy.copy(sim.model)
+            model.body_mass[device._hand_body] = mass
+            self.models.append(model)
         self.K = self.params.stiffness
         self.D = self.params.damping
         # One viscous guidance with each trial's (B, G_max), then the task's walls: the sum
@@ -202,6 +208,7 @@ class TrialBatch:
         for name in self._ROWS:
             setattr(self, name, getattr(self, name)[keep])
         self.datas = [self.datas[i] for i in keep]
+        self.models = [self.models[i] for i in keep]
         self.trainee = self.trainee.take(keep)
         self.velocity = self.velocity.take(keep)
         self.metrics = self.metrics.take(keep)
@@ -341,16 +348,16 @@ class TrialBatch:
             self._servo.kp,
             self._servo.kv,
         )
-        model, body = self.model, self._body
+        body = self._body
         Q, V, bias, xipos = self.Q, self.V, self.bias, self.xipos
         for i in np.flatnonzero(self.active).tolist():
             d = self.datas[i]
             d.ctrl[:] = ctrl[i]
             d.xfrc_applied[body] = xfrc[i]
-            mujoco.mj_step(model, d)
+            mujoco.mj_step(self.models[i], d)
             Q[i] = d.qpos
             V[i] = d.qvel
-            bias[i] = d.qfrc_bias
+            bias[i] = d.qfrc_bias - d.qfrc_gravcomp  # what JointServo.bias gives
             xipos[i] = d.xipos[body]
         self.ticks += self.active
         self.time += self.dt
