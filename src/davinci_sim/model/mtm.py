@@ -32,9 +32,11 @@ MTM_MASS = {
 }
 GRIPPER_MASS = 0.003
 HANDLE_LENGTH = 0.07
-#: Where the operator's hand holds the handle, in the ``wrist_roll`` frame, m: midway along
-#: the handle, between the fingers.
-HAND_GRIP = (0.0, 0.0, -0.035)
+#: Where the operator's hand's mass sits, in the ``wrist_roll`` frame, m: at the MTM tip (the
+#: gimbal centre), where the simulated hand's wrench acts (devices.SimulatedMTM). A mass
+#: below the tip, pulled at the tip, makes the free gimbal swing like a pendulum under
+#: lateral forces, a wobble a real grasp does not have.
+HAND_GRIP = (0.0, 0.0, 0.0)
 
 
 def add_mtm(parent, name: str, arm: ArmKinematics, q_ref=None):
