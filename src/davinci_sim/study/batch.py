@@ -148,11 +148,14 @@ class TrialBatch:
         self.impedance = device.hand
         # Each trial's model: the subject's hand mass on the MTM's hand body, as SimulatedMTM
         # puts it there when the hand takes the handle.
-        self.models = []
-        for mass in self.params.mass:
-            model = copy.copy(sim.model)
-            model.body_mass[device._hand_body] = mass
-            self.models.append(model)
+        # (One model per distinct mass: trials of a subject share it, and fewer models stay
+        # in the CPU caches.)
+        by_mass: dict[float, mujoco.MjModel] = {}
+        for mass in self.params.mass.tolist():
+            if mass not in by_mass:
+                by_mass[mass] = copy.copy(sim.model)
+                by_mass[mass].body_mass[device._hand_body] = mass
+        self.models = [by_mass[m] for m in self.params.mass.tolist()]
         self.K = self.params.stiffness
         self.D = self.params.damping
         # One viscous guidance with each trial's (B, G_max), then the task's walls: the sum
