@@ -11,6 +11,7 @@ import bench_bridge  # noqa: E402
 import bench_kinematics  # noqa: E402
 import bench_realtime  # noqa: E402
 import bench_render  # noqa: E402
+import bench_study  # noqa: E402
 import bench_teleop  # noqa: E402
 import bench_tick  # noqa: E402
 
@@ -20,4 +21,5 @@ if __name__ == "__main__":
     bench_render.main()
     bench_bridge.main()
     bench_teleop.main()
+    bench_study.main()  # the 400-trial study, about 2 min
     bench_realtime.main()  # 60 s of real time (plus warm-up)

@@ -241,15 +241,16 @@ def write_report(result: StudyResult, path: Path) -> None:
         "# Simulated user study",
         "",
         f"Task `{cfg.task}`, {n} subjects × {C} conditions × {cfg.n_repetitions} repetitions "
-        f"= {len(rows)} trials; seed {cfg.seed}; condition order `{cfg.order}`; backend "
-        f"`{cfg.backend}` with {cfg.workers} worker(s); trial timeout {cfg.timeout:g} s "
-        "(simulated).",
+        f"= {len(rows)} trials; seed {cfg.seed}; condition order `{cfg.order}`; "
+        f"`{cfg.engine}` engine, backend `{cfg.backend}` with {cfg.workers} worker(s); trial "
+        f"timeout {cfg.timeout:g} s (simulated).",
         "",
         "## Run time",
         "",
         f"- wall time of the study: {result.wall_time:.1f} s "
         f"({result.wall_time / max(len(rows), 1):.2f} s per trial)",
-        f"- simulated time: {sim_time:.1f} s (set-up and reach to point 1 included); "
+        f"- simulated time of the trials: {sim_time:.1f} s (each from the trainee taking the "
+        "handle, the tool at point 1, to the end); "
         f"{sim_time / max(result.wall_time, 1e-9):.2f}× real time overall, "
         f"{sim_time / max(trial_wall, 1e-9):.2f}× per worker",
         f"- unfinished trials (timed out): {sum(not r['finished'] for r in rows)}",
@@ -320,6 +321,16 @@ def write_report(result: StudyResult, path: Path) -> None:
         for claim, numbers, verdict in found:
             L.append(f"| {claim} | {numbers} | **{verdict}** |")
     L += [
+        "",
+        "## What the synthetic trainees leave out",
+        "",
+        "The trainees (`davinci_sim.operators`) are a motor-control model: delayed visual "
+        "feedback, minimum-jerk plans, signal-dependent noise, tremor, a limb impedance the "
+        "guidance pushes against, a power law of practice. They do not misjudge depth in the "
+        "stereo view, stiffen or relax their grip under force, feel the guidance as "
+        "intrusive, get tired or clutch. A claim that hinges on such a reaction (e.g. strong "
+        "guidance feeling too aggressive) is outside what this study can reproduce; a "
+        "disagreement there says more about the model than about the fixture.",
         "",
         "## Files",
         "",

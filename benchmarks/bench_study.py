@@ -1,0 +1,67 @@
+"""The seed's whole study (Table I, 10 subjects × 10 repetitions = 400 trials) on 2 workers:
+wall time against the ≤ 120 s target, and the per-tick cost of a full batch.
+
+``python benchmarks/bench_study.py`` writes ``results/study.json``; ``--output DIR`` also
+keeps the study's outputs (CSV, figures, report) in DIR.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+
+import davinci_sim  # noqa: E402, F401  (sets MUJOCO_GL)
+from common import write  # noqa: E402
+from davinci_sim.study import StudyConfig, run_study, write_outputs  # noqa: E402
+from davinci_sim.study.batch import TrialBatch  # noqa: E402
+from davinci_sim.study.config import plan_trials  # noqa: E402
+
+
+def tick_cost(n: int = 200, ticks: int = 500) -> dict:
+    """µs per tick and per trial-tick of a batch of the study's first ``n`` trials."""
+    specs = plan_trials(StudyConfig())[:n]
+    batch = TrialBatch(specs)
+    for _ in range(50):
+        batch.tick()
+    t0 = time.perf_counter()
+    for _ in range(ticks):
+        batch.tick()
+    per_tick = (time.perf_counter() - t0) / ticks * 1e6
+    batch._setup.sim.close()
+    return {
+        f"batch_n{n}_tick_us": per_tick,
+        f"batch_n{n}_trial_tick_us": per_tick / n,
+    }
+
+
+def main(output: str | None = None) -> dict:
+    config = StudyConfig(workers=2)
+    t0 = time.perf_counter()
+    result = run_study(config, progress=False)
+    wall = time.perf_counter() - t0
+    folder = output or tempfile.mkdtemp(prefix="davinci-study-")
+    write_outputs(result, folder)
+    sim_time = sum(r["sim_time"] for r in result.rows)
+    figures = {
+        "trials": len(result.rows),
+        "workers": config.workers,
+        "study_wall_s": wall,
+        "target_wall_s": 120.0,
+        "trials_sim_time_s": sim_time,
+        "real_time_factor": sim_time / wall,
+        "finished": sum(r["finished"] for r in result.rows),
+        **tick_cost(),
+    }
+    write("study", figures)
+    return figures
+
+
+if __name__ == "__main__":
+    parser = argparse.ArgumentParser(description=__doc__)
+    parser.add_argument("--output", help="keep the study's outputs in this folder")
+    print(main(parser.parse_args().output))
