@@ -190,7 +190,7 @@ class MasterDevice(ABC):
             w = np.asarray(wrench, dtype=float)
         except (TypeError, ValueError):
             w = None
-        if w is None or w.shape != (6,) or not np.all(np.isfinite(w)):
+        if w is None or w.shape != (6,) or not np.isfinite(w).all():
             text = f"servo_cf: wrench must be 6 finite numbers (N, N·m), got {wrench!r}"
             self.channels.message("error", text, self._now)
             return CommandResult(False, f"{self.name}: {text}")

@@ -126,7 +126,7 @@ class SimulatedMTM(MasterDevice):
         w = np.asarray(wrench, dtype=float)
         if w.shape == (3,):
             w = np.concatenate([w, np.zeros(3)])
-        if w.shape != (6,) or not np.all(np.isfinite(w)):
+        if w.shape != (6,) or not np.isfinite(w).all():
             raise ValueError(f"push needs 3 or 6 finite numbers (N, N·m), got {wrench!r}")
         self._push = w
 
@@ -147,7 +147,7 @@ class SimulatedMTM(MasterDevice):
             return self.arm.measured_cp().T.copy()
         arr = np.asarray(target, dtype=float)
         if arr.shape == (3,):
-            if not np.all(np.isfinite(arr)):
+            if not np.isfinite(arr).all():
                 raise ValueError(f"hand target position must be finite, got {target!r}")
             if keep_orientation and self._hand_target is not None:
                 T = self._hand_target.copy()
@@ -176,11 +176,11 @@ class SimulatedMTM(MasterDevice):
 
     @property
     def _pushing(self) -> bool:
-        return bool(np.any(self._push))
+        return bool(self._push.any())
 
     def _apply_hand(self, w: np.ndarray, T_hrsv_tip: np.ndarray) -> None:
         self._hand_wrench = w
-        self._hand_applied = bool(np.any(w))
+        self._hand_applied = bool(w.any())
         R = self._R_world_hrsv
         fx, fy, fz = (R @ w[:3]).tolist()
         p_tip = R @ T_hrsv_tip[:3, 3] + self._p_world_hrsv

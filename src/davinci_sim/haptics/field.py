@@ -164,6 +164,6 @@ def as_wrench(value) -> np.ndarray:
     w = np.asarray(value, dtype=float)
     if w.shape == (3,):
         w = np.concatenate([w, np.zeros(3)])
-    if w.shape != (6,) or not np.all(np.isfinite(w)):
+    if w.shape != (6,) or not np.isfinite(w).all():
         raise ValueError(f"a force field must return 3 or 6 finite numbers, got {value!r}")
     return w

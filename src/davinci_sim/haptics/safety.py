@@ -70,7 +70,7 @@ def clamp_wrench(wrench, previous, limits: WrenchLimits, dt: float) -> tuple[np.
         ValueError: for a wrench that is not 6 finite numbers, or ``dt <= 0``.
     """
     w = np.asarray(wrench, dtype=float)
-    if w.shape != (6,) or not np.all(np.isfinite(w)):
+    if w.shape != (6,) or not np.isfinite(w).all():
         raise ValueError(f"wrench must be 6 finite numbers (N, N·m), got {wrench!r}")
     if not dt > 0:
         raise ValueError(f"dt must be > 0, got {dt!r}")

@@ -104,7 +104,7 @@ def viscous_guidance_terms(
         )
     B = np.asarray(B, dtype=float)
     G_max = np.asarray(G_max, dtype=float)
-    if np.any(B < 0) or np.any(G_max < 0) or not (transition >= 0):
+    if (B < 0).any() or (G_max < 0).any() or not (transition >= 0):
         raise ValueError(
             f"B, G_max and transition must be >= 0, got {B!r}, {G_max!r}, {transition!r}"
         )

@@ -61,7 +61,7 @@ def check_goal(T_base_tip) -> np.ndarray:
     T = np.asarray(T_base_tip, dtype=float)
     if T.shape != (4, 4):
         raise ValueError(f"goal T_base_tip must have shape (4, 4), got {T.shape}")
-    if not np.all(np.isfinite(T)):
+    if not np.isfinite(T).all():
         raise ValueError(f"goal T_base_tip must be finite, got {T_base_tip!r}")
     return T
 
@@ -71,7 +71,7 @@ def check_seed(chain: DHChain, q_seed) -> np.ndarray:
     q = np.asarray(q_seed, dtype=float)
     if q.shape != (chain.dof,):
         raise ValueError(f"{chain.name}: q_seed must have shape ({chain.dof},), got {q.shape}")
-    if not np.all(np.isfinite(q)):
+    if not np.isfinite(q).all():
         raise ValueError(f"{chain.name}: q_seed must be finite, got {q_seed!r}")
     return q
 

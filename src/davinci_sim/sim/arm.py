@@ -458,10 +458,10 @@ class Arm:
     def measured_cv(self) -> CartesianTwist:
         """Tip twist (linear m/s, angular rad/s) in the base frame's orientation (dvrk.md 2.2)."""
         v = self._measured_kinematics(jacobian=True)[2] @ self._qd()
-        R = self.base_frame()[0][:3, :3]
-        return CartesianTwist(
-            np.concatenate([R @ v[:3], R @ v[3:]]), self.base_frame()[1], self.name, self._now()
-        )
+        T_ref_base, ref = self.base_frame()
+        R = T_ref_base[:3, :3]
+        # R·[v ω] as one product: both halves rotate the same way.
+        return CartesianTwist((R @ v.reshape(2, 3).T).T.reshape(6), ref, self.name, self._now())
 
     def _cartesian_goal(self, command: str, T_goal, seed: np.ndarray):
         why = self._not_ready(cartesian=True)
@@ -505,7 +505,7 @@ class Arm:
     def forward_kinematics(self, jp) -> tuple[CartesianPose | None, CommandResult]:
         """Pose of the frame after ``len(jp)`` joints, with the base frame (dvrk.md 2.2)."""
         q = np.asarray(jp, dtype=float) if np.ndim(jp) == 1 else None
-        if q is None or not (1 <= q.shape[0] <= self.dof) or not np.all(np.isfinite(q)):
+        if q is None or not (1 <= q.shape[0] <= self.dof) or not np.isfinite(q).all():
             return None, self._refuse(
                 "forward_kinematics", f"needs 1..{self.dof} finite joint values, got {jp!r}"
             )
@@ -597,7 +597,7 @@ def _joint_velocity(J: np.ndarray, twist: np.ndarray) -> np.ndarray:
     """
     if J.shape[0] == J.shape[1]:
         _, _, qd, info = dgesv(J, twist)
-        if info == 0 and np.all(np.isfinite(qd)) and np.abs(qd).max() < 1e6:
+        if info == 0 and np.isfinite(qd).all() and np.abs(qd).max() < 1e6:
             return qd
         # singular: fall back to the least-squares solution
     return np.linalg.lstsq(J, twist, rcond=None)[0]
@@ -628,7 +628,7 @@ class _LocalView:
     def forward_kinematics(self, jp) -> tuple[CartesianPose | None, CommandResult]:
         arm = self._arm
         q = np.asarray(jp, dtype=float) if np.ndim(jp) == 1 else None
-        if q is None or not (1 <= q.shape[0] <= arm.dof) or not np.all(np.isfinite(q)):
+        if q is None or not (1 <= q.shape[0] <= arm.dof) or not np.isfinite(q).all():
             return None, arm._refuse(
                 "local/forward_kinematics", f"needs 1..{arm.dof} finite joint values, got {jp!r}"
             )

@@ -6,6 +6,7 @@ angle is the opening between them, their sum. A command of angle θ servoes each
 
 from __future__ import annotations
 
+import math
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -81,15 +82,22 @@ class Jaw:
         why = self._arm._not_ready(cartesian=True) if self._requires_ready else ""
         if why:
             return None, self._arm._refuse(f"{self._command_prefix}/{command}", why)
-        v, msg = as_vector(np.atleast_1d(value) if np.ndim(value) == 0 else value, 1, "angle")
+        if isinstance(value, float | int | np.floating | np.integer) and not isinstance(
+            value, bool
+        ):
+            # A plain number (the teleoperation's jaw, the fingers on a gripper, at 1 kHz):
+            # checked as a float, without building arrays.
+            v, msg = (value, "") if math.isfinite(value) else (None, f"angle is {value!r}")
+        else:
+            v, msg = as_vector(np.atleast_1d(value) if np.ndim(value) == 0 else value, 1, "angle")
         if v is None:
             return None, self._arm._refuse(f"{self._command_prefix}/{command}", msg)
-        msg = check_limits(
-            v, np.array([self.spec.qmin]), np.array([self.spec.qmax]), (self.spec.name,), "goal"
-        )
+        angle = float(v if np.ndim(v) == 0 else v[0])
+        lo, hi = self.spec.qmin, self.spec.qmax
+        msg = check_limits([angle], [lo], [hi], (self.spec.name,), "goal")
         if msg:
             return None, self._arm._refuse(f"{self._command_prefix}/{command}", msg)
-        return float(v[0]), ACCEPTED
+        return angle, ACCEPTED
 
     def servo_jp(self, angle) -> CommandResult:
         """Opening angle setpoint (rad) for the next tick."""

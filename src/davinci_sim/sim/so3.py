@@ -87,6 +87,6 @@ def rotation_from_vector(w) -> np.ndarray:
 def is_rotation(R, tolerance: float = 1e-6) -> bool:
     """True for a finite 3x3 orthonormal matrix with determinant +1."""
     r = np.asarray(R, dtype=float)
-    if r.shape != (3, 3) or not np.all(np.isfinite(r)):
+    if r.shape != (3, 3) or not np.isfinite(r).all():
         return False
     return bool(np.max(np.abs(r.T @ r - np.eye(3))) <= tolerance and np.linalg.det(r) > 0)

@@ -19,7 +19,7 @@ def as_vector(value, n: int, what: str) -> tuple[np.ndarray | None, str]:
         return None, f"{what} must be a sequence of {n} numbers, got {value!r}"
     if v.ndim != 1 or v.shape[0] != n:
         return None, f"{what} must have {n} values, got shape {v.shape}"
-    if not np.all(np.isfinite(v)):
+    if not np.isfinite(v).all():
         return None, f"{what} contains NaN or inf: {v.tolist()}"
     return v, ""
 
