@@ -186,7 +186,7 @@ class Simulation:
             return entry[2]
         q = self.measured_qpos()[self._base_qposadr(key)]
         if entry is not None and (
-            q.size == 0 or np.max(np.abs(q - entry[1])) <= BASE_FRAME_TOLERANCE
+            q.size == 0 or np.abs(q - entry[1]).max() <= BASE_FRAME_TOLERANCE
         ):
             self._base_frames[key] = (self.tick_count, entry[1], entry[2])
             return entry[2]
