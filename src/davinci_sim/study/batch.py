@@ -142,6 +142,9 @@ class TrialBatch:
         self.T_hand[:, :3, 3] = hand_start
         # --- trainees, fixtures, task
         self.T_world_camera = setup.T_world_camera
+        self.T_task_camera = setup.T_task_camera
+        """The camera in the task's frame, the frame of the fixture and the task's checks
+        (FixtureField(frame=task.frame) on the live path)."""
         self.params, self.trainee = trial_inputs(specs, task, self.T_world_camera, hand_start)
         # The subjects' limb stiffness and damping; the wrist's values and the hand's limits
         # are the device's (operators.console.hand_impedance).
@@ -287,10 +290,9 @@ class TrialBatch:
         """The haptic loop on the new state: fixture force → safety clamp → MTM efforts."""
         p = self.T_psm[:, :3, 3]
         v = self.velocity.update(p)
-        R, t = self.T_world_camera[:3, :3], self.T_world_camera[:3, 3]
-        p_world, v_world = _rotate(R, p) + t, _rotate(R, v)
-        f_world = self.fixture.force(p_world, v_world)
-        self.requested = _rotate(R.T, f_world)
+        R, t = self.T_task_camera[:3, :3], self.T_task_camera[:3, 3]
+        f_task = self.fixture.force(_rotate(R, p) + t, _rotate(R, v))
+        self.requested = _rotate(R.T, f_task)
         w = np.concatenate([self.requested, np.zeros((self.n, 3))], axis=1)
         self.wrench_sent = clamp_wrenches(w, self.wrench_sent, self.limits, self.dt)
         # spatial/servo_cf: the wrench in the MTM base orientation, Jᵀ·w, clamped to ftmax.
@@ -307,9 +309,8 @@ class TrialBatch:
 
     def _task(self) -> None:
         task, path = self.task, self.task.path
-        tip = (
-            _rotate(self.T_world_camera[:3, :3], self.T_psm[:, :3, 3]) + self.T_world_camera[:3, 3]
-        )
+        T = self.T_task_camera
+        tip = _rotate(T[:3, :3], self.T_psm[:, :3, 3]) + T[:3, 3]
         cp = path.closest_point(tip)
         state = task_step(
             self.state,

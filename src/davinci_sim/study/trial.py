@@ -100,6 +100,8 @@ class TrialSetup:
     teleop: TeleopPSM
     T_world_camera: np.ndarray
     """The camera (ECM tip) in the world (cart) frame: fixed during a trial."""
+    T_task_camera: np.ndarray
+    """The camera in the task's frame (:meth:`PathTask.T_task_camera`)."""
 
 
 def setup_trial(task: PathTask, *, seed: int = 0) -> TrialSetup:
@@ -124,9 +126,9 @@ def setup_trial(task: PathTask, *, seed: int = 0) -> TrialSetup:
     if not sim.run_until(lambda: psm.is_homed() and not psm.is_busy(), 30.0):
         raise RuntimeError(f"{psm_name} did not home")
     T_world_camera = sim.T_cart_camera().copy()
-    T_camera_world = np.linalg.inv(T_world_camera)
+    T_task_camera = task.T_task_camera(T_world_camera)
     goal = psm.setpoint_cp().T.copy()
-    goal[:3, 3] = (T_camera_world @ np.append(task.start, 1.0))[:3]
+    goal[:3, 3] = (np.linalg.inv(T_task_camera) @ np.append(task.start, 1.0))[:3]
     result = psm.move_cp(goal)
     if not result or not sim.run_until(lambda: not psm.is_busy(), 30.0):
         raise RuntimeError(f"{psm_name} cannot reach point 1 of {task.name}: {result.message}")
@@ -142,7 +144,7 @@ def setup_trial(task: PathTask, *, seed: int = 0) -> TrialSetup:
     teleop = console.psm_teleops[f"{mtm}_{psm_name}"]
     if not sim.run_until(teleop.is_following, 30.0):
         raise RuntimeError("the teleoperation did not start following")
-    return TrialSetup(sim, console, device, teleop, T_world_camera)
+    return TrialSetup(sim, console, device, teleop, T_world_camera, T_task_camera)
 
 
 def trial_inputs(specs: list[TrialSpec], task: PathTask, T_world_camera, hand_start):
@@ -211,7 +213,9 @@ def run_trial(spec: TrialSpec) -> dict:
     hand = TraineeHand(trainee, device, sim.arms[psm])
     sim.components = {hand.name: hand, **sim.components}
     fixture = task.fixture(condition_spec(spec.B, spec.G_max))
-    setup.console.haptics.add_field(FixtureField(fixture, frame="world"), mtm=mtm, name="guidance")
+    setup.console.haptics.add_field(
+        FixtureField(fixture, frame=task.frame), mtm=mtm, name="guidance"
+    )
 
     arm = sim.arms[psm]
     state = initial_state(1)
@@ -223,7 +227,7 @@ def run_trial(spec: TrialSpec) -> dict:
     while sim.time < t_end and teleop.is_following():
         sim.tick()
         t = sim.time
-        tip = (T_world_camera @ arm.measured_cp().T)[:3, 3].reshape(1, 3)
+        tip = (setup.T_task_camera @ arm.measured_cp().T)[:3, 3].reshape(1, 3)
         cp = path.closest_point(tip)
         state = task_step(
             state,

@@ -155,6 +155,13 @@ class PathTask:
     def finish(self) -> np.ndarray:
         return self.waypoints[-1]
 
+    def T_task_camera(self, T_world_camera) -> np.ndarray:
+        """The camera (ECM tip) in the task's frame, 4x4: ``T_world_camera`` for a
+        world-frame task, the identity for a camera-frame one."""
+        if self.frame == "camera":
+            return np.eye(4)
+        return np.asarray(T_world_camera, dtype=float).copy()
+
     def path_in_camera(self, T_world_camera) -> Polyline:
         """The path in the camera frame, given the camera's pose in the world (cart)."""
         if self.frame == "camera":
