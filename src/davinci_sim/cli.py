@@ -209,8 +209,16 @@ def cmd_serve(args: argparse.Namespace) -> int:
             duration=args.duration,
             console=args.console,
             runner=args.runner,
+            task=args.task,
+            condition=args.condition,
+            task_log=args.task_log,
         )
-    except ValueError as e:
+        if args.task is not None:  # a bad task or condition: say so before starting anything
+            from davinci_sim.bridge.app import task_condition
+            from davinci_sim.tasks import load_task
+
+            task_condition(load_task(args.task), args.condition)
+    except ValueError as e:  # TaskError is a ValueError
         print(f"davinci-sim serve: {e}", file=sys.stderr)
         return 2
     stop = threading.Event()
@@ -383,6 +391,20 @@ def main(argv: list[str] | None = None) -> int:
         help="install the surgeon console and teleoperations (MTMs fed by the "
         "client mode with --ros-connect)",
     )
+    p.add_argument(
+        "--task",
+        default=None,
+        help="a training task to do at the console (name, e.g. seed_path, or file): its path "
+        "is drawn, its fixture guides, its repetitions are measured (/task/* topics); "
+        "implies --console",
+    )
+    p.add_argument(
+        "--condition",
+        default=None,
+        help="the task's condition: a condition name (e.g. 'B=40') or B:G_max, e.g. 40:5 "
+        "(default: the task's own fixture)",
+    )
+    p.add_argument("--task-log", default=None, help="CSV file the repetitions are appended to")
     p.add_argument(
         "--runner",
         default="thread",

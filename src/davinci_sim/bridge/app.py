@@ -53,18 +53,52 @@ class ServeOptions:
     client mode when ``ros_connect`` is set, else the simulated MTMs)."""
     runner: Literal["thread", "process"] = "thread"
     """Loop in a thread of this process, or in its own process (issue 3's runner)."""
+    task: str | None = None
+    """A training task (name or file) to do at the console: its path drawn in the scene,
+    its fixture in the haptic loop, its repetitions measured (implies ``console``)."""
+    condition: str | None = None
+    """The task's condition: a condition name of the task or ``B:G_max`` (viscous guidance;
+    None: the task's own fixture)."""
+    task_log: str | None = None
+    """CSV file each finished repetition is appended to."""
+
+
+def task_condition(task, condition: str | None) -> dict | str | None:
+    """``--condition``: a condition name of ``task``, or ``B:G_max`` for viscous guidance."""
+    if condition is None or condition in {c.get("name") for c in task.conditions}:
+        return condition
+    try:
+        B, G = (float(x) for x in condition.split(":"))
+    except ValueError:
+        names = [c.get("name") for c in task.conditions]
+        raise ValueError(
+            f"condition {condition!r} is neither one of {task.name!r}'s ({names}) nor B:G_max"
+        ) from None
+    return {"type": "viscous", "B": B, "G_max": G}
 
 
 def build_simulation(
     scene: str, keyframe: str, seed: int, home: bool, console: bool, network_mtms: bool,
-    qpos_probe: bool,
+    qpos_probe: bool, task: str | None = None, condition: str | None = None,
+    task_log: str | None = None,
 ):  # fmt: skip
     """The simulation of :func:`serve` (top level and picklable for the process runner)."""
     from davinci_sim.bridge.endoscope import QposProbe
     from davinci_sim.sim.simulation import Simulation
 
-    sim = Simulation(scene, seed=seed, keyframe=keyframe)
-    if console:
+    path_task = None
+    if task is not None:
+        from davinci_sim.tasks import add_path_visual, load_task
+
+        path_task = load_task(task)
+        task_condition(path_task, condition)  # a bad condition fails before the model is built
+    sim = Simulation(
+        scene,
+        seed=seed,
+        keyframe=keyframe,
+        edit_spec=None if path_task is None else lambda spec: add_path_visual(spec, path_task),
+    )
+    if console or path_task is not None:
         from davinci_sim.console.setup import install_console
         from davinci_sim.devices.network import NetworkDevice
 
@@ -72,6 +106,10 @@ def build_simulation(
         if network_mtms:
             devices = {m: NetworkDevice(f"{m}/device") for m in ("MTML", "MTMR") if m in sim.arms}
         install_console(sim, devices=devices)
+    if path_task is not None:
+        from davinci_sim.tasks.session import install_task
+
+        install_task(sim, path_task, condition=task_condition(path_task, condition), log=task_log)
     if qpos_probe:
         sim.components["qpos"] = QposProbe(sim)
     if home:
@@ -97,6 +135,7 @@ def serve(
     from davinci_sim.bridge.dvrk_node import DvrkNode
     from davinci_sim.bridge.endoscope import EndoscopeNode
     from davinci_sim.bridge.server import RosbridgeServer
+    from davinci_sim.bridge.task_node import TaskNode
     from davinci_sim.bridge.udp import UdpStreamer, default_streams
     from davinci_sim.sim.handle import ThreadedSimulation
 
@@ -105,6 +144,7 @@ def serve(
     factory = functools.partial(
         build_simulation, options.scene, options.keyframe, options.seed, options.home,
         options.console, options.ros_connect is not None, options.images != "none",
+        options.task, options.condition, options.task_log,
     )  # fmt: skip
     # Snapshots cost ~0.9 ms for the full system (every arm's FK): take them at the publish
     # rate, not every tick, so the 1 kHz loop keeps real time.
@@ -129,6 +169,7 @@ def serve(
             nodes: list = [
                 DvrkNode(handle, rate=options.rate, tf_rate=options.tf_rate),
                 ConsoleNode(handle, rate=options.rate),
+                TaskNode(handle),
             ]
             if options.images != "none":
                 nodes.append(EndoscopeNode(handle, options.scene, rate=options.image_rate,

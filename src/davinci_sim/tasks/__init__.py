@@ -7,10 +7,13 @@
 * :func:`repetition_metrics`, :class:`MetricsAccumulator` — deviation error (eq. 8), time,
   path length, speed, forces, time outside the tube, clutches (metrics.py).
 * :func:`add_path_visual` — the path and numbered markers in a ``mujoco.MjSpec`` (scene.py).
+* :class:`TaskSession`, :func:`install_task` — a task done at the simulated console, its
+  fixture in the haptic loop and its repetitions measured (session.py).
 """
 
 from davinci_sim.tasks.metrics import MetricsAccumulator, RepetitionMetrics, repetition_metrics
 from davinci_sim.tasks.scene import add_path_visual
+from davinci_sim.tasks.session import TaskSession, TaskSessionState, install_task
 from davinci_sim.tasks.state import (
     Phase,
     TaskMonitor,
@@ -28,10 +31,13 @@ __all__ = [
     "RepetitionMetrics",
     "TaskError",
     "TaskMonitor",
+    "TaskSession",
+    "TaskSessionState",
     "TaskState",
     "add_path_visual",
     "available_tasks",
     "initial_state",
+    "install_task",
     "load_task",
     "repetition_metrics",
     "reset_state",

@@ -1,0 +1,206 @@
+"""A training session: a person (or a program) doing a task at the simulated console.
+
+:class:`TaskSession` is a simulation component for the interactive use of a task, the
+trainee's side of what the study automates: it sets the task's teleoperation scale, puts the
+condition's fixture in the console's haptic loop (a
+:class:`~davinci_sim.haptics.fixture.FixtureField` in the task's frame), and after every
+physics step feeds the tool tip (task frame), the guidance force the haptic loop requested
+and the clutch to a :class:`~davinci_sim.tasks.state.TaskMonitor`. Each finished repetition
+becomes a row (the study's metrics), kept in :attr:`TaskSession.results`, emitted on the
+``results`` channel and appended to a CSV file if one is given.
+
+Repetitions follow one another by themselves: once a repetition's results are in, bringing
+the tool back to point 1 starts the next one; :meth:`TaskSession.reset` abandons the
+current repetition at any time (dvrk-style command, callable over the bridge as
+``/task/reset``).
+"""
+
+from __future__ import annotations
+
+import csv
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from davinci_sim.sim.channels import Channels
+from davinci_sim.sim.types import ACCEPTED, CommandResult
+from davinci_sim.tasks.metrics import RepetitionMetrics
+from davinci_sim.tasks.state import Phase, TaskMonitor
+from davinci_sim.tasks.task import PathTask
+
+if TYPE_CHECKING:
+    from davinci_sim.console.console import Console
+    from davinci_sim.sim.simulation import Simulation
+
+#: The metrics of a repetition's row, in order (:class:`RepetitionMetrics`' fields).
+ROW_METRICS = RepetitionMetrics._fields
+
+
+@dataclass(frozen=True)
+class TaskSessionState:
+    """What a session publishes (``/task/state`` over the bridge)."""
+
+    task: str
+    condition: str
+    phase: str
+    """:class:`~davinci_sim.tasks.state.Phase` name of the current repetition."""
+    repetition: int
+    """Number of the current repetition, 1-based."""
+    completed: int
+    """Repetitions with results so far."""
+    distance_to_path: float
+    """Tool tip to the path, m (nan before the first tick)."""
+    last: dict = field(default_factory=dict)
+    """The last repetition's row (empty before the first)."""
+
+
+class TaskSession:
+    """``task`` at ``console``'s teleoperation of the task's PSM; see the module docstring.
+
+    Args:
+        sim: the simulation (with the task's PSM, its MTM and the ECM).
+        console: the installed console (:func:`~davinci_sim.console.install_console`).
+        task: the task.
+        condition: fixture entry or condition name of ``task`` (None: the task's own
+            ``fixture``).
+        log: CSV file the rows are appended to (None: none).
+        name: component name.
+
+    Raises:
+        KeyError: if the console has no teleoperation of the task's MTM and PSM.
+    """
+
+    def __init__(
+        self,
+        sim: Simulation,
+        console: Console,
+        task: PathTask,
+        *,
+        condition: dict | str | None = None,
+        log: str | Path | None = None,
+        name: str = "task",
+    ) -> None:
+        from davinci_sim.haptics.fixture import FixtureField
+
+        key = f"{task.teleop.mtm}_{task.teleop.psm}"
+        teleop = console.psm_teleops.get(key)
+        if teleop is None:
+            raise KeyError(
+                f"task {task.name!r} is done with {key}; the console's teleoperations: "
+                f"{sorted(console.psm_teleops)}"
+            )
+        self.sim, self.console, self.task, self.teleop = sim, console, task, teleop
+        self.name = name
+        self.channels = Channels(name)
+        spec = condition if isinstance(condition, dict) else None
+        if isinstance(condition, str):
+            spec = task.condition(condition)
+        self.condition = _condition_label(spec if spec is not None else task.fixture_spec)
+        fixture = task.fixture(spec)
+        self.field_name = console.haptics.add_field(
+            FixtureField(fixture, frame=task.frame), mtm=task.teleop.mtm, name=f"{name}/guidance"
+        )
+        teleop.set_scale(task.teleop.scale)
+        self.log = None if log is None else Path(log)
+        self.monitor = TaskMonitor(task)
+        self.results: list[dict] = []
+        self.repetition = 1
+        self._distance = math.nan
+        self._recorded = False
+
+    # ------------------------------------------------------------ commands
+    def reset(self) -> CommandResult:
+        """Abandon the current repetition: back to IDLE (the tool at point 1 starts it)."""
+        self.monitor.reset()
+        self._recorded = False
+        self.channels.message("status", f"repetition {self.repetition}: reset", self.sim.time)
+        return ACCEPTED
+
+    # ------------------------------------------------------------ component
+    def pre_step(self, t: float) -> None:
+        """Nothing before the physics step: the session samples in :meth:`post_step`."""
+
+    def post_step(self, t: float) -> None:
+        task = self.task
+        T_task_camera = task.T_task_camera(self.sim.T_cart_camera())
+        tip = (T_task_camera @ self.teleop.psm.measured_cp().T)[:3, 3]
+        self._distance = float(task.path.closest_point(tip[None]).distance[0])
+        if self._recorded:
+            if np.linalg.norm(tip - task.start) <= task.start_tolerance:
+                self.repetition += 1
+                self.reset()
+            return
+        requested = self.console.haptics.snapshot().requested.get(task.teleop.mtm)
+        force = np.zeros(3) if requested is None else requested[:3]
+        phase = self.monitor.update(t, tip, force, clutch=self.teleop.is_clutched())
+        if phase == Phase.FINISHED and self.monitor.results is not None:
+            self._record(self.monitor.results, t)
+
+    def _record(self, metrics: RepetitionMetrics, t: float) -> None:
+        row = {"task": self.task.name, "condition": self.condition, "repetition": self.repetition}
+        for name in ROW_METRICS:
+            value = getattr(metrics, name)[0]
+            row[name] = int(value) if name in ("clutch_count", "samples") else float(value)
+        self.results.append(row)
+        self._recorded = True
+        self.channels.emit("results", dict(row))
+        self.channels.message(
+            "status",
+            f"repetition {self.repetition} done: deviation {row['deviation_error'] * 1e3:.2f} mm,"
+            f" {row['completion_time']:.2f} s; back to point 1 for the next",
+            t,
+        )
+        if self.log is not None:
+            self._append(row)
+
+    def _append(self, row: dict) -> None:
+        try:
+            new = not self.log.exists() or self.log.stat().st_size == 0
+            with open(self.log, "a", newline="") as f:
+                writer = csv.DictWriter(f, fieldnames=list(row))
+                if new:
+                    writer.writeheader()
+                writer.writerow(row)
+        except OSError as e:  # the session goes on; the row stays in .results
+            self.channels.message("error", f"cannot write {self.log}: {e}", self.sim.time)
+
+    def snapshot(self) -> TaskSessionState:
+        return TaskSessionState(
+            task=self.task.name,
+            condition=self.condition,
+            phase=self.monitor.phase.name,
+            repetition=self.repetition,
+            completed=len(self.results),
+            distance_to_path=self._distance,
+            last=dict(self.results[-1]) if self.results else {},
+        )
+
+
+def _condition_label(spec: dict) -> str:
+    if spec.get("name"):
+        return str(spec["name"])
+    kind = spec.get("type", "none")
+    params = ", ".join(f"{k}={v:g}" for k, v in spec.items() if k not in ("type", "name"))
+    return f"{kind}({params})" if params else kind
+
+
+def install_task(
+    sim: Simulation,
+    task: PathTask,
+    *,
+    condition: dict | str | None = None,
+    log: str | Path | None = None,
+) -> TaskSession:
+    """Add a :class:`TaskSession` of ``task`` to ``sim``'s installed console (component
+    ``task``, after the console's components so that it samples after the haptic loop)."""
+    console = sim.components.get("console")
+    if console is None:
+        raise KeyError("install the console first (console.install_console)")
+    session = TaskSession(sim, console, task, condition=condition, log=log)
+    if session.name in sim.components:
+        raise ValueError(f"a component named {session.name!r} is already registered")
+    sim.components[session.name] = session
+    return session

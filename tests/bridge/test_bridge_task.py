@@ -1,0 +1,68 @@
+"""``davinci-sim serve --task``: the session's /task topics and the CLI's checks."""
+
+from __future__ import annotations
+
+import json
+import threading
+from pathlib import Path
+
+import pytest
+import roslibpy
+from bridge_helpers import wait_for
+
+from davinci_sim import cli
+from davinci_sim.bridge.app import ServeOptions, serve, task_condition
+from davinci_sim.bridge.config import BridgeConfig
+from davinci_sim.tasks import load_task
+
+SHORT_TASK = str(Path(__file__).resolve().parents[1] / "study" / "short_path.yaml")
+
+
+def test_serve_with_a_task_publishes_its_state_and_takes_reset(make_ros):
+    ready, stop = {}, threading.Event()
+    options = ServeOptions(scene="psm1_ecm_mtmr", images="none", task=SHORT_TASK,
+                           condition="20:2", bridge=BridgeConfig(port=0))  # fmt: skip
+    thread = threading.Thread(
+        target=lambda: ready.update(done=serve(options, stop=stop, on_ready=ready.update))
+    )
+    thread.start()
+    try:
+        assert wait_for(lambda: "url" in ready, 30)
+
+        class S:
+            port = int(ready["url"].rsplit(":", 1)[1])
+
+        ros = make_ros(S)
+        states = []
+        roslibpy.Topic(ros, "/task/state", "std_msgs/String").subscribe(
+            lambda m: states.append(json.loads(m["data"]))
+        )
+        assert wait_for(lambda: states, 10)
+        s = states[-1]
+        assert s["task"] == "short_path" and s["condition"] == "viscous(B=20, G_max=2)"
+        assert s["phase"] in ("IDLE", "READY") and s["completed"] == 0 and s["last"] == {}
+        roslibpy.Topic(ros, "/task/reset", "std_msgs/Empty").publish(roslibpy.Message({}))
+        topics = ros.get_topics()
+        assert {"/task/state", "/task/results", "/task/reset"} <= set(topics)
+        # The console was installed with the task, with its teleoperation.
+        assert "/MTMR_PSM1/current_state" in topics
+    finally:
+        stop.set()
+        thread.join(30)
+    assert "done" in ready
+
+
+def test_task_conditions_by_name_or_b_and_g():
+    task = load_task("seed_path")
+    assert task_condition(task, "B=40") == "B=40"
+    assert task_condition(task, "40:5") == {"type": "viscous", "B": 40.0, "G_max": 5.0}
+    assert task_condition(task, None) is None
+    with pytest.raises(ValueError, match="neither"):
+        task_condition(task, "strong")
+
+
+def test_cli_refuses_an_unknown_task_or_condition(capsys):
+    assert cli.main(["serve", "--task", "no_such_task", "--duration", "1"]) == 2
+    assert "no_such_task" in capsys.readouterr().err
+    assert cli.main(["serve", "--task", "seed_path", "--condition", "x", "--duration", "1"]) == 2
+    assert "neither" in capsys.readouterr().err

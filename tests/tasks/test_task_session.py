@@ -1,0 +1,92 @@
+"""A training session: a trainee does the short task at the simulated console with guidance,
+and the session measures the repetition, logs it and starts over from point 1."""
+
+from __future__ import annotations
+
+import csv
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from davinci_sim.operators.console import TraineeHand, hand_impedance
+from davinci_sim.study.trial import TrialSpec, setup_trial, trial_inputs
+from davinci_sim.tasks import install_task, load_task
+
+SHORT_TASK = str(Path(__file__).resolve().parents[1] / "study" / "short_path.yaml")
+
+
+@pytest.fixture(scope="module")
+def session_run(tmp_path_factory):
+    task = load_task(SHORT_TASK)
+    log = tmp_path_factory.mktemp("task") / "reps.csv"
+    setup = setup_trial(task)
+    sim = setup.sim
+    session = install_task(sim, task, condition={"type": "viscous", "B": 40.0, "G_max": 5.0},
+                           log=log)  # fmt: skip
+    spec = TrialSpec(SHORT_TASK, subject=0, condition=2, B=40.0, G_max=5.0, repetition=1,
+                     order=1, practice=3, seed=1)  # fmt: skip
+    params, trainee = trial_inputs([spec], task, setup.T_world_camera, np.zeros(3))
+    setup.device.hand = hand_impedance(params)
+    hand = TraineeHand(trainee, setup.device, sim.arms["PSM1"])
+    sim.components = {hand.name: hand, **sim.components}
+    phases = set()
+    end = sim.time + 20.0
+    while not session.results and sim.time < end:
+        sim.tick()
+        phases.add(session.snapshot().phase)
+    yield sim, session, log, phases
+    sim.close()
+
+
+def test_a_repetition_is_measured_and_logged(session_run):
+    sim, session, log, phases = session_run
+    assert {"READY", "RUNNING"} <= phases
+    assert len(session.results) == 1
+    row = session.results[0]
+    assert row["repetition"] == 1 and row["condition"] == "viscous(B=40, G_max=5)"
+    assert 0 < row["deviation_error"] < 0.003  # the trainee stays within mm of the path
+    assert 0 < row["peak_force"] <= 5.0 + 1e-9  # guided, within G_max
+    assert row["samples"] > 500
+    with open(log) as f:
+        logged = list(csv.DictReader(f))
+    assert len(logged) == 1
+    assert float(logged[0]["deviation_error"]) == pytest.approx(row["deviation_error"])
+    state = session.snapshot()
+    assert state.completed == 1 and state.last["repetition"] == 1
+    assert state.distance_to_path < 0.003
+
+
+def test_back_at_point_1_the_next_repetition_starts_and_reset_abandons_it(session_run):
+    sim, session, log, _ = session_run
+    task = session.task
+    # The trainee lets go; the PSM is brought back to point 1 by its own API (clutched).
+    for name in [n for n in sim.components if n.endswith("/trainee")]:
+        sim.components.pop(name)
+    sim.components["MTMR_PSM1"].clutch(True)
+    psm = sim.arms["PSM1"]
+    T = psm.setpoint_cp().T.copy()
+    T[:3, 3] = (np.linalg.inv(sim.T_cart_camera()) @ np.append(task.start, 1.0))[:3]
+    assert psm.move_cp(T)
+    assert sim.run_until(lambda: not psm.is_busy(), 10.0)
+    sim.run_for(0.05)
+    state = session.snapshot()
+    assert state.repetition == 2 and state.phase == "READY" and state.completed == 1
+    assert session.reset()
+    assert session.snapshot().phase == "IDLE" and session.snapshot().repetition == 2
+
+
+def test_a_task_needs_its_teleoperation():
+    from davinci_sim.console import install_console
+    from davinci_sim.sim.simulation import Simulation
+
+    sim = Simulation("psm1_ecm_mtmr")
+    install_console(sim)
+    task = load_task(SHORT_TASK)
+    with pytest.raises(KeyError, match="MTMR_PSM2"):
+        from dataclasses import replace
+
+        install_task(sim, replace(task, teleop=replace(task.teleop, psm="PSM2")))
+    with pytest.raises(KeyError, match="install the console"):
+        install_task(Simulation("psm1_ecm_mtmr"), task)
+    sim.close()
