@@ -18,9 +18,10 @@ from davinci_sim.tasks import load_task
 SHORT_TASK = str(Path(__file__).resolve().parents[1] / "study" / "short_path.yaml")
 
 
-def test_serve_with_a_task_publishes_its_state_and_takes_reset(make_ros):
+@pytest.mark.parametrize("runner", ["thread", "process"])
+def test_serve_with_a_task_publishes_its_state_and_takes_reset(make_ros, runner):
     ready, stop = {}, threading.Event()
-    options = ServeOptions(scene="psm1_ecm_mtmr", images="none", task=SHORT_TASK,
+    options = ServeOptions(scene="psm1_ecm_mtmr", images="none", task=SHORT_TASK, runner=runner,
                            condition="20:2", bridge=BridgeConfig(port=0))  # fmt: skip
     thread = threading.Thread(
         target=lambda: ready.update(done=serve(options, stop=stop, on_ready=ready.update))
