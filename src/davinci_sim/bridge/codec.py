@@ -39,18 +39,19 @@ def _default(o: Any) -> Any:
 _ENCODER = json.JSONEncoder(allow_nan=False, separators=(",", ":"), default=_default)
 
 
-def _finite(o: Any) -> Any:
-    """A copy of ``o`` with non-finite floats replaced by None (slow path, rarely taken)."""
+def finite_json(o: Any) -> Any:
+    """A copy of ``o`` with non-finite floats replaced by None (JSON has no NaN; the
+    encoder's slow path, rarely taken)."""
     if isinstance(o, float):
         return o if math.isfinite(o) else None
     if isinstance(o, dict):
-        return {k: _finite(v) for k, v in o.items()}
+        return {k: finite_json(v) for k, v in o.items()}
     if isinstance(o, list | tuple):
-        return [_finite(v) for v in o]
+        return [finite_json(v) for v in o]
     if isinstance(o, np.ndarray):
-        return _finite(o.tolist())
+        return finite_json(o.tolist())
     if isinstance(o, np.floating):
-        return _finite(float(o))
+        return finite_json(float(o))
     return o
 
 
@@ -59,7 +60,7 @@ def dumps(obj: Any) -> str:
     try:
         return _ENCODER.encode(obj)
     except ValueError:  # a non-finite float somewhere: take the slow path
-        return _ENCODER.encode(_finite(obj))
+        return _ENCODER.encode(finite_json(obj))
 
 
 # --------------------------------------------------------------------------- incoming

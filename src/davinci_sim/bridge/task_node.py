@@ -20,9 +20,9 @@ import asyncio
 import dataclasses
 import json
 import logging
-import math
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
+from davinci_sim.bridge.codec import finite_json
 from davinci_sim.bridge.publisher import PeriodicTask
 
 if TYPE_CHECKING:
@@ -33,17 +33,6 @@ if TYPE_CHECKING:
 _log = logging.getLogger("davinci_sim.bridge")
 
 NODE = "/davinci_sim/task"
-
-
-def _plain(value: Any) -> Any:
-    """JSON-ready: NaN and inf as None, containers recursively."""
-    if isinstance(value, float):
-        return value if math.isfinite(value) else None
-    if isinstance(value, dict):
-        return {k: _plain(v) for k, v in value.items()}
-    if isinstance(value, list | tuple):
-        return [_plain(v) for v in value]
-    return value
 
 
 class TaskNode:
@@ -93,13 +82,13 @@ class TaskNode:
         state = self._state()
         if state is None:
             return
-        text = json.dumps(_plain(dataclasses.asdict(state)))
+        text = json.dumps(finite_json(dataclasses.asdict(state)))
         if text != self._last_state:
             self._last_state = text
             self.bridge.publish(self._state_topic, {"data": text})
         if state.completed > self._completed and state.last:
             self._completed = state.completed
-            self.bridge.publish(self._results_topic, {"data": json.dumps(_plain(state.last))})
+            self.bridge.publish(self._results_topic, {"data": json.dumps(finite_json(state.last))})
 
     def _on_reset(self, msg: dict, session: Session | None) -> None:
         future = self.handle.call(self.component, "reset")

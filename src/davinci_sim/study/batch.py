@@ -57,7 +57,8 @@ from davinci_sim.study.trial import (
     trial_inputs,
     trial_row,
 )
-from davinci_sim.tasks import MetricsAccumulator, Phase, initial_state, task_step
+from davinci_sim.tasks import MetricsAccumulator, Phase, initial_state
+from davinci_sim.tasks.state import task_sample
 
 #: Below this many rows a batch is not compacted any more (the fixed cost per tick dominates).
 COMPACT_MIN_ROWS = 8
@@ -308,21 +309,9 @@ class TrialBatch:
         self.tau_ff[:, self.mtm_act] = np.clip(tau, -self.mtm_ftmax, self.mtm_ftmax)
 
     def _task(self) -> None:
-        task, path = self.task, self.task.path
         T = self.T_task_camera
         tip = _rotate(T[:3, :3], self.T_psm[:, :3, 3]) + T[:3, 3]
-        cp = path.closest_point(tip)
-        state = task_step(
-            self.state,
-            self.time,
-            np.linalg.norm(tip - task.start, axis=1),
-            np.linalg.norm(tip - task.finish, axis=1),
-            cp.arc_length,
-            path_length=path.length,
-            start_tolerance=task.start_tolerance,
-            finish_tolerance=task.finish_tolerance,
-            min_progress=task.min_progress,
-        )
+        state, cp = task_sample(self.state, self.task, self.time, tip)
         # A trial that has ended keeps its state.
         self.state = type(state)(
             *(np.where(self.active, a, b) for a, b in zip(state, self.state, strict=True))

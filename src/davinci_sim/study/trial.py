@@ -30,7 +30,8 @@ from davinci_sim.console.teleop_psm import TeleopPSM
 from davinci_sim.devices.simulated import SimulatedMTM
 from davinci_sim.model.config import SceneConfig
 from davinci_sim.sim.simulation import Simulation
-from davinci_sim.tasks import MetricsAccumulator, Phase, initial_state, load_task, task_step
+from davinci_sim.tasks import MetricsAccumulator, Phase, initial_state, load_task
+from davinci_sim.tasks.state import task_sample
 from davinci_sim.tasks.task import PathTask
 
 #: Metric columns of a trial's row, in order (see :mod:`davinci_sim.tasks.metrics`).
@@ -223,23 +224,11 @@ def run_trial(spec: TrialSpec) -> dict:
     no_force = np.zeros(6)
     t_start = sim.time
     t_end = t_start + spec.timeout
-    path = task.path
     while sim.time < t_end and teleop.is_following():
         sim.tick()
         t = sim.time
         tip = (setup.T_task_camera @ arm.measured_cp().T)[:3, 3].reshape(1, 3)
-        cp = path.closest_point(tip)
-        state = task_step(
-            state,
-            t,
-            np.linalg.norm(tip - task.start, axis=1),
-            np.linalg.norm(tip - task.finish, axis=1),
-            cp.arc_length,
-            path_length=path.length,
-            start_tolerance=task.start_tolerance,
-            finish_tolerance=task.finish_tolerance,
-            min_progress=task.min_progress,
-        )
+        state, cp = task_sample(state, task, t, tip)
         phase = int(state.phase[0])
         if phase in (Phase.RUNNING, Phase.FINISHED):
             force = setup.console.haptics.snapshot().requested.get(mtm, no_force)[:3]

@@ -23,6 +23,7 @@ from typing import NamedTuple
 
 import numpy as np
 
+from davinci_sim.haptics.path import ClosestPoint
 from davinci_sim.tasks.metrics import MetricsAccumulator, RepetitionMetrics
 from davinci_sim.tasks.task import PathTask
 
@@ -110,6 +111,25 @@ def task_step(
     )
 
 
+def task_sample(state: TaskState, task: PathTask, time, tip) -> tuple[TaskState, ClosestPoint]:
+    """:func:`task_step` of ``task`` for tool tips ``tip`` (n, 3), m, in the task's frame;
+    returns the new state and the tips' closest points on the path (for the metrics)."""
+    path = task.path
+    cp = path.closest_point(tip)
+    new = task_step(
+        state,
+        time,
+        np.linalg.norm(tip - task.start, axis=1),
+        np.linalg.norm(tip - task.finish, axis=1),
+        cp.arc_length,
+        path_length=path.length,
+        start_tolerance=task.start_tolerance,
+        finish_tolerance=task.finish_tolerance,
+        min_progress=task.min_progress,
+    )
+    return new, cp
+
+
 class TaskMonitor:
     """One trial of ``task``: feed it each sample (time, tip, force, clutch); it runs the
     state machine, accumulates the metrics while RUNNING, and has them once FINISHED.
@@ -134,18 +154,7 @@ class TaskMonitor:
         """One sample: tip position (3,), m; force on the hand (3,), N; clutch pressed."""
         task = self.task
         p = np.asarray(tip, dtype=float).reshape(1, 3)
-        cp = task.path.closest_point(p)
-        self.state = task_step(
-            self.state,
-            time,
-            np.linalg.norm(p - task.start, axis=1),
-            np.linalg.norm(p - task.finish, axis=1),
-            cp.arc_length,
-            path_length=task.path.length,
-            start_tolerance=task.start_tolerance,
-            finish_tolerance=task.finish_tolerance,
-            min_progress=task.min_progress,
-        )
+        self.state, cp = task_sample(self.state, task, time, p)
         phase = self.phase
         # The sample where RUNNING begins is the first of the repetition, the one where
         # FINISHED is reached its last.
