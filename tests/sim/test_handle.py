@@ -53,3 +53,50 @@ def test_real_time_pacing_keeps_sim_time_near_wall_time():
         time.sleep(0.3)
         elapsed_sim = handle.snapshot().time - start_sim
     assert elapsed_sim <= time.monotonic() - start_wall + 0.01
+
+
+@pytest.mark.parametrize("noise", [0.0, 1e-4])
+def test_snapshot_poses_are_the_arms_own(noise):
+    """The snapshot computes its Cartesian fields lazily from the copied joints: they equal,
+    to the bit, what each arm's methods return at that tick (every arm kind, moving arms,
+    setpoints away from the measured joints, encoder noise)."""
+    import numpy as np
+
+    from davinci_sim.sim.handle import take_snapshot
+
+    sim = Simulation("full", keyframe="surgical", encoder_noise_std=noise, seed=3)
+    for name in ("PSM1", "ECM", "MTMR"):
+        arm = sim.arms[name]
+        arm.state_command("enable")
+        arm.state_command("home")
+    sim.run_until(lambda: all(sim.arms[n].is_homed() for n in ("PSM1", "ECM", "MTMR")), 30)
+    assert sim.arms["PSM1"].move_jr([0.3, -0.2, 0.02, 0.5, 0.3, 0.3])
+    sim.run_for(0.2)  # a trajectory under way: moving, setpoint ≠ measured
+    snap = take_snapshot(sim)
+    assert set(snap.arms) == set(sim.arms)
+    for name, arm in sim.arms.items():
+        s = snap.arms[name]
+        pairs = (
+            (s.measured_cp, arm.measured_cp()),
+            (s.setpoint_cp, arm.setpoint_cp()),
+            (s.local_measured_cp, arm.local.measured_cp()),
+            (s.local_setpoint_cp, arm.local.setpoint_cp()),
+        )
+        for got, want in pairs:
+            assert np.array_equal(got.T, want.T), name
+            assert (got.reference_frame, got.moving_frame) == (
+                want.reference_frame,
+                want.moving_frame,
+            )
+        assert np.array_equal(s.measured_cv.twist, arm.measured_cv().twist), name
+    assert np.linalg.norm(snap.arms["PSM1"].measured_cv.twist) > 1e-4
+    # Read after the simulation moved on, a snapshot's fields are still those of its tick.
+    later = take_snapshot(sim)
+    psm = sim.arms["PSM1"]
+    q, cp, cv = psm.measured_jp().copy(), psm.measured_cp().T, psm.measured_cv().twist
+    sim.step(5)
+    assert not np.array_equal(psm.measured_jp(), q)
+    assert np.array_equal(later.arms["PSM1"].measured_js.position, q)
+    assert np.array_equal(later.arms["PSM1"].measured_cp.T, cp)
+    assert np.array_equal(later.arms["PSM1"].measured_cv.twist, cv)
+    sim.close()

@@ -26,7 +26,6 @@ inputs are given with :meth:`ProcessSimulation.call_at` (applied at a simulation
 from __future__ import annotations
 
 import atexit
-import dataclasses
 import functools
 import gc
 import itertools
@@ -442,11 +441,9 @@ class ProcessSimulation:
         for name, (T, reference) in bases.items():
             m.arms[name].set_base_frame(T, reference)
         snap = take_snapshot(m)
-        arms = {
-            name: dataclasses.replace(a, operating_state=OperatingState(*states[name], t))
-            for name, a in snap.arms.items()
-        }
-        return Snapshot(t, tick, arms, extras)
+        for name, a in snap.arms.items():  # new objects: no reader has them yet
+            a.operating_state = OperatingState(*states[name], t)
+        return Snapshot(t, tick, snap.arms, extras)
 
 
 # ---------------------------------------------------------------- the loop process
