@@ -22,11 +22,18 @@ runs n trials as arrays instead:
 * The order within a tick is the live simulation's: trainee, hand, teleoperation, arms,
   servo, physics, then the haptic loop and the task on the new state.
 
+* Each trial's model carries its subject's hand mass on the MTM (what the live
+  ``SimulatedMTM`` does when the hand takes the handle); trials of a subject share one model.
+  When half the trials have ended, the arrays drop their rows.
+
 What the batch does not do: anything the study's trials never reach on the live path
-(clutch, a refused or faulted arm recovering, alignment, locks). A PSM ``servo_cp`` whose IK
-fails keeps the previous setpoint, as the arm does; a PSM tracking fault (the arm would go to
-FAULT and the teleoperation stop) ends that trial, unfinished. ``tests/study`` checks that a
-batch reproduces :func:`~davinci_sim.study.trial.run_trial` on the same trials.
+(clutch, a refused or faulted arm recovering, alignment, locks). It holds the camera and
+setup-joint frames as they are at the start (the ECM does not move in a trial); the live
+simulation re-reads them when those joints drift by 1e-6 rad (µm at the tool tip). A PSM
+``servo_cp`` whose IK fails keeps the previous setpoint, as the arm does; a PSM tracking
+fault (the arm would go to FAULT and the teleoperation stop) ends that trial, unfinished.
+``tests/study`` checks that a batch reproduces :func:`~davinci_sim.study.trial.run_trial`
+on the same trials.
 """
 
 from __future__ import annotations
