@@ -73,6 +73,31 @@ class TeleopPSMState:
     """The MTM pose the teleoperation last read (HRSV), None before any input."""
 
 
+@dataclass(frozen=True, eq=False)
+class FollowingAnchors:
+    """What following started from (dvrk.md 4.2), for code that continues the following law
+    elsewhere (the study's batch engine)."""
+
+    T_camera_psm0: np.ndarray
+    """PSM pose when following (re)started, camera frame."""
+    T_hrsv_mtm0: np.ndarray
+    """MTM pose then, HRSV."""
+    R_offset: np.ndarray
+    """``R_mtmᵀ·R_psm`` alignment offset."""
+    scale: float
+    translation_locked: bool
+    rotation_locked: bool
+    jaw_scale: float
+    jaw_offset: float
+    """``jaw = jaw_scale·gripper + jaw_offset``."""
+    jaw_ghost: float
+    """The gripper value the jaw follows now (moves towards the gripper at ``jaw_rate``)."""
+    jaw_sent: float
+    """The jaw angle last sent (nan: none yet)."""
+    jaw_rate: float
+    """rad/s of the jaw's catch-up now."""
+
+
 class TeleopPSM:
     """The teleoperation of ``psm`` by the master ``device``; see the module docstring.
 
@@ -230,6 +255,23 @@ class TeleopPSM:
 
     def is_clutched(self) -> bool:
         return self._clutched
+
+    def following_anchors(self) -> FollowingAnchors:
+        """The anchors of the following law now (copies)."""
+        c = self.config
+        return FollowingAnchors(
+            self._T_camera_psm0.copy(),
+            self._T_hrsv_mtm0.copy(),
+            self._R_offset.copy(),
+            self._scale,
+            self._translation_locked,
+            self._rotation_locked,
+            self._jaw_s,
+            self._jaw_o,
+            self._ghost,
+            self._jaw_sent,
+            c.jaw_rate_after_clutch if self._jaw_catching_up else c.jaw_rate,
+        )
 
     # ------------------------------------------------------------ console side
     def clutch(self, pressed: bool) -> None:

@@ -80,6 +80,24 @@ class SimulatedMTM(MasterDevice):
         self._hand_wrench = np.zeros(6)
         self._hand_applied = False
 
+    # ------------------------------------------------------------ model
+    @property
+    def handle_body(self) -> int:
+        """Id of the body the hand pushes (``<MTM>/wrist_roll``)."""
+        return self._body
+
+    @property
+    def hand_body(self) -> int:
+        """Id of the hand's body at the MTM tip (its mass is the hand's while it holds)."""
+        return self._hand_body
+
+    @property
+    def T_world_hrsv(self) -> np.ndarray:
+        """The console's HRSV frame in the world, 4x4 (fixed)."""
+        T = np.eye(4)
+        T[:3, :3], T[:3, 3] = self._R_world_hrsv, self._p_world_hrsv
+        return T
+
     # ------------------------------------------------------------ the operator's hand
     def _hold(self, holding: bool) -> None:
         """While the hand holds the handle, the model's hand body (``<MTM>/hand``, at the

@@ -90,6 +90,26 @@ class Arm:
     def dof(self) -> int:
         return self.chain.dof
 
+    @property
+    def actuator_indices(self) -> np.ndarray:
+        """The arm joints' actuators (servo rows), in chain order (a copy)."""
+        return self._idx.copy()
+
+    @property
+    def qpos_addresses(self) -> np.ndarray:
+        """The arm joints' ``qpos`` addresses in the MuJoCo model, in chain order (a copy)."""
+        return self._qposadr.copy()
+
+    @property
+    def dof_addresses(self) -> np.ndarray:
+        """The arm joints' ``qvel`` addresses in the MuJoCo model, in chain order (a copy)."""
+        return self._dofadr.copy()
+
+    @property
+    def tracking_tolerance(self) -> np.ndarray:
+        """Per joint, the tracking error that faults the arm after ``TRACKING_FAULT_TIME``."""
+        return self._tol.copy()
+
     def _now(self) -> float:
         return self._sim.time
 

@@ -51,6 +51,16 @@ class Jaw:
     def name(self) -> str:
         return self.spec.name
 
+    @property
+    def actuator_indices(self) -> np.ndarray:
+        """The two fingers' actuators (servo rows) (a copy)."""
+        return self._idx.copy()
+
+    @property
+    def qpos_addresses(self) -> np.ndarray:
+        """The two fingers' ``qpos`` addresses (the angle is their sum) (a copy)."""
+        return self._qposadr.copy()
+
     def _angle(self) -> float:
         return float(self._arm._sim.data.qpos[self._qposadr].sum())
 

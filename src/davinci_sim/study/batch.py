@@ -94,7 +94,7 @@ class TrialBatch:
         self.dt = sim.dt
         # --- each trial's physics: a copy of the live data (derived quantities included)
         self.datas = [copy.copy(sim.data) for _ in range(n)]
-        self._body = device._body
+        self._body = device.handle_body
         d = sim.data
         self.Q = np.tile(d.qpos, (n, 1))
         self.V = np.tile(d.qvel, (n, 1))
@@ -110,37 +110,38 @@ class TrialBatch:
         self.gravity = servo.gravity_compensation.copy()
         # --- arms: joints, chains and the fixed base frames (the ECM does not move)
         self.psm_chain, self.mtm_chain = psm.chain, mtm.chain
-        self.psm_act, self.mtm_act = psm._idx, mtm._idx
-        self.psm_q, self.mtm_q = psm._qposadr, mtm._qposadr
-        self.psm_v, self.mtm_v = psm._dofadr, mtm._dofadr
-        self.jaw_act = psm.jaw._idx
+        self.psm_act, self.mtm_act = psm.actuator_indices, mtm.actuator_indices
+        self.psm_q, self.mtm_q = psm.qpos_addresses, mtm.qpos_addresses
+        self.psm_v, self.mtm_v = psm.dof_addresses, mtm.dof_addresses
+        self.jaw_act = psm.jaw.actuator_indices
         self.jaw_spec = psm.jaw.spec
-        self.gripper_q = mtm.gripper._qposadr
+        self.gripper_q = mtm.gripper.qpos_addresses
         self.T_camera_rcm = psm.base_frame()[0].copy()
         self.T_rcm_camera = np.linalg.inv(self.T_camera_rcm)
         self.T_hrsv_mtmbase = mtm.base_frame()[0].copy()
         # servo_cp refuses IK answers beyond the limits (sim.validation.check_limits, 1e-9).
         self.psm_qmin = psm.chain.qmin - 1e-9
         self.psm_qmax = psm.chain.qmax + 1e-9
-        self.psm_tol = psm._tol
+        self.psm_tol = psm.tracking_tolerance
         self.mtm_ftmax = mtm.chain.ftmax
         # --- the teleoperation as it follows now (dvrk.md 4.2)
         config = teleop.config
-        if teleop.translation_locked() or teleop.rotation_locked():
+        anchors = teleop.following_anchors()
+        if anchors.translation_locked or anchors.rotation_locked:
             raise NotImplementedError("a batch of trials does not run locked teleoperations")
-        self.scale = teleop.scale()
+        self.scale = anchors.scale
         self.use_linear = config.use_mtm_linear_velocity
         self.use_angular = config.use_mtm_angular_velocity
-        self.T_camera_psm0 = teleop._T_camera_psm0.copy()
-        self.T_hrsv_mtm0 = teleop._T_hrsv_mtm0.copy()
-        self.R_offset = teleop._R_offset.copy()
-        self.jaw_s, self.jaw_o = teleop._jaw_s, teleop._jaw_o
-        self.jaw_rate = config.jaw_rate_after_clutch if teleop._jaw_catching_up else config.jaw_rate
-        self.ghost = np.full(n, teleop._ghost)
-        self.jaw_sent = np.full(n, teleop._jaw_sent)
+        self.T_camera_psm0 = anchors.T_camera_psm0
+        self.T_hrsv_mtm0 = anchors.T_hrsv_mtm0
+        self.R_offset = anchors.R_offset
+        self.jaw_s, self.jaw_o = anchors.jaw_scale, anchors.jaw_offset
+        self.jaw_rate = anchors.jaw_rate
+        self.ghost = np.full(n, anchors.jaw_ghost)
+        self.jaw_sent = np.full(n, anchors.jaw_sent)
         # --- the device: HRSV in the world, the hand's grasp, the safety clamp
-        self.R_world_hrsv = device._R_world_hrsv
-        self.p_world_hrsv = device._p_world_hrsv
+        T_world_hrsv = device.T_world_hrsv
+        self.R_world_hrsv, self.p_world_hrsv = T_world_hrsv[:3, :3], T_world_hrsv[:3, 3]
         self.limits = device.limits
         self.wrench_sent = np.tile(device.wrench(), (n, 1))
         # The hand takes the handle where the device last read it, holding the orientation
@@ -165,7 +166,7 @@ class TrialBatch:
         for mass in self.params.mass.tolist():
             if mass not in by_mass:
                 by_mass[mass] = copy.copy(sim.model)
-                by_mass[mass].body_mass[device._hand_body] = mass
+                by_mass[mass].body_mass[device.hand_body] = mass
         self.models = [by_mass[m] for m in self.params.mass.tolist()]
         self.K = self.params.stiffness
         self.D = self.params.damping
