@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import json
 from dataclasses import dataclass, field
+from functools import cached_property
 from importlib import resources
 from typing import Literal
 
@@ -76,8 +77,9 @@ class DHChain:
     def dof(self) -> int:
         return len(self.joints)
 
-    @property
+    @cached_property
     def joint_names(self) -> tuple[str, ...]:
+        # Cached: every joint state the simulator publishes carries it (snapshots at 1 kHz).
         return tuple(j.name for j in self.joints)
 
     @property
