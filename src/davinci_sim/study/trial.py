@@ -1,20 +1,25 @@
 """One trial of a study: one synthetic trainee doing one repetition of a task in one fixture
 condition, through the real simulator, console, teleoperation and haptic loop.
 
-:func:`run_trial` builds a :class:`~davinci_sim.sim.simulation.Simulation` (PSM1, ECM, MTMR),
-installs the console with the task's motion scale, waits for the teleoperation to follow,
-puts a :class:`~davinci_sim.operators.TraineeHand` on the simulated MTMR and the condition's
-fixture (:class:`~davinci_sim.haptics.fixture.FixtureField`) in the haptic loop, then ticks
-at 1 kHz until the task is finished or the timeout (simulated time since the trainee took the
-handle) passes. Every tick the tool tip (task frame), its distance to the path and the
-guidance force the haptic loop requests for the MTM go through the task state machine
-(:func:`~davinci_sim.tasks.task_step`) and a :class:`~davinci_sim.tasks.MetricsAccumulator`
-(no trajectory is stored). A trial that times out is reported as unfinished, with the
-metrics of the part it did.
+:func:`setup_trial` brings a :class:`~davinci_sim.sim.simulation.Simulation` of the study
+scene (the task's PSM and MTM, the ECM; :func:`study_scene`) to the start of a trial: PSM
+homed and its tool at point 1, console installed with the task's motion scale, the
+teleoperation following. The start is the same for every trial.
 
-The trial's randomness (motor noise and tremor of the trainee, the simulation's seed) is
-keyed by (seed, subject, condition, repetition) only, so a trial's result does not depend on
-which process runs it or when.
+:func:`run_trial` is the live engine, one simulation per trial: it puts a
+:class:`~davinci_sim.operators.TraineeHand` on the simulated MTM and the condition's fixture
+(:class:`~davinci_sim.haptics.fixture.FixtureField`) in the haptic loop, then ticks at
+1 kHz until the task is finished, the teleoperation stops (a fault) or the timeout
+(simulated time since the trainee took the handle) passes. Every tick the tool tip (task
+frame), its distance to the path and the guidance force the haptic loop requests for the MTM
+go through the task state machine (:func:`~davinci_sim.tasks.state.task_sample`) and a
+:class:`~davinci_sim.tasks.MetricsAccumulator` (no trajectory is stored). A trial that does
+not finish is reported as unfinished, with the metrics of the part it did. The study runs
+its trials batched (:mod:`davinci_sim.study.batch`), checked against this engine.
+
+The trial's randomness (motor noise and tremor of the trainee) is keyed by (seed, subject,
+condition, repetition) only, so a trial's result does not depend on which process runs it,
+when, or with which other trials.
 """
 
 from __future__ import annotations
