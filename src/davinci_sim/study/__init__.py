@@ -2,9 +2,12 @@
 
 * :class:`StudyConfig`, :func:`plan_trials`, :func:`condition_order` — conditions (default
   Table I), subjects, repetitions, task, seed, counterbalanced order (config.py).
-* :func:`run_trial`, :class:`TrialSpec` — one trial through the simulator, console, teleop
-  and haptic loop with a :class:`~davinci_sim.operators.TraineeHand` (trial.py).
-* :func:`run_study` — every trial on a local process pool or Ray (runner.py).
+* :func:`run_trial`, :class:`TrialSpec` — one trial through the live simulator, console,
+  teleop and haptic loop with a :class:`~davinci_sim.operators.TraineeHand` (trial.py).
+* :class:`~davinci_sim.study.batch.TrialBatch`, :func:`~davinci_sim.study.batch.run_batch` —
+  the study's engine: many trials stepped together with the same laws (batch.py).
+* :func:`run_study` — every trial, in one batch per worker, on a local process pool or Ray
+  (runner.py).
 * :func:`friedman`, :func:`pairwise_wilcoxon`, :func:`holm`, :func:`subject_means` (stats.py).
 * :func:`write_outputs` — ``trials.csv``, Figs 7-9, ``report.md`` (report.py).
 """
