@@ -67,3 +67,34 @@ def test_cli_refuses_an_unknown_task_or_condition(capsys):
     assert "no_such_task" in capsys.readouterr().err
     assert cli.main(["serve", "--task", "seed_path", "--condition", "x", "--duration", "1"]) == 2
     assert "neither" in capsys.readouterr().err
+
+
+def test_training_dashboard_example_follows_a_session(make_ros):
+    import subprocess
+    import sys
+
+    example = Path(__file__).resolve().parents[2] / "examples" / "training_dashboard.py"
+    ready, stop = {}, threading.Event()
+    options = ServeOptions(scene="psm1_ecm_mtmr", images="none", task=SHORT_TASK,
+                           bridge=BridgeConfig(port=0))  # fmt: skip
+    thread = threading.Thread(
+        target=lambda: ready.update(done=serve(options, stop=stop, on_ready=ready.update))
+    )
+    thread.start()
+    try:
+        assert wait_for(lambda: "url" in ready, 30)
+        port = ready["url"].rsplit(":", 1)[1]
+        result = subprocess.run(
+            [sys.executable, str(example), "--port", port, "--duration", "1.5", "--reset"],
+            capture_output=True,
+            text=True,
+            timeout=60,
+        )
+    finally:
+        stop.set()
+        thread.join(30)
+    assert result.returncode == 0, result.stdout + result.stderr
+    lines = result.stdout.splitlines()
+    assert "reset sent" in lines
+    assert any(line.startswith("short_path [viscous(B=40, G_max=5)] repetition 1: ")
+               for line in lines), lines  # fmt: skip
