@@ -135,6 +135,7 @@ def serve(
     from davinci_sim.bridge.dvrk_node import DvrkNode
     from davinci_sim.bridge.endoscope import EndoscopeNode
     from davinci_sim.bridge.server import RosbridgeServer
+    from davinci_sim.bridge.system_node import SystemNode
     from davinci_sim.bridge.task_node import TaskNode
     from davinci_sim.bridge.udp import UdpStreamer, default_streams
     from davinci_sim.sim.handle import ThreadedSimulation
@@ -170,6 +171,7 @@ def serve(
                 DvrkNode(handle, rate=options.rate, tf_rate=options.tf_rate),
                 ConsoleNode(handle, rate=options.rate),
                 TaskNode(handle),
+                SystemNode(handle),
             ]
             if options.images != "none":
                 nodes.append(EndoscopeNode(handle, options.scene, rate=options.image_rate,
