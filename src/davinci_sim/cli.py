@@ -52,9 +52,22 @@ def cmd_snapshot(args: argparse.Namespace) -> int:
 
     from davinci_sim.sim.simulation import Simulation
 
+    edit_spec = None
+    if args.task is not None:
+        from davinci_sim.tasks import TaskError, add_path_visual, load_task
+
+        try:
+            task = load_task(args.task)
+        except TaskError as e:
+            print(f"davinci-sim snapshot: {e}", file=sys.stderr)
+            return 2
+
+        def edit_spec(spec):
+            add_path_visual(spec, task)
+
     out = Path(args.output)
     out.mkdir(parents=True, exist_ok=True)
-    sim = Simulation(args.scene, keyframe=args.keyframe)
+    sim = Simulation(args.scene, keyframe=args.keyframe, edit_spec=edit_spec)
     if not args.no_home:
         _home_all(sim)
     sim.run_for(0.2)
@@ -309,6 +322,7 @@ def main(argv: list[str] | None = None) -> int:
         help="initial pose: 'surgical' (ECM setup joints posed so the endoscope sees the "
         "instruments, default) or 'home' (the dVRK's simulated setup-joint positions)",
     )
+    p.add_argument("--task", default=None, help="draw a task's path (name or file), e.g. seed_path")
     p.set_defaults(func=cmd_snapshot)
     p = sub.add_parser("demo", help="headless scripted demo of every arm")
     p.add_argument("--scene", default="full", choices=_scene_names())
