@@ -127,8 +127,8 @@ class TaskSession:
         task = self.task
         T_task_camera = task.T_task_camera(self.sim.T_cart_camera())
         tip = (T_task_camera @ self.teleop.psm.measured_cp().T)[:3, 3]
-        self._distance = float(task.path.closest_point(tip[None]).distance[0])
         if self._recorded:
+            self._distance = float(task.path.closest_point(tip[None]).distance[0])
             if np.linalg.norm(tip - task.start) <= task.start_tolerance:
                 self.repetition += 1
                 self.reset()
@@ -136,6 +136,7 @@ class TaskSession:
         requested = self.console.haptics.snapshot().requested.get(task.teleop.mtm)
         force = np.zeros(3) if requested is None else requested[:3]
         phase = self.monitor.update(t, tip, force, clutch=self.teleop.is_clutched())
+        self._distance = self.monitor.distance
         if phase == Phase.FINISHED and self.monitor.results is not None:
             self._record(self.monitor.results, t)
 

@@ -18,6 +18,7 @@ close together (or loops) work. :func:`task_step` advances any number of trials 
 
 from __future__ import annotations
 
+import math
 from enum import IntEnum
 from typing import NamedTuple
 
@@ -145,6 +146,8 @@ class TaskMonitor:
         self.state = initial_state(1)
         self._metrics = MetricsAccumulator(1, tube_radius=self.task.tube_radius)
         self.results: RepetitionMetrics | None = None
+        self.distance = math.nan
+        """Distance of the last sample's tip to the path, m (nan before the first)."""
 
     @property
     def phase(self) -> Phase:
@@ -155,6 +158,7 @@ class TaskMonitor:
         task = self.task
         p = np.asarray(tip, dtype=float).reshape(1, 3)
         self.state, cp = task_sample(self.state, task, time, p)
+        self.distance = float(cp.distance[0])
         phase = self.phase
         # The sample where RUNNING begins is the first of the repetition, the one where
         # FINISHED is reached its last.
