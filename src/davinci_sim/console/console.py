@@ -26,6 +26,7 @@ from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
 from davinci_sim.console.teleop_ecm import TeleopECM
+from davinci_sim.console.teleop_math import as_scale
 from davinci_sim.console.teleop_psm import TeleopPSM
 from davinci_sim.devices.buttons import ButtonEvent, parse_button_event
 from davinci_sim.sim.channels import Channels
@@ -135,10 +136,7 @@ class Console:
 
     def set_scale(self, scale: float) -> CommandResult:
         """``/console/teleop/set_scale``: the scale of every teleoperation."""
-        try:
-            s = float(scale)
-        except (TypeError, ValueError):
-            s = math.nan
+        s = as_scale(scale)
         if not (0.0 < s <= 1.0):
             return self._refuse("teleop/set_scale", f"scale must be in ]0, 1], got {scale!r}")
         for t in self.teleops().values():

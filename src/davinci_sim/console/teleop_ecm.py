@@ -18,6 +18,8 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from davinci_sim.console import camera_control as cc
+from davinci_sim.console import teleop_math as tm
+from davinci_sim.console.teleop_base import TeleopBase
 from davinci_sim.console.teleop_config import TeleopECMConfig
 from davinci_sim.console.teleop_psm import COMMANDS, DISABLED, ENABLED, SETTING_ARMS_STATE
 from davinci_sim.devices.device import MasterDevice
@@ -42,7 +44,7 @@ class TeleopECMState:
     clutched: bool
 
 
-class TeleopECM:
+class TeleopECM(TeleopBase):
     """Camera control by ``left`` and ``right`` MTM devices; see the module docstring."""
 
     def __init__(
@@ -81,43 +83,23 @@ class TeleopECM:
         """``enable`` or ``disable``."""
         desired = COMMANDS.get(command) if isinstance(command, str) else None
         if desired not in (ENABLED, DISABLED):
-            text = f"state_command: unknown command {command!r}; valid: enable, disable"
-            self.channels.message("error", text, self.sim.time)
-            return CommandResult(False, f"{self.name}: {text}")
+            return self._refuse(
+                "state_command", f"unknown command {command!r}; valid: enable, disable"
+            )
         if desired != self._desired:
             self._desired = desired
             self.channels.emit("desired_state", desired)
         return ACCEPTED
 
     def set_scale(self, scale: float) -> CommandResult:
-        try:
-            s = float(scale)
-        except (TypeError, ValueError):
-            s = math.nan
+        s = tm.as_scale(scale)
         if not (math.isfinite(s) and s > 0):
-            text = f"set_scale: scale must be > 0, got {scale!r}"
-            self.channels.message("error", text, self.sim.time)
-            return CommandResult(False, f"{self.name}: {text}")
+            return self._refuse("set_scale", f"scale must be > 0, got {scale!r}")
         self._scale = s
         self.channels.emit("scale", s)
         if self._current == ENABLED and self._following:
             self._anchor()
         return ACCEPTED
-
-    def current_state(self) -> str:
-        return self._current
-
-    def desired_state(self) -> str:
-        return self._desired
-
-    def is_following(self) -> bool:
-        return self._following
-
-    def scale(self) -> float:
-        return self._scale
-
-    def is_clutched(self) -> bool:
-        return self._clutched
 
     def clutch(self, pressed: bool) -> None:
         pressed = bool(pressed)
@@ -161,9 +143,6 @@ class TeleopECM:
         )
 
     # ------------------------------------------------------------ internals
-    def _error(self, text: str) -> None:
-        self.channels.message("error", text, self.sim.time)
-
     def _devices_ready(self) -> bool:
         return self.left.is_ready() and self.right.is_ready()
 
@@ -178,11 +157,6 @@ class TeleopECM:
         self._desired = DISABLED
         self._enter(DISABLED)
         return False
-
-    def _set_following(self, following: bool) -> None:
-        if following != self._following:
-            self._following = following
-            self.channels.emit("following", following)
 
     def _enter(self, state: str) -> None:
         previous = self._current

@@ -18,6 +18,14 @@ JAW_CATCH_UP_TOLERANCE = math.radians(2.0)
 ACTIVITY_SUM_RATIO = 0.8
 
 
+def as_scale(value) -> float:
+    """A scale command's value as a float (nan when it is not a number: the caller refuses)."""
+    try:
+        return float(value)
+    except (TypeError, ValueError):
+        return math.nan
+
+
 def alignment_offset(R_hrsv_mtm: np.ndarray, R_camera_psm: np.ndarray) -> np.ndarray:
     """``R_mtmᵀ·R_psm``: the constant rotation from MTM to PSM orientation (dvrk.md 4.2)."""
     return R_hrsv_mtm.T @ R_camera_psm

@@ -30,6 +30,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from davinci_sim.console import teleop_math as tm
+from davinci_sim.console.teleop_base import TeleopBase
 from davinci_sim.console.teleop_config import TeleopPSMConfig
 from davinci_sim.devices.device import MasterDevice
 from davinci_sim.sim import so3
@@ -98,7 +99,7 @@ class FollowingAnchors:
     """rad/s of the jaw's catch-up now."""
 
 
-class TeleopPSM:
+class TeleopPSM(TeleopBase):
     """The teleoperation of ``psm`` by the master ``device``; see the module docstring.
 
     Args:
@@ -182,10 +183,7 @@ class TeleopPSM:
 
     def set_scale(self, scale: float) -> CommandResult:
         """Translation scale in ]0, 1] (dvrk.md 4.1); re-anchors without a jump."""
-        try:
-            s = float(scale)
-        except (TypeError, ValueError):
-            s = math.nan
+        s = tm.as_scale(scale)
         if not (0.0 < s <= 1.0):
             return self._refuse("set_scale", f"scale must be in ]0, 1], got {scale!r}")
         self._scale = s
@@ -229,18 +227,6 @@ class TeleopPSM:
         self._restart_if_enabled()
         return ACCEPTED
 
-    def current_state(self) -> str:
-        return self._current
-
-    def desired_state(self) -> str:
-        return self._desired
-
-    def is_following(self) -> bool:
-        return self._following
-
-    def scale(self) -> float:
-        return self._scale
-
     def rotation_locked(self) -> bool:
         return self._rotation_locked
 
@@ -252,9 +238,6 @@ class TeleopPSM:
 
     def alignment_offset(self) -> np.ndarray:
         return self._R_offset.copy()
-
-    def is_clutched(self) -> bool:
-        return self._clutched
 
     def following_anchors(self) -> FollowingAnchors:
         """The anchors of the following law now (copies)."""
@@ -341,24 +324,6 @@ class TeleopPSM:
         )
 
     # ------------------------------------------------------------ internals
-    def _now(self) -> float:
-        return self.sim.time
-
-    def _refuse(self, command: str, message: str) -> CommandResult:
-        text = f"{command}: {message}"
-        self.channels.message("error", text, self._now())
-        return CommandResult(False, f"{self.name}: {text}")
-
-    def _set_desired(self, desired: str) -> None:
-        if desired != self._desired:
-            self._desired = desired
-            self.channels.emit("desired_state", desired)
-
-    def _set_following(self, following: bool) -> None:
-        if following != self._following:
-            self._following = following
-            self.channels.emit("following", following)
-
     def _mtm_T(self) -> np.ndarray:
         inp = self.device.input()
         return np.eye(4) if inp is None else inp.T_hrsv_tip
@@ -414,9 +379,6 @@ class TeleopPSM:
             self._enter(DISABLED)
             return False
         return True
-
-    def _error(self, text: str) -> None:
-        self.channels.message("error", text, self._now())
 
     # -- SETTING_ARMS_STATE
     def _enter_setting_arms(self) -> None:
