@@ -24,6 +24,7 @@ from davinci_sim.kinematics.ik import inverse_kinematics
 from davinci_sim.kinematics.suj import invert_transform
 from davinci_sim.sim import operating_state as ops
 from davinci_sim.sim.channels import Channels
+from davinci_sim.sim.servo import ServoJoints
 from davinci_sim.sim.trajectory import JointTrajectory, plan_trajectory
 from davinci_sim.sim.types import (
     ACCEPTED,
@@ -49,7 +50,7 @@ TRACKING_FAULT_TIME = 0.05
 STREAMING_REFUSAL_INTERVAL = 1.0
 
 
-class Arm:
+class Arm(ServoJoints):
     """One arm of the simulation; see the module docstring. Created by the simulation."""
 
     def __init__(self, name: str, kin: ArmKinematics, sim: Simulation) -> None:
@@ -58,9 +59,7 @@ class Arm:
         self.chain = kin.chain
         self._sim = sim
         servo = sim.servo
-        self._idx = servo.indices([f"{name}/{j}" for j in self.chain.joint_names])
-        self._qposadr = servo.qposadr[self._idx]
-        self._dofadr = servo.dofadr[self._idx]
+        self._bind_servo(servo, [f"{name}/{j}" for j in self.chain.joint_names])
         self.channels = Channels(name)
         self._state = ops.DISABLED
         self._homed = False
@@ -89,21 +88,6 @@ class Arm:
     @property
     def dof(self) -> int:
         return self.chain.dof
-
-    @property
-    def actuator_indices(self) -> np.ndarray:
-        """The arm joints' actuators (servo rows), in chain order (a copy)."""
-        return self._idx.copy()
-
-    @property
-    def qpos_addresses(self) -> np.ndarray:
-        """The arm joints' ``qpos`` addresses in the MuJoCo model, in chain order (a copy)."""
-        return self._qposadr.copy()
-
-    @property
-    def dof_addresses(self) -> np.ndarray:
-        """The arm joints' ``qvel`` addresses in the MuJoCo model, in chain order (a copy)."""
-        return self._dofadr.copy()
 
     @property
     def tracking_tolerance(self) -> np.ndarray:

@@ -12,6 +12,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from davinci_sim.kinematics.arms import GripperSpec
+from davinci_sim.sim.servo import ServoJoints
 from davinci_sim.sim.trajectory import JointTrajectory, plan_trajectory
 from davinci_sim.sim.types import ACCEPTED, CommandResult, JointState
 from davinci_sim.sim.validation import as_vector, check_limits
@@ -20,7 +21,7 @@ if TYPE_CHECKING:
     from davinci_sim.sim.arm import Arm
 
 
-class Jaw:
+class Jaw(ServoJoints):
     """``arm.jaw.*`` (PSM) or ``arm.gripper.*`` (MTM)."""
 
     def __init__(
@@ -36,9 +37,7 @@ class Jaw:
         self._arm = arm
         self.spec = spec
         servo = arm._sim.servo
-        self._idx = servo.indices([f"{arm.name}/{prefix}_1", f"{arm.name}/{prefix}_2"])
-        self._qposadr = servo.qposadr[self._idx]
-        self._dofadr = servo.dofadr[self._idx]
+        self._bind_servo(servo, [f"{arm.name}/{prefix}_1", f"{arm.name}/{prefix}_2"])
         self._v_max = v_max
         self._a_max = a_max
         self._traj: JointTrajectory | None = None
@@ -50,16 +49,6 @@ class Jaw:
     @property
     def name(self) -> str:
         return self.spec.name
-
-    @property
-    def actuator_indices(self) -> np.ndarray:
-        """The two fingers' actuators (servo rows) (a copy)."""
-        return self._idx.copy()
-
-    @property
-    def qpos_addresses(self) -> np.ndarray:
-        """The two fingers' ``qpos`` addresses (the angle is their sum) (a copy)."""
-        return self._qposadr.copy()
 
     def _angle(self) -> float:
         return float(self._arm._sim.data.qpos[self._qposadr].sum())

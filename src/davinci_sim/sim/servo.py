@@ -86,3 +86,32 @@ class JointServo:
             self.kp,
             self.kv,
         )
+
+
+class ServoJoints:
+    """A group of the servo's joints (an arm, a jaw's two fingers): where they are in the
+    servo's rows and in MuJoCo's ``qpos``/``qvel``. Subclasses call :meth:`_bind_servo`."""
+
+    _idx: np.ndarray
+    _qposadr: np.ndarray
+    _dofadr: np.ndarray
+
+    def _bind_servo(self, servo: JointServo, actuator_names) -> None:
+        self._idx = servo.indices(actuator_names)
+        self._qposadr = servo.qposadr[self._idx]
+        self._dofadr = servo.dofadr[self._idx]
+
+    @property
+    def actuator_indices(self) -> np.ndarray:
+        """The joints' actuators (servo rows) (a copy)."""
+        return self._idx.copy()
+
+    @property
+    def qpos_addresses(self) -> np.ndarray:
+        """The joints' ``qpos`` addresses in the MuJoCo model (a copy)."""
+        return self._qposadr.copy()
+
+    @property
+    def dof_addresses(self) -> np.ndarray:
+        """The joints' ``qvel`` addresses in the MuJoCo model (a copy)."""
+        return self._dofadr.copy()
