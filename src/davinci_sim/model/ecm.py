@@ -13,14 +13,8 @@ import numpy as np
 
 from davinci_sim.kinematics.arms import ArmKinematics
 from davinci_sim.model.cameras import CameraConfig, add_endoscope_cameras
-from davinci_sim.model.dh import add_dh_chain
 from davinci_sim.model.frames import set_pose
-from davinci_sim.model.rcm_arm import (
-    RCMArmShape,
-    add_rcm_arm_shapes,
-    design_frames,
-    set_counterbalanced_inertials,
-)
+from davinci_sim.model.rcm_arm import RCMArmShape, add_rcm_arm, design_frames, mount_uv
 from davinci_sim.model.shapes import Painter, set_inertial
 
 SCOPE_RADIUS = 0.005
@@ -33,11 +27,10 @@ ECM_MASS = {"base": 4.0, "yaw": 3.0, "pitch": 5.0, "insertion": 0.4, "endoscope"
 
 def ecm_shape(T_sujtip_rcm: np.ndarray) -> RCMArmShape:
     """ECM proportions: longer than a PSM (0.61 m from the mount to the RCM)."""
-    mount = -T_sujtip_rcm[:3, :3].T @ T_sujtip_rcm[:3, 3]
-    mount_uv = (-mount[1], mount[2])
+    uv = mount_uv(T_sujtip_rcm)
     return RCMArmShape(
-        mount_uv=mount_uv,
-        yaw_motor_u=(mount_uv[0] - 0.06, mount_uv[0] + 0.12),
+        mount_uv=uv,
+        yaw_motor_u=(uv[0] - 0.06, uv[0] + 0.12),
         pivot_uv=(0.36, 0.08),
         back_link_length=0.46,
         rail_u=0.07,
@@ -54,22 +47,9 @@ def add_ecm(
     """Add the ECM below the SUJ tip body ``mount``; returns the base body."""
     name = "ECM"
     chain = arm.chain
-    base = mount.add_body(name=f"{name}/base")
-    set_pose(base, T_sujtip_rcm)
-    rcm = base.add_site(name=f"{name}/rcm", size=[0.006, 0, 0], rgba=[1, 0.2, 0.2, 0.5])
-    rcm.group = 5
-    bodies = dict(zip(chain.joint_names, add_dh_chain(base, chain, name, q_ref), strict=True))
     shape = ecm_shape(np.asarray(T_sujtip_rcm))
-    add_rcm_arm_shapes(spec, name, base, bodies["yaw"], bodies["pitch"], chain, shape, "shell_dark")
-    set_counterbalanced_inertials(
-        chain,
-        base,
-        bodies["yaw"],
-        bodies["pitch"],
-        base_mass=ECM_MASS["base"],
-        yaw_mass=ECM_MASS["yaw"],
-        pitch_mass=ECM_MASS["pitch"],
-        mount_uv=shape.mount_uv,
+    base, bodies = add_rcm_arm(
+        spec, mount, name, chain, T_sujtip_rcm, q_ref, shape, "shell_dark", ECM_MASS
     )
     # Scope holder on the insertion stage.
     D = design_frames(chain)["insertion"]

@@ -15,14 +15,8 @@ import mujoco
 import numpy as np
 
 from davinci_sim.kinematics.arms import ArmKinematics
-from davinci_sim.model.dh import add_dh_chain
 from davinci_sim.model.frames import set_pose, transform
-from davinci_sim.model.rcm_arm import (
-    RCMArmShape,
-    add_rcm_arm_shapes,
-    design_frames,
-    set_counterbalanced_inertials,
-)
+from davinci_sim.model.rcm_arm import RCMArmShape, add_rcm_arm, design_frames, mount_uv
 from davinci_sim.model.shapes import Painter, set_inertial
 
 SHAFT_RADIUS = 0.004
@@ -48,12 +42,10 @@ PSM_MASS = {
 
 def psm_shape(T_sujtip_rcm: np.ndarray) -> RCMArmShape:
     """PSM proportions (Classic): the yaw link reaches 0.49 m from the mount to the RCM."""
-    mount = -T_sujtip_rcm[:3, :3].T @ T_sujtip_rcm[:3, 3]  # SUJ tip in the RCM frame
-    # In the base frame at yaw 0, u = −y_base and v = +z_base (see rcm_arm.design_frames).
-    mount_uv = (-mount[1], mount[2])
+    uv = mount_uv(T_sujtip_rcm)
     return RCMArmShape(
-        mount_uv=mount_uv,
-        yaw_motor_u=(mount_uv[0] - 0.05, mount_uv[0] + 0.10),
+        mount_uv=uv,
+        yaw_motor_u=(uv[0] - 0.05, uv[0] + 0.10),
         pivot_uv=(0.27, 0.07),
         back_link_length=0.40,
         rail_u=0.05,
@@ -67,23 +59,10 @@ def psm_shape(T_sujtip_rcm: np.ndarray) -> RCMArmShape:
 def add_psm(spec: mujoco.MjSpec, mount, name: str, arm: ArmKinematics, T_sujtip_rcm, q_ref):
     """Add ``name`` (PSM1/2/3) below the SUJ tip body ``mount``; returns the base body."""
     chain = arm.chain
-    base = mount.add_body(name=f"{name}/base")
-    set_pose(base, T_sujtip_rcm)
-    rcm = base.add_site(name=f"{name}/rcm", size=[0.006, 0, 0], rgba=[1, 0.2, 0.2, 0.5])
-    rcm.group = 5
-    bodies = dict(zip(chain.joint_names, add_dh_chain(base, chain, name, q_ref), strict=True))
     shape = psm_shape(np.asarray(T_sujtip_rcm))
     accent = f"carriage_{name}"
-    add_rcm_arm_shapes(spec, name, base, bodies["yaw"], bodies["pitch"], chain, shape, accent)
-    set_counterbalanced_inertials(
-        chain,
-        base,
-        bodies["yaw"],
-        bodies["pitch"],
-        base_mass=PSM_MASS["base"],
-        yaw_mass=PSM_MASS["yaw"],
-        pitch_mass=PSM_MASS["pitch"],
-        mount_uv=shape.mount_uv,
+    base, bodies = add_rcm_arm(
+        spec, mount, name, chain, T_sujtip_rcm, q_ref, shape, accent, PSM_MASS
     )
     _add_carriage(bodies["insertion"], name, shape, accent, chain)
     _add_instrument(bodies, name, arm)

@@ -27,6 +27,8 @@ import numpy as np
 
 from davinci_sim.kinematics.chain import DHChain
 from davinci_sim.kinematics.fk import joint_frames
+from davinci_sim.model.dh import add_dh_chain
+from davinci_sim.model.frames import set_pose
 from davinci_sim.model.shapes import Painter, set_inertial
 
 
@@ -164,3 +166,45 @@ def set_counterbalanced_inertials(
         yaw, yaw_mass, [mount_uv[0] * 0.65, 0, 0], yaw_mass * 0.15**2, T_body_design=D["yaw"]
     )
     set_inertial(pitch, pitch_mass, [0, 0, 0], pitch_mass * 0.32**2, T_body_design=D["pitch"])
+
+
+def mount_uv(T_sujtip_rcm) -> tuple[float, float]:
+    """The SUJ tip (the arm's mount) in the design plane (u, v) of the RCM base frame, m:
+    u = −y_base and v = +z_base at yaw 0 (see :func:`design_frames`)."""
+    T = np.asarray(T_sujtip_rcm, dtype=float)
+    mount = -T[:3, :3].T @ T[:3, 3]  # SUJ tip in the RCM frame
+    return (float(-mount[1]), float(mount[2]))
+
+
+def add_rcm_arm(
+    spec: mujoco.MjSpec,
+    mount,
+    name: str,
+    chain: DHChain,
+    T_sujtip_rcm,
+    q_ref,
+    shape: RCMArmShape,
+    accent: str,
+    masses: dict[str, float],
+):
+    """What a PSM and the ECM have in common: the base body at the RCM below the SUJ tip
+    ``mount`` (with an ``<name>/rcm`` site), the DH chain's bodies, the yaw link and
+    parallelogram shapes, and counterbalanced inertials (``masses``: base, yaw, pitch, kg).
+    Returns ``(base body, {joint name: body})``."""
+    base = mount.add_body(name=f"{name}/base")
+    set_pose(base, T_sujtip_rcm)
+    rcm = base.add_site(name=f"{name}/rcm", size=[0.006, 0, 0], rgba=[1, 0.2, 0.2, 0.5])
+    rcm.group = 5
+    bodies = dict(zip(chain.joint_names, add_dh_chain(base, chain, name, q_ref), strict=True))
+    add_rcm_arm_shapes(spec, name, base, bodies["yaw"], bodies["pitch"], chain, shape, accent)
+    set_counterbalanced_inertials(
+        chain,
+        base,
+        bodies["yaw"],
+        bodies["pitch"],
+        base_mass=masses["base"],
+        yaw_mass=masses["yaw"],
+        pitch_mass=masses["pitch"],
+        mount_uv=shape.mount_uv,
+    )
+    return base, bodies
