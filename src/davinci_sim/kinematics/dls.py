@@ -20,9 +20,7 @@ from davinci_sim.kinematics.ik_base import (
     POSITION_TOLERANCE,
     ROTATION_TOLERANCE,
     IKResult,
-    check_goal,
-    check_seed,
-    goal_tuple,
+    goal_and_seed,
     make_result,
     wrap_revolute,
 )
@@ -114,8 +112,7 @@ def dls_ik(
     Raises:
         ValueError: if the goal or seed has the wrong shape or is not finite.
     """
-    goal = goal_tuple(check_goal(T_base_tip))
-    seed = check_seed(chain, q_seed).tolist()
+    goal, seed = goal_and_seed(chain, T_base_tip, q_seed)
     sol = dls_solve(
         chain, goal, seed, tolerance=tolerance, max_iterations=max_iterations, damping=damping
     )

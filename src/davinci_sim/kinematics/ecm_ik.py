@@ -28,17 +28,15 @@ from davinci_sim.kinematics.ik_base import (
     POSITION_TOLERANCE,
     ROTATION_TOLERANCE,
     IKResult,
-    check_goal,
-    check_seed,
     failed_result,
-    goal_tuple,
+    goal_and_seed,
     make_result,
     pose_errors,
     wrap_angle,
 )
 from davinci_sim.kinematics.rcm import mat3_mul as _mul
 from davinci_sim.kinematics.rcm import rxrz as _rxrz
-from davinci_sim.kinematics.rcm import shaft_angles
+from davinci_sim.kinematics.rcm import shaft_angles, tool_origin
 
 #: dvrk.md 1.8: goals closer than this to the RCM fail (m).
 MIN_GOAL_DISTANCE_FROM_RCM = 1e-4
@@ -109,15 +107,10 @@ def ecm_ik_closed_form(
         ValueError: on a badly shaped or non-finite goal or seed, or a non-ECM chain.
     """
     _check_ecm_chain(chain)
-    goal = goal_tuple(check_goal(T_rcm_tip))
-    seed = check_seed(chain, q_seed).tolist()
+    goal, seed = goal_and_seed(chain, T_rcm_tip, q_seed)
     T = chain.T_last_tip
     Rt_T = tuple(float(T[c, r]) for r in range(3) for c in range(3))
-    R4 = _mul(goal[:9], Rt_T)
-    tx, ty, tz = (float(x) for x in T[:3, 3])
-    px = goal[9] - (R4[0] * tx + R4[1] * ty + R4[2] * tz)
-    py = goal[10] - (R4[3] * tx + R4[4] * ty + R4[5] * tz)
-    pz = goal[11] - (R4[6] * tx + R4[7] * ty + R4[8] * tz)
+    R4, px, py, pz = tool_origin(goal, Rt_T, [float(x) for x in T[:3, 3]])
     if pz > 0.0:
         return failed_result(chain, seed, goal, f"goal above the RCM (z = {pz:.4g} m > 0)")
     dist = math.sqrt(px * px + py * py + pz * pz)

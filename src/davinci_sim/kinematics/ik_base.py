@@ -76,6 +76,12 @@ def check_seed(chain: DHChain, q_seed) -> np.ndarray:
     return q
 
 
+def goal_and_seed(chain: DHChain, T_base_tip, q_seed) -> tuple[tuple[float, ...], list[float]]:
+    """Every solver's inputs, checked (:func:`check_goal`, :func:`check_seed`), as floats: the
+    goal as a :func:`goal_tuple` and the seed as a list."""
+    return goal_tuple(check_goal(T_base_tip)), check_seed(chain, q_seed).tolist()
+
+
 def goal_tuple(T: np.ndarray) -> tuple[float, ...]:
     """A (4, 4) pose as the flat float tuple of :func:`~davinci_sim.kinematics.fk.fk_tuple`."""
     (r00, r01, r02, px), (r10, r11, r12, py), (r20, r21, r22, pz) = T[:3].tolist()

@@ -17,9 +17,7 @@ from davinci_sim.kinematics.ik_base import (
     POSITION_TOLERANCE,
     ROTATION_TOLERANCE,
     IKResult,
-    check_goal,
-    check_seed,
-    goal_tuple,
+    goal_and_seed,
     make_result,
     nearest_turn_within,
 )
@@ -55,8 +53,7 @@ def mtm_ik_iterative(
     """
     if chain.dof != 7:
         raise ValueError(f"{chain.name}: an MTM chain has 7 joints, got {chain.dof}")
-    goal = goal_tuple(check_goal(T_base_tip))
-    seed = check_seed(chain, q_seed).tolist()
+    goal, seed = goal_and_seed(chain, T_base_tip, q_seed)
     start = list(seed)
     platform = chain.joints[PLATFORM]
     start[PLATFORM] = min(

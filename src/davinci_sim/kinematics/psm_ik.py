@@ -43,10 +43,8 @@ from davinci_sim.kinematics.ik_base import (
     POSITION_TOLERANCE,
     ROTATION_TOLERANCE,
     IKResult,
-    check_goal,
-    check_seed,
     failed_result,
-    goal_tuple,
+    goal_and_seed,
     make_result,
     nearest_turn_within,
     pose_errors,
@@ -56,7 +54,7 @@ from davinci_sim.kinematics.ik_base import (
 )
 from davinci_sim.kinematics.rcm import mat3_mul as _mul
 from davinci_sim.kinematics.rcm import rxrz as _rxrz
-from davinci_sim.kinematics.rcm import shaft_angles
+from davinci_sim.kinematics.rcm import shaft_angles, tool_origin
 
 #: dvrk.md 1.8: goals closer than this to the RCM are rejected (m).
 MIN_GOAL_DISTANCE_FROM_RCM = 0.001
@@ -174,11 +172,7 @@ def _candidates(g: PSMGeometry, goal: tuple[float, ...], seed: list[float]):
     Shaft branches whose yaw, pitch or insertion is outside the limits are only completed
     (roll, wrist pitch) when no branch is within them, so that a failure still has a q.
     """
-    R6 = _mul(goal[:9], g.R_tool_T)
-    tx, ty, tz = g.p_tool
-    px = goal[9] - (R6[0] * tx + R6[1] * ty + R6[2] * tz)
-    py = goal[10] - (R6[3] * tx + R6[4] * ty + R6[5] * tz)
-    pz = goal[11] - (R6[6] * tx + R6[7] * ty + R6[8] * tz)
+    R6, px, py, pz = tool_origin(goal, g.R_tool_T, g.p_tool)
     if g.d6 != 0.0:
         px, py, pz = px - g.d6 * R6[2], py - g.d6 * R6[5], pz - g.d6 * R6[8]
     x6 = (R6[0], R6[3], R6[6])
@@ -347,8 +341,7 @@ def psm_ik_closed_form(
         ValueError: on a badly shaped or non-finite goal or seed, or a non-PSM chain.
     """
     g = psm_geometry(chain)
-    goal = goal_tuple(check_goal(T_rcm_tip))
-    seed = check_seed(chain, q_seed).tolist()
+    goal, seed = goal_and_seed(chain, T_rcm_tip, q_seed)
     early = _too_close(chain, seed, goal)
     if early is not None:
         return early
@@ -384,8 +377,7 @@ def psm_ik_reference(
     Slow (hundreds of µs to ms) but literal; kept as the oracle for the closed form.
     """
     g = psm_geometry(chain)
-    goal = goal_tuple(check_goal(T_rcm_tip))
-    seed = check_seed(chain, q_seed).tolist()
+    goal, seed = goal_and_seed(chain, T_rcm_tip, q_seed)
     early = _too_close(chain, seed, goal)
     if early is not None:
         return early

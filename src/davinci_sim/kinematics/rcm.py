@@ -22,6 +22,21 @@ def mat3_mul(A: Sequence[float], B: Sequence[float]) -> tuple[float, ...]:
     )  # fmt: skip
 
 
+def tool_origin(
+    goal: Sequence[float], R_tool_T: Sequence[float], p_tool: Sequence[float]
+) -> tuple[tuple[float, ...], float, float, float]:
+    """The last link's frame for a goal of the tool tip (``fk_tuple`` layout): its rotation
+    R = R_goal·R_toolᵀ (row-major) and origin p = p_goal − R·p_tool, m."""
+    R = mat3_mul(goal[:9], R_tool_T)
+    tx, ty, tz = p_tool
+    return (
+        R,
+        goal[9] - (R[0] * tx + R[1] * ty + R[2] * tz),
+        goal[10] - (R[3] * tx + R[4] * ty + R[5] * tz),
+        goal[11] - (R[6] * tx + R[7] * ty + R[8] * tz),
+    )
+
+
 def rxrz(ca: float, sa: float, th: float) -> tuple[float, ...]:
     """Rx(α)·Rz(θ), the rotation of a modified-DH link (dvrk.md 1.1)."""
     ct, st = math.cos(th), math.sin(th)
