@@ -98,7 +98,8 @@ class TrialBatch:
         d = sim.data
         self.Q = np.tile(d.qpos, (n, 1))
         self.V = np.tile(d.qvel, (n, 1))
-        self.bias = np.tile(d.qfrc_bias - d.qfrc_gravcomp, (n, 1))
+        self.bias = np.tile(sim.servo.bias(d), (n, 1))
+        """The servo's bias forces (JointServo.bias), one row per trial, actuator order."""
         self.xipos = np.tile(d.xipos[self._body], (n, 1))
         # --- the joint servo (one row per trial)
         servo = sim.servo
@@ -340,7 +341,7 @@ class TrialBatch:
         ctrl = servo_ctrl(
             self.Q[:, self._servo.qposadr],
             self.V[:, self._servo.dofadr],
-            self.bias[:, self._servo.dofadr],
+            self.bias,
             self.q_ref,
             self.qd_ref,
             self.tau_ff,
@@ -351,6 +352,7 @@ class TrialBatch:
         )
         body = self._body
         Q, V, bias, xipos = self.Q, self.V, self.bias, self.xipos
+        servo_bias = self._servo.bias
         for i in np.flatnonzero(self.active).tolist():
             d = self.datas[i]
             d.ctrl[:] = ctrl[i]
@@ -358,7 +360,7 @@ class TrialBatch:
             mujoco.mj_step(self.models[i], d)
             Q[i] = d.qpos
             V[i] = d.qvel
-            bias[i] = d.qfrc_bias - d.qfrc_gravcomp  # what JointServo.bias gives
+            bias[i] = servo_bias(d)
             xipos[i] = d.xipos[body]
         self.ticks += self.active
         self.time += self.dt
