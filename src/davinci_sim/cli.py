@@ -186,7 +186,7 @@ def cmd_serve(args: argparse.Namespace) -> int:
     import threading
 
     from davinci_sim.bridge.app import ServeOptions, serve
-    from davinci_sim.bridge.config import BridgeConfig
+    from davinci_sim.bridge.rosbridge.config import BridgeConfig
     from davinci_sim.bridge.udp import parse_ports
 
     logging.basicConfig(level=logging.INFO if args.verbose else logging.WARNING,

@@ -11,9 +11,9 @@ import roslibpy
 from bridge_helpers import wait_for
 from PIL import Image
 
-from davinci_sim.bridge.dialect import ROS1, ROS2
 from davinci_sim.bridge.dvrk_node import DvrkNode
 from davinci_sim.bridge.endoscope import EndoscopeNode, QposProbe, camera_info
+from davinci_sim.bridge.rosbridge.dialect import ROS1, ROS2
 from davinci_sim.sim.handle import ThreadedSimulation
 from davinci_sim.sim.simulation import Simulation
 

@@ -13,7 +13,7 @@ from bridge_helpers import wait_for
 
 from davinci_sim import cli
 from davinci_sim.bridge.app import ServeOptions, serve
-from davinci_sim.bridge.config import BridgeConfig
+from davinci_sim.bridge.rosbridge.config import BridgeConfig
 
 EXAMPLE = Path(__file__).resolve().parents[2] / "examples" / "dvrk_psm_rosbridge.py"
 

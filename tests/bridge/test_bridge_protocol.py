@@ -10,8 +10,8 @@ import cbor2
 import numpy as np
 import pytest
 
-from davinci_sim.bridge import codec
-from davinci_sim.bridge.protocol import (
+from davinci_sim.bridge.rosbridge import codec
+from davinci_sim.bridge.rosbridge.protocol import (
     ALL_OPS,
     OpError,
     ServiceResponseOut,

@@ -13,8 +13,8 @@ import roslibpy
 import roslibpy.ros2
 from bridge_helpers import wait_for
 
-from davinci_sim.bridge import codec
-from davinci_sim.bridge.core import ServiceFailure
+from davinci_sim.bridge.rosbridge import codec
+from davinci_sim.bridge.rosbridge.core import ServiceFailure
 
 
 def test_rosapi_with_roslibpy(make_server, make_ros):
@@ -303,8 +303,8 @@ def test_latched_topic_reaches_late_subscribers(make_server, make_raw):
 
 
 def test_token_authentication(make_server, make_raw):
-    from davinci_sim.bridge.auth import rosauth_mac
-    from davinci_sim.bridge.protocol import Auth
+    from davinci_sim.bridge.rosbridge.auth import rosauth_mac
+    from davinci_sim.bridge.rosbridge.protocol import Auth
 
     server = make_server(auth_token="s3cret")
     c = make_raw(server)

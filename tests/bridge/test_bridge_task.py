@@ -12,7 +12,7 @@ from bridge_helpers import wait_for
 
 from davinci_sim import cli
 from davinci_sim.bridge.app import ServeOptions, serve, task_condition
-from davinci_sim.bridge.config import BridgeConfig
+from davinci_sim.bridge.rosbridge.config import BridgeConfig
 from davinci_sim.tasks import load_task
 
 SHORT_TASK = str(Path(__file__).resolve().parents[1] / "study" / "short_path.yaml")

@@ -5,15 +5,15 @@ import struct
 
 import pytest
 
-from davinci_sim.bridge.convert import (
+from davinci_sim.bridge.rosbridge.convert import (
     MessageError,
     default_message,
     from_wire,
     to_cbor_value,
     typedefs,
 )
-from davinci_sim.bridge.dialect import ROS1, ROS2, TypeNameError, split_type
-from davinci_sim.bridge.types import TypeRegistry, UnknownTypeError, parse_definition
+from davinci_sim.bridge.rosbridge.dialect import ROS1, ROS2, TypeNameError, split_type
+from davinci_sim.bridge.rosbridge.types import TypeRegistry, UnknownTypeError, parse_definition
 
 
 @pytest.fixture(scope="module")

@@ -10,7 +10,7 @@ from hypothesis import strategies as st
 
 from davinci_sim.console import camera_control as cc
 from davinci_sim.console import teleop_math as tm
-from davinci_sim.sim import so3
+from davinci_sim.geometry import so3
 
 angles = st.floats(-3.0, 3.0)
 axes = st.tuples(st.floats(-1, 1), st.floats(-1, 1), st.floats(-1, 1)).filter(

@@ -7,7 +7,7 @@ import pytest
 from console_helpers import events_of, rotation_about, teleop_sim
 
 from davinci_sim.console import SIMULATED_SYSTEM, TeleopPSMConfig
-from davinci_sim.sim import so3
+from davinci_sim.geometry import so3
 
 #: Most tests skip the MTM's slow alignment motion (~2.5 s of simulation): without
 #: ``align_MTM`` the alignment offset absorbs the orientation difference (dvrk.md 4.2).

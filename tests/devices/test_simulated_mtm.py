@@ -8,8 +8,8 @@ import numpy as np
 import pytest
 
 from davinci_sim.devices import HandImpedance, SimulatedMTM, hand_wrench
-from davinci_sim.haptics import WrenchLimits
-from davinci_sim.sim import so3
+from davinci_sim.devices.safety import WrenchLimits
+from davinci_sim.geometry import so3
 from davinci_sim.sim.simulation import Simulation
 
 

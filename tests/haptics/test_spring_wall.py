@@ -7,7 +7,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from davinci_sim.haptics.path import Polyline
+from davinci_sim.geometry.path import Polyline
 from davinci_sim.haptics.spring import SpringGuidance, spring_guidance
 from davinci_sim.haptics.wall import PlaneWall, SphereWall, wall_force
 

@@ -7,10 +7,10 @@ import math
 import numpy as np
 import pytest
 
+from davinci_sim.geometry.path import Polyline
 from davinci_sim.haptics.combine import FixtureSum, combine
 from davinci_sim.haptics.field import ForceField, HapticState, as_wrench
 from davinci_sim.haptics.fixture import Fixture, FixtureField
-from davinci_sim.haptics.path import Polyline
 from davinci_sim.haptics.spring import SpringGuidance
 from davinci_sim.haptics.velocity import VelocityFilter, lowpass_alpha
 from davinci_sim.haptics.viscous import ViscousGuidance

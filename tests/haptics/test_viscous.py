@@ -10,7 +10,7 @@ from hypothesis import assume, given, settings
 from hypothesis import strategies as st
 from scipy.spatial.transform import Rotation
 
-from davinci_sim.haptics.path import Polyline
+from davinci_sim.geometry.path import Polyline
 from davinci_sim.haptics.viscous import (
     ViscousGuidance,
     viscous_guidance,

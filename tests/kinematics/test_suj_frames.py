@@ -5,9 +5,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from davinci_sim.geometry.se3 import invert_transform
 from davinci_sim.kinematics.arms import load_arm, load_suj
 from davinci_sim.kinematics.fk import forward_kinematics
-from davinci_sim.kinematics.suj import T_cart_rcm, cart_frames, invert_transform
+from davinci_sim.kinematics.suj import T_cart_rcm, cart_frames
 
 ATOL = 5e-5  # half the last printed digit
 

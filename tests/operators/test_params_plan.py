@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from davinci_sim.haptics.path import Polyline
+from davinci_sim.geometry.path import Polyline
 from davinci_sim.operators.params import sample_subjects
 from davinci_sim.operators.plan import minimum_jerk, path_plan, straight_plan, stroke_durations
 

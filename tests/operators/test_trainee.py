@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 from scipy import signal
 
-from davinci_sim.haptics.path import Polyline
+from davinci_sim.geometry.path import Polyline
 from davinci_sim.operators import SyntheticTrainee, TraineePhase, run_ideal, sample_subjects
 from davinci_sim.operators.plan import path_plan
 from davinci_sim.tasks import load_task

@@ -10,10 +10,10 @@ from hypothesis import strategies as st
 
 from davinci_sim.console import teleop_math as tm
 from davinci_sim.devices.hand import HandImpedance, hand_wrench, hand_wrenches
-from davinci_sim.haptics.safety import WrenchLimits, clamp_wrench, clamp_wrenches
+from davinci_sim.devices.safety import WrenchLimits, clamp_wrench, clamp_wrenches
+from davinci_sim.geometry import so3
 from davinci_sim.kinematics import fk
 from davinci_sim.kinematics.arms import load_arm
-from davinci_sim.sim import so3
 from davinci_sim.sim.servo import servo_ctrl
 
 

@@ -18,7 +18,7 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Literal
 
-from davinci_sim.bridge.config import BridgeConfig
+from davinci_sim.bridge.rosbridge.config import BridgeConfig
 
 _log = logging.getLogger("davinci_sim.bridge")
 
@@ -134,7 +134,7 @@ def serve(
     from davinci_sim.bridge.console_node import ConsoleNode
     from davinci_sim.bridge.dvrk_node import DvrkNode
     from davinci_sim.bridge.endoscope import EndoscopeNode
-    from davinci_sim.bridge.server import RosbridgeServer
+    from davinci_sim.bridge.rosbridge.server import RosbridgeServer
     from davinci_sim.bridge.system_node import SystemNode
     from davinci_sim.bridge.task_node import TaskNode
     from davinci_sim.bridge.udp import UdpStreamer, default_streams

@@ -30,9 +30,9 @@ from typing import TYPE_CHECKING, Any, Literal
 import numpy as np
 
 from davinci_sim.bridge import dvrk_messages as m
-from davinci_sim.bridge.convert import MessageError, from_wire
-from davinci_sim.bridge.dialect import dialect
-from davinci_sim.bridge.types import TypeRegistry
+from davinci_sim.bridge.rosbridge.convert import MessageError, from_wire
+from davinci_sim.bridge.rosbridge.dialect import dialect
+from davinci_sim.bridge.rosbridge.types import TypeRegistry
 
 if TYPE_CHECKING:
     from davinci_sim.sim.handle import SimHandle, Snapshot

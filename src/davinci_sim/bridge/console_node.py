@@ -28,13 +28,13 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from davinci_sim.bridge import dvrk_messages as m
-from davinci_sim.bridge.graph import Topic
-from davinci_sim.bridge.publisher import PeriodicTask
+from davinci_sim.bridge.rosbridge.graph import Topic
+from davinci_sim.bridge.rosbridge.publisher import PeriodicTask
 from davinci_sim.sim.types import CartesianPose
 
 if TYPE_CHECKING:
-    from davinci_sim.bridge.core import Bridge
-    from davinci_sim.bridge.session import Session
+    from davinci_sim.bridge.rosbridge.core import Bridge
+    from davinci_sim.bridge.rosbridge.session import Session
     from davinci_sim.sim.handle import SimHandle, Snapshot
 
 _log = logging.getLogger("davinci_sim.bridge")

@@ -15,7 +15,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from davinci_sim.bridge.dialect import Dialect
+from davinci_sim.bridge.rosbridge.dialect import Dialect
 from davinci_sim.sim.types import CartesianPose, CartesianTwist, JointState, OperatingState
 
 

@@ -33,10 +33,10 @@ from typing import TYPE_CHECKING, Any, Literal
 
 import numpy as np
 
-from davinci_sim.bridge.publisher import PeriodicTask
+from davinci_sim.bridge.rosbridge.publisher import PeriodicTask
 
 if TYPE_CHECKING:
-    from davinci_sim.bridge.core import Bridge
+    from davinci_sim.bridge.rosbridge.core import Bridge
     from davinci_sim.model.config import SceneConfig
     from davinci_sim.sim.handle import SimHandle
 

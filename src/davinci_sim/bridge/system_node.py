@@ -19,8 +19,8 @@ import math
 from typing import TYPE_CHECKING
 
 if TYPE_CHECKING:
-    from davinci_sim.bridge.core import Bridge
-    from davinci_sim.bridge.session import Session
+    from davinci_sim.bridge.rosbridge.core import Bridge
+    from davinci_sim.bridge.rosbridge.session import Session
     from davinci_sim.sim.handle import SimHandle
 
 _log = logging.getLogger("davinci_sim.bridge")

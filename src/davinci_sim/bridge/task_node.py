@@ -22,12 +22,12 @@ import json
 import logging
 from typing import TYPE_CHECKING
 
-from davinci_sim.bridge.codec import finite_json
-from davinci_sim.bridge.publisher import PeriodicTask
+from davinci_sim.bridge.rosbridge.codec import finite_json
+from davinci_sim.bridge.rosbridge.publisher import PeriodicTask
 
 if TYPE_CHECKING:
-    from davinci_sim.bridge.core import Bridge
-    from davinci_sim.bridge.session import Session
+    from davinci_sim.bridge.rosbridge.core import Bridge
+    from davinci_sim.bridge.rosbridge.session import Session
     from davinci_sim.sim.handle import SimHandle
 
 _log = logging.getLogger("davinci_sim.bridge")

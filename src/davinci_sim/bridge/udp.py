@@ -27,8 +27,8 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from davinci_sim.bridge import codec
-from davinci_sim.bridge.publisher import PeriodicTask
+from davinci_sim.bridge.rosbridge import codec
+from davinci_sim.bridge.rosbridge.publisher import PeriodicTask
 from davinci_sim.devices.streamer import encode_joint_state, encode_pose
 
 if TYPE_CHECKING:

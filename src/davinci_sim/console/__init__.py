@@ -4,9 +4,11 @@
 * :class:`Console` — pedals, ``emulate_*``, teleop enable/scale/select (dvrk.md 2.3).
 * :class:`TeleopPSM` — MTM → PSM with the dVRK state machine and follow mode (dvrk.md 4).
 * :class:`TeleopECM` — both MTMs move the camera while the camera pedal is held.
+* :class:`HapticLoop` — force fields → wrench clamp → MTM, each tick after the physics step.
 """
 
 from davinci_sim.console.console import BUTTONS, PEDALS, Console, ConsoleState
+from davinci_sim.console.haptic_loop import HapticLoop, HapticsState
 from davinci_sim.console.setup import build_teleop_simulation, install_console
 from davinci_sim.console.teleop_config import SIMULATED_SYSTEM, TeleopECMConfig, TeleopPSMConfig
 from davinci_sim.console.teleop_ecm import TeleopECM, TeleopECMState
@@ -17,6 +19,8 @@ __all__ = [
     "PEDALS",
     "SIMULATED_SYSTEM",
     "Console",
+    "HapticLoop",
+    "HapticsState",
     "ConsoleState",
     "TeleopECM",
     "TeleopECMConfig",

@@ -33,8 +33,8 @@ from davinci_sim.sim.channels import Channels
 from davinci_sim.sim.types import ACCEPTED, CommandResult
 
 if TYPE_CHECKING:
+    from davinci_sim.console.haptic_loop import HapticLoop
     from davinci_sim.devices.device import MasterDevice
-    from davinci_sim.haptics.loop import HapticLoop
     from davinci_sim.sim.simulation import Simulation
 
 #: dvrk.md 2.3: the raw foot pedals (``/footpedals/<name>``) and the console's head sensor.

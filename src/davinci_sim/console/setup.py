@@ -17,15 +17,15 @@ import math
 from collections.abc import Mapping
 
 from davinci_sim.console.console import Console
+from davinci_sim.console.haptic_loop import HapticLoop
 from davinci_sim.console.teleop_config import SIMULATED_SYSTEM, TeleopECMConfig, TeleopPSMConfig
 from davinci_sim.console.teleop_ecm import TeleopECM
 from davinci_sim.console.teleop_psm import TeleopPSM
 from davinci_sim.devices.device import MasterDevice
+from davinci_sim.devices.safety import WrenchLimits
 from davinci_sim.devices.scripted import HandScript, circle
 from davinci_sim.devices.simulated import SimulatedMTM
 from davinci_sim.haptics.contact import ContactFeedback
-from davinci_sim.haptics.loop import HapticLoop
-from davinci_sim.haptics.safety import WrenchLimits
 from davinci_sim.sim.simulation import Simulation
 
 #: dvrk.md 6: teleoperations of the dVRK's simulated full system, in declaration order.

@@ -33,7 +33,7 @@ from davinci_sim.console import teleop_math as tm
 from davinci_sim.console.teleop_base import TeleopBase
 from davinci_sim.console.teleop_config import TeleopPSMConfig
 from davinci_sim.devices.device import MasterDevice
-from davinci_sim.sim import so3
+from davinci_sim.geometry import so3
 from davinci_sim.sim.arms import PSM
 from davinci_sim.sim.channels import Channels
 from davinci_sim.sim.types import ACCEPTED, CommandResult

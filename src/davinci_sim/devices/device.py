@@ -9,7 +9,7 @@ a real MTM behind a bridge).
 
 A device is a simulation component: ``pre_step(t)`` reads its input once per tick (before the
 teleoperation uses it) and ``snapshot()`` publishes its state. Every wrench sent through
-:meth:`MasterDevice.servo_cf` passes the safety limits (:mod:`davinci_sim.haptics.safety`); a
+:meth:`MasterDevice.servo_cf` passes the safety limits (:mod:`davinci_sim.devices.safety`); a
 device with a watchdog (network devices: 30 ms, the dVRK watchdog, dvrk.md 1.7) whose last
 input is older than that is *stale*: it gets a zero wrench, refuses others, and the
 teleoperation stops following it.
@@ -25,8 +25,8 @@ from typing import ClassVar
 import numpy as np
 
 from davinci_sim.devices.buttons import ButtonEvent
+from davinci_sim.devices.safety import WrenchLimiter, WrenchLimits
 from davinci_sim.devices.state import DeviceInput, DeviceSnapshot
-from davinci_sim.haptics.safety import WrenchLimiter, WrenchLimits
 from davinci_sim.sim.channels import Channels
 from davinci_sim.sim.types import ACCEPTED, CommandResult
 

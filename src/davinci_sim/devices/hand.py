@@ -12,9 +12,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from davinci_sim.haptics.safety import limit_norms
-from davinci_sim.sim import so3
-from davinci_sim.sim.so3 import rotation_vectors
+from davinci_sim.devices.safety import limit_norms
+from davinci_sim.geometry import so3
+from davinci_sim.geometry.so3 import rotation_vectors
 
 
 @dataclass(frozen=True)

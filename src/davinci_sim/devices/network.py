@@ -19,9 +19,9 @@ import numpy as np
 
 from davinci_sim.devices.buttons import parse_button_event
 from davinci_sim.devices.device import DVRK_WATCHDOG, MasterDevice
+from davinci_sim.devices.safety import WrenchLimits
 from davinci_sim.devices.state import DeviceInput
-from davinci_sim.haptics.safety import WrenchLimits
-from davinci_sim.sim import so3
+from davinci_sim.geometry import so3
 from davinci_sim.sim.types import ACCEPTED, CommandResult
 from davinci_sim.sim.validation import as_transform, as_vector
 

@@ -18,8 +18,8 @@ import numpy as np
 
 from davinci_sim.devices.device import MasterDevice
 from davinci_sim.devices.hand import HandImpedance, hand_wrench
+from davinci_sim.devices.safety import WrenchLimits
 from davinci_sim.devices.state import DeviceInput
-from davinci_sim.haptics.safety import WrenchLimits
 from davinci_sim.sim.arms import MTM
 from davinci_sim.sim.types import CommandResult
 from davinci_sim.sim.validation import as_transform

@@ -22,7 +22,7 @@ import numpy as np
 from davinci_sim.devices import streamer
 from davinci_sim.devices.device import DVRK_WATCHDOG
 from davinci_sim.devices.network import NetworkDevice
-from davinci_sim.haptics.safety import WrenchLimits
+from davinci_sim.devices.safety import WrenchLimits
 
 #: Name of the outgoing wrench command: spatial (HRSV axes), as the wrench is computed.
 WRENCH_COMMAND = "spatial/servo_cf"

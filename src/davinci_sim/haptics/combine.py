@@ -2,7 +2,7 @@
 
 ``combine(guidance, wall)`` is itself a fixture (``force(position, velocity)``), in the one
 frame all its parts share. Nested sums are flattened. A sum can be capped as a whole by the
-haptic loop's safety limits (:mod:`davinci_sim.haptics.safety`), not here.
+haptic loop's safety limits (:mod:`davinci_sim.devices.safety`), not here.
 """
 
 from __future__ import annotations

@@ -22,7 +22,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from davinci_sim.haptics.path import Polyline
+from davinci_sim.geometry.path import Polyline
 
 _EPS = 1e-12
 

@@ -38,7 +38,7 @@ Degenerate cases, all continuous and finite:
   printed (and G = 0 only exactly on the path).
 
 The remaining discontinuity is the path's, not the law's: on the medial axis of the path
-(points equidistant from two parts of it, see :mod:`davinci_sim.haptics.path`) φ itself
+(points equidistant from two parts of it, see :mod:`davinci_sim.geometry.path`) φ itself
 jumps, and so does the force.
 
 Frames: v, φ and the force share one frame (the path's, or the camera's: the law commutes
@@ -53,7 +53,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from davinci_sim.haptics.path import Polyline
+from davinci_sim.geometry.path import Polyline
 
 #: Default width of the ramp that makes the force vanish on the path, m (our choice: below
 #: the deviations the seed's task measures, mm, above the tremor, ~0.1 mm).

@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import math
 
+from davinci_sim.geometry.so3 import mat3_mul as _mul
 from davinci_sim.kinematics.chain import DHChain
 from davinci_sim.kinematics.fk import fk_tuple
 from davinci_sim.kinematics.ik_base import (
@@ -34,7 +35,6 @@ from davinci_sim.kinematics.ik_base import (
     pose_errors,
     wrap_angle,
 )
-from davinci_sim.kinematics.rcm import mat3_mul as _mul
 from davinci_sim.kinematics.rcm import rxrz as _rxrz
 from davinci_sim.kinematics.rcm import shaft_angles, tool_origin
 

@@ -35,6 +35,7 @@ import math
 import weakref
 from dataclasses import dataclass
 
+from davinci_sim.geometry.so3 import mat3_mul as _mul
 from davinci_sim.kinematics.chain import DHChain
 from davinci_sim.kinematics.dls import dls_solve
 from davinci_sim.kinematics.fk import fk_tuple
@@ -52,7 +53,6 @@ from davinci_sim.kinematics.ik_base import (
     wrap_angle,
     wrap_revolute,
 )
-from davinci_sim.kinematics.rcm import mat3_mul as _mul
 from davinci_sim.kinematics.rcm import rxrz as _rxrz
 from davinci_sim.kinematics.rcm import shaft_angles, tool_origin
 

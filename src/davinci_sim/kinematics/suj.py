@@ -17,17 +17,9 @@ from types import MappingProxyType
 
 import numpy as np
 
+from davinci_sim.geometry.se3 import invert_transform
 from davinci_sim.kinematics.arms import SUJArmKinematics, load_arm, load_suj
 from davinci_sim.kinematics.fk import forward_kinematics
-
-
-def invert_transform(T: np.ndarray) -> np.ndarray:
-    """Inverse of a rigid 4x4 transform (Rᵀ, −Rᵀp)."""
-    out = np.eye(4)
-    R = T[:3, :3]
-    out[:3, :3] = R.T
-    out[:3, 3] = -R.T @ T[:3, 3]
-    return out
 
 
 def T_cart_rcm(suj_arm: SUJArmKinematics, q_suj) -> np.ndarray:

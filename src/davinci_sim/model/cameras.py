@@ -6,7 +6,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from davinci_sim.model.frames import look_at_rotation, rot_y, set_pose, transform
+from davinci_sim.geometry.se3 import look_at_rotation, rot_y, transform
+from davinci_sim.model.frames import set_pose
 
 #: Classic SD 12 mm stereo endoscope: a diagonal field of view of about 70° is typical for
 #: laparoscopes of that generation; on a 4:3 sensor that is 2·atan(0.6·tan 35°) ≈ 45°

@@ -11,8 +11,9 @@ from __future__ import annotations
 
 import numpy as np
 
+from davinci_sim.geometry.se3 import rot_z, transform
 from davinci_sim.kinematics.arms import load_arm
-from davinci_sim.model.frames import rot_z, set_pose, transform
+from davinci_sim.model.frames import set_pose
 from davinci_sim.model.mtm import add_mtm
 from davinci_sim.model.shapes import Painter
 

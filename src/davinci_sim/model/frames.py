@@ -1,4 +1,4 @@
-"""Rigid transforms and their conversion to MjSpec element poses.
+"""Conversion of rigid transforms to MjSpec element poses (the math is in ``geometry``).
 
 All transforms are 4x4 homogeneous matrices named ``T_<reference>_<frame>`` (the pose of
 ``frame`` expressed in ``reference``). MuJoCo quaternions are ``(w, x, y, z)``.
@@ -8,34 +8,6 @@ from __future__ import annotations
 
 import mujoco
 import numpy as np
-
-
-def rot_x(angle: float) -> np.ndarray:
-    """Rotation matrix about x by ``angle`` rad."""
-    c, s = np.cos(angle), np.sin(angle)
-    return np.array([[1.0, 0.0, 0.0], [0.0, c, -s], [0.0, s, c]])
-
-
-def rot_y(angle: float) -> np.ndarray:
-    """Rotation matrix about y by ``angle`` rad."""
-    c, s = np.cos(angle), np.sin(angle)
-    return np.array([[c, 0.0, s], [0.0, 1.0, 0.0], [-s, 0.0, c]])
-
-
-def rot_z(angle: float) -> np.ndarray:
-    """Rotation matrix about z by ``angle`` rad."""
-    c, s = np.cos(angle), np.sin(angle)
-    return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
-
-
-def transform(R=None, p=None) -> np.ndarray:
-    """A 4x4 transform from a rotation (default identity) and a translation (default 0)."""
-    T = np.eye(4)
-    if R is not None:
-        T[:3, :3] = R
-    if p is not None:
-        T[:3, 3] = p
-    return T
 
 
 def mat_to_quat(R: np.ndarray) -> np.ndarray:
@@ -55,29 +27,3 @@ def set_pose(element, T: np.ndarray) -> None:
     """Set ``element.pos``/``element.quat`` (body, geom, site, camera, …) from ``T``."""
     element.pos = np.asarray(T[:3, 3], dtype=float)
     element.quat = mat_to_quat(T[:3, :3])
-
-
-def look_at_rotation(position, target, up=(0.0, 0.0, 1.0)) -> np.ndarray:
-    """Rotation of a MuJoCo camera at ``position`` looking at ``target``.
-
-    MuJoCo cameras look along their −z axis with +y up in the image.
-    """
-    forward = np.asarray(target, dtype=float) - np.asarray(position, dtype=float)
-    forward /= np.linalg.norm(forward)
-    up = np.asarray(up, dtype=float)
-    if abs(np.dot(forward, up)) > 0.999:  # looking straight up/down: any other up will do
-        up = np.array([0.0, 1.0, 0.0])
-    x = np.cross(forward, up)
-    x /= np.linalg.norm(x)
-    y = np.cross(x, forward)
-    return np.column_stack([x, y, -forward])
-
-
-def segment_rotation(direction) -> np.ndarray:
-    """A rotation whose z axis is ``direction`` (for cylinders/boxes along a segment)."""
-    z = np.asarray(direction, dtype=float)
-    z = z / np.linalg.norm(z)
-    helper = np.array([1.0, 0.0, 0.0]) if abs(z[0]) < 0.9 else np.array([0.0, 1.0, 0.0])
-    x = np.cross(helper, z)
-    x /= np.linalg.norm(x)
-    return np.column_stack([x, np.cross(z, x), z])

@@ -10,7 +10,8 @@ from __future__ import annotations
 import mujoco
 import numpy as np
 
-from davinci_sim.model.frames import rot_z, set_pose, transform
+from davinci_sim.geometry.se3 import rot_z, transform
+from davinci_sim.model.frames import set_pose
 from davinci_sim.model.shapes import Painter, set_inertial
 
 TABLE_TOP_Z = 0.70

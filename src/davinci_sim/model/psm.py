@@ -14,8 +14,9 @@ from __future__ import annotations
 import mujoco
 import numpy as np
 
+from davinci_sim.geometry.se3 import transform
 from davinci_sim.kinematics.arms import ArmKinematics
-from davinci_sim.model.frames import set_pose, transform
+from davinci_sim.model.frames import set_pose
 from davinci_sim.model.rcm_arm import RCMArmShape, add_rcm_arm, design_frames, mount_uv
 from davinci_sim.model.shapes import Painter, set_inertial
 

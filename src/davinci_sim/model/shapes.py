@@ -12,8 +12,9 @@ from dataclasses import dataclass, field
 import mujoco
 import numpy as np
 
+from davinci_sim.geometry.se3 import segment_rotation
 from davinci_sim.model import contact
-from davinci_sim.model.frames import mat_to_quat, segment_rotation
+from davinci_sim.model.frames import mat_to_quat
 
 _G = mujoco.mjtGeom
 

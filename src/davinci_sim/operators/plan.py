@@ -15,7 +15,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from davinci_sim.haptics.path import Polyline
+from davinci_sim.geometry.path import Polyline
 
 
 def minimum_jerk(u) -> tuple[np.ndarray, np.ndarray]:

@@ -55,7 +55,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from davinci_sim.haptics.path import Polyline
+from davinci_sim.geometry.path import Polyline
 from davinci_sim.operators.noise import MotorNoise, Tremor, TrialNoise
 from davinci_sim.operators.params import TREMOR_BANDWIDTH_HZ, SubjectParams
 from davinci_sim.operators.plan import path_plan, straight_plan, stroke_durations

@@ -18,10 +18,10 @@ from typing import TYPE_CHECKING
 import numpy as np
 from scipy.linalg.lapack import dgesv
 
+from davinci_sim.geometry.se3 import invert_transform
 from davinci_sim.kinematics import fk
 from davinci_sim.kinematics.arms import ArmKinematics
 from davinci_sim.kinematics.ik import inverse_kinematics
-from davinci_sim.kinematics.suj import invert_transform
 from davinci_sim.sim import operating_state as ops
 from davinci_sim.sim.channels import Channels
 from davinci_sim.sim.servo import ServoJoints

@@ -8,10 +8,10 @@ from typing import TYPE_CHECKING
 import numpy as np
 from scipy.linalg.lapack import dgesv
 
+from davinci_sim.geometry import so3
 from davinci_sim.kinematics import fk
 from davinci_sim.kinematics.arms import ArmKinematics, SUJArmKinematics
 from davinci_sim.kinematics.chain import DHChain
-from davinci_sim.sim import so3
 from davinci_sim.sim.arm import Arm
 from davinci_sim.sim.jaw import Jaw
 from davinci_sim.sim.types import ACCEPTED, CommandResult

@@ -13,9 +13,10 @@ from collections.abc import Callable
 import mujoco
 import numpy as np
 
+from davinci_sim.geometry.se3 import invert_transform
 from davinci_sim.kinematics import fk
 from davinci_sim.kinematics.arms import load_arm, load_suj
-from davinci_sim.kinematics.suj import T_cart_rcm, invert_transform
+from davinci_sim.kinematics.suj import T_cart_rcm
 from davinci_sim.model import build_spec, resolve_scene
 from davinci_sim.sim.arm import Arm
 from davinci_sim.sim.arms import ECM, MTM, PSM, SUJArm

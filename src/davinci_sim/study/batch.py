@@ -17,7 +17,7 @@ runs n trials as arrays instead:
   feed-forward), the MTM's ``spatial/servo_cf`` (Jᵀ·w), the joint servo
   (:func:`~davinci_sim.sim.servo.servo_ctrl`), the fixture through the velocity filter
   (:class:`~davinci_sim.haptics.fixture.FixtureField`'s path) and the device's safety clamp
-  (:func:`~davinci_sim.haptics.safety.clamp_wrenches`), the task state machine and the
+  (:func:`~davinci_sim.devices.safety.clamp_wrenches`), the task state machine and the
   metrics. Only ``mj_step`` runs per trial (MuJoCo's C), and only for trials still running.
 * The order within a tick is the live simulation's: trainee, hand, teleoperation, arms,
   servo, physics, then the haptic loop and the task on the new state.
@@ -48,8 +48,8 @@ import numpy as np
 
 from davinci_sim.console import teleop_math as tm
 from davinci_sim.devices.hand import hand_wrenches
+from davinci_sim.devices.safety import clamp_wrenches
 from davinci_sim.haptics.combine import combine
-from davinci_sim.haptics.safety import clamp_wrenches
 from davinci_sim.haptics.velocity import DEFAULT_CUTOFF_HZ, VelocityFilter
 from davinci_sim.haptics.viscous import ViscousGuidance
 from davinci_sim.kinematics import fk

@@ -24,7 +24,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from davinci_sim.haptics.path import ClosestPoint
+from davinci_sim.geometry.path import ClosestPoint
 from davinci_sim.tasks.metrics import MetricsAccumulator, RepetitionMetrics
 from davinci_sim.tasks.task import PathTask
 

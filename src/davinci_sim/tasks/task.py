@@ -31,9 +31,9 @@ from typing import Any
 import numpy as np
 import yaml
 
+from davinci_sim.geometry.path import Polyline, rounded_polyline
 from davinci_sim.haptics.combine import combine
 from davinci_sim.haptics.fixture import Fixture
-from davinci_sim.haptics.path import Polyline, rounded_polyline
 from davinci_sim.haptics.spring import SpringGuidance
 from davinci_sim.haptics.viscous import DEFAULT_TRANSITION, ViscousGuidance
 from davinci_sim.haptics.wall import PlaneWall, SphereWall

@@ -12,7 +12,7 @@ import hashlib
 import hmac
 import time
 
-from davinci_sim.bridge.protocol import Auth
+from davinci_sim.bridge.rosbridge.protocol import Auth
 
 
 def rosauth_mac(secret: str, op: Auth) -> str:

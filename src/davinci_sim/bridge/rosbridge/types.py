@@ -1,6 +1,6 @@
 """Parsed message, service and action specs, and the registry that resolves type names.
 
-The registry compiles :mod:`davinci_sim.bridge.msgdefs` for one dialect: lines tagged
+The registry compiles :mod:`davinci_sim.bridge.rosbridge.msgdefs` for one dialect: lines tagged
 ``# ros1``/``# ros2`` are kept only in their dialect, ROS 2 default values are applied only
 in ROS 2 (ROS 1 fills zeros, as rosbridge does), ``Header`` means ``std_msgs/Header``,
 ``builtin_interfaces/Time`` is the builtin ``time``.
@@ -11,8 +11,8 @@ from __future__ import annotations
 from collections.abc import Mapping
 from dataclasses import dataclass
 
-from davinci_sim.bridge.dialect import Dialect, Kind, split_type
-from davinci_sim.bridge.msgdefs import ACTIONS, MESSAGES, SERVICES
+from davinci_sim.bridge.rosbridge.dialect import Dialect, Kind, split_type
+from davinci_sim.bridge.rosbridge.msgdefs import ACTIONS, MESSAGES, SERVICES
 
 #: Builtin field types and their value class: int ranges, floats, strings, times.
 INT_RANGES: dict[str, tuple[int, int]] = {

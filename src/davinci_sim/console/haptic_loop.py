@@ -5,7 +5,7 @@ Registered as the ``haptics`` component after the console and the teleoperations
 following and has fields, it builds the :class:`~davinci_sim.haptics.field.HapticState`,
 sums the fields' wrenches and sends the sum through the device's
 :meth:`~davinci_sim.devices.MasterDevice.servo_cf`, which clamps it (magnitude and rate,
-:mod:`davinci_sim.haptics.safety`) and refuses it for a stale device. When following stops
+:mod:`davinci_sim.devices.safety`) and refuses it for a stale device. When following stops
 the teleoperation itself zeroes the wrench (clutch) or takes the MTM back (alignment).
 With no field registered the loop costs nothing.
 

@@ -16,7 +16,7 @@ import struct
 import time
 from typing import Any
 
-from davinci_sim.bridge.types import FLOATS, INT_RANGES, Field, MsgSpec, TypeRegistry
+from davinci_sim.bridge.rosbridge.types import FLOATS, INT_RANGES, Field, MsgSpec, TypeRegistry
 
 #: Fields accepted and dropped although the dialect lacks them: a ROS 1 ``Header.seq`` sent to
 #: a ROS 2 server (roslibpy's ``Header`` always has it, rosbridge.md §3).

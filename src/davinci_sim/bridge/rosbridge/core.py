@@ -17,10 +17,10 @@ import time
 from collections.abc import Callable
 from typing import Any
 
-from davinci_sim.bridge.config import BridgeConfig
-from davinci_sim.bridge.convert import MessageError, from_wire
-from davinci_sim.bridge.dialect import TypeNameError, dialect, split_type
-from davinci_sim.bridge.graph import (
+from davinci_sim.bridge.rosbridge.config import BridgeConfig
+from davinci_sim.bridge.rosbridge.convert import MessageError, from_wire
+from davinci_sim.bridge.rosbridge.dialect import TypeNameError, dialect, split_type
+from davinci_sim.bridge.rosbridge.graph import (
     COMPRESSIONS,
     ActionEntry,
     ActionHandler,
@@ -32,7 +32,7 @@ from davinci_sim.bridge.graph import (
     Subscription,
     Topic,
 )
-from davinci_sim.bridge.protocol import (
+from davinci_sim.bridge.rosbridge.protocol import (
     GOAL_STATUS,
     ActionFeedback,
     ActionFeedbackOut,
@@ -56,8 +56,8 @@ from davinci_sim.bridge.protocol import (
     UnadvertiseService,
     Unsubscribe,
 )
-from davinci_sim.bridge.session import Session
-from davinci_sim.bridge.types import MsgSpec, TypeRegistry, UnknownTypeError
+from davinci_sim.bridge.rosbridge.session import Session
+from davinci_sim.bridge.rosbridge.types import MsgSpec, TypeRegistry, UnknownTypeError
 
 _log = logging.getLogger("davinci_sim.bridge")
 

@@ -1,6 +1,6 @@
 """The bridge's ROS graph: topics, services and actions, who provides and who uses them.
 
-Bookkeeping only (no I/O): :class:`~davinci_sim.bridge.core.Bridge` owns these objects and
+Bookkeeping only (no I/O): :class:`~davinci_sim.bridge.rosbridge.core.Bridge` owns these objects and
 runs everything in its event loop's thread.
 """
 
@@ -11,13 +11,13 @@ from collections.abc import Awaitable, Callable
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
 
-from davinci_sim.bridge import codec
-from davinci_sim.bridge.convert import to_cbor_value
-from davinci_sim.bridge.protocol import Id, PublishOut, to_wire
-from davinci_sim.bridge.types import ActionSpec, MsgSpec, SrvSpec, TypeRegistry
+from davinci_sim.bridge.rosbridge import codec
+from davinci_sim.bridge.rosbridge.convert import to_cbor_value
+from davinci_sim.bridge.rosbridge.protocol import Id, PublishOut, to_wire
+from davinci_sim.bridge.rosbridge.types import ActionSpec, MsgSpec, SrvSpec, TypeRegistry
 
 if TYPE_CHECKING:
-    from davinci_sim.bridge.session import Session
+    from davinci_sim.bridge.rosbridge.session import Session
 
 #: An internal subscriber: ``callback(msg, session_or_None)``.
 Listener = Callable[[dict, "Session | None"], None]

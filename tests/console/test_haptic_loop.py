@@ -2,10 +2,11 @@
 
 import numpy as np
 import pytest
-from haptics_helpers import teleop_sim
+from console_helpers import teleop_sim
 
 from davinci_sim.console import SIMULATED_SYSTEM
-from davinci_sim.haptics import ContactFeedback, HapticState, WrenchLimits
+from davinci_sim.devices.safety import WrenchLimits
+from davinci_sim.haptics import ContactFeedback, HapticState
 
 NO_ALIGN = SIMULATED_SYSTEM.replace(align_mtm=False)
 

@@ -7,7 +7,7 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from davinci_sim.haptics import WrenchLimiter, WrenchLimits, clamp_wrench
+from davinci_sim.devices.safety import WrenchLimiter, WrenchLimits, clamp_wrench
 
 LIMITS = WrenchLimits(max_force=5.0, max_torque=0.1, max_force_rate=1000.0, max_torque_rate=10.0)
 vec6 = st.lists(st.floats(-100, 100), min_size=6, max_size=6).map(np.array)

@@ -16,7 +16,7 @@ import math
 from dataclasses import dataclass
 from typing import Literal
 
-from davinci_sim.bridge.msgdefs import ROS2_PACKAGE_ALIASES
+from davinci_sim.bridge.rosbridge.msgdefs import ROS2_PACKAGE_ALIASES
 
 Kind = Literal["msg", "srv", "action"]
 _KINDS = ("msg", "srv", "action")

@@ -1,7 +1,7 @@
 """The rosbridge v2 WebSocket server: a thread with its own event loop.
 
 ``RosbridgeServer(config, nodes=[...]).start()`` binds (127.0.0.1:9090 by default), runs
-the :class:`~davinci_sim.bridge.core.Bridge` and the given internal nodes in a daemon
+the :class:`~davinci_sim.bridge.rosbridge.core.Bridge` and the given internal nodes in a daemon
 thread, and serves every client until :meth:`RosbridgeServer.stop`. Any path and origin are
 accepted; there is no permessage-deflate, as rosbridge_server (rosbridge.md §1.1, §6.1).
 """
@@ -18,11 +18,11 @@ from typing import Any, Protocol
 
 from websockets.asyncio.server import serve
 
-from davinci_sim.bridge.config import BridgeConfig
-from davinci_sim.bridge.core import Bridge
-from davinci_sim.bridge.rosapi import RosapiNode
-from davinci_sim.bridge.session import Session
-from davinci_sim.bridge.types import TypeRegistry
+from davinci_sim.bridge.rosbridge.config import BridgeConfig
+from davinci_sim.bridge.rosbridge.core import Bridge
+from davinci_sim.bridge.rosbridge.rosapi import RosapiNode
+from davinci_sim.bridge.rosbridge.session import Session
+from davinci_sim.bridge.rosbridge.types import TypeRegistry
 
 _log = logging.getLogger("davinci_sim.bridge")
 

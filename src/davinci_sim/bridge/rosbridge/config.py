@@ -8,7 +8,7 @@ from typing import Literal
 
 @dataclass(frozen=True)
 class BridgeConfig:
-    """What a :class:`~davinci_sim.bridge.server.RosbridgeServer` does.
+    """What a :class:`~davinci_sim.bridge.rosbridge.server.RosbridgeServer` does.
 
     Defaults follow rosbridge_server (rosbridge.md §1.1) where it has one.
     """

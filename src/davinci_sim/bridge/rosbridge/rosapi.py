@@ -10,11 +10,11 @@ from __future__ import annotations
 import json
 from typing import TYPE_CHECKING
 
-from davinci_sim.bridge.convert import typedefs
-from davinci_sim.bridge.core import BRIDGE_NODE, ServiceFailure
+from davinci_sim.bridge.rosbridge.convert import typedefs
+from davinci_sim.bridge.rosbridge.core import BRIDGE_NODE, ServiceFailure
 
 if TYPE_CHECKING:
-    from davinci_sim.bridge.core import Bridge
+    from davinci_sim.bridge.rosbridge.core import Bridge
 
 ROSAPI_NODE = "/rosapi"
 DISTRO = {1: "noetic", 2: "humble"}

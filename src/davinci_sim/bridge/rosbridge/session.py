@@ -23,10 +23,10 @@ from typing import TYPE_CHECKING, Any
 
 from websockets.exceptions import ConnectionClosed
 
-from davinci_sim.bridge import codec
-from davinci_sim.bridge.auth import check_auth
-from davinci_sim.bridge.graph import OutMessage, Subscription
-from davinci_sim.bridge.protocol import (
+from davinci_sim.bridge.rosbridge import codec
+from davinci_sim.bridge.rosbridge.auth import check_auth
+from davinci_sim.bridge.rosbridge.graph import OutMessage, Subscription
+from davinci_sim.bridge.rosbridge.protocol import (
     Auth,
     Fragment,
     Id,
@@ -38,7 +38,7 @@ from davinci_sim.bridge.protocol import (
 )
 
 if TYPE_CHECKING:
-    from davinci_sim.bridge.core import Bridge
+    from davinci_sim.bridge.rosbridge.core import Bridge
 
 _log = logging.getLogger("davinci_sim.bridge")
 

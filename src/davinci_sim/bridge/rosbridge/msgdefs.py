@@ -8,7 +8,7 @@ ROS one (``type name``, ``type[] name``, ``type[N] name``, ``TYPE NAME=value`` c
 ``type name default`` ROS 2 defaults) plus one extension: a line ending in ``# ros1`` or
 ``# ros2`` exists only in that dialect (``Header.seq``, ``CameraInfo.D`` vs ``d`` …).
 
-Names are canonical ``pkg/Type``; :mod:`davinci_sim.bridge.types` resolves both spellings.
+Names are canonical ``pkg/Type``; :mod:`davinci_sim.bridge.rosbridge.types` resolves both spellings.
 """
 
 from __future__ import annotations

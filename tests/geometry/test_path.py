@@ -9,7 +9,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from davinci_sim.haptics.path import Polyline, closest_point_brute, rounded_polyline
+from davinci_sim.geometry.path import Polyline, closest_point_brute, rounded_polyline
 
 STAPLE = np.array(
     [

@@ -1,0 +1,2 @@
+"""Pure geometry, no MuJoCo: rotations (``so3``), rigid transforms (``se3``), polylines and
+closest points (``path``). Every other package may import it; it imports only numpy/scipy."""
