@@ -5,6 +5,10 @@ rosapi, the endoscope) use :meth:`Bridge.advertise`, :meth:`Bridge.listen`,
 :meth:`Bridge.publish`, :meth:`Bridge.provide_service` and :meth:`Bridge.provide_action`;
 client ops arrive through :meth:`Bridge.handle_op` (semantics of rosbridge_suite, rosbridge.md
 §1.3–1.5, with the errors reported instead of only logged).
+
+Size: one class, because every op reads and changes the same routing tables (topics,
+subscriptions, services, action goals and their owners); split by op, each part would reach
+into the others' state.
 """
 
 from __future__ import annotations
