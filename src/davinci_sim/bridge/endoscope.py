@@ -252,6 +252,11 @@ class EndoscopeNode:
         self._stop_worker()
         self.bridge.remove_node(NODE)
 
+    def render_pid(self) -> int | None:
+        """Process id of the render process of this node (None: not started, or the
+        handle renders)."""
+        return self.worker[0].process.pid if self.worker else None
+
     # ------------------------------------------------------------------ worker
     def _wanted(self) -> bool:
         return any(t.subscriptions for e in self.topics.values() for t in e.values())
