@@ -211,9 +211,8 @@ def serve(
                 break
         wall = time.monotonic() - t0_wall
         info["sim_over_wall"] = (handle.snapshot().time - t0_sim) / wall if wall > 0 else 0.0
-        stats = getattr(handle, "period_statistics", None)
-        if callable(stats):
-            info["period_statistics"] = stats()
+        if process:  # (the thread runner has them too; `serve` reports the process's)
+            info["period_statistics"] = handle.period_statistics()
     finally:
         for part in reversed(started):
             try:

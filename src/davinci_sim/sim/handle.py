@@ -20,6 +20,7 @@ paced at real time or as fast as possible.
 
 from __future__ import annotations
 
+import math
 import queue
 import threading
 import time
@@ -209,25 +210,47 @@ class _Call:
     args: tuple
     kwargs: dict
     future: Future
+    tick: int | None = None
+    """Run right before this simulation tick (``call_at``); None: between the next two."""
 
 
 class ThreadedSimulation:
     """Runs a simulation in a daemon thread and serves it as a :class:`SimHandle`.
 
+    The loop is :class:`~davinci_sim.sim.runtime.loop.LoopRunner`, the one the process
+    runner uses: the same pacing, period statistics (:meth:`period_statistics`) and inputs
+    at given ticks (:meth:`call_at`).
+
     Args:
         sim: the simulation (the thread owns it from :meth:`start` on).
         real_time: pace ticks by the wall clock (1 tick per ``sim.dt``); else as fast as
-            possible.
+            possible. A paced loop that falls behind catches up tick after tick; it only
+            sleeps (no spinning: the bridge threads of this process need the interpreter).
         snapshot_period: sim-time interval between published snapshots, s. The default is
             the dVRK's 10 ms publish period (dvrk.md 2.1): a full-system snapshot with the
             console costs about 0.2 ms of the loop's time (the joint states and components'
             states; poses are computed by whoever reads them), a fifth of a 1 ms tick.
+        clock, sleep: the wall clock (s) and how to wait, for the pacing (tests pass a
+            virtual clock).
     """
 
-    def __init__(self, sim: Simulation, *, real_time: bool = True, snapshot_period: float = 0.01):
+    def __init__(
+        self,
+        sim: Simulation,
+        *,
+        real_time: bool = True,
+        snapshot_period: float = 0.01,
+        clock: Callable[[], float] = time.perf_counter,
+        sleep: Callable[[float], None] | None = None,
+    ):
+        from davinci_sim.sim.runtime.loop import LoopRunner  # (runtime imports this module)
+
         self.sim = sim
         self.real_time = real_time
         self._snapshot_ticks = max(1, round(snapshot_period / sim.dt))
+        self._runner = LoopRunner(
+            sim, real_time=real_time, spin=0.0, max_lag=math.inf, clock=clock, sleep=sleep
+        )
         self._calls: queue.SimpleQueue[_Call] = queue.SimpleQueue()
         self._subscribers: list[EventCallback] = []
         self._lock = threading.Lock()
@@ -243,6 +266,13 @@ class ThreadedSimulation:
         self._calls.put(_Call(target, method, args, kwargs, future))
         return future
 
+    def call_at(self, tick: int, target: str, method: str, *args: Any, **kwargs: Any) -> Future:
+        """Run ``target.method(...)`` right before simulation tick ``tick`` (deterministic
+        input: the same in real-time and fast runs). The future fails if the tick passed."""
+        future: Future = Future()
+        self._calls.put(_Call(target, method, args, kwargs, future, int(tick)))
+        return future
+
     def snapshot(self) -> Snapshot:
         return self._snapshot
 
@@ -256,6 +286,10 @@ class ThreadedSimulation:
                     self._subscribers.remove(callback)
 
         return unsubscribe
+
+    def period_statistics(self):
+        """The loop's timing so far (:class:`~davinci_sim.sim.runtime.stats.PeriodStatistics`)."""
+        return self._runner.recorder.statistics()
 
     # ------------------------------------------------------------- lifecycle
     def start(self) -> ThreadedSimulation:
@@ -284,6 +318,12 @@ class ThreadedSimulation:
         for cb in subscribers:
             cb(source, event, payload)
 
+    def _resolve(self, c: _Call) -> None:
+        try:
+            c.future.set_result(execute(self.sim, c.target, c.method, c.args, c.kwargs))
+        except Exception as e:  # the caller gets the error; the loop carries on
+            c.future.set_exception(e)
+
     def _run_calls(self) -> None:
         while True:
             try:
@@ -292,23 +332,19 @@ class ThreadedSimulation:
                 return
             if not c.future.set_running_or_notify_cancel():
                 continue
+            if c.tick is None:
+                self._resolve(c)
+                continue
             try:
-                c.future.set_result(execute(self.sim, c.target, c.method, c.args, c.kwargs))
-            except Exception as e:  # the caller gets the error; the loop carries on
+                self._runner.call_at(c.tick, self._resolve, c)
+            except ValueError as e:
                 c.future.set_exception(e)
 
+    def _publish(self) -> None:
+        if self.sim.tick_count % self._snapshot_ticks == 0:
+            self._snapshot = take_snapshot(self.sim)
+
     def _run(self) -> None:
-        sim = self.sim
-        t0 = time.perf_counter()
-        n = 0
-        while not self._stop.is_set():
-            self._run_calls()
-            sim.tick()
-            n += 1
-            if n % self._snapshot_ticks == 0:
-                self._snapshot = take_snapshot(sim)
-            if self.real_time:
-                delay = t0 + n * sim.dt - time.perf_counter()
-                if delay > 0:
-                    time.sleep(delay)
+        self._runner.run(until=self._stop.is_set, before_tick=self._run_calls,
+                         after_tick=self._publish)  # fmt: skip
         self._run_calls()
