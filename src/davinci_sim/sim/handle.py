@@ -230,6 +230,11 @@ class ThreadedSimulation:
             the dVRK's 10 ms publish period (dvrk.md 2.1): a full-system snapshot with the
             console costs about 0.2 ms of the loop's time (the joint states and components'
             states; poses are computed by whoever reads them), a fifth of a 1 ms tick.
+        render_hz: render the stereo endoscope at this rate in a render process
+            (:class:`~davinci_sim.sim.runtime.render.StereoRenderer`, fed the joint positions
+            after every tick; :meth:`stereo_frame`); None: no renderer.
+        render_model: picklable callable returning the model to render (e.g. with a task's
+            drawing); None: the simulation's scene.
         clock, sleep: the wall clock (s) and how to wait, for the pacing (tests pass a
             virtual clock).
     """
@@ -240,6 +245,8 @@ class ThreadedSimulation:
         *,
         real_time: bool = True,
         snapshot_period: float = 0.01,
+        render_hz: float | None = None,
+        render_model: Callable[[], Any] | None = None,
         clock: Callable[[], float] = time.perf_counter,
         sleep: Callable[[float], None] | None = None,
     ):
@@ -259,6 +266,8 @@ class ThreadedSimulation:
         self._snapshot = take_snapshot(sim)
         for name, source in event_sources(sim).items():
             source.subscribe(lambda ev, payload, name=name: self._emit(name, ev, payload))
+        self._render = (render_hz, render_model)
+        self._renderer = None
 
     # ------------------------------------------------------------- SimHandle
     def call(self, target: str, method: str, *args: Any, **kwargs: Any) -> Future:
@@ -287,6 +296,17 @@ class ThreadedSimulation:
 
         return unsubscribe
 
+    def stereo_frame(self):
+        """The latest rendered stereo pair (``render_hz`` must be set), or None yet."""
+        if self._renderer is None:
+            raise RuntimeError("no renderer: create the ThreadedSimulation with render_hz")
+        return self._renderer.frame()
+
+    def render_statistics(self):
+        if self._renderer is None:
+            raise RuntimeError("no renderer: create the ThreadedSimulation with render_hz")
+        return self._renderer.statistics()
+
     def period_statistics(self):
         """The loop's timing so far (:class:`~davinci_sim.sim.runtime.stats.PeriodStatistics`)."""
         return self._runner.recorder.statistics()
@@ -294,6 +314,11 @@ class ThreadedSimulation:
     # ------------------------------------------------------------- lifecycle
     def start(self) -> ThreadedSimulation:
         if self._thread is None:
+            rate, model = self._render
+            if rate is not None and self._renderer is None:
+                from davinci_sim.sim.runtime.render import StereoRenderer
+
+                self._renderer = StereoRenderer(self.sim.config, rate, model=model).start()
             self._stop.clear()
             self._thread = threading.Thread(target=self._run, name="davinci-sim", daemon=True)
             self._thread.start()
@@ -304,6 +329,9 @@ class ThreadedSimulation:
         if self._thread is not None:
             self._thread.join(timeout)
             self._thread = None
+        if self._renderer is not None:
+            self._renderer.stop()
+            self._renderer = None
 
     def __enter__(self) -> ThreadedSimulation:
         return self.start()
@@ -341,8 +369,11 @@ class ThreadedSimulation:
                 c.future.set_exception(e)
 
     def _publish(self) -> None:
-        if self.sim.tick_count % self._snapshot_ticks == 0:
-            self._snapshot = take_snapshot(self.sim)
+        sim = self.sim
+        if sim.tick_count % self._snapshot_ticks == 0:
+            self._snapshot = take_snapshot(sim)
+        if self._renderer is not None:
+            self._renderer.feed(sim.tick_count, sim.time, sim.data.qpos)
 
     def _run(self) -> None:
         self._runner.run(until=self._stop.is_set, before_tick=self._run_calls,

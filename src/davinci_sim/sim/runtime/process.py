@@ -44,20 +44,23 @@ from dataclasses import dataclass
 from typing import Any
 
 from davinci_sim.sim.handle import EventCallback, Snapshot, event_sources, execute, take_snapshot
-from davinci_sim.sim.runtime import render as rendering
 from davinci_sim.sim.runtime.loop import (
     DEFAULT_MAX_LAG,
     DEFAULT_SPIN,
     LoopRunner,
     reduce_timer_slack,
 )
-from davinci_sim.sim.runtime.render import QPOS_HEADER, RenderStatistics, StereoFrame
+from davinci_sim.sim.runtime.render import (
+    QPOS_CAPACITY,
+    QPOS_HEADER,
+    RenderStatistics,
+    StereoFrame,
+    StereoRenderer,
+)
 from davinci_sim.sim.runtime.shm import LatestSlot, SharedBuffer
 from davinci_sim.sim.runtime.stats import PeriodRecorder, PeriodStatistics, layout_size
 from davinci_sim.sim.types import OperatingState
 
-#: Capacity of the joint-position slot, bytes (8000 joints).
-QPOS_CAPACITY = 64 * 1024
 #: Header of a published state: tick (int64), time (float64); then the pickled state.
 STATE_HEADER = struct.Struct("<qd")
 
@@ -90,7 +93,11 @@ class ProcessSimulation:
         real_time: 1 tick per ``sim.dt`` of wall time; else as fast as possible.
         snapshot_period: sim time between published states, s (the dVRK publishes at
             100 Hz: 0.01).
-        render_hz: render the stereo endoscope at this rate in a render process (None: no).
+        render_hz: render the stereo endoscope at this rate in a render process (None: no;
+            :class:`~davinci_sim.sim.runtime.render.StereoRenderer`, from the joint positions
+            the loop writes every tick).
+        render_model: picklable callable returning the model the renderer draws (e.g. with a
+            task's path, :func:`davinci_sim.system.build.scene_model`); None: the scene's.
         stop_at_tick: the loop stops by itself before this tick.
         start_paused: the loop waits for :meth:`resume` before its first tick (schedule
             inputs with :meth:`call_at` first, for a reproducible run).
@@ -114,6 +121,7 @@ class ProcessSimulation:
         real_time: bool = True,
         snapshot_period: float = 0.01,
         render_hz: float | None = None,
+        render_model: Callable[[], Any] | None = None,
         stop_at_tick: int | None = None,
         start_paused: bool = False,
         loop_cpu: int | None = None,
@@ -141,6 +149,7 @@ class ProcessSimulation:
             spin=spin if spin is not None else (50e-6 if realtime_priority else DEFAULT_SPIN),
         )
         self._render_hz = render_hz
+        self._render_model = render_model
         self._render_cpu = render_cpu
         self._render_threads = render_threads
         self._state_capacity = state_capacity
@@ -148,8 +157,7 @@ class ProcessSimulation:
         self.info: dict[str, Any] = {}
         """What the loop process reported when ready (scene, dt, components, priority …)."""
         self._proc: mp.process.BaseProcess | None = None
-        self._render_proc: mp.process.BaseProcess | None = None
-        self._render_stop = None
+        self._renderer: StereoRenderer | None = None
         self._conn = None
         self._send_lock = threading.Lock()
         self._futures: dict[int, Future] = {}
@@ -208,35 +216,20 @@ class ProcessSimulation:
         self._reader.daemon = True
         self._reader.start()
         if self._render_hz is not None:
-            self._start_renderer(ctx, payload["scene"])
-        return self
-
-    def _start_renderer(self, ctx, scene) -> None:
-        w, h = scene.endoscope.width, scene.endoscope.height
-        self._buffers["frames"] = SharedBuffer(rendering.frame_buffer_size(w, h))
-        self._render_stop = ctx.Event()
-        self._render_proc = ctx.Process(
-            target=rendering.render_main,
-            args=(
-                scene,
-                self._buffers["qpos"].path,
-                self._buffers["frames"].path,
+            self._renderer = StereoRenderer(
+                payload["scene"],
                 self._render_hz,
-                self._render_stop,
-                self._render_cpu,
-                self._render_threads,
-            ),
-            name="davinci-sim-render",
-            daemon=True,
-        )
-        self._render_proc.start()
+                model=self._render_model,
+                qpos_path=self._buffers["qpos"].path,
+                cpu=self._render_cpu,
+                threads=self._render_threads,
+            ).start()
+        return self
 
     def stop(self, timeout: float = 10.0) -> PeriodStatistics | None:
         """Stop the loop (and the renderer); returns the final period statistics."""
         if self._proc is None:
             return self._final_stats
-        if self._render_stop is not None:
-            self._render_stop.set()
         if self._proc.is_alive() and self._conn is not None:
             try:
                 self._send(("stop",))
@@ -248,11 +241,9 @@ class ProcessSimulation:
         if self._proc.is_alive():
             self._proc.terminate()
             self._proc.join(timeout)
-        if self._render_proc is not None:
-            self._render_proc.join(timeout)
-            if self._render_proc.is_alive():
-                self._render_proc.terminate()
-                self._render_proc.join(timeout)
+        if self._renderer is not None:
+            self._renderer.stop(timeout)
+            self._renderer = None
         if self._final_stats is None and "stats" in self._buffers:
             self._final_stats = PeriodRecorder(
                 buffer=self._buffers["stats"].mm, clear=False
@@ -343,17 +334,14 @@ class ProcessSimulation:
 
     def stereo_frame(self) -> StereoFrame | None:
         """The latest rendered stereo pair (``render_hz`` must be set), or None yet."""
-        buffer = self._buffers.get("frames")
-        if buffer is None:
+        if self._renderer is None:
             raise LoopProcessError("no renderer: create the ProcessSimulation with render_hz")
-        data = LatestSlot(buffer, offset=rendering.STATS_BYTES).read()
-        return None if data is None else rendering.decode_frame(data)
+        return self._renderer.frame()
 
     def render_statistics(self) -> RenderStatistics:
-        buffer = self._buffers.get("frames")
-        if buffer is None:
+        if self._renderer is None:
             raise LoopProcessError("no renderer: create the ProcessSimulation with render_hz")
-        return rendering.render_statistics(buffer)
+        return self._renderer.statistics()
 
     def wait_for_tick(self, tick: int, timeout: float = 10.0) -> bool:
         """Wait (polling snapshots) until the published tick reaches ``tick``."""
