@@ -170,11 +170,17 @@ def _demo(sim, log) -> dict:
 
 
 def cmd_demo(args: argparse.Namespace) -> int:
-    from davinci_sim.sim.simulation import Simulation
+    from davinci_sim.system import SystemDescription, build_system
 
-    sim = Simulation(args.scene, seed=args.seed, keyframe=args.keyframe)
-    report = _demo(sim, print)
-    sim.close()
+    # No runner: the demo ticks the simulation itself, as fast as it computes.
+    description = SystemDescription(
+        scene=args.scene, keyframe=args.keyframe, seed=args.seed, runner="none"
+    )
+    system = build_system(description)
+    try:
+        report = _demo(system.sim, print)
+    finally:
+        system.stop()
     return 0 if report["homed"] and report.get("refused_ok", True) else 1
 
 
