@@ -50,24 +50,18 @@ def cmd_info(args: argparse.Namespace) -> int:
 def cmd_snapshot(args: argparse.Namespace) -> int:
     from PIL import Image
 
-    from davinci_sim.sim.simulation import Simulation
+    from davinci_sim.system import SystemDescription, TaskDescription, new_simulation
+    from davinci_sim.tasks import TaskError
 
-    edit_spec = None
-    if args.task is not None:
-        from davinci_sim.tasks import TaskError, add_path_visual, load_task
-
-        try:
-            task = load_task(args.task)
-        except TaskError as e:
-            print(f"davinci-sim snapshot: {e}", file=sys.stderr)
-            return 2
-
-        def edit_spec(spec):
-            add_path_visual(spec, task)
-
+    task = None if args.task is None else TaskDescription(args.task)
+    description = SystemDescription(scene=args.scene, keyframe=args.keyframe, task=task)
     out = Path(args.output)
+    try:
+        sim = new_simulation(description)  # the scene with the task's path drawn
+    except TaskError as e:
+        print(f"davinci-sim snapshot: {e}", file=sys.stderr)
+        return 2
     out.mkdir(parents=True, exist_ok=True)
-    sim = Simulation(args.scene, keyframe=args.keyframe, edit_spec=edit_spec)
     if not args.no_home:
         _home_all(sim)
     sim.run_for(0.2)

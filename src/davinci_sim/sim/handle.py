@@ -235,6 +235,8 @@ class ThreadedSimulation:
             after every tick; :meth:`stereo_frame`); None: no renderer.
         render_model: picklable callable returning the model to render (e.g. with a task's
             drawing); None: the simulation's scene.
+        start_paused: the loop waits for :meth:`resume` before its first tick (schedule
+            inputs with :meth:`call_at` first, for a reproducible run).
         clock, sleep: the wall clock (s) and how to wait, for the pacing (tests pass a
             virtual clock).
     """
@@ -247,6 +249,7 @@ class ThreadedSimulation:
         snapshot_period: float = 0.01,
         render_hz: float | None = None,
         render_model: Callable[[], Any] | None = None,
+        start_paused: bool = False,
         clock: Callable[[], float] = time.perf_counter,
         sleep: Callable[[float], None] | None = None,
     ):
@@ -268,6 +271,9 @@ class ThreadedSimulation:
             source.subscribe(lambda ev, payload, name=name: self._emit(name, ev, payload))
         self._render = (render_hz, render_model)
         self._renderer = None
+        self._resume = threading.Event()
+        if not start_paused:
+            self._resume.set()
 
     # ------------------------------------------------------------- SimHandle
     def call(self, target: str, method: str, *args: Any, **kwargs: Any) -> Future:
@@ -324,8 +330,13 @@ class ThreadedSimulation:
             self._thread.start()
         return self
 
+    def resume(self) -> None:
+        """Start ticking (after ``start_paused``)."""
+        self._resume.set()
+
     def stop(self, timeout: float = 5.0) -> None:
         self._stop.set()
+        self._resume.set()
         if self._thread is not None:
             self._thread.join(timeout)
             self._thread = None
@@ -376,6 +387,8 @@ class ThreadedSimulation:
             self._renderer.feed(sim.tick_count, sim.time, sim.data.qpos)
 
     def _run(self) -> None:
+        self._resume.wait()
+        self._run_calls()  # (calls made while paused, e.g. call_at for the first ticks)
         self._runner.run(until=self._stop.is_set, before_tick=self._run_calls,
                          after_tick=self._publish)  # fmt: skip
         self._run_calls()

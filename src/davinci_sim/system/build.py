@@ -233,6 +233,7 @@ def build_system(description: SystemDescription, *, start: bool = False) -> Syst
             snapshot_period=description.snapshot_period,
             render_hz=description.render_hz,
             render_model=functools.partial(scene_model, description),
+            start_paused=description.start_paused,
         )
         system = System(description, None, handle)
     else:
@@ -247,6 +248,7 @@ def build_system(description: SystemDescription, *, start: bool = False) -> Syst
                 snapshot_period=description.snapshot_period,
                 render_hz=description.render_hz,
                 render_model=functools.partial(scene_model, description),
+                start_paused=description.start_paused,
             )
         system = System(description, sim, handle)
     return system.start() if start else system

@@ -110,6 +110,9 @@ class SystemDescription:
     """The loop in a thread of this process, in its own process, or none (the caller ticks
     the simulation itself, e.g. the demo)."""
     real_time: bool = True
+    start_paused: bool = False
+    """The runner waits for ``handle.resume()`` before its first tick (inputs scheduled with
+    ``handle.call_at`` first make a reproducible run)."""
     snapshot_period: float = 0.01
     """Sim time between the snapshots the runner publishes, s."""
     publish_qpos: bool = False

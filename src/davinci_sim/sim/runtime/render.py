@@ -2,8 +2,8 @@
 
 Rendering a 640x480 stereo pair costs ~22 ms of CPU (llvmpipe); in the loop process it
 would stall the 1 kHz tick, and in any thread of it the GIL would. :class:`StereoRenderer`
-starts the render process (``python -m davinci_sim.sim.runtime.render``: a plain
-subprocess, so it does not re-import the caller's main module): it builds the model (the
+starts the render process (a plain ``python`` subprocess, not ``multiprocessing``: it
+does not re-import the caller's main module, so any script can render): it builds the model (the
 scene, or a picklable model factory such as :func:`davinci_sim.system.build.scene_model`
 that also draws the task), reads the latest ``qpos`` from shared memory
 (:class:`~davinci_sim.sim.runtime.shm.LatestSlot`), runs MuJoCo's kinematics and renders
@@ -173,7 +173,7 @@ class StereoRenderer:
         if self._threads is not None:
             env["LP_NUM_THREADS"] = str(int(self._threads))
         self.process = subprocess.Popen(
-            [sys.executable, "-m", "davinci_sim.sim.runtime.render"],
+            [sys.executable, "-c", _CHILD],
             stdin=subprocess.PIPE,
             env=env,
         )
@@ -282,5 +282,8 @@ def render_main(model_source, qpos_path: str, frames_path: str, rate_hz: float, 
         renderer.close()
 
 
-if __name__ == "__main__":
+def _child_main() -> None:
     render_main(*pickle.loads(sys.stdin.buffer.read()))
+
+
+_CHILD = "from davinci_sim.sim.runtime.render import _child_main; _child_main()"
