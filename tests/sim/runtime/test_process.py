@@ -6,14 +6,17 @@ import functools
 import numpy as np
 import pytest
 
-from davinci_sim.console import SIMULATED_SYSTEM, build_teleop_simulation
+from davinci_sim.console import SIMULATED_SYSTEM
 from davinci_sim.sim.runtime import LoopProcessError, ProcessSimulation
 from davinci_sim.sim.simulation import Simulation
+from davinci_sim.system import ConsoleDescription, SystemDescription, build_simulation
 
 FACTORY = functools.partial(
-    build_teleop_simulation,
-    "psm1_ecm_mtmr",
-    teleop_config=SIMULATED_SYSTEM.replace(align_mtm=False),
+    build_simulation,
+    SystemDescription(
+        "psm1_ecm_mtmr",
+        console=ConsoleDescription(teleop=SIMULATED_SYSTEM.replace(align_mtm=False)),
+    ),
 )
 
 

@@ -89,7 +89,7 @@ class ProcessSimulation:
     Args:
         factory: picklable callable returning the :class:`~davinci_sim.sim.simulation.
             Simulation` (with its components) in the child, e.g.
-            ``functools.partial(build_teleop_simulation, "full")``.
+            ``functools.partial(davinci_sim.system.build_simulation, description)``.
         real_time: 1 tick per ``sim.dt`` of wall time; else as fast as possible.
         snapshot_period: sim time between published states, s (the dVRK publishes at
             100 Hz: 0.01).
