@@ -125,6 +125,9 @@ def test_the_same_description_gives_the_same_run_in_both_runners():
         snaps.append(np.asarray(q))
         assert (system.sim is None) == (runner == "process")
     np.testing.assert_array_equal(snaps[0], snaps[1])
+    # built, never started: stopping releases it and reports no ticks
+    assert build_system(description.replace(runner="process")).stop() is None
+    assert build_system(description).stop().ticks == 0
 
 
 def test_the_renderer_draws_the_system_scene_with_the_task():

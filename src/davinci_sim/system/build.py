@@ -218,7 +218,10 @@ class System:
 
 def _statistics(handle):
     stats = getattr(handle, "period_statistics", None)
-    return stats() if callable(stats) else None
+    try:
+        return stats() if callable(stats) else None
+    except RuntimeError:  # a runner that never started has none
+        return None
 
 
 def build_system(description: SystemDescription, *, start: bool = False) -> System:
