@@ -8,12 +8,11 @@ projection carries the stereo baseline).
 
 Rendering a stereo pair takes ~22 ms of CPU; done in the simulation's thread it would stall
 the 1 kHz loop, and in this process it would hold the GIL. The frames come from the one
-stereo render pipeline, :class:`~davinci_sim.sim.runtime.render.StereoRenderer` (a render
+stereo render pipeline (:class:`~davinci_sim.sim.runtime.render.StereoFrames`, a render
 process reading joint positions from shared memory): the handle's own (a runner created with
-``render_hz``: ``handle.stereo_frame()``), or one this node starts when the first image
-subscriber comes and feeds with the snapshots' ``qpos`` (see :class:`QposProbe`) at the image
-rate. New frames are JPEG-encoded in a worker thread (Pillow releases the interpreter lock);
-the bridge only forwards bytes.
+``render_hz``), or one started when the first image subscriber comes and fed the snapshots'
+``qpos`` (see :class:`QposProbe`) at the image rate. New frames are JPEG-encoded in a worker
+thread (Pillow releases the interpreter lock); the bridge only forwards bytes.
 """
 
 from __future__ import annotations
@@ -29,7 +28,7 @@ from typing import TYPE_CHECKING, Any, Literal
 import numpy as np
 
 from davinci_sim.bridge.rosbridge.publisher import PeriodicTask
-from davinci_sim.sim.runtime.render import QposProbe, StereoRenderer  # noqa: F401 (re-export)
+from davinci_sim.sim.runtime.render import QposProbe, StereoFrames  # noqa: F401 (re-export)
 
 if TYPE_CHECKING:
     from davinci_sim.bridge.rosbridge.core import Bridge
@@ -152,16 +151,11 @@ class EndoscopeNode:
         self.encoding = encoding
         self.rig = rig.strip("/")
         self.quality = quality
-        self.worker: list[StereoRenderer] = []
-        """This node's renderer (empty until the first image subscriber, or if the handle
-        renders)."""
+        self.source = StereoFrames(handle, self.scene, rate, model=model, use_handle=handle_frames)
+        """Where the frames come from (the one stereo render pipeline)."""
         self.frames = 0
         self.render_times: list[float] = []
         self._task: PeriodicTask | None = None
-        self._pending_qpos = False
-        self._retry_at = 0.0
-        has_frames = callable(getattr(handle, "stereo_frame", None))
-        self._external = has_frames if handle_frames is None else handle_frames and has_frames
         self._last_frame_number: int | None = None
         self._encoding = False
 
@@ -189,10 +183,16 @@ class EndoscopeNode:
         self._stop_worker()
         self.bridge.remove_node(NODE)
 
+    @property
+    def worker(self) -> list:
+        """This node's render process (empty until the first image subscriber, or if the
+        handle renders)."""
+        return self.source.renderers
+
     def render_pid(self) -> int | None:
         """Process id of this node's render process (None: not started, or the handle
         renders)."""
-        return self.worker[0].pid if self.worker else None
+        return self.source.pid
 
     # ------------------------------------------------------------------ frames
     def _wanted(self) -> bool:
@@ -203,27 +203,8 @@ class EndoscopeNode:
             t.subscriptions for e in self.topics.values() for k, t in e.items() if k != "info"
         )
 
-    def _renderer(self) -> StereoRenderer | None:
-        if self.worker and not self.worker[0].running:
-            _log.error("endoscope: the render process exited; restarting in 10 s")
-            self._stop_worker()
-            self._retry_at = time.monotonic() + 10.0
-        if not self.worker:
-            if time.monotonic() < self._retry_at:
-                return None
-            try:
-                r = StereoRenderer(self.scene, self.rate, model=self.model).start()
-            except Exception:
-                _log.exception("endoscope: cannot start the render process; retrying in 10 s")
-                self._retry_at = time.monotonic() + 10.0
-                return None
-            self.worker.append(r)
-        return self.worker[0]
-
     def _stop_worker(self) -> None:
-        for w in self.worker:
-            w.stop()
-        self.worker.clear()
+        self.source.stop()
 
     def _tick(self) -> None:
         if not self._wanted():
@@ -231,41 +212,7 @@ class EndoscopeNode:
         if not self._image_wanted():
             self._publish_info(self.bridge.now())
             return
-        if self._external:
-            try:
-                frame = self.handle.stereo_frame()
-            except Exception as e:  # e.g. a runner started without a renderer: use ours
-                _log.warning("endoscope: the handle does not render (%s); rendering here", e)
-                self._external = False
-                return
-        else:
-            renderer = self._renderer()
-            if renderer is None:
-                return
-            self._feed(renderer)
-            frame = renderer.frame()
-        self._encode_and_publish(frame)
-
-    def _feed(self, renderer: StereoRenderer) -> None:
-        """The latest joint positions to our renderer: the snapshot's, or asked from the
-        loop (copied between two ticks) if snapshots carry none."""
-        snap = self.handle.snapshot()
-        qpos = snap.extras.get("qpos") if snap.extras else None
-        if qpos is not None:
-            renderer.feed(snap.tick, snap.time, qpos)
-            return
-        if self._pending_qpos:
-            return
-        self._pending_qpos = True
-        future = self.handle.call("sim", "measured_qpos")
-
-        def got(f) -> None:
-            self._pending_qpos = False
-            if f.exception() is None and self.worker:
-                snap = self.handle.snapshot()
-                self.worker[0].feed(snap.tick, snap.time, np.array(f.result(), dtype=float))
-
-        future.add_done_callback(lambda f: self.loop.call_soon_threadsafe(got, f))
+        self._encode_and_publish(self.source.latest())
 
     def _encode_and_publish(self, frame) -> None:
         """Encode a new frame in a worker thread, then publish it (one encoding at a time:

@@ -302,6 +302,11 @@ class ThreadedSimulation:
 
         return unsubscribe
 
+    @property
+    def renders(self) -> bool:
+        """Whether this runner renders the stereo endoscope (``render_hz``)."""
+        return self._render[0] is not None
+
     def stereo_frame(self):
         """The latest rendered stereo pair (``render_hz`` must be set), or None yet."""
         if self._renderer is None:

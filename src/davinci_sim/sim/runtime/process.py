@@ -335,6 +335,11 @@ class ProcessSimulation:
         if self.is_running:
             self._send(("reset_statistics",))
 
+    @property
+    def renders(self) -> bool:
+        """Whether this runner renders the stereo endoscope (``render_hz``)."""
+        return self._render_hz is not None
+
     def stereo_frame(self) -> StereoFrame | None:
         """The latest rendered stereo pair (``render_hz`` must be set), or None yet."""
         if self._renderer is None:

@@ -19,6 +19,7 @@ from snapshots (the bridge's image topics on a handle that does not render) call
 
 from __future__ import annotations
 
+import logging
 import os
 import pickle
 import struct
@@ -32,6 +33,8 @@ from typing import Any
 import numpy as np
 
 from davinci_sim.sim.runtime.shm import LatestSlot, SharedBuffer
+
+_log = logging.getLogger("davinci_sim.render")
 
 #: Header of a qpos message: tick (int64), time (float64), nq (int64).
 QPOS_HEADER = struct.Struct("<qdq")
@@ -219,6 +222,113 @@ class StereoRenderer:
         if self._qpos_buffer is not None:
             self._qslot = None
             self._qpos_buffer.close()
+
+
+class StereoFrames:
+    """Stereo frames of a running simulation for a viewer (the bridge's image topics, the
+    web console's view): the handle's own renderer if it has one (a runner created with
+    ``render_hz``: ``handle.stereo_frame()``), else a :class:`StereoRenderer` of this
+    object's, started on the first :meth:`latest` and fed the snapshots' ``qpos`` (see
+    :class:`QposProbe`; without it, ``qpos`` is asked from the loop between two ticks).
+
+    Args:
+        handle: the running simulation (a ``SimHandle``).
+        scene: its scene (name or config).
+        rate_hz: frames per second wanted (the renderer's speed caps it).
+        model: picklable callable returning the model to render (the system's, with the
+            task's drawing: :attr:`davinci_sim.system.System.model_source`).
+        use_handle: take the handle's frames; None: if it has ``stereo_frame``.
+        retry_after: s before starting a renderer again after it failed or exited.
+    """
+
+    def __init__(
+        self,
+        handle: Any,
+        scene,
+        rate_hz: float,
+        *,
+        model: Callable[[], Any] | None = None,
+        use_handle: bool | None = None,
+        retry_after: float = 10.0,
+    ) -> None:
+        from davinci_sim.model import resolve_scene
+
+        self.handle = handle
+        self.scene = resolve_scene(scene)
+        self.rate_hz = rate_hz
+        self.model = model
+        self.retry_after = retry_after
+        # (a runner says whether it was created with a renderer: ``renders``)
+        has_frames = callable(getattr(handle, "stereo_frame", None))
+        has_frames = has_frames and getattr(handle, "renders", True)
+        self.from_handle = has_frames if use_handle is None else use_handle and has_frames
+        self.renderers: list[StereoRenderer] = []
+        """The renderer of this object (empty until used, or when the handle renders)."""
+        self._retry_at = 0.0
+        self._pending_qpos = False
+
+    @property
+    def pid(self) -> int | None:
+        """Process id of this object's render process (None: none)."""
+        return self.renderers[0].pid if self.renderers else None
+
+    def latest(self) -> StereoFrame | None:
+        """The latest frame (None yet); with a renderer of ours, first give it the latest
+        joint positions. Call it at the viewer's rate, from one thread."""
+        if self.from_handle:
+            try:
+                return self.handle.stereo_frame()
+            except Exception as e:  # e.g. a runner started without a renderer: use ours
+                _log.warning("the handle does not render (%s); rendering here", e)
+                self.from_handle = False
+                return None
+        renderer = self._renderer()
+        if renderer is None:
+            return None
+        self._feed(renderer)
+        return renderer.frame()
+
+    def stop(self) -> None:
+        """Stop our render process (if any); :meth:`latest` starts a new one."""
+        for r in self.renderers:
+            r.stop()
+        self.renderers.clear()
+
+    def _renderer(self) -> StereoRenderer | None:
+        if self.renderers and not self.renderers[0].running:
+            _log.error("the render process exited; restarting in %g s", self.retry_after)
+            self.stop()
+            self._retry_at = time.monotonic() + self.retry_after
+        if not self.renderers:
+            if time.monotonic() < self._retry_at:
+                return None
+            try:
+                r = StereoRenderer(self.scene, self.rate_hz, model=self.model).start()
+            except Exception:
+                _log.exception("cannot start the render process; retrying later")
+                self._retry_at = time.monotonic() + self.retry_after
+                return None
+            self.renderers.append(r)
+        return self.renderers[0]
+
+    def _feed(self, renderer: StereoRenderer) -> None:
+        snap = self.handle.snapshot()
+        qpos = snap.extras.get("qpos") if snap.extras else None
+        if qpos is not None:
+            renderer.feed(snap.tick, snap.time, qpos)
+            return
+        if self._pending_qpos:
+            return
+        self._pending_qpos = True  # one request at a time: the slot has one writer
+        future = self.handle.call("sim", "measured_qpos")
+
+        def got(f) -> None:
+            if f.exception() is None and self.renderers and self.renderers[0] is renderer:
+                snap = self.handle.snapshot()
+                renderer.feed(snap.tick, snap.time, np.asarray(f.result(), dtype=float))
+            self._pending_qpos = False
+
+        future.add_done_callback(got)
 
 
 def render_main(model_source, qpos_path: str, frames_path: str, rate_hz: float, cpu,
