@@ -131,24 +131,27 @@ class Snapshot:
     """Published state of other components (console, teleops …), by component name."""
 
 
+def arm_snapshot(name: str, arm) -> ArmSnapshot:
+    """The :class:`ArmSnapshot` of one arm now (call from the loop's thread)."""
+    jaw = getattr(arm, "jaw", None)
+    gripper = getattr(arm, "gripper", None)
+    return ArmSnapshot(
+        name,
+        arm.kin.arm_type,
+        arm.operating_state(),
+        arm.measured_js(),
+        arm.setpoint_js(),
+        chain=arm.chain,
+        base_frame=arm.base_frame(),
+        jaw_measured_js=jaw.measured_js() if jaw else None,
+        jaw_setpoint_js=jaw.setpoint_js() if jaw else None,
+        gripper_measured_js=gripper.measured_js() if gripper else None,
+    )
+
+
 def take_snapshot(sim: Simulation) -> Snapshot:
     """The :class:`Snapshot` of ``sim`` now (call from the loop's thread)."""
-    arms = {}
-    for name, arm in sim.arms.items():
-        jaw = getattr(arm, "jaw", None)
-        gripper = getattr(arm, "gripper", None)
-        arms[name] = ArmSnapshot(
-            name,
-            arm.kin.arm_type,
-            arm.operating_state(),
-            arm.measured_js(),
-            arm.setpoint_js(),
-            chain=arm.chain,
-            base_frame=arm.base_frame(),
-            jaw_measured_js=jaw.measured_js() if jaw else None,
-            jaw_setpoint_js=jaw.setpoint_js() if jaw else None,
-            gripper_measured_js=gripper.measured_js() if gripper else None,
-        )
+    arms = {name: arm_snapshot(name, arm) for name, arm in sim.arms.items()}
     extras = {name: comp.snapshot() for name, comp in sim.components.items()}
     return Snapshot(sim.time, sim.tick_count, arms, extras)
 
