@@ -117,10 +117,12 @@ def test_the_same_description_gives_the_same_run_in_both_runners():
     for runner in ("thread", "process"):
         with build_system(description.replace(runner=runner)) as system:
             handle = system.handle
-            done = handle.call_at(300, "sim", "measured_qpos")
+            # (measured_jp is a copy; sim.measured_qpos would be the live array in a thread)
+            done = handle.call_at(300, "MTMR", "measured_jp")
+            psm = handle.call_at(300, "PSM1", "measured_jp")
             handle.call_at(100, "console", "emulate_clutch", [1])
             handle.resume()
-            q = done.result(60)
+            q = np.r_[done.result(60), psm.result(60)]
             assert wait_for(lambda h=handle: h.snapshot().tick >= 300)
         snaps.append(np.asarray(q))
         assert (system.sim is None) == (runner == "process")
