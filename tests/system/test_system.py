@@ -9,6 +9,7 @@ import pytest
 
 from davinci_sim.devices.network import NetworkDevice
 from davinci_sim.devices.simulated import SimulatedMTM
+from davinci_sim.devices.udp import UDPJSONDevice
 from davinci_sim.sim.simulation import Simulation
 from davinci_sim.system import (
     ConsoleDescription,
@@ -81,6 +82,15 @@ def test_devices_teleop_scale_and_home_from_the_description():
         assert sim.arms["PSM1"].is_busy()  # homing
     finally:
         sim.close()
+    udp = SystemDescription(
+        scene="psm1_ecm_mtmr",
+        console=ConsoleDescription(devices={"MTMR": DeviceDescription("udp", port=0)}),
+    )
+    sim = build_simulation(udp)
+    device = sim.components["MTMR/device"]
+    assert isinstance(device, UDPJSONDevice) and device.address[1] > 0
+    device.close()
+    sim.close()
     with pytest.raises(ValueError, match="unknown MTMs"):
         build_simulation(
             SystemDescription(scene="psm1", console=ConsoleDescription(devices={"MTMX": None}))
@@ -143,19 +153,32 @@ def test_the_renderer_draws_the_system_scene_with_the_task():
         plain = Simulation("psm1_ecm_mtmr", keyframe="surgical").render_stereo()[0].astype(int)
     finally:
         sim.close()
+    # The arms move a little from tick 0 (no homing: they sag slowly), so compare where the
+    # path is drawn: pixels that differ between the plain scene and the task's scene.
+    drawn = np.any(np.abs(reference - plain) > 40, axis=2)
+    assert drawn.sum() > 100
+
+    def shows_the_task(frame):
+        left = frame.left.astype(int)
+        close_to_task = np.abs(left[drawn] - reference[drawn]).mean()
+        close_to_plain = np.abs(left[drawn] - plain[drawn]).mean()
+        assert close_to_task < 0.25 * close_to_plain, (close_to_task, close_to_plain)
+
+    # the runner's renderer (render_hz), and a viewer's on-demand one fed from snapshots
     system = build_system(TASK.replace(render_hz=30.0, real_time=False), start=True)
     try:
-        frame = None
         assert wait_for(lambda: (f := system.stereo_frame()) is not None and f.frame >= 1)
         frame = system.stereo_frame()
         assert frame.left.shape == (480, 640, 3)
+        shows_the_task(frame)
     finally:
         system.stop()
-    left = frame.left.astype(int)
-    # The arms moved a little since tick 0 (no homing: they sag slowly), so compare where
-    # the path is drawn: pixels that differ between the plain scene and the task's scene.
-    drawn = np.any(np.abs(reference - plain) > 40, axis=2)
-    assert drawn.sum() > 100
-    close_to_task = np.abs(left[drawn] - reference[drawn]).mean()
-    close_to_plain = np.abs(left[drawn] - plain[drawn]).mean()
-    assert close_to_task < 0.25 * close_to_plain, (close_to_task, close_to_plain)
+    system = build_system(TASK.replace(real_time=False), start=True)
+    frames = system.frames(30.0)
+    try:
+        assert not frames.from_handle
+        assert wait_for(lambda: frames.latest() is not None)
+        shows_the_task(frames.latest())
+    finally:
+        frames.stop()
+        system.stop()

@@ -193,6 +193,16 @@ class System:
         """The runner's latest stereo pair (``render_hz`` must be set), or None yet."""
         return self.handle.stereo_frame()
 
+    def frames(self, rate_hz: float = 30.0, *, use_handle: bool | None = None):
+        """Stereo frames for a viewer (a web console's view, the bridge's image topics):
+        the runner's renderer if it has one, else one started on first use and fed from
+        snapshots; the system's model, the task's drawing included
+        (:class:`~davinci_sim.sim.runtime.render.StereoFrames`; stop it when done)."""
+        from davinci_sim.sim.runtime.render import StereoFrames
+
+        return StereoFrames(self.handle, self.description.scene, rate_hz,
+                            model=self.model_source, use_handle=use_handle)  # fmt: skip
+
     def start(self) -> System:
         if self.handle is not None:
             self.handle.start()
