@@ -423,3 +423,46 @@ def test_binary_frames_are_read_as_json(make_server, make_raw):
     c.send(json.dumps({"op": "call_service", "service": "/rosapi/nodes", "id": "b"}).encode())
     r = c.recv_until(lambda m: m.get("op") == "service_response")
     assert r["result"] is True
+
+
+def test_periodic_task_keeps_absolute_deadlines_on_a_virtual_loop(monkeypatch):
+    """The publishers' timer (``PeriodicTask``) on a loop whose clock the test moves: one
+    call per period at k·period, late wake-ups do not drift, a stall skips the missed calls
+    instead of bursting."""
+    from types import SimpleNamespace
+
+    from davinci_sim.bridge.rosbridge import publisher
+
+    class Loop:
+        def __init__(self):
+            self.now = 100.0
+            self.timer = None
+
+        def time(self):
+            return self.now
+
+        def call_at(self, when, fn):
+            self.timer = (when, fn)
+            return SimpleNamespace(cancel=lambda: None)
+
+        def fire(self, late=0.0):  # the timer fires, ``late`` s after its deadline
+            when, fn = self.timer
+            self.now = when + late
+            fn()
+            return when
+
+    loop = Loop()
+    monkeypatch.setattr(publisher.asyncio, "get_running_loop", lambda: loop)
+    calls = []
+    task = publisher.PeriodicTask(0.01, lambda: calls.append(loop.now))
+    task.start()
+    deadlines = [loop.fire(late=0.004 if k % 2 else 0.0) for k in range(10)]
+    assert deadlines == pytest.approx([100.0 + 0.01 * (k + 1) for k in range(10)])  # no drift
+    assert len(calls) == task.calls == 10 and task.skipped == 0
+    loop.fire(late=0.055)  # a 55 ms stall (at 100.165 s): the deadlines missed are skipped
+    assert task.skipped == 4 and task.calls == 11  # one call for the stall, not five
+    assert loop.timer[0] == pytest.approx(100.16)  # back on the grid of k·period
+    loop.fire()
+    assert loop.timer[0] == pytest.approx(100.17) and task.skipped == 4
+    with pytest.raises(ValueError):
+        publisher.PeriodicTask(0.0, print)
