@@ -452,7 +452,7 @@ def test_periodic_task_keeps_absolute_deadlines_on_a_virtual_loop(monkeypatch):
             return when
 
     loop = Loop()
-    monkeypatch.setattr(publisher.asyncio, "get_running_loop", lambda: loop)
+    monkeypatch.setattr(publisher, "asyncio", SimpleNamespace(get_running_loop=lambda: loop))
     calls = []
     task = publisher.PeriodicTask(0.01, lambda: calls.append(loop.now))
     task.start()
