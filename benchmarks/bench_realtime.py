@@ -24,14 +24,15 @@ import os
 import time
 
 from common import write
-from davinci_sim.console import build_teleop_simulation
 from davinci_sim.console.setup import add_scripted_hands
 from davinci_sim.sim.runtime import ProcessSimulation
+from davinci_sim.system import ConsoleDescription, SystemDescription, build_simulation
 
 
 def full_system(pairs: int = 2):
     """The full system; ``pairs`` = 2: both MTMs follow; 1: only MTMR (MTML idle)."""
-    sim = build_teleop_simulation("full", contact_feedback=True)
+    console = ConsoleDescription(contact_feedback=True)
+    sim = build_simulation(SystemDescription("full", console=console))
     console = sim.components["console"]
     if pairs == 1:
         console.unselect_teleop("MTML_PSM2")

@@ -13,8 +13,8 @@ import logging
 import os
 
 from common import summary, time_each, write
-from davinci_sim.console import build_teleop_simulation
 from davinci_sim.sim.simulation import Simulation
+from davinci_sim.system import ConsoleDescription, SystemDescription, build_simulation
 
 
 def viscous(state):
@@ -23,13 +23,10 @@ def viscous(state):
 
 
 def teleop_sim(scene: str) -> Simulation:
-    sim = build_teleop_simulation(
-        scene,
-        operator_present=True,
-        teleop_enabled=True,
-        contact_feedback=True,
-        scripted_hands=True,
+    console = ConsoleDescription(
+        operator_present=True, teleop_enabled=True, contact_feedback=True, scripted_hands=True
     )
+    sim = build_simulation(SystemDescription(scene, console=console))
     console = sim.components["console"]
     console.haptics.add_field(viscous)
     teleops = [t for t in console.psm_teleops.values() if t.selected]

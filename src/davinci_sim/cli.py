@@ -50,24 +50,18 @@ def cmd_info(args: argparse.Namespace) -> int:
 def cmd_snapshot(args: argparse.Namespace) -> int:
     from PIL import Image
 
-    from davinci_sim.sim.simulation import Simulation
+    from davinci_sim.system import SystemDescription, TaskDescription, new_simulation
+    from davinci_sim.tasks import TaskError
 
-    edit_spec = None
-    if args.task is not None:
-        from davinci_sim.tasks import TaskError, add_path_visual, load_task
-
-        try:
-            task = load_task(args.task)
-        except TaskError as e:
-            print(f"davinci-sim snapshot: {e}", file=sys.stderr)
-            return 2
-
-        def edit_spec(spec):
-            add_path_visual(spec, task)
-
+    task = None if args.task is None else TaskDescription(args.task)
+    description = SystemDescription(scene=args.scene, keyframe=args.keyframe, task=task)
     out = Path(args.output)
+    try:
+        sim = new_simulation(description)  # the scene with the task's path drawn
+    except TaskError as e:
+        print(f"davinci-sim snapshot: {e}", file=sys.stderr)
+        return 2
     out.mkdir(parents=True, exist_ok=True)
-    sim = Simulation(args.scene, keyframe=args.keyframe, edit_spec=edit_spec)
     if not args.no_home:
         _home_all(sim)
     sim.run_for(0.2)
@@ -170,11 +164,17 @@ def _demo(sim, log) -> dict:
 
 
 def cmd_demo(args: argparse.Namespace) -> int:
-    from davinci_sim.sim.simulation import Simulation
+    from davinci_sim.system import SystemDescription, build_system
 
-    sim = Simulation(args.scene, seed=args.seed, keyframe=args.keyframe)
-    report = _demo(sim, print)
-    sim.close()
+    # No runner: the demo ticks the simulation itself, as fast as it computes.
+    description = SystemDescription(
+        scene=args.scene, keyframe=args.keyframe, seed=args.seed, runner="none"
+    )
+    system = build_system(description)
+    try:
+        report = _demo(system.sim, print)
+    finally:
+        system.stop()
     return 0 if report["homed"] and report.get("refused_ok", True) else 1
 
 

@@ -3,7 +3,8 @@
 import base64
 import io
 import math
-import time
+import os
+import signal
 
 import numpy as np
 import pytest
@@ -28,6 +29,9 @@ def probed_handle():
 
 
 def test_images_arrive_decode_and_do_not_stall_the_loop(probed_handle, make_server, make_ros):
+    """Frames arrive, decode, have the endoscope's size and show a scene; the loop keeps
+    ticking while the renderer is frozen (rendering is not in the loop's path). Image rates
+    and render times are measured in benchmarks/bench_bridge.py, not here."""
     h = probed_handle
     endo = EndoscopeNode(h, "psm1", encoding="both", rate=30)
     server = make_server(nodes=[DvrkNode(h), endo])
@@ -35,21 +39,13 @@ def test_images_arrive_decode_and_do_not_stall_the_loop(probed_handle, make_serv
     left, right, raw, info = [], [], [], []
     ns = "/jhu_daVinci"
     roslibpy.Topic(ros, f"{ns}/left/image_raw/compressed", "sensor_msgs/CompressedImage"
-                   ).subscribe(lambda msg: left.append((time.monotonic(), msg)))  # fmt: skip
+                   ).subscribe(left.append)  # fmt: skip
     roslibpy.Topic(ros, f"{ns}/right/image_raw/compressed", "sensor_msgs/CompressedImage"
                    ).subscribe(right.append)  # fmt: skip
     roslibpy.Topic(ros, f"{ns}/left/image_raw", "sensor_msgs/Image").subscribe(raw.append)
     roslibpy.Topic(ros, f"{ns}/right/camera_info", "sensor_msgs/CameraInfo").subscribe(info.append)
-    assert wait_for(lambda: len(left) >= 3 and raw and right, 20)  # render process start-up
-    t0_wall, t0_sim, n0 = time.monotonic(), h.snapshot().time, len(left)
-    time.sleep(2.0)
-    rate = (len(left) - n0) / (time.monotonic() - t0_wall)
-    real_time = (h.snapshot().time - t0_sim) / (time.monotonic() - t0_wall)
-    # ~30 Hz on an idle machine (benchmarks/bench_bridge.py); the bounds leave room for a
-    # busy test machine while still telling a stream from a trickle and a stalled loop.
-    assert rate > 5, rate
-    assert real_time > 0.75, real_time  # rendering happens elsewhere: the loop keeps pace
-    msg = left[-1][1]
+    assert wait_for(lambda: len(left) >= 3 and raw and right, 60), "no frames (render start-up)"
+    msg = left[-1]
     assert msg["format"] == "jpeg" and msg["header"]["frame_id"] == "ECM_left"
     img = Image.open(io.BytesIO(base64.b64decode(msg["data"])))
     assert img.format == "JPEG" and img.size == (640, 480)
@@ -62,7 +58,21 @@ def test_images_arrive_decode_and_do_not_stall_the_loop(probed_handle, make_serv
     assert p[3] == pytest.approx(-p[0] * 0.005)  # right camera: -fx * baseline
     # camera_info goes out with each pair, with its stamp (read an earlier, complete frame)
     assert right[-2]["header"]["stamp"] in [i["header"]["stamp"] for i in info]
-    assert endo.frames > 0 and max(endo.render_times) < 1.0
+    stamps = [(m["header"]["stamp"]["sec"], m["header"]["stamp"]["nanosec"]) for m in left]
+    assert stamps == sorted(stamps) and len(set(stamps)) == len(stamps)  # new frames, in order
+    # The renderer runs in another process: freeze it, and the loop still ticks (200 ms of
+    # simulated time), then frames resume when it runs again.
+    pid = endo.render_pid()
+    assert pid is not None and pid != os.getpid()
+    os.kill(pid, signal.SIGSTOP)
+    try:
+        tick0 = h.snapshot().tick
+        assert wait_for(lambda: h.snapshot().tick >= tick0 + 200, 30), "the loop stalled"
+    finally:
+        os.kill(pid, signal.SIGCONT)
+    n = len(left)
+    assert wait_for(lambda: len(left) >= n + 2, 30), "frames did not resume"
+    assert endo.frames >= 5
 
 
 def test_camera_info_pinhole():
@@ -129,3 +139,41 @@ def test_frames_from_a_rendering_runner(handle, make_server, make_ros):
     r = raw[-1]
     right = np.frombuffer(base64.b64decode(r["data"]), np.uint8).reshape(48, 64, 3)
     assert right[:, :32].mean() == 200 and right[:, 32:].mean() == 20  # mirrored, exact
+
+
+@pytest.mark.parametrize("runner", ["thread", "process"])
+def test_serve_images_show_the_task_path(make_ros, runner):
+    """issue 11: ``serve --task`` renders the scene the simulation has, path included, with
+    either runner (the renderer builds its model from the system's description)."""
+    import threading
+
+    from davinci_sim.bridge.app import ServeOptions, serve
+    from davinci_sim.bridge.rosbridge.config import BridgeConfig
+
+    ready, stop = {}, threading.Event()
+    options = ServeOptions(scene="psm1_ecm_mtmr", task="seed_path", runner=runner,
+                           images="raw", bridge=BridgeConfig(port=0))  # fmt: skip
+    thread = threading.Thread(
+        target=lambda: ready.update(done=serve(options, stop=stop, on_ready=ready.update))
+    )
+    thread.start()
+    try:
+        assert wait_for(lambda: "url" in ready, 60)
+
+        class S:
+            port = int(ready["url"].rsplit(":", 1)[1])
+
+        ros = make_ros(S)
+        raw = []
+        roslibpy.Topic(ros, "/jhu_daVinci/left/image_raw", "sensor_msgs/Image").subscribe(
+            raw.append
+        )
+        assert wait_for(lambda: raw, 60), "no image"
+        rgb = np.frombuffer(base64.b64decode(raw[-1]["data"]), np.uint8).reshape(480, 640, 3)
+        rgb = rgb.astype(int)
+        magenta = (rgb[..., 0] > 200) & (rgb[..., 1] < 120) & (rgb[..., 2] > 180)
+        assert magenta.sum() > 20  # the path, in the task's colour
+    finally:
+        stop.set()
+        thread.join(30)
+    assert "done" in ready

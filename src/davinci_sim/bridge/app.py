@@ -1,8 +1,9 @@
 """``davinci-sim serve``: a simulation with its ROS interfaces, assembled from options.
 
-One function, :func:`serve`, builds the simulation (optionally with the surgeon console and
-its teleoperations, issue 3), runs it in its loop (a thread of this process, or its own
-process with the process runner when available), and starts what the options ask for: the
+One function, :func:`serve`, describes the system its options ask for
+(:func:`serve_description`: the scene, optionally the surgeon console and a training task, the
+runner), builds and runs it with the one assembly (:func:`davinci_sim.system.build_system`:
+a thread of this process, or the loop in its own process), and adds the bridge's parts: the
 rosbridge server with the dVRK, console and endoscope nodes, the UDP streams, the client
 mode. It runs until ``stop`` is set (Ctrl-C in the CLI) or ``duration`` passes, then stops
 everything in reverse order.
@@ -10,7 +11,6 @@ everything in reverse order.
 
 from __future__ import annotations
 
-import functools
 import logging
 import threading
 import time
@@ -19,6 +19,7 @@ from dataclasses import dataclass, field
 from typing import Literal
 
 from davinci_sim.bridge.rosbridge.config import BridgeConfig
+from davinci_sim.system.description import task_condition  # noqa: F401 (the CLI's check)
 
 _log = logging.getLogger("davinci_sim.bridge")
 
@@ -63,60 +64,42 @@ class ServeOptions:
     """CSV file each finished repetition is appended to."""
 
 
-def task_condition(task, condition: str | None) -> dict | str | None:
-    """``--condition``: a condition name of ``task``, or ``B:G_max`` for viscous guidance."""
-    if condition is None or condition in {c.get("name") for c in task.conditions}:
-        return condition
-    try:
-        B, G = (float(x) for x in condition.split(":"))
-    except ValueError:
-        names = [c.get("name") for c in task.conditions]
-        raise ValueError(
-            f"condition {condition!r} is neither one of {task.name!r}'s ({names}) nor B:G_max"
-        ) from None
-    return {"type": "viscous", "B": B, "G_max": G}
-
-
-def build_simulation(
-    scene: str, keyframe: str, seed: int, home: bool, console: bool, network_mtms: bool,
-    qpos_probe: bool, task: str | None = None, condition: str | None = None,
-    task_log: str | None = None,
-):  # fmt: skip
-    """The simulation of :func:`serve` (top level and picklable for the process runner)."""
-    from davinci_sim.bridge.endoscope import QposProbe
-    from davinci_sim.sim.simulation import Simulation
-
-    path_task = None
-    if task is not None:
-        from davinci_sim.tasks import add_path_visual, load_task
-
-        path_task = load_task(task)
-        task_condition(path_task, condition)  # a bad condition fails before the model is built
-    sim = Simulation(
-        scene,
-        seed=seed,
-        keyframe=keyframe,
-        edit_spec=None if path_task is None else lambda spec: add_path_visual(spec, path_task),
+def serve_description(options: ServeOptions):
+    """The :class:`~davinci_sim.system.SystemDescription` of ``options``: the scene, the
+    console (its MTMs as network devices fed by the client mode with ``ros_connect``), the
+    task, the runner; snapshots carry ``qpos`` when images are served."""
+    from davinci_sim.model.config import scene_arms
+    from davinci_sim.system import (
+        ConsoleDescription,
+        DeviceDescription,
+        SystemDescription,
+        TaskDescription,
     )
-    if console or path_task is not None:
-        from davinci_sim.console.setup import install_console
-        from davinci_sim.devices.network import NetworkDevice
 
+    console = None
+    if options.console or options.task is not None:
         devices = {}
-        if network_mtms:
-            devices = {m: NetworkDevice(f"{m}/device") for m in ("MTML", "MTMR") if m in sim.arms}
-        install_console(sim, devices=devices)
-    if path_task is not None:
-        from davinci_sim.tasks.session import install_task
-
-        install_task(sim, path_task, condition=task_condition(path_task, condition), log=task_log)
-    if qpos_probe:
-        sim.components["qpos"] = QposProbe(sim)
-    if home:
-        for arm in sim.arms.values():
-            arm.state_command("enable")
-            arm.state_command("home")
-    return sim
+        if options.ros_connect is not None:
+            arms = scene_arms(options.scene)
+            devices = {m: DeviceDescription("network") for m in ("MTML", "MTMR") if m in arms}
+        console = ConsoleDescription(devices=devices)
+    task = None
+    if options.task is not None:
+        task = TaskDescription(options.task, condition=options.condition, log=options.task_log)
+    return SystemDescription(
+        scene=options.scene,
+        keyframe=options.keyframe,
+        seed=options.seed,
+        console=console,
+        task=task,
+        home=options.home,
+        runner=options.runner,
+        real_time=options.real_time,
+        # Snapshots cost ~0.2 ms of the loop for the full system with the console: take them
+        # at the publish rate, not every tick, so the 1 kHz loop keeps its margin.
+        snapshot_period=1.0 / max(options.rate, 1.0),
+        publish_qpos=options.images != "none",
+    )
 
 
 def serve(
@@ -138,33 +121,18 @@ def serve(
     from davinci_sim.bridge.system_node import SystemNode
     from davinci_sim.bridge.task_node import TaskNode
     from davinci_sim.bridge.udp import UdpStreamer, default_streams
-    from davinci_sim.sim.handle import ThreadedSimulation
+    from davinci_sim.system import build_system
 
     stop = stop or threading.Event()
     process = options.runner == "process"
-    factory = functools.partial(
-        build_simulation, options.scene, options.keyframe, options.seed, options.home,
-        options.console, options.ros_connect is not None, options.images != "none",
-        options.task, options.condition, options.task_log,
-    )  # fmt: skip
-    # Snapshots cost ~0.2 ms of the loop for the full system with the console: take them at
-    # the publish rate, not every tick, so the 1 kHz loop keeps its margin.
-    period = 1.0 / max(options.rate, 1.0)
-    sim = None
-    if process:
-        from davinci_sim.sim.runtime.process import ProcessSimulation
-
-        # Images: our render worker (render + JPEG in one process) from the published qpos.
-        handle = ProcessSimulation(factory, real_time=options.real_time, snapshot_period=period)
-    else:
-        sim = factory()
-        handle = ThreadedSimulation(sim, real_time=options.real_time, snapshot_period=period)
+    system = build_system(serve_description(options))
+    handle = system.handle
     arm_names = set()
     started: list = []
     info: dict = {}
     try:
-        handle.start()
-        started.append(handle)
+        system.start()
+        started.append(system)
         arm_names = set(handle.snapshot().arms)
         if options.server:
             nodes: list = [
@@ -176,7 +144,8 @@ def serve(
             if options.images != "none":
                 nodes.append(EndoscopeNode(handle, options.scene, rate=options.image_rate,
                                            encoding=options.images, rig=options.rig,
-                                           handle_frames=False))  # fmt: skip
+                                           handle_frames=False,
+                                           model=system.model_source))  # fmt: skip
             server = RosbridgeServer(options.bridge, nodes=nodes).start()
             started.append(server)
             info["url"] = server.url
@@ -211,15 +180,14 @@ def serve(
                 break
         wall = time.monotonic() - t0_wall
         info["sim_over_wall"] = (handle.snapshot().time - t0_sim) / wall if wall > 0 else 0.0
-        stats = getattr(handle, "period_statistics", None)
-        if callable(stats):
-            info["period_statistics"] = stats()
+        if process:  # (the thread runner has them too; `serve` reports the process's)
+            info["period_statistics"] = handle.period_statistics()
     finally:
         for part in reversed(started):
             try:
                 part.stop()
             except Exception:
                 _log.exception("stopping %r failed", part)
-        if sim is not None:
-            sim.close()
+        if not started:
+            system.stop()  # (built, not started: release the simulation)
     return info

@@ -7,14 +7,12 @@ default), ``image_raw`` (``sensor_msgs/Image`` rgb8, by option) and ``camera_inf
 projection carries the stereo baseline).
 
 Rendering a stereo pair takes ~22 ms of CPU; done in the simulation's thread it would stall
-the 1 kHz loop, and in this process it would hold the GIL. So a :class:`RenderWorker` process
-builds the same MuJoCo model, receives joint positions (``qpos``) at the image rate, renders
-both cameras and JPEG-encodes them; the bridge only forwards bytes. Frames are requested
-only while someone subscribes, one at a time (the rate is capped by the worker).
-
-A handle that renders by itself (a runner with ``stereo_frame()``, such as the process
-runner of :mod:`davinci_sim.sim.runtime`) is used instead: its latest frame is taken at the
-image rate and JPEG-encoded in a worker thread (Pillow releases the interpreter lock).
+the 1 kHz loop, and in this process it would hold the GIL. The frames come from the one
+stereo render pipeline (:class:`~davinci_sim.sim.runtime.render.StereoFrames`, a render
+process reading joint positions from shared memory): the handle's own (a runner created with
+``render_hz``), or one started when the first image subscriber comes and fed the snapshots'
+``qpos`` (see :class:`QposProbe`) at the image rate. New frames are JPEG-encoded in a worker
+thread (Pillow releases the interpreter lock); the bridge only forwards bytes.
 """
 
 from __future__ import annotations
@@ -22,18 +20,15 @@ from __future__ import annotations
 import asyncio
 import logging
 import math
-import os
-import socket
-import subprocess
-import sys
 import time
+from collections.abc import Callable
 from dataclasses import dataclass
-from multiprocessing.connection import Connection
 from typing import TYPE_CHECKING, Any, Literal
 
 import numpy as np
 
 from davinci_sim.bridge.rosbridge.publisher import PeriodicTask
+from davinci_sim.sim.runtime.render import QposProbe, StereoFrames  # noqa: F401 (re-export)
 
 if TYPE_CHECKING:
     from davinci_sim.bridge.rosbridge.core import Bridge
@@ -43,26 +38,7 @@ if TYPE_CHECKING:
 _log = logging.getLogger("davinci_sim.bridge")
 
 NODE = "/davinci_sim/endoscope"
-PIPELINE_DEPTH = 2
-"""Requests sent ahead to the render process, so it never waits for the next one."""
 CAMERAS = (("left", "ECM/left"), ("right", "ECM/right"))
-
-
-class QposProbe:
-    """A simulation component that publishes a copy of ``qpos`` in each snapshot's extras
-    (``extras["qpos"]``), so a renderer elsewhere sees a consistent state. Register it with
-    ``sim.components["qpos"] = QposProbe(sim)`` before the loop starts."""
-
-    def __init__(self, sim: Any) -> None:
-        self._sim = sim
-
-    def pre_step(self, t: float) -> None:
-        pass
-
-    def snapshot(self) -> np.ndarray:
-        q = self._sim.data.qpos.copy()
-        q.setflags(write=False)
-        return q
 
 
 # =========================================================================== camera info
@@ -96,7 +72,7 @@ def camera_info(
     }
 
 
-# =========================================================================== the worker
+# =========================================================================== encoding
 def _encode_pair(left, right, encoding: str, quality: int):
     """``(jpeg pair | None, raw pair | None, seconds)`` of two RGB arrays."""
     import io
@@ -129,51 +105,6 @@ class Frame:
     render_s: float
 
 
-class RenderWorker:
-    """The render process (``python -m davinci_sim.bridge.render_worker``) and its socket.
-
-    A plain subprocess rather than ``multiprocessing``: it does not re-import the caller's
-    main module, so any script can serve images.
-    """
-
-    def __init__(self, scene: SceneConfig, encoding: str = "jpeg", quality: int = 85) -> None:
-        parent, child = socket.socketpair()
-        env = dict(os.environ)
-        env.setdefault("MUJOCO_GL", "egl")
-        self.process = subprocess.Popen(
-            [sys.executable, "-m", "davinci_sim.bridge.render_worker", str(child.fileno())],
-            pass_fds=(child.fileno(),),
-            env=env,
-        )
-        child.close()
-        self._conn = Connection(parent.detach())
-        self._conn.send((scene, encoding, quality))
-        self.ready = False
-        self.in_flight = 0
-
-    def fileno(self) -> int:
-        return self._conn.fileno()
-
-    def request(self, stamp: float, qpos: np.ndarray) -> None:
-        self.in_flight += 1
-        self._conn.send((stamp, np.asarray(qpos, dtype=float)))
-
-    def receive(self) -> tuple[str, Any]:
-        return self._conn.recv()
-
-    def close(self) -> None:
-        try:
-            self._conn.send(None)
-        except OSError:
-            pass
-        try:
-            self.process.wait(3)
-        except subprocess.TimeoutExpired:
-            self.process.kill()
-            self.process.wait(1)
-        self._conn.close()
-
-
 # =========================================================================== the node
 class EndoscopeNode:
     """Publishes the stereo endoscope of ``handle``'s simulation.
@@ -181,13 +112,16 @@ class EndoscopeNode:
     Args:
         handle: the running simulation (its snapshots should carry ``extras["qpos"]``, see
             :class:`QposProbe`; otherwise ``qpos`` is asked from the loop).
-        scene: the simulation's scene (name or config): the worker builds the same model.
-        rate: images per second wanted (the worker's speed caps it), default 30.
+        scene: the simulation's scene (name or config): the image size, and the model the
+            node's renderer draws unless ``model`` is given.
+        rate: images per second wanted (the renderer's speed caps it), default 30.
         encoding: ``"jpeg"`` (``image_raw/compressed``), ``"raw"`` (``image_raw``) or
             ``"both"``.
         rig: namespace of the stereo pair (``/<rig>/left/…``).
         handle_frames: take the frames the handle renders (``stereo_frame()``) instead of
-            rendering in a worker process; None: if the handle has ``stereo_frame``.
+            starting a renderer of this node's; None: if the handle has ``stereo_frame``.
+        model: picklable callable returning the model to render (the system's, with the
+            task's drawing: :attr:`davinci_sim.system.System.model_source`).
     """
 
     def __init__(
@@ -200,6 +134,7 @@ class EndoscopeNode:
         rig: str = "jhu_daVinci",
         quality: int = 85,
         handle_frames: bool | None = None,
+        model: Callable[[], Any] | None = None,
     ) -> None:
         from davinci_sim.model import resolve_scene
 
@@ -211,22 +146,18 @@ class EndoscopeNode:
             raise ValueError(f"quality must be in [1, 100], got {quality!r}")
         self.handle = handle
         self.scene = resolve_scene(scene)
+        self.model = model
         self.rate = rate
         self.encoding = encoding
         self.rig = rig.strip("/")
         self.quality = quality
-        self.worker: list[RenderWorker] = []
+        self.source = StereoFrames(handle, self.scene, rate, model=model, use_handle=handle_frames)
+        """Where the frames come from (the one stereo render pipeline)."""
         self.frames = 0
         self.render_times: list[float] = []
         self._task: PeriodicTask | None = None
-        self._pending_qpos = False
-        self._started = 0.0
-        self._retry_at = 0.0
-        self._last_request = 0.0
-        has_frames = callable(getattr(handle, "stereo_frame", None))
-        self._external = has_frames if handle_frames is None else handle_frames and has_frames
         self._last_frame_number: int | None = None
-        self._encoding_external = False
+        self._encoding = False
 
     def attach(self, bridge: Bridge) -> None:
         self.bridge = bridge
@@ -252,7 +183,18 @@ class EndoscopeNode:
         self._stop_worker()
         self.bridge.remove_node(NODE)
 
-    # ------------------------------------------------------------------ worker
+    @property
+    def worker(self) -> list:
+        """This node's render process (empty until the first image subscriber, or if the
+        handle renders)."""
+        return self.source.renderers
+
+    def render_pid(self) -> int | None:
+        """Process id of this node's render process (None: not started, or the handle
+        renders)."""
+        return self.source.pid
+
+    # ------------------------------------------------------------------ frames
     def _wanted(self) -> bool:
         return any(t.subscriptions for e in self.topics.values() for t in e.values())
 
@@ -261,22 +203,8 @@ class EndoscopeNode:
             t.subscriptions for e in self.topics.values() for k, t in e.items() if k != "info"
         )
 
-    def _worker(self) -> RenderWorker:
-        if not self.worker:
-            w = RenderWorker(self.scene, self.encoding, self.quality)
-            self.loop.add_reader(w.fileno(), self._on_readable, w)
-            self.worker.append(w)
-            self._started = time.perf_counter()
-        return self.worker[0]
-
     def _stop_worker(self) -> None:
-        for w in self.worker:
-            try:
-                self.loop.remove_reader(w.fileno())
-            except Exception:
-                pass
-            w.close()
-        self.worker.clear()
+        self.source.stop()
 
     def _tick(self) -> None:
         if not self._wanted():
@@ -284,46 +212,22 @@ class EndoscopeNode:
         if not self._image_wanted():
             self._publish_info(self.bridge.now())
             return
-        if self._external:
-            self._tick_external()
-            return
-        if time.monotonic() < self._retry_at:
-            return
-        try:
-            w = self._worker()
-        except Exception:
-            _log.exception("endoscope: cannot start the render process; retrying in 10 s")
-            self._retry_at = time.monotonic() + 10.0
-            return
-        # Two requests in flight: the worker starts the next pair as soon as it has sent one.
-        if not w.ready or w.in_flight >= PIPELINE_DEPTH or self._pending_qpos:
-            return
-        if time.monotonic() < self._last_request + 1.0 / self.rate - 0.002:
-            return
-        self._request(w)
+        self._encode_and_publish(self.source.latest())
 
-    def _tick_external(self) -> None:
-        """Frames rendered by the handle's own renderer: encode and publish new ones."""
-        if self._encoding_external:
+    def _encode_and_publish(self, frame) -> None:
+        """Encode a new frame in a worker thread, then publish it (one encoding at a time:
+        frames that come meanwhile are skipped)."""
+        if self._encoding or frame is None or frame.frame == self._last_frame_number:
             return
-        try:
-            frame = self.handle.stereo_frame()
-        except Exception as e:  # e.g. a runner started without a renderer: use ours
-            _log.warning("endoscope: the handle does not render (%s); rendering here", e)
-            self._external = False
-            return
-        number = getattr(frame, "frame", None)
-        if frame is None or number == self._last_frame_number:
-            return
-        self._last_frame_number = number
+        self._last_frame_number = frame.frame
         stamp = time.time() if self.bridge.config.stamp_clock == "wall" else frame.time
-        self._encoding_external = True
+        self._encoding = True
         future = self.loop.run_in_executor(
             None, _encode_pair, frame.left, frame.right, self.encoding, self.quality
         )
 
         def done(f) -> None:
-            self._encoding_external = False
+            self._encoding = False
             if f.exception() is not None:
                 _log.error("endoscope: encoding failed: %s", f.exception())
                 return
@@ -332,48 +236,6 @@ class EndoscopeNode:
             self._publish_frame(Frame(stamp, jpeg, raw, w, h, frame.render_time + seconds))
 
         future.add_done_callback(done)
-
-    def _request(self, w: RenderWorker) -> None:
-        self._last_request = time.monotonic()
-        snap = self.handle.snapshot()
-        qpos = snap.extras.get("qpos") if snap.extras else None
-        stamp = time.time() if self.bridge.config.stamp_clock == "wall" else snap.time
-        if qpos is not None:
-            w.request(stamp, qpos)
-            return
-        # No probe: ask the loop for qpos and copy it at once, between two ticks.
-        self._pending_qpos = True
-        future = self.handle.call("sim", "measured_qpos")
-
-        def got(f) -> None:
-            self._pending_qpos = False
-            if f.exception() is None and self.worker:
-                self.worker[0].request(stamp, np.array(f.result(), dtype=float))
-
-        future.add_done_callback(lambda f: self.loop.call_soon_threadsafe(got, f))
-
-    def _on_readable(self, w: RenderWorker) -> None:
-        try:
-            kind, payload = w.receive()
-        except (EOFError, OSError):
-            _log.error("endoscope: the render process exited; restarting in 10 s")
-            self.loop.remove_reader(w.fileno())
-            self.worker.remove(w)
-            w.close()
-            self._retry_at = time.monotonic() + 10.0
-            return
-        if kind == "ready":
-            w.ready = True
-            _log.info("endoscope: render process ready in %.2f s",
-                      time.perf_counter() - self._started)  # fmt: skip
-        else:
-            w.in_flight = max(0, w.in_flight - 1)
-            if kind == "error":
-                _log.error("endoscope: %s", payload)
-            elif kind == "frame":
-                self._publish_frame(Frame(*payload))
-        if self._image_wanted():
-            self._tick()  # the next request now if it is due
 
     # ------------------------------------------------------------------ publishing
     def _publish_info(self, stamp: float) -> None:

@@ -9,7 +9,7 @@
 
 from davinci_sim.console.console import BUTTONS, PEDALS, Console, ConsoleState
 from davinci_sim.console.haptic_loop import HapticLoop, HapticsState
-from davinci_sim.console.setup import build_teleop_simulation, install_console
+from davinci_sim.console.setup import install_console
 from davinci_sim.console.teleop_config import SIMULATED_SYSTEM, TeleopECMConfig, TeleopPSMConfig
 from davinci_sim.console.teleop_ecm import TeleopECM, TeleopECMState
 from davinci_sim.console.teleop_psm import TeleopPSM, TeleopPSMState
@@ -28,6 +28,5 @@ __all__ = [
     "TeleopPSM",
     "TeleopPSMConfig",
     "TeleopPSMState",
-    "build_teleop_simulation",
     "install_console",
 ]

@@ -109,28 +109,6 @@ def install_console(
     return console
 
 
-def build_teleop_simulation(
-    scene="psm1_ecm_mtmr",
-    *,
-    keyframe: str = "surgical",
-    seed: int = 0,
-    scripted_hands: bool = False,
-    **console_options,
-) -> Simulation:
-    """A simulation with a console installed (a picklable factory for process runners:
-    ``functools.partial(build_teleop_simulation, "full", teleop_enabled=True)``).
-
-    ``scripted_hands``: the simulated hands draw circles (2 cm, 0.5 Hz) and work the
-    grippers once their teleoperation follows (demos, benchmarks; see
-    :func:`~davinci_sim.devices.scripted.add_scripted_hands`).
-    """
-    sim = Simulation(scene, seed=seed, keyframe=keyframe)
-    console = install_console(sim, **console_options)
-    if scripted_hands:
-        add_scripted_hands(sim, console)
-    return sim
-
-
 def add_scripted_hands(
     sim: Simulation, console: Console, *, radius: float = 0.02, frequency: float = 0.5
 ) -> list[HandScript]:

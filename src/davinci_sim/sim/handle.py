@@ -20,6 +20,7 @@ paced at real time or as fast as possible.
 
 from __future__ import annotations
 
+import math
 import queue
 import threading
 import time
@@ -130,24 +131,27 @@ class Snapshot:
     """Published state of other components (console, teleops …), by component name."""
 
 
+def arm_snapshot(name: str, arm) -> ArmSnapshot:
+    """The :class:`ArmSnapshot` of one arm now (call from the loop's thread)."""
+    jaw = getattr(arm, "jaw", None)
+    gripper = getattr(arm, "gripper", None)
+    return ArmSnapshot(
+        name,
+        arm.kin.arm_type,
+        arm.operating_state(),
+        arm.measured_js(),
+        arm.setpoint_js(),
+        chain=arm.chain,
+        base_frame=arm.base_frame(),
+        jaw_measured_js=jaw.measured_js() if jaw else None,
+        jaw_setpoint_js=jaw.setpoint_js() if jaw else None,
+        gripper_measured_js=gripper.measured_js() if gripper else None,
+    )
+
+
 def take_snapshot(sim: Simulation) -> Snapshot:
     """The :class:`Snapshot` of ``sim`` now (call from the loop's thread)."""
-    arms = {}
-    for name, arm in sim.arms.items():
-        jaw = getattr(arm, "jaw", None)
-        gripper = getattr(arm, "gripper", None)
-        arms[name] = ArmSnapshot(
-            name,
-            arm.kin.arm_type,
-            arm.operating_state(),
-            arm.measured_js(),
-            arm.setpoint_js(),
-            chain=arm.chain,
-            base_frame=arm.base_frame(),
-            jaw_measured_js=jaw.measured_js() if jaw else None,
-            jaw_setpoint_js=jaw.setpoint_js() if jaw else None,
-            gripper_measured_js=gripper.measured_js() if gripper else None,
-        )
+    arms = {name: arm_snapshot(name, arm) for name, arm in sim.arms.items()}
     extras = {name: comp.snapshot() for name, comp in sim.components.items()}
     return Snapshot(sim.time, sim.tick_count, arms, extras)
 
@@ -209,25 +213,57 @@ class _Call:
     args: tuple
     kwargs: dict
     future: Future
+    tick: int | None = None
+    """Run right before this simulation tick (``call_at``); None: between the next two."""
 
 
 class ThreadedSimulation:
     """Runs a simulation in a daemon thread and serves it as a :class:`SimHandle`.
 
+    The loop is :class:`~davinci_sim.sim.runtime.loop.LoopRunner`, the one the process
+    runner uses: the same pacing, period statistics (:meth:`period_statistics`) and inputs
+    at given ticks (:meth:`call_at`).
+
     Args:
         sim: the simulation (the thread owns it from :meth:`start` on).
         real_time: pace ticks by the wall clock (1 tick per ``sim.dt``); else as fast as
-            possible.
+            possible. A paced loop that falls behind catches up tick after tick; it only
+            sleeps (no spinning: the bridge threads of this process need the interpreter).
         snapshot_period: sim-time interval between published snapshots, s. The default is
             the dVRK's 10 ms publish period (dvrk.md 2.1): a full-system snapshot with the
             console costs about 0.2 ms of the loop's time (the joint states and components'
             states; poses are computed by whoever reads them), a fifth of a 1 ms tick.
+        render_hz: render the stereo endoscope at this rate in a render process
+            (:class:`~davinci_sim.sim.runtime.render.StereoRenderer`, fed the joint positions
+            after every tick; :meth:`stereo_frame`); None: no renderer.
+        render_model: picklable callable returning the model to render (e.g. with a task's
+            drawing); None: the simulation's scene.
+        start_paused: the loop waits for :meth:`resume` before its first tick (schedule
+            inputs with :meth:`call_at` first, for a reproducible run).
+        clock, sleep: the wall clock (s) and how to wait, for the pacing (tests pass a
+            virtual clock).
     """
 
-    def __init__(self, sim: Simulation, *, real_time: bool = True, snapshot_period: float = 0.01):
+    def __init__(
+        self,
+        sim: Simulation,
+        *,
+        real_time: bool = True,
+        snapshot_period: float = 0.01,
+        render_hz: float | None = None,
+        render_model: Callable[[], Any] | None = None,
+        start_paused: bool = False,
+        clock: Callable[[], float] = time.perf_counter,
+        sleep: Callable[[float], None] | None = None,
+    ):
+        from davinci_sim.sim.runtime.loop import LoopRunner  # (runtime imports this module)
+
         self.sim = sim
         self.real_time = real_time
         self._snapshot_ticks = max(1, round(snapshot_period / sim.dt))
+        self._runner = LoopRunner(
+            sim, real_time=real_time, spin=0.0, max_lag=math.inf, clock=clock, sleep=sleep
+        )
         self._calls: queue.SimpleQueue[_Call] = queue.SimpleQueue()
         self._subscribers: list[EventCallback] = []
         self._lock = threading.Lock()
@@ -236,11 +272,23 @@ class ThreadedSimulation:
         self._snapshot = take_snapshot(sim)
         for name, source in event_sources(sim).items():
             source.subscribe(lambda ev, payload, name=name: self._emit(name, ev, payload))
+        self._render = (render_hz, render_model)
+        self._renderer = None
+        self._resume = threading.Event()
+        if not start_paused:
+            self._resume.set()
 
     # ------------------------------------------------------------- SimHandle
     def call(self, target: str, method: str, *args: Any, **kwargs: Any) -> Future:
         future: Future = Future()
         self._calls.put(_Call(target, method, args, kwargs, future))
+        return future
+
+    def call_at(self, tick: int, target: str, method: str, *args: Any, **kwargs: Any) -> Future:
+        """Run ``target.method(...)`` right before simulation tick ``tick`` (deterministic
+        input: the same in real-time and fast runs). The future fails if the tick passed."""
+        future: Future = Future()
+        self._calls.put(_Call(target, method, args, kwargs, future, int(tick)))
         return future
 
     def snapshot(self) -> Snapshot:
@@ -257,19 +305,52 @@ class ThreadedSimulation:
 
         return unsubscribe
 
+    @property
+    def renders(self) -> bool:
+        """Whether this runner renders the stereo endoscope (``render_hz``)."""
+        return self._render[0] is not None
+
+    def stereo_frame(self):
+        """The latest rendered stereo pair (``render_hz`` must be set), or None yet."""
+        if self._renderer is None:
+            raise RuntimeError("no renderer: create the ThreadedSimulation with render_hz")
+        return self._renderer.frame()
+
+    def render_statistics(self):
+        if self._renderer is None:
+            raise RuntimeError("no renderer: create the ThreadedSimulation with render_hz")
+        return self._renderer.statistics()
+
+    def period_statistics(self):
+        """The loop's timing so far (:class:`~davinci_sim.sim.runtime.stats.PeriodStatistics`)."""
+        return self._runner.recorder.statistics()
+
     # ------------------------------------------------------------- lifecycle
     def start(self) -> ThreadedSimulation:
         if self._thread is None:
+            rate, model = self._render
+            if rate is not None and self._renderer is None:
+                from davinci_sim.sim.runtime.render import StereoRenderer
+
+                self._renderer = StereoRenderer(self.sim.config, rate, model=model).start()
             self._stop.clear()
             self._thread = threading.Thread(target=self._run, name="davinci-sim", daemon=True)
             self._thread.start()
         return self
 
+    def resume(self) -> None:
+        """Start ticking (after ``start_paused``)."""
+        self._resume.set()
+
     def stop(self, timeout: float = 5.0) -> None:
         self._stop.set()
+        self._resume.set()
         if self._thread is not None:
             self._thread.join(timeout)
             self._thread = None
+        if self._renderer is not None:
+            self._renderer.stop()
+            self._renderer = None
 
     def __enter__(self) -> ThreadedSimulation:
         return self.start()
@@ -284,6 +365,12 @@ class ThreadedSimulation:
         for cb in subscribers:
             cb(source, event, payload)
 
+    def _resolve(self, c: _Call) -> None:
+        try:
+            c.future.set_result(execute(self.sim, c.target, c.method, c.args, c.kwargs))
+        except Exception as e:  # the caller gets the error; the loop carries on
+            c.future.set_exception(e)
+
     def _run_calls(self) -> None:
         while True:
             try:
@@ -292,23 +379,24 @@ class ThreadedSimulation:
                 return
             if not c.future.set_running_or_notify_cancel():
                 continue
+            if c.tick is None:
+                self._resolve(c)
+                continue
             try:
-                c.future.set_result(execute(self.sim, c.target, c.method, c.args, c.kwargs))
-            except Exception as e:  # the caller gets the error; the loop carries on
+                self._runner.call_at(c.tick, self._resolve, c)
+            except ValueError as e:
                 c.future.set_exception(e)
 
-    def _run(self) -> None:
+    def _publish(self) -> None:
         sim = self.sim
-        t0 = time.perf_counter()
-        n = 0
-        while not self._stop.is_set():
-            self._run_calls()
-            sim.tick()
-            n += 1
-            if n % self._snapshot_ticks == 0:
-                self._snapshot = take_snapshot(sim)
-            if self.real_time:
-                delay = t0 + n * sim.dt - time.perf_counter()
-                if delay > 0:
-                    time.sleep(delay)
+        if sim.tick_count % self._snapshot_ticks == 0:
+            self._snapshot = take_snapshot(sim)
+        if self._renderer is not None:
+            self._renderer.feed(sim.tick_count, sim.time, sim.data.qpos)
+
+    def _run(self) -> None:
+        self._resume.wait()
+        self._run_calls()  # (calls made while paused, e.g. call_at for the first ticks)
+        self._runner.run(until=self._stop.is_set, before_tick=self._run_calls,
+                         after_tick=self._publish)  # fmt: skip
         self._run_calls()

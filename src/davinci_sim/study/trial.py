@@ -96,6 +96,26 @@ def study_scene(task) -> SceneConfig:
     return SceneConfig(arms=(task.teleop.psm, "ECM", task.teleop.mtm), include_patient=False)
 
 
+def trial_description(task: PathTask, *, seed: int = 0):
+    """The system of a study trial: :func:`study_scene` at the task's keyframe, the console
+    with a simulated MTM at the task's motion scale (no MTM alignment: the hand holds the
+    handle as it is), the operator present and teleoperation enabled; no runner (the
+    engines tick it), no task session (the engines measure) and no drawing."""
+    from davinci_sim.console import SIMULATED_SYSTEM
+    from davinci_sim.system import ConsoleDescription, SystemDescription
+
+    console = ConsoleDescription(
+        teleop=SIMULATED_SYSTEM.replace(align_mtm=False),
+        scale=task.teleop.scale,
+        operator_present=True,
+        teleop_enabled=True,
+    )
+    return SystemDescription(
+        scene=study_scene(task), keyframe=task.teleop.keyframe, seed=seed, console=console,
+        runner="none",
+    )  # fmt: skip
+
+
 @dataclass
 class TrialSetup:
     """A simulation ready for a trial: the teleoperation follows and the tool is at point 1."""
@@ -122,9 +142,10 @@ def setup_trial(task: PathTask, *, seed: int = 0) -> TrialSetup:
     Raises:
         RuntimeError: if the PSM cannot reach point 1 or the teleoperation does not start.
     """
-    from davinci_sim.console import SIMULATED_SYSTEM, install_console
+    from davinci_sim.system import install_console_of, new_simulation
 
-    sim = Simulation(study_scene(task), keyframe=task.teleop.keyframe, seed=seed)
+    description = trial_description(task, seed=seed)
+    sim = new_simulation(description)
     mtm, psm_name = task.teleop.mtm, task.teleop.psm
     psm = sim.arms[psm_name]
     psm.state_command("enable")
@@ -138,16 +159,9 @@ def setup_trial(task: PathTask, *, seed: int = 0) -> TrialSetup:
     result = psm.move_cp(goal)
     if not result or not sim.run_until(lambda: not psm.is_busy(), 30.0):
         raise RuntimeError(f"{psm_name} cannot reach point 1 of {task.name}: {result.message}")
-    device = SimulatedMTM(sim, mtm)
-    config = SIMULATED_SYSTEM.replace(align_mtm=False, scale=task.teleop.scale)
-    console = install_console(
-        sim,
-        devices={mtm: device},
-        teleop_config=config,
-        operator_present=True,
-        teleop_enabled=True,
-    )
+    console = install_console_of(sim, description)
     teleop = console.psm_teleops[f"{mtm}_{psm_name}"]
+    device = teleop.device
     if not sim.run_until(teleop.is_following, 30.0):
         raise RuntimeError("the teleoperation did not start following")
     return TrialSetup(sim, console, device, teleop, T_world_camera, T_task_camera)

@@ -6,14 +6,17 @@ import functools
 import numpy as np
 import pytest
 
-from davinci_sim.console import SIMULATED_SYSTEM, build_teleop_simulation
+from davinci_sim.console import SIMULATED_SYSTEM
 from davinci_sim.sim.runtime import LoopProcessError, ProcessSimulation
 from davinci_sim.sim.simulation import Simulation
+from davinci_sim.system import ConsoleDescription, SystemDescription, build_simulation
 
 FACTORY = functools.partial(
-    build_teleop_simulation,
-    "psm1_ecm_mtmr",
-    teleop_config=SIMULATED_SYSTEM.replace(align_mtm=False),
+    build_simulation,
+    SystemDescription(
+        "psm1_ecm_mtmr",
+        console=ConsoleDescription(teleop=SIMULATED_SYSTEM.replace(align_mtm=False)),
+    ),
 )
 
 
@@ -107,3 +110,41 @@ def test_stereo_rendering_in_its_own_process():
         assert 0 <= frame.tick <= handle.snapshot().tick
         rs = handle.render_statistics()
         assert rs.frames >= 2 and rs.render_mean > 0
+
+
+def test_the_readers_snapshot_is_the_loops_own():
+    """The reader computes an arm's fields on its mirror when they are read: every field
+    equals what ``take_snapshot`` gives in a simulation at the same tick, and a snapshot
+    sent elsewhere (pickled) is complete."""
+    import pickle
+
+    from davinci_sim.sim.handle import take_snapshot
+
+    with ProcessSimulation(FACTORY, real_time=False, stop_at_tick=60) as handle:
+        assert handle.wait_stopped(60)
+        snap = handle.snapshot()
+    local = FACTORY()
+    while local.tick_count < snap.tick:
+        local.tick()
+    reference = take_snapshot(local)
+    assert snap.tick == reference.tick == 60 and set(snap.arms) == set(reference.arms)
+    fields = ("measured_js", "setpoint_js", "jaw_measured_js", "jaw_setpoint_js",
+              "gripper_measured_js")  # fmt: skip
+    for name, ref in reference.arms.items():
+        a = snap.arms[name]
+        assert a.operating_state.state == ref.operating_state.state and a.arm_type == ref.arm_type
+        for f in fields:
+            mine, theirs = getattr(a, f), getattr(ref, f)
+            assert (mine is None) == (theirs is None), (name, f)
+            if mine is not None:
+                assert mine.name == theirs.name and mine.timestamp == theirs.timestamp
+                for v in ("position", "velocity", "effort"):
+                    x, y = getattr(mine, v), getattr(theirs, v)
+                    assert (x is None and y is None) or np.array_equal(x, y), (name, f, v)
+        np.testing.assert_array_equal(a.measured_cp.T, ref.measured_cp.T)
+        assert a.measured_cp.reference_frame == ref.measured_cp.reference_frame
+    sent = pickle.loads(pickle.dumps(snap))
+    np.testing.assert_array_equal(
+        sent.arms["PSM1"].setpoint_js.position, reference.arms["PSM1"].setpoint_js.position
+    )
+    local.close()

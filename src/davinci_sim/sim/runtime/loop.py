@@ -56,6 +56,7 @@ class Pacer:
         spin: busy-wait this long before each deadline, s.
         max_lag: drop the backlog beyond this lag, s.
         clock: monotonic clock in s.
+        sleep: how to wait ``s`` seconds (tests pass a virtual clock and sleep).
     """
 
     def __init__(
@@ -65,6 +66,7 @@ class Pacer:
         spin: float = DEFAULT_SPIN,
         max_lag: float = DEFAULT_MAX_LAG,
         clock: Callable[[], float] = time.perf_counter,
+        sleep: Callable[[float], None] | None = None,
     ) -> None:
         if not (math.isfinite(period) and period > 0):
             raise ValueError(f"period must be > 0 s, got {period!r}")
@@ -74,6 +76,7 @@ class Pacer:
         self.spin = spin
         self.max_lag = max_lag
         self.clock = clock
+        self.sleep = sleep
         self._t0 = clock()
         self._n = 0
 
@@ -92,20 +95,23 @@ class Pacer:
             return True
         remaining = deadline - now - self.spin
         if remaining > 0:
-            time.sleep(remaining)
+            (self.sleep or time.sleep)(remaining)
         while self.clock() < deadline:
             pass
         return False
 
 
 class LoopRunner:
-    """Ticks ``sim`` in this thread; see the module docstring.
+    """Ticks ``sim`` in this thread; see the module docstring. The one tick loop of both
+    runners: :class:`~davinci_sim.sim.handle.ThreadedSimulation` runs it in a thread,
+    :class:`~davinci_sim.sim.runtime.process.ProcessSimulation` in its loop process.
 
     Args:
         sim: the simulation.
         real_time: pace at one tick per ``sim.dt`` of wall time; else as fast as possible.
         recorder: where the period statistics go (default: a private recorder).
         spin, max_lag: see :class:`Pacer`.
+        clock, sleep: the wall clock (s) and how to wait (tests pass a virtual clock).
     """
 
     def __init__(
@@ -116,17 +122,25 @@ class LoopRunner:
         recorder: PeriodRecorder | None = None,
         spin: float = DEFAULT_SPIN,
         max_lag: float = DEFAULT_MAX_LAG,
+        clock: Callable[[], float] = time.perf_counter,
+        sleep: Callable[[float], None] | None = None,
     ) -> None:
         self.sim = sim
         self.real_time = real_time
+        self.clock = clock
         self.recorder = recorder or PeriodRecorder(sim.dt, real_time=real_time)
-        self.pacer = Pacer(sim.dt, spin=spin, max_lag=max_lag) if real_time else None
+        self.pacer = (
+            Pacer(sim.dt, spin=spin, max_lag=max_lag, clock=clock, sleep=sleep)
+            if real_time
+            else None
+        )
         self._scheduled: list[tuple[int, int, Callable[[], object]]] = []
         self._seq = itertools.count()
 
     def call_at(self, tick: int, fn: Callable, *args, **kwargs) -> None:
         """Run ``fn(*args, **kwargs)`` right before the simulation's tick number ``tick``
-        (when ``sim.tick_count == tick``), in either mode.
+        (when ``sim.tick_count == tick``), in either mode. Call it from the loop's thread
+        (between ticks) or before :meth:`run`.
 
         Raises:
             ValueError: if that tick has already run.
@@ -150,11 +164,11 @@ class LoopRunner:
         """Tick ``ticks`` times (or until ``until()``; at least one must be given).
 
         ``before_tick``/``after_tick`` run around every tick, inside the measured compute
-        time (the process runner serves its commands and publishes there).
+        time (the runners serve their calls and publish there).
         """
         if ticks is None and until is None:
             raise ValueError("run needs ticks or until")
-        clock = time.perf_counter
+        clock = self.clock
         pacer = self.pacer
         sim = self.sim
         scheduled = self._scheduled
@@ -165,10 +179,10 @@ class LoopRunner:
             if pacer is not None and pacer.wait():
                 self.recorder.resynced()
             start = clock()
+            if before_tick is not None:
+                before_tick()  # (may schedule calls for this very tick)
             while scheduled and scheduled[0][0] <= sim.tick_count:
                 heapq.heappop(scheduled)[2]()
-            if before_tick is not None:
-                before_tick()
             sim.tick()
             if after_tick is not None:
                 after_tick()
