@@ -24,8 +24,8 @@ Real-time and as-fast-as-possible runs give the same results for the same inputs
 inputs are given with :meth:`ProcessSimulation.call_at` (applied at a simulation tick);
 :meth:`~ProcessSimulation.call` applies them at whatever tick they arrive.
 
-(Over 500 lines: the parent's handle and the child's loop speak one private protocol —
-message kinds, shared buffers, published-state layout — kept side by side in one module.)
+Size: over 500 lines because the parent's handle and the child's loop speak one private
+protocol (message kinds, shared buffers, published-state layout), kept side by side.
 """
 
 from __future__ import annotations
