@@ -3,11 +3,14 @@
 from __future__ import annotations
 
 import math
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
 
+from davinci_sim.tasks import Sample
 from davinci_sim.tasks.metrics import (
+    PATH_METRICS,
     MetricsAccumulator,
     clutch_count,
     completion_time,
@@ -118,11 +121,12 @@ def test_accumulator_matches_the_array_functions():
     for i in range(n):
         a = rng.integers(0, 300)
         m[i, a : a + rng.integers(1, 300)] = True
-    acc = MetricsAccumulator(n, tube_radius=0.0025)
+    acc = MetricsAccumulator(PATH_METRICS, n, SimpleNamespace(tube_radius=0.0025))
     for k in range(K):
-        acc.update(m[:, k], t[k], p[:, k], d[:, k], f[:, k], c[:, k])
+        acc.update(m[:, k], Sample.of(t[k], p[:, k], f[:, k], c[:, k]), {"distance": d[:, k]})
     got = acc.result()
     ref = repetition_metrics(t, p, d, f, c, m, tube_radius=0.0025)
+    assert got._fields == ref._fields  # the declaration and the reference list the same
     for name, x, y in zip(got._fields, got, ref, strict=True):
         np.testing.assert_allclose(x, y, err_msg=name, rtol=1e-9, atol=1e-12, equal_nan=True)
     acc.reset(np.arange(n) == 0)
