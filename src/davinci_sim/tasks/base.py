@@ -120,8 +120,8 @@ class Sample:
 
 class Task(ABC):
     """A kind of training task (see the module docstring). Subclasses are frozen
-    dataclasses with at least the fields ``name``, ``description``, ``frame``, ``teleop``,
-    ``fixture_spec``, ``conditions`` and ``walls``."""
+    dataclasses with at least the fields (or properties) ``name``, ``description``,
+    ``frame``, ``teleop``, ``fixture_spec``, ``conditions``, ``walls`` and ``start``."""
 
     kind: ClassVar[str]
     METRICS: ClassVar[tuple[Metric, ...]]
@@ -139,6 +139,9 @@ class Task(ABC):
     conditions: tuple[dict, ...]
     """Named fixture entries for studies and sessions."""
     walls: tuple[dict, ...]
+    start: np.ndarray
+    """(3,) where a repetition starts, task frame, m (the study's set-up and a session's
+    next repetition bring the tool there)."""
 
     def __init_subclass__(cls, kind: str | None = None, **kw: Any) -> None:
         super().__init_subclass__(**kw)
