@@ -35,8 +35,9 @@ from davinci_sim.console.teleop_psm import TeleopPSM
 from davinci_sim.devices.simulated import SimulatedMTM
 from davinci_sim.model.config import SceneConfig
 from davinci_sim.sim.simulation import Simulation
-from davinci_sim.tasks import Phase, Sample, TaskMonitor, load_task
+from davinci_sim.tasks import Phase, TaskMonitor, load_task
 from davinci_sim.tasks.metrics import metric_row
+from davinci_sim.tasks.session import live_sample
 from davinci_sim.tasks.task import PathTask
 
 #: Metric columns of a trial's row, in order: the study's task kind's declaration
@@ -213,17 +214,13 @@ def run_trial(spec: TrialSpec) -> dict:
         FixtureField(fixture, frame=task.frame), mtm=mtm, name="guidance"
     )
 
-    arm = sim.arms[psm]
     monitor = TaskMonitor(task)
-    no_force = np.zeros(6)
     t_start = sim.time
     t_end = t_start + spec.timeout
     while sim.time < t_end and teleop.is_following():
         sim.tick()
-        tip = (setup.T_task_camera @ arm.measured_cp().T)[:3, 3]
-        force = setup.console.haptics.snapshot().requested.get(mtm, no_force)[:3]
-        # The study's trainee never clutches.
-        if monitor.observe(Sample.of(sim.time, tip, force))[0] >= Phase.FINISHED:
+        sample = live_sample(task, setup.T_task_camera, teleop, setup.console, sim.time)
+        if monitor.observe(sample)[0] >= Phase.FINISHED:
             break
     finished = monitor.phase >= Phase.FINISHED
     row = trial_row(spec, task, monitor.metrics.result(), 0, finished)

@@ -36,6 +36,7 @@ from davinci_sim.tasks.state import Phase, TaskMonitor
 
 if TYPE_CHECKING:
     from davinci_sim.console.console import Console
+    from davinci_sim.console.teleop_psm import TeleopPSM
     from davinci_sim.sim.simulation import Simulation
 
 #: The columns of a session's row before the task's metrics.
@@ -134,16 +135,14 @@ class TaskSession:
     def post_step(self, t: float) -> None:
         task = self.task
         T_task_camera = task.T_task_camera(self.sim.T_cart_camera())
-        tip = (T_task_camera @ self.teleop.psm.measured_cp().T)[:3, 3]
         if self._recorded:
+            tip = (T_task_camera @ self.teleop.psm.measured_cp().T)[:3, 3]
             self._distance = float(task.distance(tip)[0])
             if task.at_start(tip)[0]:
                 self.repetition += 1
                 self.reset()
             return
-        requested = self.console.haptics.snapshot().requested.get(task.teleop.mtm)
-        force = np.zeros(3) if requested is None else requested[:3]
-        self.monitor.observe(Sample.of(t, tip, force, self.teleop.is_clutched()))
+        self.monitor.observe(live_sample(task, T_task_camera, self.teleop, self.console, t))
         self._distance = self.monitor.distance
         if self.monitor.phase == Phase.FINISHED and self.monitor.results is not None:
             self._record(self.monitor.results, t)
@@ -183,6 +182,17 @@ class TaskSession:
             distance_to_path=self._distance,
             last=dict(self.results[-1]) if self.results else {},
         )
+
+
+def live_sample(task: Task, T_task_camera, teleop: TeleopPSM, console: Console, t: float) -> Sample:
+    """The :class:`~davinci_sim.tasks.base.Sample` of ``task`` at the simulated console now:
+    the tool tip of ``teleop``'s PSM in the task's frame (``T_task_camera``: the camera in
+    the task's frame), the guidance force the haptic loop requested for the task's MTM (0
+    before it has run), the clutch; ``t`` the simulated time, s."""
+    tip = (np.asarray(T_task_camera) @ teleop.psm.measured_cp().T)[:3, 3]
+    requested = console.haptics.snapshot().requested.get(task.teleop.mtm)
+    force = None if requested is None else requested[:3]
+    return Sample.of(t, tip, force, teleop.is_clutched())
 
 
 def _condition_label(spec: dict) -> str:
