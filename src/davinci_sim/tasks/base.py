@@ -34,6 +34,7 @@ import json
 import math
 from abc import ABC, abstractmethod
 from dataclasses import dataclass
+from functools import cached_property
 from importlib import resources
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, ClassVar
@@ -91,13 +92,20 @@ class Sample:
         p = np.asarray(tip, dtype=float).reshape(-1, 3)
         n = len(p)
         f = np.zeros((n, 3)) if force is None else np.asarray(force, dtype=float).reshape(n, 3)
-        c = np.zeros(n, dtype=bool) if clutch is None else np.asarray(clutch, dtype=bool)
-        return cls(
-            np.broadcast_to(np.asarray(time, dtype=float), (n,)),
-            p,
-            f,
-            np.broadcast_to(c, (n,)),
-        )
+        # np.full rather than broadcast_to: this runs every tick of every engine.
+        t = np.asarray(time, dtype=float)
+        t = np.full(n, float(t)) if t.ndim == 0 else t.reshape(n)
+        if clutch is None:
+            c = np.zeros(n, dtype=bool)
+        else:
+            c = np.asarray(clutch, dtype=bool)
+            c = np.full(n, bool(c)) if c.ndim == 0 else c.reshape(n)
+        return cls(t, p, f, c)
+
+    @cached_property
+    def force_magnitude(self) -> np.ndarray:
+        """(n,) ‖force‖, N (computed once per sample, for the metrics)."""
+        return np.linalg.norm(self.force, axis=-1)
 
     @property
     def n(self) -> int:

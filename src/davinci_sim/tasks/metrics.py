@@ -427,7 +427,7 @@ def _distance(task, s, obs):
 
 
 def _force_norm(task, s, obs):
-    return np.linalg.norm(s.force, axis=-1)
+    return s.force_magnitude
 
 
 def _step_length(task, prev, s, obs):
