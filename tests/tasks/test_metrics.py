@@ -3,11 +3,14 @@
 from __future__ import annotations
 
 import math
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
 
+from davinci_sim.tasks import Sample
 from davinci_sim.tasks.metrics import (
+    PATH_METRICS,
     MetricsAccumulator,
     clutch_count,
     completion_time,
@@ -118,12 +121,14 @@ def test_accumulator_matches_the_array_functions():
     for i in range(n):
         a = rng.integers(0, 300)
         m[i, a : a + rng.integers(1, 300)] = True
-    acc = MetricsAccumulator(n, tube_radius=0.0025)
+    acc = MetricsAccumulator(PATH_METRICS, n, SimpleNamespace(tube_radius=0.0025))
     for k in range(K):
-        acc.update(m[:, k], t[k], p[:, k], d[:, k], f[:, k], c[:, k])
+        acc.update(m[:, k], Sample.of(t[k], p[:, k], f[:, k], c[:, k]), {"distance": d[:, k]})
     got = acc.result()
     ref = repetition_metrics(t, p, d, f, c, m, tube_radius=0.0025)
-    for name, x, y in zip(got._fields, got, ref, strict=True):
+    assert set(ref._fields) <= set(got._fields)  # every reference metric is declared
+    for name, y in zip(ref._fields, ref, strict=True):
+        x = got[name]
         np.testing.assert_allclose(x, y, err_msg=name, rtol=1e-9, atol=1e-12, equal_nan=True)
     acc.reset(np.arange(n) == 0)
     assert acc.result().samples[0] == 0 and acc.result().samples[1] == m[1].sum()
@@ -132,3 +137,37 @@ def test_accumulator_matches_the_array_functions():
 def test_shape_mismatch_is_refused():
     with pytest.raises(ValueError):
         deviation_error(np.zeros(5), np.ones(4, dtype=bool))
+
+
+def test_the_path_metrics_are_declared_with_units_and_directions():
+    from davinci_sim.tasks.metrics import Count, Metric
+
+    names = [m.name for m in PATH_METRICS]
+    assert len(set(names)) == len(names)
+    units = {m.name: m.unit for m in PATH_METRICS}
+    assert units["deviation_error"] == "m" and units["mean_speed"] == "m/s"
+    assert all(m.description and m.better in ("lower", "higher", "neither") for m in PATH_METRICS)
+    assert [m.name for m in PATH_METRICS if m.integer] == ["clutch_count", "samples"]
+    with pytest.raises(ValueError, match="better"):
+        Metric("x", "m", "smaller", "bad direction", Count())
+
+
+def test_accumulator_rows_taken_keep_what_they_have():
+    """take(rows) (the batch dropping ended trials) gives those trials' own metrics."""
+    rng = np.random.default_rng(3)
+    n, K = 4, 200
+    p = np.cumsum(rng.normal(0, 2e-4, (n, K, 3)), axis=1)
+    d = np.abs(rng.normal(0.002, 0.001, (n, K)))
+    task = SimpleNamespace(tube_radius=0.002)
+    full = MetricsAccumulator(PATH_METRICS, n, task)
+    part = None
+    for k in range(K):
+        s = Sample.of(k * DT, p[:, k], p[:, k] * 100, rng.random(n) < 0.1)
+        full.update(np.ones(n, bool), s, {"distance": d[:, k]})
+        if k == 99:
+            part = full.take([3, 1])
+        elif part is not None:
+            part.update(np.ones(2, bool), s.take([3, 1]), {"distance": d[[3, 1], k]})
+    a, b = full.result(), part.result()
+    for name in a._fields:
+        np.testing.assert_array_equal(a[name][[3, 1]], b[name], err_msg=name)

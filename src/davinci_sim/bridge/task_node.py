@@ -7,7 +7,8 @@ When the simulation has a :class:`~davinci_sim.tasks.session.TaskSession` (compo
   condition, phase, repetition, completed repetitions, distance to the path in m, the last
   repetition's row), published when it changes, checked at ``rate``;
 * ``/task/results`` (``std_msgs/String``, latched): each finished repetition's row as JSON
-  (the study's metrics, SI units);
+  (task, condition, repetition, then the task's declared metrics in SI units:
+  :func:`davinci_sim.tasks.session.session_columns`, the kind's ``METRICS``);
 * ``/task/reset`` (``std_msgs/Empty``, subscribed): abandon the current repetition.
 
 Not dVRK topics (the dVRK has no tasks); JSON in strings keeps them readable from any client

@@ -2,8 +2,10 @@
 
 The tool follows the hand exactly, ``tool = tool_start + scale·(hand − hand_start)`` (no
 arm dynamics, no servo lag), the fixture's force (camera frame = HRSV axes) acts on the hand
-from the tool's position and filtered velocity, and the task's state machine and metrics
-run on the tool. This is *not* the study: the study drives the simulated MTM and PSM through
+from the tool's position and filtered velocity, and each tick's
+:class:`~davinci_sim.tasks.Sample` of the tool goes through a
+:class:`~davinci_sim.tasks.TaskMonitor` of the path (the task's state machine and metrics,
+as in the simulator). This is *not* the study: the study drives the simulated MTM and PSM through
 the console's teleoperation. It is what the trainee model does on its own, fast.
 """
 
@@ -16,15 +18,17 @@ import numpy as np
 from davinci_sim.haptics.fixture import Fixture
 from davinci_sim.haptics.velocity import VelocityFilter
 from davinci_sim.operators.trainee import SyntheticTrainee
-from davinci_sim.tasks.metrics import MetricsAccumulator, RepetitionMetrics
-from davinci_sim.tasks.state import Phase, initial_state, task_step
+from davinci_sim.tasks.base import Sample
+from davinci_sim.tasks.metrics import MetricValues
+from davinci_sim.tasks.state import Phase, TaskMonitor
+from davinci_sim.tasks.task import PathTask
 
 
 class IdealRun(NamedTuple):
     """Outcome of :func:`run_ideal`."""
 
-    metrics: RepetitionMetrics
-    """Per trial (n,); nan/0 for trials that did not finish."""
+    metrics: MetricValues
+    """Per trial (n,), the path task's metrics; nan/0 for trials that did not finish."""
     finished: np.ndarray
     """(n,) bool."""
     time: np.ndarray
@@ -61,48 +65,38 @@ def run_ideal(
         record: keep the trajectories (memory n·K·9 floats).
     """
     n, dt = trainee.n, trainee.dt
-    path = trainee.path
-    p_start, p_finish = path.point_at(0.0), path.point_at(path.length)
+    task = PathTask.along(
+        trainee.path,
+        start_tolerance=start_tolerance,
+        finish_tolerance=finish_tolerance,
+        tube_radius=tube_radius,
+        min_progress=min_progress,
+    )
+    monitor = TaskMonitor(task, n)
     tool0 = np.asarray(tool_start, dtype=float).copy()
     hand0 = trainee.x.copy()
     tool = tool0.copy()
     velocity = VelocityFilter((n,), dt=dt)
-    state = initial_state(n)
-    metrics = MetricsAccumulator(n, tube_radius=tube_radius)
     force = np.zeros((n, 3))
     rec_t, rec_tool, rec_force, rec_hand = [], [], [], []
-    clutch = np.zeros(n, dtype=bool)
     for k in range(int(round(duration / dt))):
         t = k * dt
-        cp = path.closest_point(tool)
-        state = task_step(
-            state,
-            t,
-            np.linalg.norm(tool - p_start, axis=1),
-            np.linalg.norm(tool - p_finish, axis=1),
-            cp.arc_length,
-            path_length=path.length,
-            start_tolerance=start_tolerance,
-            finish_tolerance=finish_tolerance,
-            min_progress=min_progress,
-        )
-        running = (state.phase == Phase.RUNNING) | (state.phase == Phase.FINISHED)
         v_tool = velocity.update(tool)
         force = np.zeros((n, 3)) if fixture is None else fixture.force(tool, v_tool)
-        metrics.update(running, t, tool, cp.distance, force, clutch)
+        phase = monitor.observe(Sample.of(t, tool, force))
         if record:
             rec_t.append(t)
             rec_tool.append(tool.copy())
             rec_force.append(force.copy())
             rec_hand.append(trainee.x.copy())
-        if np.all(state.phase >= Phase.FINISHED):
+        if np.all(phase >= Phase.FINISHED):
             break
         hand = trainee.step(dt, tool, force).position
         tool = tool0 + trainee.scale * (hand - hand0)
-    finished = state.phase >= Phase.FINISHED
+    finished = monitor.state.phase >= Phase.FINISHED
     stack = (lambda a: np.stack(a, axis=1)) if record else (lambda a: None)
     return IdealRun(
-        metrics.result(),
+        monitor.metrics.result(),
         finished,
         np.array(rec_t),
         stack(rec_tool),

@@ -64,8 +64,8 @@ from davinci_sim.study.trial import (
     trial_inputs,
     trial_row,
 )
-from davinci_sim.tasks import MetricsAccumulator, Phase, initial_state
-from davinci_sim.tasks.state import task_sample
+from davinci_sim.tasks import Phase, Sample
+from davinci_sim.tasks.state import advance
 
 #: Below this many rows a batch is not compacted any more (the fixed cost per tick dominates).
 COMPACT_MIN_ROWS = 8
@@ -179,8 +179,8 @@ class TrialBatch:
         self.index = np.arange(n)
         """Position of each current row in ``specs`` (rows of ended trials are dropped)."""
         self.velocity = VelocityFilter((n,), dt=self.dt, cutoff_hz=DEFAULT_CUTOFF_HZ)
-        self.state = initial_state(n)
-        self.metrics = MetricsAccumulator(n, tube_radius=task.tube_radius)
+        self.state = task.initial_state(n)
+        self.metrics = task.metrics_accumulator(n)
         self.time = sim.time
         self.t_start = sim.time
         self.t_end = self.t_start + np.array([s.timeout for s in specs])
@@ -318,18 +318,16 @@ class TrialBatch:
         self.tau_ff[:, self.mtm_act] = np.clip(tau, -self.mtm_ftmax, self.mtm_ftmax)
 
     def _task(self) -> None:
+        """The task on the new state: one :class:`~davinci_sim.tasks.Sample` of every trial
+        (tip in the task frame, the guidance force requested; the trainees never clutch)
+        through the state machine and the metrics (:func:`~davinci_sim.tasks.state.advance`,
+        as the live trial's monitor); a trial ends when finished or timed out."""
         T = self.T_task_camera
         tip = _rotate(T[:3, :3], self.T_psm[:, :3, 3]) + T[:3, 3]
-        state, cp = task_sample(self.state, self.task, self.time, tip)
+        sample = Sample.of(self.time, tip, self.requested)
         # A trial that has ended keeps its state.
-        self.state = type(state)(
-            *(np.where(self.active, a, b) for a, b in zip(state, self.state, strict=True))
-        )
+        self.state, _ = advance(self.task, self.state, self.metrics, sample, self.active)
         phase = self.state.phase
-        measure = self.active & ((phase == Phase.RUNNING) | (phase == Phase.FINISHED))
-        self.metrics.update(
-            measure, self.time, tip, cp.distance, self.requested, np.zeros(self.n, dtype=bool)
-        )
         done = (phase >= Phase.FINISHED) | (self.time >= self.t_end - 1e-9)
         self.active &= ~done
 

@@ -17,6 +17,12 @@ import numpy as np
 from davinci_sim.study.runner import StudyResult
 from davinci_sim.study.stats import friedman, pairwise_wilcoxon, subject_means
 from davinci_sim.study.trial import METRICS
+from davinci_sim.tasks.task import PathTask
+
+#: The metrics' declarations (the study's task kind), by name.
+DECLARED = {m.name: m for m in PathTask.METRICS}
+#: The metrics of the report's summary table, in order, with their (unit, scale).
+SUMMARY = tuple(m for m in PathTask.METRICS if m.report is not None)
 
 COLUMNS = (
     "subject",
@@ -259,9 +265,8 @@ def write_report(result: StudyResult, path: Path) -> None:
         "",
         "Means over subjects of each subject's mean over its repetitions (± sd over subjects).",
         "",
-        "| condition | deviation e (mm) | completion time (s) | path length (mm) "
-        "| mean speed (mm/s) | peak force (N) | mean force (N) | time outside (s) | finished |",
-        "|---|---|---|---|---|---|---|---|---|",
+        "| condition | " + "".join(f"{m.label} ({m.report[0]}) | " for m in SUMMARY) + "finished |",
+        "|---|" + "---|" * len(SUMMARY) + "---|",
     ]
     tables = {k: subject_means(rows, k, n, C) for k in METRICS}
     for c in range(C):
@@ -272,12 +277,8 @@ def write_report(result: StudyResult, path: Path) -> None:
 
         fin = sum(r["finished"] for r in rows if r["condition"] == c)
         tot = sum(1 for r in rows if r["condition"] == c)
-        L.append(
-            f"| {_label(cfg.conditions[c])} | {cell('deviation_error', 1e3)} | "
-            f"{cell('completion_time')} | {cell('path_length', 1e3)} | "
-            f"{cell('mean_speed', 1e3)} | {cell('peak_force')} | {cell('mean_force')} | "
-            f"{cell('time_outside')} | {fin}/{tot} |"
-        )
+        cells = "".join(f"{cell(m.name, m.report[1])} | " for m in SUMMARY)
+        L.append(f"| {_label(cfg.conditions[c])} | {cells}{fin}/{tot} |")
     L += [
         "",
         "## Statistical tests",
@@ -286,7 +287,8 @@ def write_report(result: StudyResult, path: Path) -> None:
         f"signed-rank tests of every pair, Holm-corrected (α = {ALPHA}).",
         "",
     ]
-    for metric, unit, s in (("deviation_error", "mm", 1e3), ("completion_time", "s", 1.0)):
+    for metric in ("deviation_error", "completion_time"):  # the seed's claims' metrics
+        unit, s = DECLARED[metric].report
         fr = friedman(tables[metric])
         L.append(f"### {metric.replace('_', ' ')}")
         L.append("")

@@ -10,10 +10,10 @@ teleoperation following. The start is the same for every trial.
 :class:`~davinci_sim.operators.TraineeHand` on the simulated MTM and the condition's fixture
 (:class:`~davinci_sim.haptics.fixture.FixtureField`) in the haptic loop, then ticks at
 1 kHz until the task is finished, the teleoperation stops (a fault) or the timeout
-(simulated time since the trainee took the handle) passes. Every tick the tool tip (task
-frame), its distance to the path and the guidance force the haptic loop requests for the MTM
-go through the task state machine (:func:`~davinci_sim.tasks.state.task_sample`) and a
-:class:`~davinci_sim.tasks.MetricsAccumulator` (no trajectory is stored). A trial that does
+(simulated time since the trainee took the handle) passes. Every tick a
+:class:`~davinci_sim.tasks.Sample` (the tool tip in the task frame, the guidance force the
+haptic loop requests for the MTM) goes through a :class:`~davinci_sim.tasks.TaskMonitor`:
+the task's state machine and its declared metrics (no trajectory is stored). A trial that does
 not finish is reported as unfinished, with the metrics of the part it did. The study runs
 its trials batched (:mod:`davinci_sim.study.batch`), checked against this engine.
 
@@ -35,22 +35,14 @@ from davinci_sim.console.teleop_psm import TeleopPSM
 from davinci_sim.devices.simulated import SimulatedMTM
 from davinci_sim.model.config import SceneConfig
 from davinci_sim.sim.simulation import Simulation
-from davinci_sim.tasks import MetricsAccumulator, Phase, initial_state, load_task
-from davinci_sim.tasks.state import task_sample
+from davinci_sim.tasks import Phase, TaskMonitor, load_task
+from davinci_sim.tasks.metrics import metric_row
+from davinci_sim.tasks.session import live_sample
 from davinci_sim.tasks.task import PathTask
 
-#: Metric columns of a trial's row, in order (see :mod:`davinci_sim.tasks.metrics`).
-METRICS = (
-    "deviation_error",
-    "completion_time",
-    "path_length",
-    "mean_speed",
-    "peak_force",
-    "mean_force",
-    "time_outside",
-    "clutch_count",
-    "samples",
-)
+#: Metric columns of a trial's row, in order: the study's task kind's declaration
+#: (:data:`~davinci_sim.tasks.metrics.PATH_METRICS`; the synthetic trainee follows paths).
+METRICS = tuple(m.name for m in PathTask.METRICS)
 
 
 @dataclass(frozen=True)
@@ -190,7 +182,8 @@ def trial_inputs(specs: list[TrialSpec], task: PathTask, T_world_camera, hand_st
 
 
 def trial_row(spec: TrialSpec, task: PathTask, result, i: int, finished: bool) -> dict:
-    """The CSV row of trial ``i`` of a batch's metrics ``result`` (without timings)."""
+    """The CSV row of trial ``i`` of a batch's metrics ``result`` (an (n,) array per metric
+    name) without timings: the spec's fields, then ``task``'s declared metrics."""
     row = {
         "subject": spec.subject,
         "condition": spec.condition,
@@ -203,9 +196,7 @@ def trial_row(spec: TrialSpec, task: PathTask, result, i: int, finished: bool) -
         "task": task.name,
         "finished": bool(finished),
     }
-    for name in METRICS:
-        value = getattr(result, name)[i]
-        row[name] = int(value) if name in ("clutch_count", "samples") else float(value)
+    row.update(metric_row(task.METRICS, result, i))
     return row
 
 
@@ -237,24 +228,16 @@ def run_trial(spec: TrialSpec) -> dict:
         FixtureField(fixture, frame=task.frame), mtm=mtm, name="guidance"
     )
 
-    arm = sim.arms[psm]
-    state = initial_state(1)
-    acc = MetricsAccumulator(1, tube_radius=task.tube_radius)
-    no_force = np.zeros(6)
+    monitor = TaskMonitor(task)
     t_start = sim.time
     t_end = t_start + spec.timeout
     while sim.time < t_end and teleop.is_following():
         sim.tick()
-        t = sim.time
-        tip = (setup.T_task_camera @ arm.measured_cp().T)[:3, 3].reshape(1, 3)
-        state, cp = task_sample(state, task, t, tip)
-        phase = int(state.phase[0])
-        if phase in (Phase.RUNNING, Phase.FINISHED):
-            force = setup.console.haptics.snapshot().requested.get(mtm, no_force)[:3]
-            acc.update(np.array([True]), t, tip, cp.distance, force.reshape(1, 3), [False])
-        if phase >= Phase.FINISHED:
+        sample = live_sample(task, setup.T_task_camera, teleop, setup.console, sim.time)
+        if monitor.observe(sample)[0] >= Phase.FINISHED:
             break
-    row = trial_row(spec, task, acc.result(), 0, state.phase[0] >= Phase.FINISHED)
+    finished = monitor.phase >= Phase.FINISHED
+    row = trial_row(spec, task, monitor.metrics.result(), 0, finished)
     row["sim_time"] = sim.time - t_start
     row["wall_time"] = time.perf_counter() - wall0
     sim.close()

@@ -1,40 +1,72 @@
-"""Training tasks: path-following task files, their states, metrics and scene drawing.
+"""Training tasks: the Task protocol and its kinds, their states, metrics and scene drawing.
 
-* :class:`PathTask`, :func:`load_task`, :func:`available_tasks` — tasks as YAML/JSON files
-  (task.py); ``load_task("seed_path")`` is the seed paper's task.
-* :func:`task_step`, :class:`TaskMonitor`, :class:`Phase` — idle → ready → running →
-  finished → results (state.py).
-* :func:`repetition_metrics`, :class:`MetricsAccumulator` — deviation error (eq. 8), time,
-  path length, speed, forces, time outside the tube, clutches (metrics.py).
+* :class:`Task`, :class:`Sample`, :func:`load_task`, :func:`task_kinds` — what every kind of
+  task provides, the one sample record of a tick, task files (``kind:`` selects the class)
+  and the registry of kinds (base.py).
+* :class:`PathTask` — the path-following kind (``path``, the default); ``load_task("seed_path")``
+  is the seed paper's task (task.py).
+* :func:`task_step`, :class:`TaskMonitor`, :func:`advance`, :class:`Phase` — idle → ready →
+  running → finished → results, and the glue from samples to metrics for every kind
+  (state.py).
+* :class:`Metric`, :class:`MetricsAccumulator`, :data:`PATH_METRICS`,
+  :func:`repetition_metrics` — metrics declared once per kind and computed from the samples
+  (metrics.py).
 * :func:`add_path_visual` — the path and numbered markers in a ``mujoco.MjSpec`` (scene.py).
 * :class:`TaskSession`, :func:`install_task` — a task done at the simulated console, its
   fixture in the haptic loop and its repetitions measured (session.py).
 """
 
-from davinci_sim.tasks.metrics import MetricsAccumulator, RepetitionMetrics, repetition_metrics
+from davinci_sim.tasks.base import (
+    Sample,
+    Task,
+    TaskError,
+    TeleopSpec,
+    available_tasks,
+    load_task,
+    save_task,
+    task_from_dict,
+    task_kinds,
+    task_to_dict,
+)
+from davinci_sim.tasks.metrics import (
+    PATH_METRICS,
+    Metric,
+    MetricsAccumulator,
+    MetricValues,
+    RepetitionMetrics,
+    repetition_metrics,
+)
 from davinci_sim.tasks.scene import add_path_visual
 from davinci_sim.tasks.session import TaskSession, TaskSessionState, install_task
 from davinci_sim.tasks.state import (
     Phase,
     TaskMonitor,
     TaskState,
+    advance,
     initial_state,
     reset_state,
     task_step,
 )
-from davinci_sim.tasks.task import PathTask, TaskError, available_tasks, load_task, save_task
+from davinci_sim.tasks.task import PathTask
 
 __all__ = [
+    "PATH_METRICS",
+    "Metric",
+    "MetricValues",
     "MetricsAccumulator",
     "PathTask",
     "Phase",
     "RepetitionMetrics",
+    "Sample",
+    "Task",
     "TaskError",
     "TaskMonitor",
     "TaskSession",
     "TaskSessionState",
     "TaskState",
+    "TeleopSpec",
     "add_path_visual",
+    "advance",
     "available_tasks",
     "initial_state",
     "install_task",
@@ -42,5 +74,8 @@ __all__ = [
     "repetition_metrics",
     "reset_state",
     "save_task",
+    "task_from_dict",
+    "task_kinds",
     "task_step",
+    "task_to_dict",
 ]

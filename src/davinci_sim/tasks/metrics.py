@@ -1,9 +1,23 @@
-"""Metrics of one repetition of a path-following task, over recorded samples.
+"""Metrics of task repetitions: declared once, computed from the sample records.
 
-A repetition is the samples i = 1..K of one trial while it runs (from the sample where the
-tip leaves point 1 to the one where it reaches the last point, :mod:`davinci_sim.tasks.state`),
-at times t_i (s), with tip positions p_i (m, task frame), distances to the path ‖φ_i‖ (m),
-forces on the hand F_i (N) and the clutch pedal c_i. The metrics:
+**The declaration.** Each kind of task lists its metrics as :class:`Metric` values (name,
+SI unit, which direction is better, description, how it reduces the samples, how reports
+show it), in order: the task's ``METRICS``. Everything that shows a metric reads that list:
+the session's rows and CSV log and the bridge's ``/task/results`` (:meth:`MetricValues.row`),
+the study's ``trials.csv`` columns and its report's summary table. Adding a metric to a
+kind is one more entry in its list.
+
+**The computation.** A metric reduces the :class:`~davinci_sim.tasks.base.Sample` records of
+a repetition (one per tick while the task is RUNNING, up to the one where it is FINISHED)
+and the task's per-sample observations (e.g. ``distance``, the tip's distance to the path)
+with one of the reducers :class:`Mean`, :class:`Peak`, :class:`PairSum`, :class:`Elapsed`,
+:class:`Count` or :class:`Ratio`. :class:`MetricsAccumulator` runs the reducers of a list of
+metrics for n trials, sample by sample, without storing the trajectories (O(n) memory
+whatever the duration); its :meth:`~MetricsAccumulator.result` is a :class:`MetricValues`.
+
+**The path-following metrics** (:data:`PATH_METRICS`, the seed's task): over the samples
+i = 1..K of a repetition at times t_i (s), with tip positions p_i (m, task frame), distances
+to the path ‖φ_i‖ (m), forces on the hand F_i (N) and the clutch pedal c_i:
 
 * **deviation error** e_jn = (1/K)·Σ ‖φ_i‖, m — equation (8) of the seed: the mean over the
   time steps of the distance to the path (a time average when the rate is constant, as the
@@ -19,25 +33,32 @@ forces on the hand F_i (N) and the clutch pedal c_i. The metrics:
 * **time outside** the tolerance tube Σ_{i≥2} (t_i − t_{i−1})·[‖φ_i‖ > r], s — each interval
   counted by its end sample, r the task's ``tube_radius``;
 * **clutch count**: presses of the clutch, the samples where it goes from released to
-  pressed (i ≥ 2; a clutch already pressed at the first sample is not a press).
+  pressed (i ≥ 2; a clutch already pressed at the first sample is not a press);
+* **samples**: K.
 
-The functions take arrays with a leading trial axis, (n, K[, 3]), and a mask (n, K) of the
+The array functions below (:func:`repetition_metrics` and one per metric) compute the same
+numbers from recorded arrays with a leading trial axis, (n, K[, 3]), and a mask (n, K) of the
 samples of each repetition (one contiguous run per trial; a 1-D (K,) input is one trial);
-sums over pairs use the pairs of consecutive samples that are both in the mask.
-:class:`MetricsAccumulator` computes the same numbers sample by sample, for a batch of
-trials, without storing the trajectories.
+sums over pairs use the pairs of consecutive samples that are both in the mask. They are
+the independent reference the accumulator is tested against.
 """
 
 from __future__ import annotations
 
 import copy
-from typing import NamedTuple
+from collections.abc import Callable, Iterator
+from dataclasses import dataclass
+from typing import TYPE_CHECKING, Any, NamedTuple
 
 import numpy as np
 
+if TYPE_CHECKING:
+    from davinci_sim.tasks.base import Sample
+
 
 class RepetitionMetrics(NamedTuple):
-    """The metrics of a batch of repetitions, each (n,) (see the module docstring)."""
+    """The path-following metrics of a batch of recorded repetitions, each (n,), as
+    :func:`repetition_metrics` computes them (the reference of :data:`PATH_METRICS`)."""
 
     deviation_error: np.ndarray
     completion_time: np.ndarray
@@ -149,96 +170,298 @@ def repetition_metrics(
     )
 
 
-class MetricsAccumulator:
-    """The same metrics as :func:`repetition_metrics`, accumulated sample by sample for n
-    trials (no trajectories stored: O(n) memory whatever the duration)."""
+# ---------------------------------------------------------------- declaration
+#: A per-sample value: ``value(task, sample, obs) -> (n,)``, with ``obs`` the task's
+#: observations of the sample (:meth:`davinci_sim.tasks.base.Task.step`).
+Value = Callable[[Any, "Sample", dict], np.ndarray]
+#: A value of two consecutive samples: ``value(task, previous, sample, obs) -> (n,)``.
+PairValue = Callable[[Any, "Sample", "Sample", dict], np.ndarray]
 
-    def __init__(self, n: int, *, tube_radius: float) -> None:
+
+@dataclass(frozen=True)
+class Mean:
+    """(1/K)·Σ value_i over the repetition's samples (nan without samples)."""
+
+    value: Value
+
+    def init(self, n: int):
+        return np.zeros(n)
+
+    def add(self, acc, m, pair, task, prev, s, obs):
+        return acc + np.where(m, self.value(task, s, obs), 0.0)
+
+    def final(self, acc, k, done):
+        return np.where(k > 0, acc / np.maximum(k, 1), np.nan)
+
+
+@dataclass(frozen=True)
+class Peak:
+    """max value_i over the repetition's samples (0 without samples)."""
+
+    value: Value
+
+    def init(self, n: int):
+        return np.zeros(n)
+
+    def add(self, acc, m, pair, task, prev, s, obs):
+        return np.where(m, np.maximum(acc, self.value(task, s, obs)), acc)
+
+    def final(self, acc, k, done):
+        return acc.copy()
+
+
+@dataclass(frozen=True)
+class PairSum:
+    """Σ_{i≥2} value(sample_{i−1}, sample_i) over pairs of consecutive samples both in the
+    repetition; integer when ``integer`` (counts)."""
+
+    value: PairValue
+    integer: bool = False
+
+    def init(self, n: int):
+        return np.zeros(n, dtype=np.int64 if self.integer else float)
+
+    def add(self, acc, m, pair, task, prev, s, obs):
+        return acc + np.where(pair, self.value(task, prev, s, obs), 0)
+
+    def final(self, acc, k, done):
+        return acc.copy()
+
+
+@dataclass(frozen=True)
+class Elapsed:
+    """t_K − t_1, s (nan without samples)."""
+
+    def init(self, n: int):
+        return (np.full(n, np.nan), np.full(n, np.nan))
+
+    def add(self, acc, m, pair, task, prev, s, obs):
+        t0, t1 = acc
+        return (np.where(m & np.isnan(t0), s.time, t0), np.where(m, s.time, t1))
+
+    def final(self, acc, k, done):
+        return acc[1] - acc[0]
+
+
+@dataclass(frozen=True)
+class Count:
+    """K, the number of samples of the repetition."""
+
+    def init(self, n: int):
+        return None
+
+    def add(self, acc, m, pair, task, prev, s, obs):
+        return None
+
+    def final(self, acc, k, done):
+        return k.copy()
+
+
+@dataclass(frozen=True)
+class Ratio:
+    """One metric over another, of metrics declared before it (nan where the divisor is
+    not > 0)."""
+
+    numerator: str
+    denominator: str
+
+    def init(self, n: int):
+        return None
+
+    def add(self, acc, m, pair, task, prev, s, obs):
+        return None
+
+    def final(self, acc, k, done):
+        a, b = done[self.numerator], done[self.denominator]
+        return np.where(b > 0, a / np.where(b > 0, b, 1.0), np.nan)
+
+
+Reducer = Mean | Peak | PairSum | Elapsed | Count | Ratio
+
+
+@dataclass(frozen=True)
+class Metric:
+    """One metric of a kind of task: what it is and how the samples make it."""
+
+    name: str
+    """Column and key name (snake case)."""
+    unit: str
+    """SI unit of the value (``1`` for counts)."""
+    better: str
+    """``lower``, ``higher`` or ``neither``: which way is the better performance."""
+    description: str
+    reduce: Reducer
+    integer: bool = False
+    """A count: rows hold an ``int``, else a ``float``."""
+    label: str = ""
+    """Short label in tables (default: the name with spaces)."""
+    report: tuple[str, float] | None = None
+    """(unit, scale) of the study report's summary table (None: not in the table)."""
+
+    def __post_init__(self) -> None:
+        if self.better not in ("lower", "higher", "neither"):
+            raise ValueError(f"metric {self.name!r}: better must be lower, higher or neither")
+        if not self.label:
+            object.__setattr__(self, "label", self.name.replace("_", " "))
+
+
+class MetricValues:
+    """The metrics of n repetitions: ``values.name`` or ``values["name"]`` is an (n,) array,
+    in the declaration's order (:attr:`metrics`)."""
+
+    def __init__(self, metrics: tuple[Metric, ...], values: dict[str, np.ndarray]) -> None:
+        self.metrics = tuple(metrics)
+        self._values = dict(values)
+
+    @property
+    def _fields(self) -> tuple[str, ...]:
+        return tuple(m.name for m in self.metrics)
+
+    def __getattr__(self, name: str) -> np.ndarray:
+        try:
+            return self.__dict__["_values"][name]
+        except KeyError:
+            raise AttributeError(name) from None
+
+    def __getitem__(self, name: str) -> np.ndarray:
+        return self._values[name]
+
+    def __iter__(self) -> Iterator[np.ndarray]:
+        return (self._values[m.name] for m in self.metrics)
+
+    def __len__(self) -> int:
+        return len(self.metrics)
+
+    def row(self, i: int = 0) -> dict[str, int | float]:
+        """Trial ``i``'s metrics as a row: name → int (counts) or float, in order."""
+        return metric_row(self.metrics, self, i)
+
+
+def metric_row(metrics: tuple[Metric, ...], values, i: int = 0) -> dict[str, int | float]:
+    """Row ``i`` of ``values`` (anything with an (n,) attribute per metric name) as
+    name → int (counts) or float, in the declaration's order."""
+    return {m.name: (int if m.integer else float)(getattr(values, m.name)[i]) for m in metrics}
+
+
+class MetricsAccumulator:
+    """The ``metrics`` of n trials, accumulated sample by sample (no trajectories stored).
+
+    Args:
+        metrics: the declaration (a task's ``METRICS``).
+        n: trials.
+        task: passed to the metrics' value functions (e.g. for a tolerance).
+    """
+
+    def __init__(self, metrics: tuple[Metric, ...], n: int, task: Any = None) -> None:
+        self.metrics = tuple(metrics)
         self.n = n
-        self.tube_radius = float(tube_radius)
+        self.task = task
         self.reset()
 
     def reset(self, mask=None) -> None:
         """Start over, all trials or those where ``mask`` (n,) is true."""
-        m = np.ones(self.n, dtype=bool) if mask is None else np.asarray(mask, dtype=bool)
+        fresh = [m.reduce.init(self.n) for m in self.metrics]
         if mask is None:
+            self._acc = fresh
             self._k = np.zeros(self.n, dtype=np.int64)
-            self._sum_d = np.zeros(self.n)
-            self._t0 = np.full(self.n, np.nan)
-            self._t1 = np.full(self.n, np.nan)
-            self._length = np.zeros(self.n)
-            self._peak = np.zeros(self.n)
-            self._sum_f = np.zeros(self.n)
-            self._outside = np.zeros(self.n)
-            self._clutches = np.zeros(self.n, dtype=np.int64)
             self._prev_in = np.zeros(self.n, dtype=bool)
-            self._prev_p = np.zeros((self.n, 3))
-            self._prev_t = np.zeros(self.n)
-            self._prev_c = np.zeros(self.n, dtype=bool)
+            self._prev = None
             return
-        for a, v in (
-            (self._k, 0),
-            (self._sum_d, 0.0),
-            (self._t0, np.nan),
-            (self._t1, np.nan),
-            (self._length, 0.0),
-            (self._peak, 0.0),
-            (self._sum_f, 0.0),
-            (self._outside, 0.0),
-            (self._clutches, 0),
-            (self._prev_in, False),
-        ):
-            a[m] = v
+        m = np.asarray(mask, dtype=bool)
+        self._acc = [_where(m, f, a) for f, a in zip(fresh, self._acc, strict=True)]
+        self._k = np.where(m, 0, self._k)
+        self._prev_in = self._prev_in & ~m
 
     def take(self, rows) -> MetricsAccumulator:
         """An accumulator of the trials ``rows`` (indices), with what they have so far."""
         rows = np.asarray(rows, dtype=int)
         out = copy.copy(self)
-        for name, value in vars(self).items():
-            if name.startswith("_") and isinstance(value, np.ndarray):
-                setattr(out, name, value[rows])
+        out._acc = [_take(a, rows) for a in self._acc]
+        out._k = self._k[rows]
+        out._prev_in = self._prev_in[rows]
+        out._prev = None if self._prev is None else self._prev.take(rows)
         out.n = len(rows)
         return out
 
-    def update(self, mask, time, position, distance, force, clutch) -> None:
+    def update(self, mask, sample: Sample, obs: dict) -> None:
         """One sample of every trial; ``mask`` (n,) marks the trials whose repetition
-        includes it. time: scalar or (n,); position, force: (n, 3); distance, clutch: (n,)."""
+        includes it; ``obs`` the task's observations of it."""
         m = np.asarray(mask, dtype=bool)
-        t = np.broadcast_to(np.asarray(time, dtype=float), (self.n,))
-        p = np.asarray(position, dtype=float)
-        d = np.asarray(distance, dtype=float)
-        f = np.linalg.norm(np.asarray(force, dtype=float), axis=-1)
-        c = np.asarray(clutch, dtype=bool)
         pair = m & self._prev_in
-        self._k += m
-        self._sum_d += np.where(m, d, 0.0)
-        self._t0 = np.where(m & np.isnan(self._t0), t, self._t0)
-        self._t1 = np.where(m, t, self._t1)
-        self._length += np.where(pair, np.linalg.norm(p - self._prev_p, axis=1), 0.0)
-        self._peak = np.where(m, np.maximum(self._peak, f), self._peak)
-        self._sum_f += np.where(m, f, 0.0)
-        self._outside += np.where(pair & (d > self.tube_radius), t - self._prev_t, 0.0)
-        self._clutches += pair & c & ~self._prev_c
+        prev = sample if self._prev is None else self._prev
+        self._acc = [
+            metric.reduce.add(acc, m, pair, self.task, prev, sample, obs)
+            for metric, acc in zip(self.metrics, self._acc, strict=True)
+        ]
+        self._k = self._k + m
         self._prev_in = m.copy()
-        self._prev_p = np.where(m[:, None], p, self._prev_p)
-        self._prev_t = np.where(m, t, self._prev_t)
-        self._prev_c = np.where(m, c, self._prev_c)
+        self._prev = sample if self._prev is None else self._prev.where(m, sample)
 
-    def result(self) -> RepetitionMetrics:
-        k = self._k
-        T = self._t1 - self._t0
+    def result(self) -> MetricValues:
+        done: dict[str, np.ndarray] = {}
         with np.errstate(invalid="ignore", divide="ignore"):
-            mean_d = np.where(k > 0, self._sum_d / np.maximum(k, 1), np.nan)
-            speed = np.where(T > 0, self._length / np.where(T > 0, T, 1.0), np.nan)
-            mean_f = np.where(k > 0, self._sum_f / np.maximum(k, 1), np.nan)
-        return RepetitionMetrics(
-            mean_d,
-            T,
-            self._length.copy(),
-            speed,
-            self._peak.copy(),
-            mean_f,
-            self._outside.copy(),
-            self._clutches.copy(),
-            k.copy(),
-        )
+            for metric, acc in zip(self.metrics, self._acc, strict=True):
+                done[metric.name] = metric.reduce.final(acc, self._k, done)
+        return MetricValues(self.metrics, done)
+
+
+def _where(m, fresh, acc):
+    if acc is None:
+        return None
+    if isinstance(acc, tuple):
+        return tuple(np.where(m, f, a) for f, a in zip(fresh, acc, strict=True))
+    return np.where(m, fresh, acc)
+
+
+def _take(acc, rows):
+    if acc is None:
+        return None
+    if isinstance(acc, tuple):
+        return tuple(a[rows] for a in acc)
+    return acc[rows]
+
+
+# ---------------------------------------------------------------- the path task's metrics
+def _distance(task, s, obs):
+    return obs["distance"]
+
+
+def _force_norm(task, s, obs):
+    return s.force_magnitude
+
+
+def _step_length(task, prev, s, obs):
+    return np.linalg.norm(s.tip - prev.tip, axis=1)
+
+
+def _outside(task, prev, s, obs):
+    return np.where(obs["distance"] > task.tube_radius, s.time - prev.time, 0.0)
+
+
+def _press(task, prev, s, obs):
+    return s.clutch & ~prev.clutch
+
+
+#: The metrics of a path-following repetition (see the module docstring), in the order of
+#: the rows' columns. The value functions read the task's ``tube_radius`` and the
+#: observation ``distance`` (the tip's distance to the path, m).
+PATH_METRICS: tuple[Metric, ...] = (
+    Metric("deviation_error", "m", "lower", "mean distance of the tool tip to the path "
+           "(the seed's eq. 8)", Mean(_distance), label="deviation e", report=("mm", 1e3)),
+    Metric("completion_time", "s", "lower", "time from leaving point 1 to reaching the last "
+           "point", Elapsed(), report=("s", 1.0)),
+    Metric("path_length", "m", "lower", "length of the tool tip's trajectory (economy of "
+           "motion)", PairSum(_step_length), report=("mm", 1e3)),
+    Metric("mean_speed", "m/s", "higher", "path length over completion time",
+           Ratio("path_length", "completion_time"), report=("mm/s", 1e3)),
+    Metric("peak_force", "N", "neither", "largest guidance force on the hand",
+           Peak(_force_norm), report=("N", 1.0)),
+    Metric("mean_force", "N", "neither", "mean guidance force on the hand",
+           Mean(_force_norm), report=("N", 1.0)),
+    Metric("time_outside", "s", "lower", "time farther than tube_radius from the path",
+           PairSum(_outside), report=("s", 1.0)),
+    Metric("clutch_count", "1", "lower", "presses of the clutch", PairSum(_press, True),
+           integer=True),
+    Metric("samples", "1", "neither", "samples of the repetition (1 kHz ticks)", Count(),
+           integer=True),
+)  # fmt: skip

@@ -1,13 +1,16 @@
 """A training session: a person (or a program) doing a task at the simulated console.
 
 :class:`TaskSession` is a simulation component for the interactive use of a task, the
-trainee's side of what the study automates: it sets the task's teleoperation scale, puts the
+trainee's side of what the study automates, for any kind of task
+(:class:`~davinci_sim.tasks.base.Task`): it sets the task's teleoperation scale, puts the
 condition's fixture in the console's haptic loop (a
 :class:`~davinci_sim.haptics.fixture.FixtureField` in the task's frame), and after every
-physics step feeds the tool tip (task frame), the guidance force the haptic loop requested
-and the clutch to a :class:`~davinci_sim.tasks.state.TaskMonitor`. Each finished repetition
-becomes a row (the study's metrics), kept in :attr:`TaskSession.results`, emitted on the
-``results`` channel and appended to a CSV file if one is given.
+physics step feeds a :class:`~davinci_sim.tasks.base.Sample` (the tool tip in the task's
+frame, the guidance force the haptic loop requested, the clutch) to a
+:class:`~davinci_sim.tasks.state.TaskMonitor`. Each finished repetition becomes a row (task,
+condition, repetition, then the task's declared metrics, :func:`session_columns`), kept in
+:attr:`TaskSession.results`, emitted on the ``results`` channel and appended to a CSV file
+if one is given.
 
 Repetitions follow one another by themselves: once a repetition's results are in, bringing
 the tool back to point 1 starts the next one; :meth:`TaskSession.reset` abandons the
@@ -27,16 +30,22 @@ import numpy as np
 
 from davinci_sim.sim.channels import Channels
 from davinci_sim.sim.types import ACCEPTED, CommandResult
-from davinci_sim.tasks.metrics import RepetitionMetrics
+from davinci_sim.tasks.base import Sample, Task
+from davinci_sim.tasks.metrics import MetricValues
 from davinci_sim.tasks.state import Phase, TaskMonitor
-from davinci_sim.tasks.task import PathTask
 
 if TYPE_CHECKING:
     from davinci_sim.console.console import Console
+    from davinci_sim.console.teleop_psm import TeleopPSM
     from davinci_sim.sim.simulation import Simulation
 
-#: The metrics of a repetition's row, in order (:class:`RepetitionMetrics`' fields).
-ROW_METRICS = RepetitionMetrics._fields
+#: The columns of a session's row before the task's metrics.
+SESSION_COLUMNS = ("task", "condition", "repetition")
+
+
+def session_columns(task: Task) -> tuple[str, ...]:
+    """The columns of ``task``'s session rows (CSV log, ``/task/results``)."""
+    return (*SESSION_COLUMNS, *(m.name for m in task.METRICS))
 
 
 @dataclass(frozen=True)
@@ -77,7 +86,7 @@ class TaskSession:
         self,
         sim: Simulation,
         console: Console,
-        task: PathTask,
+        task: Task,
         *,
         condition: dict | str | None = None,
         log: str | Path | None = None,
@@ -126,32 +135,27 @@ class TaskSession:
     def post_step(self, t: float) -> None:
         task = self.task
         T_task_camera = task.T_task_camera(self.sim.T_cart_camera())
-        tip = (T_task_camera @ self.teleop.psm.measured_cp().T)[:3, 3]
         if self._recorded:
-            self._distance = float(task.path.closest_point(tip[None]).distance[0])
-            if np.linalg.norm(tip - task.start) <= task.start_tolerance:
+            tip = (T_task_camera @ self.teleop.psm.measured_cp().T)[:3, 3]
+            self._distance = float(task.distance(tip)[0])
+            if task.at_start(tip)[0]:
                 self.repetition += 1
                 self.reset()
             return
-        requested = self.console.haptics.snapshot().requested.get(task.teleop.mtm)
-        force = np.zeros(3) if requested is None else requested[:3]
-        phase = self.monitor.update(t, tip, force, clutch=self.teleop.is_clutched())
+        self.monitor.observe(live_sample(task, T_task_camera, self.teleop, self.console, t))
         self._distance = self.monitor.distance
-        if phase == Phase.FINISHED and self.monitor.results is not None:
+        if self.monitor.phase == Phase.FINISHED and self.monitor.results is not None:
             self._record(self.monitor.results, t)
 
-    def _record(self, metrics: RepetitionMetrics, t: float) -> None:
+    def _record(self, metrics: MetricValues, t: float) -> None:
         row = {"task": self.task.name, "condition": self.condition, "repetition": self.repetition}
-        for name in ROW_METRICS:
-            value = getattr(metrics, name)[0]
-            row[name] = int(value) if name in ("clutch_count", "samples") else float(value)
+        row.update(metrics.row(0))
         self.results.append(row)
         self._recorded = True
         self.channels.emit("results", dict(row))
         self.channels.message(
             "status",
-            f"repetition {self.repetition} done: deviation {row['deviation_error'] * 1e3:.2f} mm,"
-            f" {row['completion_time']:.2f} s; back to point 1 for the next",
+            f"repetition {self.repetition} done: {self.task.summary(row)}",
             t,
         )
         if self.log is not None:
@@ -180,6 +184,17 @@ class TaskSession:
         )
 
 
+def live_sample(task: Task, T_task_camera, teleop: TeleopPSM, console: Console, t: float) -> Sample:
+    """The :class:`~davinci_sim.tasks.base.Sample` of ``task`` at the simulated console now:
+    the tool tip of ``teleop``'s PSM in the task's frame (``T_task_camera``: the camera in
+    the task's frame), the guidance force the haptic loop requested for the task's MTM (0
+    before it has run), the clutch; ``t`` the simulated time, s."""
+    tip = (np.asarray(T_task_camera) @ teleop.psm.measured_cp().T)[:3, 3]
+    requested = console.haptics.snapshot().requested.get(task.teleop.mtm)
+    force = None if requested is None else requested[:3]
+    return Sample.of(t, tip, force, teleop.is_clutched())
+
+
 def _condition_label(spec: dict) -> str:
     if spec.get("name"):
         return str(spec["name"])
@@ -190,7 +205,7 @@ def _condition_label(spec: dict) -> str:
 
 def install_task(
     sim: Simulation,
-    task: PathTask,
+    task: Task,
     *,
     condition: dict | str | None = None,
     log: str | Path | None = None,

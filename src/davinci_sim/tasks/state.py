@@ -12,21 +12,30 @@
 RUNNING starts when the tip *leaves* the start sphere, so time spent waiting at point 1 does
 not count. Progress is the largest arc length of the tip's closest path point seen while
 running; requiring some (default half the path) before finishing makes paths whose ends are
-close together (or loops) work. :func:`task_step` advances any number of trials at once;
-:class:`TaskMonitor` wraps it for a single trial with recording and the metrics.
+close together (or loops) work. :func:`task_step` advances any number of trials at once
+(the path kind's :meth:`~davinci_sim.tasks.task.PathTask.step`).
+
+:func:`advance` and :class:`TaskMonitor` are the glue from samples to metrics for every kind
+of task (:class:`~davinci_sim.tasks.base.Task`): each tick one
+:class:`~davinci_sim.tasks.base.Sample` of n trials goes through the task's state machine
+and, for the trials RUNNING or just FINISHED, into the metrics
+(:class:`~davinci_sim.tasks.metrics.MetricsAccumulator`). The live session, the study's live
+and batched trials and the offline runs all use them.
 """
 
 from __future__ import annotations
 
 import math
 from enum import IntEnum
-from typing import NamedTuple
+from typing import TYPE_CHECKING, NamedTuple
 
 import numpy as np
 
-from davinci_sim.geometry.path import ClosestPoint
-from davinci_sim.tasks.metrics import MetricsAccumulator, RepetitionMetrics
-from davinci_sim.tasks.task import PathTask
+from davinci_sim.tasks.base import Sample
+
+if TYPE_CHECKING:
+    from davinci_sim.tasks.base import Task
+    from davinci_sim.tasks.metrics import MetricsAccumulator, MetricValues
 
 
 class Phase(IntEnum):
@@ -112,65 +121,78 @@ def task_step(
     )
 
 
-def task_sample(state: TaskState, task: PathTask, time, tip) -> tuple[TaskState, ClosestPoint]:
-    """:func:`task_step` of ``task`` for tool tips ``tip`` (n, 3), m, in the task's frame;
-    returns the new state and the tips' closest points on the path (for the metrics)."""
-    path = task.path
-    cp = path.closest_point(tip)
-    new = task_step(
-        state,
-        time,
-        np.linalg.norm(tip - task.start, axis=1),
-        np.linalg.norm(tip - task.finish, axis=1),
-        cp.arc_length,
-        path_length=path.length,
-        start_tolerance=task.start_tolerance,
-        finish_tolerance=task.finish_tolerance,
-        min_progress=task.min_progress,
-    )
-    return new, cp
+def measuring(phase) -> np.ndarray:
+    """(n,) bool: the trials whose current sample belongs to the repetition (RUNNING, or
+    FINISHED at this sample)."""
+    return (phase == Phase.RUNNING) | (phase == Phase.FINISHED)
+
+
+def advance(task: Task, state, metrics: MetricsAccumulator, sample: Sample, active=None):
+    """One sample of n trials through ``task``'s state machine and into ``metrics``.
+
+    Args:
+        task: the task (any kind).
+        state: the trials' state (``task.initial_state(n)``).
+        metrics: the trials' accumulator (``task.metrics_accumulator(n)``), updated.
+        sample: this tick's sample of every trial.
+        active: (n,) bool, the trials still going (None: all); the others keep their
+            state and are not measured.
+
+    Returns:
+        ``(new state, observations)`` (:meth:`~davinci_sim.tasks.base.Task.step`).
+    """
+    new, obs = task.step(state, sample)
+    if active is not None:
+        new = type(new)(*(np.where(active, a, b) for a, b in zip(new, state, strict=True)))
+    measure = measuring(new.phase)
+    if active is not None:
+        measure = measure & active
+    metrics.update(measure, sample, obs)
+    return new, obs
 
 
 class TaskMonitor:
-    """One trial of ``task``: feed it each sample (time, tip, force, clutch); it runs the
-    state machine, accumulates the metrics while RUNNING, and has them once FINISHED.
+    """n trials of ``task`` (any kind): feed it each tick's
+    :class:`~davinci_sim.tasks.base.Sample` (:meth:`observe`) or, for one trial, the
+    sample's values (:meth:`update`); it runs the state machine, accumulates the metrics
+    while RUNNING, and has them (:attr:`results`) once every trial is FINISHED.
 
     Positions in the task's frame (convert camera-frame tips with the camera pose first).
     """
 
-    def __init__(self, task: PathTask) -> None:
+    def __init__(self, task: Task, n: int = 1) -> None:
         self.task = task
+        self.n = n
         self.reset()
 
     def reset(self) -> None:
-        self.state = initial_state(1)
-        self._metrics = MetricsAccumulator(1, tube_radius=self.task.tube_radius)
-        self.results: RepetitionMetrics | None = None
-        self.distance = math.nan
-        """Distance of the last sample's tip to the path, m (nan before the first)."""
+        self.state = self.task.initial_state(self.n)
+        self.metrics = self.task.metrics_accumulator(self.n)
+        self.results: MetricValues | None = None
+        self.observations: dict[str, np.ndarray] = {}
+        """The task's observations of the last sample (empty before the first)."""
 
     @property
     def phase(self) -> Phase:
+        """Phase of the first trial."""
         return Phase(int(self.state.phase[0]))
 
+    @property
+    def distance(self) -> float:
+        """Distance of the first trial's last tip to the task's geometry (the path), m (nan
+        before the first sample)."""
+        d = self.observations.get("distance")
+        return math.nan if d is None else float(d[0])
+
+    def observe(self, sample: Sample, active=None) -> np.ndarray:
+        """One sample of the n trials (:func:`advance`); returns their phases (n,)."""
+        self.state, self.observations = advance(self.task, self.state, self.metrics, sample, active)
+        if np.all(self.state.phase >= Phase.FINISHED) and self.results is None:
+            self.results = self.metrics.result()
+        return self.state.phase
+
     def update(self, time: float, tip, force=(0.0, 0.0, 0.0), clutch: bool = False) -> Phase:
-        """One sample: tip position (3,), m; force on the hand (3,), N; clutch pressed."""
-        task = self.task
-        p = np.asarray(tip, dtype=float).reshape(1, 3)
-        self.state, cp = task_sample(self.state, task, time, p)
-        self.distance = float(cp.distance[0])
-        phase = self.phase
-        # The sample where RUNNING begins is the first of the repetition, the one where
-        # FINISHED is reached its last.
-        if phase in (Phase.RUNNING, Phase.FINISHED):
-            self._metrics.update(
-                np.array([True]),
-                time,
-                p,
-                cp.distance,
-                np.asarray(force, dtype=float).reshape(1, 3),
-                np.array([bool(clutch)]),
-            )
-        if phase == Phase.FINISHED:
-            self.results = self._metrics.result()
-        return phase
+        """One sample of a single trial: tip position (3,), m; force on the hand (3,), N;
+        clutch pressed."""
+        self.observe(Sample.of(time, tip, force, clutch))
+        return self.phase

@@ -1,4 +1,5 @@
-"""Path-following tasks as data: a YAML (or JSON) file per task.
+"""Path-following tasks as data: a YAML (or JSON) file per task — the ``path`` kind of
+:class:`~davinci_sim.tasks.base.Task` (the default when a file has no ``kind``).
 
 A task file gives the path's waypoints (the numbered points, m) in a frame (``world``: the
 cart frame, or ``camera``: the ECM tip), the corner rounding, the tolerances of the task
@@ -20,47 +21,43 @@ the task's frame.
 
 from __future__ import annotations
 
-import json
-import math
 from dataclasses import dataclass, field
 from functools import cached_property
-from importlib import resources
-from pathlib import Path
 from typing import Any
 
 import numpy as np
-import yaml
 
 from davinci_sim.geometry.path import Polyline, rounded_polyline
 from davinci_sim.haptics.combine import combine
 from davinci_sim.haptics.fixture import Fixture
 from davinci_sim.haptics.spring import SpringGuidance
 from davinci_sim.haptics.viscous import DEFAULT_TRANSITION, ViscousGuidance
-from davinci_sim.haptics.wall import PlaneWall, SphereWall
+from davinci_sim.tasks.base import (
+    FRAMES,
+    Sample,
+    Task,
+    TaskError,
+    TeleopSpec,
+    available_tasks,
+    check_keys,
+    check_number,
+    common_fields,
+    load_task,
+    save_task,
+)
+from davinci_sim.tasks.metrics import PATH_METRICS
+from davinci_sim.tasks.state import initial_state, task_step
 
-FRAMES = ("world", "camera")
-_FIXTURE_KEYS = {
-    "viscous": {"B", "G_max", "transition"},
-    "spring": {"stiffness", "damping", "max_force", "transition"},
-    "none": set(),
-}
-_WALLS = {"plane": PlaneWall, "sphere": SphereWall}
-
-
-class TaskError(ValueError):
-    """A task file that cannot be used; the message says what to fix."""
-
-
-@dataclass(frozen=True)
-class TeleopSpec:
-    """How the task is teleoperated."""
-
-    psm: str = "PSM1"
-    mtm: str = "MTMR"
-    scale: float = 0.6
-    """MTM → PSM translation scale (the seed: 0.6)."""
-    keyframe: str = "surgical"
-    """Simulation start keyframe (``surgical``: the endoscope sees the instruments)."""
+__all__ = [
+    "FRAMES",
+    "PathTask",
+    "TaskError",
+    "TeleopSpec",
+    "VisualSpec",
+    "available_tasks",
+    "load_task",
+    "save_task",
+]
 
 
 @dataclass(frozen=True)
@@ -74,8 +71,15 @@ class VisualSpec:
 
 
 @dataclass(frozen=True, eq=False)
-class PathTask:
+class PathTask(Task, kind="path"):
     """A path-following task (see the module docstring for the file format)."""
+
+    METRICS = PATH_METRICS
+    FIXTURE_TYPES = {
+        "viscous": {"B", "G_max", "transition"},
+        "spring": {"stiffness", "damping", "max_force", "transition"},
+        "none": set(),
+    }
 
     name: str
     waypoints: np.ndarray
@@ -103,29 +107,39 @@ class PathTask:
             raise TaskError(f"task {self.name!r}: waypoints must be N >= 2 points [x, y, z] (m)")
         w.setflags(write=False)
         object.__setattr__(self, "waypoints", w)
-        if self.frame not in FRAMES:
-            raise TaskError(f"task {self.name!r}: unknown frame {self.frame!r}; frames: {FRAMES}")
         for name in ("corner_radius", "start_tolerance", "finish_tolerance", "tube_radius"):
-            value = getattr(self, name)
-            if not (isinstance(value, int | float) and math.isfinite(value) and value >= 0):
-                raise TaskError(f"task {self.name!r}: {name} must be a number >= 0, got {value!r}")
+            check_number(self.name, name, getattr(self, name))
         if not 0.0 <= self.min_progress <= 1.0:
             raise TaskError(f"task {self.name!r}: min_progress must be in [0, 1]")
-        if not 0.0 < self.teleop.scale <= 1.0:
-            raise TaskError(f"task {self.name!r}: teleop scale must be in ]0, 1]")
-        _check_fixture(self.name, self.fixture_spec)
-        names = []
-        for c in self.conditions:
-            _check_fixture(self.name, c, condition=True)
-            names.append(c["name"])
-        if len(set(names)) != len(names):
-            raise TaskError(f"task {self.name!r}: condition names must be unique, got {names}")
-        for wall in self.walls:
-            _wall(self.name, wall)
+        self.check()
         try:
             self.path  # noqa: B018 (builds and checks the corners)
         except ValueError as e:
             raise TaskError(f"task {self.name!r}: {e}") from e
+
+    @classmethod
+    def along(
+        cls,
+        path: Polyline,
+        *,
+        start_tolerance: float,
+        finish_tolerance: float,
+        tube_radius: float,
+        min_progress: float = 0.5,
+        name: str = "path",
+    ) -> PathTask:
+        """A task following ``path`` as it is (its vertices as sharp-cornered waypoints, in
+        whatever frame the path is): e.g. a task's path already moved to the camera frame
+        (:mod:`davinci_sim.operators.offline`)."""
+        return cls(
+            name,
+            path.vertices,
+            corner_radius=0.0,
+            start_tolerance=start_tolerance,
+            finish_tolerance=finish_tolerance,
+            tube_radius=tube_radius,
+            min_progress=min_progress,
+        )
 
     # ------------------------------------------------------------ geometry
     @cached_property
@@ -155,13 +169,6 @@ class PathTask:
     def finish(self) -> np.ndarray:
         return self.waypoints[-1]
 
-    def T_task_camera(self, T_world_camera) -> np.ndarray:
-        """The camera (ECM tip) in the task's frame, 4x4: ``T_world_camera`` for a
-        world-frame task, the identity for a camera-frame one."""
-        if self.frame == "camera":
-            return np.eye(4)
-        return np.asarray(T_world_camera, dtype=float).copy()
-
     def path_in_camera(self, T_world_camera) -> Polyline:
         """The path in the camera frame, given the camera's pose in the world (cart)."""
         if self.frame == "camera":
@@ -173,16 +180,58 @@ class PathTask:
         T_camera_world[:3, 3] = -R.T @ t
         return self.path.transformed(T_camera_world)
 
-    # ------------------------------------------------------------ fixtures
-    def condition(self, name: str) -> dict:
-        """The fixture entry of the condition called ``name``."""
-        for c in self.conditions:
-            if c["name"] == name:
-                return c
-        raise TaskError(
-            f"task {self.name!r} has no condition {name!r}; "
-            f"conditions: {[c['name'] for c in self.conditions]}"
+    # ------------------------------------------------------------ Task
+    def draw(self, spec, *, T_world_camera=None, prefix: str = "task/"):
+        """The path, its numbered markers and their numbers
+        (:func:`~davinci_sim.tasks.scene.add_path_visual`)."""
+        from davinci_sim.tasks.scene import add_path_visual
+
+        return add_path_visual(spec, self, T_world_camera=T_world_camera, prefix=prefix)
+
+    def initial_state(self, n: int):
+        """``n`` trials in IDLE (:class:`~davinci_sim.tasks.state.TaskState`)."""
+        return initial_state(n)
+
+    def step(self, state, sample: Sample):
+        """:func:`~davinci_sim.tasks.state.task_step` of the sample's tips; observations:
+        ``distance`` and ``arc_length`` of the tips' closest path points, m."""
+        path = self.path
+        tip = sample.tip
+        cp = path.closest_point(tip)
+        new = task_step(
+            state,
+            sample.time,
+            np.linalg.norm(tip - self.start, axis=1),
+            np.linalg.norm(tip - self.finish, axis=1),
+            cp.arc_length,
+            path_length=path.length,
+            start_tolerance=self.start_tolerance,
+            finish_tolerance=self.finish_tolerance,
+            min_progress=self.min_progress,
         )
+        return new, {"distance": cp.distance, "arc_length": cp.arc_length}
+
+    def summary(self, row: dict) -> str:
+        return (
+            f"deviation {row['deviation_error'] * 1e3:.2f} mm,"
+            f" {row['completion_time']:.2f} s; back to point 1 for the next"
+        )
+
+    def at_start(self, tip) -> np.ndarray:
+        p = np.asarray(tip, dtype=float).reshape(-1, 3)
+        return np.linalg.norm(p - self.start, axis=1) <= self.start_tolerance
+
+    def distance(self, tip) -> np.ndarray:
+        return self.path.closest_point(np.asarray(tip, dtype=float).reshape(-1, 3)).distance
+
+    # ------------------------------------------------------------ fixtures
+    def guidance(self, spec: dict, path: Polyline | None = None):
+        """Viscous or spring guidance along ``path`` (default: the task's), or None."""
+        return _guidance(spec, self.path if path is None else path)
+
+    def probe_guidance(self, spec: dict) -> None:
+        # On a unit segment: the task's own path is checked after its fixtures.
+        _guidance(spec, Polyline([[0.0, 0.0, 0.0], [1.0, 0.0, 0.0]]))
 
     def fixture(self, spec: dict | str | None = None, *, path: Polyline | None = None) -> Fixture:
         """The task's fixture in its frame: the guidance of ``spec`` (a fixture entry, a
@@ -191,18 +240,15 @@ class PathTask:
         ``path`` replaces the task's path (e.g. the same path in another frame; the walls
         are then left out, as they are given in the task's frame).
         """
+        if path is None:
+            return super().fixture(spec)
         if spec is None:
             spec = self.fixture_spec
         elif isinstance(spec, str):
             spec = self.condition(spec)
-        _check_fixture(self.name, spec)
-        parts = []
-        guidance = _guidance(spec, self.path if path is None else path)
-        if guidance is not None:
-            parts.append(guidance)
-        if path is None:
-            parts.extend(_wall(self.name, w) for w in self.walls)
-        return combine(*parts)
+        self.check_fixture(spec)
+        guidance = _guidance(spec, path)
+        return combine(*([] if guidance is None else [guidance]))
 
     # ------------------------------------------------------------ I/O
     @classmethod
@@ -223,15 +269,11 @@ class PathTask:
             "walls",
             "visual",
         }
-        unknown = set(data) - known
+        check_keys(data, known, required=("name", "waypoints"))
         name = data.get("name", "?")
-        if unknown:
-            raise TaskError(f"task {name!r}: unknown keys {sorted(unknown)}; keys: {sorted(known)}")
-        if "waypoints" not in data or "name" not in data:
-            raise TaskError(f"task {name!r}: 'name' and 'waypoints' are required")
-        kw = {k: data[k] for k in known & set(data) if k not in ("teleop", "fixture", "visual")}
+        kw = common_fields(data)
+        kw.update({k: data[k] for k in known & set(data) if k not in (*_COMMON, "visual")})
         try:
-            kw["teleop"] = TeleopSpec(**data.get("teleop", {}))
             visual = dict(data.get("visual", {}))
             for key in ("path_rgba", "marker_rgba"):
                 if key in visual:
@@ -239,9 +281,6 @@ class PathTask:
             kw["visual"] = VisualSpec(**visual)
         except TypeError as e:
             raise TaskError(f"task {name!r}: {e}") from e
-        kw["fixture_spec"] = dict(data.get("fixture", {"type": "none"}))
-        kw["conditions"] = tuple(dict(c) for c in data.get("conditions", ()))
-        kw["walls"] = tuple(dict(w) for w in data.get("walls", ()))
         return cls(**kw)
 
     def to_dict(self) -> dict[str, Any]:
@@ -265,27 +304,7 @@ class PathTask:
         }
 
 
-def _check_fixture(task: str, spec: dict, *, condition: bool = False) -> None:
-    if not isinstance(spec, dict):
-        raise TaskError(f"task {task!r}: a fixture entry must be a mapping, got {spec!r}")
-    kind = spec.get("type", "none")
-    if kind not in _FIXTURE_KEYS:
-        raise TaskError(
-            f"task {task!r}: unknown fixture type {kind!r}; types: {list(_FIXTURE_KEYS)}"
-        )
-    allowed = _FIXTURE_KEYS[kind] | {"type", "name"}
-    unknown = set(spec) - allowed
-    if unknown:
-        raise TaskError(
-            f"task {task!r}: unknown keys {sorted(unknown)} for a {kind} fixture; "
-            f"keys: {sorted(allowed)}"
-        )
-    if condition and not isinstance(spec.get("name"), str):
-        raise TaskError(f"task {task!r}: each condition needs a 'name', got {spec!r}")
-    try:
-        _guidance(spec, Polyline([[0.0, 0.0, 0.0], [1.0, 0.0, 0.0]]))
-    except (TypeError, ValueError) as e:
-        raise TaskError(f"task {task!r}: fixture {spec!r}: {e}") from e
+_COMMON = ("name", "description", "frame", "teleop", "fixture", "conditions", "walls")
 
 
 def _guidance(spec: dict, path: Polyline):
@@ -297,71 +316,3 @@ def _guidance(spec: dict, path: Polyline):
     if kind == "spring":
         return SpringGuidance(path, **params)
     return None
-
-
-def _wall(task: str, spec: dict):
-    kind = spec.get("type")
-    if kind not in _WALLS:
-        raise TaskError(f"task {task!r}: unknown wall type {kind!r}; types: {list(_WALLS)}")
-    params = {k: v for k, v in spec.items() if k != "type"}
-    for key in ("point", "normal", "center", "fallback_normal"):
-        if key in params:
-            params[key] = tuple(float(x) for x in params[key])
-    try:
-        return _WALLS[kind](**params)
-    except (TypeError, ValueError) as e:
-        raise TaskError(f"task {task!r}: wall {spec!r}: {e}") from e
-
-
-# ---------------------------------------------------------------- files
-def _data_dir():
-    return resources.files("davinci_sim.tasks") / "data"
-
-
-def available_tasks() -> list[str]:
-    """Names of the shipped tasks."""
-    return sorted(
-        p.name.rsplit(".", 1)[0]
-        for p in _data_dir().iterdir()
-        if p.name.endswith((".yaml", ".yml", ".json"))
-    )
-
-
-def load_task(name_or_path: str | Path = "seed_path") -> PathTask:
-    """A shipped task by name, or a task file (``.yaml``, ``.yml`` or ``.json``).
-
-    Raises:
-        TaskError: unknown name, unreadable file or invalid content.
-    """
-    text: str
-    source = str(name_or_path)
-    path = Path(source)
-    if path.suffix in (".yaml", ".yml", ".json") and path.exists():
-        text = path.read_text()
-    else:
-        for suffix in (".yaml", ".yml", ".json"):
-            candidate = _data_dir() / f"{source}{suffix}"
-            if candidate.is_file():
-                text, path = candidate.read_text(), Path(candidate.name)
-                break
-        else:
-            raise TaskError(
-                f"no task {source!r}; shipped tasks: {available_tasks()}, or a file path"
-            )
-    try:
-        data = json.loads(text) if path.suffix == ".json" else yaml.safe_load(text)
-    except (json.JSONDecodeError, yaml.YAMLError) as e:
-        raise TaskError(f"cannot parse task file {source!r}: {e}") from e
-    if not isinstance(data, dict):
-        raise TaskError(f"task file {source!r} must hold a mapping")
-    return PathTask.from_dict(data)
-
-
-def save_task(task: PathTask, path: str | Path) -> None:
-    """Write ``task`` as YAML (or JSON for a ``.json`` path)."""
-    p = Path(path)
-    data = task.to_dict()
-    if p.suffix == ".json":
-        p.write_text(json.dumps(data, indent=2))
-    else:
-        p.write_text(yaml.safe_dump(data, sort_keys=False))
