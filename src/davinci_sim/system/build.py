@@ -37,10 +37,10 @@ if TYPE_CHECKING:
     from davinci_sim.console.console import Console
     from davinci_sim.devices.device import MasterDevice
     from davinci_sim.sim.simulation import Simulation
-    from davinci_sim.tasks.task import PathTask
+    from davinci_sim.tasks.base import Task
 
 
-def load_description_task(description: SystemDescription) -> PathTask | None:
+def load_description_task(description: SystemDescription) -> Task | None:
     """The task of ``description`` (None: no task), its condition checked.
 
     Raises:
@@ -55,15 +55,13 @@ def load_description_task(description: SystemDescription) -> PathTask | None:
     return task
 
 
-def _edit_spec(description: SystemDescription, task: PathTask | None):
+def _edit_spec(description: SystemDescription, task: Task | None):
     if task is None or not description.task.draw:
         return None
-    from davinci_sim.tasks import add_path_visual
-
-    return lambda spec: add_path_visual(spec, task)
+    return lambda spec: task.draw(spec)
 
 
-def new_simulation(description: SystemDescription, task: PathTask | None = None) -> Simulation:
+def new_simulation(description: SystemDescription, task: Task | None = None) -> Simulation:
     """The scene of ``description`` at its keyframe and seed, the task's path drawn (pass
     ``task`` if already loaded)."""
     from davinci_sim.sim.simulation import Simulation
@@ -139,7 +137,7 @@ def install_console_of(sim: Simulation, description: SystemDescription) -> Conso
     return console
 
 
-def install(sim: Simulation, description: SystemDescription, task: PathTask | None = None):
+def install(sim: Simulation, description: SystemDescription, task: Task | None = None):
     """Install on ``sim`` what ``description`` asks beyond the scene: console, task session,
     the ``qpos`` publisher, the arms' enable and home commands."""
     install_console_of(sim, description)

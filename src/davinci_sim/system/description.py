@@ -22,7 +22,7 @@ from davinci_sim.devices.safety import WrenchLimits
 from davinci_sim.model.config import SceneConfig
 
 if TYPE_CHECKING:
-    from davinci_sim.tasks.task import PathTask
+    from davinci_sim.tasks.base import Task
 
 #: The dVRK socket streamer's default UDP ports of the MTMs (dvrk.md 5).
 UDP_PORTS = {"MTML": 48054, "MTMR": 48055}
@@ -147,7 +147,7 @@ class SystemDescription:
         return dataclasses.replace(self, **changes)
 
 
-def task_condition(task: PathTask, condition: str | dict | None) -> dict | str | None:
+def task_condition(task: Task, condition: str | dict | None) -> dict | str | None:
     """A task's condition from its description: a condition name of ``task`` (kept), or
     ``B:G_max`` (viscous guidance, N·s/m : N) as a fixture entry.
 
