@@ -21,7 +21,7 @@ def mtm_sim():
     assert arm.state_command("enable") and arm.state_command("home")
     assert sim.run_until(lambda: arm.is_homed() and not arm.is_busy(), 10)
     device = SimulatedMTM(sim, "MTMR", limits=WrenchLimits(max_force=4.0, max_force_rate=500.0))
-    sim.components[device.name] = device
+    sim.add_component(device)
     device.enter_effort_mode()
     sim.tick()
     return sim, device

@@ -111,7 +111,7 @@ def build_simulation(
 
         install_task(sim, path_task, condition=task_condition(path_task, condition), log=task_log)
     if qpos_probe:
-        sim.components["qpos"] = QposProbe(sim)
+        sim.add_component(QposProbe(sim))
     if home:
         for arm in sim.arms.values():
             arm.state_command("enable")

@@ -51,7 +51,7 @@ CAMERAS = (("left", "ECM/left"), ("right", "ECM/right"))
 class QposProbe:
     """A simulation component that publishes a copy of ``qpos`` in each snapshot's extras
     (``extras["qpos"]``), so a renderer elsewhere sees a consistent state. Register it with
-    ``sim.components["qpos"] = QposProbe(sim)`` before the loop starts."""
+    ``sim.add_component(QposProbe(sim))`` before the loop starts."""
 
     def __init__(self, sim: Any) -> None:
         self._sim = sim
@@ -63,6 +63,14 @@ class QposProbe:
         q = self._sim.data.qpos.copy()
         q.setflags(write=False)
         return q
+
+    name = "qpos"
+
+    def get_state(self) -> None:
+        """No state: the probe only copies ``qpos`` when asked."""
+
+    def set_state(self, state: None) -> None:
+        pass
 
 
 # =========================================================================== camera info

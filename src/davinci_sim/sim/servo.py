@@ -87,7 +87,6 @@ class JointServo:
             self.kv,
         )
 
-
     #: What :meth:`get_state` saves: references, masks and the gains in use.
     _STATE = ("q_ref", "qd_ref", "tau_ff", "effort_mode", "gravity_compensation", "kp", "kv")
 

@@ -242,3 +242,11 @@ class MetricsAccumulator:
             self._clutches.copy(),
             k.copy(),
         )
+
+    def get_state(self) -> dict:
+        """The running sums and the previous sample (copies)."""
+        return {k: v.copy() for k, v in vars(self).items() if k.startswith("_")}
+
+    def set_state(self, state: dict) -> None:
+        for k, v in state.items():
+            setattr(self, k, v.copy())

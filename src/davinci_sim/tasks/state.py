@@ -18,6 +18,7 @@ close together (or loops) work. :func:`task_step` advances any number of trials 
 
 from __future__ import annotations
 
+import copy
 import math
 from enum import IntEnum
 from typing import NamedTuple
@@ -174,3 +175,18 @@ class TaskMonitor:
         if phase == Phase.FINISHED:
             self.results = self._metrics.result()
         return phase
+
+    def get_state(self) -> dict:
+        """The state machine, the metrics accumulated so far, the results and distance."""
+        return {
+            "state": TaskState(*(np.copy(a) for a in self.state)),
+            "metrics": self._metrics.get_state(),
+            "results": None if self.results is None else copy.deepcopy(self.results),
+            "distance": self.distance,
+        }
+
+    def set_state(self, state: dict) -> None:
+        self.state = TaskState(*(np.copy(a) for a in state["state"]))
+        self._metrics.set_state(state["metrics"])
+        self.results = None if state["results"] is None else copy.deepcopy(state["results"])
+        self.distance = state["distance"]
