@@ -26,7 +26,14 @@ from davinci_sim.sim.arms import ECM, MTM, PSM, SUJArm
 from davinci_sim.sim.component import Component, check_component
 from davinci_sim.sim.sensors import INSTRUMENT_BODIES, CameraRenderer, body_ids, contact_force
 from davinci_sim.sim.servo import JointServo
-from davinci_sim.sim.state import STATE_SPEC, SimState, describe_scene, model_signature
+from davinci_sim.sim.state import (
+    STATE_SPEC,
+    SimState,
+    Unavailable,
+    component_states,
+    describe_scene,
+    model_signature,
+)
 
 ARM_NAMES = ("PSM1", "PSM2", "PSM3", "ECM", "MTML", "MTMR")
 #: Default base frames (and the camera frame) are reused while the joints they depend on
@@ -364,7 +371,7 @@ class Simulation:
                 "this state belongs to another scene (model signature "
                 f"{state.signature[:12]} != {self.signature[:12]}); this simulation: "
                 f"{describe_scene(self.model)}, the state's: "
-                f"{describe_scene(_model_of(state))}"
+                f"{describe_scene(state.data.model)}"
             )
         names = [name for name, _ in state.components]
         if names != list(self._components):
@@ -376,7 +383,7 @@ class Simulation:
             component = self._components[name]
             if not callable(getattr(component, "set_state", None)):
                 raise TypeError(f"component {name!r} ({type(component).__name__}) has no set_state")
-            if isinstance(component_state, _Unavailable):
+            if isinstance(component_state, Unavailable):
                 raise TypeError(f"no state of component {name!r}: {component_state.reason}")
         mujoco.mj_copyData(self.data, self.model, state.data)
         self.tick_count = state.tick_count
@@ -464,36 +471,4 @@ class Simulation:
         )
 
     def _capture_components(self, *, strict: bool) -> tuple:
-        components = []
-        for name, component in self._components.items():
-            get_state = getattr(component, "get_state", None)
-            if get_state is None:
-                if strict:
-                    raise TypeError(
-                        f"component {name!r} ({type(component).__name__}) has no get_state(): "
-                        "its state cannot be saved (see davinci_sim.sim.component)"
-                    )
-                components.append((name, _Unavailable("it has no get_state()")))
-                continue
-            if strict:
-                components.append((name, get_state()))
-                continue
-            try:  # the first tick must not fail because a state cannot be taken
-                components.append((name, get_state()))
-            except Exception as e:  # noqa: BLE001 - reported by reset()/set_state
-                components.append((name, _Unavailable(f"get_state() failed: {e!r}")))
-        return tuple(components)
-
-
-class _Unavailable:
-    """Stands for a component's state that could not be taken (reported on restore)."""
-
-    def __init__(self, reason: str) -> None:
-        self.reason = reason
-
-    def __repr__(self) -> str:
-        return f"<state unavailable: {self.reason}>"
-
-
-def _model_of(state: SimState) -> mujoco.MjModel:
-    return state.data.model
+        return component_states(self._components, strict=strict)

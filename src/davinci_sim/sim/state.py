@@ -99,6 +99,41 @@ def describe_scene(model: mujoco.MjModel) -> str:
     return f"{model.nbody} bodies, {model.njnt} joints, {model.nu} actuators, {model.ngeom} geoms"
 
 
+class Unavailable:
+    """Stands for a component's state that could not be taken (reported on restore)."""
+
+    def __init__(self, reason: str) -> None:
+        self.reason = reason
+
+    def __repr__(self) -> str:
+        return f"<state unavailable: {self.reason}>"
+
+
+def component_states(components: dict, *, strict: bool) -> tuple:
+    """``(name, component.get_state())`` of ``components`` in order. ``strict``: raise
+    TypeError for a component without ``get_state``; else put an :class:`Unavailable` in its
+    place (also when ``get_state`` fails), for the state :meth:`Simulation.reset` keeps,
+    taken at the first tick, which must not fail because of it."""
+    states = []
+    for name, component in components.items():
+        get_state = getattr(component, "get_state", None)
+        if get_state is None:
+            if strict:
+                raise TypeError(
+                    f"component {name!r} ({type(component).__name__}) has no get_state(): "
+                    "its state cannot be saved (see davinci_sim.sim.component)"
+                )
+            states.append((name, Unavailable("it has no get_state()")))
+        elif strict:
+            states.append((name, get_state()))
+        else:
+            try:
+                states.append((name, get_state()))
+            except Exception as e:  # noqa: BLE001 - reported by reset()/set_state
+                states.append((name, Unavailable(f"get_state() failed: {e!r}")))
+    return tuple(states)
+
+
 # ---------------------------------------------------------------- plain-data copies
 _ATOMS = (type(None), bool, int, float, complex, str, bytes, np.generic, enum.Enum)
 
