@@ -4,6 +4,11 @@ Each :meth:`Simulation.tick` runs: components' ``pre_step`` (console, teleoperat
 setpoints (trajectories, wrench-to-effort) → joint servo (PD + gravity compensation) → one
 ``mj_step`` of 1 ms → components' ``post_step`` (haptic force fields …). Arms read their state
 from MuJoCo on demand, so a tick costs only what the physics and the active setpoints need.
+
+Components are registered with :meth:`Simulation.add_component` (the contract and the tick
+order: :mod:`davinci_sim.sim.component`). :meth:`Simulation.get_state` /
+:meth:`Simulation.set_state` save and restore everything that changes while ticking, and
+:meth:`Simulation.reset` returns to the start (:mod:`davinci_sim.sim.state`).
 """
 
 from __future__ import annotations

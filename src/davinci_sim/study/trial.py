@@ -4,7 +4,9 @@ condition, through the real simulator, console, teleoperation and haptic loop.
 :func:`setup_trial` brings a :class:`~davinci_sim.sim.simulation.Simulation` of the study
 scene (the task's PSM and MTM, the ECM; :func:`study_scene`) to the start of a trial: PSM
 homed and its tool at point 1, console installed with the task's motion scale, the
-teleoperation following. The start is the same for every trial.
+teleoperation following. The start is the same for every trial: it is built once per
+process and task (:func:`build_setup`) and each later trial starts from its saved state
+(:meth:`Simulation.set_state <davinci_sim.sim.simulation.Simulation.set_state>`).
 
 :func:`run_trial` is the live engine, one simulation per trial: it puts a
 :class:`~davinci_sim.operators.TraineeHand` on the simulated MTM and the condition's fixture
