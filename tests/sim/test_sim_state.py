@@ -216,6 +216,17 @@ def test_a_state_of_another_scene_or_other_components_is_refused():
         other.set_state({"qpos": other.data.qpos})
 
 
+def test_a_refused_state_leaves_the_simulation_as_it_was():
+    sim, console = teleop_sim(teleop_config=NO_ALIGN)
+    state = sim.get_state()
+    console.haptics.add_field(lambda s: [0.0, 0.0, 0.1], name="push")  # not in the state
+    sim.run_for(0.05)
+    before = sim.get_state()
+    with pytest.raises(ValueError, match="force fields"):
+        sim.set_state(state)
+    _assert_states_equal(sim.get_state(), before)
+
+
 def test_state_and_reset_through_the_handle():
     sim, _ = teleop_sim(teleop_config=NO_ALIGN)
     with ThreadedSimulation(sim, real_time=False) as handle:

@@ -363,6 +363,7 @@ class Simulation:
         """Put the simulation back in ``state`` (from :meth:`get_state` of this simulation or
         of one of the same scene with the same components): physics, arms, servo, time, tick
         count, random generator and every component. Nothing is emitted on the channels.
+        If a component refuses its state, the simulation is left as it was.
 
         Raises:
             TypeError: if ``state`` is not a :class:`SimState` or a component cannot
@@ -390,6 +391,14 @@ class Simulation:
                 raise TypeError(f"component {name!r} ({type(component).__name__}) has no set_state")
             if isinstance(component_state, Unavailable):
                 raise TypeError(f"no state of component {name!r}: {component_state.reason}")
+        backup = self._capture(strict=False)
+        try:
+            self._restore(state)
+        except Exception:  # a component refused (e.g. other force fields): nothing changes
+            self._restore(backup)
+            raise
+
+    def _restore(self, state: SimState) -> None:
         mujoco.mj_copyData(self.data, self.model, state.data)
         self.tick_count = state.tick_count
         self.rng.bit_generator.state = copy.deepcopy(state.rng)
@@ -399,7 +408,8 @@ class Simulation:
         for name, arm in self.arms.items():
             arm.set_state(state.arms[name])
         for name, component_state in state.components:
-            self._components[name].set_state(component_state)
+            if not isinstance(component_state, Unavailable):
+                self._components[name].set_state(component_state)
 
     def reset(self, keyframe: str | None = None) -> None:
         """Back to the start: the physics, arms and servo as the simulation was built, every
