@@ -77,6 +77,8 @@ asyncio.run(main())
 class TickProbe:
     """A simulation component recording the wall time of every tick."""
 
+    name = "probe"
+
     def __init__(self) -> None:
         self.times: list[float] = []
 
@@ -172,8 +174,8 @@ def measure_images(seconds: float) -> dict:
     """Stereo JPEG at 30 Hz plus measured_js at 100 Hz to one client, full scene."""
     sim = Simulation("full", keyframe="surgical")
     probe = TickProbe()
-    sim.components["probe"] = probe
-    sim.components["qpos"] = QposProbe(sim)
+    sim.add_component(probe)
+    sim.add_component(QposProbe(sim))
     handle = ThreadedSimulation(sim, real_time=True, snapshot_period=0.01).start()
     endo = EndoscopeNode(handle, "full", rate=30.0)
     server = RosbridgeServer(BridgeConfig(port=0), nodes=[DvrkNode(handle), endo]).start()
@@ -242,7 +244,7 @@ def main(seconds: float = 5.0) -> None:
     for rate in (100.0, 250.0, 500.0, 1000.0):
         sim = Simulation("full")
         probe = TickProbe()
-        sim.components["probe"] = probe
+        sim.add_component(probe)
         handle = ThreadedSimulation(sim, real_time=True, snapshot_period=1.0 / rate).start()
         try:
             if rate == 100.0:  # latency at the dVRK's default rate, one subscriber

@@ -11,6 +11,7 @@ import bench_bridge  # noqa: E402
 import bench_kinematics  # noqa: E402
 import bench_realtime  # noqa: E402
 import bench_render  # noqa: E402
+import bench_state  # noqa: E402
 import bench_study  # noqa: E402
 import bench_teleop  # noqa: E402
 import bench_tick  # noqa: E402
@@ -18,6 +19,7 @@ import bench_tick  # noqa: E402
 if __name__ == "__main__":
     bench_kinematics.main()
     bench_tick.main()
+    bench_state.main()
     bench_render.main()
     bench_bridge.main()
     bench_teleop.main()

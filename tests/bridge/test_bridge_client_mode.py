@@ -111,7 +111,7 @@ def test_client_mode_pushes_into_a_network_device(remote):
     network = pytest.importorskip("davinci_sim.devices.network")
     server, remote_ros = remote
     sim = Simulation("psm1_ecm_mtmr")
-    sim.components["MTMR/device"] = network.NetworkDevice("MTMR/device", watchdog=None)
+    sim.add_component(network.NetworkDevice("MTMR/device", watchdog=None))
     handle = ThreadedSimulation(sim, real_time=True).start()
     fake = FakeConsole(remote_ros, list(handle.snapshot().arms["MTMR"].measured_js.name))
     client = RosClientMode(handle, ClientModeConfig(server.url, mtms=("MTMR",)))

@@ -32,6 +32,8 @@ class ConsoleState:
 
 
 class FakeConsole:
+    name = "console"
+
     def __init__(self):
         self.state = ConsoleState()
         self.calls = []
@@ -87,6 +89,8 @@ class TeleopState:
 
 
 class FakeTeleop:
+    name = "MTMR_PSM1"
+
     def __init__(self):
         self.state = TeleopState()
 
@@ -127,8 +131,8 @@ class FakeTeleop:
 def console_setup(make_server, make_ros):
     sim = Simulation("psm1")
     console, teleop = FakeConsole(), FakeTeleop()
-    sim.components["console"] = console
-    sim.components["MTMR_PSM1"] = teleop
+    sim.add_component(console)
+    sim.add_component(teleop)
     handle = ThreadedSimulation(sim, real_time=True).start()
     server = make_server(nodes=[DvrkNode(handle), ConsoleNode(handle)])
     yield handle, console, teleop, make_ros(server)
@@ -229,7 +233,8 @@ def test_real_console_components_if_present(make_server, make_ros):
         console.add_teleop_psm(teleop)
     except TypeError as e:  # the API changed under us: this layer needs updating
         pytest.fail(f"console API changed: {e}")
-    sim.components.update({"MTMR/device": device, "MTMR_PSM1": teleop, "console": console})
+    for component in (device, teleop, console):
+        sim.add_component(component)
     handle = ThreadedSimulation(sim, real_time=True).start()
     try:
         server = make_server(nodes=[ConsoleNode(handle)])

@@ -222,8 +222,8 @@ def test_local_measured_cv_is_the_body_twist(handle, make_server, make_ros):
     assert np.linalg.norm(snap.measured_cv.twist) > 1e-3  # it is moving
     sim = Simulation("psm1")
     arm = sim.arms["PSM1"]
-    sim.data.qpos[arm._qposadr] = snap.measured_js.position
-    sim.data.qvel[arm._dofadr] = snap.measured_js.velocity
+    sim.data.qpos[arm.qpos_addresses] = snap.measured_js.position
+    sim.data.qvel[arm.dof_addresses] = snap.measured_js.velocity
     expected = arm.local.measured_cv().twist
     # same joints and rates: the measured_cv of that sim rotated into the tip frame
     ref = m.local_twist(arm.measured_cv(), arm.measured_cp())

@@ -22,7 +22,7 @@ from davinci_sim.sim.simulation import Simulation
 @pytest.fixture
 def probed_handle():
     sim = Simulation("psm1", keyframe="surgical")
-    sim.components["qpos"] = QposProbe(sim)
+    sim.add_component(QposProbe(sim))
     h = ThreadedSimulation(sim, real_time=True, snapshot_period=0.01).start()
     yield h
     h.stop()

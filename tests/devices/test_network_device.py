@@ -34,7 +34,7 @@ def remote_sim():
     device = NetworkDevice("MTMR/device", clock=lambda: sim.time)
     console = install_console(sim, devices={"MTMR": device}, teleop_config=SIMULATED_SYSTEM)
     remote = Remote(device, sim.arms["MTMR"].measured_cp().T)
-    sim.components = {"remote": remote, **sim.components}
+    sim.add_component(remote, before=next(iter(sim.components)))
     return sim, console, device, remote
 
 

@@ -21,7 +21,7 @@ def mtm_sim():
     assert arm.state_command("enable") and arm.state_command("home")
     assert sim.run_until(lambda: arm.is_homed() and not arm.is_busy(), 10)
     device = SimulatedMTM(sim, "MTMR", limits=WrenchLimits(max_force=4.0, max_force_rate=500.0))
-    sim.components[device.name] = device
+    sim.add_component(device)
     device.enter_effort_mode()
     sim.tick()
     return sim, device
@@ -130,3 +130,20 @@ def test_hand_law():
     np.testing.assert_allclose(w[3:], [0, 0, imp.rotational_stiffness * 0.2], atol=1e-12)
     assert not hand_wrench(turned, T, np.zeros(6), imp, hold_orientation=False)[3:].any()
     np.testing.assert_allclose(hand_wrench(None, T, np.array([1.0, 0, 0, 0, 0, 0]), imp)[0], -2.0)
+
+
+def test_the_device_state_restores_the_hand_its_limiter_and_the_hand_mass(mtm_sim):
+    sim, device = mtm_sim
+    hand_mass = sim.model.body_mass[device.hand_body]
+    state = device.get_state()
+    device.hand = HandImpedance(mass=0.7)
+    device.grasp(device.input().position + [0.0, 0.05, 0.0])
+    device.servo_cf([3.0, 0.0, 0.0, 0.0, 0.0, 0.0])
+    sim.run_for(0.05)
+    assert sim.model.body_mass[device.hand_body] == 0.7
+    device.set_state(state)
+    assert sim.model.body_mass[device.hand_body] == hand_mass
+    assert device.hand == state["hand"] and not device.get_state()["_hand_on"]
+    np.testing.assert_array_equal(device.get_state()["limiter"][0], state["limiter"][0])
+    # (what the MTM renders is the arm's wrench setpoint: the arm's state, Simulation.set_state)
+    np.testing.assert_array_equal(device.get_state()["_wrench"], state["_wrench"])

@@ -125,3 +125,19 @@ def test_fixture_field_filtered_velocity_is_per_psm_and_resettable():
     np.testing.assert_array_equal(field(_state(p, np.zeros(3))), 0.0)
     with pytest.raises(ValueError):
         FixtureField(ViscousGuidance(LINE, B=1.0, G_max=1.0), frame="cart")
+
+
+def test_fixture_field_state_is_its_filters_memory():
+    """Saved mid-motion and restored, the field gives the forces it gave after the save; a
+    fresh field (no memory) gives others."""
+    field = FixtureField(ViscousGuidance(LINE, B=40.0, G_max=5.0), frame="camera")
+    p = np.array([0.0, 0.004, 0.0])
+    for k in range(50):
+        field(_state(p + [0, 1e-5 * k, 0], np.zeros(3)))
+    state = field.get_state()
+    after = [field(_state(p + [0, 1e-5 * k, 0], np.zeros(3))) for k in range(50, 60)]
+    field.set_state(state)
+    again = [field(_state(p + [0, 1e-5 * k, 0], np.zeros(3))) for k in range(50, 60)]
+    np.testing.assert_array_equal(after, again)
+    fresh = FixtureField(ViscousGuidance(LINE, B=40.0, G_max=5.0), frame="camera")
+    assert not np.array_equal(after[0], fresh(_state(p + [0, 5e-4, 0], np.zeros(3))))

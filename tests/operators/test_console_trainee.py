@@ -45,7 +45,7 @@ def test_trainee_completes_the_seed_task_through_the_console():
         noise_keys=[(3, 0)],
     )
     hand = TraineeHand(trainee, device, sim.arms["PSM1"], when=teleop.is_following)
-    sim.components = {hand.name: hand, **sim.components}
+    sim.add_component(hand, before=next(iter(sim.components)))
     field = FixtureField(task.fixture("B=40"), frame="world")
     console.haptics.add_field(field, mtm="MTMR", name="guidance")
     monitor = TaskMonitor(task)

@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 
 import davinci_sim.sim.simulation as simulation
+import davinci_sim.study.trial as trial
 from davinci_sim.study import TrialSpec, run_trial
 from davinci_sim.study.batch import TrialBatch, run_batch
 from davinci_sim.study.report import COLUMNS, TIMING_COLUMNS
@@ -26,6 +27,8 @@ def test_batch_is_the_live_simulation_to_machine_precision(short_task, monkeypat
     joints drift by 1e-6; the batch holds them, see study.batch), every joint of every trial
     follows the live simulation's to ~1e-12 over a whole second of assisted following."""
     monkeypatch.setattr(simulation, "BASE_FRAME_TOLERANCE", np.inf)
+    # Set-ups built here start under the patched tolerance: keep them out of later tests.
+    monkeypatch.setattr(trial, "_SETUPS", {})
     spec = _specs(short_task)[1]
     batch = TrialBatch([spec])
     from davinci_sim.haptics.fixture import FixtureField
@@ -38,7 +41,7 @@ def test_batch_is_the_live_simulation_to_machine_precision(short_task, monkeypat
     params, trainee = trial_inputs([spec], task, setup.T_world_camera, np.zeros(3))
     setup.device.hand = hand_impedance(params)
     hand = TraineeHand(trainee, setup.device, sim.arms["PSM1"])
-    sim.components = {hand.name: hand, **sim.components}
+    sim.add_component(hand, before=next(iter(sim.components)))
     fixture = FixtureField(task.fixture(condition_spec(spec.B, spec.G_max)), frame="world")
     setup.console.haptics.add_field(fixture, mtm="MTMR")
     peak = 0.0

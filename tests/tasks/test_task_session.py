@@ -29,7 +29,7 @@ def session_run(tmp_path_factory):
     params, trainee = trial_inputs([spec], task, setup.T_world_camera, np.zeros(3))
     setup.device.hand = hand_impedance(params)
     hand = TraineeHand(trainee, setup.device, sim.arms["PSM1"])
-    sim.components = {hand.name: hand, **sim.components}
+    sim.add_component(hand, before=next(iter(sim.components)))
     phases = set()
     end = sim.time + 20.0
     while not session.results and sim.time < end:
@@ -62,7 +62,7 @@ def test_back_at_point_1_the_next_repetition_starts_and_reset_abandons_it(sessio
     task = session.task
     # The trainee lets go; the PSM is brought back to point 1 by its own API (clutched).
     for name in [n for n in sim.components if n.endswith("/trainee")]:
-        sim.components.pop(name)
+        sim.remove_component(name)
     sim.components["MTMR_PSM1"].clutch(True)
     psm = sim.arms["PSM1"]
     T = psm.setpoint_cp().T.copy()

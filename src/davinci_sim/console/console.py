@@ -30,6 +30,7 @@ from davinci_sim.console.teleop_math import as_scale
 from davinci_sim.console.teleop_psm import TeleopPSM
 from davinci_sim.devices.buttons import ButtonEvent, parse_button_event
 from davinci_sim.sim.channels import Channels
+from davinci_sim.sim.state import capture, restore
 from davinci_sim.sim.types import ACCEPTED, CommandResult
 
 if TYPE_CHECKING:
@@ -302,6 +303,17 @@ class Console:
         if self.ecm_teleop is not None:
             on = self._teleop_enabled and camera and present
             self.ecm_teleop.state_command("enable" if on else "disable")
+
+    # ------------------------------------------------------------ state
+    #: Buttons held and when they were pressed, teleoperation enabled, the scale (the
+    #: teleoperations, devices and haptic loop are components with their own state).
+    _STATE = ("_pressed", "_pressed_at", "_teleop_enabled", "_scale")
+
+    def get_state(self) -> dict:
+        return capture(self, self._STATE)
+
+    def set_state(self, state: dict) -> None:
+        restore(self, state, self._STATE)
 
 
 def _shares_arm(a: TeleopPSM, b: TeleopPSM) -> bool:

@@ -24,6 +24,7 @@ import numpy as np
 
 from davinci_sim.haptics.field import HapticState, as_wrench
 from davinci_sim.sim.channels import Channels
+from davinci_sim.sim.state import capture, restore
 from davinci_sim.sim.types import ACCEPTED, CommandResult
 
 if TYPE_CHECKING:
@@ -183,3 +184,33 @@ class HapticLoop:
             self.channels.message(
                 "error", f"force field {entry.name!r} failed: {type(error).__name__}: {error}", t
             )
+
+    # ------------------------------------------------------------ state
+    def get_state(self) -> dict:
+        """The last requested wrenches, and for each registered field its error throttle
+        and its own state (``field.get_state()``, None for a field without state: a pure
+        law). Which fields are registered is configuration: :meth:`set_state` needs the
+        same ones."""
+        fields = {}
+        for name, entry in self._fields.items():
+            get_state = getattr(entry.field, "get_state", None)
+            fields[name] = (entry.last_error, None if get_state is None else get_state())
+        return {"requested": capture(self, ("_requested",)), "fields": fields}
+
+    def set_state(self, state: dict) -> None:
+        """Put back a :meth:`get_state`.
+
+        Raises:
+            ValueError: if the state's fields are not the ones registered now.
+        """
+        if list(state["fields"]) != list(self._fields):
+            raise ValueError(
+                f"haptics: the state's force fields {list(state['fields'])} are not the "
+                f"registered ones {list(self._fields)}"
+            )
+        restore(self, state["requested"], ("_requested",))
+        for name, (last_error, field_state) in state["fields"].items():
+            entry = self._fields[name]
+            entry.last_error = last_error
+            if field_state is not None:
+                entry.field.set_state(field_state)

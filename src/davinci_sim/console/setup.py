@@ -94,7 +94,7 @@ def install_console(
     if taken:
         raise ValueError(f"component names already registered in the simulation: {taken}")
     for component in components:
-        sim.components[component.name] = component
+        sim.add_component(component)
     for teleop in teleops:
         console.add_teleop_psm(teleop)
     if ecm is not None:
@@ -129,5 +129,7 @@ def add_scripted_hands(
         if script.name in sim.components:
             raise ValueError(f"component {script.name!r} already registered")
         scripts.append(script)
-    sim.components = {**{s.name: s for s in scripts}, **sim.components}
+    first = next(iter(sim.components), None)  # the scripts go first, in this order
+    for script in scripts:
+        sim.add_component(script, before=first)
     return scripts

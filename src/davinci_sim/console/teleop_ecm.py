@@ -26,6 +26,7 @@ from davinci_sim.devices.device import MasterDevice
 from davinci_sim.kinematics import fk
 from davinci_sim.sim.arms import ECM
 from davinci_sim.sim.channels import Channels
+from davinci_sim.sim.state import capture, restore
 from davinci_sim.sim.types import ACCEPTED, CommandResult
 
 if TYPE_CHECKING:
@@ -228,3 +229,24 @@ class TeleopECM(TeleopBase):
         dR = self._R_base_camera0.T @ R_base_camera
         for device, R0 in zip((self.left, self.right), self._R_mtm0, strict=True):
             device.lock_orientation(dR.T @ R0)
+
+    # ------------------------------------------------------------ state
+    #: The scale, the state machine and the hands' and arm's anchors while following.
+    _STATE = (
+        "_scale",
+        "_current",
+        "_desired",
+        "_entered_at",
+        "_following",
+        "_clutched",
+        "_initial",
+        "_q0",
+        "_R_base_camera0",
+        "_R_mtm0",
+    )
+
+    def get_state(self) -> dict:
+        return capture(self, self._STATE)
+
+    def set_state(self, state: dict) -> None:
+        restore(self, state, self._STATE)

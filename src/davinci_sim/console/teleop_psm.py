@@ -36,6 +36,7 @@ from davinci_sim.devices.device import MasterDevice
 from davinci_sim.geometry import so3
 from davinci_sim.sim.arms import PSM
 from davinci_sim.sim.channels import Channels
+from davinci_sim.sim.state import capture, restore
 from davinci_sim.sim.types import ACCEPTED, CommandResult
 
 if TYPE_CHECKING:
@@ -528,3 +529,42 @@ class TeleopPSM(TeleopBase):
         if jaw != self._jaw_sent:  # the jaw servo keeps its setpoint: send changes only
             self._jaw_sent = jaw
             self.psm.jaw.servo_jp(jaw)
+
+    # ------------------------------------------------------------ state
+    #: The settings changed by commands (scale, locks, alignment), the state machine,
+    #: selection, the alignment watch and the anchors and jaw mapping while following.
+    _STATE = (
+        "_scale",
+        "_rotation_locked",
+        "_translation_locked",
+        "_align",
+        "_haptic",
+        "_ignore_jaw",
+        "_current",
+        "_desired",
+        "_entered_at",
+        "_following",
+        "_clutched",
+        "selected",
+        "_align_goal",
+        "_next_warning",
+        "_gripper_range",
+        "_roll_range",
+        "_operator_active",
+        "_operator_was_active",
+        "_T_camera_psm0",
+        "_T_hrsv_mtm0",
+        "_R_offset",
+        "_jaw_s",
+        "_jaw_o",
+        "_ghost",
+        "_jaw_catching_up",
+        "_jaw_sent",
+    )
+
+    def get_state(self) -> dict:
+        """The teleoperation's state (:data:`_STATE`), deep-copied."""
+        return capture(self, self._STATE)
+
+    def set_state(self, state: dict) -> None:
+        restore(self, state, self._STATE)

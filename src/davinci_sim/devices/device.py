@@ -28,6 +28,7 @@ from davinci_sim.devices.buttons import ButtonEvent
 from davinci_sim.devices.safety import WrenchLimiter, WrenchLimits
 from davinci_sim.devices.state import DeviceInput, DeviceSnapshot
 from davinci_sim.sim.channels import Channels
+from davinci_sim.sim.state import capture, restore
 from davinci_sim.sim.types import ACCEPTED, CommandResult
 
 #: dvrk.md 1.7: the dVRK watchdog, s.
@@ -223,3 +224,21 @@ class MasterDevice(ABC):
     @abstractmethod
     def _apply_wrench(self, wrench: np.ndarray) -> None:
         """Render the (already limited) wrench."""
+
+    # ------------------------------------------------------------ state
+    #: What :meth:`get_state` saves (subclasses add theirs): the last input, the device's
+    #: clock, the wrench sent, the watchdog's memory, queued button events; the safety
+    #: limiter's previous wrench and whether it is limiting are added by get_state.
+    _STATE: tuple[str, ...] = ("_input", "_now", "_wrench", "_was_stale", "_buttons")
+
+    def get_state(self) -> dict:
+        """The device's state (:mod:`davinci_sim.sim.state`), deep-copied."""
+        state = capture(self, self._STATE)
+        state["limiter"] = (self._limiter.previous.copy(), bool(self._limiter.active))
+        return state
+
+    def set_state(self, state: dict) -> None:
+        state = dict(state)
+        previous, active = state.pop("limiter")
+        self._limiter.previous, self._limiter.active = previous.copy(), active
+        restore(self, state, self._STATE)

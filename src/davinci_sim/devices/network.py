@@ -149,3 +149,15 @@ class NetworkDevice(MasterDevice):
 
     def _apply_wrench(self, wrench: np.ndarray) -> None:
         """The remote reads it with :meth:`wrench` (subclasses also send it)."""
+
+    # ------------------------------------------------------------ state
+    _STATE = MasterDevice._STATE + (
+        "_T",
+        "_T_time",
+        "_twist",
+        "_gripper",
+        "_pressed",
+        "_fresh",
+        "_prev_T",
+        "_prev_T_time",
+    )

@@ -14,6 +14,7 @@ from collections.abc import Callable
 import numpy as np
 
 from davinci_sim.devices.simulated import SimulatedMTM
+from davinci_sim.sim.state import capture, restore
 
 
 def circle(
@@ -81,3 +82,10 @@ class HandScript:
 
     def snapshot(self) -> dict:
         return {"started": self.started, "t_start": self._t0}
+
+    def get_state(self) -> dict:
+        """When the script started and where the hand was then."""
+        return capture(self, ("_t0", "_anchor"))
+
+    def set_state(self, state: dict) -> None:
+        restore(self, state, ("_t0", "_anchor"))

@@ -267,3 +267,30 @@ class SimulatedMTM(MasterDevice):
         if current is not None and current[0] == "spatial" and np.array_equal(current[1], wrench):
             return  # already applied (the arm re-applies it every tick)
         self.arm.spatial.servo_cf(wrench)
+
+    # ------------------------------------------------------------ state
+    _STATE = MasterDevice._STATE + (
+        "hand",
+        "_hand_target",
+        "_hand_on",
+        "_hold_orientation",
+        "_push",
+        "_hand_wrench",
+        "_hand_applied",
+    )
+
+    def get_state(self) -> dict:
+        """The device's state and the mass of the model's hand body (the hand's while it
+        holds the handle, :meth:`_hold`)."""
+        state = super().get_state()
+        if self._hand_body >= 0:
+            state["hand_body_mass"] = float(self.sim.model.body_mass[self._hand_body])
+        return state
+
+    def set_state(self, state: dict) -> None:
+        """Put back a :meth:`get_state`, the hand body's mass in the model included."""
+        state = dict(state)
+        mass = state.pop("hand_body_mass", None)
+        super().set_state(state)
+        if mass is not None:
+            self.sim.model.body_mass[self._hand_body] = mass

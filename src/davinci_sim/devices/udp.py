@@ -157,3 +157,8 @@ class UDPJSONDevice(NetworkDevice):
 
     def _apply_wrench(self, wrench: np.ndarray) -> None:
         """Sent with the next periodic datagram (see ``send_period``)."""
+
+    # ------------------------------------------------------------ state
+    #: The socket, the peer and the datagram counters are not state: a restored device keeps
+    #: talking to whoever it talks to now.
+    _STATE = NetworkDevice._STATE + ("_next_send",)

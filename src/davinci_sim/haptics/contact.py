@@ -12,6 +12,7 @@ import math
 import numpy as np
 
 from davinci_sim.haptics.field import HapticState
+from davinci_sim.sim.state import capture, restore
 
 
 class ContactFeedback:
@@ -44,3 +45,10 @@ class ContactFeedback:
 
     def reset(self) -> None:
         self._filtered.clear()
+
+    def get_state(self) -> dict:
+        """The filtered contact force of each PSM (copies)."""
+        return capture(self, ("_filtered",))
+
+    def set_state(self, state: dict) -> None:
+        restore(self, state, ("_filtered",))

@@ -96,3 +96,13 @@ class FixtureField:
     def reset(self) -> None:
         """Forget the velocity filters' history (e.g. after a clutch or a new repetition)."""
         self._filters.clear()
+
+    def get_state(self) -> dict:
+        """Each PSM's velocity filter's memory (:meth:`VelocityFilter.get_state`)."""
+        return {psm: f.get_state() for psm, f in self._filters.items()}
+
+    def set_state(self, state: dict) -> None:
+        self._filters.clear()
+        for psm, filter_state in state.items():
+            f = self._filters[psm] = VelocityFilter(dt=self.dt, cutoff_hz=self.cutoff_hz)
+            f.set_state(filter_state)

@@ -102,3 +102,12 @@ class VelocityFilter:
         m = np.asarray(mask, dtype=bool)
         self._started[m] = False
         self._v[m] = 0.0
+
+    def get_state(self) -> dict:
+        """The filter's memory: last positions, velocities, which tracks started (copies)."""
+        return {"p": self._p.copy(), "v": self._v.copy(), "started": self._started.copy()}
+
+    def set_state(self, state: dict) -> None:
+        self._p, self._v = state["p"].copy(), state["v"].copy()
+        self._started = state["started"].copy()
+        self.shape = self._started.shape

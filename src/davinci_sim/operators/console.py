@@ -16,6 +16,8 @@ path as a person's hand. One trial per simulation; for many trials at once see t
 
 from __future__ import annotations
 
+import copy
+
 import numpy as np
 
 from davinci_sim.devices.hand import HandImpedance
@@ -83,3 +85,13 @@ class TraineeHand:
 
     def snapshot(self) -> dict:
         return {"started": self.started, "phase": int(self.trainee.phase[0])}
+
+    def get_state(self) -> dict:
+        """Whether the hand has started, and the trainee (deep-copied whole: a pure-numpy
+        object with no reference to the simulation, whose state is its plan, delays,
+        filters and noise generators)."""
+        return {"started": self.started, "trainee": copy.deepcopy(self.trainee)}
+
+    def set_state(self, state: dict) -> None:
+        self.started = bool(state["started"])
+        self.trainee = copy.deepcopy(state["trainee"])

@@ -25,6 +25,7 @@ from davinci_sim.kinematics.ik import inverse_kinematics
 from davinci_sim.sim import operating_state as ops
 from davinci_sim.sim.channels import Channels
 from davinci_sim.sim.servo import ServoJoints
+from davinci_sim.sim.state import capture, restore
 from davinci_sim.sim.trajectory import JointTrajectory, plan_trajectory
 from davinci_sim.sim.types import (
     ACCEPTED,
@@ -591,6 +592,41 @@ class Arm(ServoJoints):
         """Express ``body`` wrenches in the base frame's orientation instead of the tip's."""
         self._body_cf_absolute = bool(absolute)
         return ACCEPTED
+
+    # -------------------------------------------------------------- state
+    #: What :meth:`get_state` saves: operating state, homing, the trajectory in progress,
+    #: the wrench mode, a base frame set at run time, the tracking-fault watch, the
+    #: trajectory ratio and the refusal throttle. The servo rows are the simulation's.
+    _STATE = (
+        "_state",
+        "_homed",
+        "_paused_from",
+        "_traj",
+        "_traj_t0",
+        "_traj_homing",
+        "_wrench",
+        "_body_cf_absolute",
+        "_T_user_base",
+        "_tracking_bad_since",
+        "_trajectory_ratio",
+        "_refusals",
+    )
+
+    def get_state(self) -> dict:
+        """The arm's own state (:mod:`davinci_sim.sim.state`), deep-copied."""
+        return capture(self, self._STATE)
+
+    def set_state(self, state: dict) -> None:
+        """Put back a :meth:`get_state`; the arm's caches of poses and efforts are dropped
+        (they are recomputed from the restored joints and frames)."""
+        restore(self, state, self._STATE)
+        self._kin_cache = self._inv_base = self._effort_cache = self._base = None
+        self._base_tick = -1
+
+    def user_base_frame(self) -> tuple[np.ndarray, str] | None:
+        """The base frame set at run time (:meth:`set_base_frame`): ``(T_reference_base,
+        reference frame)``, or None while the arm uses the system's default."""
+        return self._T_user_base
 
 
 def _joint_velocity(J: np.ndarray, twist: np.ndarray) -> np.ndarray:

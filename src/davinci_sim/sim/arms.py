@@ -75,6 +75,15 @@ class PSM(Arm):
         goal[2] = depth
         return self.move_jp(goal)
 
+    def get_state(self) -> dict:
+        """The arm's state (:meth:`Arm.get_state`) and the jaw's."""
+        return {**super().get_state(), "jaw": self.jaw.get_state()}
+
+    def set_state(self, state: dict) -> None:
+        state = dict(state)
+        self.jaw.set_state(state.pop("jaw"))
+        super().set_state(state)
+
 
 def _shaft_offset(shaft_chain: DHChain) -> float | None:
     """``c`` with RCM-to-link-4 distance = |q3 + c| for this chain, checked by FK at sample
@@ -158,6 +167,18 @@ class MTM(Arm):
 
     def orientation_locked(self) -> bool:
         return self._R_lock is not None
+
+    def get_state(self) -> dict:
+        """The arm's state (:meth:`Arm.get_state`), the gripper's and the orientation lock."""
+        R_lock = None if self._R_lock is None else self._R_lock.copy()
+        return {**super().get_state(), "gripper": self.gripper.get_state(), "R_lock": R_lock}
+
+    def set_state(self, state: dict) -> None:
+        state = dict(state)
+        self.gripper.set_state(state.pop("gripper"))
+        R_lock = state.pop("R_lock")
+        self._R_lock = None if R_lock is None else R_lock.copy()
+        super().set_state(state)
 
     def _pre_step(self, t: float) -> None:
         super()._pre_step(t)

@@ -13,6 +13,7 @@ import numpy as np
 
 from davinci_sim.kinematics.arms import GripperSpec
 from davinci_sim.sim.servo import ServoJoints
+from davinci_sim.sim.state import capture, restore
 from davinci_sim.sim.trajectory import JointTrajectory, plan_trajectory
 from davinci_sim.sim.types import ACCEPTED, CommandResult, JointState
 from davinci_sim.sim.validation import as_vector, check_limits
@@ -164,3 +165,14 @@ class Jaw(ServoJoints):
         if t - self._traj_t0 >= self._traj.duration:
             self._traj = None
             self._arm._publish_state()
+
+    # -------------------------------------------------------------- state
+    _STATE = ("_traj", "_traj_t0")
+
+    def get_state(self) -> dict:
+        """The trajectory in progress (:mod:`davinci_sim.sim.state`); the fingers' servo
+        rows are the simulation's."""
+        return capture(self, self._STATE)
+
+    def set_state(self, state: dict) -> None:
+        restore(self, state, self._STATE)

@@ -87,6 +87,18 @@ class JointServo:
             self.kv,
         )
 
+    #: What :meth:`get_state` saves: references, masks and the gains in use.
+    _STATE = ("q_ref", "qd_ref", "tau_ff", "effort_mode", "gravity_compensation", "kp", "kv")
+
+    def get_state(self) -> dict:
+        """Copies of the servo's arrays (:data:`_STATE`)."""
+        return {name: getattr(self, name).copy() for name in self._STATE}
+
+    def set_state(self, state: dict) -> None:
+        """Write a :meth:`get_state` back in place (the arrays keep their identity)."""
+        for name in self._STATE:
+            getattr(self, name)[:] = state[name]
+
 
 class ServoJoints:
     """A group of the servo's joints (an arm, a jaw's two fingers): where they are in the

@@ -4,11 +4,19 @@ Each :meth:`Simulation.tick` runs: components' ``pre_step`` (console, teleoperat
 setpoints (trajectories, wrench-to-effort) → joint servo (PD + gravity compensation) → one
 ``mj_step`` of 1 ms → components' ``post_step`` (haptic force fields …). Arms read their state
 from MuJoCo on demand, so a tick costs only what the physics and the active setpoints need.
+
+Components are registered with :meth:`Simulation.add_component` (the contract and the tick
+order: :mod:`davinci_sim.sim.component`). :meth:`Simulation.get_state` /
+:meth:`Simulation.set_state` save and restore everything that changes while ticking, and
+:meth:`Simulation.reset` returns to the start (:mod:`davinci_sim.sim.state`).
 """
 
 from __future__ import annotations
 
-from collections.abc import Callable
+import copy
+import dataclasses
+from collections.abc import Callable, Mapping
+from types import MappingProxyType
 
 import mujoco
 import numpy as np
@@ -20,8 +28,17 @@ from davinci_sim.kinematics.suj import T_cart_rcm
 from davinci_sim.model import build_spec, resolve_scene
 from davinci_sim.sim.arm import Arm
 from davinci_sim.sim.arms import ECM, MTM, PSM, SUJArm
+from davinci_sim.sim.component import Component, check_component
 from davinci_sim.sim.sensors import INSTRUMENT_BODIES, CameraRenderer, body_ids, contact_force
 from davinci_sim.sim.servo import JointServo
+from davinci_sim.sim.state import (
+    STATE_SPEC,
+    SimState,
+    Unavailable,
+    component_states,
+    describe_scene,
+    model_signature,
+)
 
 ARM_NAMES = ("PSM1", "PSM2", "PSM3", "ECM", "MTML", "MTMR")
 #: Default base frames (and the camera frame) are reused while the joints they depend on
@@ -106,11 +123,14 @@ class Simulation:
             if arm.kin.arm_type in INSTRUMENT_BODIES
         }
         self._cameras: CameraRenderer | None = None
-        self.components: dict[str, object] = {}
-        """Other parts ticked with the arms (console, teleops …), by name. Each has
-        ``pre_step(t)`` (called before the arms, every tick, in registration order),
-        ``snapshot()`` and optionally ``post_step(t)`` (called after the physics step with the
-        new time, e.g. to compute haptic forces from the state the step produced)."""
+        self._components: dict[str, Component] = {}
+        self.keyframe = keyframe
+        """The keyframe the simulation was built at (what :meth:`reset` returns to)."""
+        # reset(): the simulation as built (physics, arms, servo), the components' states at
+        # the first tick (as assembled), and each component added later as it was added.
+        self._built = self._capture(strict=True)
+        self._initial_components: dict[str, object] | None = None
+        self._added_states: dict[str, object] = {}
 
     # ------------------------------------------------------------ time
     @property
@@ -120,8 +140,10 @@ class Simulation:
 
     def tick(self) -> None:
         """One 1 ms control tick: components → arm setpoints → servo → physics → components."""
+        if self._initial_components is None:  # the components as assembled: for reset()
+            self._initial_components = dict(self._capture_components(strict=False))
         t = self.data.time
-        for component in self.components.values():
+        for component in self._components.values():
             component.pre_step(t)
         for arm in self.arms.values():
             arm._pre_step(t)
@@ -133,7 +155,7 @@ class Simulation:
                 0.0, self.encoder_noise_std, self.data.qpos.shape
             )
         t = self.data.time
-        for component in self.components.values():
+        for component in self._components.values():
             post_step = getattr(component, "post_step", None)
             if post_step is not None:
                 post_step(t)
@@ -271,3 +293,197 @@ class Simulation:
         if self._cameras is not None:
             self._cameras.close()
             self._cameras = None
+
+    # ------------------------------------------------------------ components
+    @property
+    def components(self) -> Mapping[str, Component]:
+        """The components (console, devices, teleops …) by name, in tick order (read-only:
+        :meth:`add_component`, :meth:`remove_component`); see :mod:`davinci_sim.sim.component`."""
+        return MappingProxyType(self._components)
+
+    def add_component(
+        self, component: Component, *, before: str | None = None, after: str | None = None
+    ) -> None:
+        """Tick ``component`` with the arms: just before the component named ``before``, just
+        after the one named ``after``, or (neither) after all the others.
+
+        Raises:
+            TypeError: if it lacks ``name``, ``pre_step`` or ``snapshot``.
+            ValueError: if its name is taken, or both ``before`` and ``after`` are given.
+            KeyError: if ``before``/``after`` names no component.
+        """
+        check_component(component)
+        name = component.name
+        if name in self._components:
+            raise ValueError(
+                f"a component named {name!r} is already registered; components: "
+                f"{list(self._components)}"
+            )
+        if before is not None and after is not None:
+            raise ValueError(f"add_component({name!r}): give before= or after=, not both")
+        anchor = before if before is not None else after
+        if anchor is not None and anchor not in self._components:
+            raise KeyError(
+                f"add_component({name!r}): no component {anchor!r} to go "
+                f"{'before' if before is not None else 'after'}; components: "
+                f"{list(self._components)}"
+            )
+        items = list(self._components.items())
+        at = len(items)
+        if anchor is not None:
+            at = [n for n, _ in items].index(anchor) + (0 if before is not None else 1)
+        items.insert(at, (name, component))
+        self._components.clear()
+        self._components.update(items)
+        if self._initial_components is not None and callable(getattr(component, "get_state", None)):
+            self._added_states[name] = component.get_state()  # what reset() returns it to
+
+    def remove_component(self, name: str) -> Component:
+        """Stop ticking the component ``name``; returns it.
+
+        Raises:
+            KeyError: if there is none of that name.
+        """
+        if name not in self._components:
+            raise KeyError(f"no component {name!r}; components: {list(self._components)}")
+        self._added_states.pop(name, None)
+        return self._components.pop(name)
+
+    # ------------------------------------------------------------ state
+    def get_state(self) -> SimState:
+        """Everything that changes while the simulation ticks (:mod:`davinci_sim.sim.state`):
+        :meth:`set_state` with it resumes bit-identically.
+
+        Raises:
+            TypeError: if a component has no ``get_state``.
+        """
+        return self._capture(strict=True)
+
+    def set_state(self, state: SimState) -> None:
+        """Put the simulation back in ``state`` (from :meth:`get_state` of this simulation or
+        of one of the same scene with the same components): physics, arms, servo, time, tick
+        count, random generator and every component. Nothing is emitted on the channels.
+        If a component refuses its state, the simulation is left as it was.
+
+        Raises:
+            TypeError: if ``state`` is not a :class:`SimState` or a component cannot
+                restore.
+            ValueError: for a state of another scene or of other components.
+        """
+        if not isinstance(state, SimState):
+            raise TypeError(f"set_state needs a SimState, got {type(state).__name__}")
+        if state.signature != self.signature:
+            raise ValueError(
+                "this state belongs to another scene (model signature "
+                f"{state.signature[:12]} != {self.signature[:12]}); this simulation: "
+                f"{describe_scene(self.model)}, the state's: "
+                f"{describe_scene(state.data.model)}"
+            )
+        names = [name for name, _ in state.components]
+        if names != list(self._components):
+            raise ValueError(
+                f"the state's components {names} are not this simulation's "
+                f"{list(self._components)} (same names in the same tick order needed)"
+            )
+        for name, component_state in state.components:
+            component = self._components[name]
+            if not callable(getattr(component, "set_state", None)):
+                raise TypeError(f"component {name!r} ({type(component).__name__}) has no set_state")
+            if isinstance(component_state, Unavailable):
+                raise TypeError(f"no state of component {name!r}: {component_state.reason}")
+        backup = self._capture(strict=False)
+        try:
+            self._restore(state)
+        except Exception:  # a component refused (e.g. other force fields): nothing changes
+            self._restore(backup)
+            raise
+
+    def _restore(self, state: SimState) -> None:
+        mujoco.mj_copyData(self.data, self.model, state.data)
+        self.tick_count = state.tick_count
+        self.rng.bit_generator.state = copy.deepcopy(state.rng)
+        self._noisy_qpos = None if state.noisy_qpos is None else state.noisy_qpos.copy()
+        self.servo.set_state(state.servo)
+        self._base_frames = copy.deepcopy(state.base_frames)
+        for name, arm in self.arms.items():
+            arm.set_state(state.arms[name])
+        for name, component_state in state.components:
+            if not isinstance(component_state, Unavailable):
+                self._components[name].set_state(component_state)
+
+    def reset(self, keyframe: str | None = None) -> None:
+        """Back to the start: the physics, arms and servo as the simulation was built, every
+        component as it was at the first tick (as assembled: e.g. a console installed with
+        the operator present), components added later as they were when added; then, for a
+        ``keyframe`` other than the one it was built at (:attr:`keyframe`), MuJoCo's keyframe
+        with every joint's setpoint where the joint is (as a new simulation starts).
+
+        Raises:
+            ValueError: for an unknown keyframe.
+            TypeError: if a component cannot save or restore its state.
+        """
+        key = -1
+        if keyframe is not None and keyframe != self.keyframe:
+            key = mujoco.mj_name2id(self.model, mujoco.mjtObj.mjOBJ_KEY, keyframe)
+            if key < 0:
+                names = [self.model.key(i).name for i in range(self.model.nkey)]
+                raise ValueError(f"unknown keyframe {keyframe!r}; keyframes: {names}")
+        initial = self._initial_components
+        if initial is None:  # never ticked: the components' states now are the initial ones
+            initial = self._initial_components = dict(self._capture_components(strict=False))
+        components = []
+        for name in self._components:
+            if name in self._added_states:
+                components.append((name, self._added_states[name]))
+            elif name in initial:
+                components.append((name, initial[name]))
+            else:
+                raise TypeError(f"component {name!r} has no initial state (no get_state)")
+        self.set_state(dataclasses.replace(self._built, components=tuple(components)))
+        if key >= 0:
+            mujoco.mj_resetDataKeyframe(self.model, self.data, key)
+            mujoco.mj_forward(self.model, self.data)
+            self.servo.q_ref[:] = self.data.qpos[self.servo.qposadr]
+            self.servo.qd_ref[:] = 0.0
+            self._base_frames.clear()
+            for arm in self.arms.values():
+                arm.set_state(arm.get_state())  # drops the arm's caches of the old pose
+
+    @property
+    def signature(self) -> str:
+        """The compiled model's signature (:func:`~davinci_sim.sim.state.model_signature`)."""
+        sig = getattr(self, "_signature", None)
+        if sig is None:
+            sig = self._signature = model_signature(self.model)
+        return sig
+
+    @property
+    def encoder_noise_sample(self) -> np.ndarray | None:
+        """The joint positions the encoders read at the last tick (``qpos`` plus noise), or
+        None without encoder noise (then :meth:`measured_qpos` is ``data.qpos``)."""
+        return self._noisy_qpos
+
+    def set_encoder_reading(self, qpos: np.ndarray | None) -> None:
+        """Set what :meth:`measured_qpos` returns until the next tick (None: the true
+        ``qpos``): for a mirror simulation that shows another one's published state."""
+        self._noisy_qpos = None if qpos is None else np.asarray(qpos, dtype=float)
+
+    def _capture(self, *, strict: bool) -> SimState:
+        physics = np.empty(mujoco.mj_stateSize(self.model, STATE_SPEC))
+        mujoco.mj_getState(self.model, self.data, physics, STATE_SPEC)
+        physics.setflags(write=False)
+        return SimState(
+            signature=self.signature,
+            physics=physics,
+            data=copy.copy(self.data),
+            tick_count=self.tick_count,
+            rng=copy.deepcopy(self.rng.bit_generator.state),
+            noisy_qpos=None if self._noisy_qpos is None else self._noisy_qpos.copy(),
+            servo=self.servo.get_state(),
+            base_frames=copy.deepcopy(self._base_frames),
+            arms={name: arm.get_state() for name, arm in self.arms.items()},
+            components=self._capture_components(strict=strict),
+        )
+
+    def _capture_components(self, *, strict: bool) -> tuple:
+        return component_states(self._components, strict=strict)

@@ -4,7 +4,9 @@ condition, through the real simulator, console, teleoperation and haptic loop.
 :func:`setup_trial` brings a :class:`~davinci_sim.sim.simulation.Simulation` of the study
 scene (the task's PSM and MTM, the ECM; :func:`study_scene`) to the start of a trial: PSM
 homed and its tool at point 1, console installed with the task's motion scale, the
-teleoperation following. The start is the same for every trial.
+teleoperation following. The start is the same for every trial: it is built once per
+process and task (:func:`build_setup`) and each later trial starts from its saved state
+(:meth:`Simulation.set_state <davinci_sim.sim.simulation.Simulation.set_state>`).
 
 :func:`run_trial` is the live engine, one simulation per trial: it puts a
 :class:`~davinci_sim.operators.TraineeHand` on the simulated MTM and the condition's fixture
@@ -35,6 +37,7 @@ from davinci_sim.console.teleop_psm import TeleopPSM
 from davinci_sim.devices.simulated import SimulatedMTM
 from davinci_sim.model.config import SceneConfig
 from davinci_sim.sim.simulation import Simulation
+from davinci_sim.sim.state import SimState
 from davinci_sim.tasks import Phase, TaskMonitor, load_task
 from davinci_sim.tasks.metrics import metric_row
 from davinci_sim.tasks.session import live_sample
@@ -122,7 +125,59 @@ class TrialSetup:
     """The camera in the task's frame (:meth:`PathTask.T_task_camera`)."""
 
 
+#: Set-ups built in this process, by (task, seed): (the set-up, its start state). Building
+#: one compiles the model and runs ~1,200 ticks; restoring its start state takes
+#: microseconds (:meth:`Simulation.set_state`).
+_SETUPS: dict[tuple, tuple[TrialSetup, SimState]] = {}
+#: At most this many set-ups are kept (least recently used dropped): a study has one task.
+SETUP_CACHE_SIZE = 4
+
+
 def setup_trial(task: PathTask, *, seed: int = 0) -> TrialSetup:
+    """A simulation at the start of a trial of ``task`` (see :func:`build_setup`): built once
+    per process and task, then restored to its saved start state for each later call.
+
+    The set-up is shared: each call puts the same simulation back at the start (components
+    and haptic force fields added since are removed, everything else restored), so a caller
+    must be done with the set-up a previous call returned.
+    """
+    key = _setup_key(task, seed)
+    entry = _SETUPS.pop(key, None)
+    if entry is not None and not _restore(*entry):
+        entry = None  # changed beyond what a restore puts back: build a new one
+    if entry is None:
+        setup = build_setup(task, seed=seed)
+        entry = (setup, setup.sim.get_state())
+    _SETUPS[key] = entry  # most recently used last
+    while len(_SETUPS) > SETUP_CACHE_SIZE:
+        del _SETUPS[next(iter(_SETUPS))]
+    return entry[0]
+
+
+def _setup_key(task: PathTask, seed: int) -> tuple:
+    # What the set-up depends on: the arms and keyframe, the scale, point 1 and its frame.
+    start = np.asarray(task.start, dtype=float).tobytes()
+    return (type(task).__name__, task.name, task.frame, start, repr(task.teleop), int(seed))
+
+
+def _restore(setup: TrialSetup, state: SimState) -> bool:
+    """Put ``setup`` back in its start ``state``: drop components and force fields added
+    since, then :meth:`Simulation.set_state`. False if that is not possible."""
+    sim, haptics = setup.sim, setup.console.haptics
+    saved = dict(state.components)
+    for name in [n for n in sim.components if n not in saved]:
+        sim.remove_component(name)
+    fields = saved.get(haptics.name, {}).get("fields", {})
+    for name in [f for f in haptics.field_names() if f not in fields]:
+        haptics.remove_field(name)
+    try:
+        sim.set_state(state)
+    except (TypeError, ValueError):
+        return False
+    return True
+
+
+def build_setup(task: PathTask, *, seed: int = 0) -> TrialSetup:
     """Build the study scene and bring it to the start of a trial, the same for every trial:
 
     1. enable and home the PSM, then move its tool tip to point 1 (``move_cp``, orientation
@@ -222,7 +277,7 @@ def run_trial(spec: TrialSpec) -> dict:
     params, trainee = trial_inputs([spec], task, T_world_camera, np.zeros(3))
     device.hand = hand_impedance(params)
     hand = TraineeHand(trainee, device, sim.arms[psm])
-    sim.components = {hand.name: hand, **sim.components}
+    sim.add_component(hand, before=next(iter(sim.components)))  # the hand acts first
     fixture = task.fixture(condition_spec(spec.B, spec.G_max))
     setup.console.haptics.add_field(
         FixtureField(fixture, frame=task.frame), mtm=mtm, name="guidance"

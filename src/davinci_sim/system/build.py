@@ -151,7 +151,7 @@ def install(sim: Simulation, description: SystemDescription, task: Task | None =
     if description.publish_qpos:
         from davinci_sim.sim.runtime.render import QposProbe
 
-        sim.components["qpos"] = QposProbe(sim)
+        sim.add_component(QposProbe(sim))
     if description.home:
         for arm in sim.arms.values():
             arm.state_command("enable")

@@ -404,6 +404,14 @@ class MetricsAccumulator:
                 done[metric.name] = metric.reduce.final(acc, self._k, done)
         return MetricValues(self.metrics, done)
 
+    def get_state(self) -> dict:
+        """The running reductions, the counts and the previous sample (copies)."""
+        return copy.deepcopy({k: v for k, v in vars(self).items() if k.startswith("_")})
+
+    def set_state(self, state: dict) -> None:
+        for k, v in copy.deepcopy(state).items():
+            setattr(self, k, v)
+
 
 def _where(m, fresh, acc):
     if acc is None:

@@ -29,6 +29,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from davinci_sim.sim.channels import Channels
+from davinci_sim.sim.state import capture, restore
 from davinci_sim.sim.types import ACCEPTED, CommandResult
 from davinci_sim.tasks.base import Sample, Task
 from davinci_sim.tasks.metrics import MetricValues
@@ -183,6 +184,21 @@ class TaskSession:
             last=dict(self.results[-1]) if self.results else {},
         )
 
+    # ------------------------------------------------------------ state
+    def get_state(self) -> dict:
+        """The monitor's state, the rows so far, the repetition number, the last distance and
+        whether this repetition's row is in. (The guidance field's filter is the haptic
+        loop's.)"""
+        return {
+            "monitor": self.monitor.get_state(),
+            **capture(self, ("results", "repetition", "_distance", "_recorded")),
+        }
+
+    def set_state(self, state: dict) -> None:
+        state = dict(state)
+        self.monitor.set_state(state.pop("monitor"))
+        restore(self, state, ("results", "repetition", "_distance", "_recorded"))
+
 
 def live_sample(task: Task, T_task_camera, teleop: TeleopPSM, console: Console, t: float) -> Sample:
     """The :class:`~davinci_sim.tasks.base.Sample` of ``task`` at the simulated console now:
@@ -218,5 +234,5 @@ def install_task(
     session = TaskSession(sim, console, task, condition=condition, log=log)
     if session.name in sim.components:
         raise ValueError(f"a component named {session.name!r} is already registered")
-    sim.components[session.name] = session
+    sim.add_component(session)
     return session

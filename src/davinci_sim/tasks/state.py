@@ -25,6 +25,7 @@ and batched trials and the offline runs all use them.
 
 from __future__ import annotations
 
+import copy
 import math
 from enum import IntEnum
 from typing import TYPE_CHECKING, NamedTuple
@@ -196,3 +197,19 @@ class TaskMonitor:
         clutch pressed."""
         self.observe(Sample.of(time, tip, force, clutch))
         return self.phase
+
+    def get_state(self) -> dict:
+        """The state machine, the metrics accumulated so far, the results and the last
+        observations (copies)."""
+        return {
+            "state": copy.deepcopy(self.state),
+            "metrics": self.metrics.get_state(),
+            "results": copy.deepcopy(self.results),
+            "observations": {k: np.copy(v) for k, v in self.observations.items()},
+        }
+
+    def set_state(self, state: dict) -> None:
+        self.state = copy.deepcopy(state["state"])
+        self.metrics.set_state(state["metrics"])
+        self.results = copy.deepcopy(state["results"])
+        self.observations = {k: np.copy(v) for k, v in state["observations"].items()}

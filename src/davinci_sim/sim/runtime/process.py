@@ -471,7 +471,7 @@ class ProcessSimulation:
         m.servo.q_ref[:] = arrays["q_ref"]
         m.servo.qd_ref[:] = arrays["qd_ref"]
         m.servo.tau_ff[:] = arrays["tau_ff"]
-        m._noisy_qpos = arrays["noisy_qpos"]
+        m.set_encoder_reading(arrays["noisy_qpos"])
         m.tick_count = tick
         for name, (T, reference) in bases.items():
             m.arms[name].set_base_frame(T, reference)
@@ -549,15 +549,16 @@ def _published_state(sim) -> bytes:
         "q_ref": servo.q_ref.copy(),
         "qd_ref": servo.qd_ref.copy(),
         "tau_ff": servo.tau_ff.copy(),
-        "noisy_qpos": None if sim._noisy_qpos is None else sim._noisy_qpos.copy(),
+        "noisy_qpos": None if (q := sim.encoder_noise_sample) is None else q.copy(),
     }
     states = {}
     bases = {}
     for name, arm in sim.arms.items():
         s = arm.operating_state()
         states[name] = (s.state, s.is_homed, s.is_busy)
-        if arm._T_user_base is not None:  # a base frame set at run time
-            bases[name] = arm._T_user_base
+        user_base = arm.user_base_frame()
+        if user_base is not None:  # a base frame set at run time
+            bases[name] = user_base
     extras = {name: c.snapshot() for name, c in sim.components.items()}
     body = pickle.dumps((sim.tick_count, sim.time, arrays, states, bases, extras), protocol=5)
     return STATE_HEADER.pack(sim.tick_count, sim.time) + body

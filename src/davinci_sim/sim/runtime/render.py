@@ -103,7 +103,9 @@ def render_statistics(buffer: SharedBuffer) -> RenderStatistics:
 class QposProbe:
     """A simulation component that publishes a copy of ``qpos`` in each snapshot's extras
     (``extras["qpos"]``), so a renderer fed from snapshots sees a consistent state. Register
-    it with ``sim.components["qpos"] = QposProbe(sim)`` before the loop starts."""
+    it with ``sim.add_component(QposProbe(sim))`` before the loop starts."""
+
+    name = "qpos"
 
     def __init__(self, sim: Any) -> None:
         self._sim = sim
@@ -115,6 +117,12 @@ class QposProbe:
         q = self._sim.data.qpos.copy()
         q.setflags(write=False)
         return q
+
+    def get_state(self) -> None:
+        """No state: the probe only copies ``qpos`` when asked."""
+
+    def set_state(self, state: None) -> None:
+        pass
 
 
 #: Capacity of a joint-position slot, bytes (8000 joints).
