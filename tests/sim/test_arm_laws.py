@@ -115,6 +115,13 @@ def test_tracking_fault_after_the_fault_time_of_continuous_error():
     assert not any(faults[75:]) and math.isnan(since)  # cleared when back within tolerance
     # a joint in effort mode is not watched
     assert not laws.tracking_bad(bad_q, q_ref, tol, np.array([False, False, True])).any()
+    # one arm (floats) and a batch of one (arrays): the same rule
+    since1, since_a = math.nan, np.array([np.nan])
+    for k, b in enumerate([True] * 60 + [False, True]):
+        t = k * 2.0**-10
+        since1, f1 = laws.tracking_fault(np.bool_(b), since1, t)
+        since_a, f_a = laws.tracking_fault(np.array([b]), since_a, t)
+        assert bool(f1) == bool(f_a[0]) and np.array_equal([since1], since_a, equal_nan=True)
     # a batch: rows independent
     S, F = laws.tracking_fault(np.array([True, True, False]), np.array([0.0, np.nan, 0.0]), 0.06)
     assert F.tolist() == [True, False, False] and S[1] == 0.06 and math.isnan(S[2])

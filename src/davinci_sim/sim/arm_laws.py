@@ -15,6 +15,8 @@ reference (PSM: camera, MTM: HRSV), ``T_base_tip`` the forward kinematics in the
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from davinci_sim.geometry.so3 import rotate_pairs
@@ -103,6 +105,11 @@ def tracking_fault(bad, bad_since, t: float):
     """One tick of the tracking watch: ``bad`` (...) any joint of the arm is bad now;
     ``bad_since`` (...) when it became bad, s (nan: it is not). Returns the new
     ``(bad_since, fault)``: FAULT once bad for ``TRACKING_FAULT_TIME`` s."""
+    if isinstance(bad, bool | np.bool_):  # one arm: the same rule on floats, faster
+        if not bad:
+            return math.nan, False
+        since = t if math.isnan(bad_since) else min(bad_since, t)
+        return since, t - since >= TRACKING_FAULT_TIME
     since = np.where(bad, np.fmin(bad_since, t), np.nan)
     return since, bad & (t - since >= TRACKING_FAULT_TIME)
 
