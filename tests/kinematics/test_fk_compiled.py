@@ -9,8 +9,8 @@ import warnings
 import numpy as np
 import pytest
 
-from davinci_sim import _jit
 from davinci_sim.kinematics import fk, fk_compiled
+from davinci_sim.kinematics import jit as _jit
 from davinci_sim.kinematics.arms import load_arm, load_suj
 from davinci_sim.sim.arms import suj_arm_kinematics
 

@@ -24,9 +24,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from davinci_sim._jit import ENABLED as _COMPILED
 from davinci_sim.kinematics import fk_compiled
 from davinci_sim.kinematics.chain import DHChain
+from davinci_sim.kinematics.jit import ENABLED as _COMPILED
 
 #: Rows per chunk of the batched FK: small enough for the ~30 live temporaries to stay in cache
 #: (measured best between 2048 and 16384 rows on the 2-core dev machine).

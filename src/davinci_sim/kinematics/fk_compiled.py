@@ -1,4 +1,5 @@
-"""Pose and spatial Jacobian of one configuration as a compiled kernel (:mod:`davinci_sim._jit`).
+"""Pose and spatial Jacobian of one configuration as a compiled kernel (numba, through
+:mod:`davinci_sim.kinematics.jit`).
 
 The same arithmetic, operation for operation, as the float path of
 :mod:`~davinci_sim.kinematics.fk` (``_frames_floats``, ``_apply_tool``,
@@ -17,7 +18,7 @@ import math
 
 import numpy as np
 
-from davinci_sim._jit import jit
+from davinci_sim.kinematics.jit import jit
 
 
 def pack(links, modified: bool, R_tool, p_tool, tool_is_identity: bool) -> tuple:

@@ -106,6 +106,8 @@ class TrialBatch:
         self.V = np.tile(d.qvel, (n, 1))
         self.bias = np.tile(sim.servo.bias(d), (n, 1))
         """The servo's bias forces (JointServo.bias), one row per trial, actuator order."""
+        self._qfrc = np.tile(d.qfrc_bias, (n, 1)), np.tile(d.qfrc_gravcomp, (n, 1))
+        """MuJoCo's ``qfrc_bias`` and ``qfrc_gravcomp`` of each trial (after its last step)."""
         self.xipos = np.tile(d.xipos[self._body], (n, 1))
         # --- the joint servo (one row per trial)
         servo = sim.servo
@@ -228,6 +230,7 @@ class TrialBatch:
         self._retire(np.flatnonzero(~self.active))
         for name in self._ROWS:
             setattr(self, name, getattr(self, name)[keep])
+        self._qfrc = self._qfrc[0][keep], self._qfrc[1][keep]
         self.datas = [self.datas[i] for i in keep]
         self.models = [self.models[i] for i in keep]
         self.trainee = self.trainee.take(keep)
@@ -354,17 +357,22 @@ class TrialBatch:
             self._servo.kv,
         )
         body = self._body
-        Q, V, bias, xipos = self.Q, self.V, self.bias, self.xipos
-        servo_bias = self._servo.bias
-        for i in np.flatnonzero(self.active).tolist():
+        Q, V, xipos = self.Q, self.V, self.xipos
+        # MuJoCo's bias forces, whole rows (one copy each per trial, the servo's law below
+        # once for the batch)
+        qfrc_bias, qfrc_gravcomp = self._qfrc
+        active = np.flatnonzero(self.active)
+        for i in active.tolist():
             d = self.datas[i]
             d.ctrl[:] = ctrl[i]
             d.xfrc_applied[body] = xfrc[i]
             mujoco.mj_step(self.models[i], d)
             Q[i] = d.qpos
             V[i] = d.qvel
-            bias[i] = servo_bias(d)
+            qfrc_bias[i] = d.qfrc_bias
+            qfrc_gravcomp[i] = d.qfrc_gravcomp
             xipos[i] = d.xipos[body]
+        self.bias[active] = self._servo.bias_of(qfrc_bias[active], qfrc_gravcomp[active])
         self.ticks += self.active
         self.time += self.dt
         self._kinematics()

@@ -1,5 +1,5 @@
 """Optional compilation of the 1 kHz laws with numba, with the plain Python function as the
-fallback.
+fallback. (In ``kinematics``, the lowest layer that compiles a law; any layer above may use it.)
 
 :func:`jit` compiles a function written in numba's subset of Python (scalar loops over
 arrays) the first time it is called, caching the machine code on disk (``cache=True``), so
