@@ -112,6 +112,12 @@ def follow_jaw(
     ``JAW_CATCH_UP_TOLERANCE``); the jaw angle is ``jaw_scale·ghost + jaw_offset`` within
     [``jaw_min``, ``jaw_max``]. Returns ``(ghost, catching_up, jaw)``.
     """
+    if isinstance(ghost, float) and isinstance(gripper, float) and np.ndim(catching_up) == 0:
+        # One teleoperation: the same operations on floats (ufuncs on scalars cost µs each).
+        step = (rate_after_clutch if catching_up else rate) * dt
+        ghost = ghost + min(max(gripper - ghost, -step), step)
+        catching_up = bool(catching_up) and abs(ghost - gripper) > JAW_CATCH_UP_TOLERANCE
+        return ghost, catching_up, min(max(jaw_scale * ghost + jaw_offset, jaw_min), jaw_max)
     step = np.where(catching_up, rate_after_clutch, rate) * dt
     ghost = ghost + np.minimum(np.maximum(gripper - ghost, -step), step)
     catching_up = catching_up & (np.abs(ghost - gripper) > JAW_CATCH_UP_TOLERANCE)

@@ -132,6 +132,11 @@ def handle_xfrc(
     :func:`~davinci_sim.geometry.so3.rotate_rows`)."""
     f = rotate_rows(R_world_hrsv, wrench_hrsv[..., :3])
     lever = rotate_rows(R_world_hrsv, p_hrsv_tip) + p_world_hrsv - p_world_com
+    if f.ndim == 1:  # one hand: the same operations on floats
+        (fx, fy, fz), (lx, ly, lz) = f.tolist(), lever.tolist()
+        tx, ty, tz = rotate_rows(R_world_hrsv, wrench_hrsv[3:]).tolist()
+        mx, my, mz = ly * fz - lz * fy, lz * fx - lx * fz, lx * fy - ly * fx
+        return np.array([fx, fy, fz, tx + mx, ty + my, tz + mz])
     lx, ly, lz = lever[..., 0:1], lever[..., 1:2], lever[..., 2:3]
     fx, fy, fz = f[..., 0:1], f[..., 1:2], f[..., 2:3]
     # lever × f, written out (numpy's cross computes the same products, slower)
