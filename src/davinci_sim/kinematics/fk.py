@@ -222,14 +222,16 @@ def fk_tuple(chain: DHChain, q) -> tuple[float, ...]:
 
 def _pose_compiled(cc: _ChainConsts, q) -> np.ndarray:
     T = np.empty((4, 4))
-    fk_compiled.tip_pose_and_jacobian(*cc.packed, np.asarray(q, dtype=float), T, _NO_J, False)
+    q = np.ascontiguousarray(q, dtype=float)  # one signature: compiled once (at import)
+    fk_compiled.tip_pose_and_jacobian(*cc.packed, q, T, _NO_J, False)
     return T
 
 
 def _pose_and_jacobian_compiled(cc: _ChainConsts, q) -> tuple[np.ndarray, np.ndarray]:
     T = np.empty((4, 4))
     J = np.empty((6, len(cc.links)))
-    fk_compiled.tip_pose_and_jacobian(*cc.packed, np.asarray(q, dtype=float), T, J, True)
+    q = np.ascontiguousarray(q, dtype=float)
+    fk_compiled.tip_pose_and_jacobian(*cc.packed, q, T, J, True)
     return T, J
 
 

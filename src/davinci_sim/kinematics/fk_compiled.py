@@ -136,3 +136,13 @@ def tip_pose_and_jacobian(links, modified, tool, tool_is_identity, q, T, J, jaco
         else:
             J[0, i], J[1, i], J[2, i] = zx, zy, zz
             J[3, i], J[4, i], J[5, i] = 0.0, 0.0, 0.0
+
+
+def _warm_up() -> None:
+    """Compile (or load from the cache) at import, with the one signature the callers use
+    (C-contiguous float arrays, bools): never in the middle of a 1 kHz loop."""
+    T, J = np.empty((4, 4)), np.empty((6, 1))
+    tip_pose_and_jacobian(np.zeros((6, 1)), True, np.eye(4), True, np.zeros(1), T, J, True)
+
+
+_warm_up()
