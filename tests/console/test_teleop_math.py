@@ -78,9 +78,37 @@ def test_jaw_mapping_of_the_large_needle_driver():
     assert s == pytest.approx(4 / 3) and o == 0.0  # dvrk.md 4.2
     s, o = tm.jaw_mapping(1.0, 0.2, 0.7)
     assert s * 0.2 + o == pytest.approx(0.0) and s * 0.7 + o == pytest.approx(1.0)
-    assert tm.step_toward(0.0, 1.0, 0.1) == 0.1
-    assert tm.step_toward(0.0, -1.0, 0.1) == -0.1
-    assert tm.step_toward(0.0, 0.05, 0.1) == 0.05
+
+
+def _jaw(ghost, gripper, catching_up, **kw):
+    args = dict(rate=1.0, rate_after_clutch=0.1, dt=0.1, jaw_scale=2.0, jaw_offset=0.0)
+    args.update({"jaw_min": -10.0, "jaw_max": 10.0, **kw})
+    return tm.follow_jaw(ghost, gripper, catching_up, **args)
+
+
+def test_follow_jaw_moves_the_ghost_within_the_rate_and_maps_it_to_the_jaw():
+    g, c, jaw = _jaw(0.0, 1.0, False)
+    assert (g, bool(c), jaw) == (0.1, False, 0.2)  # rate·dt = 0.1, jaw = 2·ghost
+    g, _, _ = _jaw(0.0, -1.0, False)
+    assert g == -0.1
+    g, _, jaw = _jaw(0.0, 0.05, False)
+    assert g == 0.05 and jaw == 0.1
+    _, _, jaw = _jaw(0.0, 0.05, False, jaw_max=0.08)
+    assert jaw == 0.08  # within the jaw's limits
+
+
+def test_follow_jaw_catches_up_slowly_after_a_clutch_until_within_two_degrees():
+    g, c, _ = _jaw(0.0, 1.0, True)
+    assert g == pytest.approx(0.01) and c  # rate_after_clutch·dt
+    near = 1.0 - math.radians(1.0)
+    g, c, _ = _jaw(near, 1.0, True)
+    assert g == pytest.approx(near + 0.01) and not c  # within 2°: normal rate from now on
+    # a batch: each row its own state, the same numbers as one at a time
+    G, C, J = _jaw(
+        np.array([0.0, 0.0, near]), np.array([1.0, 1.0, 1.0]), np.array([False, True, True])
+    )
+    for i, (g0, c0) in enumerate(((0.0, False), (0.0, True), (near, True))):
+        assert (G[i], C[i], J[i]) == tuple(_jaw(g0, 1.0, c0))
 
 
 def test_operator_activity_rule():

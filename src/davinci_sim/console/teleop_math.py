@@ -92,14 +92,37 @@ def jaw_mapping(jaw_qmax: float, gripper_zero: float, gripper_max: float) -> tup
     return s, -gripper_zero * s
 
 
-def step_toward(x: float, target: float, max_step: float) -> float:
-    """``x`` moved towards ``target`` by at most ``max_step`` (>= 0)."""
-    d = target - x
-    if d > max_step:
-        return x + max_step
-    if d < -max_step:
-        return x - max_step
-    return target
+def follow_jaw(
+    ghost,
+    gripper,
+    catching_up,
+    *,
+    rate: float,
+    rate_after_clutch: float,
+    dt: float,
+    jaw_scale: float,
+    jaw_offset: float,
+    jaw_min: float,
+    jaw_max: float,
+):
+    """One tick of the jaw following the gripper (dvrk.md 4.2), any batch shape.
+
+    The *ghost* (a gripper value, rad) moves towards the ``gripper`` by at most ``rate·dt``
+    (``rate_after_clutch`` while ``catching_up`` after a clutch, until within
+    ``JAW_CATCH_UP_TOLERANCE``); the jaw angle is ``jaw_scale·ghost + jaw_offset`` within
+    [``jaw_min``, ``jaw_max``]. Returns ``(ghost, catching_up, jaw)``.
+    """
+    if isinstance(ghost, float) and isinstance(gripper, float) and np.ndim(catching_up) == 0:
+        # One teleoperation: the same operations on floats (ufuncs on scalars cost µs each).
+        step = (rate_after_clutch if catching_up else rate) * dt
+        ghost = ghost + min(max(gripper - ghost, -step), step)
+        catching_up = bool(catching_up) and abs(ghost - gripper) > JAW_CATCH_UP_TOLERANCE
+        return ghost, catching_up, min(max(jaw_scale * ghost + jaw_offset, jaw_min), jaw_max)
+    step = np.where(catching_up, rate_after_clutch, rate) * dt
+    ghost = ghost + np.minimum(np.maximum(gripper - ghost, -step), step)
+    catching_up = catching_up & (np.abs(ghost - gripper) > JAW_CATCH_UP_TOLERANCE)
+    jaw = np.minimum(np.maximum(jaw_scale * ghost + jaw_offset, jaw_min), jaw_max)
+    return ghost, catching_up, jaw
 
 
 def roll_angle(R_camera_psm: np.ndarray, R_hrsv_mtm: np.ndarray) -> float:

@@ -98,6 +98,9 @@ class FollowingAnchors:
     """The jaw angle last sent (nan: none yet)."""
     jaw_rate: float
     """rad/s of the jaw's catch-up now."""
+    jaw_catching_up: bool = False
+    """True while the jaw catches up with the gripper after a clutch (at
+    ``config.jaw_rate_after_clutch``, until within ``JAW_CATCH_UP_TOLERANCE``)."""
 
 
 class TeleopPSM(TeleopBase):
@@ -255,6 +258,7 @@ class TeleopPSM(TeleopBase):
             self._ghost,
             self._jaw_sent,
             c.jaw_rate_after_clutch if self._jaw_catching_up else c.jaw_rate,
+            self._jaw_catching_up,
         )
 
     # ------------------------------------------------------------ console side
@@ -520,12 +524,20 @@ class TeleopPSM(TeleopBase):
             self._follow_jaw(inp.gripper)
 
     def _follow_jaw(self, gripper: float) -> None:
-        rate = self.config.jaw_rate_after_clutch if self._jaw_catching_up else self.config.jaw_rate
-        self._ghost = tm.step_toward(self._ghost, gripper, rate * self._dt)
-        if self._jaw_catching_up and abs(self._ghost - gripper) <= tm.JAW_CATCH_UP_TOLERANCE:
-            self._jaw_catching_up = False
-        spec = self.psm.jaw.spec
-        jaw = min(max(self._jaw_s * self._ghost + self._jaw_o, spec.qmin), spec.qmax)
+        c, spec = self.config, self.psm.jaw.spec
+        ghost, catching_up, jaw = tm.follow_jaw(
+            self._ghost,
+            gripper,
+            self._jaw_catching_up,
+            rate=c.jaw_rate,
+            rate_after_clutch=c.jaw_rate_after_clutch,
+            dt=self._dt,
+            jaw_scale=self._jaw_s,
+            jaw_offset=self._jaw_o,
+            jaw_min=spec.qmin,
+            jaw_max=spec.qmax,
+        )
+        self._ghost, self._jaw_catching_up, jaw = float(ghost), bool(catching_up), float(jaw)
         if jaw != self._jaw_sent:  # the jaw servo keeps its setpoint: send changes only
             self._jaw_sent = jaw
             self.psm.jaw.servo_jp(jaw)

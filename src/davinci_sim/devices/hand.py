@@ -14,7 +14,7 @@ import numpy as np
 
 from davinci_sim.devices.safety import limit_norms
 from davinci_sim.geometry import so3
-from davinci_sim.geometry.so3 import rotation_vectors
+from davinci_sim.geometry.so3 import rotate_rows, rotation_vectors
 
 
 @dataclass(frozen=True)
@@ -115,6 +115,33 @@ def hand_wrenches(
     return np.concatenate(
         [limit_norms(f, impedance.max_force), limit_norms(tau, impedance.max_torque)], axis=1
     )
+
+
+def handle_xfrc(
+    wrench_hrsv: np.ndarray,
+    p_hrsv_tip: np.ndarray,
+    R_world_hrsv: np.ndarray,
+    p_world_hrsv: np.ndarray,
+    p_world_com: np.ndarray,
+) -> np.ndarray:
+    """MuJoCo's ``xfrc_applied`` (..., 6: force N, torque N·m, world axes, at the body's
+    centre of mass ``p_world_com`` (..., 3), m) of a hand wrench ``wrench_hrsv`` (..., 6,
+    HRSV axes) acting at the handle tip ``p_hrsv_tip`` (..., 3): the force moved from the
+    tip to the centre of mass adds its moment. ``R_world_hrsv`` (3, 3), ``p_world_hrsv``
+    (3,) place HRSV in the world. Elementwise (the same bits in any batch, see
+    :func:`~davinci_sim.geometry.so3.rotate_rows`)."""
+    f = rotate_rows(R_world_hrsv, wrench_hrsv[..., :3])
+    lever = rotate_rows(R_world_hrsv, p_hrsv_tip) + p_world_hrsv - p_world_com
+    if f.ndim == 1:  # one hand: the same operations on floats
+        (fx, fy, fz), (lx, ly, lz) = f.tolist(), lever.tolist()
+        tx, ty, tz = rotate_rows(R_world_hrsv, wrench_hrsv[3:]).tolist()
+        mx, my, mz = ly * fz - lz * fy, lz * fx - lx * fz, lx * fy - ly * fx
+        return np.array([fx, fy, fz, tx + mx, ty + my, tz + mz])
+    lx, ly, lz = lever[..., 0:1], lever[..., 1:2], lever[..., 2:3]
+    fx, fy, fz = f[..., 0:1], f[..., 1:2], f[..., 2:3]
+    # lever × f, written out (numpy's cross computes the same products, slower)
+    moment = np.concatenate([ly * fz - lz * fy, lz * fx - lx * fz, lx * fy - ly * fx], axis=-1)
+    return np.concatenate([f, rotate_rows(R_world_hrsv, wrench_hrsv[..., 3:]) + moment], axis=-1)
 
 
 def _clamp(v: list[float], limit: float) -> list[float]:

@@ -17,7 +17,7 @@ import mujoco
 import numpy as np
 
 from davinci_sim.devices.device import MasterDevice
-from davinci_sim.devices.hand import HandImpedance, hand_wrench
+from davinci_sim.devices.hand import HandImpedance, hand_wrench, handle_xfrc
 from davinci_sim.devices.safety import WrenchLimits
 from davinci_sim.devices.state import DeviceInput
 from davinci_sim.sim.arms import MTM
@@ -199,19 +199,9 @@ class SimulatedMTM(MasterDevice):
     def _apply_hand(self, w: np.ndarray, T_hrsv_tip: np.ndarray) -> None:
         self._hand_wrench = w
         self._hand_applied = bool(w.any())
-        R = self._R_world_hrsv
-        fx, fy, fz = (R @ w[:3]).tolist()
-        p_tip = R @ T_hrsv_tip[:3, 3] + self._p_world_hrsv
-        # xfrc_applied acts at the body's centre of mass: move the force to the tip.
-        lx, ly, lz = (p_tip - self.sim.data.xipos[self._body]).tolist()
-        tx, ty, tz = (R @ w[3:]).tolist()
-        self.sim.data.xfrc_applied[self._body] = (
-            fx,
-            fy,
-            fz,
-            tx + ly * fz - lz * fy,
-            ty + lz * fx - lx * fz,
-            tz + lx * fy - ly * fx,
+        data = self.sim.data
+        data.xfrc_applied[self._body] = handle_xfrc(
+            w, T_hrsv_tip[:3, 3], self._R_world_hrsv, self._p_world_hrsv, data.xipos[self._body]
         )
 
     def is_ready(self) -> bool:

@@ -102,3 +102,36 @@ def mat3_mul(A: Sequence[float], B: Sequence[float]) -> tuple[float, ...]:
         a3 * b0 + a4 * b3 + a5 * b6, a3 * b1 + a4 * b4 + a5 * b7, a3 * b2 + a4 * b5 + a5 * b8,
         a6 * b0 + a7 * b3 + a8 * b6, a6 * b1 + a7 * b4 + a8 * b7, a6 * b2 + a7 * b5 + a8 * b8,
     )  # fmt: skip
+
+
+def rotate_rows(R: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """``R·v`` for each vector of ``v`` (..., 3), one rotation ``R`` (3, 3).
+
+    Elementwise (three scaled columns summed in a fixed order), not a matrix product: a
+    matrix product's rounding depends on its size in BLAS, and a law must give a study
+    trial the same bits whatever the size of its batch (and the live arm, a batch of one).
+    """
+    if v.ndim == 1:  # one vector (the live arm): the same operations on floats, faster
+        x, y, z = v.tolist()
+        (a, b, c), (d, e, f), (g, h, i) = R.tolist()
+        return np.array([x * a + y * b + z * c, x * d + y * e + z * f, x * g + y * h + z * i])
+    return v[..., 0:1] * R[:, 0] + v[..., 1:2] * R[:, 1] + v[..., 2:3] * R[:, 2]
+
+
+def rotate_pairs(R: np.ndarray, w: np.ndarray) -> np.ndarray:
+    """Both halves of 6-vectors (twists: linear then angular; wrenches: force then torque),
+    ``w`` (..., 6), rotated by ``R`` (3, 3) (see :func:`rotate_rows`)."""
+    if w.ndim == 1:  # one 6-vector: floats, as rotate_rows
+        x, y, z, u, v, s = w.tolist()
+        (a, b, c), (d, e, f), (g, h, i) = R.tolist()
+        return np.array(
+            [
+                x * a + y * b + z * c,
+                x * d + y * e + z * f,
+                x * g + y * h + z * i,
+                u * a + v * b + s * c,
+                u * d + v * e + s * f,
+                u * g + v * h + s * i,
+            ]
+        )
+    return np.concatenate([rotate_rows(R, w[..., :3]), rotate_rows(R, w[..., 3:])], axis=-1)

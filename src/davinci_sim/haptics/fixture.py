@@ -23,6 +23,7 @@ from typing import Literal, Protocol, runtime_checkable
 
 import numpy as np
 
+from davinci_sim.geometry.so3 import rotate_rows
 from davinci_sim.haptics.field import HapticState
 from davinci_sim.haptics.velocity import DEFAULT_CUTOFF_HZ, VelocityFilter
 
@@ -35,6 +36,24 @@ class Fixture(Protocol):
     """``force(position, velocity) -> force``, all ``(..., 3)`` in the fixture's frame."""
 
     def force(self, position, velocity) -> np.ndarray: ...
+
+
+def fixture_force_camera(
+    fixture: Fixture,
+    T_frame_camera: np.ndarray | None,
+    p_camera_tip: np.ndarray,
+    v_camera_tip: np.ndarray,
+) -> np.ndarray:
+    """The force (..., 3), N, camera axes, of ``fixture`` on tool tips at ``p_camera_tip``
+    (m) moving at ``v_camera_tip`` (m/s), (..., 3) in the camera frame: the tips moved into
+    the fixture's frame (``T_frame_camera``, 4x4: the camera in the fixture's frame; None:
+    the fixture is in the camera frame), the force rotated back. Elementwise rotations (the
+    same bits in any batch, see :func:`~davinci_sim.geometry.so3.rotate_rows`)."""
+    if T_frame_camera is None:
+        return np.asarray(fixture.force(p_camera_tip, v_camera_tip), dtype=float)
+    R, t = T_frame_camera[:3, :3], T_frame_camera[:3, 3]
+    f = fixture.force(rotate_rows(R, p_camera_tip) + t, rotate_rows(R, v_camera_tip))
+    return rotate_rows(R.T, np.asarray(f, dtype=float))
 
 
 class FixtureField:
@@ -86,12 +105,8 @@ class FixtureField:
     def __call__(self, state: HapticState) -> np.ndarray:
         p = np.asarray(state.p_camera_tip, dtype=float)
         v = self.tip_velocity_camera(state)
-        if self.frame == "camera":
-            return np.asarray(self.fixture.force(p, v), dtype=float)
-        T = np.asarray(state.T_world_camera, dtype=float)
-        R = T[:3, :3]
-        f_world = self.fixture.force(R @ p + T[:3, 3], R @ v)
-        return R.T @ np.asarray(f_world, dtype=float)
+        T = None if self.frame == "camera" else np.asarray(state.T_world_camera, dtype=float)
+        return fixture_force_camera(self.fixture, T, p, v)
 
     def reset(self) -> None:
         """Forget the velocity filters' history (e.g. after a clutch or a new repetition)."""

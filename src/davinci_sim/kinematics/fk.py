@@ -7,8 +7,10 @@ section 1.2).
 
 Two evaluation paths give the same numbers (to rounding, ~1e-15):
 
-* one configuration: plain ``math`` on Python floats (numpy call overhead dominates for
-  4x4 matrices, and the 1 kHz loop evaluates every arm every tick);
+* one configuration: scalar float arithmetic, compiled (:mod:`.fk_compiled`, numba), or plain
+  ``math`` on Python floats when compiling is off or fails: the same operations, the same
+  bits (numpy call overhead dominates for 4x4 matrices, and the 1 kHz loop evaluates every
+  arm every tick);
 * a batch: the rotation columns and the position are carried as arrays of shape ``(chunk,)``
   and composed elementwise, chunk by chunk, which keeps the temporaries in cache and avoids
   batched 4x4 ``matmul`` (15-20x faster: ~4.6M PSM poses/s on the 2-core dev machine).
@@ -22,7 +24,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from davinci_sim.kinematics import fk_compiled
 from davinci_sim.kinematics.chain import DHChain
+from davinci_sim.kinematics.jit import ENABLED as _COMPILED
 
 #: Rows per chunk of the batched FK: small enough for the ~30 live temporaries to stay in cache
 #: (measured best between 2048 and 16384 rows on the 2-core dev machine).
@@ -50,6 +54,8 @@ class _ChainConsts:
     R_tool: tuple[tuple[float, float, float], ...]
     p_tool: tuple[float, float, float]
     tool_is_identity: bool
+    packed: tuple = ()
+    """The same constants as :func:`.fk_compiled.pack` arrays (the compiled kernels')."""
 
 
 _CONSTS: weakref.WeakKeyDictionary[DHChain, _ChainConsts] = weakref.WeakKeyDictionary()
@@ -72,12 +78,17 @@ def _consts(chain: DHChain) -> _ChainConsts:
                 )
             )
         T = chain.T_last_tip
+        modified = chain.convention == "modified"
+        R_tool = tuple(tuple(float(x) for x in row) for row in T[:3, :3])
+        p_tool = tuple(float(x) for x in T[:3, 3])
+        identity = bool(np.array_equal(T, np.eye(4)))
         c = _ChainConsts(
-            modified=chain.convention == "modified",
+            modified=modified,
             links=tuple(links),
-            R_tool=tuple(tuple(float(x) for x in row) for row in T[:3, :3]),
-            p_tool=tuple(float(x) for x in T[:3, 3]),
-            tool_is_identity=bool(np.array_equal(T, np.eye(4))),
+            R_tool=R_tool,
+            p_tool=p_tool,
+            tool_is_identity=identity,
+            packed=fk_compiled.pack(links, modified, R_tool, p_tool, identity),
         )
         _CONSTS[chain] = c
     return c
@@ -201,9 +212,30 @@ def fk_tuple(chain: DHChain, q) -> tuple[float, ...]:
     ``q`` is a sequence of ``chain.dof`` floats (rad / m); no validation is done.
     """
     cc = _consts(chain)
+    if _COMPILED:
+        r0, r1, r2, _ = _pose_compiled(cc, q).tolist()  # Python floats for float code
+        return (*r0[:3], *r1[:3], *r2[:3], r0[3], r1[3], r2[3])
     if not cc.links:
         return _apply_tool(cc, (1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0))
     return _apply_tool(cc, _frames_floats(cc, q)[-1])
+
+
+def _pose_compiled(cc: _ChainConsts, q) -> np.ndarray:
+    T = np.empty((4, 4))
+    q = np.ascontiguousarray(q, dtype=float)  # one signature: compiled once (at import)
+    fk_compiled.tip_pose_and_jacobian(*cc.packed, q, T, _NO_J, False)
+    return T
+
+
+def _pose_and_jacobian_compiled(cc: _ChainConsts, q) -> tuple[np.ndarray, np.ndarray]:
+    T = np.empty((4, 4))
+    J = np.empty((6, len(cc.links)))
+    q = np.ascontiguousarray(q, dtype=float)
+    fk_compiled.tip_pose_and_jacobian(*cc.packed, q, T, J, True)
+    return T, J
+
+
+_NO_J = np.empty((6, 0))  # the kernel's Jacobian argument when only the pose is wanted
 
 
 def _to_matrix(f: tuple[float, ...]) -> np.ndarray:
@@ -360,6 +392,8 @@ def forward_kinematics(chain: DHChain, q: np.ndarray) -> np.ndarray:
     """``T_base_tip`` = links · tooltip offset, shape ``(..., 4, 4)``."""
     q = _check_q(chain, q)
     if q.ndim == 1:
+        if _COMPILED:
+            return _pose_compiled(_consts(chain), q)
         return _to_matrix(fk_tuple(chain, q.tolist()))
     return _fk_batch(chain, q)
 
@@ -382,6 +416,8 @@ def jacobian_spatial(chain: DHChain, q: np.ndarray) -> np.ndarray:
     """
     q = _check_q(chain, q)
     if q.ndim == 1:
+        if _COMPILED:
+            return _pose_and_jacobian_compiled(_consts(chain), q)[1]
         return np.array(_jacobian_spatial_floats(chain, q.tolist())[0])
     return _fk_and_jacobian_batch(chain, q)[1]
 
@@ -393,6 +429,8 @@ def forward_kinematics_and_jacobian(chain: DHChain, q: np.ndarray) -> tuple[np.n
     q = _check_q(chain, q)
     if q.ndim != 1:
         return _fk_and_jacobian_batch(chain, q)
+    if _COMPILED:
+        return _pose_and_jacobian_compiled(_consts(chain), q)
     J, tip = _jacobian_spatial_floats(chain, q.tolist())
     return _to_matrix(tip), np.array(J)
 

@@ -79,9 +79,8 @@ class TraineeHand:
         tr = self.trainee
         tip = self.psm.measured_cp().T[:3, 3]
         x_eq = tr.command(tr.dt, tip[None])
-        extra = tr.params.damping[0] * tr.v_eq[0] + tr.feedforward_force[0]
         self.device.move_hand(x_eq[0])
-        self.device.push(extra + tr.last_tremor_force[0])
+        self.device.push(tr.push_force()[0])
 
     def snapshot(self) -> dict:
         return {"started": self.started, "phase": int(self.trainee.phase[0])}

@@ -288,6 +288,13 @@ class SyntheticTrainee:
         self.k += 1
         return self.x_eq.copy()
 
+    def push_force(self) -> np.ndarray:
+        """The part of :meth:`hand_force` that does not depend on the handle (n, 3), HRSV,
+        N: ``D·ẋ_eq`` + inertia feed-forward + tremor. On an MTM the device's hand spring
+        and damper (stiffness K, damping D, target ``x_eq``) add the rest."""
+        D = self.params.damping[:, None]
+        return D * self.v_eq + self.feedforward_force + self.last_tremor_force
+
     def hand_force(self, position, velocity) -> np.ndarray:
         """Force the hand applies to a handle at ``position``/``velocity`` (n, 3), HRSV, N:
         the limb's spring and damper about the equilibrium, the inertia feed-forward and

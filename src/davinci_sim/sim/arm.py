@@ -13,16 +13,19 @@ RCM in the ECM tip/camera frame; ECM: in the cart), the console (MTM: in HRSV), 
 
 from __future__ import annotations
 
+import math
 from typing import TYPE_CHECKING
 
 import numpy as np
-from scipy.linalg.lapack import dgesv
 
 from davinci_sim.geometry.se3 import invert_transform
+from davinci_sim.geometry.so3 import rotate_pairs
 from davinci_sim.kinematics import fk
 from davinci_sim.kinematics.arms import ArmKinematics
 from davinci_sim.kinematics.ik import inverse_kinematics
+from davinci_sim.sim import arm_laws as laws
 from davinci_sim.sim import operating_state as ops
+from davinci_sim.sim.arm_laws import TRACKING_FAULT_TIME, TRACKING_FAULT_TOLERANCE
 from davinci_sim.sim.channels import Channels
 from davinci_sim.sim.servo import ServoJoints
 from davinci_sim.sim.state import capture, restore
@@ -40,10 +43,7 @@ from davinci_sim.sim.validation import as_transform, as_vector, check_limits
 if TYPE_CHECKING:
     from davinci_sim.sim.simulation import Simulation
 
-#: A joint whose position stays further than this from its setpoint (rad, m) for
-#: ``TRACKING_FAULT_TIME`` s puts the arm in FAULT, as a PID tracking error does on the dVRK.
-TRACKING_FAULT_TOLERANCE = {"revolute": 0.35, "prismatic": 0.03}
-TRACKING_FAULT_TIME = 0.05
+__all__ = ["TRACKING_FAULT_TIME", "TRACKING_FAULT_TOLERANCE", "Arm"]
 #: Streaming commands (``servo_*``) arrive every tick: after one of them is refused on the
 #: error channel, further refusals of the same command within this time (s) are counted
 #: and reported with the next message instead of flooding the channel (the dVRK throttles
@@ -114,7 +114,7 @@ class Arm(ServoJoints):
         if c is None or c[0] != key:
             q.setflags(write=False)
             # Both in one pass: whoever asks for the pose this tick asks for the twist too.
-            T, J = fk.forward_kinematics_and_jacobian(self.chain, q)
+            T, J = laws.tip_kinematics(self.chain, q)
             T.setflags(write=False)
             J.setflags(write=False)
             c = self._kin_cache = [key, q, T, J]
@@ -267,15 +267,14 @@ class Arm(ServoJoints):
 
     def _check_tracking(self, t: float) -> None:
         servo = self._sim.servo
-        err = np.abs(self._q() - servo.q_ref[self._idx])
-        bad = (err > self._tol) & ~servo.effort_mode[self._idx]
-        if not bad.any():
-            self._tracking_bad_since = None
-            return
-        if self._tracking_bad_since is None:
-            self._tracking_bad_since = t
-        elif t - self._tracking_bad_since >= TRACKING_FAULT_TIME:
+        q, q_ref = self._q(), servo.q_ref[self._idx]
+        bad = laws.tracking_bad(q, q_ref, self._tol, servo.effort_mode[self._idx])
+        since = self._tracking_bad_since
+        since, fault = laws.tracking_fault(bad.any(), math.nan if since is None else since, t)
+        self._tracking_bad_since = None if math.isnan(since) else float(since)
+        if fault:
             i = int(np.flatnonzero(bad)[0])
+            err = np.abs(q - q_ref)
             self.channels.message(
                 "error",
                 f"tracking error on joint {self.chain.joint_names[i]!r}: {err[i]:.4g} exceeds "
@@ -445,28 +444,29 @@ class Arm(ServoJoints):
         return ACCEPTED
 
     def _pose(self, q: np.ndarray, moving: str, local: bool) -> CartesianPose:
-        T_base_tip = fk.forward_kinematics(self.chain, q)
+        T_base_tip = laws.tip_pose(self.chain, q)
         if local:
             return CartesianPose(T_base_tip, f"{self.name}_base", moving, self._now())
         T_ref_base, ref = self.base_frame()
-        return CartesianPose(T_ref_base @ T_base_tip, ref, moving, self._now())
+        T = laws.pose_in_reference(T_ref_base, T_base_tip)
+        return CartesianPose(T, ref, moving, self._now())
 
     def measured_cp(self) -> CartesianPose:
         """Tool tip in the base frame's reference (PSM: camera, ECM: cart, MTM: HRSV)."""
         _, T_base_tip, _ = self._measured_kinematics()
         T_ref_base, ref = self.base_frame()
-        return CartesianPose(T_ref_base @ T_base_tip, ref, self.name, self._now())
+        T = laws.pose_in_reference(T_ref_base, T_base_tip)
+        return CartesianPose(T, ref, self.name, self._now())
 
     def setpoint_cp(self) -> CartesianPose:
         return self._pose(self._q_set(), f"{self.name}_setpoint", local=False)
 
     def measured_cv(self) -> CartesianTwist:
         """Tip twist (linear m/s, angular rad/s) in the base frame's orientation (dvrk.md 2.2)."""
-        v = self._measured_kinematics(jacobian=True)[2] @ self._qd()
+        J = self._measured_kinematics(jacobian=True)[2]
         T_ref_base, ref = self.base_frame()
-        R = T_ref_base[:3, :3]
-        # R·[v ω] as one product: both halves rotate the same way.
-        return CartesianTwist((R @ v.reshape(2, 3).T).T.reshape(6), ref, self.name, self._now())
+        twist = laws.twist_in_reference(T_ref_base[:3, :3], J, self._qd())
+        return CartesianTwist(twist, ref, self.name, self._now())
 
     def _cartesian_goal(self, command: str, T_goal, seed: np.ndarray):
         why = self._not_ready(cartesian=True)
@@ -492,10 +492,9 @@ class Arm(ServoJoints):
             tw, msg = as_vector(twist, 6, "twist")
             if tw is None:
                 return self._refuse("servo_cp", msg)
-            R = self.base_frame()[0][:3, :3].T
-            local = np.concatenate([R @ tw[:3], R @ tw[3:]])
+            local = rotate_pairs(self.base_frame()[0][:3, :3].T, tw)
             # The Jacobian at the measured joints (cached this tick), as a servo loop does.
-            qd = _joint_velocity(self._measured_kinematics(jacobian=True)[2], local)
+            qd = laws.joint_velocity(self._measured_kinematics(jacobian=True)[2], local)
         self._servo_position(q, qd)
         return ACCEPTED
 
@@ -553,9 +552,7 @@ class Arm(ServoJoints):
             R_base_tip = T_base_tip[:3, :3]
         else:  # expressed in the reference (base-frame) orientation
             R_base_tip = self.base_frame()[0][:3, :3].T
-        w_base = np.concatenate([R_base_tip @ w[:3], R_base_tip @ w[3:]])
-        ftmax = self.chain.ftmax
-        return np.minimum(np.maximum(Js.T @ w_base, -ftmax), ftmax)
+        return laws.wrench_effort(Js, R_base_tip, w, self.chain.ftmax)
 
     def _servo_cf(self, kind: str, wrench) -> CommandResult:
         why = self._not_ready()
@@ -627,20 +624,6 @@ class Arm(ServoJoints):
         """The base frame set at run time (:meth:`set_base_frame`): ``(T_reference_base,
         reference frame)``, or None while the arm uses the system's default."""
         return self._T_user_base
-
-
-def _joint_velocity(J: np.ndarray, twist: np.ndarray) -> np.ndarray:
-    """Joint velocities giving ``twist`` (least squares; a direct solve when J is square).
-
-    The square case calls LAPACK's ``dgesv`` directly: ``np.linalg.solve``'s Python checks
-    cost 4x more than the solve itself, and this runs for every teleoperated PSM at 1 kHz.
-    """
-    if J.shape[0] == J.shape[1]:
-        _, _, qd, info = dgesv(J, twist)
-        if info == 0 and np.isfinite(qd).all() and np.abs(qd).max() < 1e6:
-            return qd
-        # singular: fall back to the least-squares solution
-    return np.linalg.lstsq(J, twist, rcond=None)[0]
 
 
 class _LocalView:

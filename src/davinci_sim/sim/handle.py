@@ -32,8 +32,8 @@ from typing import TYPE_CHECKING, Any, Protocol
 
 import numpy as np
 
-from davinci_sim.kinematics import fk
 from davinci_sim.kinematics.chain import DHChain
+from davinci_sim.sim import arm_laws as laws
 from davinci_sim.sim.types import CartesianPose, CartesianTwist, JointState, OperatingState
 
 if TYPE_CHECKING:
@@ -50,7 +50,8 @@ class ArmSnapshot:
 
     The operating state and the joint states (arm, jaw, gripper) are copied when the snapshot
     is taken. The Cartesian fields (``measured_cp``, ``setpoint_cp``, ``local_*``,
-    ``measured_cv``) are computed from those joints, with the arm's own formulas, the first
+    ``measured_cv``) are computed from those joints, with the arm's own laws
+    (:mod:`~davinci_sim.sim.arm_laws`), the first
     time they are read: taking a snapshot costs the loop the copies only, and a reader pays
     for the poses it uses. Treat it as immutable.
     """
@@ -83,20 +84,20 @@ class ArmSnapshot:
     @cached_property
     def _measured(self) -> tuple[np.ndarray, np.ndarray]:
         # Arm._measured_kinematics: pose and spatial Jacobian of the measured joints.
-        return fk.forward_kinematics_and_jacobian(self._chain, self.measured_js.position)
+        return laws.tip_kinematics(self._chain, self.measured_js.position)
 
     @cached_property
     def _setpoint(self) -> np.ndarray:
-        return fk.forward_kinematics(self._chain, self.setpoint_js.position)  # Arm._pose
+        return laws.tip_pose(self._chain, self.setpoint_js.position)  # Arm._pose
 
     @cached_property
     def measured_cp(self) -> CartesianPose:
-        T = self._T_ref_base @ self._measured[0]
+        T = laws.pose_in_reference(self._T_ref_base, self._measured[0])
         return CartesianPose(T, self._reference, self.name, self.measured_js.timestamp)
 
     @cached_property
     def setpoint_cp(self) -> CartesianPose:
-        T = self._T_ref_base @ self._setpoint
+        T = laws.pose_in_reference(self._T_ref_base, self._setpoint)
         moving = f"{self.name}_setpoint"
         return CartesianPose(T, self._reference, moving, self.setpoint_js.timestamp)
 
@@ -113,10 +114,8 @@ class ArmSnapshot:
 
     @cached_property
     def measured_cv(self) -> CartesianTwist:
-        # Arm.measured_cv: J·q̇ in the base frame's orientation.
-        v = self._measured[1] @ self.measured_js.velocity
         R = self._T_ref_base[:3, :3]
-        twist = (R @ v.reshape(2, 3).T).T.reshape(6)
+        twist = laws.twist_in_reference(R, self._measured[1], self.measured_js.velocity)
         return CartesianTwist(twist, self._reference, self.name, self.measured_js.timestamp)
 
 

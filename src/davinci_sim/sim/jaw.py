@@ -22,6 +22,12 @@ if TYPE_CHECKING:
     from davinci_sim.sim.arm import Arm
 
 
+def finger_setpoints(angle):
+    """Each finger's setpoint (rad) for an opening ``angle`` (rad; or a rate, rad/s): half of
+    it (the dVRK angle is the two fingers' sum)."""
+    return 0.5 * angle
+
+
 class Jaw(ServoJoints):
     """``arm.jaw.*`` (PSM) or ``arm.gripper.*`` (MTM)."""
 
@@ -137,8 +143,8 @@ class Jaw(ServoJoints):
             return
         servo.effort_mode[self._idx] = False
         servo.tau_ff[self._idx] = 0.0
-        servo.q_ref[self._idx] = 0.5 * angle
-        servo.qd_ref[self._idx] = 0.5 * rate
+        servo.q_ref[self._idx] = finger_setpoints(angle)
+        servo.qd_ref[self._idx] = finger_setpoints(rate)
 
     def _start(self, goal: float) -> None:
         servo = self._arm._sim.servo

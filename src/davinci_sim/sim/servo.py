@@ -68,9 +68,14 @@ class JointServo:
     def bias(self, data: mujoco.MjData) -> np.ndarray:
         """The joints' bias forces the servo compensates: ``qfrc_bias`` less what the
         model's own gravity compensation (``qfrc_gravcomp``) already cancels."""
+        return self.bias_of(data.qfrc_bias, data.qfrc_gravcomp)
+
+    def bias_of(self, qfrc_bias: np.ndarray, qfrc_gravcomp: np.ndarray) -> np.ndarray:
+        """:meth:`bias` from MuJoCo's ``qfrc_bias`` and ``qfrc_gravcomp`` (..., nv), any
+        leading batch axes (the study's trials), in actuator order."""
         if self._model_gravcomp:
-            return data.qfrc_bias[self.dofadr] - data.qfrc_gravcomp[self.dofadr]
-        return data.qfrc_bias[self.dofadr]
+            return qfrc_bias[..., self.dofadr] - qfrc_gravcomp[..., self.dofadr]
+        return qfrc_bias[..., self.dofadr]
 
     def apply(self, data: mujoco.MjData) -> None:
         """Write ``data.ctrl`` for the current state (call right before ``mj_step``)."""

@@ -8,16 +8,20 @@ runs n trials as arrays instead:
   one live simulation (console, teleoperation, tool at point 1) to the moment the trainee
   takes the handle; each trial gets a copy of its ``MjData`` and of the servo, teleoperation,
   device and haptic state read from the live objects.
-* Every tick applies, to all trials at once, the laws the live components apply to one:
-  the trainee (:class:`~davinci_sim.operators.SyntheticTrainee`, already batched) and its
-  hand on the MTM handle (:func:`~davinci_sim.devices.hand.hand_wrenches`), the teleoperation
-  following law (:func:`~davinci_sim.console.teleop_math.follow_pose` / ``follow_twist``) and
-  jaw mapping, the PSM's ``servo_cp`` (batched closed-form IK,
-  :func:`~davinci_sim.kinematics.psm_ik_batch.psm_ik_closed_form_batch`, and the twist
-  feed-forward), the MTM's ``spatial/servo_cf`` (Jᵀ·w), the joint servo
-  (:func:`~davinci_sim.sim.servo.servo_ctrl`), the fixture through the velocity filter
-  (:class:`~davinci_sim.haptics.fixture.FixtureField`'s path) and the device's safety clamp
-  (:func:`~davinci_sim.devices.safety.clamp_wrenches`), the task state machine and the
+* Every tick applies, to all trials at once, the laws the live components apply to one —
+  the same functions, called with one row per trial (this module composes them and states
+  no formula of its own): the trainee (:class:`~davinci_sim.operators.SyntheticTrainee`,
+  ``command`` and ``push_force``) and its hand on the MTM handle
+  (:func:`~davinci_sim.devices.hand.hand_wrenches`, :func:`~davinci_sim.devices.hand.handle_xfrc`);
+  the arms' laws of :mod:`~davinci_sim.sim.arm_laws` (pose and Jacobian, ``measured_cv``, the
+  ``servo_cp`` twist feed-forward, Jᵀ·w of ``spatial/servo_cf``, joint limits, the tracking
+  fault); the teleoperation's following law (:func:`~davinci_sim.console.teleop_math.follow_pose`,
+  ``follow_twist``, ``follow_jaw``) and the batched closed-form PSM IK
+  (:func:`~davinci_sim.kinematics.psm_ik_batch.psm_ik_closed_form_batch`); the joint servo
+  (:func:`~davinci_sim.sim.servo.servo_ctrl`, ``JointServo.bias``); the fixture through the
+  velocity filter and the frame change (:func:`~davinci_sim.haptics.fixture.fixture_force_camera`,
+  :class:`~davinci_sim.haptics.velocity.VelocityFilter`) and the device's safety clamp
+  (:func:`~davinci_sim.devices.safety.clamp_wrenches`); the task state machine and the
   metrics. Only ``mj_step`` runs per trial (MuJoCo's C), and only for trials still running.
 * The order within a tick is the live simulation's: trainee, hand, teleoperation, arms,
   servo, physics, then the haptic loop and the task on the new state.
@@ -47,14 +51,16 @@ import mujoco
 import numpy as np
 
 from davinci_sim.console import teleop_math as tm
-from davinci_sim.devices.hand import hand_wrenches
+from davinci_sim.devices.hand import hand_wrenches, handle_xfrc
 from davinci_sim.devices.safety import clamp_wrenches
+from davinci_sim.geometry.so3 import rotate_pairs, rotate_rows
 from davinci_sim.haptics.combine import combine
+from davinci_sim.haptics.fixture import fixture_force_camera
 from davinci_sim.haptics.velocity import DEFAULT_CUTOFF_HZ, VelocityFilter
 from davinci_sim.haptics.viscous import ViscousGuidance
-from davinci_sim.kinematics import fk
 from davinci_sim.kinematics.psm_ik_batch import psm_ik_closed_form_batch
-from davinci_sim.sim.arm import TRACKING_FAULT_TIME
+from davinci_sim.sim import arm_laws as laws
+from davinci_sim.sim.jaw import finger_setpoints
 from davinci_sim.sim.servo import servo_ctrl
 from davinci_sim.study.trial import (
     METRICS,
@@ -100,6 +106,8 @@ class TrialBatch:
         self.V = np.tile(d.qvel, (n, 1))
         self.bias = np.tile(sim.servo.bias(d), (n, 1))
         """The servo's bias forces (JointServo.bias), one row per trial, actuator order."""
+        self._qfrc = np.tile(d.qfrc_bias, (n, 1)), np.tile(d.qfrc_gravcomp, (n, 1))
+        """MuJoCo's ``qfrc_bias`` and ``qfrc_gravcomp`` of each trial (after its last step)."""
         self.xipos = np.tile(d.xipos[self._body], (n, 1))
         # --- the joint servo (one row per trial)
         servo = sim.servo
@@ -120,9 +128,6 @@ class TrialBatch:
         self.T_camera_rcm = psm.base_frame()[0].copy()
         self.T_rcm_camera = np.linalg.inv(self.T_camera_rcm)
         self.T_hrsv_mtmbase = mtm.base_frame()[0].copy()
-        # servo_cp refuses IK answers beyond the limits (sim.validation.check_limits, 1e-9).
-        self.psm_qmin = psm.chain.qmin - 1e-9
-        self.psm_qmax = psm.chain.qmax + 1e-9
         self.psm_tol = psm.tracking_tolerance
         self.mtm_ftmax = mtm.chain.ftmax
         # --- the teleoperation as it follows now (dvrk.md 4.2)
@@ -137,7 +142,8 @@ class TrialBatch:
         self.T_hrsv_mtm0 = anchors.T_hrsv_mtm0
         self.R_offset = anchors.R_offset
         self.jaw_s, self.jaw_o = anchors.jaw_scale, anchors.jaw_offset
-        self.jaw_rate = anchors.jaw_rate
+        self.jaw_rates = config.jaw_rate, config.jaw_rate_after_clutch
+        self.jaw_catching_up = np.full(n, anchors.jaw_catching_up)
         self.ghost = np.full(n, anchors.jaw_ghost)
         self.jaw_sent = np.full(n, anchors.jaw_sent)
         # --- the device: HRSV in the world, the hand's grasp, the safety clamp
@@ -203,9 +209,10 @@ class TrialBatch:
 
     #: Arrays with one row per running trial (see :meth:`_compact`).
     _ROWS = (
-        "Q", "V", "bias", "xipos", "q_ref", "qd_ref", "tau_ff", "ghost", "jaw_sent",
-        "wrench_sent", "T_hand", "K", "D", "B", "G_max", "t_end", "active", "fault", "ticks",
-        "_bad_since", "requested", "T_psm", "J_psm", "T_mtm", "J_mtm", "twist_mtm", "index",
+        "Q", "V", "bias", "xipos", "q_ref", "qd_ref", "tau_ff", "ghost", "jaw_catching_up",
+        "jaw_sent", "wrench_sent", "T_hand", "K", "D", "B", "G_max", "t_end", "active", "fault",
+        "ticks", "_bad_since", "requested", "T_psm", "J_psm", "T_mtm", "J_mtm", "twist_mtm",
+        "index",
     )  # fmt: skip
 
     def _retire(self, rows: np.ndarray) -> None:
@@ -223,6 +230,7 @@ class TrialBatch:
         self._retire(np.flatnonzero(~self.active))
         for name in self._ROWS:
             setattr(self, name, getattr(self, name)[keep])
+        self._qfrc = self._qfrc[0][keep], self._qfrc[1][keep]
         self.datas = [self.datas[i] for i in keep]
         self.models = [self.models[i] for i in keep]
         self.trainee = self.trainee.take(keep)
@@ -235,28 +243,22 @@ class TrialBatch:
     # ------------------------------------------------------------ per tick
     def _kinematics(self) -> None:
         """Poses, Jacobians and twists of both arms at the current state (measured_cp / cv)."""
-        T, self.J_psm = fk.forward_kinematics_and_jacobian(self.psm_chain, self.Q[:, self.psm_q])
-        self.T_psm = self.T_camera_rcm @ T
-        T, J = fk.forward_kinematics_and_jacobian(self.mtm_chain, self.Q[:, self.mtm_q])
-        self.T_mtm = self.T_hrsv_mtmbase @ T
-        self.J_mtm = J
-        v = np.sum(J * self.V[:, None, self.mtm_v], axis=2)  # J·q̇ (elementwise: see _rotate)
+        T, self.J_psm = laws.tip_kinematics(self.psm_chain, self.Q[:, self.psm_q])
+        self.T_psm = laws.pose_in_reference(self.T_camera_rcm, T)
+        T, self.J_mtm = laws.tip_kinematics(self.mtm_chain, self.Q[:, self.mtm_q])
+        self.T_mtm = laws.pose_in_reference(self.T_hrsv_mtmbase, T)
         R = self.T_hrsv_mtmbase[:3, :3]
-        self.twist_mtm = np.concatenate([_rotate(R, v[:, :3]), _rotate(R, v[:, 3:])], axis=1)
+        self.twist_mtm = laws.twist_in_reference(R, self.J_mtm, self.V[:, self.mtm_v])
 
     def _hand(self) -> np.ndarray:
         """Trainee step and its hand on the handle: ``xfrc_applied`` of the handle (n, 6)."""
         tr = self.trainee
         x_eq = tr.command(self.dt, self.T_psm[:, :3, 3])
         self.T_hand[:, :3, 3] = x_eq
-        push = self.D[:, None] * tr.v_eq + tr.feedforward_force + tr.last_tremor_force
         w = hand_wrenches(self.T_hand, self.T_mtm, self.twist_mtm, self.K, self.D, self.impedance)
-        w[:, :3] += push
-        # SimulatedMTM: the wrench acts at the handle tip; xfrc_applied at the body's centre.
+        w[:, :3] += tr.push_force()
         R, p = self.R_world_hrsv, self.p_world_hrsv
-        f = _rotate(R, w[:, :3])
-        lever = _rotate(R, self.T_mtm[:, :3, 3]) + p - self.xipos
-        return np.concatenate([f, _rotate(R, w[:, 3:]) + np.cross(lever, f)], axis=1)
+        return handle_xfrc(w, self.T_mtm[:, :3, 3], R, p, self.xipos)
 
     def _teleop(self) -> None:
         """The teleoperation's following tick: PSM ``servo_cp`` with feed-forward, jaw."""
@@ -268,31 +270,44 @@ class TrialBatch:
         )
         q_now = self.Q[:, self.psm_q]
         ik = psm_ik_closed_form_batch(self.psm_chain, self.T_rcm_camera @ goal, q_now)
-        ok = ik.success & np.all((ik.q >= self.psm_qmin) & (ik.q <= self.psm_qmax), axis=1)
-        R = self.T_rcm_camera[:3, :3]
-        local = np.concatenate([_rotate(R, twist[:, :3]), _rotate(R, twist[:, 3:])], axis=1)
-        qd = _solve(self.J_psm, local)
+        ok = ik.success & laws.within_limits(ik.q, self.psm_chain.qmin, self.psm_chain.qmax)
+        local = rotate_pairs(self.T_rcm_camera[:3, :3], twist)
+        qd = laws.joint_velocity(self.J_psm, local)
         rows = np.flatnonzero(ok)
         self.q_ref[np.ix_(rows, self.psm_act)] = ik.q[rows]
         self.qd_ref[np.ix_(rows, self.psm_act)] = qd[rows]
         # Jaw from gripper within the jaw rate (dvrk.md 4.2), sent when it changes.
         gripper = self.Q[:, self.gripper_q].sum(axis=1)
-        step = self.jaw_rate * self.dt
-        self.ghost = self.ghost + np.clip(gripper - self.ghost, -step, step)
-        jaw = np.clip(self.jaw_s * self.ghost + self.jaw_o, self.jaw_spec.qmin, self.jaw_spec.qmax)
+        rate, rate_after_clutch = self.jaw_rates
+        self.ghost, self.jaw_catching_up, jaw = tm.follow_jaw(
+            self.ghost,
+            gripper,
+            self.jaw_catching_up,
+            rate=rate,
+            rate_after_clutch=rate_after_clutch,
+            dt=self.dt,
+            jaw_scale=self.jaw_s,
+            jaw_offset=self.jaw_o,
+            jaw_min=self.jaw_spec.qmin,
+            jaw_max=self.jaw_spec.qmax,
+        )
         changed = jaw != self.jaw_sent
         if np.any(changed):
             self.jaw_sent = np.where(changed, jaw, self.jaw_sent)
             rows = np.flatnonzero(changed)
-            self.q_ref[np.ix_(rows, self.jaw_act)] = 0.5 * jaw[rows, None]
+            self.q_ref[np.ix_(rows, self.jaw_act)] = finger_setpoints(jaw[rows, None])
             self.qd_ref[np.ix_(rows, self.jaw_act)] = 0.0
 
     def _tracking(self) -> None:
-        """The PSM's tracking-error watch (Arm._check_tracking): a fault ends the trial."""
-        err = np.abs(self.Q[:, self.psm_q] - self.q_ref[:, self.psm_act])
-        bad = np.any(err > self.psm_tol, axis=1)
-        self._bad_since = np.where(bad, np.fmin(self._bad_since, self.time), np.nan)
-        fault = bad & (self.time - self._bad_since >= TRACKING_FAULT_TIME) & self.active
+        """The PSM's tracking-error watch (the arm's): a fault ends the trial."""
+        bad = laws.tracking_bad(
+            self.Q[:, self.psm_q],
+            self.q_ref[:, self.psm_act],
+            self.psm_tol,
+            self.effort_mode[self.psm_act],
+        ).any(axis=1)
+        self._bad_since, fault = laws.tracking_fault(bad, self._bad_since, self.time)
+        fault &= self.active
         self.fault |= fault
         self.active &= ~fault
 
@@ -300,22 +315,13 @@ class TrialBatch:
         """The haptic loop on the new state: fixture force → safety clamp → MTM efforts."""
         p = self.T_psm[:, :3, 3]
         v = self.velocity.update(p)
-        R, t = self.T_task_camera[:3, :3], self.T_task_camera[:3, 3]
-        f_task = self.fixture.force(_rotate(R, p) + t, _rotate(R, v))
-        self.requested = _rotate(R.T, f_task)
+        self.requested = fixture_force_camera(self.fixture, self.T_task_camera, p, v)
         w = np.concatenate([self.requested, np.zeros((self.n, 3))], axis=1)
         self.wrench_sent = clamp_wrenches(w, self.wrench_sent, self.limits, self.dt)
         # spatial/servo_cf: the wrench in the MTM base orientation, Jᵀ·w, clamped to ftmax.
-        R_base = self.T_hrsv_mtmbase[:3, :3]
-        w_base = np.concatenate(
-            [
-                _rotate(R_base.T, self.wrench_sent[:, :3]),
-                _rotate(R_base.T, self.wrench_sent[:, 3:]),
-            ],
-            axis=1,
-        )
-        tau = np.sum(np.swapaxes(self.J_mtm, 1, 2) * w_base[:, None, :], axis=2)  # Jᵀ·w
-        self.tau_ff[:, self.mtm_act] = np.clip(tau, -self.mtm_ftmax, self.mtm_ftmax)
+        R_base_hrsv = self.T_hrsv_mtmbase[:3, :3].T
+        tau = laws.wrench_effort(self.J_mtm, R_base_hrsv, self.wrench_sent, self.mtm_ftmax)
+        self.tau_ff[:, self.mtm_act] = tau
 
     def _task(self) -> None:
         """The task on the new state: one :class:`~davinci_sim.tasks.Sample` of every trial
@@ -349,17 +355,22 @@ class TrialBatch:
             self._servo.kv,
         )
         body = self._body
-        Q, V, bias, xipos = self.Q, self.V, self.bias, self.xipos
-        servo_bias = self._servo.bias
-        for i in np.flatnonzero(self.active).tolist():
+        Q, V, xipos = self.Q, self.V, self.xipos
+        # MuJoCo's bias forces, whole rows (one copy each per trial, the servo's law below
+        # once for the batch)
+        qfrc_bias, qfrc_gravcomp = self._qfrc
+        active = np.flatnonzero(self.active)
+        for i in active.tolist():
             d = self.datas[i]
             d.ctrl[:] = ctrl[i]
             d.xfrc_applied[body] = xfrc[i]
             mujoco.mj_step(self.models[i], d)
             Q[i] = d.qpos
             V[i] = d.qvel
-            bias[i] = servo_bias(d)
+            qfrc_bias[i] = d.qfrc_bias
+            qfrc_gravcomp[i] = d.qfrc_gravcomp
             xipos[i] = d.xipos[body]
+        self.bias[active] = self._servo.bias_of(qfrc_bias[active], qfrc_gravcomp[active])
         self.ticks += self.active
         self.time += self.dt
         self._kinematics()
@@ -402,22 +413,7 @@ class TrialBatch:
     """Wall time of building the batch, s (set by :func:`run_batch`)."""
 
 
-def _rotate(R: np.ndarray, v: np.ndarray) -> np.ndarray:
-    """``R·v`` of each row of ``v`` (n, 3): elementwise, so that a row's result does not
-    depend on the batch's size (BLAS rounds a matrix product's rows differently with its
-    size; a trial must give the same result in any batch)."""
-    return v[:, 0:1] * R[:, 0] + v[:, 1:2] * R[:, 1] + v[:, 2:3] * R[:, 2]
-
-
-def _solve(J: np.ndarray, twist: np.ndarray) -> np.ndarray:
-    """Joint velocities (n, dof) giving ``twist`` (n, 6): a solve, least squares where
-    singular (the arm's ``_joint_velocity``)."""
-    try:
-        return np.linalg.solve(J, twist[..., None])[..., 0]
-    except np.linalg.LinAlgError:
-        return np.stack(
-            [np.linalg.lstsq(j, w, rcond=None)[0] for j, w in zip(J, twist, strict=True)]
-        )
+_rotate = rotate_rows  # the task glue's name for it
 
 
 def run_batch(specs: list[TrialSpec], on_done: Callable[[int], None] | None = None) -> list[dict]:

@@ -1,0 +1,59 @@
+"""Optional compilation of the 1 kHz laws with numba, with the plain Python function as the
+fallback. (In ``kinematics``, the lowest layer that compiles a law; any layer above may use it.)
+
+:func:`jit` compiles a function written in numba's subset of Python (scalar loops over
+arrays) the first time it is called, caching the machine code on disk (``cache=True``), so
+tests and processes do not pay the compile time twice. Without numba, with
+``DAVINCI_SIM_JIT=0`` in the environment, or if compiling fails (reported once as a
+warning), the same Python function runs: slower, same results. Compiled code follows
+IEEE arithmetic operation by operation (no ``fastmath``: no reassociation, no fused
+multiply-add), so both paths give the same bits (``tests/kinematics/test_fk_compiled.py``).
+"""
+
+from __future__ import annotations
+
+import functools
+import os
+import warnings
+
+try:  # numba is a dependency; the fallback keeps a broken or missing install working
+    import numba
+except Exception:  # pragma: no cover - depends on the installation
+    numba = None
+
+ENABLED = numba is not None and os.environ.get("DAVINCI_SIM_JIT", "1") != "0"
+"""Whether :func:`jit` compiles (numba importable and not switched off)."""
+
+
+def jit(fn):
+    """``fn`` compiled by numba on first call (``nopython``, cached), or ``fn`` itself.
+
+    The wrapper's ``py_func`` is the Python function (tests compare both paths).
+    """
+    if not ENABLED:
+        fn.py_func = fn
+        return fn
+    compiled = numba.njit(cache=True)(fn)
+    current = [None]
+
+    @functools.wraps(fn)
+    def call(*args):
+        f = current[0]
+        if f is not None:
+            return f(*args)
+        try:
+            out = compiled(*args)
+        except Exception as e:  # a failed compile: run the Python function from now on
+            warnings.warn(
+                f"numba could not compile {fn.__qualname__} ({type(e).__name__}: {e}); "
+                "running it as plain Python",
+                RuntimeWarning,
+                stacklevel=2,
+            )
+            current[0] = fn
+            return fn(*args)
+        current[0] = compiled
+        return out
+
+    call.py_func = fn
+    return call

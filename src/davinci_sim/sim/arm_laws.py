@@ -1,0 +1,131 @@
+"""The arm's laws of the 1 kHz tick, batch-capable: one implementation for the live arm and
+the study's batch engine.
+
+:class:`~davinci_sim.sim.arm.Arm` (and the snapshots of :mod:`davinci_sim.sim.handle`) call
+them with one arm (a batch of one); :class:`~davinci_sim.study.batch.TrialBatch` with one row
+per trial. Every function takes any leading batch axes and computes each row with the same
+elementwise arithmetic whatever the batch size (no BLAS products, whose rounding depends on
+the size), so a trial gives the same bits alone, in any batch, and on the live arm.
+
+(Beside ``arm.py`` rather than in it: that module is already over 500 lines.)
+
+Frames as in :mod:`davinci_sim.sim.arm`: ``T_ref_base`` is the arm's base frame in its
+reference (PSM: camera, MTM: HRSV), ``T_base_tip`` the forward kinematics in the chain base.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from davinci_sim.geometry.so3 import rotate_pairs
+from davinci_sim.kinematics import fk
+from davinci_sim.kinematics.chain import DHChain
+
+try:  # the gufunc behind np.linalg.solve (see _solve)
+    from numpy.linalg import _umath_linalg
+
+    _gesv = _umath_linalg.solve
+except (ImportError, AttributeError):  # pragma: no cover - depends on numpy's internals
+    _gesv = None
+
+#: A joint whose position stays further than this from its setpoint (rad, m) for
+#: ``TRACKING_FAULT_TIME`` s puts the arm in FAULT, as a PID tracking error does on the dVRK.
+TRACKING_FAULT_TOLERANCE = {"revolute": 0.35, "prismatic": 0.03}
+TRACKING_FAULT_TIME = 0.05
+#: Joint limits are checked with this slack (rad, m): a solver's answer on a limit passes.
+LIMIT_SLACK = 1e-9
+#: Joint velocities beyond this (rad/s, m/s) from a square solve mean a singular Jacobian.
+_SINGULAR_QD = 1e6
+
+
+def tip_kinematics(chain: DHChain, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``(T_base_tip, J_spatial)`` of joints ``q`` (..., dof): pose (..., 4, 4), m, and the
+    spatial Jacobian (..., 6, dof) in the chain base (``measured_cp``/``measured_cv``)."""
+    return fk.forward_kinematics_and_jacobian(chain, q)
+
+
+def tip_pose(chain: DHChain, q: np.ndarray) -> np.ndarray:
+    """``T_base_tip`` (..., 4, 4), m, of joints ``q`` (..., dof) (``setpoint_cp``)."""
+    return fk.forward_kinematics(chain, q)
+
+
+def pose_in_reference(T_ref_base: np.ndarray, T_base_tip: np.ndarray) -> np.ndarray:
+    """``measured_cp``/``setpoint_cp``: the tip in the base frame's reference, (..., 4, 4)."""
+    return T_ref_base @ T_base_tip
+
+
+def twist_in_reference(R_ref_base: np.ndarray, J: np.ndarray, qd: np.ndarray) -> np.ndarray:
+    """``measured_cv``: ``J·q̇`` (linear m/s, angular rad/s) rotated into the reference's
+    orientation; ``J`` (..., 6, dof) spatial in the chain base, ``qd`` (..., dof)."""
+    v = np.sum(J * qd[..., None, :], axis=-1)
+    return rotate_pairs(R_ref_base, v)
+
+
+def joint_velocity(J: np.ndarray, twist: np.ndarray) -> np.ndarray:
+    """Joint velocities (..., dof) giving ``twist`` (..., 6) in the Jacobian's frame
+    (``servo_cp``'s velocity feed-forward): a solve where ``J`` is square and regular, least
+    squares otherwise (each singular row on its own)."""
+    if J.shape[-1] != J.shape[-2]:
+        if J.ndim == 2:
+            return np.linalg.lstsq(J, twist, rcond=None)[0]
+        return np.stack([joint_velocity(j, w) for j, w in zip(J, twist, strict=True)])
+    qd = _solve(J, twist)
+    ok = np.isfinite(qd).all(axis=-1) & (np.abs(qd).max(axis=-1) < _SINGULAR_QD)
+    if J.ndim == 2:
+        return qd if ok else np.linalg.lstsq(J, twist, rcond=None)[0]
+    for i in np.flatnonzero(~ok):
+        qd[i] = np.linalg.lstsq(J[i], twist[i], rcond=None)[0]
+    return qd
+
+
+def _solve(J: np.ndarray, twist: np.ndarray) -> np.ndarray:
+    """``J⁻¹·twist`` by LAPACK's ``gesv``, nan where ``J`` is singular: the gufunc behind
+    ``np.linalg.solve`` (the same call, so the same bits), without its Python checks (4x the
+    solve's cost at 1 kHz) and without raising for a singular row of a batch."""
+    with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
+        if _gesv is None:  # pragma: no cover - numpy without the private module
+            try:
+                return np.linalg.solve(J, twist[..., None])[..., 0]
+            except np.linalg.LinAlgError:
+                return np.full(twist.shape, np.nan)
+        return _gesv(J, twist[..., None], signature="dd->d")[..., 0]
+
+
+def wrench_effort(
+    J: np.ndarray, R_base_wrench: np.ndarray, wrench: np.ndarray, ftmax: np.ndarray
+) -> np.ndarray:
+    """Joint efforts (..., dof) (N·m, N) rendering ``wrench`` (..., 6: force N then torque
+    N·m at the tip, in axes ``R_base_wrench`` (3, 3) gives in the chain base): ``Jᵀ·w``
+    with the spatial Jacobian, clamped to the joints' ``ftmax`` (``body``/``spatial``
+    ``servo_cf``)."""
+    w_base = rotate_pairs(R_base_wrench, wrench)
+    tau = np.sum(np.swapaxes(J, -1, -2) * w_base[..., None, :], axis=-1)
+    return np.minimum(np.maximum(tau, -ftmax), ftmax)
+
+
+def tracking_bad(
+    q: np.ndarray, q_ref: np.ndarray, tolerance: np.ndarray, effort_mode: np.ndarray
+) -> np.ndarray:
+    """Per joint (..., dof): position-servoed and further from its setpoint than the
+    tracking tolerance."""
+    return (np.abs(q - q_ref) > tolerance) & ~effort_mode
+
+
+def tracking_fault(bad, bad_since, t: float):
+    """One tick of the tracking watch: ``bad`` (...) any joint of the arm is bad now;
+    ``bad_since`` (...) when it became bad, s (nan: it is not). Returns the new
+    ``(bad_since, fault)``: FAULT once bad for ``TRACKING_FAULT_TIME`` s."""
+    if isinstance(bad, bool | np.bool_):  # one arm: the same rule on floats, faster
+        if not bad:
+            return math.nan, False
+        since = t if math.isnan(bad_since) else min(bad_since, t)
+        return since, t - since >= TRACKING_FAULT_TIME
+    since = np.where(bad, np.fmin(bad_since, t), np.nan)
+    return since, bad & (t - since >= TRACKING_FAULT_TIME)
+
+
+def within_limits(q: np.ndarray, qmin: np.ndarray, qmax: np.ndarray) -> np.ndarray:
+    """(...) all joints of ``q`` (..., dof) within [qmin, qmax] (with ``LIMIT_SLACK``)."""
+    return np.all((q >= qmin - LIMIT_SLACK) & (q <= qmax + LIMIT_SLACK), axis=-1)

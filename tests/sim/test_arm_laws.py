@@ -1,0 +1,168 @@
+"""The tick's laws shared by the live objects and the study's batch engine
+(:mod:`davinci_sim.sim.arm_laws`, ``devices.hand.handle_xfrc``,
+``haptics.fixture.fixture_force_camera``): right against independent formulas, and each
+row of a batch the same bits as that row alone (a trial must not depend on its batch, and
+the live arm is a batch of one)."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from davinci_sim.devices.hand import handle_xfrc
+from davinci_sim.geometry import so3
+from davinci_sim.geometry.path import Polyline
+from davinci_sim.haptics.fixture import fixture_force_camera
+from davinci_sim.haptics.viscous import ViscousGuidance
+from davinci_sim.kinematics.arms import load_arm
+from davinci_sim.sim import arm_laws as laws
+
+
+def _rotation(rng) -> np.ndarray:
+    return so3.rotation_from_vector(rng.uniform(-2, 2, 3))
+
+
+def _transform(rng) -> np.ndarray:
+    T = np.eye(4)
+    T[:3, :3], T[:3, 3] = _rotation(rng), rng.normal(scale=0.1, size=3)
+    return T
+
+
+@pytest.fixture
+def psm_batch():
+    rng = np.random.default_rng(4)
+    chain = load_arm("PSM1").chain
+    q = rng.uniform(chain.qmin, chain.qmax, (9, chain.dof))
+    q[:, 2] = rng.uniform(0.08, 0.2, 9)  # inserted
+    return rng, chain, q
+
+
+def _rows_alone(fn, *batched):
+    return np.stack([fn(*(b[i] for b in batched)) for i in range(len(batched[0]))])
+
+
+def test_pose_and_twist_in_reference(psm_batch):
+    rng, chain, q = psm_batch
+    qd = rng.normal(size=q.shape)
+    T_ref_base = _transform(rng)
+    T, J = laws.tip_kinematics(chain, q)
+    np.testing.assert_allclose(laws.tip_pose(chain, q), T, atol=1e-15)
+    # one configuration (the live arm's measured_cp and setpoint_cp): the same bits
+    np.testing.assert_array_equal(laws.tip_pose(chain, q[0]), laws.tip_kinematics(chain, q[0])[0])
+    P = laws.pose_in_reference(T_ref_base, T)
+    np.testing.assert_allclose(P, np.einsum("ij,njk->nik", T_ref_base, T), atol=1e-15)
+    R = T_ref_base[:3, :3]
+    twist = laws.twist_in_reference(R, J, qd)
+    v = np.einsum("nij,nj->ni", J, qd)
+    np.testing.assert_allclose(twist[:, :3], v[:, :3] @ R.T, atol=1e-14)
+    np.testing.assert_allclose(twist[:, 3:], v[:, 3:] @ R.T, atol=1e-14)
+    # the tip's linear velocity is the derivative of its position (finite difference)
+    h = 1e-7
+    p1 = laws.pose_in_reference(T_ref_base, laws.tip_pose(chain, q + h * qd))[:, :3, 3]
+    np.testing.assert_allclose((p1 - P[:, :3, 3]) / h, twist[:, :3], atol=1e-6)
+    one = _rows_alone(lambda j, w: laws.twist_in_reference(R, j, w), J, qd)
+    np.testing.assert_array_equal(one, twist)
+
+
+def test_joint_velocity_solves_and_falls_back_to_least_squares_per_row(psm_batch):
+    rng, chain, q = psm_batch
+    _, J = laws.tip_kinematics(chain, q)
+    twist = rng.normal(size=(len(q), 6))
+    qd = laws.joint_velocity(J, twist)
+    np.testing.assert_allclose(np.einsum("nij,nj->ni", J, qd), twist, atol=1e-9)
+    np.testing.assert_array_equal(_rows_alone(laws.joint_velocity, J, twist), qd)
+    # One singular row (two equal columns): least squares for it, the others unchanged.
+    J_bad = J.copy()
+    J_bad[3, :, 5] = J_bad[3, :, 4]
+    qd_bad = laws.joint_velocity(J_bad, twist)
+    np.testing.assert_array_equal(np.delete(qd_bad, 3, 0), np.delete(qd, 3, 0))
+    want = np.linalg.lstsq(J_bad[3], twist[3], rcond=None)[0]
+    np.testing.assert_allclose(qd_bad[3], want, atol=1e-9)
+    assert np.isfinite(qd_bad).all()
+
+
+def test_wrench_effort_is_jacobian_transpose_times_the_wrench_clamped(psm_batch):
+    rng, chain, q = psm_batch
+    _, J = laws.tip_kinematics(chain, q)
+    R = _rotation(rng)
+    w = rng.normal(scale=2.0, size=(len(q), 6))
+    tau = laws.wrench_effort(J, R, w, chain.ftmax)
+    w_base = np.concatenate([w[:, :3] @ R.T, w[:, 3:] @ R.T], axis=1)
+    want = np.clip(np.einsum("nij,ni->nj", J, w_base), -chain.ftmax, chain.ftmax)
+    np.testing.assert_allclose(tau, want, atol=1e-12)
+    assert np.any(np.abs(tau) == chain.ftmax)  # some efforts were clamped
+    one = _rows_alone(lambda j, x: laws.wrench_effort(j, R, x, chain.ftmax), J, w)
+    np.testing.assert_array_equal(one, tau)
+
+
+def test_tracking_fault_after_the_fault_time_of_continuous_error():
+    tol = np.array([0.35, 0.35, 0.03])
+    effort = np.zeros(3, dtype=bool)
+    q_ref = np.zeros(3)
+    bad_q = np.array([0.0, 0.0, 0.05])
+    since, t = math.nan, 0.0
+    faults = []
+    for k in range(80):
+        t = k * 2.0**-10  # s (binary-exact ticks: no rounding at the threshold)
+        q = bad_q if 10 <= k < 75 else np.zeros(3)
+        bad = laws.tracking_bad(q, q_ref, tol, effort).any()
+        since, fault = laws.tracking_fault(bad, since, t)
+        faults.append(bool(fault))
+    first = faults.index(True)
+    assert first == 10 + math.ceil(laws.TRACKING_FAULT_TIME / 2.0**-10)
+    assert not any(faults[75:]) and math.isnan(since)  # cleared when back within tolerance
+    # a joint in effort mode is not watched
+    assert not laws.tracking_bad(bad_q, q_ref, tol, np.array([False, False, True])).any()
+    # one arm (floats) and a batch of one (arrays): the same rule
+    since1, since_a = math.nan, np.array([np.nan])
+    for k, b in enumerate([True] * 60 + [False, True]):
+        t = k * 2.0**-10
+        since1, f1 = laws.tracking_fault(np.bool_(b), since1, t)
+        since_a, f_a = laws.tracking_fault(np.array([b]), since_a, t)
+        assert bool(f1) == bool(f_a[0]) and np.array_equal([since1], since_a, equal_nan=True)
+    # a batch: rows independent
+    S, F = laws.tracking_fault(np.array([True, True, False]), np.array([0.0, np.nan, 0.0]), 0.06)
+    assert F.tolist() == [True, False, False] and S[1] == 0.06 and math.isnan(S[2])
+
+
+def test_within_limits_has_the_slack_of_the_arm_checks():
+    qmin, qmax = np.array([-1.0, 0.0]), np.array([1.0, 0.2])
+    q = np.array([[1.0 + 5e-10, 0.1], [1.0 + 2e-9, 0.1], [0.0, -1e-3]])
+    assert laws.within_limits(q, qmin, qmax).tolist() == [True, False, False]
+
+
+def test_handle_xfrc_moves_the_tip_force_to_the_centre_of_mass():
+    rng = np.random.default_rng(2)
+    T_world_hrsv = _transform(rng)
+    R, p = T_world_hrsv[:3, :3], T_world_hrsv[:3, 3]
+    w = rng.normal(size=(5, 6))
+    tip = rng.normal(scale=0.1, size=(5, 3))
+    com = rng.normal(scale=0.1, size=(5, 3))
+    x = handle_xfrc(w, tip, R, p, com)
+    f = w[:, :3] @ R.T
+    lever = tip @ R.T + p - com
+    np.testing.assert_allclose(x[:, :3], f, atol=1e-14)
+    np.testing.assert_allclose(x[:, 3:], w[:, 3:] @ R.T + np.cross(lever, f), atol=1e-14)
+    one = _rows_alone(lambda a, b, c: handle_xfrc(a, b, R, p, c), w, tip, com)
+    np.testing.assert_array_equal(one, x)
+
+
+def test_fixture_force_camera_changes_frames_both_ways():
+    rng = np.random.default_rng(5)
+    path = Polyline(np.array([[0.0, 0.0, 0.0], [0.1, 0.0, 0.0], [0.1, 0.1, 0.0]]))
+    fixture = ViscousGuidance(path, B=40.0, G_max=5.0)
+    T_frame_camera = _transform(rng)
+    R, t = T_frame_camera[:3, :3], T_frame_camera[:3, 3]
+    # tips near the path, in the camera frame
+    p_frame = np.array([[0.05, 0.003, 0.0], [0.1, 0.05, -0.002], [0.02, -0.004, 0.001]])
+    p = (p_frame - t) @ R
+    v = rng.normal(scale=0.05, size=(3, 3))
+    f = fixture_force_camera(fixture, T_frame_camera, p, v)
+    want = fixture.force(p @ R.T + t, v @ R.T) @ R
+    np.testing.assert_allclose(f, want, atol=1e-12)
+    assert np.abs(f).max() > 0.1
+    np.testing.assert_array_equal(fixture_force_camera(fixture, None, p, v), fixture.force(p, v))
+    one = _rows_alone(lambda a, b: fixture_force_camera(fixture, T_frame_camera, a, b), p, v)
+    np.testing.assert_allclose(one, f, atol=0)
