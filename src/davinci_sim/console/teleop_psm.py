@@ -19,6 +19,10 @@ through SETTING_ARMS_STATE and ALIGNING_MTM again, re-anchoring the initial pose
 If the PSM or the MTM leaves ENABLED/homed, the teleoperation goes DISABLED with an error; if
 a networked MTM device goes stale (30 ms watchdog, dvrk.md 1.7), following stops with an
 error and the teleoperation waits in SETTING_ARMS_STATE for fresh input, then re-aligns.
+
+Size: over 500 lines because the state machine above is one class whose states share the
+anchors, the alignment and the clutch handling; its laws (following, jaw) are the
+batch-capable functions of :mod:`~davinci_sim.console.teleop_math`.
 """
 
 from __future__ import annotations

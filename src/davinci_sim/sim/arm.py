@@ -9,6 +9,11 @@ Frames (dvrk.md 1.1): ``local/measured_cp`` = FK(q) in the chain base (the RCM f
 ``measured_cp`` = base frame · local. The base frame comes from the setup joints (PSM: the
 RCM in the ECM tip/camera frame; ECM: in the cart), the console (MTM: in HRSV), or
 ``set_base_frame``.
+
+Size: over 500 lines because the arm is one class: the CRTK command set (operating state,
+joint and Cartesian servo/move, wrenches, kinematics services) reads and changes one
+operating state, one setpoint and one trajectory. The formulas the commands use are the
+batch-capable laws of :mod:`davinci_sim.sim.arm_laws`.
 """
 
 from __future__ import annotations
