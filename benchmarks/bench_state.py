@@ -15,13 +15,14 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 import davinci_sim  # noqa: E402, F401  (sets MUJOCO_GL)
 from common import summary, time_each, write  # noqa: E402
-from davinci_sim.console.setup import build_teleop_simulation  # noqa: E402
 from davinci_sim.study.trial import build_setup, setup_trial  # noqa: E402
+from davinci_sim.system import ConsoleDescription, SystemDescription, build_simulation  # noqa: E402
 from davinci_sim.tasks import load_task  # noqa: E402
 
 
 def main(n: int = 200) -> None:
-    sim = build_teleop_simulation("full", operator_present=True, teleop_enabled=True)
+    console = ConsoleDescription(operator_present=True, teleop_enabled=True)
+    sim = build_simulation(SystemDescription("full", console=console))
     sim.run_for(0.5)
     state = sim.get_state()
     figures = {"full_system_components": len(sim.components)}
