@@ -148,3 +148,36 @@ def test_the_readers_snapshot_is_the_loops_own():
         sent.arms["PSM1"].setpoint_js.position, reference.arms["PSM1"].setpoint_js.position
     )
     local.close()
+
+
+def test_a_state_taken_in_one_loop_process_resumes_bit_identically_in_another():
+    """A GUI's "restart" or a saved session: the state crosses the pipe (pickled, MjData
+    included) and a fresh loop process restored with it runs on exactly as the first did."""
+    first = ProcessSimulation(FACTORY, real_time=False, start_paused=True, stop_at_tick=401)
+    first.start()
+    try:
+        first.call_at(2, "console", "emulate_operator_present", [1])
+        first.call_at(2, "console", "teleop_enable", True)
+        first.call_at(30, "MTMR/device", "grasp")
+        first.call_at(60, "MTMR/device", "push", [0.0, 0.5, 0.0])
+        saved = first.call_at(300, "sim", "get_state")
+        q_first = first.call_at(400, "sim", "measured_qpos")
+        first.resume()
+        saved, q_first = saved.result(60), q_first.result(60)
+    finally:
+        first.stop()
+    assert saved.tick_count == 300
+
+    second = ProcessSimulation(FACTORY, real_time=False, start_paused=True, stop_at_tick=401)
+    second.start()
+    try:
+        restored = second.call_at(0, "sim", "set_state", saved)
+        q_second = second.call_at(400, "sim", "measured_qpos")
+        second.resume()
+        restored.result(60)
+        q_second = q_second.result(60)
+        snap = second.snapshot()
+    finally:
+        second.stop()
+    np.testing.assert_array_equal(q_second, q_first)
+    assert snap.extras["MTMR_PSM1"].following  # the console's state came along
