@@ -67,3 +67,23 @@ def test_limits_are_validated():
     assert WrenchLimits(max_force_rate=math.inf).max_force_rate == math.inf
     with pytest.raises(ValueError, match="dt"):
         clamp_wrench(np.zeros(6), np.zeros(6), LIMITS, 0.0)
+
+
+def test_the_compiled_clamp_is_the_python_law_bit_for_bit():
+    """The kernel of clamp_wrench/clamp_wrenches gives the same bits compiled (numba) and as
+    plain Python (the fallback), and a device alone gets the row it gets in a batch."""
+    from davinci_sim.devices.safety import _clamp_rows, clamp_wrenches
+
+    rng = np.random.default_rng(3)
+    w = rng.normal(scale=8.0, size=(64, 6))
+    prev = rng.normal(scale=2.0, size=(64, 6))
+    args = (LIMITS.max_force, LIMITS.max_torque, LIMITS.max_force_rate * 1e-3,
+            LIMITS.max_torque_rate * 1e-3)  # fmt: skip
+    compiled, python = np.empty_like(w), np.empty_like(w)
+    _clamp_rows(w, prev, *args, compiled)
+    _clamp_rows.py_func(w, prev, *args, python)
+    np.testing.assert_array_equal(compiled, python)
+    np.testing.assert_array_equal(clamp_wrenches(w, prev, LIMITS, 1e-3), compiled)
+    for i in (0, 17, 63):
+        alone, _ = clamp_wrench(w[i], prev[i], LIMITS, 1e-3)
+        np.testing.assert_array_equal(alone, compiled[i])

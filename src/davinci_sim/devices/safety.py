@@ -1,7 +1,10 @@
 """Safety limits on every wrench sent to an MTM: maximum force/torque and rate of change.
 
-:func:`clamp_wrench` is the pure law; :class:`WrenchLimiter` keeps the previous output so the
-rate limit can apply tick after tick. Wrenches are 6-vectors, force (N) then torque (N·m).
+:func:`clamp_wrenches` is the pure law, for a batch of devices (a study's trials) or one
+(:func:`clamp_wrench`, a batch of one: the same kernel, so a device gets the same bits alone
+or in a batch); :class:`WrenchLimiter` keeps the previous output so the rate limit can apply
+tick after tick. Wrenches are 6-vectors, force (N) then torque (N·m). The kernel is compiled
+with numba when it is available (:mod:`davinci_sim.kinematics.jit`).
 """
 
 from __future__ import annotations
@@ -10,6 +13,8 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
+
+from davinci_sim.kinematics.jit import jit
 
 
 @dataclass(frozen=True)
@@ -35,27 +40,14 @@ class WrenchLimits:
                 raise ValueError(f"WrenchLimits.{name} must be a number > 0, got {value!r}")
 
 
-def _limit_norm(v: list[float], limit: float) -> list[float]:
-    """``v`` scaled down to norm ``limit`` if longer (floats: this runs every tick)."""
-    n = math.sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2])
-    if n > limit:
-        k = limit / n
-        return [v[0] * k, v[1] * k, v[2] * k]
-    return v
-
-
-def _toward(prev: list[float], target: list[float], max_step: float) -> list[float]:
-    step = _limit_norm([target[0] - prev[0], target[1] - prev[1], target[2] - prev[2]], max_step)
-    return [prev[0] + step[0], prev[1] + step[1], prev[2] + step[2]]
-
-
 def clamp_wrench(wrench, previous, limits: WrenchLimits, dt: float) -> tuple[np.ndarray, bool]:
     """Clamp ``wrench`` to the magnitude limits, then limit its change from ``previous``.
 
     Both clamps keep the direction of what they shorten (the magnitude clamp scales the
     force/torque vector; the rate clamp moves from ``previous`` towards the target along a
     straight line), so a clamped wrench never points elsewhere than asked. Since
-    ``previous`` itself is within the limits, so is the result.
+    ``previous`` itself is within the limits, so is the result. One row of
+    :func:`clamp_wrenches`.
 
     Args:
         wrench: requested wrench (6,), N and N·m.
@@ -74,30 +66,57 @@ def clamp_wrench(wrench, previous, limits: WrenchLimits, dt: float) -> tuple[np.
         raise ValueError(f"wrench must be 6 finite numbers (N, N·m), got {wrench!r}")
     if not dt > 0:
         raise ValueError(f"dt must be > 0, got {dt!r}")
-    wl = w.tolist()
-    prev = np.asarray(previous, dtype=float).tolist()
-    force = _limit_norm(wl[:3], limits.max_force)
-    torque = _limit_norm(wl[3:], limits.max_torque)
-    force = _toward(prev[:3], force, limits.max_force_rate * dt)
-    torque = _toward(prev[3:], torque, limits.max_torque_rate * dt)
-    out = force + torque
-    clamped = max(abs(a - b) for a, b in zip(out, wl, strict=True)) > 1e-12
-    return np.array(out), clamped
+    prev = np.asarray(previous, dtype=float).reshape(1, 6)
+    out = clamp_wrenches(w.reshape(1, 6), prev, limits, dt)[0]
+    clamped = float(np.max(np.abs(out - w))) > 1e-12
+    return out, clamped
 
 
 def clamp_wrenches(wrench, previous, limits: WrenchLimits, dt: float) -> np.ndarray:
-    """:func:`clamp_wrench` for a batch ``(n, 6)`` of finite wrenches (a study's trials, one
-    device each): the same two clamps, row by row; returns the clamped ``(n, 6)``."""
-    w = np.asarray(wrench, dtype=float)
-    prev = np.asarray(previous, dtype=float)
+    """The clamps of :func:`clamp_wrench` for a batch ``(n, 6)`` of finite wrenches with
+    their ``previous`` ``(n, 6)`` (a study's trials, one device each); returns ``(n, 6)``."""
+    w = np.ascontiguousarray(wrench, dtype=float).reshape(-1, 6)
+    prev = np.ascontiguousarray(previous, dtype=float).reshape(-1, 6)
     out = np.empty_like(w)
-    for part, limit, rate in (
-        (slice(0, 3), limits.max_force, limits.max_force_rate),
-        (slice(3, 6), limits.max_torque, limits.max_torque_rate),
-    ):
-        target = limit_norms(w[:, part], limit)
-        out[:, part] = prev[:, part] + limit_norms(target - prev[:, part], rate * dt)
+    _clamp_rows(
+        w,
+        prev,
+        float(limits.max_force),
+        float(limits.max_torque),
+        float(limits.max_force_rate * dt),
+        float(limits.max_torque_rate * dt),
+        out,
+    )
     return out
+
+
+@jit
+def _clamp_rows(w, prev, max_force, max_torque, max_force_step, max_torque_step, out):
+    """Row by row, for the force (columns 0-2) then the torque (3-5): the target is the
+    request scaled down to its magnitude limit where longer; the output moves from ``prev``
+    towards it by at most the step (rate × dt). Elementwise: a row's bits do not depend on
+    the batch."""
+    for i in range(w.shape[0]):
+        for part in range(2):
+            j = 3 * part
+            limit = max_force if part == 0 else max_torque
+            step = max_force_step if part == 0 else max_torque_step
+            x, y, z = w[i, j], w[i, j + 1], w[i, j + 2]
+            # Squares summed as (x² + z²) + y²: the order numpy's einsum used when the study
+            # in docs/study was computed, so its rows stay bit-identical.
+            n = math.sqrt((x * x + z * z) + y * y)
+            if n > limit:
+                k = limit / n
+                x, y, z = x * k, y * k, z * k
+            px, py, pz = prev[i, j], prev[i, j + 1], prev[i, j + 2]
+            dx, dy, dz = x - px, y - py, z - pz
+            n = math.sqrt((dx * dx + dz * dz) + dy * dy)
+            if n > step:
+                k = step / n
+                dx, dy, dz = dx * k, dy * k, dz * k
+            out[i, j] = px + dx
+            out[i, j + 1] = py + dy
+            out[i, j + 2] = pz + dz
 
 
 def limit_norms(v: np.ndarray, limit: float) -> np.ndarray:
