@@ -1,7 +1,10 @@
 """Helpers of the bridge tests (imported by the tests and by conftest.py)."""
 
+import contextlib
 import json
+import threading
 import time
+from types import SimpleNamespace
 
 from websockets.sync.client import connect
 
@@ -69,3 +72,27 @@ def enable_and_home(handle, arm="PSM1", timeout=10.0):
         timeout,
     )
     assert ok, f"{arm} did not home"
+
+
+@contextlib.contextmanager
+def serving(options, timeout=30.0):
+    """``davinci-sim serve`` with ``options`` in a thread, as a user runs it. Yields its
+    ``url``, ``port`` and what ``serve`` returned once stopped (``result["done"]``); on exit
+    stops it and checks that ``serve`` returned."""
+    from davinci_sim.bridge.app import serve
+
+    ready, stop = {}, threading.Event()
+    thread = threading.Thread(
+        target=lambda: ready.update(done=serve(options, stop=stop, on_ready=ready.update))
+    )
+    thread.start()
+    server = SimpleNamespace(url=None, port=None, result=ready)
+    try:
+        assert wait_for(lambda: "url" in ready, timeout), "serve did not start"
+        server.url = ready["url"]
+        server.port = int(ready["url"].rsplit(":", 1)[1])
+        yield server
+    finally:
+        stop.set()
+        thread.join(30)
+    assert "done" in ready, "serve did not return"

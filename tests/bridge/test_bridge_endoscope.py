@@ -9,7 +9,7 @@ import signal
 import numpy as np
 import pytest
 import roslibpy
-from bridge_helpers import wait_for
+from bridge_helpers import serving, wait_for
 from PIL import Image
 
 from davinci_sim.bridge.dvrk_node import DvrkNode
@@ -145,25 +145,13 @@ def test_frames_from_a_rendering_runner(handle, make_server, make_ros):
 def test_serve_images_show_the_task_path(make_ros, runner):
     """issue 11: ``serve --task`` renders the scene the simulation has, path included, with
     either runner (the renderer builds its model from the system's description)."""
-    import threading
-
-    from davinci_sim.bridge.app import ServeOptions, serve
+    from davinci_sim.bridge.app import ServeOptions
     from davinci_sim.bridge.rosbridge.config import BridgeConfig
 
-    ready, stop = {}, threading.Event()
     options = ServeOptions(scene="psm1_ecm_mtmr", task="seed_path", runner=runner,
                            images="raw", bridge=BridgeConfig(port=0))  # fmt: skip
-    thread = threading.Thread(
-        target=lambda: ready.update(done=serve(options, stop=stop, on_ready=ready.update))
-    )
-    thread.start()
-    try:
-        assert wait_for(lambda: "url" in ready, 60)
-
-        class S:
-            port = int(ready["url"].rsplit(":", 1)[1])
-
-        ros = make_ros(S)
+    with serving(options, timeout=60) as server:
+        ros = make_ros(server)
         raw = []
         roslibpy.Topic(ros, "/jhu_daVinci/left/image_raw", "sensor_msgs/Image").subscribe(
             raw.append
@@ -173,7 +161,3 @@ def test_serve_images_show_the_task_path(make_ros, runner):
         rgb = rgb.astype(int)
         magenta = (rgb[..., 0] > 200) & (rgb[..., 1] < 120) & (rgb[..., 2] > 180)
         assert magenta.sum() > 20  # the path, in the task's colour
-    finally:
-        stop.set()
-        thread.join(30)
-    assert "done" in ready

@@ -4,15 +4,14 @@ import json
 import socket
 import subprocess
 import sys
-import threading
 from pathlib import Path
 
 import pytest
 import roslibpy
-from bridge_helpers import wait_for
+from bridge_helpers import serving, wait_for
 
 from davinci_sim import cli
-from davinci_sim.bridge.app import ServeOptions, serve
+from davinci_sim.bridge.app import ServeOptions
 from davinci_sim.bridge.rosbridge.config import BridgeConfig
 
 EXAMPLE = Path(__file__).resolve().parents[2] / "examples" / "dvrk_psm_rosbridge.py"
@@ -43,8 +42,6 @@ def free_port():
 
 
 def test_serve_runs_server_udp_and_stops(make_ros):
-    stop = threading.Event()
-    ready = {}
     udp_port = free_port()
     listener = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
     listener.bind(("127.0.0.1", udp_port))
@@ -52,35 +49,22 @@ def test_serve_runs_server_udp_and_stops(make_ros):
     options = ServeOptions(scene="psm1", images="none", home=True, udp=True,
                            udp_ports={"PSM1": udp_port, "ECM": free_port()},
                            bridge=BridgeConfig(port=0, ros_version=1))  # fmt: skip
-    thread = threading.Thread(
-        target=lambda: ready.update(done=serve(options, stop=stop, on_ready=ready.update))
-    )
-    thread.start()
     try:
-        assert wait_for(lambda: "url" in ready, 20)
-        port = int(ready["url"].rsplit(":", 1)[1])
-
-        class S:
-            pass
-
-        s = S()
-        s.port = port
-        ros = make_ros(s)
-        states = []
-        roslibpy.Topic(ros, "/PSM1/operating_state", "crtk_msgs/OperatingState").subscribe(
-            states.append
-        )
-        assert wait_for(lambda: states and states[-1]["is_homed"], 10)  # --home
-        data, _ = listener.recvfrom(65536)
-        assert len(json.loads(data)) == 1
+        with serving(options, timeout=20) as server:
+            ros = make_ros(server)
+            states = []
+            roslibpy.Topic(ros, "/PSM1/operating_state", "crtk_msgs/OperatingState").subscribe(
+                states.append
+            )
+            assert wait_for(lambda: states and states[-1]["is_homed"], 10)  # --home
+            data, _ = listener.recvfrom(65536)
+            assert len(json.loads(data)) == 1
     finally:
-        stop.set()
-        thread.join(20)
         listener.close()
-    assert ready["done"]["sim_over_wall"] > 0  # the loop ran (its rate: benchmarks/)
+    assert server.result["done"]["sim_over_wall"] > 0  # the loop ran (its rate: benchmarks/)
     with socket.socket() as sock:  # the port is free again
         sock.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
-        sock.bind(("127.0.0.1", port))
+        sock.bind(("127.0.0.1", server.port))
 
 
 def test_cli_serve_with_duration(capsys):

@@ -3,15 +3,14 @@
 from __future__ import annotations
 
 import json
-import threading
 from pathlib import Path
 
 import pytest
 import roslibpy
-from bridge_helpers import wait_for
+from bridge_helpers import serving, wait_for
 
 from davinci_sim import cli
-from davinci_sim.bridge.app import ServeOptions, serve, task_condition
+from davinci_sim.bridge.app import ServeOptions, task_condition
 from davinci_sim.bridge.rosbridge.config import BridgeConfig
 from davinci_sim.tasks import load_task
 
@@ -20,20 +19,10 @@ SHORT_TASK = str(Path(__file__).resolve().parents[1] / "study" / "short_path.yam
 
 @pytest.mark.parametrize("runner", ["thread", "process"])
 def test_serve_with_a_task_publishes_its_state_and_takes_reset(make_ros, runner):
-    ready, stop = {}, threading.Event()
     options = ServeOptions(scene="psm1_ecm_mtmr", images="none", task=SHORT_TASK, runner=runner,
                            condition="20:2", bridge=BridgeConfig(port=0))  # fmt: skip
-    thread = threading.Thread(
-        target=lambda: ready.update(done=serve(options, stop=stop, on_ready=ready.update))
-    )
-    thread.start()
-    try:
-        assert wait_for(lambda: "url" in ready, 30)
-
-        class S:
-            port = int(ready["url"].rsplit(":", 1)[1])
-
-        ros = make_ros(S)
+    with serving(options) as server:
+        ros = make_ros(server)
         states = []
         roslibpy.Topic(ros, "/task/state", "std_msgs/String").subscribe(
             lambda m: states.append(json.loads(m["data"]))
@@ -47,10 +36,6 @@ def test_serve_with_a_task_publishes_its_state_and_takes_reset(make_ros, runner)
         assert {"/task/state", "/task/results", "/task/reset"} <= set(topics)
         # The console was installed with the task, with its teleoperation.
         assert "/MTMR_PSM1/current_state" in topics
-    finally:
-        stop.set()
-        thread.join(30)
-    assert "done" in ready
 
 
 def test_task_conditions_by_name_or_b_and_g():
@@ -74,25 +59,16 @@ def test_training_dashboard_example_follows_a_session(make_ros):
     import sys
 
     example = Path(__file__).resolve().parents[2] / "examples" / "training_dashboard.py"
-    ready, stop = {}, threading.Event()
     options = ServeOptions(scene="psm1_ecm_mtmr", images="none", task=SHORT_TASK,
                            bridge=BridgeConfig(port=0))  # fmt: skip
-    thread = threading.Thread(
-        target=lambda: ready.update(done=serve(options, stop=stop, on_ready=ready.update))
-    )
-    thread.start()
-    try:
-        assert wait_for(lambda: "url" in ready, 30)
-        port = ready["url"].rsplit(":", 1)[1]
+    with serving(options) as server:
         result = subprocess.run(
-            [sys.executable, str(example), "--port", port, "--duration", "1.5", "--reset"],
+            [sys.executable, str(example), "--port", str(server.port), "--duration", "1.5",
+             "--reset"],
             capture_output=True,
             text=True,
             timeout=60,
-        )
-    finally:
-        stop.set()
-        thread.join(30)
+        )  # fmt: skip
     assert result.returncode == 0, result.stdout + result.stderr
     lines = result.stdout.splitlines()
     assert "reset sent" in lines
