@@ -77,7 +77,8 @@ class Arm(ServoJoints):
         self._body_cf_absolute = False
         self._T_user_base: tuple[np.ndarray, str] | None = None
         self._tol = np.array([TRACKING_FAULT_TOLERANCE[j.joint_type] for j in self.chain.joints])
-        self._tracking_bad_since: float | None = None
+        self._tracking_bad_since = math.nan
+        """When a joint went out of tracking tolerance, s (nan: none is)."""
         self._trajectory_ratio = 1.0
         self._refusals: dict[str, tuple[float, int]] = {}
         self._kin_cache: list | None = None
@@ -223,7 +224,7 @@ class Arm(ServoJoints):
         servo.tau_ff[self._idx] = 0.0
         servo.q_ref[self._idx] = self._q()
         servo.qd_ref[self._idx] = 0.0
-        self._tracking_bad_since = None
+        self._tracking_bad_since = math.nan
 
     def _cancel_trajectory(self) -> None:
         was_busy = self._traj is not None
@@ -274,9 +275,9 @@ class Arm(ServoJoints):
         servo = self._sim.servo
         q, q_ref = self._q(), servo.q_ref[self._idx]
         bad = laws.tracking_bad(q, q_ref, self._tol, servo.effort_mode[self._idx])
-        since = self._tracking_bad_since
-        since, fault = laws.tracking_fault(bad.any(), math.nan if since is None else since, t)
-        self._tracking_bad_since = None if math.isnan(since) else float(since)
+        self._tracking_bad_since, fault = laws.tracking_fault(
+            bad.any(), self._tracking_bad_since, t
+        )
         if fault:
             i = int(np.flatnonzero(bad)[0])
             err = np.abs(q - q_ref)
