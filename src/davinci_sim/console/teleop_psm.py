@@ -100,8 +100,6 @@ class FollowingAnchors:
     """The gripper value the jaw follows now (moves towards the gripper at ``jaw_rate``)."""
     jaw_sent: float
     """The jaw angle last sent (nan: none yet)."""
-    jaw_rate: float
-    """rad/s of the jaw's catch-up now."""
     jaw_catching_up: bool = False
     """True while the jaw catches up with the gripper after a clutch (at
     ``config.jaw_rate_after_clutch``, until within ``JAW_CATCH_UP_TOLERANCE``)."""
@@ -249,7 +247,6 @@ class TeleopPSM(TeleopBase):
 
     def following_anchors(self) -> FollowingAnchors:
         """The anchors of the following law now (copies)."""
-        c = self.config
         return FollowingAnchors(
             self._T_camera_psm0.copy(),
             self._T_hrsv_mtm0.copy(),
@@ -261,7 +258,6 @@ class TeleopPSM(TeleopBase):
             self._jaw_o,
             self._ghost,
             self._jaw_sent,
-            c.jaw_rate_after_clutch if self._jaw_catching_up else c.jaw_rate,
             self._jaw_catching_up,
         )
 
