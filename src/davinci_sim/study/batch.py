@@ -329,7 +329,7 @@ class TrialBatch:
         through the state machine and the metrics (:func:`~davinci_sim.tasks.state.advance`,
         as the live trial's monitor); a trial ends when finished or timed out."""
         T = self.T_task_camera
-        tip = _rotate(T[:3, :3], self.T_psm[:, :3, 3]) + T[:3, 3]
+        tip = rotate_rows(T[:3, :3], self.T_psm[:, :3, 3]) + T[:3, 3]
         sample = Sample.of(self.time, tip, self.requested)
         # A trial that has ended keeps its state.
         self.state, _ = advance(self.task, self.state, self.metrics, sample, self.active)
@@ -411,9 +411,6 @@ class TrialBatch:
 
     setup_wall = 0.0
     """Wall time of building the batch, s (set by :func:`run_batch`)."""
-
-
-_rotate = rotate_rows  # the task glue's name for it
 
 
 def run_batch(specs: list[TrialSpec], on_done: Callable[[int], None] | None = None) -> list[dict]:
