@@ -192,7 +192,19 @@ def cmd_serve(args: argparse.Namespace) -> int:
     logging.basicConfig(level=logging.INFO if args.verbose else logging.WARNING,
                         format="%(asctime)s %(levelname)s %(name)s: %(message)s")  # fmt: skip
     token = args.token or os.environ.get("DAVINCI_SIM_TOKEN") or None
+    web = not args.no_web
+    runner = args.runner or ("process" if web else "thread")
+    console = args.console or args.task is not None
+    hands = ("MTML", "MTMR") if web and console and args.ros_connect is None else ()
+    parts = []
     try:
+        if web:
+            from davinci_sim.web.app import web_part
+            from davinci_sim.web.server import WebOptions
+
+            web_options = WebOptions(host=args.host, port=args.web_port, token=token,
+                                     frame_rate=args.image_rate)  # fmt: skip
+            parts.append(web_part(web_options, bedside=not args.no_bedside))
         options = ServeOptions(
             scene=args.scene,
             keyframe=args.keyframe,
@@ -221,7 +233,9 @@ def cmd_serve(args: argparse.Namespace) -> int:
             remote_ros_version=args.remote_ros_version,
             duration=args.duration,
             console=args.console,
-            runner=args.runner,
+            runner=runner,
+            hand_inputs=hands,
+            render_hz=args.image_rate if web else None,
             task=args.task,
             condition=args.condition,
             task_log=args.task_log,
@@ -245,9 +259,17 @@ def cmd_serve(args: argparse.Namespace) -> int:
             print(f"UDP {arm}: streaming to {ip}:{port}, commands to port {local}", flush=True)
         if "ros_connect" in info:
             print(f"client mode: connected to {info['ros_connect']}", flush=True)
+        if "web" in info:
+            print(f"web console: {info['web']}  <- open this in a browser", flush=True)
+        if "bedside" in info:
+            print(f"3-D view: {info['bedside']}", flush=True)
         print("ready (Ctrl-C to stop)", flush=True)
 
-    info = serve(options, stop=stop, on_ready=ready)
+    try:
+        info = serve(options, stop=stop, on_ready=ready, parts=parts)
+    except OSError as e:  # a port is taken (the rosbridge server's or the web console's)
+        print(f"davinci-sim serve: {e}; choose another port (--port, --web-port)", file=sys.stderr)
+        return 2
     print(f"stopped; simulation ran at {info.get('sim_over_wall', 0):.3f}x real time", flush=True)
     stats = info.get("period_statistics")
     if stats is not None:
@@ -421,11 +443,17 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--task-log", default=None, help="CSV file the repetitions are appended to")
     p.add_argument(
         "--runner",
-        default="thread",
+        default=None,
         choices=["thread", "process"],
-        help="the loop in a thread of this process, or in its own process",
+        help="the loop in a thread of this process, or in its own process (default: its own "
+        "process with the web console, else a thread)",
     )
     p.add_argument("--duration", type=float, default=None, help="stop after this many seconds")
+    p.add_argument(
+        "--web-port", type=int, default=8080, help="port of the web console (default 8080)"
+    )
+    p.add_argument("--no-web", action="store_true", help="no web console")
+    p.add_argument("--no-bedside", action="store_true", help="web console without the 3-D view")
     p.add_argument("-v", "--verbose", action="store_true")
     p.set_defaults(func=cmd_serve)
     p = sub.add_parser(

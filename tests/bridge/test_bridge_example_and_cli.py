@@ -69,7 +69,7 @@ def test_serve_runs_server_udp_and_stops(make_ros):
 
 def test_cli_serve_with_duration(capsys):
     code = cli.main(["serve", "--scene", "psm1", "--port", "0", "--images", "none",
-                     "--duration", "0.5"])  # fmt: skip
+                     "--no-web", "--duration", "0.5"])  # fmt: skip
     out = capsys.readouterr().out
     assert code == 0
     assert "rosbridge server: ws://127.0.0.1:" in out and "stopped" in out

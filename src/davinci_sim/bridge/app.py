@@ -14,9 +14,9 @@ from __future__ import annotations
 import logging
 import threading
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
-from typing import Literal
+from typing import Any, Literal
 
 from davinci_sim.bridge.rosbridge.config import BridgeConfig
 from davinci_sim.system.description import task_condition  # noqa: F401 (the CLI's check)
@@ -54,6 +54,12 @@ class ServeOptions:
     client mode when ``ros_connect`` is set, else the simulated MTMs)."""
     runner: Literal["thread", "process"] = "thread"
     """Loop in a thread of this process, or in its own process (issue 3's runner)."""
+    hand_inputs: tuple[str, ...] = ()
+    """MTMs whose simulated hand a rate input steers (the web console's keyboard and
+    gamepad; :class:`~davinci_sim.devices.hand_input.HandInput`)."""
+    render_hz: float | None = None
+    """The runner renders the stereo endoscope at this rate (one render process for every
+    viewer: the image topics and the web console); None: the image topics start their own."""
     task: str | None = None
     """A training task (name or file) to do at the console: its path drawn in the scene,
     its fixture in the haptic loop, its repetitions measured (implies ``console``)."""
@@ -82,7 +88,8 @@ def serve_description(options: ServeOptions):
         if options.ros_connect is not None:
             arms = scene_arms(options.scene)
             devices = {m: DeviceDescription("network") for m in ("MTML", "MTMR") if m in arms}
-        console = ConsoleDescription(devices=devices)
+        hands = tuple(m for m in options.hand_inputs if m not in devices)
+        console = ConsoleDescription(devices=devices, hand_inputs=hands)
     task = None
     if options.task is not None:
         task = TaskDescription(options.task, condition=options.condition, log=options.task_log)
@@ -98,7 +105,8 @@ def serve_description(options: ServeOptions):
         # Snapshots cost ~0.2 ms of the loop for the full system with the console: take them
         # at the publish rate, not every tick, so the 1 kHz loop keeps its margin.
         snapshot_period=1.0 / max(options.rate, 1.0),
-        publish_qpos=options.images != "none",
+        publish_qpos=options.images != "none" or options.render_hz is not None,
+        render_hz=options.render_hz,
     )
 
 
@@ -107,11 +115,15 @@ def serve(
     *,
     stop: threading.Event | None = None,
     on_ready: Callable[[dict], None] | None = None,
+    parts: Sequence[Callable[[Any, dict], Any]] = (),
 ) -> dict:
     """Run until ``stop`` is set or ``options.duration`` passes; returns final statistics.
 
     ``on_ready(info)`` is called once everything listens, with the server URL, the UDP
-    ports and the client-mode URL.
+    ports and the client-mode URL. ``parts`` start more servers on the same system (the
+    web console): each is called with the running :class:`~davinci_sim.system.System` and
+    the ``info`` dict (to add its URLs), returns a started object with ``stop()``, and is
+    stopped with the rest.
     """
     from davinci_sim.bridge.client_mode import ClientModeConfig, RosClientMode
     from davinci_sim.bridge.console_node import ConsoleNode
@@ -144,7 +156,7 @@ def serve(
             if options.images != "none":
                 nodes.append(EndoscopeNode(handle, options.scene, rate=options.image_rate,
                                            encoding=options.images, rig=options.rig,
-                                           handle_frames=False,
+                                           handle_frames=options.render_hz is not None,
                                            model=system.model_source))  # fmt: skip
             server = RosbridgeServer(options.bridge, nodes=nodes).start()
             started.append(server)
@@ -171,6 +183,8 @@ def serve(
             ).start()
             started.append(client)
             info["ros_connect"] = options.ros_connect
+        for make in parts:
+            started.append(make(system, info))
         if on_ready is not None:
             on_ready(info)
         end = None if options.duration is None else time.monotonic() + options.duration

@@ -134,6 +134,14 @@ def install_console_of(sim: Simulation, description: SystemDescription) -> Conso
     )
     if c.scripted_hands:
         add_scripted_hands(sim, console)
+    for mtm in c.hand_inputs:
+        from davinci_sim.devices.hand_input import HandInput
+        from davinci_sim.devices.simulated import SimulatedMTM
+
+        device = sim.components.get(f"{mtm}/device")
+        if not isinstance(device, SimulatedMTM):
+            raise ValueError(f"a hand input needs {mtm} as a simulated MTM, got {device!r}")
+        sim.add_component(HandInput(device), before=device.name)
     return console
 
 
@@ -147,7 +155,14 @@ def install(sim: Simulation, description: SystemDescription, task: Task | None =
         if task is None:
             task = load_description_task(description)
         t = description.task
-        install_task(sim, task, condition=task_condition(task, t.condition), log=t.log)
+        session = install_task(sim, task, condition=task_condition(task, t.condition), log=t.log)
+        mtm = task.teleop.mtm
+        if mtm in description.console_description.hand_inputs:
+            from davinci_sim.operators.live import SyntheticOperator
+
+            device = sim.components[f"{mtm}/device"]
+            operator = SyntheticOperator(session, device, seed=description.seed)
+            sim.add_component(operator, before=device.name)
     if description.publish_qpos:
         from davinci_sim.sim.runtime.render import QposProbe
 

@@ -70,6 +70,9 @@ class ConsoleDescription:
     teleop_enabled: bool = False
     scripted_hands: bool = False
     """The simulated hands draw circles once their teleoperation follows (demos, benchmarks)."""
+    hand_inputs: tuple[str, ...] = ()
+    """MTMs whose simulated hand a rate input steers (keyboard, gamepad: the web console),
+    through a :class:`~davinci_sim.devices.hand_input.HandInput` component ``<MTM>/hand``."""
 
     @property
     def teleop_config(self) -> TeleopPSMConfig:

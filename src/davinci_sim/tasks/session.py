@@ -93,8 +93,6 @@ class TaskSession:
         log: str | Path | None = None,
         name: str = "task",
     ) -> None:
-        from davinci_sim.haptics.fixture import FixtureField
-
         key = f"{task.teleop.mtm}_{task.teleop.psm}"
         teleop = console.psm_teleops.get(key)
         if teleop is None:
@@ -105,14 +103,9 @@ class TaskSession:
         self.sim, self.console, self.task, self.teleop = sim, console, task, teleop
         self.name = name
         self.channels = Channels(name)
-        spec = condition if isinstance(condition, dict) else None
-        if isinstance(condition, str):
-            spec = task.condition(condition)
-        self.condition = _condition_label(spec if spec is not None else task.fixture_spec)
-        fixture = task.fixture(spec)
-        self.field_name = console.haptics.add_field(
-            FixtureField(fixture, frame=task.frame), mtm=task.teleop.mtm, name=f"{name}/guidance"
-        )
+        self.field_name = f"{name}/guidance"
+        self.condition = ""
+        self._install_condition(condition)
         teleop.set_scale(task.teleop.scale)
         self.log = None if log is None else Path(log)
         self.monitor = TaskMonitor(task)
@@ -121,7 +114,42 @@ class TaskSession:
         self._distance = math.nan
         self._recorded = False
 
+    def _install_condition(self, condition: dict | str | None) -> None:
+        """Put ``condition``'s fixture in the haptic loop in place of the current one
+        (raises TaskError or KeyError for a condition the task does not have)."""
+        from davinci_sim.haptics.fixture import FixtureField
+
+        task = self.task
+        spec = condition if isinstance(condition, dict) else None
+        if isinstance(condition, str):
+            spec = task.condition(condition)
+        fixture = task.fixture(spec)  # checks the entry before anything changes
+        haptics = self.console.haptics
+        if self.field_name in haptics.field_names():
+            haptics.remove_field(self.field_name)
+        haptics.add_field(
+            FixtureField(fixture, frame=task.frame), mtm=task.teleop.mtm, name=self.field_name
+        )
+        self.condition = _condition_label(spec if spec is not None else task.fixture_spec)
+
     # ------------------------------------------------------------ commands
+    def set_condition(self, condition: dict | str | None) -> CommandResult:
+        """Change the condition now: a condition name of the task, a fixture entry
+        (``{"type": "viscous", "B": 40, "G_max": 5}``, ``{"type": "spring", ...}``,
+        ``{"type": "none"}``), or None for the task's own fixture. The current repetition
+        starts over (its rows would mix two conditions); a refused condition changes
+        nothing."""
+        from davinci_sim.tasks.base import TaskError
+
+        try:
+            self._install_condition(condition)
+        except (TaskError, KeyError, TypeError, ValueError) as e:
+            message = e.args[0] if isinstance(e, KeyError) and e.args else str(e)
+            return CommandResult(False, f"{self.name}: {message}")
+        self.reset()
+        self.channels.message("status", f"condition: {self.condition}", self.sim.time)
+        return ACCEPTED
+
     def reset(self) -> CommandResult:
         """Abandon the current repetition: back to IDLE (the tool at point 1 starts it)."""
         self.monitor.reset()
@@ -185,19 +213,18 @@ class TaskSession:
         )
 
     # ------------------------------------------------------------ state
+    _STATE = ("results", "repetition", "_distance", "_recorded", "condition")
+
     def get_state(self) -> dict:
-        """The monitor's state, the rows so far, the repetition number, the last distance and
-        whether this repetition's row is in. (The guidance field's filter is the haptic
-        loop's.)"""
-        return {
-            "monitor": self.monitor.get_state(),
-            **capture(self, ("results", "repetition", "_distance", "_recorded")),
-        }
+        """The monitor's state, the rows so far, the repetition number, the last distance,
+        whether this repetition's row is in and the condition's label. (The guidance field
+        and its filter are the haptic loop's.)"""
+        return {"monitor": self.monitor.get_state(), **capture(self, self._STATE)}
 
     def set_state(self, state: dict) -> None:
         state = dict(state)
         self.monitor.set_state(state.pop("monitor"))
-        restore(self, state, ("results", "repetition", "_distance", "_recorded"))
+        restore(self, state, self._STATE)
 
 
 def live_sample(task: Task, T_task_camera, teleop: TeleopPSM, console: Console, t: float) -> Sample:

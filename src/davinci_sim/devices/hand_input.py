@@ -1,0 +1,187 @@
+"""A person's hand on a simulated MTM, steered by a rate input: keyboard, gamepad, SpaceMouse.
+
+Someone without a dVRK console drives a :class:`~davinci_sim.devices.SimulatedMTM` with an
+input that gives velocities, not poses (keys held down, sticks, a 3-D mouse). :class:`HandInput`
+is the simulation component that turns such an input into the simulated hand's target:
+every tick, before the device reads the MTM, it moves the hand's target by ``v · dt`` (HRSV,
+m/s) and sets the gripper, and the hand's spring-damper pulls the MTM handle along
+(:mod:`davinci_sim.devices.hand`). The MTM answers with its own dynamics and the haptic
+loop's forces push back on the handle, so the tool follows the person's input through the
+same device → console → teleoperation path as a real MTM, and a guidance force is felt as
+the handle lagging the hand.
+
+Safety, as a dead-man switch: a velocity holds for ``timeout`` seconds of simulated time
+(a page that stops sending stops the hand); the target never leads the handle by more than
+``max_lead`` (a hand pushing against a fixture or a joint limit does not wind up a spring
+that would snap the tool away when released); the target stays within ``workspace`` of where
+the hand took the handle.
+
+HRSV axes (dvrk.md 4.2: the teleoperation maps HRSV motion to camera-frame motion of the
+tool, scaled): x to the left of the image, y up, z into the scene.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from davinci_sim.devices.simulated import SimulatedMTM
+from davinci_sim.sim.state import capture, restore
+from davinci_sim.sim.types import ACCEPTED, CommandResult
+
+#: The gripper's range, rad: closed … 60° open (dvrk.md 1.5).
+GRIPPER_RANGE = (0.0, math.radians(60.0))
+
+
+class HandInput:
+    """Steers ``device``'s hand with velocities; see the module docstring.
+
+    Args:
+        device: the simulated MTM.
+        max_speed: largest hand speed accepted, m/s.
+        timeout: a velocity command holds this long, s of simulated time.
+        max_lead: largest distance of the hand's target ahead of the handle, m.
+        workspace: largest distance of the target from where the hand took the handle, m.
+        name: component name (default ``"<MTM>/hand"``).
+    """
+
+    def __init__(
+        self,
+        device: SimulatedMTM,
+        *,
+        max_speed: float = 0.25,
+        timeout: float = 0.3,
+        max_lead: float = 0.01,
+        workspace: float = 0.15,
+        name: str | None = None,
+    ) -> None:
+        for label, value in (
+            ("max_speed", max_speed),
+            ("timeout", timeout),
+            ("max_lead", max_lead),
+            ("workspace", workspace),
+        ):
+            if not (math.isfinite(value) and value > 0):
+                raise ValueError(f"{label} must be > 0, got {value!r}")
+        self.device = device
+        self.max_speed = float(max_speed)
+        self.timeout = float(timeout)
+        self.max_lead = float(max_lead)
+        self.workspace = float(workspace)
+        self.name = name or f"{device.mtm}/hand"
+        self._holding = False
+        self._origin = np.zeros(3)
+        self._target = np.zeros(3)
+        self._v = np.zeros(3)
+        self._v_until = -math.inf
+        self._gripper: float | None = None
+        self._time = 0.0
+
+    # ------------------------------------------------------------ commands
+    def grasp(self) -> CommandResult:
+        """Take the handle where it is (the hand then holds it still until moved)."""
+        p = self._handle_position()
+        self._origin, self._target = p.copy(), p.copy()
+        self._v = np.zeros(3)
+        self._holding = True
+        self.device.grasp(p)
+        return ACCEPTED
+
+    def release(self) -> CommandResult:
+        """Let go of the handle (the MTM holds where it is)."""
+        if self._holding:
+            self.device.release()
+        self._holding = False
+        self._v = np.zeros(3)
+        return ACCEPTED
+
+    def command(self, velocity, gripper: float | None = None) -> CommandResult:
+        """Move the hand at ``velocity`` (3 floats, HRSV, m/s) for the next ``timeout``
+        seconds, and set the gripper to ``gripper`` rad if given.
+
+        The hand takes the handle first if it does not hold it. Refused, with nothing
+        changed, for a velocity that is not 3 finite numbers or is faster than
+        ``max_speed``, or for a gripper angle outside ``GRIPPER_RANGE``.
+        """
+        try:
+            v = np.asarray(velocity, dtype=float)
+        except (TypeError, ValueError):
+            return _refused(self.name, f"velocity must be 3 numbers (m/s), got {velocity!r}")
+        if v.shape != (3,) or not np.isfinite(v).all():
+            return _refused(self.name, f"velocity must be 3 finite numbers (m/s), got {velocity!r}")
+        speed = float(np.linalg.norm(v))
+        if speed > self.max_speed:
+            return _refused(self.name, f"speed {speed:.3f} m/s is over {self.max_speed} m/s")
+        if gripper is not None:
+            lo, hi = GRIPPER_RANGE
+            if (
+                isinstance(gripper, bool)
+                or not isinstance(gripper, (int, float))
+                or not (lo <= gripper <= hi)
+            ):
+                return _refused(
+                    self.name,
+                    f"gripper must be an angle in [{lo}, {hi:.3f}] rad, got {gripper!r}",
+                )
+        if not self._holding:
+            self.grasp()  # moving the input takes the handle
+        self._v = v
+        self._v_until = self._time + self.timeout
+        if gripper is not None:
+            self._gripper = float(gripper)
+        return ACCEPTED
+
+    def _handle_position(self) -> np.ndarray:
+        """The handle's position in HRSV, m (the device's last input, or the arm now)."""
+        read = self.device.input()
+        return (
+            read.position if read is not None else self.device.arm.measured_cp().position
+        ).copy()
+
+    @property
+    def holding(self) -> bool:
+        return self._holding
+
+    # ------------------------------------------------------------ component
+    def pre_step(self, t: float) -> None:
+        self._time = t
+        if not self._holding:
+            return
+        dt = self.device.sim.dt
+        if t < self._v_until:
+            handle = self._handle_position()
+            target = self._target + self._v * dt
+            lead = target - handle
+            d = float(np.linalg.norm(lead))
+            if d > self.max_lead:  # the handle is held back: the hand waits for it
+                target = handle + lead * (self.max_lead / d)
+            reach = target - self._origin
+            r = float(np.linalg.norm(reach))
+            if r > self.workspace:
+                target = self._origin + reach * (self.workspace / r)
+            self._target = target
+            self.device.move_hand(target)
+        if self._gripper is not None:
+            self.device.squeeze(self._gripper)
+            self._gripper = None
+
+    def snapshot(self) -> dict:
+        moving = self._time < self._v_until
+        return {
+            "holding": self._holding,
+            "velocity": tuple(float(x) for x in (self._v if moving else np.zeros(3))),
+            "target": tuple(float(x) for x in self._target),
+        }
+
+    _STATE = ("_holding", "_origin", "_target", "_v", "_v_until", "_gripper", "_time")
+
+    def get_state(self) -> dict:
+        return capture(self, self._STATE)
+
+    def set_state(self, state: dict) -> None:
+        restore(self, state, self._STATE)
+
+
+def _refused(name: str, message: str) -> CommandResult:
+    return CommandResult(False, f"{name}: {message}")

@@ -1,0 +1,97 @@
+"""The web console as a part of ``davinci-sim serve``: :func:`web_part`.
+
+``serve`` builds and runs the system (:func:`davinci_sim.bridge.app.serve`); this module
+adds the web console on the same system: the endoscope frames from the runner's render
+pipeline (``System.frames()``), the 3-D bedside view, and the :class:`~davinci_sim.web.
+server.WebConsole` page server, started in that order and stopped in reverse.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import logging
+from collections.abc import Callable
+from typing import Any
+
+from davinci_sim.web.server import WebConsole, WebOptions
+
+_log = logging.getLogger("davinci_sim.web")
+
+
+class WebPart:
+    """The started web console of a system (what :func:`web_part` returns to ``serve``)."""
+
+    def __init__(self, console: WebConsole, frames, bedside) -> None:
+        self.console = console
+        self.frames = frames
+        self.bedside = bedside
+
+    @property
+    def url(self) -> str:
+        return self.console.url
+
+    def stop(self) -> None:
+        for part in (self.console, self.bedside, self.frames):
+            if part is None:
+                continue
+            try:
+                part.stop()
+            except Exception:
+                _log.exception("stopping %r failed", part)
+
+
+def web_part(options: WebOptions, *, bedside: bool = True) -> Callable[[Any, dict], WebPart]:
+    """A ``serve`` part that starts the web console on the running system: the page at
+    ``options.host:options.port``, the 3-D view on the next free port if ``bedside``. Adds
+    ``info["web"]`` (the page's URL) and ``info["bedside"]`` (the 3-D view's)."""
+
+    def make(system, info: dict) -> WebPart:
+        from davinci_sim.model import resolve_scene
+        from davinci_sim.system.build import load_description_task
+
+        description = system.description
+        task = load_description_task(description)
+        console_description = description.console_description
+        hands = () if console_description is None else console_description.hand_inputs
+        frames = system.frames(options.frame_rate)
+        view = None
+        web_options = options
+        if bedside:
+            view = start_bedside(system, options)
+            if view is not None:
+                web_options = dataclasses.replace(options, bedside_port=view.port)
+                info["bedside"] = view.url
+        console = WebConsole(
+            system.handle,
+            web_options,
+            frames=frames,
+            task=task,
+            camera=resolve_scene(description.scene).endoscope,
+            hand_mtms=hands,
+        )
+        try:
+            console.start()
+        except BaseException:
+            for part in (view, frames):
+                if part is not None:
+                    part.stop()
+            raise
+        info["web"] = console.url
+        return WebPart(console, frames, view)
+
+    return make
+
+
+def start_bedside(system, options: WebOptions):
+    """The 3-D bedside view of ``system`` started on a free port next to the page's (None
+    if it cannot start: the console works without it)."""
+    try:
+        from davinci_sim.web.scene3d import BedsideView
+    except ImportError as e:
+        _log.warning("no 3-D view: %s", e)
+        return None
+    try:
+        return BedsideView(system.model_source, system.handle, host=options.host, port=0).start()
+    except Exception:
+        _log.exception("the 3-D view did not start; the console goes on without it")
+        return None

@@ -1,0 +1,657 @@
+"""The web console's server: the page, its websocket, the views streamed to it, its commands.
+
+:class:`WebConsole` serves the page (``web/static``) over HTTP and one websocket per page
+(``/ws``) from its own thread and asyncio loop; it never touches the simulation, only its
+:class:`~davinci_sim.sim.handle.SimHandle` (snapshots, calls), so the 1 kHz loop, in a
+thread or its own process, is never waited on. What it streams to every page:
+
+- the page's state (:func:`~davinci_sim.web.view.console_view`) at ``state_rate``;
+- the stereo endoscope as JPEG pairs, binary messages (:data:`FRAME_HEADER`, then the left
+  and right JPEG), from the one render pipeline (``System.frames()``), each pair encoded
+  once for all pages;
+- each finished repetition's row, tagged with the trainee's name (``rows``), also offered
+  as CSV at ``/results.csv``.
+
+A page sends the commands of :mod:`davinci_sim.web.protocol`; they are checked there before
+anything is called, and a refused one comes back as an ``error`` message to that page only.
+Any number of pages watch; one operates at a time (``control``): only the operator's
+commands act, and releasing control or closing the page lets the hand go. Every page sends
+as fast as the network takes it: a slow page gets the newest state and frame, not a
+backlog.
+
+Size: over 500 lines — the server is one concern (the page's connection: HTTP, socket,
+sessions, arbitration, streaming, command dispatch); split it when a second page type comes.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import csv
+import io
+import ipaddress
+import itertools
+import json
+import logging
+import math
+import struct
+import threading
+import time
+from dataclasses import dataclass, field
+from importlib import resources
+from typing import Any
+
+import numpy as np
+
+from davinci_sim.model.cameras import CameraConfig
+from davinci_sim.web.protocol import OPERATOR_OPS, Command, ProtocolError, parse_message
+from davinci_sim.web.view import console_view
+
+_log = logging.getLogger("davinci_sim.web")
+
+#: Binary frame message header: frame number (uint32), sim time (float64, s), length of the
+#: left JPEG (uint32); then the left and the right JPEG.
+FRAME_HEADER = struct.Struct("<IdI")
+
+_CONTENT_TYPES = {
+    ".html": "text/html; charset=utf-8",
+    ".js": "text/javascript; charset=utf-8",
+    ".css": "text/css; charset=utf-8",
+    ".svg": "image/svg+xml",
+}
+
+
+@dataclass(frozen=True)
+class WebOptions:
+    """How the web console serves."""
+
+    host: str = "127.0.0.1"
+    port: int = 8080
+    """TCP port of the page (0: any free port)."""
+    token: str | None = None
+    """Required in the page's ``hello`` when set; required when ``host`` is not loopback."""
+    state_rate: float = 30.0
+    """Page state messages per second."""
+    frame_rate: float = 30.0
+    """Endoscope frames per second sent (the renderer's rate caps it)."""
+    jpeg_quality: int = 80
+    hand_speed: float = 0.05
+    """Hand speed at full input (an axis at ±1), m/s in HRSV."""
+    bedside_port: int | None = None
+    """Port of the 3-D bedside view (viser) the page embeds; None: no 3-D view."""
+
+    def __post_init__(self) -> None:
+        for name in ("state_rate", "frame_rate", "hand_speed"):
+            v = getattr(self, name)
+            if not (math.isfinite(v) and v > 0):
+                raise ValueError(f"{name} must be > 0, got {v!r}")
+        if not (0 <= self.port <= 65535):
+            raise ValueError(f"port must be in 0..65535, got {self.port}")
+        if not (1 <= self.jpeg_quality <= 100):
+            raise ValueError(f"jpeg_quality must be in 1..100, got {self.jpeg_quality}")
+        if self.token is not None and not self.token:
+            raise ValueError("token must be a non-empty string or None")
+        if not is_loopback(self.host) and self.token is None:
+            raise ValueError(
+                f"serving the web console on {self.host} (not loopback) needs a token "
+                "(--token or $DAVINCI_SIM_TOKEN), the same as the rosbridge server's"
+            )
+
+
+def is_loopback(host: str) -> bool:
+    if host in ("localhost", ""):
+        return host == "localhost"
+    try:
+        return ipaddress.ip_address(host).is_loopback
+    except ValueError:
+        return False
+
+
+@dataclass(eq=False)
+class _Client:
+    """One connected page."""
+
+    id: int
+    ws: Any
+    authed: bool
+    latest: dict[str, Any] = field(default_factory=dict)
+    """Kind -> the newest message not yet sent (state, frame): a slow page skips, never
+    queues."""
+    queue: list = field(default_factory=list)
+    """Messages that must all arrive (errors, rows, control), in order."""
+    wake: asyncio.Event = field(default_factory=asyncio.Event)
+    sent_frames: int = 0
+    skipped_frames: int = 0
+
+
+class WebConsole:
+    """The web console of a running system; see the module docstring.
+
+    Args:
+        handle: the running simulation (``System.handle``).
+        options: where and how to serve.
+        frames: the endoscope's frames (``System.frames()``: ``latest()`` returns a
+            :class:`~davinci_sim.sim.runtime.render.StereoFrame` or None); None: no images.
+        task: the task at the console (its conditions and metrics for the page), or None.
+        camera: the endoscope's camera (image size, field of view, baseline).
+        hand_mtms: MTMs whose hand the page steers (``<MTM>/hand`` components).
+    """
+
+    def __init__(
+        self,
+        handle,
+        options: WebOptions | None = None,
+        *,
+        frames=None,
+        task=None,
+        camera: CameraConfig | None = None,
+        hand_mtms: tuple[str, ...] = (),
+    ) -> None:
+        self.handle = handle
+        self.options = options or WebOptions()
+        self.frames = frames
+        self.task = task
+        self.camera = camera or CameraConfig()
+        self.hand_mtms = tuple(hand_mtms)
+        self.rows: list[dict] = []
+        """Finished repetitions, each tagged with the trainee's name (``trainee``)."""
+        self.trainee = ""
+        self.operator: int | None = None
+        self.loop: asyncio.AbstractEventLoop | None = None
+        self._clients: dict[int, _Client] = {}
+        self._ids = itertools.count(1)
+        self._thread: threading.Thread | None = None
+        self._ready = threading.Event()
+        self._stop: asyncio.Event | None = None
+        self._error: BaseException | None = None
+        self._port: int | None = None
+        self._completed = 0
+        self._frame_number = 0
+        self._stats = {"frames_encoded": 0, "encode_time": 0.0, "states": 0}
+
+    # ------------------------------------------------------------ lifecycle
+    def start(self, timeout: float = 10.0) -> WebConsole:
+        """Bind and serve; returns when pages can connect.
+
+        Raises:
+            OSError: if the port cannot be bound (e.g. taken).
+        """
+        if self._thread is not None:
+            return self
+        self._ready.clear()
+        self._error = None
+        self._thread = threading.Thread(target=self._run, name="web-console", daemon=True)
+        self._thread.start()
+        if not self._ready.wait(timeout):
+            raise TimeoutError("the web console did not start in time")
+        if self._error is not None:
+            self._thread.join(timeout)
+            self._thread = None
+            raise self._error
+        return self
+
+    def stop(self, timeout: float = 10.0) -> None:
+        """Close every page's connection and free the port."""
+        thread = self._thread
+        if thread is None:
+            return
+        if self.loop is not None and self._stop is not None:
+            self.loop.call_soon_threadsafe(self._stop.set)
+        thread.join(timeout)
+        self._thread = None
+
+    def __enter__(self) -> WebConsole:
+        return self.start()
+
+    def __exit__(self, *exc) -> None:
+        self.stop()
+
+    @property
+    def port(self) -> int:
+        if self._port is None:
+            raise RuntimeError("the web console is not started")
+        return self._port
+
+    @property
+    def url(self) -> str:
+        host = self.options.host
+        shown = "127.0.0.1" if host in ("0.0.0.0", "", "::") else host
+        return f"http://{shown}:{self.port}/"
+
+    def statistics(self) -> dict:
+        """Pages connected, frames encoded and mean encode time (s), state messages sent."""
+        s = dict(self._stats)
+        s["pages"] = len(self._clients)
+        n = s["frames_encoded"]
+        s["encode_mean"] = s["encode_time"] / n if n else math.nan
+        return s
+
+    def results_csv(self) -> str:
+        """The finished repetitions as CSV text (header first; empty without rows)."""
+        if not self.rows:
+            return ""
+        columns = list(dict.fromkeys(k for row in self.rows for k in row))
+        out = io.StringIO()
+        writer = csv.DictWriter(out, fieldnames=columns)
+        writer.writeheader()
+        writer.writerows(self.rows)
+        return out.getvalue()
+
+    # ------------------------------------------------------------ the thread
+    def _run(self) -> None:
+        loop = asyncio.new_event_loop()
+        self.loop = loop
+        try:
+            loop.run_until_complete(self._main())
+        except BaseException as e:
+            if not self._ready.is_set():
+                self._error = e
+                self._ready.set()
+            else:
+                _log.exception("the web console stopped on an error")
+        finally:
+            try:
+                pending = asyncio.all_tasks(loop)
+                for t in pending:
+                    t.cancel()
+                if pending:
+                    loop.run_until_complete(asyncio.gather(*pending, return_exceptions=True))
+            finally:
+                loop.close()
+                self.loop = None
+
+    async def _main(self) -> None:
+        from websockets.asyncio.server import serve
+
+        self._stop = asyncio.Event()
+        async with serve(
+            self._handler,
+            self.options.host,
+            self.options.port,
+            process_request=self._http,
+            compression=None,
+            max_size=64 * 1024,
+            ping_interval=20,
+            close_timeout=2,
+        ) as server:
+            self._port = server.sockets[0].getsockname()[1]
+            tasks = [asyncio.create_task(self._state_loop())]
+            if self.frames is not None:
+                tasks.append(asyncio.create_task(self._frame_loop()))
+            self._ready.set()
+            try:
+                await self._stop.wait()
+            finally:
+                for t in tasks:
+                    t.cancel()
+                await asyncio.gather(*tasks, return_exceptions=True)
+                await self._release_operator()
+                server.close(close_connections=True)
+                await server.wait_closed()
+
+    # ------------------------------------------------------------ HTTP
+    def _http(self, connection, request):
+        from websockets.datastructures import Headers
+        from websockets.http11 import Response
+
+        path = request.path.split("?", 1)[0]
+        if path == "/ws":
+            return None  # the websocket handshake goes on
+        if path == "/results.csv":
+            body = self.results_csv().encode("utf-8")
+            headers = Headers(
+                [
+                    ("Content-Type", "text/csv; charset=utf-8"),
+                    ("Content-Disposition", 'attachment; filename="results.csv"'),
+                    ("Cache-Control", "no-store"),
+                ]
+            )
+            return Response(200, "OK", headers, body)
+        name = "index.html" if path in ("/", "/index.html") else path.lstrip("/")
+        body = _static(name)
+        if body is None:
+            return connection.respond(404, f"not found: {path}\n")
+        suffix = name[name.rfind(".") :]
+        headers = Headers(
+            [
+                ("Content-Type", _CONTENT_TYPES.get(suffix, "application/octet-stream")),
+                ("Cache-Control", "no-cache"),
+            ]
+        )
+        return Response(200, "OK", headers, body)
+
+    # ------------------------------------------------------------ a page
+    async def _handler(self, ws) -> None:
+        client = _Client(next(self._ids), ws, authed=self.options.token is None)
+        self._clients[client.id] = client
+        writer = asyncio.create_task(self._writer(client))
+        try:
+            self._push(client, self._hello(client))
+            async for message in ws:
+                await self._on_message(client, message)
+        except Exception as e:  # a broken connection ends this page only
+            if not _closed(e):
+                _log.exception("page %d: %s", client.id, e)
+        finally:
+            self._clients.pop(client.id, None)
+            writer.cancel()
+            await asyncio.gather(writer, return_exceptions=True)
+            if self.operator == client.id:
+                await self._release_operator()
+                self._broadcast_control()
+
+    def _hello(self, client: _Client) -> dict:
+        info: dict[str, Any] = {
+            "op": "hello",
+            "client": client.id,
+            "needs_token": not client.authed,
+            "camera": {"width": self.camera.width, "height": self.camera.height},
+            "hands": list(self.hand_mtms),
+            "hand_speed": self.options.hand_speed,
+            "bedside_port": self.options.bedside_port,
+            "operator": self.operator,
+            "trainee": self.trainee,
+        }
+        task = self.task
+        if task is not None:
+            info["task"] = {
+                "name": task.name,
+                "description": getattr(task, "description", ""),
+                "psm": task.teleop.psm,
+                "mtm": task.teleop.mtm,
+                "conditions": [dict(c) for c in task.conditions],
+                "fixture": dict(task.fixture_spec),
+                "fixture_types": sorted(task.FIXTURE_TYPES),
+                "metrics": [
+                    {"name": m.name, "unit": m.unit, "better": m.better, "label": m.label}
+                    for m in task.METRICS
+                ],
+            }
+        return info
+
+    def _push(self, client: _Client, message: dict) -> None:
+        client.queue.append(_dumps(message))
+        client.wake.set()
+
+    def _broadcast(self, message: dict, *, latest: str | None = None) -> None:
+        text = _dumps(message)
+        for client in list(self._clients.values()):
+            if not client.authed:
+                continue
+            if latest is None:
+                client.queue.append(text)
+            else:
+                client.latest[latest] = text
+            client.wake.set()
+
+    async def _writer(self, client: _Client) -> None:
+        ws = client.ws
+        while True:
+            await client.wake.wait()
+            client.wake.clear()
+            while client.queue:
+                await ws.send(client.queue.pop(0))
+            for kind in ("state", "frame"):
+                message = client.latest.pop(kind, None)
+                if message is not None:
+                    await ws.send(message)
+                    if kind == "frame":
+                        client.sent_frames += 1
+
+    # ------------------------------------------------------------ commands
+    async def _on_message(self, client: _Client, message) -> None:
+        try:
+            command = parse_message(message)
+        except ProtocolError as e:
+            self._push(client, {"op": "error", "message": str(e)})
+            return
+        if command.op == "hello":
+            if not client.authed:
+                if command.args.get("token") != self.options.token:
+                    self._push(client, {"op": "error", "message": "wrong or missing token"})
+                    return
+                client.authed = True
+            self._push(client, {"op": "welcome", "client": client.id, "operator": self.operator})
+            return
+        if not client.authed:
+            self._push(client, {"op": "error", "message": "send hello with the token first"})
+            return
+        if command.op == "ping":
+            self._push(client, {"op": "pong", "t": command.args["t"], "server": time.time()})
+            return
+        if command.op == "trainee":
+            self.trainee = command.args["name"]
+            self._broadcast({"op": "trainee", "name": self.trainee})
+            return
+        if command.op == "control":
+            await self._control(client, command.args["take"])
+            return
+        if command.op in OPERATOR_OPS and self.operator != client.id:
+            who = "nobody" if self.operator is None else f"page {self.operator}"
+            self._push(
+                client,
+                {"op": "error", "message": f"{command.op}: {who} operates; take control first"},
+            )
+            return
+        try:
+            await self._dispatch(command)
+        except CommandRefused as e:
+            self._push(client, {"op": "error", "message": str(e)})
+
+    async def _call(self, target: str, method: str, *args, timeout: float = 5.0, **kwargs):
+        try:
+            future = self.handle.call(target, method, *args, **kwargs)
+            result = await asyncio.wait_for(asyncio.wrap_future(future), timeout)
+        except (KeyError, AttributeError, TypeError, ValueError, RuntimeError) as e:
+            raise CommandRefused(f"{target}.{method}: {e}") from None
+        except TimeoutError:
+            raise CommandRefused(f"{target}.{method}: no answer in {timeout:g} s") from None
+        accepted = getattr(result, "accepted", True)
+        if not accepted:
+            raise CommandRefused(getattr(result, "message", f"{target}.{method} refused"))
+        return result
+
+    async def _dispatch(self, command: Command) -> None:
+        a = command.args
+        op = command.op
+        if op == "input":
+            mtm = a["mtm"]
+            if mtm not in self.hand_mtms:
+                raise CommandRefused(f"input: no hand on {mtm}; hands: {list(self.hand_mtms)}")
+            axes = np.asarray(a["axes"], dtype=float)
+            # Screen right/up/in -> HRSV: x is the image's left, y up, z into the scene.
+            v = self.options.hand_speed * np.array([-axes[0], axes[1], axes[2]])
+            speed = float(np.linalg.norm(v))
+            if speed > self.options.hand_speed:  # diagonal input: the speed stays the max
+                v *= self.options.hand_speed / speed
+            await self._call(f"{mtm}/hand", "command", v.tolist(), a.get("gripper"))
+        elif op == "button":
+            await self._call("console", "press" if a["pressed"] else "release", a["name"])
+        elif op == "condition":
+            await self._call("task", "set_condition", a["condition"])
+        elif op == "task":
+            await self._call("task", "reset")
+        elif op == "teleop":
+            if "enable" in a:
+                await self._call("console", "teleop_enable", a["enable"])
+            if "scale" in a:
+                await self._call("console", "set_scale", a["scale"])
+        elif op == "arms":
+            for name in self.handle.snapshot().arms:
+                await self._call(name, "state_command", a["action"])
+        elif op == "synthetic":
+            if a["action"] == "start":
+                kwargs = {k: a[k] for k in ("subject", "practice") if k in a}
+                for mtm in self.hand_mtms:
+                    await self._call(f"{mtm}/hand", "release")
+                await self._call("synthetic", "start", **kwargs)
+            else:
+                await self._call("synthetic", "stop")
+                await self._grasp()
+
+    async def _grasp(self) -> None:
+        for mtm in self.hand_mtms:
+            await self._call(f"{mtm}/hand", "grasp")
+
+    async def _control(self, client: _Client, take: bool) -> None:
+        if take:
+            if self.operator not in (None, client.id):
+                self._push(
+                    client,
+                    {
+                        "op": "error",
+                        "message": f"page {self.operator} operates now; "
+                        "they must release control first",
+                    },
+                )
+                return
+            if self.operator is None:
+                self.operator = client.id
+                try:
+                    await self._grasp()
+                    await self._call("console", "press", "operator_present")
+                    await self._call("console", "teleop_enable", True)
+                except CommandRefused as e:
+                    self._push(client, {"op": "error", "message": str(e)})
+        elif self.operator == client.id:
+            await self._release_operator()
+        self._broadcast_control()
+
+    def _broadcast_control(self) -> None:
+        self._broadcast({"op": "control", "operator": self.operator})
+
+    async def _release_operator(self) -> None:
+        """The operator leaves: the hands let go and the head sensor is released."""
+        if self.operator is None:
+            return
+        self.operator = None
+        for target, method, args in [
+            *((f"{m}/hand", "release", ()) for m in self.hand_mtms),
+            ("console", "release", ("operator_present",)),
+        ]:
+            try:
+                await self._call(target, method, *args)
+            except CommandRefused as e:
+                _log.warning("releasing the console: %s", e)
+
+    # ------------------------------------------------------------ streams
+    async def _state_loop(self) -> None:
+        period = 1.0 / self.options.state_rate
+        last_tick = None
+        while True:
+            await asyncio.sleep(period)
+            if not self._clients:
+                continue
+            try:
+                snap = self.handle.snapshot()
+            except Exception as e:  # not started yet, or stopping
+                _log.debug("no snapshot: %s", e)
+                continue
+            self._collect_rows(snap)
+            if snap.tick == last_tick:
+                continue
+            last_tick = snap.tick
+            try:
+                view = console_view(snap, self.camera)
+            except Exception:  # a bug in the view must not end the stream
+                _log.exception("cannot make the page's state")
+                continue
+            view["op"] = "state"
+            view["operator"] = self.operator
+            view["pages"] = len(self._clients)
+            self._broadcast(view, latest="state")
+            self._stats["states"] += 1
+
+    def _collect_rows(self, snap) -> None:
+        task = (snap.extras or {}).get("task")
+        if task is None or task.completed <= self._completed:
+            return
+        self._completed = task.completed
+        row = {"trainee": self.trainee, **task.last}
+        self.rows.append(row)
+        self._broadcast({"op": "row", "row": row})
+
+    async def _frame_loop(self) -> None:
+        period = 1.0 / self.options.frame_rate
+        loop = asyncio.get_running_loop()
+        last = None
+        while True:
+            t0 = loop.time()
+            frame = None
+            if any(c.authed for c in self._clients.values()):
+                try:
+                    frame = self.frames.latest()
+                except Exception:
+                    _log.exception("no endoscope frame")
+            if frame is not None and frame.frame != last:
+                last = frame.frame
+                start = time.perf_counter()
+                message = await loop.run_in_executor(None, self._encode, frame)
+                self._stats["encode_time"] += time.perf_counter() - start
+                self._stats["frames_encoded"] += 1
+                for client in list(self._clients.values()):
+                    if client.authed:
+                        if "frame" in client.latest:
+                            client.skipped_frames += 1
+                        client.latest["frame"] = message
+                        client.wake.set()
+            await asyncio.sleep(max(0.0, period - (loop.time() - t0)))
+
+    def _encode(self, frame) -> bytes:
+        from PIL import Image
+
+        parts = []
+        for image in (frame.left, frame.right):
+            out = io.BytesIO()
+            Image.fromarray(image).save(out, format="JPEG", quality=self.options.jpeg_quality)
+            parts.append(out.getvalue())
+        self._frame_number += 1
+        header = FRAME_HEADER.pack(frame.frame & 0xFFFFFFFF, frame.time, len(parts[0]))
+        return header + parts[0] + parts[1]
+
+
+class CommandRefused(Exception):
+    """A command the simulation (or the console's rules) refused; shown in the page."""
+
+
+def _static(name: str) -> bytes | None:
+    if "/" in name or "\\" in name or name.startswith("."):
+        return None  # only the files of web/static, no paths
+    try:
+        return resources.files("davinci_sim.web").joinpath("static", name).read_bytes()
+    except (FileNotFoundError, IsADirectoryError, NotADirectoryError):
+        return None
+
+
+def _dumps(message: dict) -> str:
+    """JSON for the page: numpy values as numbers, non-finite floats as null (JSON has no
+    NaN; the page shows "–")."""
+    try:
+        return json.dumps(message, allow_nan=False, default=_json_default)
+    except ValueError:
+        return json.dumps(_finite_only(message), allow_nan=False, default=_json_default)
+
+
+def _finite_only(o):
+    if isinstance(o, dict):
+        return {k: _finite_only(v) for k, v in o.items()}
+    if isinstance(o, (list, tuple)):
+        return [_finite_only(v) for v in o]
+    if isinstance(o, np.ndarray):
+        return _finite_only(o.tolist())
+    if isinstance(o, (float, np.floating)) and not math.isfinite(o):
+        return None
+    return o
+
+
+def _json_default(o):
+    if isinstance(o, np.ndarray):
+        return o.tolist()
+    if isinstance(o, (np.floating, np.integer, np.bool_)):
+        return o.item()
+    raise TypeError(f"not JSON: {type(o).__name__}")
+
+
+def _closed(e: BaseException) -> bool:
+    from websockets.exceptions import ConnectionClosed
+
+    return isinstance(e, (ConnectionClosed, asyncio.CancelledError))

@@ -1,0 +1,472 @@
+// The web console's page: connects to the server's websocket, shows the endoscope with a
+// heads-up display, the task panel and the console panel, and sends the operator's input.
+// Everything the simulation does goes through the server's checked commands (protocol.py).
+
+import {
+  KEYMAP, GRIPPER_OPEN, keyAxes, isMappedKey, buttonOfKey, toggleOfKey,
+  gamepadInput, rumble, rumbleIntensity, sameAxes,
+} from "./input.js";
+
+const $ = (id) => document.getElementById(id);
+const params = new URLSearchParams(location.search);
+const state = {
+  ws: null, client: null, operator: null, hello: null, last: null,
+  frames: 0, framesAt: performance.now(), fps: 0,
+  left: null, right: null, frameTime: 0,
+  pressed: new Set(), axes: [0, 0, 0], gripper: GRIPPER_OPEN, jawOpen: true,
+  buttons: { clutch: false, camera: false }, gamepadButtons: { clutch: false, camera: false },
+  history: [], forceMax: 5, inputSent: 0, lastInputAt: 0,
+};
+window.davinci = state; // for the browser tests and the curious
+
+// ------------------------------------------------------------------ connection
+function connect() {
+  const proto = location.protocol === "https:" ? "wss" : "ws";
+  const ws = new WebSocket(`${proto}://${location.host}/ws`);
+  ws.binaryType = "arraybuffer";
+  state.ws = ws;
+  ws.onopen = () => {
+    setConnection("connected", "ok");
+    send({ op: "hello", ...(params.get("token") ? { token: params.get("token") } : {}) });
+  };
+  ws.onclose = () => {
+    setConnection("disconnected — retrying", "bad");
+    setTimeout(connect, 1000);
+  };
+  ws.onmessage = (event) => {
+    if (typeof event.data === "string") onMessage(JSON.parse(event.data));
+    else onFrame(event.data);
+  };
+}
+
+function send(message) {
+  if (state.ws && state.ws.readyState === WebSocket.OPEN) {
+    state.ws.send(JSON.stringify(message));
+    return true;
+  }
+  return false;
+}
+window.davinciSend = send;
+
+function setConnection(text, cls) {
+  const el = $("connection");
+  el.textContent = text;
+  el.className = `badge ${cls}`;
+}
+
+function showMessage(text, cls = "error") {
+  const el = $("messages");
+  el.innerHTML = "";
+  const span = document.createElement("span");
+  span.className = cls;
+  span.textContent = text;
+  el.appendChild(span);
+  state.lastMessage = { text, cls, at: Date.now() };
+}
+
+function onMessage(m) {
+  switch (m.op) {
+    case "hello": onHello(m); break;
+    case "welcome": state.operator = m.operator; updateControl(); break;
+    case "state": onState(m); break;
+    case "control": state.operator = m.operator; updateControl(); break;
+    case "row": addRow(m.row); break;
+    case "trainee": if (document.activeElement !== $("trainee")) $("trainee").value = m.name; break;
+    case "error": showMessage(m.message, "error"); break;
+    case "pong": state.rtt = performance.now() - m.t; break;
+    default: break;
+  }
+}
+
+// ------------------------------------------------------------------ hello: build the panels
+function onHello(m) {
+  state.hello = m;
+  state.client = m.client;
+  state.operator = m.operator;
+  $("trainee").value = m.trainee || "";
+  const cam = m.camera;
+  for (const id of ["endoscope", "overlay"]) { $(id).width = cam.width; $(id).height = cam.height; }
+  if (m.needs_token) showMessage("this console needs a token: open it with ?token=…");
+  if (m.bedside_port) {
+    $("bedside").src = `${location.protocol}//${location.hostname}:${m.bedside_port}/`;
+  } else {
+    $("bedside-note").textContent = "No 3-D view on this server (started with --no-bedside).";
+    $("bedside").remove();
+  }
+  const task = m.task;
+  if (task) {
+    $("task-name").textContent = task.name;
+    $("task-description").textContent = task.description || "";
+    const select = $("condition");
+    select.innerHTML = "";
+    const own = document.createElement("option");
+    own.value = "";
+    own.textContent = "the task's own";
+    select.appendChild(own);
+    for (const c of task.conditions) {
+      const o = document.createElement("option");
+      o.value = c.name; o.textContent = c.name; select.appendChild(o);
+    }
+    const custom = document.createElement("option");
+    custom.value = "__custom"; custom.textContent = "custom…"; select.appendChild(custom);
+    const types = $("fixture-type");
+    types.innerHTML = "";
+    for (const t of task.fixture_types) {
+      const o = document.createElement("option"); o.value = t; o.textContent = t; types.appendChild(o);
+    }
+    if (task.fixture.type) types.value = task.fixture.type;
+    if (task.fixture.B !== undefined) setSlider("B", task.fixture.B);
+    if (task.fixture.G_max !== undefined) setSlider("G", task.fixture.G_max);
+    state.forceMax = Math.max(1, ...task.conditions.map((c) => c.G_max || 0), task.fixture.G_max || 0);
+    buildRowsHeader(task.metrics);
+  }
+  updateControl();
+}
+
+function setSlider(id, value) { $(id).value = value; $(`${id}-out`).textContent = value; }
+
+// ------------------------------------------------------------------ state
+function onState(s) {
+  state.last = s;
+  state.operator = s.operator;
+  $("pages").textContent = `${s.pages} page${s.pages === 1 ? "" : "s"}`;
+  const task = s.task;
+  if (task) {
+    $("phase").textContent = task.phase;
+    $("repetition").textContent = `${task.repetition} (${task.completed} done) — ${task.condition}`;
+    $("deviation").textContent = task.distance == null ? "–" : `${(1000 * task.distance).toFixed(1)} mm`;
+  }
+  const tip = taskTip(s);
+  const f = tip ? Math.hypot(...tip.force) : 0;
+  $("force").textContent = tip ? `${f.toFixed(2)} N` : "–";
+  state.history.push({ t: s.time, d: task && task.distance != null ? 1000 * task.distance : null, f });
+  while (state.history.length && s.time - state.history[0].t > 10) state.history.shift();
+  if (state.history.length > 1 && s.time < state.history[state.history.length - 2].t) state.history = [];
+  drawPlot();
+  if (s.console) {
+    $("teleop").checked = s.console.teleop_enabled;
+    $("present").checked = !!s.console.buttons.operator_present;
+  }
+  fillTable("teleops", Object.values(s.teleops).map((t) => [t.mtm, t.psm, t.following ? "following" : t.state, t.clutched ? "clutched" : ""]));
+  fillTable("arms", Object.entries(s.arms).map(([n, a]) => [n, a.state, a.homed ? "yes" : "no"]));
+  $("synthetic").classList.toggle("on", !!(s.synthetic && s.synthetic.running));
+  $("synthetic").textContent = s.synthetic && s.synthetic.running ? "Stop the synthetic trainee" : "Watch a synthetic trainee";
+  updateControl();
+  drawOverlay();
+  const gp = firstGamepad();
+  if (gp && tip && isOperator()) rumble(gp, rumbleIntensity(f, state.forceMax));
+}
+
+function taskTip(s) {
+  const psm = state.hello?.task?.psm;
+  if (psm && s.tips[psm]) return s.tips[psm];
+  return Object.values(s.tips)[0] || null;
+}
+
+function fillTable(id, rows) {
+  const body = $(id).querySelector("tbody");
+  body.innerHTML = "";
+  for (const r of rows) {
+    const tr = document.createElement("tr");
+    for (const c of r) { const td = document.createElement("td"); td.textContent = c; tr.appendChild(td); }
+    body.appendChild(tr);
+  }
+}
+
+// ------------------------------------------------------------------ results table
+function buildRowsHeader(metrics) {
+  state.columns = ["trainee", "condition", "repetition", ...metrics.map((m) => m.name)];
+  state.units = Object.fromEntries(metrics.map((m) => [m.name, m.unit]));
+  const tr = document.createElement("tr");
+  for (const c of state.columns) {
+    const th = document.createElement("th");
+    th.textContent = state.units[c] && state.units[c] !== "1" ? `${c} (${state.units[c]})` : c;
+    tr.appendChild(th);
+  }
+  const head = $("rows").querySelector("thead");
+  head.innerHTML = "";
+  head.appendChild(tr);
+}
+
+function addRow(row) {
+  const tr = document.createElement("tr");
+  for (const c of state.columns || Object.keys(row)) {
+    const td = document.createElement("td");
+    const v = row[c];
+    td.textContent = typeof v === "number" && !Number.isInteger(v) ? v.toPrecision(4) : v ?? "–";
+    tr.appendChild(td);
+  }
+  $("rows").querySelector("tbody").appendChild(tr);
+  showMessage(`repetition ${row.repetition} finished`, "info");
+}
+
+// ------------------------------------------------------------------ the endoscope
+async function onFrame(buffer) {
+  const view = new DataView(buffer);
+  const number = view.getUint32(0, true);
+  const time = view.getFloat64(4, true);
+  const leftLength = view.getUint32(12, true);
+  const left = new Blob([new Uint8Array(buffer, 16, leftLength)], { type: "image/jpeg" });
+  const right = new Blob([new Uint8Array(buffer, 16 + leftLength)], { type: "image/jpeg" });
+  const [l, r] = await Promise.all([createImageBitmap(left), createImageBitmap(right)]);
+  state.left?.close?.(); state.right?.close?.();
+  state.left = l; state.right = r; state.frameNumber = number; state.frameTime = time;
+  state.frames += 1;
+  const now = performance.now();
+  if (now - state.framesAt > 1000) {
+    state.fps = (1000 * state.frames) / (now - state.framesAt);
+    state.frames = 0; state.framesAt = now;
+    $("fps").textContent = `${state.fps.toFixed(1)} frames/s`;
+  }
+  drawEndoscope();
+}
+
+function drawEndoscope() {
+  const canvas = $("endoscope");
+  const overlay = $("overlay");
+  const mode = $("mode").value;
+  const w = state.left.width, h = state.left.height;
+  const width = mode === "sbs" ? 2 * w : w;
+  if (canvas.width !== width) { canvas.width = width; overlay.width = width; }
+  canvas.height = h; overlay.height = h;
+  const ctx = canvas.getContext("2d", { willReadFrequently: mode === "anaglyph" });
+  if (mode === "sbs") {
+    ctx.drawImage(state.left, 0, 0); ctx.drawImage(state.right, w, 0);
+  } else if (mode === "anaglyph") {
+    // Red from the left eye, green and blue from the right: depth with red-cyan glasses.
+    ctx.drawImage(state.right, 0, 0);
+    const right = ctx.getImageData(0, 0, w, h);
+    ctx.drawImage(state.left, 0, 0);
+    const left = ctx.getImageData(0, 0, w, h);
+    const out = left.data, rd = right.data;
+    for (let i = 0; i < out.length; i += 4) {
+      out[i] = 0.299 * out[i] + 0.587 * out[i + 1] + 0.114 * out[i + 2];
+      out[i + 1] = rd[i + 1];
+      out[i + 2] = rd[i + 2];
+    }
+    ctx.putImageData(left, 0, 0);
+  } else {
+    ctx.drawImage(state.left, 0, 0);
+  }
+  drawOverlay();
+}
+
+// The heads-up display: on the left image (and its copy in side-by-side).
+function drawOverlay() {
+  const overlay = $("overlay");
+  const ctx = overlay.getContext("2d");
+  ctx.clearRect(0, 0, overlay.width, overlay.height);
+  const s = state.last;
+  if (!s || !$("hud").checked) return;
+  const w = state.left ? state.left.width : overlay.width;
+  const copies = $("mode").value === "sbs" ? [0, w] : [0];
+  for (const dx of copies) {
+    ctx.save();
+    ctx.translate(dx, 0);
+    drawHud(ctx, s, w);
+    ctx.restore();
+  }
+}
+
+function drawHud(ctx, s, w) {
+  ctx.font = "13px system-ui, sans-serif";
+  const lines = [];
+  for (const t of Object.values(s.teleops)) {
+    if (!t.selected) continue;
+    const what = t.following ? "following" : t.state.toLowerCase();
+    lines.push(`${t.mtm} → ${t.psm}: ${what}${t.clutched ? " · CLUTCH" : ""}`);
+  }
+  const b = s.console ? s.console.buttons : {};
+  lines.push(`head ${b.operator_present ? "present" : "away"} · clutch ${b.clutch ? "down" : "up"} · camera ${b.camera ? "down" : "up"}`);
+  if (s.task) {
+    const d = s.task.distance == null ? "–" : `${(1000 * s.task.distance).toFixed(1)} mm`;
+    lines.push(`${s.task.name} · ${s.task.phase} · rep ${s.task.repetition} · deviation ${d}`);
+  }
+  lines.push(`t = ${s.time.toFixed(1)} s${isOperator() ? " · you operate" : ""}`);
+  ctx.fillStyle = "rgba(0,0,0,0.55)";
+  ctx.fillRect(6, 6, 330, 18 * lines.length + 8);
+  ctx.fillStyle = "#e8f1ff";
+  lines.forEach((l, i) => ctx.fillText(l, 12, 22 + 18 * i));
+  for (const [psm, tip] of Object.entries(s.tips)) {
+    if (!tip.pixel) continue;
+    const [u, v] = tip.pixel;
+    ctx.strokeStyle = "#3ea6ff";
+    ctx.lineWidth = 1.5;
+    ctx.beginPath(); ctx.arc(u, v, 7, 0, 2 * Math.PI); ctx.stroke();
+    ctx.fillStyle = "#3ea6ff";
+    ctx.fillText(`${psm} (${tip.mtm})`, u + 10, v - 10);
+    const f = Math.hypot(...tip.force);
+    if (tip.force_pixel && f > 0.05) drawArrow(ctx, u, v, tip.force_pixel[0], tip.force_pixel[1], f);
+  }
+}
+
+function drawArrow(ctx, x0, y0, x1, y1, f) {
+  const a = Math.atan2(y1 - y0, x1 - x0);
+  ctx.strokeStyle = ctx.fillStyle = "#ffb020";
+  ctx.lineWidth = 3;
+  ctx.beginPath(); ctx.moveTo(x0, y0); ctx.lineTo(x1, y1); ctx.stroke();
+  ctx.beginPath();
+  ctx.moveTo(x1, y1);
+  ctx.lineTo(x1 - 10 * Math.cos(a - 0.4), y1 - 10 * Math.sin(a - 0.4));
+  ctx.lineTo(x1 - 10 * Math.cos(a + 0.4), y1 - 10 * Math.sin(a + 0.4));
+  ctx.closePath(); ctx.fill();
+  ctx.fillText(`${f.toFixed(1)} N`, x1 + 6, y1 + 4);
+}
+
+function drawPlot() {
+  const c = $("plot");
+  const ctx = c.getContext("2d");
+  ctx.clearRect(0, 0, c.width, c.height);
+  const h = state.history;
+  if (h.length < 2) return;
+  const t1 = h[h.length - 1].t, t0 = t1 - 10;
+  const x = (t) => ((t - t0) / 10) * c.width;
+  const series = [
+    { key: "d", max: Math.max(5, ...h.map((p) => p.d ?? 0)), color: "#3ea6ff", label: "deviation (mm)" },
+    { key: "f", max: Math.max(state.forceMax, ...h.map((p) => p.f)), color: "#ffb020", label: "force (N)" },
+  ];
+  series.forEach((s, k) => {
+    ctx.strokeStyle = s.color; ctx.beginPath();
+    let started = false;
+    for (const p of h) {
+      if (p[s.key] == null) { started = false; continue; }
+      const y = c.height - 4 - (p[s.key] / s.max) * (c.height - 8);
+      if (started) ctx.lineTo(x(p.t), y); else { ctx.moveTo(x(p.t), y); started = true; }
+    }
+    ctx.stroke();
+    ctx.fillStyle = s.color; ctx.font = "11px system-ui";
+    ctx.fillText(`${s.label}, max ${s.max.toFixed(1)}`, 6, 12 + 13 * k);
+  });
+}
+
+// ------------------------------------------------------------------ control and panels
+function isOperator() { return state.client != null && state.operator === state.client; }
+
+function updateControl() {
+  const button = $("control");
+  const mine = isOperator();
+  button.textContent = mine ? "Release control" : "Take control";
+  button.classList.toggle("on", mine);
+  $("operator").textContent = state.operator == null ? "nobody operates" : mine ? "you operate" : `page ${state.operator} operates`;
+}
+
+function setupPanels() {
+  for (const b of document.querySelectorAll("nav button")) {
+    b.onclick = () => {
+      document.querySelectorAll("nav button").forEach((x) => x.classList.toggle("active", x === b));
+      document.querySelectorAll(".tab").forEach((t) => t.classList.toggle("active", t.id === `tab-${b.dataset.tab}`));
+    };
+  }
+  $("control").onclick = () => send({ op: "control", take: !isOperator() });
+  $("trainee").onchange = () => send({ op: "trainee", name: $("trainee").value });
+  for (const id of ["B", "G", "scale"]) $(id).oninput = () => { $(`${id}-out`).textContent = $(id).value; };
+  $("condition").onchange = () => {
+    const v = $("condition").value;
+    if (v === "__custom") return;
+    send({ op: "condition", condition: v || state.hello.task.fixture });
+  };
+  $("apply").onclick = () => {
+    const type = $("fixture-type").value;
+    const entry = { type };
+    if (type === "viscous") { entry.B = Number($("B").value); entry.G_max = Number($("G").value); }
+    $("condition").value = "__custom";
+    send({ op: "condition", condition: entry });
+  };
+  $("reset").onclick = () => send({ op: "task", action: "reset" });
+  $("synthetic").onclick = () => {
+    const running = !!(state.last?.synthetic?.running);
+    send({ op: "synthetic", action: running ? "stop" : "start" });
+  };
+  $("teleop").onchange = () => send({ op: "teleop", enable: $("teleop").checked });
+  $("scale-apply").onclick = () => send({ op: "teleop", scale: Number($("scale").value) });
+  $("present").onchange = () => send({ op: "button", name: "operator_present", pressed: $("present").checked });
+  for (const b of document.querySelectorAll("[data-arms]")) b.onclick = () => send({ op: "arms", action: b.dataset.arms });
+  $("mode").onchange = () => { if (state.left) drawEndoscope(); };
+  $("hud").onchange = drawOverlay;
+  const body = $("keymap").querySelector("tbody");
+  for (const k of KEYMAP) {
+    const tr = document.createElement("tr");
+    tr.innerHTML = "<td></td><td></td>";
+    tr.children[0].textContent = k.label; tr.children[1].textContent = k.what;
+    body.appendChild(tr);
+  }
+  $("screen").tabIndex = 0;
+}
+
+// ------------------------------------------------------------------ operator input
+function handMtm() {
+  return state.hello?.task?.mtm || state.hello?.hands?.[0] || "MTMR";
+}
+
+function onKey(event, down) {
+  if (event.target instanceof HTMLInputElement || event.target instanceof HTMLSelectElement) return;
+  if (!isMappedKey(event.code)) return;
+  event.preventDefault();
+  if (down && event.repeat) return;
+  if (down) state.pressed.add(event.code); else state.pressed.delete(event.code);
+  const button = buttonOfKey(event.code);
+  if (button) setButton(button, down, "keys");
+  const toggle = toggleOfKey(event.code);
+  if (toggle === "jaw" && down) { state.jawOpen = !state.jawOpen; state.gripper = state.jawOpen ? GRIPPER_OPEN : 0; sendInput(true); }
+  if (toggle === "present" && down) send({ op: "button", name: "operator_present", pressed: !$("present").checked });
+  sendInput(false);
+}
+
+function setButton(name, pressed, source) {
+  const key = source === "keys" ? "buttons" : "gamepadButtons";
+  if (state[key][name] === pressed) return;
+  state[key][name] = pressed;
+  if (isOperator()) send({ op: "button", name, pressed });
+}
+
+function currentAxes() {
+  const keys = keyAxes(state.pressed);
+  const gp = firstGamepad();
+  if (!gp) return keys;
+  const g = gamepadInput(gp);
+  return keys.map((v, i) => Math.max(-1, Math.min(1, v + g.axes[i])));
+}
+
+// Send the rate input when it changes, and again every 100 ms while non-zero (the server's
+// hand stops by itself 0.3 s after the last input: a lost page stops the tool).
+function sendInput(force) {
+  if (!isOperator()) return;
+  const axes = currentAxes();
+  const moving = axes.some((v) => v !== 0);
+  const now = performance.now();
+  if (!force && sameAxes(axes, state.axes) && !(moving && now - state.lastInputAt > 100)) return;
+  state.axes = axes;
+  state.lastInputAt = now;
+  state.inputSent += 1;
+  send({ op: "input", mtm: handMtm(), axes, gripper: state.gripper });
+}
+
+function firstGamepad() {
+  const pads = navigator.getGamepads ? navigator.getGamepads() : [];
+  for (const p of pads) if (p && p.connected !== false) return p;
+  return null;
+}
+
+function pollGamepad() {
+  const gp = firstGamepad();
+  $("gamepad").textContent = gp ? `gamepad: ${gp.id}` : "no gamepad";
+  if (gp && isOperator()) {
+    const g = gamepadInput(gp);
+    setButton("clutch", g.buttons.clutch, "gamepad");
+    setButton("camera", g.buttons.camera, "gamepad");
+    if (Math.abs(g.gripper - state.gripper) > 0.02) { state.gripper = g.gripper; sendInput(true); }
+  }
+  sendInput(false);
+  requestAnimationFrame(pollGamepad);
+}
+
+// requestAnimationFrame stops in a hidden page; the interval keeps the input alive anyway.
+setInterval(() => sendInput(false), 50);
+
+window.addEventListener("keydown", (e) => onKey(e, true));
+window.addEventListener("keyup", (e) => onKey(e, false));
+window.addEventListener("blur", () => { state.pressed.clear(); sendInput(true); });
+
+setupPanels();
+connect();
+requestAnimationFrame(pollGamepad);

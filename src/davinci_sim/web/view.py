@@ -1,0 +1,120 @@
+"""What the page shows, from one snapshot: :func:`console_view` (pure, JSON-ready).
+
+The heads-up display of the surgeon's view needs, besides the images, where each tool tip is
+in the left endoscope image and where the guidance force points there. The PSMs'
+``measured_cp`` is in the camera frame (the ECM tip, dvrk.md 1.6: x to the image's left, y up,
+z into the scene; :func:`davinci_sim.model.cameras.T_tip_camera`); the left camera sits half
+a baseline towards +x. :func:`project_left` is the pinhole projection of that camera
+(MuJoCo's: ``f = (h/2) / tan(fovy/2)``, principal point at the image centre). The haptic
+loop's requested wrench is in HRSV, whose axes the teleoperation aligns with the camera
+frame's (dvrk.md 4.2), so the arrow is drawn from the tip along that force.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import numpy as np
+
+from davinci_sim.model.cameras import CameraConfig
+
+#: Length of the drawn force arrow per newton, m (5 N, the seed's largest G_max: 2 cm).
+ARROW_M_PER_N = 0.004
+
+
+def project_left(p_camera, camera: CameraConfig) -> tuple[float, float] | None:
+    """Pixel (u right, v down) of the camera-frame point ``p_camera`` (m) in the left
+    endoscope image, or None behind the camera."""
+    x, y, z = (float(c) for c in p_camera)
+    if z <= 1e-6:
+        return None
+    f = 0.5 * camera.height / math.tan(math.radians(camera.fovy_deg) / 2.0)
+    x_left = x - camera.baseline_m / 2.0  # the left camera is half a baseline towards +x
+    return (camera.width / 2.0 - f * x_left / z, camera.height / 2.0 - f * y / z)
+
+
+def _finite(x: float) -> float | None:
+    return float(x) if math.isfinite(x) else None
+
+
+def _vector(v) -> list[float]:
+    return [float(x) for x in np.asarray(v, dtype=float).ravel()]
+
+
+def console_view(snap, camera: CameraConfig) -> dict[str, Any]:
+    """The page's state from a :class:`~davinci_sim.sim.handle.Snapshot`: time, arms, the
+    console, teleoperations, hands, haptics, the task, and the tool tips with their force
+    arrows in the left image (pixels)."""
+    extras = snap.extras or {}
+    arms = {
+        name: {"state": a.operating_state.state, "homed": bool(a.operating_state.is_homed)}
+        for name, a in snap.arms.items()
+    }
+    console = extras.get("console")
+    teleops = {}
+    for name, s in extras.items():
+        if hasattr(s, "following") and hasattr(s, "psm"):
+            teleops[name] = {
+                "mtm": s.mtm,
+                "psm": s.psm,
+                "state": s.current_state,
+                "following": bool(s.following),
+                "clutched": bool(s.clutched),
+                "selected": bool(s.selected),
+                "scale": float(s.scale),
+            }
+    haptics = extras.get("haptics")
+    requested = {} if haptics is None else dict(haptics.requested)
+    tips = {}
+    for t in teleops.values():
+        psm = snap.arms.get(t["psm"])
+        if psm is None:
+            continue
+        p = np.asarray(psm.measured_cp.position, dtype=float)
+        force = np.asarray(requested.get(t["mtm"], np.zeros(6)), dtype=float)[:3]
+        tip = project_left(p, camera)
+        head = project_left(p + ARROW_M_PER_N * force, camera)
+        tips[t["psm"]] = {
+            "mtm": t["mtm"],
+            "p_camera": _vector(p),
+            "pixel": None if tip is None else list(tip),
+            "force": _vector(force),
+            "force_pixel": None if head is None else list(head),
+        }
+    hands = {n.split("/")[0]: dict(s) for n, s in extras.items() if n.endswith("/hand")}
+    task = extras.get("task")
+    view = {
+        "time": float(snap.time),
+        "tick": int(snap.tick),
+        "arms": arms,
+        "teleops": teleops,
+        "tips": tips,
+        "hands": hands,
+        "console": None
+        if console is None
+        else {
+            "teleop_enabled": bool(console.teleop_enabled),
+            "scale": float(console.scale),
+            "buttons": {k: bool(v) for k, v in console.buttons.items()},
+        },
+        "task": None
+        if task is None
+        else {
+            "name": task.task,
+            "condition": task.condition,
+            "phase": task.phase,
+            "repetition": int(task.repetition),
+            "completed": int(task.completed),
+            "distance": _finite(task.distance_to_path),
+        },
+        "synthetic": _synthetic(extras.get("synthetic")),
+    }
+    return view
+
+
+def _synthetic(state) -> dict | None:
+    if state is None:
+        return None
+    return {k: (v if isinstance(v, (bool, int, str)) or v is None else float(v))
+            for k, v in dict(state).items()}  # fmt: skip
