@@ -90,3 +90,61 @@ def test_a_task_needs_its_teleoperation():
     with pytest.raises(KeyError, match="install the console"):
         install_task(Simulation("psm1_ecm_mtmr"), task)
     sim.close()
+
+
+@pytest.fixture
+def fresh_session():
+    from davinci_sim.console import install_console
+    from davinci_sim.sim.simulation import Simulation
+
+    sim = Simulation("psm1_ecm_mtmr")
+    install_console(sim)
+    session = install_task(sim, load_task(SHORT_TASK))
+    yield sim, session
+    sim.close()
+
+
+def guidance_force(sim, session) -> np.ndarray:
+    """The session's fixture force (task frame, N) 2 mm off the path's start, moving away
+    from it at 5 cm/s."""
+    fixture = sim.components["haptics"].field(session.field_name).fixture
+    task = session.task
+    p = np.asarray(task.start, dtype=float) + [0.0, 0.0, 0.002]
+    return np.asarray(fixture.force(p[None], np.array([[0.0, 0.0, 0.05]]))).reshape(-1)[:3]
+
+
+def test_set_condition_puts_the_new_fixture_in_the_loop_and_restarts_the_repetition(
+    fresh_session,
+):
+    sim, session = fresh_session
+    sim.run_for(0.01)
+    assert session.set_condition({"type": "viscous", "B": 60.0, "G_max": 8.0})
+    strong = np.linalg.norm(guidance_force(sim, session))
+    assert session.snapshot().condition == "viscous(B=60, G_max=8)"
+    assert session.set_condition({"type": "viscous", "B": 20.0, "G_max": 2.0})
+    weak = np.linalg.norm(guidance_force(sim, session))
+    assert 0 < weak < strong
+    assert session.set_condition({"type": "none"})
+    assert np.linalg.norm(guidance_force(sim, session)) == 0.0
+    assert session.snapshot().phase == "IDLE"
+    # One guidance field at any time, under the same name.
+    names = sim.components["haptics"].field_names()
+    assert names.count(session.field_name) == 1 and len(names) == 1
+
+
+@pytest.mark.parametrize(
+    "condition, words",
+    [
+        ("B=1000", "has no condition"),
+        ({"type": "magnet"}, "unknown fixture type"),
+        ({"type": "viscous", "B": 40.0, "G_max": 5.0, "color": 1.0}, "unknown keys"),
+    ],
+)
+def test_a_refused_condition_changes_nothing(fresh_session, condition, words):
+    sim, session = fresh_session
+    before = sim.components["haptics"].field(session.field_name)
+    label = session.condition
+    result = session.set_condition(condition)
+    assert not result and words in result.message
+    assert sim.components["haptics"].field(session.field_name) is before
+    assert session.condition == label

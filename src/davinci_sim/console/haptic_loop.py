@@ -104,6 +104,10 @@ class HapticLoop:
     def field_names(self) -> list[str]:
         return list(self._fields)
 
+    def field(self, name: str):
+        """The force field registered as ``name`` (KeyError if none)."""
+        return self._fields[name].field
+
     # ------------------------------------------------------------ component
     def pre_step(self, t: float) -> None:
         """Nothing before the physics step: the loop runs in :meth:`post_step`."""

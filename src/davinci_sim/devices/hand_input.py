@@ -80,12 +80,15 @@ class HandInput:
 
     # ------------------------------------------------------------ commands
     def grasp(self) -> CommandResult:
-        """Take the handle where it is (the hand then holds it still until moved)."""
+        """Take the handle where it is (the hand then holds its position until moved; the
+        wrist is left to the MTM)."""
         p = self._handle_position()
         self._origin, self._target = p.copy(), p.copy()
         self._v = np.zeros(3)
         self._holding = True
-        self.device.grasp(p)
+        # The wrist stays relaxed: the rate input moves the handle, and the teleoperation
+        # aligns the MTM's orientation with the tool's (a held wrist would fight it).
+        self.device.grasp(p, hold_orientation=False)
         return ACCEPTED
 
     def release(self) -> CommandResult:

@@ -506,8 +506,7 @@ class WebConsole:
                 return
             if self.operator is None:
                 self.operator = client.id
-                try:
-                    await self._grasp()
+                try:  # (the hand takes the handle when the operator first moves it)
                     await self._call("console", "press", "operator_present")
                     await self._call("console", "teleop_enable", True)
                 except CommandRefused as e:
