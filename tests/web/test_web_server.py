@@ -1,0 +1,290 @@
+"""The web console's server seen from a page's websocket: what it streams, who may operate,
+what it refuses, and that commands reach the running simulation."""
+
+from __future__ import annotations
+
+import io
+import json
+import struct
+import time
+import urllib.error
+import urllib.request
+from pathlib import Path
+
+import numpy as np
+import pytest
+from PIL import Image
+from websockets.sync.client import connect
+
+from davinci_sim.system import (
+    ConsoleDescription,
+    SystemDescription,
+    TaskDescription,
+    build_system,
+)
+from davinci_sim.system.build import load_description_task
+from davinci_sim.web.server import FRAME_HEADER, WebConsole, WebOptions
+
+SHORT_TASK = str(Path(__file__).resolve().parents[1] / "study" / "short_path.yaml")
+
+
+@pytest.fixture(scope="module")
+def console():
+    description = SystemDescription(
+        scene="psm1_ecm_mtmr",
+        home=True,
+        task=TaskDescription(SHORT_TASK),
+        console=ConsoleDescription(hand_inputs=("MTMR",)),
+        runner="thread",
+        real_time=False,  # (as fast as it goes: the synthetic trainee's repetition is ~10 s)
+        publish_qpos=True,
+    )
+    system = build_system(description, start=True)
+    frames = system.frames(15.0)
+    web = WebConsole(
+        system.handle,
+        WebOptions(port=0, state_rate=30.0, frame_rate=15.0),
+        frames=frames,
+        task=load_description_task(description),
+        hand_mtms=("MTMR",),
+    ).start()
+    yield web, system
+    web.stop()
+    frames.stop()
+    system.stop()
+
+
+class Page:
+    """A page's websocket: messages kept by op, frames kept apart."""
+
+    def __init__(self, web: WebConsole, token: str | None = None, hello: bool = True):
+        self.ws = connect(f"ws://127.0.0.1:{web.port}/ws", open_timeout=10)
+        self.hello = self.next("hello")
+        if hello:
+            self.send(op="hello", **({} if token is None else {"token": token}))
+
+    def send(self, **message) -> None:
+        self.ws.send(json.dumps(message))
+
+    def send_text(self, text: str) -> None:
+        self.ws.send(text)
+
+    def receive(self, timeout: float = 10.0):
+        data = self.ws.recv(timeout=timeout)
+        return data if isinstance(data, bytes) else json.loads(data)
+
+    def next(self, op: str, timeout: float = 20.0, where=lambda m: True):
+        """The next message of ``op`` (``"frame"``: a binary frame) that satisfies ``where``."""
+        end = time.monotonic() + timeout
+        while time.monotonic() < end:
+            m = self.receive(timeout=max(0.01, end - time.monotonic()))
+            kind = "frame" if isinstance(m, bytes) else m.get("op")
+            if kind == op and where(m):
+                return m
+        raise AssertionError(f"no {op!r} message in {timeout} s")
+
+    def latest_state(self, timeout: float = 10.0) -> dict:
+        """The newest state: skips what arrived while the test was not reading."""
+        while True:
+            try:
+                self.receive(timeout=0)
+            except TimeoutError:
+                break
+        return self.next("state", timeout)
+
+    def close(self) -> None:
+        self.ws.close()
+
+
+def wait_following(page: Page, timeout: float = 40.0) -> dict:
+    """The first state, 0.1 s of simulated time after the operator is present, in which
+    the teleoperation follows (a state from before may still show an earlier following)."""
+    present = page.next("state", timeout, lambda m: m["console"]["buttons"]["operator_present"])
+    return page.next(
+        "state",
+        timeout,
+        lambda m: m["time"] > present["time"] + 0.1 and m["teleops"]["MTMR_PSM1"]["following"],
+    )
+
+
+def test_the_page_and_its_files_are_served(console):
+    web, _ = console
+    base = f"http://127.0.0.1:{web.port}"
+    html = urllib.request.urlopen(base + "/").read().decode()
+    assert '<canvas id="endoscope"' in html and "app.js" in html
+    for name in ("app.js", "input.js", "style.css"):
+        assert urllib.request.urlopen(f"{base}/{name}").status == 200
+    for bad in ("/nope.js", "/static/../server.py", "/..%2fserver.py", "/.hidden"):
+        with pytest.raises(urllib.error.HTTPError) as e:
+            urllib.request.urlopen(base + bad)
+        assert e.value.code == 404
+
+
+def test_hello_describes_the_task_and_state_and_frames_stream(console):
+    web, _ = console
+    page = Page(web)
+    try:
+        hello = page.hello
+        assert hello["task"]["name"] == "short_path" and hello["task"]["psm"] == "PSM1"
+        assert {m["name"] for m in hello["task"]["metrics"]} >= {"deviation_error"}
+        assert hello["hands"] == ["MTMR"] and hello["camera"] == {"width": 640, "height": 480}
+        state = page.next("state")
+        assert state["task"]["name"] == "short_path" and "PSM1" in state["tips"]
+        assert len(state["tips"]["PSM1"]["p_camera"]) == 3
+        frame = page.next("frame", 60.0)
+        number, t, n_left = FRAME_HEADER.unpack_from(frame)
+        body = frame[FRAME_HEADER.size :]
+        left = np.asarray(Image.open(io.BytesIO(body[:n_left])))
+        right = np.asarray(Image.open(io.BytesIO(body[n_left:])))
+        assert left.shape == right.shape == (480, 640, 3)
+        assert left.std() > 10 and right.std() > 10  # an image, not a blank
+        assert not np.array_equal(left, right)  # two eyes
+        later = page.next("frame", 30.0, lambda f: struct.unpack_from("<I", f)[0] != number)
+        assert FRAME_HEADER.unpack_from(later)[1] >= t
+    finally:
+        page.close()
+
+
+def test_one_operator_at_a_time_and_only_the_operator_acts(console):
+    web, _ = console
+    a, b = Page(web), Page(web)
+    try:
+        a.send(op="control", take=True)
+        assert (
+            a.next("control", where=lambda m: m["operator"] is not None)["operator"]
+            == (a.hello["client"])
+        )
+        b.send(op="control", take=True)
+        assert "must release control" in b.next("error")["message"]
+        b.send(op="input", mtm="MTMR", axes=[1, 0, 0])
+        assert "take control first" in b.next("error")["message"]
+        b.send(op="task", action="reset")
+        assert "take control first" in b.next("error")["message"]
+        # The operator closes the page: control is free again and the hand let go.
+        a.close()
+        b.next("control", where=lambda m: m["operator"] is None)
+        b.send(op="control", take=True)
+        b.next("control", where=lambda m: m["operator"] == b.hello["client"])
+        b.send(op="control", take=False)
+        b.next("control", where=lambda m: m["operator"] is None)
+    finally:
+        b.close()
+
+
+def test_the_operators_input_moves_the_tool_right_in_the_image(console):
+    web, _ = console
+    page = Page(web)
+    try:
+        page.send(op="control", take=True)
+        page.next("control", where=lambda m: m["operator"] == page.hello["client"])
+        before = wait_following(page)
+        p0 = np.array(before["tips"]["PSM1"]["p_camera"])
+        u0 = before["tips"]["PSM1"]["pixel"][0]
+        # "Right" at full rate, as the page sends it, for 1 s of simulated time (the loop
+        # may run slower than real time on a busy machine).
+        while page.latest_state()["time"] < before["time"] + 1.0:
+            page.send(op="input", mtm="MTMR", axes=[1, 0, 0])
+            time.sleep(0.05)
+        after = page.latest_state()
+        moved = np.array(after["tips"]["PSM1"]["p_camera"]) - p0
+        # Right in the image is the camera frame's -x (dvrk.md 1.6: x to the image's left).
+        assert moved[0] < -0.01 and abs(moved[1]) < 0.3 * abs(moved[0])
+        assert after["tips"]["PSM1"]["pixel"][0] > u0 + 20
+        page.send(op="control", take=False)
+    finally:
+        page.close()
+
+
+@pytest.mark.parametrize(
+    "text, words",
+    [
+        ('{"op": "input", "mtm": "MTMR", "axes": [NaN, 0, 0]}', "not a number"),
+        ('{"op": "input", "mtm": "MTMR", "axes": [5, 0, 0]}', "axes[0] must be in"),
+        ('{"op": "input", "mtm": "MTML", "axes": [1, 0, 0]}', "no hand on MTML"),
+        ('{"op": "warp"}', "unknown op"),
+        ("{", "not JSON"),
+        ('{"op": "condition", "condition": "B=9999"}', "has no condition"),
+        ('{"op": "teleop", "scale": -1}', "scale must be in"),
+    ],
+)
+def test_bad_input_is_refused_in_the_page_and_nothing_moves(console, text, words):
+    web, system = console
+    page = Page(web)
+    try:
+        page.send(op="control", take=True)
+        page.next("control", where=lambda m: m["operator"] == page.hello["client"])
+        hand_before = system.handle.snapshot().extras["MTMR/hand"]
+        condition = system.handle.snapshot().extras["task"].condition
+        page.send_text(text)
+        assert words in page.next("error")["message"]
+        page.send(op="ping", t=1.0)  # the server goes on
+        assert page.next("pong")["t"] == 1.0
+        snap = system.handle.snapshot()
+        assert snap.extras["MTMR/hand"]["velocity"] == (0.0, 0.0, 0.0)
+        assert snap.extras["MTMR/hand"]["holding"] == hand_before["holding"]
+        assert snap.extras["task"].condition == condition
+        page.send(op="control", take=False)
+    finally:
+        page.close()
+
+
+def test_a_condition_from_the_page_reaches_the_running_fixture(console):
+    web, system = console
+    page = Page(web)
+    try:
+        page.send(op="control", take=True)
+        page.next("control", where=lambda m: m["operator"] == page.hello["client"])
+        page.send(op="condition", condition={"type": "viscous", "B": 55.0, "G_max": 6.5})
+        state = page.next("state", where=lambda m: "B=55" in m["task"]["condition"])
+        assert state["task"]["condition"] == "viscous(B=55, G_max=6.5)"
+        page.send(op="condition", condition={"type": "none"})
+        page.next("state", where=lambda m: m["task"]["condition"] == "none")
+        page.send(op="control", take=False)
+    finally:
+        page.close()
+
+
+def test_a_synthetic_trainees_repetition_becomes_a_tagged_row_and_csv(console):
+    web, _ = console
+    page = Page(web)
+    try:
+        page.send(op="trainee", name="Ada")
+        assert page.next("trainee")["name"] == "Ada"
+        page.send(op="control", take=True)
+        page.next("control", where=lambda m: m["operator"] == page.hello["client"])
+        page.send(op="synthetic", action="start", subject=2, practice=5)
+        page.next("state", where=lambda m: (m["synthetic"] or {}).get("running") is True)
+        row = page.next("row", 90.0)["row"]
+        assert row["trainee"] == "Ada" and row["repetition"] >= 1
+        assert 0 < row["deviation_error"] < 0.005
+        csv = urllib.request.urlopen(f"http://127.0.0.1:{web.port}/results.csv").read().decode()
+        header, first = csv.splitlines()[:2]
+        assert header.startswith("trainee,task,condition,repetition")
+        assert first.startswith("Ada,short_path,")
+        page.send(op="control", take=False)
+    finally:
+        page.close()
+
+
+def test_a_token_is_required_when_set(console):
+    _, system = console
+    web = WebConsole(system.handle, WebOptions(port=0, token="s3cret")).start()
+    try:
+        page = Page(web, hello=False)
+        assert page.hello["needs_token"] is True
+        page.send(op="control", take=True)
+        assert "token" in page.next("error")["message"]
+        page.send(op="hello", token="wrong")
+        assert "wrong" in page.next("error")["message"]
+        page.send(op="hello", token="s3cret")
+        page.next("welcome")
+        assert page.next("state")["task"]["name"] == "short_path"
+        page.close()
+    finally:
+        web.stop()
+
+
+def test_a_token_is_required_off_loopback():
+    with pytest.raises(ValueError, match="needs a token"):
+        WebOptions(host="0.0.0.0")
+    assert WebOptions(host="0.0.0.0", token="x").token == "x"
