@@ -20,8 +20,9 @@ $(STAMP): pyproject.toml scripts/system-deps.sh
 
 install: $(STAMP)
 
+# The web console with the seed's task: open the printed URL in a browser.
 run: install
-	$(BIN)/davinci-sim demo
+	$(BIN)/davinci-sim serve --task seed_path --home
 
 lint: install
 	$(BIN)/ruff check src tests benchmarks examples

@@ -63,6 +63,9 @@ def console_view(snap, camera: CameraConfig) -> dict[str, Any]:
                 "clutched": bool(s.clutched),
                 "selected": bool(s.selected),
                 "scale": float(s.scale),
+                "p_mtm_hrsv": None
+                if s.T_hrsv_mtm is None
+                else _vector(np.asarray(s.T_hrsv_mtm)[:3, 3]),
             }
     haptics = extras.get("haptics")
     requested = {} if haptics is None else dict(haptics.requested)
