@@ -22,7 +22,7 @@ Ops (fields; units):
 - ``teleop`` (``enable``: bool, optional; ``scale``: number in (0, 1], optional).
 - ``arms`` (``action``: enable, home, disable).
 - ``synthetic`` (``action``: start, stop; ``subject``: int ≥ 0, optional; ``practice``:
-  int ≥ 0, optional): watch a synthetic trainee do the task on the live console.
+  int ≥ 1, optional): watch a synthetic trainee do the task on the live console.
 - ``ping`` (``t``: number, the page's clock, ms): answered with ``pong`` (latency).
 """
 
@@ -162,7 +162,7 @@ OPS: dict[str, dict[str, tuple[Any, bool]]] = {
     "synthetic": {
         "action": (_choice("action", ("start", "stop")), True),
         "subject": (_integer("subject"), False),
-        "practice": (_integer("practice"), False),
+        "practice": (_integer("practice", 1), False),
     },
     "ping": {"t": (_number("t"), True)},
 }

@@ -375,7 +375,8 @@ function setupPanels() {
   $("reset").onclick = () => send({ op: "task", action: "reset" });
   $("synthetic").onclick = () => {
     const running = !!(state.last?.synthetic?.running);
-    send({ op: "synthetic", action: running ? "stop" : "start" });
+    // Subject 0 of the study's population, as after ten practice repetitions.
+    send(running ? { op: "synthetic", action: "stop" } : { op: "synthetic", action: "start", subject: 0, practice: 10 });
   };
   $("teleop").onchange = () => send({ op: "teleop", enable: $("teleop").checked });
   $("scale-apply").onclick = () => send({ op: "teleop", scale: Number($("scale").value) });

@@ -1,0 +1,329 @@
+"""The web console in a real browser: headless Chromium (the system's, driven by Playwright)
+against ``serve`` with the web console, the loop in its own process, as a user runs it.
+
+Screenshots of each view go to the test's temporary folder (``--basetemp`` to keep them).
+"""
+
+from __future__ import annotations
+
+import shutil
+import threading
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+playwright = pytest.importorskip("playwright.sync_api")
+
+from davinci_sim.bridge.app import ServeOptions, serve  # noqa: E402
+from davinci_sim.bridge.rosbridge.config import BridgeConfig  # noqa: E402
+from davinci_sim.web.app import web_part  # noqa: E402
+from davinci_sim.web.server import WebOptions  # noqa: E402
+
+SHORT_TASK = str(Path(__file__).resolve().parents[1] / "study" / "short_path.yaml")
+CHROMIUM = shutil.which("chromium") or shutil.which("chromium-browser")
+#: Chromium's flags for a closed network and no display (see scripts/system-deps.sh).
+CHROMIUM_ARGS = [
+    "--no-sandbox",
+    "--disable-gpu",
+    "--disable-quic",
+    "--no-first-run",
+    "--disable-background-networking",
+    "--disable-component-update",
+    "--disable-sync",
+]
+
+pytestmark = pytest.mark.skipif(CHROMIUM is None, reason="Chromium is not installed")
+
+
+@pytest.fixture(scope="module")
+def server():
+    """``serve --task short_path`` with the web console: the loop in its own process."""
+    options = ServeOptions(
+        scene="psm1_ecm_mtmr",
+        task=SHORT_TASK,
+        home=True,
+        runner="process",
+        real_time=False,  # as fast as it goes: the tests wait on simulated time
+        images="none",
+        bridge=BridgeConfig(port=0),
+        hand_inputs=("MTMR",),
+        render_hz=10.0,
+    )
+    parts = [web_part(WebOptions(port=0, frame_rate=10.0), bedside=True)]
+    info: dict = {}
+    stop = threading.Event()
+    thread = threading.Thread(
+        target=lambda: info.update(
+            done=serve(options, stop=stop, on_ready=info.update, parts=parts)
+        )  # fmt: skip
+    )
+    thread.start()
+    end = time.monotonic() + 60
+    while "web" not in info and thread.is_alive() and time.monotonic() < end:
+        time.sleep(0.1)
+    assert "web" in info, "serve did not start the web console"
+    yield info
+    stop.set()
+    thread.join(60)
+    assert "done" in info
+
+
+@pytest.fixture(scope="module")
+def browser():
+    with playwright.sync_playwright() as p:
+        b = p.chromium.launch(executable_path=CHROMIUM, args=CHROMIUM_ARGS)
+        yield b
+        b.close()
+
+
+class Console:
+    """One page of the console, with its console errors collected."""
+
+    def __init__(self, browser, url: str, *, init_script: str | None = None):
+        self.context = browser.new_context(viewport={"width": 1280, "height": 860})
+        if init_script:
+            self.context.add_init_script(init_script)
+        self.page = self.context.new_page()
+        self.errors: list[str] = []
+        self.page.on("pageerror", lambda e: self.errors.append(str(e)))
+        self.page.on("console", lambda m: self.errors.append(m.text) if m.type == "error" else None)
+        self.page.goto(url)
+        self.wait("window.davinci.last !== null && window.davinci.client !== null")
+
+    def js(self, expression: str):
+        return self.page.evaluate(expression)
+
+    def wait(self, expression: str, timeout: float = 60.0):
+        self.page.wait_for_function(expression, timeout=timeout * 1000)
+
+    def state(self) -> dict:
+        return self.js("window.davinci.last")
+
+    def take_control(self) -> None:
+        self.page.click("#control")
+        self.wait("window.davinci.operator === window.davinci.client")
+
+    def wait_following(self) -> dict:
+        self.wait("window.davinci.last.console.buttons.operator_present")
+        t = self.state()["time"]
+        self.wait(
+            f"window.davinci.last.time > {t + 0.1} && "
+            "window.davinci.last.teleops.MTMR_PSM1.following"
+        )
+        return self.state()
+
+    def wait_sim(self, seconds: float) -> dict:
+        t = self.state()["time"]
+        self.wait(f"window.davinci.last.time > {t + seconds}")
+        return self.state()
+
+    def release(self) -> None:
+        if self.js("window.davinci.operator === window.davinci.client"):
+            self.page.click("#control")
+            self.wait("window.davinci.operator !== window.davinci.client")
+
+    def close(self) -> None:
+        self.context.close()
+
+
+@pytest.fixture
+def console(server, browser):
+    pages: list[Console] = []
+
+    def open_page(**kwargs) -> Console:
+        page = Console(browser, server["web"], **kwargs)
+        pages.append(page)
+        return page
+
+    yield open_page
+    for page in reversed(pages):
+        page.release()
+        page.close()
+
+
+def canvas_std(page: Console, selector: str) -> float:
+    return page.js(
+        f"""(() => {{
+        const c = document.querySelector('{selector}');
+        const d = c.getContext('2d').getImageData(0, 0, c.width, c.height).data;
+        let s = 0, s2 = 0, n = d.length / 4;
+        for (let i = 0; i < d.length; i += 4) {{ const v = d[i + 1]; s += v; s2 += v * v; }}
+        return Math.sqrt(s2 / n - (s / n) ** 2);
+    }})()"""
+    )
+
+
+def test_the_page_loads_and_the_endoscope_streams_in_three_modes(console, tmp_path):
+    page = console()
+    page.wait("window.davinci.frameNumber !== undefined")
+    first = page.js("window.davinci.frameNumber")
+    page.wait(f"window.davinci.frameNumber > {first}")  # frames keep coming
+    assert canvas_std(page, "#endoscope") > 10  # a picture, not a blank
+    assert page.js("document.querySelector('#endoscope').width") == 640
+    page.page.screenshot(path=tmp_path / "surgeon_left.png")
+    page.page.select_option("#mode", "sbs")
+    page.wait(f"window.davinci.frameNumber > {first + 2}")
+    assert page.js("document.querySelector('#endoscope').width") == 1280
+    page.page.screenshot(path=tmp_path / "surgeon_side_by_side.png")
+    page.page.select_option("#mode", "anaglyph")
+    n = page.js("window.davinci.frameNumber")
+    page.wait(f"window.davinci.frameNumber > {n + 1}")
+    # Red from the left eye, cyan from the right: the two channels differ somewhere.
+    differs = page.js(
+        """(() => { const c = document.querySelector('#endoscope');
+        const d = c.getContext('2d').getImageData(0, 0, c.width, c.height).data;
+        let k = 0; for (let i = 0; i < d.length; i += 4) if (Math.abs(d[i] - d[i + 1]) > 40) k++;
+        return k; })()"""
+    )
+    assert differs > 1000
+    page.page.screenshot(path=tmp_path / "surgeon_anaglyph.png")
+    assert page.errors == []
+
+
+def test_the_bedside_view_renders_the_system_in_3d(console, server, tmp_path):
+    if "bedside" not in server:
+        pytest.skip("no 3-D view in this build")
+    page = console()
+    page.page.click("nav button[data-tab=bedside]")
+    frame = page.page.frame_locator("#bedside")
+    frame.locator("canvas").first.wait_for(timeout=60_000)
+    page.page.wait_for_timeout(3000)  # the scene arrives and draws
+    shot = page.page.locator("#bedside").screenshot(path=tmp_path / "bedside.png")
+    from io import BytesIO
+
+    from PIL import Image
+
+    pixels = np.asarray(Image.open(BytesIO(shot)).convert("L"), dtype=float)
+    assert pixels.std() > 5  # something is drawn
+
+
+def test_a_key_moves_the_tool_right_in_the_image_by_the_scaled_amount(console):
+    page = console()
+    page.take_control()
+    before = page.wait_following()
+    page.page.click("#screen")
+    page.page.keyboard.down("KeyD")
+    page.wait_sim(1.0)
+    page.page.keyboard.up("KeyD")
+    after = page.wait_sim(0.8)  # the hand's last input times out, the tool settles
+    tool = np.subtract(after["tips"]["PSM1"]["p_camera"], before["tips"]["PSM1"]["p_camera"])
+    mtm = np.subtract(
+        after["teleops"]["MTMR_PSM1"]["p_mtm_hrsv"], before["teleops"]["MTMR_PSM1"]["p_mtm_hrsv"]
+    )
+    scale = before["teleops"]["MTMR_PSM1"]["scale"]
+    # Right in the image is the camera's -x (dvrk.md 1.6), and HRSV's (dvrk.md 4.2).
+    assert tool[0] < -0.01 and abs(tool[1]) < 0.3 * abs(tool[0])
+    assert tool[0] == pytest.approx(scale * mtm[0], rel=0.15)
+    assert after["tips"]["PSM1"]["pixel"][0] > before["tips"]["PSM1"]["pixel"][0] + 20
+    assert page.errors == []
+
+
+def test_the_clutch_holds_the_tool_while_the_hand_moves(console):
+    page = console()
+    page.take_control()
+    page.wait_following()
+    page.page.click("#screen")
+    page.page.keyboard.down("Space")
+    page.wait("window.davinci.last.teleops.MTMR_PSM1.clutched")
+    before = page.state()
+    page.page.keyboard.down("KeyW")
+    page.wait_sim(1.0)
+    page.page.keyboard.up("KeyW")
+    after = page.wait_sim(0.5)
+    page.page.keyboard.up("Space")
+    tool = np.subtract(after["tips"]["PSM1"]["p_camera"], before["tips"]["PSM1"]["p_camera"])
+    mtm = np.subtract(
+        after["teleops"]["MTMR_PSM1"]["p_mtm_hrsv"], before["teleops"]["MTMR_PSM1"]["p_mtm_hrsv"]
+    )
+    assert mtm[1] > 0.01  # the hand moved the master up ...
+    assert np.linalg.norm(tool) < 0.001  # ... and the tool held
+
+
+FAKE_GAMEPAD = """
+window.fakePad = { id: "Fake standard gamepad", index: 0, connected: true, mapping: "standard",
+  axes: [0, 0, 0, 0], buttons: Array.from({ length: 17 }, () => ({ pressed: false, value: 0 })),
+  vibrationActuator: { effects: [], playEffect(kind, p) { this.effects.push(p);
+                       return Promise.resolve("complete"); } } };
+navigator.getGamepads = () => [window.fakePad];
+"""
+
+
+def test_a_scripted_gamepad_moves_the_tool_up(console):
+    page = console(init_script=FAKE_GAMEPAD)
+    page.take_control()
+    before = page.wait_following()
+    page.js("window.fakePad.axes[1] = -1")  # left stick pushed forward: up
+    page.wait_sim(1.0)
+    page.js("window.fakePad.axes[1] = 0")
+    after = page.wait_sim(0.8)
+    tool = np.subtract(after["tips"]["PSM1"]["p_camera"], before["tips"]["PSM1"]["p_camera"])
+    assert tool[1] > 0.01 and abs(tool[0]) < 0.3 * tool[1]  # camera +y is up in the image
+    assert "Fake standard gamepad" in page.page.inner_text("#gamepad")
+
+
+def test_a_fixture_set_in_the_page_reaches_the_running_task(console):
+    page = console()
+    page.take_control()
+    page.page.select_option("#fixture-type", "viscous")
+    page.js(
+        """for (const [id, v] of [['B', 70], ['G', 6]]) {
+          const el = document.getElementById(id); el.value = v;
+          el.dispatchEvent(new Event('input')); }"""
+    )
+    page.page.click("#apply")
+    page.wait("window.davinci.last.task.condition === 'viscous(B=70, G_max=6)'")
+    assert page.page.inner_text("#repetition").endswith("viscous(B=70, G_max=6)")
+
+
+def test_bad_input_from_the_page_is_refused_with_a_message(console):
+    page = console()
+    page.take_control()
+    before = page.state()["hands"]
+    page.js("window.davinciSend({op: 'input', mtm: 'MTMR', axes: [NaN, 0, 0]})")
+    page.wait("(window.davinci.lastMessage || {}).cls === 'error'")
+    assert "must be a number" in page.page.inner_text("#messages")
+    page.js("window.davinciSend({op: 'launch', what: 'rockets'})")
+    page.wait("document.querySelector('#messages').innerText.includes('unknown op')")
+    after = page.wait_sim(0.2)["hands"]
+    assert after.get("MTMR", {}).get("velocity") in (None, [0.0, 0.0, 0.0])
+    assert before.get("MTMR", {}).get("holding") == after.get("MTMR", {}).get("holding")
+
+
+def test_two_pages_one_operator_and_the_second_sees_the_first(console):
+    a, b = console(), console()
+    a.take_control()
+    b.page.click("#control")
+    b.wait("document.querySelector('#messages').innerText.includes('release control')")
+    assert b.page.inner_text("#operator").startswith("page ")
+    a.wait_following()
+    tip0 = b.state()["tips"]["PSM1"]["p_camera"]
+    a.page.click("#screen")
+    a.page.keyboard.down("KeyA")
+    a.wait_sim(0.8)
+    a.page.keyboard.up("KeyA")
+    b.wait_sim(0.5)
+    tip1 = b.state()["tips"]["PSM1"]["p_camera"]
+    assert tip1[0] - tip0[0] > 0.005  # left in the image: the camera's +x, seen by page b
+
+
+def test_a_synthetic_trainee_does_a_repetition_and_its_row_is_in_the_table(console, tmp_path):
+    page = console()
+    page.page.fill("#trainee", "Grace")
+    page.page.press("#trainee", "Enter")
+    page.page.dispatch_event("#trainee", "change")
+    page.take_control()
+    page.page.click("#synthetic")
+    page.wait("window.davinci.last.synthetic && window.davinci.last.synthetic.running")
+    phases = set()
+    end = time.monotonic() + 120
+    while time.monotonic() < end:
+        phases.add(page.state()["task"]["phase"])
+        if page.js("document.querySelectorAll('#rows tbody tr').length") > 0:
+            break
+        time.sleep(0.05)
+    assert {"RUNNING", "FINISHED"} <= phases | {page.state()["task"]["phase"]}
+    row = page.page.inner_text("#rows tbody tr")
+    assert row.startswith("Grace") and "short_path" not in row  # trainee, condition, ...
+    page.page.screenshot(path=tmp_path / "task_panel.png")
