@@ -15,6 +15,7 @@ import bench_state  # noqa: E402
 import bench_study  # noqa: E402
 import bench_teleop  # noqa: E402
 import bench_tick  # noqa: E402
+import bench_web  # noqa: E402
 
 if __name__ == "__main__":
     bench_kinematics.main()
@@ -25,3 +26,4 @@ if __name__ == "__main__":
     bench_teleop.main()
     bench_study.main()  # the 400-trial study, about 2 min
     bench_realtime.main()  # 60 s of real time (plus warm-up)
+    bench_web.main()  # the web console with two pages, 20 s
