@@ -236,6 +236,7 @@ def cmd_serve(args: argparse.Namespace) -> int:
             runner=runner,
             hand_inputs=hands,
             render_hz=args.image_rate if web else None,
+            frame_task=web,
             task=args.task,
             condition=args.condition,
             task_log=args.task_log,

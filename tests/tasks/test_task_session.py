@@ -148,3 +148,34 @@ def test_a_refused_condition_changes_nothing(fresh_session, condition, words):
     assert not result and words in result.message
     assert sim.components["haptics"].field(session.field_name) is before
     assert session.condition == label
+
+
+def test_frame_view_brings_the_endoscope_to_the_task():
+    from davinci_sim.model.cameras import CameraConfig
+    from davinci_sim.system import SystemDescription, TaskDescription
+    from davinci_sim.system.build import build_simulation
+    from davinci_sim.web.view import project_left
+
+    description = SystemDescription(
+        scene="psm1_ecm_mtmr", home=True, runner="none",
+        task=TaskDescription("seed_path", frame_view=0.13),
+    )  # fmt: skip
+    sim = build_simulation(description)
+    session, ecm = sim.components["task"], sim.arms["ECM"]
+    T_before = sim.T_cart_camera().copy()
+    assert sim.run_until(lambda: ecm.is_homed() and not ecm.is_busy(), 20.0)
+    sim.run_for(0.01)
+    assert sim.run_until(lambda: not ecm.is_busy(), 20.0)
+    sim.run_for(0.2)
+    T_camera_world = np.linalg.inv(sim.T_cart_camera())
+    points = session.task.view_points
+    p_camera = (T_camera_world @ np.c_[points, np.ones(len(points))].T).T[:, :3]
+    centre = p_camera.mean(axis=0)
+    # The path's centre is straight ahead at the distance asked (the IK keeps the shaft
+    # through the RCM: the centre is on the camera's axis).
+    assert np.linalg.norm(centre[:2]) < 0.005 and centre[2] == pytest.approx(0.13, abs=0.005)
+    pixels = np.array([project_left(p, CameraConfig()) for p in p_camera])
+    width, height = np.ptp(pixels, axis=0)
+    assert width > 0.4 * 640  # the path spans a good part of the view, not a corner
+    assert not np.allclose(T_before, sim.T_cart_camera())
+    sim.close()

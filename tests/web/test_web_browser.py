@@ -327,3 +327,35 @@ def test_a_synthetic_trainee_does_a_repetition_and_its_row_is_in_the_table(conso
     row = page.page.inner_text("#rows tbody tr")
     assert row.startswith("Grace") and "short_path" not in row  # trainee, condition, ...
     page.page.screenshot(path=tmp_path / "task_panel.png")
+
+
+def test_the_input_module_maps_keys_sticks_spacemouse_and_rumble(console):
+    page = console()
+    r = page.page.evaluate(
+        """async () => { const m = await import('/input.js');
+        const buttons = (pressed, values) => Array.from({ length: 17 }, (_, i) =>
+            ({ pressed: pressed.includes(i), value: values[i] ?? (pressed.includes(i) ? 1 : 0) }));
+        return {
+          right: m.keyAxes(new Set(['KeyD'])), arrows: m.keyAxes(new Set(['ArrowUp'])),
+          cancel: m.keyAxes(new Set(['KeyD', 'KeyA'])), deeper: m.keyAxes(new Set(['KeyR'])),
+          fine: m.keyAxes(new Set(['KeyW', 'ShiftLeft'])),
+          pad: m.gamepadInput({ id: 'pad', axes: [1, -1, 0, -1], buttons: buttons([0], {7: 1}) }),
+          rest: m.gamepadInput({ id: 'pad', axes: [0.05, -0.1, 0, 0.11], buttons: [] }),
+          mouse: m.gamepadInput({ id: '3Dconnexion SpaceMouse', axes: [1, 0, -1, 0, 0, 0],
+                                  buttons: buttons([1], {}) }),
+          rumble: [m.rumbleIntensity(2.5, 5), m.rumbleIntensity(-9, 5),
+                   m.rumbleIntensity(NaN, 5), m.rumbleIntensity(1, 0)],
+          gripperOpen: m.GRIPPER_OPEN,
+        }; }"""
+    )
+    assert r["right"] == [1, 0, 0] and r["arrows"] == [0, 1, 0] and r["deeper"] == [0, 0, 1]
+    assert r["cancel"] == [0, 0, 0] and r["fine"] == [0, 0.25, 0]
+    # Standard mapping: left stick right/up (y is down on a gamepad), right stick forward =
+    # deeper, A = clutch, right trigger fully pulled = jaw closed.
+    assert r["pad"]["axes"] == [1, 1, 1]
+    assert r["pad"]["buttons"] == {"clutch": True, "camera": False} and r["pad"]["gripper"] == 0
+    assert r["rest"]["axes"] == [0, 0, 0]  # inside the dead zone
+    # A SpaceMouse: x right, z down (so up is -z), y towards the user (so deeper is -y).
+    assert r["mouse"]["axes"] == [1, 1, 0] and r["mouse"]["gripper"] == 0
+    assert r["rumble"] == [0.5, 1, 0, 0]
+    assert r["gripperOpen"] == pytest.approx(np.radians(60))

@@ -68,6 +68,9 @@ class ServeOptions:
     None: the task's own fixture)."""
     task_log: str | None = None
     """CSV file each finished repetition is appended to."""
+    frame_task: bool = False
+    """Bring the endoscope closer to the task once the ECM is homed (the web console's
+    view: the task fills the image)."""
 
 
 def serve_description(options: ServeOptions):
@@ -92,7 +95,11 @@ def serve_description(options: ServeOptions):
         console = ConsoleDescription(devices=devices, hand_inputs=hands)
     task = None
     if options.task is not None:
-        task = TaskDescription(options.task, condition=options.condition, log=options.task_log)
+        from davinci_sim.tasks.session import VIEW_DISTANCE
+
+        view = VIEW_DISTANCE if options.frame_task else None
+        task = TaskDescription(options.task, condition=options.condition, log=options.task_log,
+                               frame_view=view)  # fmt: skip
     return SystemDescription(
         scene=options.scene,
         keyframe=options.keyframe,

@@ -155,7 +155,8 @@ def install(sim: Simulation, description: SystemDescription, task: Task | None =
         if task is None:
             task = load_description_task(description)
         t = description.task
-        session = install_task(sim, task, condition=task_condition(task, t.condition), log=t.log)
+        session = install_task(sim, task, condition=task_condition(task, t.condition), log=t.log,
+                               frame_view=t.frame_view)  # fmt: skip
         mtm = task.teleop.mtm
         if mtm in description.console_description.hand_inputs:
             from davinci_sim.operators.live import SyntheticOperator

@@ -93,6 +93,10 @@ class TaskDescription:
     """CSV file each finished repetition is appended to."""
     draw: bool = True
     """Draw the path in the scene (the endoscope shows it, in every renderer)."""
+    frame_view: float | None = None
+    """Bring the endoscope to the task from this distance, m, once the ECM is homed
+    (:meth:`~davinci_sim.tasks.session.TaskSession.frame_view`; the web console does);
+    None: the camera stays at the keyframe's pose."""
 
 
 @dataclass(frozen=True)

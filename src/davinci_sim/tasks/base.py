@@ -194,6 +194,12 @@ class Task(ABC):
         """Add the task's visuals (visual-only geoms) to ``spec``; ``T_world_camera`` is the
         endoscope's pose (to place a camera-frame task and face labels to the viewer)."""
 
+    @property
+    def view_points(self) -> np.ndarray:
+        """(k, 3) points the endoscope should frame to show the task, task frame, m (a
+        session can bring the camera to them: :meth:`TaskSession.frame_view`)."""
+        return np.asarray(self.start, dtype=float).reshape(1, 3)
+
     # ------------------------------------------------------------ state machine
     @abstractmethod
     def initial_state(self, n: int):

@@ -40,6 +40,10 @@ if TYPE_CHECKING:
     from davinci_sim.console.teleop_psm import TeleopPSM
     from davinci_sim.sim.simulation import Simulation
 
+#: How far the endoscope looks at a task it frames (:meth:`TaskSession.frame_view`), m: the
+#: seed's 6 x 3 x 2.5 cm path then spans about half the 57° x 45° view.
+VIEW_DISTANCE = 0.13
+
 #: The columns of a session's row before the task's metrics.
 SESSION_COLUMNS = ("task", "condition", "repetition")
 
@@ -78,6 +82,8 @@ class TaskSession:
             ``fixture``).
         log: CSV file the rows are appended to (None: none).
         name: component name.
+        frame_view: bring the endoscope to the task (:meth:`frame_view`) from this distance
+            (m) as soon as the ECM is homed and idle; None: the camera stays where it is.
 
     Raises:
         KeyError: if the console has no teleoperation of the task's MTM and PSM.
@@ -92,6 +98,7 @@ class TaskSession:
         condition: dict | str | None = None,
         log: str | Path | None = None,
         name: str = "task",
+        frame_view: float | None = None,
     ) -> None:
         key = f"{task.teleop.mtm}_{task.teleop.psm}"
         teleop = console.psm_teleops.get(key)
@@ -113,6 +120,7 @@ class TaskSession:
         self.repetition = 1
         self._distance = math.nan
         self._recorded = False
+        self._frame_at = frame_view
 
     def _install_condition(self, condition: dict | str | None) -> None:
         """Put ``condition``'s fixture in the haptic loop in place of the current one
@@ -133,6 +141,27 @@ class TaskSession:
         self.condition = _condition_label(spec if spec is not None else task.fixture_spec)
 
     # ------------------------------------------------------------ commands
+    def frame_view(self, distance: float = VIEW_DISTANCE) -> CommandResult:
+        """Bring the endoscope to the task: the ECM moves (``move_cp``) so that the camera
+        looks at the centre of the task's :attr:`~davinci_sim.tasks.base.Task.view_points`
+        from ``distance`` m along its shaft (the ECM's closed-form IK keeps the shaft
+        through the RCM and projects the orientation onto it). A world-frame task only (a
+        camera-frame task moves with the camera)."""
+        if self.task.frame != "world":
+            return CommandResult(False, f"{self.name}: a {self.task.frame}-frame task "
+                                        "moves with the camera; nothing to frame")  # fmt: skip
+        if not (isinstance(distance, int | float) and 0.03 <= distance <= 0.5):
+            return CommandResult(False, f"{self.name}: distance must be in [0.03, 0.5] m")
+        ecm = self.sim.arms.get("ECM")
+        if ecm is None:
+            return CommandResult(False, f"{self.name}: no ECM in this simulation")
+        centre = np.asarray(self.task.view_points, dtype=float).mean(axis=0)
+        T_cart_rcm = ecm.base_frame()[0]
+        shaft = centre - T_cart_rcm[:3, 3]
+        goal = ecm.measured_cp().T.copy()  # (cart frame, dvrk.md 1.6)
+        goal[:3, 3] = centre - float(distance) * shaft / np.linalg.norm(shaft)
+        return ecm.move_cp(goal)
+
     def set_condition(self, condition: dict | str | None) -> CommandResult:
         """Change the condition now: a condition name of the task, a fixture entry
         (``{"type": "viscous", "B": 40, "G_max": 5}``, ``{"type": "spring", ...}``,
@@ -162,6 +191,8 @@ class TaskSession:
         """Nothing before the physics step: the session samples in :meth:`post_step`."""
 
     def post_step(self, t: float) -> None:
+        if self._frame_at is not None:
+            self._frame_when_ready()
         task = self.task
         T_task_camera = task.T_task_camera(self.sim.T_cart_camera())
         if self._recorded:
@@ -175,6 +206,15 @@ class TaskSession:
         self._distance = self.monitor.distance
         if self.monitor.phase == Phase.FINISHED and self.monitor.results is not None:
             self._record(self.monitor.results, t)
+
+    def _frame_when_ready(self) -> None:
+        ecm = self.sim.arms.get("ECM")
+        if ecm is None or not (ecm.is_homed() and not ecm.is_busy()):
+            return
+        result = self.frame_view(self._frame_at)
+        self._frame_at = None
+        if not result:
+            self.channels.message("warning", result.message, self.sim.time)
 
     def _record(self, metrics: MetricValues, t: float) -> None:
         row = {"task": self.task.name, "condition": self.condition, "repetition": self.repetition}
@@ -213,7 +253,7 @@ class TaskSession:
         )
 
     # ------------------------------------------------------------ state
-    _STATE = ("results", "repetition", "_distance", "_recorded", "condition")
+    _STATE = ("results", "repetition", "_distance", "_recorded", "condition", "_frame_at")
 
     def get_state(self) -> dict:
         """The monitor's state, the rows so far, the repetition number, the last distance,
@@ -252,13 +292,14 @@ def install_task(
     *,
     condition: dict | str | None = None,
     log: str | Path | None = None,
+    frame_view: float | None = None,
 ) -> TaskSession:
     """Add a :class:`TaskSession` of ``task`` to ``sim``'s installed console (component
     ``task``, after the console's components so that it samples after the haptic loop)."""
     console = sim.components.get("console")
     if console is None:
         raise KeyError("install the console first (console.install_console)")
-    session = TaskSession(sim, console, task, condition=condition, log=log)
+    session = TaskSession(sim, console, task, condition=condition, log=log, frame_view=frame_view)
     if session.name in sim.components:
         raise ValueError(f"a component named {session.name!r} is already registered")
     sim.add_component(session)

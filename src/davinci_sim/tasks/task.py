@@ -162,6 +162,11 @@ class PathTask(Task, kind="path"):
         return self.path.point_at(self.marker_arc_lengths)
 
     @property
+    def view_points(self) -> np.ndarray:
+        """The numbered points: framing them shows the whole path."""
+        return self.markers
+
+    @property
     def start(self) -> np.ndarray:
         return self.waypoints[0]
 

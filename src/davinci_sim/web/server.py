@@ -550,7 +550,7 @@ class WebConsole:
                 continue
             last_tick = snap.tick
             try:
-                view = console_view(snap, self.camera)
+                view = console_view(snap, self.camera, self.task)
             except Exception:  # a bug in the view must not end the stream
                 _log.exception("cannot make the page's state")
                 continue

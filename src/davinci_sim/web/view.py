@@ -34,6 +34,24 @@ def project_left(p_camera, camera: CameraConfig) -> tuple[float, float] | None:
     return (camera.width / 2.0 - f * x_left / z, camera.height / 2.0 - f * y / z)
 
 
+def path_guide(p_camera, T_world_camera, path, camera: CameraConfig) -> dict:
+    """The depth cue of a path task for a 2-D screen: the path's closest point to the tool
+    tip ``p_camera`` (camera frame, m) in the left image (``pixel``), and how much deeper
+    than the tip it lies along the camera's axis (``depth_mm``: > 0 the path is further
+    away, push in; < 0 pull back). ``path`` is in the world frame, ``T_world_camera`` the
+    camera's pose there (4x4)."""
+    T = np.asarray(T_world_camera, dtype=float)
+    p_world = T[:3, :3] @ np.asarray(p_camera, dtype=float) + T[:3, 3]
+    c_world = np.asarray(path.closest_point(p_world[None]).point, dtype=float).reshape(3)
+    c_camera = T[:3, :3].T @ (c_world - T[:3, 3])
+    pixel = project_left(c_camera, camera)
+    return {
+        "pixel": None if pixel is None else list(pixel),
+        "depth_mm": 1000.0 * float(c_camera[2] - float(np.asarray(p_camera)[2])),
+        "distance_mm": 1000.0 * float(np.linalg.norm(c_camera - np.asarray(p_camera))),
+    }
+
+
 def _finite(x: float) -> float | None:
     return float(x) if math.isfinite(x) else None
 
@@ -42,10 +60,11 @@ def _vector(v) -> list[float]:
     return [float(x) for x in np.asarray(v, dtype=float).ravel()]
 
 
-def console_view(snap, camera: CameraConfig) -> dict[str, Any]:
+def console_view(snap, camera: CameraConfig, task=None) -> dict[str, Any]:
     """The page's state from a :class:`~davinci_sim.sim.handle.Snapshot`: time, arms, the
     console, teleoperations, hands, haptics, the task, and the tool tips with their force
-    arrows in the left image (pixels)."""
+    arrows in the left image (pixels); with a world-frame path ``task``, its tool tip's
+    :func:`path_guide` (``guide``)."""
     extras = snap.extras or {}
     arms = {
         name: {"state": a.operating_state.state, "homed": bool(a.operating_state.is_homed)}
@@ -85,7 +104,19 @@ def console_view(snap, camera: CameraConfig) -> dict[str, Any]:
             "force": _vector(force),
             "force_pixel": None if head is None else list(head),
         }
+    ecm = snap.arms.get("ECM")
+    path = getattr(task, "path", None)
+    if path is not None and task.frame == "world" and ecm is not None:
+        tip = tips.get(task.teleop.psm)
+        if tip is not None:  # the ECM's measured_cp is the camera in the cart (dvrk.md 1.6)
+            tip["guide"] = path_guide(tip["p_camera"], ecm.measured_cp.T, path, camera)
     hands = {n.split("/")[0]: dict(s) for n, s in extras.items() if n.endswith("/hand")}
+    synthetic = extras.get("synthetic")
+    sources = {}
+    for name, s in extras.items():
+        if name.endswith("/device") and hasattr(s, "kind"):
+            mtm = name.split("/")[0]
+            sources[mtm] = _source(s.kind, mtm in hands, bool(synthetic and synthetic["running"]))
     task = extras.get("task")
     view = {
         "time": float(snap.time),
@@ -111,9 +142,22 @@ def console_view(snap, camera: CameraConfig) -> dict[str, Any]:
             "completed": int(task.completed),
             "distance": _finite(task.distance_to_path),
         },
-        "synthetic": _synthetic(extras.get("synthetic")),
+        "synthetic": _synthetic(synthetic),
+        "sources": sources,
     }
     return view
+
+
+#: What drives an MTM, by its device's kind (the page says it next to each arm).
+_SOURCES = {"network": "ROS client mode", "udp": "UDP stream", "simulated": "simulated hand"}
+
+
+def _source(kind: str, page_hand: bool, synthetic: bool) -> str:
+    if kind == "simulated" and synthetic:
+        return "synthetic trainee"
+    if kind == "simulated" and page_hand:
+        return "this console (keys, gamepad)"
+    return _SOURCES.get(kind, kind)
 
 
 def _synthetic(state) -> dict | None:

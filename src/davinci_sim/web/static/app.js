@@ -147,7 +147,7 @@ function onState(s) {
     $("teleop").checked = s.console.teleop_enabled;
     $("present").checked = !!s.console.buttons.operator_present;
   }
-  fillTable("teleops", Object.values(s.teleops).map((t) => [t.mtm, t.psm, t.following ? "following" : t.state, t.clutched ? "clutched" : ""]));
+  fillTable("teleops", Object.values(s.teleops).map((t) => [t.mtm, t.psm, t.following ? "following" : t.state, t.clutched ? "clutched" : "", s.sources[t.mtm] || ""]));
   fillTable("arms", Object.entries(s.arms).map(([n, a]) => [n, a.state, a.homed ? "yes" : "no"]));
   $("synthetic").classList.toggle("on", !!(s.synthetic && s.synthetic.running));
   $("synthetic").textContent = s.synthetic && s.synthetic.running ? "Stop the synthetic trainee" : "Watch a synthetic trainee";
@@ -274,7 +274,8 @@ function drawHud(ctx, s, w) {
   for (const t of Object.values(s.teleops)) {
     if (!t.selected) continue;
     const what = t.following ? "following" : t.state.toLowerCase();
-    lines.push(`${t.mtm} → ${t.psm}: ${what}${t.clutched ? " · CLUTCH" : ""}`);
+    const source = s.sources[t.mtm] ? ` (${s.sources[t.mtm]})` : "";
+    lines.push(`${t.mtm}${source} → ${t.psm}: ${what}${t.clutched ? " · CLUTCH" : ""}`);
   }
   const b = s.console ? s.console.buttons : {};
   lines.push(`head ${b.operator_present ? "present" : "away"} · clutch ${b.clutch ? "down" : "up"} · camera ${b.camera ? "down" : "up"}`);
@@ -284,7 +285,7 @@ function drawHud(ctx, s, w) {
   }
   lines.push(`t = ${s.time.toFixed(1)} s${isOperator() ? " · you operate" : ""}`);
   ctx.fillStyle = "rgba(0,0,0,0.55)";
-  ctx.fillRect(6, 6, 330, 18 * lines.length + 8);
+  ctx.fillRect(6, 6, 12 + Math.max(...lines.map((l) => ctx.measureText(l).width)), 18 * lines.length + 8);
   ctx.fillStyle = "#e8f1ff";
   lines.forEach((l, i) => ctx.fillText(l, 12, 22 + 18 * i));
   for (const [psm, tip] of Object.entries(s.tips)) {
@@ -295,9 +296,27 @@ function drawHud(ctx, s, w) {
     ctx.beginPath(); ctx.arc(u, v, 7, 0, 2 * Math.PI); ctx.stroke();
     ctx.fillStyle = "#3ea6ff";
     ctx.fillText(`${psm} (${tip.mtm})`, u + 10, v - 10);
+    if (tip.guide && tip.guide.pixel) drawGuide(ctx, u, v, tip.guide);
     const f = Math.hypot(...tip.force);
     if (tip.force_pixel && f > 0.05) drawArrow(ctx, u, v, tip.force_pixel[0], tip.force_pixel[1], f);
   }
+}
+
+// Depth cue for a 2-D screen: a dashed line to the path's closest point, coloured by how
+// much deeper (blue: push in) or shallower (red: pull back) the path lies than the tool.
+function drawGuide(ctx, u, v, guide) {
+  const d = guide.depth_mm;
+  const color = Math.abs(d) < 1 ? "#3ecf8e" : d > 0 ? "#4da3ff" : "#ff5a5a";
+  ctx.save();
+  ctx.strokeStyle = ctx.fillStyle = color;
+  ctx.setLineDash([4, 4]);
+  ctx.lineWidth = 1.5;
+  ctx.beginPath(); ctx.moveTo(u, v); ctx.lineTo(guide.pixel[0], guide.pixel[1]); ctx.stroke();
+  ctx.setLineDash([]);
+  ctx.beginPath(); ctx.arc(guide.pixel[0], guide.pixel[1], 4, 0, 2 * Math.PI); ctx.fill();
+  const hint = Math.abs(d) < 1 ? "on depth" : d > 0 ? "push in" : "pull back";
+  ctx.fillText(`depth ${d >= 0 ? "+" : ""}${d.toFixed(1)} mm (${hint})`, u + 10, v + 18);
+  ctx.restore();
 }
 
 function drawArrow(ctx, x0, y0, x1, y1, f) {

@@ -1,0 +1,40 @@
+"""What the page draws over the endoscope image: the projection of the left camera and the
+path's depth cue, against independent computations."""
+
+import math
+
+import pytest
+
+
+def test_path_guide_gives_the_closest_point_and_its_depth_against_an_independent_check():
+    import numpy as np
+
+    from davinci_sim.geometry.path import Polyline
+    from davinci_sim.model.cameras import CameraConfig
+    from davinci_sim.web.view import path_guide, project_left
+
+    # A camera at (0, 0, 1) looking down -z of the world (its z axis = world -z, y = world y).
+    T_world_camera = np.array([[-1.0, 0, 0, 0], [0, 1, 0, 0], [0, 0, -1, 1.0], [0, 0, 0, 1]])
+    path = Polyline(np.array([[-0.1, 0.0, 0.7], [0.1, 0.0, 0.7]]))  # 0.3 m from the camera
+    tip_camera = np.array([0.02, 0.01, 0.25])  # 5 cm nearer than the path, off to the side
+    guide = path_guide(tip_camera, T_world_camera, path, CameraConfig())
+    tip_world = T_world_camera[:3, :3] @ tip_camera + T_world_camera[:3, 3]
+    closest_world = np.array([tip_world[0], 0.0, 0.7])  # the straight path's foot point
+    closest_camera = T_world_camera[:3, :3].T @ (closest_world - T_world_camera[:3, 3])
+    assert guide["depth_mm"] == pytest.approx(50.0)  # the path is 5 cm deeper: push in
+    assert guide["pixel"] == pytest.approx(list(project_left(closest_camera, CameraConfig())))
+    assert guide["distance_mm"] == pytest.approx(1000 * np.hypot(0.01, 0.05))
+
+
+def test_project_left_is_the_pinhole_of_the_left_camera():
+    from davinci_sim.model.cameras import CameraConfig
+    from davinci_sim.web.view import project_left
+
+    cam = CameraConfig()
+    f = 240 / math.tan(math.radians(cam.fovy_deg) / 2)
+    # On the left camera's axis (half a baseline towards +x): the image centre.
+    assert project_left([cam.baseline_m / 2, 0, 0.2], cam) == pytest.approx((320, 240))
+    # x is the image's left, y up (dvrk.md 1.6).
+    u, v = project_left([cam.baseline_m / 2 + 0.01, 0.02, 0.2], cam)
+    assert u == pytest.approx(320 - f * 0.05) and v == pytest.approx(240 - f * 0.1)
+    assert project_left([0, 0, -0.1], cam) is None
