@@ -50,6 +50,7 @@ def server():
         bridge=BridgeConfig(port=0),
         hand_inputs=("MTMR",),
         render_hz=10.0,
+        frame_task=True,
     )
     parts = [web_part(WebOptions(port=0, frame_rate=10.0), bedside=True)]
     info: dict = {}

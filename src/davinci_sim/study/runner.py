@@ -81,10 +81,11 @@ def _local(specs: list[TrialSpec], workers: int, engine: str, bar) -> list[dict]
         drain = threading.Thread(target=_drain, args=(q, bar, stop), daemon=True)
         drain.start()
         try:
-            return _gather(specs, parts, [run_chunk(specs, engine, q)], bar)
-        finally:
+            results = [run_chunk(specs, engine, q)]
+        finally:  # (the drain stops before the total is set: no update after it)
             stop.set()
             drain.join()
+        return _gather(specs, parts, results, bar)
     with Manager() as manager, ProcessPoolExecutor(max_workers=len(parts)) as pool:
         progress = manager.Queue()
         stop = threading.Event()
@@ -133,10 +134,34 @@ BACKENDS: dict[str, Callable[[list[TrialSpec], int, str, tqdm], list[dict]]] = {
 }
 
 
-def run_study(config: StudyConfig, *, progress: bool = True) -> StudyResult:
-    """Run every trial of ``config`` (see :func:`~davinci_sim.study.config.plan_trials`)."""
+class _Progress:
+    """A progress sink for a caller's callback ``report(done, total)`` (a web page's bar),
+    with what the backends use of a tqdm bar (``update``, ``n``, ``refresh``)."""
+
+    def __init__(self, report: Callable[[int, int], None], total: int) -> None:
+        self.report, self.total, self.n = report, total, 0
+
+    def update(self, k: int) -> None:
+        self.n += k
+        self.refresh()
+
+    def refresh(self) -> None:
+        self.report(self.n, self.total)
+
+
+def run_study(
+    config: StudyConfig, *, progress: bool | Callable[[int, int], None] = True
+) -> StudyResult:
+    """Run every trial of ``config`` (see :func:`~davinci_sim.study.config.plan_trials`).
+
+    ``progress``: a progress bar on the terminal (True), none (False), or a callback called
+    with (trials done, trials in all) as trials finish."""
     specs = plan_trials(config)
     t0 = time.perf_counter()
+    if callable(progress):
+        rows = BACKENDS[config.backend](specs, config.workers, config.engine,
+                                        _Progress(progress, len(specs)))  # fmt: skip
+        return StudyResult(config, rows, time.perf_counter() - t0)
     with tqdm(total=len(specs), desc="trials", unit="trial", disable=not progress) as bar:
         rows = BACKENDS[config.backend](specs, config.workers, config.engine, bar)
     return StudyResult(config, rows, time.perf_counter() - t0)

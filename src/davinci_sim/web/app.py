@@ -68,6 +68,7 @@ def web_part(options: WebOptions, *, bedside: bool = True) -> Callable[[Any, dic
             task=task,
             camera=resolve_scene(description.scene).endoscope,
             hand_mtms=hands,
+            study_task=None if description.task is None else description.task.task,
         )
         try:
             console.start()

@@ -23,6 +23,8 @@ Ops (fields; units):
 - ``arms`` (``action``: enable, home, disable).
 - ``synthetic`` (``action``: start, stop; ``subject``: int ≥ 0, optional; ``practice``:
   int ≥ 1, optional): watch a synthetic trainee do the task on the live console.
+- ``study`` (``action``: start; ``subjects``: 1 … 10; ``repetitions``: 1 … 5): a small
+  study of the task with the study's synthetic trainees (progress, then the report).
 - ``ping`` (``t``: number, the page's clock, ms): answered with ``pong`` (latency).
 """
 
@@ -164,11 +166,18 @@ OPS: dict[str, dict[str, tuple[Any, bool]]] = {
         "subject": (_integer("subject"), False),
         "practice": (_integer("practice", 1), False),
     },
+    "study": {
+        "action": (_choice("action", ("start",)), True),
+        "subjects": (_integer("subjects", 1), True),
+        "repetitions": (_integer("repetitions", 1), True),
+    },
     "ping": {"t": (_number("t"), True)},
 }
 
 #: Ops that act on the simulation: only the operator may send them.
-OPERATOR_OPS = frozenset({"input", "button", "condition", "task", "teleop", "arms", "synthetic"})
+OPERATOR_OPS = frozenset(
+    {"input", "button", "condition", "task", "teleop", "arms", "synthetic", "study"}
+)
 
 
 def parse_message(text: str | bytes) -> Command:

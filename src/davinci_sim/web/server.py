@@ -57,6 +57,9 @@ _CONTENT_TYPES = {
     ".js": "text/javascript; charset=utf-8",
     ".css": "text/css; charset=utf-8",
     ".svg": "image/svg+xml",
+    ".png": "image/png",
+    ".csv": "text/csv; charset=utf-8",
+    ".md": "text/markdown; charset=utf-8",
 }
 
 
@@ -134,6 +137,7 @@ class WebConsole:
         task: the task at the console (its conditions and metrics for the page), or None.
         camera: the endoscope's camera (image size, field of view, baseline).
         hand_mtms: MTMs whose hand the page steers (``<MTM>/hand`` components).
+        study_task: the task (name or file) the study tab runs studies of; None: no study tab.
     """
 
     def __init__(
@@ -145,8 +149,12 @@ class WebConsole:
         task=None,
         camera: CameraConfig | None = None,
         hand_mtms: tuple[str, ...] = (),
+        study_task: str | None = None,
     ) -> None:
+        from davinci_sim.web.study_job import StudyJob
+
         self.handle = handle
+        self.study = None if study_task is None else StudyJob(study_task, self._notify)
         self.options = options or WebOptions()
         self.frames = frames
         self.task = task
@@ -198,6 +206,14 @@ class WebConsole:
             self.loop.call_soon_threadsafe(self._stop.set)
         thread.join(timeout)
         self._thread = None
+        if self.study is not None:
+            self.study.close()
+
+    def _notify(self, message: dict) -> None:
+        """From another thread (the study's): send ``message`` to every page."""
+        loop = self.loop
+        if loop is not None and not loop.is_closed():
+            loop.call_soon_threadsafe(self._broadcast, message)
 
     def __enter__(self) -> WebConsole:
         return self.start()
@@ -306,6 +322,14 @@ class WebConsole:
                 ]
             )
             return Response(200, "OK", headers, body)
+        if path.startswith("/study/"):
+            name = path[len("/study/") :]
+            body = None if self.study is None else self.study.file(name)
+            if body is None:
+                return connection.respond(404, f"not found: {path}\n")
+            kind = _CONTENT_TYPES.get(name[name.rfind(".") :], "application/octet-stream")
+            headers = Headers([("Content-Type", kind), ("Cache-Control", "no-store")])
+            return Response(200, "OK", headers, body)
         name = "index.html" if path in ("/", "/index.html") else path.lstrip("/")
         body = _static(name)
         if body is None:
@@ -350,6 +374,7 @@ class WebConsole:
             "bedside_port": self.options.bedside_port,
             "operator": self.operator,
             "trainee": self.trainee,
+            "study": self.study is not None,
         }
         task = self.task
         if task is not None:
@@ -478,6 +503,12 @@ class WebConsole:
         elif op == "arms":
             for name in self.handle.snapshot().arms:
                 await self._call(name, "state_command", a["action"])
+        elif op == "study":
+            if self.study is None:
+                raise CommandRefused("study: this console has no study (no path task)")
+            why = self.study.start(a["subjects"], a["repetitions"])
+            if why is not None:
+                raise CommandRefused(f"study: {why}")
         elif op == "synthetic":
             if a["action"] == "start":
                 kwargs = {k: a[k] for k in ("subject", "practice") if k in a}

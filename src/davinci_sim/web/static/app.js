@@ -74,6 +74,7 @@ function onMessage(m) {
     case "trainee": if (document.activeElement !== $("trainee")) $("trainee").value = m.name; break;
     case "error": showMessage(m.message, "error"); break;
     case "pong": state.rtt = performance.now() - m.t; break;
+    case "study": onStudy(m); break;
     default: break;
   }
 }
@@ -358,6 +359,30 @@ function drawPlot() {
   });
 }
 
+// ------------------------------------------------------------------ the study tab
+function onStudy(m) {
+  state.study = m;
+  const bar = $("study-progress");
+  bar.max = m.total || 1;
+  bar.value = m.done || 0;
+  if (m.state === "running") $("study-status").textContent = `${m.done} of ${m.total} trials`;
+  if (m.state === "failed") $("study-status").textContent = `failed: ${m.message}`;
+  if (m.state === "done") {
+    $("study-status").textContent = `${m.total} trials in ${m.seconds} s — `;
+    const csv = document.createElement("a");
+    csv.href = "study/trials.csv"; csv.textContent = "trials.csv"; csv.download = "trials.csv";
+    $("study-status").appendChild(csv);
+    $("study-report").textContent = m.report;
+    const figures = $("study-figures");
+    figures.innerHTML = "";
+    for (const f of m.files.filter((name) => name.endsWith(".png"))) {
+      const img = document.createElement("img");
+      img.src = `study/${f}?t=${Date.now()}`; img.alt = f;
+      figures.appendChild(img);
+    }
+  }
+}
+
 // ------------------------------------------------------------------ control and panels
 function isOperator() { return state.client != null && state.operator === state.client; }
 
@@ -392,6 +417,10 @@ function setupPanels() {
     send({ op: "condition", condition: entry });
   };
   $("reset").onclick = () => send({ op: "task", action: "reset" });
+  $("study-run").onclick = () => send({
+    op: "study", action: "start",
+    subjects: Number($("study-subjects").value), repetitions: Number($("study-repetitions").value),
+  });
   $("synthetic").onclick = () => {
     const running = !!(state.last?.synthetic?.running);
     // Subject 0 of the study's population, as after ten practice repetitions.

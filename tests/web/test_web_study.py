@@ -1,0 +1,61 @@
+"""The web console's study tab: a small study runs in the background, reports progress and
+offers its outputs; bad requests are refused before anything starts."""
+
+import threading
+from pathlib import Path
+
+import pytest
+
+from davinci_sim.web.study_job import StudyJob
+
+SHORT_TASK = str(Path(__file__).resolve().parents[1] / "study" / "short_path.yaml")
+
+
+def test_a_small_study_reports_progress_and_its_outputs():
+    messages: list[dict] = []
+    done = threading.Event()
+
+    def notify(m):
+        messages.append(m)
+        if m["state"] in ("done", "failed"):
+            done.set()
+
+    job = StudyJob(SHORT_TASK, notify)
+    assert job.start(subjects=1, repetitions=1) is None
+    assert job.start(subjects=1, repetitions=1) == "a study is already running"
+    assert done.wait(300), "the study did not end"
+    final = messages[-1]
+    assert final["state"] == "done", final
+    assert final["total"] == 4  # Table I: four conditions, one subject, one repetition
+    progress = [m["done"] for m in messages if m["state"] == "running"]
+    assert progress[0] == 0 and progress == sorted(progress) and progress[-1] == 4
+    assert {"trials.csv", "report.md"} <= set(final["files"])
+    assert any(f.endswith(".png") for f in final["files"])
+    assert "short_path" in final["report"] or "B" in final["report"]
+    csv = job.file("trials.csv").decode()
+    assert len(csv.strip().splitlines()) == 1 + 4
+    assert job.file("../../etc/passwd") is None and job.file("nope.png") is None
+    job.close()
+
+
+@pytest.mark.parametrize(
+    "subjects, repetitions, words",
+    [(0, 1, "subjects"), (11, 1, "subjects"), (1, 0, "repetitions"), (1, 6, "repetitions")],
+)
+def test_a_study_too_small_or_too_large_is_refused(subjects, repetitions, words):
+    job = StudyJob(SHORT_TASK, lambda m: None)
+    assert words in job.start(subjects, repetitions)
+    assert not job.running
+
+
+def test_a_study_of_an_unknown_task_fails_with_a_message():
+    messages, done = [], threading.Event()
+    job = StudyJob(
+        "no_such_task", lambda m: (messages.append(m), m["state"] == "failed" and done.set())
+    )
+    why = job.start(1, 1)
+    if why is None:  # refused while planning, in the thread
+        assert done.wait(60)
+        assert messages[-1]["state"] == "failed" and "no_such_task" in messages[-1]["message"]
+    else:
+        assert "no_such_task" in why
