@@ -178,4 +178,12 @@ def test_frame_view_brings_the_endoscope_to_the_task():
     width, height = np.ptp(pixels, axis=0)
     assert width > 0.4 * 640  # the path spans a good part of the view, not a corner
     assert not np.allclose(T_before, sim.T_cart_camera())
+    # Then the tool is brought to the start, in view.
+    psm = sim.arms["PSM1"]
+    assert sim.run_until(lambda: not psm.is_busy(), 20.0)
+    sim.run_for(0.2)
+    tip = psm.measured_cp().position
+    start_camera = (T_camera_world @ np.append(session.task.start, 1.0))[:3]
+    assert np.linalg.norm(tip - start_camera) < 0.002
+    assert session.snapshot().phase in ("READY", "IDLE")
     sim.close()

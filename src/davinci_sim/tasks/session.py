@@ -83,7 +83,8 @@ class TaskSession:
         log: CSV file the rows are appended to (None: none).
         name: component name.
         frame_view: bring the endoscope to the task (:meth:`frame_view`) from this distance
-            (m) as soon as the ECM is homed and idle; None: the camera stays where it is.
+            (m) as soon as the ECM is homed and idle, then the tool to the task's start;
+            None: the camera and the tool stay where they are.
 
     Raises:
         KeyError: if the console has no teleoperation of the task's MTM and PSM.
@@ -121,6 +122,7 @@ class TaskSession:
         self._distance = math.nan
         self._recorded = False
         self._frame_at = frame_view
+        self._framed = False
 
     def _install_condition(self, condition: dict | str | None) -> None:
         """Put ``condition``'s fixture in the haptic loop in place of the current one
@@ -208,11 +210,30 @@ class TaskSession:
             self._record(self.monitor.results, t)
 
     def _frame_when_ready(self) -> None:
+        """The one-shot start of a framed session: once the ECM is homed and idle, frame the
+        task; once it has got there and the PSM is homed and idle, bring the tool to the
+        task's start (``move_cp``, orientation kept, as the study's set-up does) unless the
+        teleoperation already follows (the operator has it)."""
         ecm = self.sim.arms.get("ECM")
         if ecm is None or not (ecm.is_homed() and not ecm.is_busy()):
             return
-        result = self.frame_view(self._frame_at)
+        if not self._framed:
+            result = self.frame_view(self._frame_at)
+            self._framed = True
+            if not result:
+                self._frame_at = None
+                self.channels.message("warning", result.message, self.sim.time)
+            return
+        psm = self.teleop.psm
+        if not (psm.is_homed() and not psm.is_busy()):
+            return
         self._frame_at = None
+        if self.teleop.is_following():
+            return
+        T_task_camera = self.task.T_task_camera(self.sim.T_cart_camera())
+        goal = psm.setpoint_cp().T.copy()
+        goal[:3, 3] = (np.linalg.inv(T_task_camera) @ np.append(self.task.start, 1.0))[:3]
+        result = psm.move_cp(goal)
         if not result:
             self.channels.message("warning", result.message, self.sim.time)
 
@@ -253,7 +274,8 @@ class TaskSession:
         )
 
     # ------------------------------------------------------------ state
-    _STATE = ("results", "repetition", "_distance", "_recorded", "condition", "_frame_at")
+    _STATE = ("results", "repetition", "_distance", "_recorded", "condition", "_frame_at",
+              "_framed")  # fmt: skip
 
     def get_state(self) -> dict:
         """The monitor's state, the rows so far, the repetition number, the last distance,

@@ -156,7 +156,7 @@ def _source(kind: str, page_hand: bool, synthetic: bool) -> str:
     if kind == "simulated" and synthetic:
         return "synthetic trainee"
     if kind == "simulated" and page_hand:
-        return "this console (keys, gamepad)"
+        return "keys/gamepad"
     return _SOURCES.get(kind, kind)
 
 
