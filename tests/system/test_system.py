@@ -182,3 +182,36 @@ def test_the_renderer_draws_the_system_scene_with_the_task():
     finally:
         frames.stop()
         system.stop()
+
+
+@pytest.mark.parametrize("keyframe", ["surgical", "home"])
+def test_the_path_labels_read_left_to_right_and_upright_in_the_endoscope(keyframe):
+    """The digits face the start keyframe's endoscope: in the left image, digit 2's upper
+    right stroke (b) is right of and above its lower left stroke (e); mirrored labels (as
+    drawn facing a fixed world direction) had b left of e."""
+    import mujoco
+
+    from davinci_sim.model.cameras import CameraConfig
+    from davinci_sim.system import SystemDescription, TaskDescription
+    from davinci_sim.system.build import scene_model
+    from davinci_sim.web.view import project_left
+
+    description = SystemDescription(
+        scene="psm1_ecm_mtmr", keyframe=keyframe, task=TaskDescription("seed_path")
+    )
+    model = scene_model(description)
+    data = mujoco.MjData(model)
+    mujoco.mj_resetDataKeyframe(model, data, model.key(keyframe).id)
+    mujoco.mj_forward(model, data)
+    cam = model.camera("ECM/left").id
+    R_left, p_left = data.cam_xmat[cam].reshape(3, 3), data.cam_xpos[cam]
+
+    def pixel(geom: str):
+        p = data.geom_xpos[model.geom(geom).id]
+        # MuJoCo's camera looks along -z with y up; the dVRK tip frame: x left, y up, z in.
+        x, y, z = R_left.T @ (p - p_left)
+        return project_left([-x + CameraConfig().baseline_m / 2, y, -z], CameraConfig())
+
+    # Digit "2" = segments a, b, g, e, d (tasks/scene.py): label2_1 is b, label2_3 is e.
+    (u_b, v_b), (u_e, v_e) = pixel("task/label2_1"), pixel("task/label2_3")
+    assert u_b > u_e and v_b < v_e

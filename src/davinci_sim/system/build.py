@@ -58,7 +58,42 @@ def load_description_task(description: SystemDescription) -> Task | None:
 def _edit_spec(description: SystemDescription, task: Task | None):
     if task is None or not description.task.draw:
         return None
-    return lambda spec: task.draw(spec)
+
+    def draw(spec) -> None:
+        # The labels face the endoscope of the start keyframe (and a camera-frame task is
+        # placed there): drawn facing a fixed world direction, they read mirrored when the
+        # endoscope looks the other way.
+        from davinci_sim.model import resolve_scene
+
+        baseline = resolve_scene(description.scene).endoscope.baseline_m
+        T = keyframe_camera(spec, description.keyframe, baseline)
+        task.draw(spec, T_world_camera=T)
+
+    return draw
+
+
+def keyframe_camera(spec, keyframe: str, baseline: float):
+    """The endoscope's camera frame (the ECM tip, dvrk.md 1.6: x to the image's left, y up, z
+    into the scene) in the world at ``keyframe``, 4x4, m, from a compile of ``spec`` and the
+    stereo ``baseline`` (m); None if the scene has no endoscope or no such keyframe."""
+    import mujoco
+    import numpy as np
+
+    from davinci_sim.geometry.se3 import rot_y, transform
+
+    model = spec.compile()
+    cam = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_CAMERA, "ECM/left")
+    key = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_KEY, keyframe)
+    if cam < 0 or key < 0:
+        return None
+    data = mujoco.MjData(model)
+    mujoco.mj_resetDataKeyframe(model, data, key)
+    mujoco.mj_kinematics(model, data)
+    mujoco.mj_camlight(model, data)  # (camera poses are not part of mj_kinematics)
+    T_world_left = transform(data.cam_xmat[cam].reshape(3, 3), data.cam_xpos[cam])
+    # model/cameras.T_tip_camera: left = tip · translate(+b/2 along x) · rot_y(π).
+    T_left_tip = transform(rot_y(np.pi)) @ transform(p=[-baseline / 2, 0.0, 0.0])
+    return T_world_left @ T_left_tip
 
 
 def new_simulation(description: SystemDescription, task: Task | None = None) -> Simulation:
