@@ -126,6 +126,22 @@ function onHello(m) {
 
 function setSlider(id, value) { $(id).value = value; $(`${id}-out`).textContent = value; }
 
+// The two sliders are the fixture's parameters: viscous B (N·s/m) and G_max (N); spring
+// stiffness (N/m) and its force cap (N); none has none.
+const FIXTURE_SLIDERS = {
+  viscous: { label: "B", unit: "N·s/m", max: 100, step: 1, value: 40, cap: "G<sub>max</sub>" },
+  spring: { label: "K", unit: "N/m", max: 500, step: 10, value: 200, cap: "F<sub>max</sub>" },
+};
+
+function showFixtureType(type) {
+  const spec = FIXTURE_SLIDERS[type];
+  for (const id of ["B", "G"]) $(id).disabled = !spec;
+  if (!spec) return;
+  $("B-label").textContent = spec.label; $("B-unit").textContent = spec.unit;
+  $("G-label").innerHTML = spec.cap;
+  $("B").max = spec.max; $("B").step = spec.step; setSlider("B", spec.value);
+}
+
 // ------------------------------------------------------------------ state
 function onState(s) {
   state.last = s;
@@ -409,10 +425,12 @@ function setupPanels() {
     if (v === "__custom") return;
     send({ op: "condition", condition: v || state.hello.task.fixture });
   };
+  $("fixture-type").onchange = () => showFixtureType($("fixture-type").value);
   $("apply").onclick = () => {
     const type = $("fixture-type").value;
     const entry = { type };
     if (type === "viscous") { entry.B = Number($("B").value); entry.G_max = Number($("G").value); }
+    if (type === "spring") { entry.stiffness = Number($("B").value); entry.max_force = Number($("G").value); }
     $("condition").value = "__custom";
     send({ op: "condition", condition: entry });
   };
