@@ -132,6 +132,9 @@ def test_hello_describes_the_task_and_state_and_frames_stream(console):
         assert state["task"]["name"] == "short_path" and "PSM1" in state["tips"]
         assert len(state["tips"]["PSM1"]["p_camera"]) == 3
         frame = page.next("frame", 60.0)
+        assert len(frame) == FRAME_HEADER.size + FRAME_HEADER.unpack_from(frame)[2]  # left only
+        page.send(op="view", stereo=True)  # a page that shows both eyes gets both
+        frame = page.next("frame", 60.0, lambda f: len(f) > 16 + FRAME_HEADER.unpack_from(f)[2])
         number, t, n_left = FRAME_HEADER.unpack_from(frame)
         body = frame[FRAME_HEADER.size :]
         left = np.asarray(Image.open(io.BytesIO(body[:n_left])))

@@ -25,6 +25,8 @@ Ops (fields; units):
   int ≥ 1, optional): watch a synthetic trainee do the task on the live console.
 - ``study`` (``action``: start; ``subjects``: 1 … 10; ``repetitions``: 1 … 5): a small
   study of the task with the study's synthetic trainees (progress, then the report).
+- ``view`` (``stereo``: bool): whether this page shows both eyes (side by side, anaglyph);
+  the right image is encoded and sent only while some page does.
 - ``ping`` (``t``: number, the page's clock, ms): answered with ``pong`` (latency).
 """
 
@@ -171,6 +173,7 @@ OPS: dict[str, dict[str, tuple[Any, bool]]] = {
         "subjects": (_integer("subjects", 1), True),
         "repetitions": (_integer("repetitions", 1), True),
     },
+    "view": {"stereo": (_boolean("stereo"), True)},
     "ping": {"t": (_number("t"), True)},
 }
 

@@ -7,8 +7,8 @@ thread or its own process, is never waited on. What it streams to every page:
 
 - the page's state (:func:`~davinci_sim.web.view.console_view`) at ``state_rate``;
 - the stereo endoscope as JPEG pairs, binary messages (:data:`FRAME_HEADER`, then the left
-  and right JPEG), from the one render pipeline (``System.frames()``), each pair encoded
-  once for all pages;
+  and right JPEG; the right one only while some page shows both eyes, else empty), from the
+  one render pipeline (``System.frames()``), each pair encoded once for all pages;
 - each finished repetition's row, tagged with the trainee's name (``rows``), also offered
   as CSV at ``/results.csv``.
 
@@ -124,6 +124,8 @@ class _Client:
     wake: asyncio.Event = field(default_factory=asyncio.Event)
     sent_frames: int = 0
     skipped_frames: int = 0
+    stereo: bool = False
+    """The page shows both eyes (it asked with the ``view`` op)."""
 
 
 class WebConsole:
@@ -440,6 +442,9 @@ class WebConsole:
         if not client.authed:
             self._push(client, {"op": "error", "message": "send hello with the token first"})
             return
+        if command.op == "view":
+            client.stereo = command.args["stereo"]
+            return
         if command.op == "ping":
             self._push(client, {"op": "pong", "t": command.args["t"], "server": time.time()})
             return
@@ -615,7 +620,8 @@ class WebConsole:
             if frame is not None and frame.frame != last:
                 last = frame.frame
                 start = time.perf_counter()
-                message = await loop.run_in_executor(None, self._encode, frame)
+                stereo = any(c.stereo for c in self._clients.values())
+                message = await loop.run_in_executor(None, self._encode, frame, stereo)
                 self._stats["encode_time"] += time.perf_counter() - start
                 self._stats["frames_encoded"] += 1
                 for client in list(self._clients.values()):
@@ -626,14 +632,14 @@ class WebConsole:
                         client.wake.set()
             await asyncio.sleep(max(0.0, period - (loop.time() - t0)))
 
-    def _encode(self, frame) -> bytes:
+    def _encode(self, frame, stereo: bool = True) -> bytes:
         from PIL import Image
 
-        parts = []
-        for image in (frame.left, frame.right):
+        parts = [b"", b""]
+        for k, image in enumerate((frame.left, frame.right) if stereo else (frame.left,)):
             out = io.BytesIO()
             Image.fromarray(image).save(out, format="JPEG", quality=self.options.jpeg_quality)
-            parts.append(out.getvalue())
+            parts[k] = out.getvalue()
         self._frame_number += 1
         header = FRAME_HEADER.pack(frame.frame & 0xFFFFFFFF, frame.time, len(parts[0]))
         return header + parts[0] + parts[1]

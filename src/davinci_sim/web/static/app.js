@@ -28,6 +28,7 @@ function connect() {
   ws.onopen = () => {
     setConnection("connected", "ok");
     send({ op: "hello", ...(params.get("token") ? { token: params.get("token") } : {}) });
+    send({ op: "view", stereo: $("mode").value !== "left" });
   };
   ws.onclose = () => {
     setConnection("disconnected — retrying", "bad");
@@ -224,10 +225,13 @@ async function onFrame(buffer) {
   const time = view.getFloat64(4, true);
   const leftLength = view.getUint32(12, true);
   const left = new Blob([new Uint8Array(buffer, 16, leftLength)], { type: "image/jpeg" });
-  const right = new Blob([new Uint8Array(buffer, 16 + leftLength)], { type: "image/jpeg" });
-  const [l, r] = await Promise.all([createImageBitmap(left), createImageBitmap(right)]);
-  state.left?.close?.(); state.right?.close?.();
-  state.left = l; state.right = r; state.frameNumber = number; state.frameTime = time;
+  const rightBytes = new Uint8Array(buffer, 16 + leftLength);
+  const l = await createImageBitmap(left);
+  // (the right eye comes only while some page shows both: keep the last one otherwise)
+  const r = rightBytes.length ? await createImageBitmap(new Blob([rightBytes], { type: "image/jpeg" })) : null;
+  state.left?.close?.();
+  if (r) { state.right?.close?.(); state.right = r; }
+  state.left = l; state.frameNumber = number; state.frameTime = time;
   state.frames += 1;
   const now = performance.now();
   if (now - state.framesAt > 1000) {
@@ -247,7 +251,9 @@ function drawEndoscope() {
   if (canvas.width !== width) { canvas.width = width; overlay.width = width; }
   canvas.height = h; overlay.height = h;
   const ctx = canvas.getContext("2d", { willReadFrequently: mode === "anaglyph" });
-  if (mode === "sbs") {
+  const stereo = mode !== "left" && state.right;
+  if (mode !== "left" && !state.right) { ctx.drawImage(state.left, 0, 0); drawOverlay(); return; }
+  if (mode === "sbs" && stereo) {
     ctx.drawImage(state.left, 0, 0); ctx.drawImage(state.right, w, 0);
   } else if (mode === "anaglyph") {
     // Red from the left eye, green and blue from the right: depth with red-cyan glasses.
@@ -448,7 +454,10 @@ function setupPanels() {
   $("scale-apply").onclick = () => send({ op: "teleop", scale: Number($("scale").value) });
   $("present").onchange = () => send({ op: "button", name: "operator_present", pressed: $("present").checked });
   for (const b of document.querySelectorAll("[data-arms]")) b.onclick = () => send({ op: "arms", action: b.dataset.arms });
-  $("mode").onchange = () => { if (state.left) drawEndoscope(); };
+  $("mode").onchange = () => {
+    send({ op: "view", stereo: $("mode").value !== "left" });
+    if (state.left) drawEndoscope();
+  };
   $("hud").onchange = drawOverlay;
   const body = $("keymap").querySelector("tbody");
   for (const k of KEYMAP) {
