@@ -1,0 +1,1 @@
+"""The web console: the surgeon's display, operator input and the simulator's GUI in a browser."""
