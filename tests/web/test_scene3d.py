@@ -326,6 +326,32 @@ def test_presets_move_the_browsers_camera_and_the_initial_view():
         assert np.allclose(client.camera.position, endoscope.position)
 
 
+def test_the_pages_dropdown_moves_that_browsers_camera_only():
+    from viser._messages import GuiUpdateMessage
+
+    sim = psm1_sim()
+    with (
+        BedsideView(lambda: sim.model) as view,
+        ViserProbe(view.url) as a,
+        ViserProbe(view.url),
+    ):
+        assert wait(lambda: len(view.server.get_clients()) == 2)
+        assert wait(lambda: a.gui_uuid("View") is not None)
+        clients = view.server.get_clients()
+        cameras = {cid: c.camera.position.copy() for cid, c in clients.items()}
+        a.send(GuiUpdateMessage(a.gui_uuid("View"), {"value": "monitor_task"}))
+        target = view.presets["monitor_task"].position
+        assert wait(lambda: any(np.allclose(c.camera.position, target) for c in clients.values()))
+        moved = [cid for cid, c in clients.items() if np.allclose(c.camera.position, target)]
+        assert len(moved) == 1
+        (other,) = set(clients) - set(moved)
+        assert np.allclose(clients[other].camera.position, cameras[other])
+        assert view.preset == "overview"  # the default for new browsers is unchanged
+        assert np.allclose(view.server.initial_camera.position, view.presets["overview"].position)
+        a.send(GuiUpdateMessage(a.gui_uuid("Guidance force"), {"value": False}))
+        assert wait(lambda: view.show_forces is False)
+
+
 def test_console_preset_exists_with_a_console():
     model = scene_model(SystemDescription("psm1_ecm_mtmr"))
     view = BedsideView(lambda: model)
@@ -377,7 +403,7 @@ def test_stop_leaves_no_thread_and_frees_the_port():
     before = set(threading.enumerate())
     view = BedsideView(lambda: sim.model, SnapshotHandle(sim), port=None).start()
     with ViserProbe(view.url) as probe:
-        assert wait(lambda: len(probe.received()) > 0)
+        assert wait(lambda: probe.gui_uuid("View") is not None)
         view.set_preset("bedside")
     port = view.port
     view.stop()

@@ -139,7 +139,7 @@ class BedsideView:
         """The last update's error (e.g. snapshots without ``qpos``), None when fine."""
         self.show_forces = True
         """Draw the guidance force arrows (the page's checkbox)."""
-        self._dropdown = None
+        self._dropdowns: dict[int, Any] = {}
 
     # ------------------------------------------------------------ lifecycle
     @property
@@ -264,20 +264,34 @@ class BedsideView:
         )
 
     def _build_gui(self, server) -> None:
-        dropdown = self._dropdown = server.gui.add_dropdown(
-            "View",
-            tuple(self.presets),
-            initial_value=self.preset,
-            hint="camera presets; drag to orbit, scroll to zoom",
-        )
+        # One dropdown per browser (client-scoped): a pick moves that browser's camera only.
+        # (Async: runs in viser's event loop, before a quick disconnect is processed.)
+        @server.on_client_connect
+        async def _(client) -> None:
+            dropdown = client.gui.add_dropdown(
+                "View",
+                tuple(self.presets),
+                initial_value=self.preset,
+                hint="camera presets; drag to orbit, scroll to zoom",
+                order=0.0,
+            )
+            self._dropdowns[client.client_id] = dropdown
 
-        @dropdown.on_update
-        def _(event) -> None:
-            if event.client is not None:
-                self._apply_preset(self.presets[dropdown.value], clients=(event.client,))
+            @dropdown.on_update
+            def _(event) -> None:
+                if event.client is not None:  # (not a server-side set_preset)
+                    preset = self._fresh_preset(dropdown.value)
+                    self._apply_preset(preset, clients=(event.client,), initial=False)
+
+        @server.on_client_disconnect
+        async def _(client) -> None:
+            self._dropdowns.pop(client.client_id, None)
 
         arrows = server.gui.add_checkbox(
-            "Guidance force", initial_value=True, hint="the guidance force at each tool tip"
+            "Guidance force",
+            initial_value=True,
+            hint="the guidance force at each tool tip",
+            order=1.0,
         )
 
         @arrows.on_update
@@ -292,22 +306,27 @@ class BedsideView:
         Raises:
             KeyError: an unknown preset (the message lists the known ones).
         """
-        if name not in self.presets:
-            raise KeyError(f"unknown camera preset {name!r}; presets: {list(self.presets)}")
-        if name == "endoscope":
-            with self._lock:
-                self.presets = camera_presets(self.model, self.data)
+        preset = self._fresh_preset(name)
         self.preset = name
-        preset = self.presets[name]
         if self.server is not None:
             self._apply_preset(preset, clients=tuple(self.server.get_clients().values()))
-            self._dropdown.value = name  # (a server-side change: no client, no echo)
+            for dropdown in list(self._dropdowns.values()):
+                dropdown.value = name  # (a server-side change: no client, no echo)
         return preset
 
-    def _apply_preset(self, p: CameraPreset, clients) -> None:
+    def _fresh_preset(self, name: str) -> CameraPreset:
+        if name not in self.presets:
+            raise KeyError(f"unknown camera preset {name!r}; presets: {list(self.presets)}")
+        if name == "endoscope":  # where the endoscope is now
+            with self._lock:
+                self.presets = camera_presets(self.model, self.data)
+        return self.presets[name]
+
+    def _apply_preset(self, p: CameraPreset, clients, *, initial: bool = True) -> None:
         fov = float(np.radians(p.fovy_deg))
-        cam = self.server.initial_camera
-        cam.position, cam.look_at, cam.up, cam.fov = p.position, p.look_at, p.up, fov
+        if initial:  # new browsers start here, and viser's "reset view" returns here
+            cam = self.server.initial_camera
+            cam.position, cam.look_at, cam.up, cam.fov = p.position, p.look_at, p.up, fov
         for client in clients:
             with client.atomic():
                 client.camera.up_direction = p.up

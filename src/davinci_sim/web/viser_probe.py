@@ -30,6 +30,8 @@ class ProbeFrame:
     """Viser message types it carried, in order."""
     names: tuple[str | None, ...]
     """The scene node each message names (None for messages without one), in order."""
+    messages: tuple[dict, ...] = ()
+    """The decoded messages (arrays left as viser's placeholders for its binary buffers)."""
 
 
 class ViserProbe:
@@ -76,7 +78,7 @@ class ViserProbe:
         messages = msgspec.msgpack.decode(inner)["messages"]
         types = tuple(m.get("type", "?") for m in messages)
         names = tuple(m.get("name") if isinstance(m.get("name"), str) else None for m in messages)
-        return ProbeFrame(t, len(raw), types, names)
+        return ProbeFrame(t, len(raw), types, names, tuple(messages))
 
     def _receive(self) -> None:
         while not self._closed.is_set():
@@ -89,6 +91,18 @@ class ViserProbe:
             frame = self._decode(raw, time.perf_counter())
             with self._lock:
                 self.frames.append(frame)
+
+    def send(self, message) -> None:
+        """Send a viser message (e.g. ``GuiUpdateMessage``) as the page would."""
+        self._ws.send(msgspec.msgpack.encode(message.as_serializable_dict()))
+
+    def gui_uuid(self, label: str) -> str | None:
+        """The uuid of the GUI element labelled ``label`` the server sent, None if none."""
+        for frame in self.received():
+            for m in frame.messages:
+                if m.get("type", "").startswith("Gui") and m.get("props", {}).get("label") == label:
+                    return m.get("uuid")
+        return None
 
     def received(self) -> list[ProbeFrame]:
         """A copy of the frames so far."""
