@@ -234,6 +234,60 @@ def test_thread_runner_live_view_follows_the_simulation():
         system.stop()
 
 
+class RecordingHandle:
+    """A handle's snapshots, each kept by tick (to check what the view drew)."""
+
+    def __init__(self, handle):
+        self.handle = handle
+        self.seen = {}
+
+    def snapshot(self):
+        snap = self.handle.snapshot()
+        self.seen[snap.tick] = snap
+        return snap
+
+
+def test_process_runner_live_view_draws_the_loops_snapshots():
+    """The loop in its own process: the view sees only snapshots (rebuilt in this process)."""
+    description = SystemDescription(
+        "psm1", publish_qpos=True, runner="process", real_time=False, home=True
+    )
+    system = build_system(description)
+    recording = RecordingHandle(system.handle)
+    view = BedsideView(system.model_source, recording, rate_hz=50.0)
+    try:
+        system.start()
+        view.start()
+        h = system.handle
+        assert wait(lambda: view.updates > 0, timeout=60)
+        assert wait(lambda: h.snapshot().arms["PSM1"].operating_state.is_homed, timeout=60)
+        q = np.array(h.snapshot().arms["PSM1"].measured_js.position, dtype=float)
+        q[:3] += [0.2, 0.1, -0.02]
+        assert h.call("PSM1", "move_jp", q).result(timeout=30).accepted
+
+        def arrived():
+            position = h.snapshot().arms["PSM1"].measured_js.position
+            return np.allclose(position[:3], q[:3], atol=1e-3)
+
+        assert wait(arrived, timeout=60)
+        updates = view.updates
+        assert wait(lambda: view.updates > updates + 1)
+        view.stop()
+        drawn = recording.seen[view.last_tick]
+        assert np.allclose(drawn.arms["PSM1"].measured_js.position[:3], q[:3], atol=2e-3)
+        model = system.model_source()
+        data = mujoco.MjData(model)
+        data.qpos[:] = drawn.extras["qpos"]
+        mujoco.mj_kinematics(model, data)
+        for b in view.moving:
+            node = view.body_nodes[int(b)]
+            assert np.allclose(node.position, data.xpos[b], rtol=0, atol=POSE_ATOL)
+            assert same_rotation(node.wxyz, data.xquat[b]) < POSE_ATOL
+    finally:
+        view.stop()
+        system.stop()
+
+
 def teleop_state(following: bool) -> TeleopPSMState:
     return TeleopPSMState(
         name="MTMR_PSM1",

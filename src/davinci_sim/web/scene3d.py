@@ -36,6 +36,7 @@ import contextlib
 import io
 import logging
 import threading
+import time
 from collections.abc import Callable
 from typing import Any
 
@@ -423,12 +424,20 @@ class BedsideView:
 
     def _run(self) -> None:
         period = 1.0 / self.rate_hz
+        next_poll = time.monotonic()
         while not self._stop.is_set():
             try:
                 self.update()
                 self.error = None
             except Exception as e:  # the view carries on: the next snapshot may be fine
-                if str(e) != self.error:
-                    log.warning("bedside view: %s", e)
+                if str(e) != self.error:  # bad snapshots: a warning; a handle not ready: debug
+                    level = logging.WARNING if isinstance(e, ValueError) else logging.DEBUG
+                    log.log(level, "bedside view: %s", e)
                 self.error = str(e)
-            self._stop.wait(period)
+            # Polls on a fixed grid (an update's own time does not lower the rate); after a
+            # stall it starts a new grid instead of bursting to catch up.
+            next_poll += period
+            now = time.monotonic()
+            if next_poll < now:
+                next_poll = now
+            self._stop.wait(next_poll - now)
