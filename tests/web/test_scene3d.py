@@ -103,6 +103,28 @@ def test_full_scene_has_one_node_per_geom_mujoco_draws():
         assert not set(view.moving) & {0, model.body("table").id, model.body("cart").id}
 
 
+def test_an_update_of_every_arm_is_one_websocket_frame():
+    model = scene_model(SystemDescription("full"))
+    q = model.key("surgical").qpos.copy()
+    hinges = [j for j in range(model.njnt) if model.jnt_type[j] == mujoco.mjtJoint.mjJNT_HINGE]
+    with BedsideView(lambda: model) as view, ViserProbe(view.url) as probe:
+        assert wait(lambda: any("ReplayDoneMessage" in f.types for f in probe.received()))
+        assert wait(lambda: probe.gui_uuid("View") is not None)
+        n_frames = len(probe.received())
+        q[model.jnt_qposadr[hinges]] += 0.1
+        assert view.update(Snapshot(0.0, 1, {}, {"qpos": q}))
+        assert wait(lambda: len(probe.received()) > n_frames)
+        time.sleep(0.2)  # (a second frame, if any, would follow at once)
+        frames = [f for f in probe.received()[n_frames:] if set(f.types) & set(POSE_MESSAGES)]
+        assert len(frames) == 1
+        named = {
+            n
+            for t, n in zip(frames[0].types, frames[0].names, strict=True)
+            if t == "SetOrientationMessage"
+        }
+        assert len(named) > 64  # every arm's links turned
+
+
 def load_path_rgba():
     from davinci_sim.tasks import load_task
 
@@ -193,6 +215,7 @@ def test_a_moved_arm_moves_its_nodes_to_mujocos_poses_and_nothing_else_is_sent()
         }
         assert arm <= sent <= changed(1e-7)
         assert not any("ECM" in name or "SUJ" in name for name in sent)
+        assert len(probe.received()) == n_frames + 1  # one update, one websocket frame
 
 
 def test_thread_runner_live_view_follows_the_simulation():

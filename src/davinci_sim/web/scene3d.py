@@ -168,6 +168,10 @@ class BedsideView:
             server = viser.ViserServer(host=self.host, port=self._requested_port, verbose=False)
         self.server = server
         server.scene.set_up_direction("+z")
+        # viser's default image-based light washes the model's colours out; halved, the
+        # scene looks as MuJoCo renders it (materials' colours, room lights from above).
+        server.scene.configure_environment_map("warehouse", environment_intensity=0.5)
+        self._widen_windows(server)
         with server.atomic():
             self._build_scene(server)
             self._build_gui(server)
@@ -177,6 +181,17 @@ class BedsideView:
             self._thread = threading.Thread(target=self._run, name="bedside-view", daemon=True)
             self._thread.start()
         return self
+
+    def _widen_windows(self, server) -> None:
+        """Let one update go out as one websocket frame: viser sends at most 128 messages
+        per frame (``AsyncMessageBuffer.max_window_size``), and an update of the full scene
+        with every arm moving has ~160 (two per moving body), so a browser would draw the
+        first part of the update before the rest. No public setting exists (viser 1.1.1):
+        the attribute is set if it is there, else the view works with split frames."""
+        buffer = getattr(getattr(server, "_websock_server", None), "_broadcast_buffer", None)
+        needed = 2 * len(self.moving) + 2 * len(self.psms) + 16
+        if buffer is not None and getattr(buffer, "max_window_size", needed) < needed:
+            buffer.max_window_size = needed
 
     def stop(self) -> None:
         """Stop the update thread and the viser server (its threads end with it)."""
