@@ -103,11 +103,13 @@ def test_full_scene_has_one_node_per_geom_mujoco_draws():
         assert not set(view.moving) & {0, model.body("table").id, model.body("cart").id}
 
 
-def test_an_update_of_every_arm_is_one_websocket_frame():
+@pytest.mark.parametrize("fast_poses", [True, False], ids=["queue", "setters"])
+def test_an_update_of_every_arm_is_one_websocket_frame(fast_poses):
     model = scene_model(SystemDescription("full"))
     q = model.key("surgical").qpos.copy()
     hinges = [j for j in range(model.njnt) if model.jnt_type[j] == mujoco.mjtJoint.mjJNT_HINGE]
     with BedsideView(lambda: model) as view, ViserProbe(view.url) as probe:
+        view.fast_poses = fast_poses
         assert wait(lambda: any("ReplayDoneMessage" in f.types for f in probe.received()))
         assert wait(lambda: probe.gui_uuid("View") is not None)
         n_frames = len(probe.received())
@@ -123,6 +125,20 @@ def test_an_update_of_every_arm_is_one_websocket_frame():
             if t == "SetOrientationMessage"
         }
         assert len(named) > 64  # every arm's links turned
+        # A browser that connects now gets the new poses (viser replays the latest ones).
+        data = mujoco.MjData(model)
+        data.qpos[:] = q
+        mujoco.mj_kinematics(model, data)
+        with ViserProbe(view.url) as late:
+            assert wait(lambda: any("ReplayDoneMessage" in f.types for f in late.received()))
+            replay = [m for f in late.received() for m in f.messages]
+        last = {}
+        for m in replay:
+            if m.get("type") == "SetPositionMessage":
+                last[m["name"]] = m["position"]
+        for b in view.moving:
+            name = view.body_nodes[int(b)].name
+            assert np.allclose(last[name], data.xpos[b], rtol=0, atol=POSE_ATOL)
 
 
 def load_path_rgba():
@@ -159,12 +175,14 @@ def test_capsule_mesh_is_a_closed_capsule():
     assert np.all(counts == 2)
 
 
-def test_a_moved_arm_moves_its_nodes_to_mujocos_poses_and_nothing_else_is_sent():
+@pytest.mark.parametrize("fast_poses", [True, False], ids=["queue", "setters"])
+def test_a_moved_arm_moves_its_nodes_to_mujocos_poses_and_nothing_else_is_sent(fast_poses):
     sim = psm1_sim()
     sim.run_for(0.3)
     handle = SnapshotHandle(sim)
     model = sim.model
     with BedsideView(lambda: model) as view, ViserProbe(view.url) as probe:
+        view.fast_poses = fast_poses
         assert view.update(handle.snapshot())
         static_before = {
             b: (n.position.copy(), n.wxyz.copy())

@@ -141,6 +141,11 @@ class BedsideView:
         self.show_forces = True
         """Draw the guidance force arrows (the page's checkbox)."""
         self._dropdowns: dict[int, Any] = {}
+        self._queue = None
+        self._queue_checked = False
+        self.fast_poses = True
+        """Send poses through viser's message queue directly (see :meth:`_send_poses`);
+        False: through the public setters."""
 
     # ------------------------------------------------------------ lifecycle
     @property
@@ -166,6 +171,7 @@ class BedsideView:
 
         with contextlib.redirect_stdout(io.StringIO()):  # viser prints a banner regardless
             server = viser.ViserServer(host=self.host, port=self._requested_port, verbose=False)
+        self._queue_checked = False
         self.server = server
         server.scene.set_up_direction("+z")
         # viser's default image-based light washes the model's colours out; halved, the
@@ -390,15 +396,56 @@ class BedsideView:
         return True
 
     def _send_poses(self) -> None:
+        """The poses of the moving bodies that moved more than 1e-7 (m, quaternion units)
+        since last sent."""
         b = self.moving
         pose = np.concatenate([self.data.xpos[b], self.data.xquat[b]], axis=1)
-        changed = ~np.all(np.abs(pose - self._sent_pose[b]) <= 1e-7, axis=1)
-        for i in np.flatnonzero(changed):
-            body = int(b[i])
-            node = self.body_nodes[body]
-            node.position = pose[i, :3]
-            node.wxyz = pose[i, 3:]
-            self._sent_pose[body] = pose[i]
+        changed = np.flatnonzero(~np.all(np.abs(pose - self._sent_pose[b]) <= 1e-7, axis=1))
+        self._sent_pose[b[changed]] = pose[changed]
+        nodes = [self.body_nodes[int(body)] for body in b[changed]]
+        queue = self._fast_queue() if self.fast_poses else None
+        if queue is None:  # viser's public setters (each checks and casts its value)
+            for node, row in zip(nodes, pose[changed], strict=True):
+                node.position = row[:3]
+                node.wxyz = row[3:]
+            return
+        # The same messages as the setters send, without their per-call checks (np.allclose
+        # and casts: ~85 % of an update's time with every arm moving); the handles' stored
+        # poses are kept as the setters keep them.
+        from viser import _messages
+
+        for node, row in zip(nodes, pose[changed].tolist(), strict=True):
+            impl = node._impl
+            p, q = tuple(row[:3]), tuple(row[3:])
+            impl.position[:] = p
+            impl.wxyz[:] = q
+            queue(_messages.SetPositionMessage(impl.name, p))
+            queue(_messages.SetOrientationMessage(impl.name, q))
+
+    def _fast_queue(self):
+        """viser's scene message queue when its internals are as in viser 1.1 (checked once),
+        else None: the public setters are used."""
+        if self._queue_checked:
+            return self._queue
+        self._queue_checked = True
+        queue = getattr(self.server.scene, "_queue_scene_message", None)
+        node = next(iter(self.body_nodes.values()), None)
+        impl = getattr(node, "_impl", None)
+        try:
+            from viser import _messages
+
+            ok = (
+                callable(queue)
+                and isinstance(getattr(impl, "position", None), np.ndarray)
+                and isinstance(getattr(impl, "wxyz", None), np.ndarray)
+                and isinstance(getattr(impl, "name", None), str)
+                and hasattr(_messages, "SetPositionMessage")
+                and hasattr(_messages, "SetOrientationMessage")
+            )
+        except ImportError:
+            ok = False
+        self._queue = queue if ok else None
+        return self._queue
 
     def force_arrows(self, snapshot) -> dict[str, np.ndarray]:
         """PSM -> the guidance force arrow ``[[start], [end]]`` (2, 3), world frame, m, for
