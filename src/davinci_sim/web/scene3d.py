@@ -49,6 +49,7 @@ from davinci_sim.web.scene3d_model import (
     GeomVisual,
     camera_presets,
     capsule_mesh,
+    guidance_arrows,
     moving_bodies,
     visible_geoms,
 )
@@ -57,8 +58,6 @@ log = logging.getLogger(__name__)
 
 #: Length of the force arrow per newton, m/N (the seed's G_max of a few N → a few cm).
 DEFAULT_FORCE_SCALE_M_PER_N = 0.02
-#: Forces below this are not drawn, N.
-MIN_DRAWN_FORCE_N = 1e-3
 FORCE_RGB = (255, 220, 0)
 DEFAULT_PRESET = "overview"
 
@@ -452,27 +451,10 @@ class BedsideView:
         each PSM whose teleoperation is following and whose MTM has a requested wrench
         in ``snapshot`` (call after the kinematics of that snapshot; see the module
         docstring for the frames)."""
-        haptics = snapshot.extras.get("haptics")
-        requested = getattr(haptics, "requested", None)
-        if not requested:
-            return {}
         ecm = self._site.get("ECM/tip")
         R_world_camera = np.eye(3) if ecm is None else self.data.site_xmat[ecm].reshape(3, 3)
-        out = {}
-        for value in snapshot.extras.values():
-            psm, mtm = getattr(value, "psm", None), getattr(value, "mtm", None)
-            if not getattr(value, "following", False) or psm not in self.psms:
-                continue
-            wrench = requested.get(mtm)
-            if wrench is None:
-                continue
-            f_camera = np.asarray(wrench, dtype=float)[:3]
-            if not np.all(np.isfinite(f_camera)) or np.linalg.norm(f_camera) < MIN_DRAWN_FORCE_N:
-                continue
-            p_world_tip = self.data.site_xpos[self._site[f"{psm}/tip"]].copy()
-            end = p_world_tip + self.force_scale * (R_world_camera @ f_camera)
-            out[psm] = np.stack([p_world_tip, end])
-        return out
+        tips = {psm: self.data.site_xpos[self._site[f"{psm}/tip"]] for psm in self.psms}
+        return guidance_arrows(snapshot.extras, tips, R_world_camera, self.force_scale)
 
     def _send_forces(self, snapshot) -> None:
         arrows = self.force_arrows(snapshot) if self.show_forces else {}

@@ -6,6 +6,7 @@
   world, are drawn once);
 * :func:`capsule_mesh`: a capsule as a triangle mesh (the browser's scene has boxes,
   spheres and cylinders as primitives, not capsules);
+* :func:`guidance_arrows`: the guidance force of each PSM as an arrow at its tool tip;
 * :func:`camera_presets`: the named viewpoints of the bedside view, from the model's bodies,
   sites and cameras.
 
@@ -15,7 +16,9 @@ All lengths in m, in the world (cart) frame unless a name says otherwise; quater
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass
+from typing import Any
 
 import mujoco
 import numpy as np
@@ -179,6 +182,45 @@ def capsule_mesh(
     last = 1 + (n_rings - 1) * segments
     faces.append(np.stack([np.full(segments, len(vertices) - 1), last + k1, last + k], axis=1))
     return vertices, np.vstack(faces).astype(np.uint32)
+
+
+# ----------------------------------------------------------------- guidance force
+#: Forces below this are not drawn, N.
+MIN_DRAWN_FORCE_N = 1e-3
+
+
+def guidance_arrows(
+    extras: Mapping[str, Any],
+    p_world_tips: Mapping[str, np.ndarray],
+    R_world_camera: np.ndarray,
+    scale_m_per_N: float,
+) -> dict[str, np.ndarray]:
+    """PSM -> its guidance force arrow ``[start, end]`` (2, 3), world frame, m.
+
+    ``extras`` are a snapshot's: the haptic loop's state (``extras["haptics"]``) has, per
+    MTM, the fields' summed wrench (``requested``, N, camera axes); each PSM teleoperation's
+    state (``mtm``, ``psm``, ``following``) says which PSM that MTM drives. An arrow is
+    drawn for a following teleoperation with a finite force of at least
+    :data:`MIN_DRAWN_FORCE_N`, from the PSM's tip (``p_world_tips``, m) along
+    ``R_world_camera @ f``, ``scale_m_per_N`` long per newton.
+    """
+    requested = getattr(extras.get("haptics"), "requested", None)
+    if not requested:
+        return {}
+    out = {}
+    for value in extras.values():
+        psm, mtm = getattr(value, "psm", None), getattr(value, "mtm", None)
+        if not getattr(value, "following", False) or psm not in p_world_tips:
+            continue
+        wrench = requested.get(mtm)
+        if wrench is None:
+            continue
+        f_camera = np.asarray(wrench, dtype=float)[:3]
+        if not np.all(np.isfinite(f_camera)) or np.linalg.norm(f_camera) < MIN_DRAWN_FORCE_N:
+            continue
+        start = np.array(p_world_tips[psm], dtype=float)
+        out[psm] = np.stack([start, start + scale_m_per_N * (R_world_camera @ f_camera)])
+    return out
 
 
 # ----------------------------------------------------------------- camera presets
