@@ -522,3 +522,28 @@ def test_bad_arguments_are_refused():
     ):
         with pytest.raises(ValueError):
             BedsideView(lambda: model, **kwargs)
+
+
+def test_mesh_geoms_and_hidden_groups():
+    spec = mujoco.MjSpec()
+    spec.add_mesh(
+        name="tetra",
+        uservert=[0, 0, 0, 0.1, 0, 0, 0, 0.1, 0, 0, 0, 0.1],
+        userface=[0, 2, 1, 0, 1, 3, 0, 3, 2, 1, 2, 3],
+    )
+    body = spec.worldbody.add_body(name="b", pos=[0.0, 0.0, 1.0])
+    body.add_freejoint()
+    body.add_geom(type=mujoco.mjtGeom.mjGEOM_MESH, meshname="tetra", rgba=[0.2, 0.4, 0.6, 1.0])
+    body.add_geom(type=mujoco.mjtGeom.mjGEOM_SPHERE, size=[0.05, 0, 0], group=3)  # hidden
+    body.add_geom(type=mujoco.mjtGeom.mjGEOM_SPHERE, size=[0.05, 0, 0], rgba=[1, 0, 0, 0])
+    model = spec.compile()
+    with BedsideView(lambda: model, keyframe=None) as view:
+        assert list(view.geom_nodes) == [0]
+        node = view.geom_nodes[0]
+        assert len(node.vertices) == model.mesh_vertnum[0]
+        assert len(node.faces) == model.mesh_facenum[0] == 4
+        assert np.allclose(node.color, np.array([0.2, 0.4, 0.6]) * 255, atol=1.0)
+        q = model.qpos0.copy()
+        q[:3] = [0.3, -0.2, 0.5]
+        view.update(Snapshot(0.0, 1, {}, {"qpos": q}))
+        assert np.allclose(view.body_nodes[1].position, [0.3, -0.2, 0.5])
