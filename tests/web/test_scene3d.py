@@ -422,7 +422,7 @@ def test_presets_move_the_browsers_camera_and_the_initial_view():
 
 
 def test_the_pages_dropdown_moves_that_browsers_camera_only():
-    from viser._messages import GuiUpdateMessage
+    from viser._messages import GuiUpdateMessage, ShareUrlRequest
 
     sim = psm1_sim()
     with (
@@ -445,6 +445,10 @@ def test_the_pages_dropdown_moves_that_browsers_camera_only():
         assert np.allclose(view.server.initial_camera.position, view.presets["overview"].position)
         a.send(GuiUpdateMessage(a.gui_uuid("Guidance force"), {"value": False}))
         assert wait(lambda: view.show_forces is False)
+        # No public tunnel from a page: viser's share request is refused.
+        a.send(ShareUrlRequest())
+        assert wait(lambda: view.share_requests_refused == 1)
+        assert view.server._share_tunnel is None
 
 
 def test_console_preset_exists_with_a_console():

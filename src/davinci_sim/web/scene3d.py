@@ -142,6 +142,7 @@ class BedsideView:
         self._dropdowns: dict[int, Any] = {}
         self._queue = None
         self._queue_checked = False
+        self.share_requests_refused = 0
         self.fast_poses = True
         """Send poses through viser's message queue directly (see :meth:`_send_poses`);
         False: through the public setters."""
@@ -177,6 +178,10 @@ class BedsideView:
         # scene looks as MuJoCo renders it (materials' colours, room lights from above).
         server.scene.configure_environment_map("warehouse", environment_intensity=0.5)
         self._widen_windows(server)
+        # The page must not open a public tunnel (viser's "share" button asks its server to
+        # connect to share.viser.studio): hidden, and refused if asked for all the same.
+        server.gui.configure_theme(show_logo=False, show_share_button=False)
+        server.request_share_url = self._refuse_share_url
         with server.atomic():
             self._build_scene(server)
             self._build_gui(server)
@@ -186,6 +191,10 @@ class BedsideView:
             self._thread = threading.Thread(target=self._run, name="bedside-view", daemon=True)
             self._thread.start()
         return self
+
+    def _refuse_share_url(self, *args, **kwargs) -> None:
+        self.share_requests_refused += 1
+        log.warning("bedside view: a page asked for a public share URL; refused")
 
     def _widen_windows(self, server) -> None:
         """Let one update go out as one websocket frame: viser sends at most 128 messages
