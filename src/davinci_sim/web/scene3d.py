@@ -14,7 +14,17 @@ loop may run in another process; the view never touches the ``Simulation``): a t
 ``extras["qpos"]`` (published by :class:`~davinci_sim.sim.runtime.render.QposProbe`: build
 the system with ``publish_qpos=True``) into a local ``MjData`` of the same model, runs
 ``mj_kinematics`` and sends the poses of the bodies that moved, grouped with viser's
-``atomic()`` so that a browser applies a frame as one, then ``flush()``-ed.
+``atomic()`` so that a browser applies a frame as one, then ``flush()``-ed. One update is
+one websocket frame (viser's window of 128 messages is widened to a full update), and the
+pose messages are queued directly rather than through the handles' setters, whose per-call
+checks cost ~85 % of an update (both against viser 1.1 internals, with the public setters
+as the fallback; see :meth:`BedsideView._send_poses`). A browser that connects later gets
+the latest poses from viser's replay.
+
+The page is read-only apart from its camera dropdown and a checkbox for the force arrows;
+viser's "share" button (a public tunnel through share.viser.studio) is hidden and its
+request refused. Viser has no authentication: keep it on loopback (the default) unless the
+network is trusted.
 
 The guidance force is drawn as an arrow at each PSM's tool tip (see
 :meth:`BedsideView.force_arrows`): the haptic loop publishes, per MTM, the fields' summed
