@@ -183,6 +183,7 @@ def test_a_moved_arm_moves_its_nodes_to_mujocos_poses_and_nothing_else_is_sent(f
     model = sim.model
     with BedsideView(lambda: model) as view, ViserProbe(view.url) as probe:
         view.fast_poses = fast_poses
+        assert view._pose_queue is not None  # viser 1.1's internals are as expected
         assert view.update(handle.snapshot())
         static_before = {
             b: (n.position.copy(), n.wxyz.copy())

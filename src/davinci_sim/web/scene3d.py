@@ -18,7 +18,7 @@ the system with ``publish_qpos=True``) into a local ``MjData`` of the same model
 one websocket frame (viser's window of 128 messages is widened to a full update), and the
 pose messages are queued directly rather than through the handles' setters, whose per-call
 checks cost ~85 % of an update (both against viser 1.1 internals, with the public setters
-as the fallback; see :meth:`BedsideView._send_poses`). A browser that connects later gets
+as the fallback; :mod:`davinci_sim.web.viser_compat`). A browser that connects later gets
 the latest poses from viser's replay.
 
 The page is read-only apart from its camera dropdown and a checkbox for the force arrows;
@@ -42,8 +42,6 @@ every browser, and the view new browsers start with). Orbit, pan and zoom are vi
 
 from __future__ import annotations
 
-import contextlib
-import io
 import logging
 import threading
 import time
@@ -53,6 +51,7 @@ from typing import Any
 import mujoco
 import numpy as np
 
+from davinci_sim.web import viser_compat
 from davinci_sim.web.scene3d_model import (
     INFINITE_PLANE_HALF_EXTENT,
     CameraPreset,
@@ -150,12 +149,11 @@ class BedsideView:
         self.show_forces = True
         """Draw the guidance force arrows (the page's checkbox)."""
         self._dropdowns: dict[int, Any] = {}
-        self._queue = None
-        self._queue_checked = False
+        self._pose_queue = None
         self.share_requests_refused = 0
         self.fast_poses = True
-        """Send poses through viser's message queue directly (see :meth:`_send_poses`);
-        False: through the public setters."""
+        """Send poses through viser's message queue directly
+        (:func:`~davinci_sim.web.viser_compat.pose_queue`); False: the public setters."""
 
     # ------------------------------------------------------------ lifecycle
     @property
@@ -179,22 +177,22 @@ class BedsideView:
             return self
         import viser
 
-        with contextlib.redirect_stdout(io.StringIO()):  # viser prints a banner regardless
+        with viser_compat.quiet():
             server = viser.ViserServer(host=self.host, port=self._requested_port, verbose=False)
-        self._queue_checked = False
         self.server = server
         server.scene.set_up_direction("+z")
         # viser's default image-based light washes the model's colours out; halved, the
         # scene looks as MuJoCo renders it (materials' colours, room lights from above).
         server.scene.configure_environment_map("warehouse", environment_intensity=0.5)
-        self._widen_windows(server)
-        # The page must not open a public tunnel (viser's "share" button asks its server to
-        # connect to share.viser.studio): hidden, and refused if asked for all the same.
-        server.gui.configure_theme(show_logo=False, show_share_button=False)
-        server.request_share_url = self._refuse_share_url
+        # One update, one websocket frame (two messages per moving body, the arrows).
+        viser_compat.widen_message_window(server, 2 * len(self.moving) + 2 * len(self.psms) + 16)
+        viser_compat.refuse_share_url(server, self._refuse_share_url)  # no public tunnel
         with server.atomic():
             self._build_scene(server)
             self._build_gui(server)
+        self._pose_queue = viser_compat.pose_queue(
+            server, next(iter(self.body_nodes.values()), None)
+        )
         self._apply_preset(self.presets[self.preset], clients=())
         if self.handle is not None:
             self._stop.clear()
@@ -202,20 +200,9 @@ class BedsideView:
             self._thread.start()
         return self
 
-    def _refuse_share_url(self, *args, **kwargs) -> None:
+    def _refuse_share_url(self) -> None:
         self.share_requests_refused += 1
         log.warning("bedside view: a page asked for a public share URL; refused")
-
-    def _widen_windows(self, server) -> None:
-        """Let one update go out as one websocket frame: viser sends at most 128 messages
-        per frame (``AsyncMessageBuffer.max_window_size``), and an update of the full scene
-        with every arm moving has ~160 (two per moving body), so a browser would draw the
-        first part of the update before the rest. No public setting exists (viser 1.1.1):
-        the attribute is set if it is there, else the view works with split frames."""
-        buffer = getattr(getattr(server, "_websock_server", None), "_broadcast_buffer", None)
-        needed = 2 * len(self.moving) + 2 * len(self.psms) + 16
-        if buffer is not None and getattr(buffer, "max_window_size", needed) < needed:
-            buffer.max_window_size = needed
 
     def stop(self) -> None:
         """Stop the update thread and the viser server (its threads end with it)."""
@@ -225,9 +212,9 @@ class BedsideView:
             self._thread = None
         if self.server is not None:
             server, self.server = self.server, None
-            with contextlib.redirect_stdout(io.StringIO()):  # ("Server stopped")
+            with viser_compat.quiet():
                 server.stop()
-            server._thread_executor.shutdown(wait=True)  # (viser's own stop does not wait)
+            viser_compat.shutdown_executor(server)
 
     def __enter__(self) -> BedsideView:
         return self.start()
@@ -421,49 +408,14 @@ class BedsideView:
         changed = np.flatnonzero(~np.all(np.abs(pose - self._sent_pose[b]) <= 1e-7, axis=1))
         self._sent_pose[b[changed]] = pose[changed]
         nodes = [self.body_nodes[int(body)] for body in b[changed]]
-        queue = self._fast_queue() if self.fast_poses else None
-        if queue is None:  # viser's public setters (each checks and casts its value)
+        send = self._pose_queue if self.fast_poses else None
+        if send is None:  # viser's public setters (each checks and casts its value)
             for node, row in zip(nodes, pose[changed], strict=True):
                 node.position = row[:3]
                 node.wxyz = row[3:]
             return
-        # The same messages as the setters send, without their per-call checks (np.allclose
-        # and casts: ~85 % of an update's time with every arm moving); the handles' stored
-        # poses are kept as the setters keep them.
-        from viser import _messages
-
         for node, row in zip(nodes, pose[changed].tolist(), strict=True):
-            impl = node._impl
-            p, q = tuple(row[:3]), tuple(row[3:])
-            impl.position[:] = p
-            impl.wxyz[:] = q
-            queue(_messages.SetPositionMessage(impl.name, p))
-            queue(_messages.SetOrientationMessage(impl.name, q))
-
-    def _fast_queue(self):
-        """viser's scene message queue when its internals are as in viser 1.1 (checked once),
-        else None: the public setters are used."""
-        if self._queue_checked:
-            return self._queue
-        self._queue_checked = True
-        queue = getattr(self.server.scene, "_queue_scene_message", None)
-        node = next(iter(self.body_nodes.values()), None)
-        impl = getattr(node, "_impl", None)
-        try:
-            from viser import _messages
-
-            ok = (
-                callable(queue)
-                and isinstance(getattr(impl, "position", None), np.ndarray)
-                and isinstance(getattr(impl, "wxyz", None), np.ndarray)
-                and isinstance(getattr(impl, "name", None), str)
-                and hasattr(_messages, "SetPositionMessage")
-                and hasattr(_messages, "SetOrientationMessage")
-            )
-        except ImportError:
-            ok = False
-        self._queue = queue if ok else None
-        return self._queue
+            send(node, tuple(row[:3]), tuple(row[3:]))
 
     def force_arrows(self, snapshot) -> dict[str, np.ndarray]:
         """PSM -> the guidance force arrow ``[[start], [end]]`` (2, 3), world frame, m, for
