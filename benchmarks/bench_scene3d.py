@@ -1,8 +1,8 @@
 """The bedside view (:mod:`davinci_sim.web.scene3d`) of the full scene with the seed's task
 drawn: its size (scene nodes, the initial scene a browser downloads), the cost of one live
 update (kinematics + pose messages + flush) when every moving body moves and when one PSM
-moves, and the update rate a connected client receives when the view is pushed as fast as
-it goes.
+moves (and with every body moving through viser's public setters, the fallback), and the
+update rate a connected client receives, at the default 30 Hz and as fast as it goes.
 
 A :class:`~davinci_sim.web.viser_probe.ViserProbe` stands for the browser (it receives and
 decodes every frame, as a page would, but draws nothing). ``python
@@ -76,7 +76,11 @@ def main(n: int = 300, rate_seconds: float = 3.0) -> None:
             figures.update(
                 summary(time_each(lambda: mujoco.mj_kinematics(model, data), n), "kinematics")
             )
-            for case, prefix in (("all_arms", ""), ("one_psm", "PSM1/")):
+            # (all_arms_setters: the same through viser's public pose setters, the fallback)
+            cases = (("all_arms", "", True), ("one_psm", "PSM1/", True),
+                     ("all_arms_setters", "", False))  # fmt: skip
+            for case, prefix, fast in cases:
+                view.fast_poses = fast
                 source = MovingSnapshots(model, hinge_and_slide_joints(model, prefix))
                 before = len(probe.received())
                 samples = time_each(lambda s=source: view.update(s.snapshot()), n, warmup=20)
