@@ -87,6 +87,9 @@ def test_calls_snapshots_events_and_errors():
     assert {"MTMR_PSM1", "console", "PSM1"} <= sources
     assert ("MTMR_PSM1", "following") in events
     assert handle.stop().ticks == stats.ticks or handle.stop().ticks >= stats.ticks
+    # After stop() the shared memory is gone: a reader (a web view's thread) gets an error.
+    with pytest.raises(LoopProcessError, match="not running"):
+        handle.snapshot()
 
 
 def test_a_failing_factory_reports_its_traceback():

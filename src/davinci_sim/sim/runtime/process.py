@@ -273,6 +273,8 @@ class ProcessSimulation:
             self._reader.join(timeout)
         if self._mirror is not None:
             self._mirror.close()
+        with self._snap_lock:  # a reader in another thread must not read closed memory
+            self._state = None
         for buffer in self._buffers.values():
             buffer.close()
         self._buffers.clear()
@@ -301,9 +303,9 @@ class ProcessSimulation:
 
     def snapshot(self) -> Snapshot:
         """The latest published state as a :class:`Snapshot` (rebuilt in this process)."""
-        if self._state is None:
-            raise LoopProcessError("not started")
         with self._snap_lock:
+            if self._state is None:
+                raise LoopProcessError("the loop process is not running (not started, or stopped)")
             data = self._state.read()
             if data is None:
                 raise LoopProcessError("the loop process has not published a state yet")

@@ -1,0 +1,68 @@
+"""The bedside view in a real browser: headless Chromium (Debian's, driven by Playwright)
+loads viser's page from the view's port and draws the model; a preset changes the picture.
+
+Skipped where Playwright or a system Chromium is missing. WebGL in headless Chromium needs
+the software rasteriser (SwiftShader through ANGLE); the page's first frame takes seconds
+with it (script, shaders), hence one small page for the whole test."""
+
+from __future__ import annotations
+
+import io
+import shutil
+import time
+
+import numpy as np
+import pytest
+
+from davinci_sim.system import SystemDescription, TaskDescription, scene_model
+from davinci_sim.web.scene3d import BedsideView
+
+playwright = pytest.importorskip("playwright.sync_api")
+CHROMIUM = shutil.which("chromium") or shutil.which("chromium-browser")
+pytestmark = pytest.mark.skipif(CHROMIUM is None, reason="no system chromium")
+SOFTWARE_GL = ["--use-gl=angle", "--use-angle=swiftshader", "--enable-unsafe-swiftshader"]
+
+
+def canvas_pixels(page) -> np.ndarray:
+    from PIL import Image
+
+    png = page.screenshot()  # (the page is the canvas and a small panel)
+    return np.asarray(Image.open(io.BytesIO(png)).convert("RGB"), dtype=float)
+
+
+def drawn(pixels: np.ndarray) -> bool:
+    """Not blank: many distinct colours (a cleared canvas has one or two)."""
+    colours = np.unique((pixels // 8).reshape(-1, 3), axis=0)
+    return len(colours) > 50 and pixels.std() > 10
+
+
+def test_the_page_draws_the_system_and_a_preset_moves_the_view(tmp_path):
+    description = SystemDescription("psm1_ecm_mtmr", task=TaskDescription("seed_path"))
+    with BedsideView(lambda: scene_model(description)) as view:
+        with playwright.sync_playwright() as p:
+            browser = p.chromium.launch(executable_path=CHROMIUM, args=SOFTWARE_GL)
+            try:
+                page = browser.new_page(viewport={"width": 480, "height": 360})
+                errors = []
+                page.on("console", lambda m: errors.append(m.text) if m.type == "error" else None)
+                page.on("pageerror", lambda e: errors.append(str(e)))
+                page.goto(view.url)
+                page.wait_for_selector("canvas", timeout=60_000)
+                deadline = time.monotonic() + 60
+                first = canvas_pixels(page)
+                while not drawn(first) and time.monotonic() < deadline:
+                    time.sleep(0.5)
+                    first = canvas_pixels(page)
+                assert drawn(first)
+                page.screenshot(path=tmp_path / "bedside_overview.png")
+                view.set_preset("monitor_task")
+                second = canvas_pixels(page)
+                while np.abs(second - first).mean() < 5 and time.monotonic() < deadline:
+                    time.sleep(0.5)
+                    second = canvas_pixels(page)
+                assert np.abs(second - first).mean() >= 5
+                assert drawn(second)
+                page.screenshot(path=tmp_path / "bedside_monitor_task.png")
+                assert errors == []
+            finally:
+                browser.close()
