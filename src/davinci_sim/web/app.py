@@ -91,8 +91,10 @@ def start_bedside(system, options: WebOptions):
     except ImportError as e:
         _log.warning("no 3-D view: %s", e)
         return None
+    # viser has no authentication: the view stays on loopback even when the page is served
+    # further (with a token); a remote page then says the 3-D view is not reachable.
     try:
-        return BedsideView(system.model_source, system.handle, host=options.host, port=0).start()
+        return BedsideView(system.model_source, system.handle, host="127.0.0.1", port=0).start()
     except Exception:
         _log.exception("the 3-D view did not start; the console goes on without it")
         return None
