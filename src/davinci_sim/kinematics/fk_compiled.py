@@ -18,7 +18,7 @@ import math
 
 import numpy as np
 
-from davinci_sim.kinematics.jit import jit
+from davinci_sim.kinematics.jit import helper, jit
 
 
 def pack(links, modified: bool, R_tool, p_tool, tool_is_identity: bool) -> tuple:
@@ -36,8 +36,14 @@ def pack(links, modified: bool, R_tool, p_tool, tool_is_identity: bool) -> tuple
 @jit
 def tip_pose_and_jacobian(links, modified, tool, tool_is_identity, q, T, J, jacobian):
     """``T_base_tip`` (links · tool) of ``q`` into ``T`` (4, 4) and, if ``jacobian``, the
-    spatial Jacobian (6, n) into ``J``. (One kernel: numba cannot call the Python fallback of
-    another, so the frames are computed inline.)"""
+    spatial Jacobian (6, n) into ``J``."""
+    tip_pose_row(links, modified, tool, tool_is_identity, q, T, J, jacobian)
+
+
+@helper
+def tip_pose_row(links, modified, tool, tool_is_identity, q, T, J, jacobian):
+    """The law of :func:`tip_pose_and_jacobian`, callable from other kernels (the PSM IK's
+    FK check)."""
     n = q.shape[0]
     F = np.empty((n, 12))  # T_base_i of each joint: r00..r22 row-major, px, py, pz
     r00, r01, r02, r10, r11, r12, r20, r21, r22 = 1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0

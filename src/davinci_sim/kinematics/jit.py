@@ -60,15 +60,18 @@ def jit(fn):
 
 
 def helper(fn):
-    """``fn`` as a function that :func:`jit` kernels can call (a numba dispatcher), or ``fn``
-    itself when compiling is off. A law written once on floats (e.g.
-    :func:`~davinci_sim.geometry.so3.rotation_vector_floats`) is then compiled into the
-    kernels that use it and stays a plain function for Python callers.
+    """Make ``fn`` callable from :func:`jit` kernels (numba's ``register_jitable``); Python
+    callers still call the plain function. A law written once on floats (e.g.
+    :func:`~davinci_sim.geometry.so3.rotation_vector_floats`, the PSM IK's pieces) is then
+    compiled into the kernels that use it and stays an ordinary function everywhere else.
+    Returns ``fn``.
 
     numba's on-disk cache of a kernel does not notice edits of the helpers it calls in
     other modules: after changing such a helper, delete the ``__pycache__/*.nbi``/``*.nbc``
-    files of the kernels' modules (or run with ``DAVINCI_SIM_JIT=0`` to compare).
+    files of the kernels' modules (or compare with ``DAVINCI_SIM_JIT=0``).
     """
-    if not ENABLED:
-        return fn
-    return numba.njit(cache=True)(fn)
+    if ENABLED:
+        from numba.extending import register_jitable
+
+        register_jitable(fn)
+    return fn
