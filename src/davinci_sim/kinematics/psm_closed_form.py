@@ -128,9 +128,9 @@ def _complete_wrist(ca, sa, t0, R6, th1, th2, q3, th6, q) -> None:
 
 
 @helper
-def _row_errors(fk_links, fk_modified, fk_tool, fk_tool_is_identity, q, goal, F, J):
+def _row_errors(fk_links, fk_modified, fk_tool, fk_tool_is_identity, q, goal, F, J, frames):
     """Position and rotation error (m, rad) of FK(q) against the flat goal tuple."""
-    tip_pose_row(fk_links, fk_modified, fk_tool, fk_tool_is_identity, q, F, J, False)
+    tip_pose_row(fk_links, fk_modified, fk_tool, fk_tool_is_identity, q, F, J, False, frames)
     f = (
         F[0, 0], F[0, 1], F[0, 2], F[1, 0], F[1, 1], F[1, 2], F[2, 0], F[2, 1], F[2, 2],
         F[0, 3], F[1, 3], F[2, 3],
@@ -168,6 +168,7 @@ def closed_form_rows(
     best = np.empty(6)
     F = np.empty((4, 4))
     J = np.empty((6, 0))
+    frames = np.empty((6, 12))
     for r in range(T.shape[0]):
         seed = S[r]
         goal = (
@@ -265,7 +266,7 @@ def closed_form_rows(
                 best[:] = q
         q_out[r] = best
         # -- FK check, then the 45 mm insertion rule
-        dp, dr = _row_errors(fk_links, fk_modified, fk_tool, fk_identity, best, goal, F, J)
+        dp, dr = _row_errors(fk_links, fk_modified, fk_tool, fk_identity, best, goal, F, J, frames)
         info[r, 1], info[r, 2] = dp, dr
         if dp > tolerance[0] or dr > tolerance[1]:
             status[r] = POLISH
@@ -277,7 +278,9 @@ def closed_form_rows(
         if new3 != q3:
             q_out[r, INSERTION] = new3
             info[r, 4] = 1.0
-            dp, dr = _row_errors(fk_links, fk_modified, fk_tool, fk_identity, q_out[r], goal, F, J)
+            dp, dr = _row_errors(
+                fk_links, fk_modified, fk_tool, fk_identity, q_out[r], goal, F, J, frames
+            )
             info[r, 1], info[r, 2] = dp, dr
         ok = True
         for j in range(6):
