@@ -132,17 +132,21 @@ def link_transforms(chain: DHChain, q: np.ndarray) -> np.ndarray:
 
 
 def _run(
-    chain: DHChain, q: np.ndarray, jacobian: bool, frames: bool = False
+    chain: DHChain, q, jacobian: bool, frames: bool = False
 ) -> tuple[tuple[int, ...], np.ndarray, np.ndarray, np.ndarray]:
-    """The kernel on checked joints ``q`` (..., n): (batch shape, T (m, 4, 4), J (m, 6, n or
-    0), frames (m or 1, n, 12))."""
+    """The kernel on joints ``q`` (..., n) (checked): (batch shape, T (m, 4, 4), J (m, 6, n
+    or 0), frames (m or 1, n, 12))."""
+    q = np.asarray(q, dtype=float)
     cc = _consts(chain)
+    n = len(cc.links)
+    if q.ndim == 0 or q.shape[-1] != n:
+        _check_q(chain, q)  # raises
     batch = q.shape[:-1]
-    Q = np.ascontiguousarray(q.reshape(math.prod(batch), chain.dof))
-    m = Q.shape[0]
+    m = math.prod(batch) if batch else 1
+    Q = np.ascontiguousarray(q).reshape(m, n)
     T = np.empty((m, 4, 4))
-    J = np.empty((m, 6, chain.dof if jacobian else 0))
-    F = np.empty((m if frames else 1, chain.dof, 12))
+    J = np.empty((m, 6, n if jacobian else 0))
+    F = np.empty((m if frames else 1, n, 12))
     fk_compiled.tip_poses(*cc.packed, Q, T, J, jacobian, F)
     return batch, T, J, F
 
@@ -151,10 +155,9 @@ def fk_tuple(chain: DHChain, q) -> tuple[float, ...]:
     """FK of one configuration as a flat tuple ``(r00, …, r22, px, py, pz)``.
 
     For hot loops (IK verification, servo loops) that want floats, not a 4x4 array.
-    ``q`` is a sequence of ``chain.dof`` floats (rad / m); no validation is done.
+    ``q`` is a sequence of ``chain.dof`` floats (rad / m).
     """
-    _, T, _, _ = _run(chain, np.asarray(q, dtype=float).reshape(1, chain.dof), False)
-    r0, r1, r2, _ = T[0].tolist()
+    r0, r1, r2, _ = _run(chain, q, False)[1][0].tolist()
     return (*r0[:3], *r1[:3], *r2[:3], r0[3], r1[3], r2[3])
 
 
@@ -163,7 +166,7 @@ def fk_tuple(chain: DHChain, q) -> tuple[float, ...]:
 
 def joint_frames(chain: DHChain, q: np.ndarray) -> np.ndarray:
     """Frames ``T_base_i`` for i = 0 (base) … n, shape ``(..., n + 1, 4, 4)`` (no tool)."""
-    batch, _, _, F = _run(chain, _check_q(chain, q), False, frames=True)
+    batch, _, _, F = _run(chain, q, False, frames=True)
     m, n = F.shape[0], chain.dof
     frames = np.zeros((m, n + 1, 4, 4))
     frames[:, 0] = np.eye(4)
@@ -175,8 +178,8 @@ def joint_frames(chain: DHChain, q: np.ndarray) -> np.ndarray:
 
 def forward_kinematics(chain: DHChain, q: np.ndarray) -> np.ndarray:
     """``T_base_tip`` = links · tooltip offset, shape ``(..., 4, 4)``."""
-    batch, T, _, _ = _run(chain, _check_q(chain, q), False)
-    return T.reshape(*batch, 4, 4)
+    batch, T, _, _ = _run(chain, q, False)
+    return T.reshape(*batch, 4, 4) if batch else T[0]
 
 
 def forward_kinematics_matmul(chain: DHChain, q: np.ndarray) -> np.ndarray:
@@ -202,7 +205,9 @@ def forward_kinematics_and_jacobian(chain: DHChain, q: np.ndarray) -> tuple[np.n
     """``(T_base_tip (4, 4), spatial Jacobian (6, n))`` of one configuration in one pass over
     the chain (the 1 kHz teleoperation path needs both: pose and twist of the same joints);
     for a batch ``q`` (..., n): ``(..., 4, 4)`` and ``(..., 6, n)``."""
-    batch, T, J, _ = _run(chain, _check_q(chain, q), True)
+    batch, T, J, _ = _run(chain, q, True)
+    if not batch:
+        return T[0], J[0]
     return T.reshape(*batch, 4, 4), J.reshape(*batch, 6, chain.dof)
 
 

@@ -50,8 +50,11 @@ from davinci_sim.kinematics.ik_base import (
     POSITION_TOLERANCE,
     ROTATION_TOLERANCE,
     IKResult,
+    check_goal,
+    check_seed,
     failed_result,
     goal_and_seed,
+    goal_tuple,
     make_result,
     pose_errors,
 )
@@ -62,6 +65,7 @@ from davinci_sim.kinematics.psm_closed_form import (
     POLISH,
     ROLL,
     SAFE_DISTANCE_FROM_RCM,
+    SOLVED,
     TOO_CLOSE,
     closed_form_rows,
     insertion_rule,
@@ -332,14 +336,39 @@ def psm_ik_closed_form(
     Raises:
         ValueError: on a badly shaped or non-finite goal or seed, or a non-PSM chain.
     """
-    g = psm_geometry(chain)
-    goal, seed = goal_and_seed(chain, T_rcm_tip, q_seed)
-    tolerance = np.array([position_tolerance, rotation_tolerance])
-    T = np.ascontiguousarray(T_rcm_tip, dtype=float).reshape(1, 4, 4)
-    q, _, status, info = _solve_rows(chain, T, np.array([seed]), tolerance)
-    return _row_result(
-        chain, g, goal, seed, q[0], int(status[0]), info[0], position_tolerance, rotation_tolerance
+    g = psm_geometry(chain)  # raises for a chain that is not a PSM
+    T, S = check_goal(T_rcm_tip), check_seed(chain, q_seed)
+    q, success, status, info = _solve_rows(
+        chain,
+        np.ascontiguousarray(T).reshape(1, 4, 4),
+        np.ascontiguousarray(S).reshape(1, 6),
+        _tolerance(position_tolerance, rotation_tolerance),
     )
+    if success[0] and status[0] == SOLVED and not info[0, 4]:
+        # The common answer, as make_result builds it (pose within the tolerances, checked by
+        # the kernel; joints within the limits, the same test as limit_violations).
+        return IKResult(
+            q=q[0],
+            success=True,
+            message="ok",
+            iterations=int(info[0, 0]),
+            position_error=float(info[0, 1]),
+            rotation_error=float(info[0, 2]),
+        )
+    return _row_result(
+        chain, g, goal_tuple(T), S.tolist(), q[0], int(status[0]), info[0],
+        position_tolerance, rotation_tolerance,
+    )  # fmt: skip
+
+
+_DEFAULT_TOLERANCE = np.array([POSITION_TOLERANCE, ROTATION_TOLERANCE])
+_DEFAULT_TOLERANCE.setflags(write=False)
+
+
+def _tolerance(position_tolerance: float, rotation_tolerance: float) -> np.ndarray:
+    if position_tolerance == POSITION_TOLERANCE and rotation_tolerance == ROTATION_TOLERANCE:
+        return _DEFAULT_TOLERANCE
+    return np.array([position_tolerance, rotation_tolerance], dtype=float)
 
 
 class BatchIKResult(NamedTuple):
@@ -374,7 +403,7 @@ def psm_ik_closed_form_batch(
     """
     g = psm_geometry(chain)
     T, S = _check_inputs(chain, T_rcm_tip, q_seed)
-    tolerance = np.array([position_tolerance, rotation_tolerance])
+    tolerance = _tolerance(position_tolerance, rotation_tolerance)
     q, success, status, info = _solve_rows(chain, T, S, tolerance)
     for i in np.flatnonzero(status == POLISH):
         goal = tuple(T[i, :3, :3].ravel().tolist() + T[i, :3, 3].tolist())
