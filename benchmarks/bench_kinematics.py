@@ -15,7 +15,7 @@ from common import summary, time_each, write
 from davinci_sim.kinematics.arms import load_arm
 from davinci_sim.kinematics.fk import forward_kinematics
 from davinci_sim.kinematics.ik import inverse_kinematics
-from davinci_sim.kinematics.psm_ik_batch import fallback_fraction, psm_ik_closed_form_batch
+from davinci_sim.kinematics.psm_ik import psm_ik_closed_form_batch
 
 
 def _ik_workload(kin, rng, n_ik):
@@ -33,7 +33,7 @@ def psm_ik_batch_figures(kin, goals, seeds, n: int = 200, calls: int = 500) -> d
 
     Same goals and seeds as the scalar ``psm_ik_closed_form`` figures, cycled in batches of n,
     so ``psm_ik_batch_n200_per_row_median_us`` compares directly with
-    ``psm_ik_closed_form_median_us``. Also the fraction of rows handed to the scalar solver.
+    ``psm_ik_closed_form_median_us`` (the same kernel on one row).
     """
     batches = [(goals[i : i + n], seeds[i : i + n]) for i in range(0, len(goals) - n + 1, n)]
     it = iter(range(10**9))
@@ -45,9 +45,6 @@ def psm_ik_batch_figures(kin, goals, seeds, n: int = 200, calls: int = 500) -> d
     s = summary(time_each(solve, calls, warmup=20), f"psm_ik_batch_n{n}")
     out = dict(s)
     out[f"psm_ik_batch_n{n}_per_row_median_us"] = s[f"psm_ik_batch_n{n}_median_us"] / n
-    out["psm_ik_batch_fallback_fraction"] = float(
-        np.mean([fallback_fraction(kin.chain, T, S) for T, S in batches])
-    )
     return out
 
 

@@ -7,7 +7,7 @@ import pickle
 import numpy as np
 import pytest
 
-from davinci_sim.devices import HandImpedance, SimulatedMTM, hand_wrench
+from davinci_sim.devices import HandImpedance, SimulatedMTM, hand_wrenches
 from davinci_sim.devices.safety import WrenchLimits
 from davinci_sim.geometry import so3
 from davinci_sim.sim.simulation import Simulation
@@ -112,6 +112,15 @@ def test_bad_hand_inputs_raise_and_change_nothing(mtm_sim):
         SimulatedMTM(sim, "MTML")
     with pytest.raises(ValueError, match="damping"):
         HandImpedance(damping=-1.0)
+
+
+def hand_wrench(target, T, twist, imp, *, hold_orientation=True):
+    """One hand: the law as a batch of one, as SimulatedMTM calls it."""
+    target = None if target is None else target[None]
+    return hand_wrenches(
+        target, T[None], twist[None], (imp.stiffness,), (imp.damping,), imp,
+        hold_orientation=hold_orientation,
+    )[0]  # fmt: skip
 
 
 def test_hand_law():

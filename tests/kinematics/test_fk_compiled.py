@@ -1,6 +1,8 @@
-"""The compiled forward kinematics (``kinematics.fk_compiled``, numba) against the plain Python
-float path of ``kinematics.fk``: the same operations, so the same bits, with numba and without
-(the fallback when numba is missing, switched off or fails to compile)."""
+"""The forward-kinematics kernel (``kinematics.fk_compiled``, numba) compiled and as plain
+Python (the fallback when numba is missing, switched off or fails to compile): the same
+operations, so the same bits; a row's bits do not depend on its batch; and the public API is
+that kernel. (Against independent references: ``test_fk_batch``, ``test_fk_reference``,
+``test_jacobians``.)"""
 
 from __future__ import annotations
 
@@ -20,27 +22,37 @@ def _chains():
     return arms + [suj_arm_kinematics(s).chain for s in load_suj().values()]
 
 
-@pytest.mark.parametrize("kernel", ["compiled", "python"])
-def test_pose_and_jacobian_are_the_float_paths_bits(kernel):
+def test_compiled_and_python_kernel_give_the_same_bits_alone_and_in_a_batch():
     """Both conventions (the SUJ chains are standard DH, the arms modified), tool offsets."""
-    run = fk_compiled.tip_pose_and_jacobian
-    if kernel == "python":
-        run = run.py_func
     rng = np.random.default_rng(1)
     for chain in _chains():
         cc = fk._consts(chain)
-        for _ in range(50):
-            q = rng.uniform(chain.qmin, chain.qmax)
-            T, J = np.empty((4, 4)), np.empty((6, chain.dof))
-            run(*cc.packed, q, T, J, True)
-            J_ref, tip = fk._jacobian_spatial_floats(chain, q.tolist())
-            assert np.array_equal(T, fk._to_matrix(tip)), chain.name
-            assert np.array_equal(J, np.array(J_ref)), chain.name
-            # and the public API, whichever path it takes
-            T_api, J_api = fk.forward_kinematics_and_jacobian(chain, q)
-            assert np.array_equal(T_api, T) and np.array_equal(J_api, J)
-            assert np.array_equal(fk.forward_kinematics(chain, q), T)
-            assert fk.fk_tuple(chain, q.tolist()) == tip
+        Q = rng.uniform(chain.qmin, chain.qmax, (50, chain.dof))
+        out = {}
+        for name, run in (
+            ("compiled", fk_compiled.tip_poses),
+            ("python", fk_compiled.tip_poses.py_func),
+        ):
+            T, J, F = (
+                np.empty((50, 4, 4)),
+                np.empty((50, 6, chain.dof)),
+                np.empty((50, chain.dof, 12)),
+            )
+            run(*cc.packed, Q, T, J, True, F)
+            out[name] = T, J, F
+        for a, b in zip(out["compiled"], out["python"], strict=True):
+            assert np.array_equal(a, b), chain.name
+        T, J, F = out["compiled"]
+        for i in range(0, 50, 7):  # one configuration alone, through the public API
+            T_api, J_api = fk.forward_kinematics_and_jacobian(chain, Q[i])
+            assert np.array_equal(T_api, T[i]) and np.array_equal(J_api, J[i]), chain.name
+            assert np.array_equal(fk.forward_kinematics(chain, Q[i]), T[i])
+            assert np.array_equal(fk.jacobian_spatial(chain, Q[i]), J[i])
+            tip = fk.fk_tuple(chain, Q[i].tolist())
+            assert tip == (*T[i, :3, :3].ravel().tolist(), *T[i, :3, 3].tolist())
+            frames = fk.joint_frames(chain, Q[i])
+            assert np.array_equal(frames[1:, :3, :3].reshape(chain.dof, 9), F[i, :, :9])
+            assert np.array_equal(frames[1:, :3, 3], F[i, :, 9:])
 
 
 def test_the_compiled_pose_is_the_matrix_product_of_the_dh_links():

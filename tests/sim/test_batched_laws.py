@@ -9,7 +9,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from davinci_sim.console import teleop_math as tm
-from davinci_sim.devices.hand import HandImpedance, hand_wrench, hand_wrenches
+from davinci_sim.devices.hand import HandImpedance, hand_wrenches
 from davinci_sim.devices.safety import WrenchLimits, clamp_wrench, clamp_wrenches
 from davinci_sim.geometry import so3
 from davinci_sim.kinematics import fk
@@ -31,38 +31,84 @@ def _poses(rng, n, max_angle=np.pi):
     return T
 
 
-def test_rotation_vectors_match_the_scalar_law_including_near_zero_and_pi():
+def test_rotation_vector_floats_invert_rodrigues_including_near_zero_and_pi():
     rng = np.random.default_rng(1)
-    R = _rotations(rng, 200)
-    R[0] = np.eye(3)
-    R[1] = so3.rotation_from_vector([1e-8, 0, 0])
-    R[2] = so3.rotation_from_vector([0, np.pi - 1e-9, 0])
-    R[3] = so3.rotation_from_vector([np.pi, 0, 0])
-    batch = so3.rotation_vectors(R)
-    for r, w in zip(R, batch, strict=True):
-        np.testing.assert_allclose(w, so3.rotation_vector(r), atol=1e-12)
-    assert so3.rotation_vectors(R.reshape(20, 10, 3, 3)).shape == (20, 10, 3)
+    W = rng.normal(size=(200, 3))
+    W *= (rng.uniform(0, np.pi, 200) / np.linalg.norm(W, axis=1))[:, None]
+    W[0] = 0.0
+    W[1] = [1e-8, 0, 0]
+    W[2] = [0, np.pi - 1e-9, 0]
+    W[3] = [np.pi, 0, 0]
+    W[4] = [0, 0, np.pi - 1e-4]
+    for w in W:
+        R = so3.rotation_from_vector(w)
+        got = np.array(so3.rotation_vector_floats(*R.ravel().tolist()))
+        # the rotation it names is R (at π, w and −w name the same rotation)
+        np.testing.assert_allclose(so3.rotation_from_vector(got), R, atol=1e-7)
+        assert np.linalg.norm(got) == pytest.approx(np.linalg.norm(w), abs=1e-7)
+
+
+def _hand_reference(target, tip, twist, K, D, imp, hold):
+    """The spring-damper written out in numpy, one row: F = K·dp − D·v, τ = K_r·θ·axis − D_r·ω
+    (θ·axis recovered by scipy-free Rodrigues inversion: the log of R_target·R_tipᵀ by its
+    eigenvector), each clamped."""
+    f = K * (target[:3, 3] - tip[:3, 3]) - D * twist[:3]
+    tau = -imp.rotational_damping * twist[3:]
+    if hold:
+        R = target[:3, :3] @ tip[:3, :3].T
+        vals, vecs = np.linalg.eig(R)
+        axis = np.real(vecs[:, np.argmin(np.abs(vals - 1.0))])
+        angle = np.arctan2(
+            0.5 * np.dot([R[2, 1] - R[1, 2], R[0, 2] - R[2, 0], R[1, 0] - R[0, 1]], axis),
+            0.5 * (np.trace(R) - 1.0),
+        )
+        tau = tau + imp.rotational_stiffness * angle * axis
+    for v, limit in ((f, imp.max_force), (tau, imp.max_torque)):
+        n = np.linalg.norm(v)
+        if n > limit:
+            v *= limit / n
+    return np.concatenate([f, tau])
 
 
 @pytest.mark.parametrize("hold", [True, False])
-def test_hand_wrenches_match_hand_wrench_row_by_row(hold):
+def test_hand_wrenches_against_a_numpy_reference_and_alone_as_in_a_batch(hold):
     rng = np.random.default_rng(2)
     n = 100
     target, tip = _poses(rng, n, 0.6), _poses(rng, n, 0.6)
     tip[:, :3, 3] = target[:, :3, 3] + rng.normal(scale=0.01, size=(n, 3))
     twist = rng.normal(scale=0.3, size=(n, 6))
     K, D = rng.uniform(100, 600, n), rng.uniform(2, 20, n)
-    base = HandImpedance(max_force=5.0)
-    batch = hand_wrenches(target, tip, twist, K, D, base, hold_orientation=hold)
-    clamped = 0
+    imp = HandImpedance(max_force=5.0, max_torque=0.2)
+    batch = hand_wrenches(target, tip, twist, K, D, imp, hold_orientation=hold)
+    clamped = [0, 0]
     for i in range(n):
-        imp = HandImpedance(
-            stiffness=K[i], damping=D[i], max_force=base.max_force, max_torque=base.max_torque
-        )
-        one = hand_wrench(target[i], tip[i], twist[i], imp, hold_orientation=hold)
-        np.testing.assert_allclose(batch[i], one, atol=1e-12)
-        clamped += np.isclose(np.linalg.norm(one[:3]), base.max_force)
-    assert 0 < clamped < n  # both branches of the force clamp were exercised
+        ref = _hand_reference(target[i], tip[i], twist[i], K[i], D[i], imp, hold)
+        np.testing.assert_allclose(batch[i], ref, atol=1e-12)
+        one = hand_wrenches(target[i : i + 1], tip[i : i + 1], twist[i : i + 1], K[i : i + 1],
+                            D[i : i + 1], imp, hold_orientation=hold)  # fmt: skip
+        np.testing.assert_array_equal(one[0], batch[i])  # a row's bits do not depend on n
+        clamped[0] += np.isclose(np.linalg.norm(ref[:3]), imp.max_force)
+        clamped[1] += np.isclose(np.linalg.norm(ref[3:]), imp.max_torque)
+    assert 0 < clamped[0] < n  # both branches of the force clamp were exercised
+    assert not hold or 0 < clamped[1] < n
+    # without a target the hands only damp
+    rest = hand_wrenches(None, tip, twist, K, D, HandImpedance(max_force=1e9, max_torque=1e9))
+    np.testing.assert_allclose(rest[:, :3], -D[:, None] * twist[:, :3], rtol=1e-15)
+
+
+def test_hand_kernel_compiled_and_python_give_the_same_bits():
+    from davinci_sim.devices import hand
+
+    rng = np.random.default_rng(3)
+    n = 50
+    target, tip = _poses(rng, n), _poses(rng, n)
+    twist = rng.normal(size=(n, 6))
+    args = (target, True, True, tip, twist, rng.uniform(100, 600, n), rng.uniform(2, 20, n))
+    args += (0.3, 0.004, 20.0, 0.5)
+    compiled, python = np.empty((n, 6)), np.empty((n, 6))
+    hand._hand_rows(*args, compiled)
+    hand._hand_rows.py_func(*args, python)
+    np.testing.assert_array_equal(compiled, python)
 
 
 @settings(max_examples=50, deadline=None)

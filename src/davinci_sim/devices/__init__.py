@@ -9,7 +9,7 @@
 
 from davinci_sim.devices.buttons import ButtonEvent, parse_button_event
 from davinci_sim.devices.device import DVRK_WATCHDOG, MasterDevice
-from davinci_sim.devices.hand import HandImpedance, hand_wrench
+from davinci_sim.devices.hand import HandImpedance, hand_wrenches
 from davinci_sim.devices.network import NetworkDevice
 from davinci_sim.devices.safety import WrenchLimiter, WrenchLimits, clamp_wrench
 from davinci_sim.devices.scripted import HandScript, circle
@@ -32,6 +32,6 @@ __all__ = [
     "WrenchLimits",
     "circle",
     "clamp_wrench",
-    "hand_wrench",
+    "hand_wrenches",
     "parse_button_event",
 ]

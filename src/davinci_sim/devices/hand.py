@@ -1,7 +1,9 @@
 """The operator's hand on a simulated MTM handle: a 6-D spring-damper towards a target pose.
 
-Pure law (:func:`hand_wrench`); :class:`~davinci_sim.devices.SimulatedMTM` applies the result
-to the handle body as an external force, so the MTM moves through its own dynamics and the
+Pure law (:func:`hand_wrenches`, one compiled kernel over rows: the live
+:class:`~davinci_sim.devices.SimulatedMTM` is a batch of one, the study's batch engine a batch
+of n trials); :class:`~davinci_sim.devices.SimulatedMTM` applies the result to the handle body
+as an external force, so the MTM moves through its own dynamics and the
 haptic wrench the MTM renders pushes back against the hand, as on the real console.
 """
 
@@ -12,9 +14,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from davinci_sim.devices.safety import limit_norms
 from davinci_sim.geometry import so3
-from davinci_sim.geometry.so3 import rotate_rows, rotation_vectors
+from davinci_sim.geometry.so3 import rotate_rows
+from davinci_sim.kinematics.jit import helper, jit
 
 
 @dataclass(frozen=True)
@@ -59,39 +61,8 @@ class HandImpedance:
                 )
 
 
-def hand_wrench(
-    T_target: np.ndarray | None,
-    T_tip: np.ndarray,
-    twist_tip: np.ndarray,
-    impedance: HandImpedance,
-    *,
-    hold_orientation: bool = True,
-) -> np.ndarray:
-    """Wrench (6,) the hand applies at the handle tip, in the frame of the poses.
-
-    ``F = K·(p_target − p) − D·v`` and, if ``hold_orientation``,
-    ``τ = K_r·rotvec(R_target·Rᵀ) − D_r·ω`` (else only ``−D_r·ω``), each clamped to the
-    hand's maximum. ``T_target`` None means the hand rests on the handle without pulling:
-    damping only.
-    """
-    vx, vy, vz, wx, wy, wz = np.asarray(twist_tip, dtype=float).tolist()
-    d, dr = impedance.damping, impedance.rotational_damping
-    f = [-d * vx, -d * vy, -d * vz]
-    tau = [-dr * wx, -dr * wy, -dr * wz]
-    if T_target is not None:
-        k = impedance.stiffness
-        f = [f[i] + k * (float(T_target[i, 3]) - float(T_tip[i, 3])) for i in range(3)]
-        if hold_orientation:
-            err = so3.rotation_vector(T_target[:3, :3] @ T_tip[:3, :3].T).tolist()
-            kr = impedance.rotational_stiffness
-            tau = [tau[i] + kr * err[i] for i in range(3)]
-    f = _clamp(f, impedance.max_force)
-    tau = _clamp(tau, impedance.max_torque)
-    return np.array(f + tau)
-
-
 def hand_wrenches(
-    T_target: np.ndarray,
+    T_target: np.ndarray | None,
     T_tip: np.ndarray,
     twist_tip: np.ndarray,
     stiffness,
@@ -100,21 +71,91 @@ def hand_wrenches(
     *,
     hold_orientation: bool = True,
 ) -> np.ndarray:
-    """:func:`hand_wrench` for a batch of hands ``(n, ...)`` (a study's trials), each with its
-    own translational ``stiffness`` (N/m) and ``damping`` (N·s/m), (n,); the rotational
-    values and the limits are ``impedance``'s. Poses ``(n, 4, 4)``, twists ``(n, 6)``; returns
-    ``(n, 6)``, force then torque, in the frame of the poses."""
-    twist = np.asarray(twist_tip, dtype=float)
-    k = np.asarray(stiffness, dtype=float)[:, None]
-    d = np.asarray(damping, dtype=float)[:, None]
-    f = k * (T_target[:, :3, 3] - T_tip[:, :3, 3]) - d * twist[:, :3]
-    tau = -impedance.rotational_damping * twist[:, 3:]
-    if hold_orientation:
-        R_error = T_target[:, :3, :3] @ np.swapaxes(T_tip[:, :3, :3], -1, -2)
-        tau = tau + impedance.rotational_stiffness * rotation_vectors(R_error)
-    return np.concatenate(
-        [limit_norms(f, impedance.max_force), limit_norms(tau, impedance.max_torque)], axis=1
+    """Wrenches (n, 6), force then torque, that n hands apply at their handle tips, in the
+    frame of the poses (HRSV on the console).
+
+    ``F = K·(p_target − p) − D·v`` and, if ``hold_orientation``,
+    ``τ = K_r·rotvec(R_target·Rᵀ) − D_r·ω`` (else only ``−D_r·ω``), each clamped to the
+    hand's maximum. ``T_target`` None means the hands rest on the handles without pulling:
+    damping only.
+
+    Args:
+        T_target: target poses (n, 4, 4), m, or None.
+        T_tip: handle tip poses (n, 4, 4), m.
+        twist_tip: handle tip twists (n, 6), m/s then rad/s.
+        stiffness, damping: each hand's translational ``K`` (N/m) and ``D`` (N·s/m), (n,)
+            (a study's trials differ; the live :class:`~davinci_sim.devices.SimulatedMTM`
+            passes its ``impedance``'s, a batch of one).
+        impedance: the rotational values and the limits.
+        hold_orientation: False: no torque towards the target orientation.
+    """
+    tip = np.ascontiguousarray(T_tip, dtype=float)
+    n = tip.shape[0]
+    target = tip if T_target is None else np.ascontiguousarray(T_target, dtype=float)
+    out = np.empty((n, 6))
+    _hand_rows(
+        target,
+        T_target is not None,
+        bool(hold_orientation),
+        tip,
+        np.ascontiguousarray(twist_tip, dtype=float),
+        np.ascontiguousarray(stiffness, dtype=float),
+        np.ascontiguousarray(damping, dtype=float),
+        float(impedance.rotational_stiffness),
+        float(impedance.rotational_damping),
+        float(impedance.max_force),
+        float(impedance.max_torque),
+        out,
     )
+    return out
+
+
+@jit
+def _hand_rows(target, pull, hold, tip, twist, K, D, kr, dr, max_force, max_torque, out):
+    """Row by row: the spring-damper of :func:`hand_wrenches`, clamped. Elementwise, so a
+    hand gets the same bits alone or in a batch."""
+    for i in range(tip.shape[0]):
+        k, d = K[i], D[i]
+        f0, f1, f2 = -d * twist[i, 0], -d * twist[i, 1], -d * twist[i, 2]
+        t0, t1, t2 = -dr * twist[i, 3], -dr * twist[i, 4], -dr * twist[i, 5]
+        if pull:
+            f0 += k * (target[i, 0, 3] - tip[i, 0, 3])
+            f1 += k * (target[i, 1, 3] - tip[i, 1, 3])
+            f2 += k * (target[i, 2, 3] - tip[i, 2, 3])
+            if hold:
+                e0, e1, e2 = _rotation_error(target[i], tip[i])
+                t0 += kr * e0
+                t1 += kr * e1
+                t2 += kr * e2
+        n = math.sqrt(f0 * f0 + f1 * f1 + f2 * f2)
+        if n > max_force:
+            s = max_force / n
+            f0, f1, f2 = f0 * s, f1 * s, f2 * s
+        n = math.sqrt(t0 * t0 + t1 * t1 + t2 * t2)
+        if n > max_torque:
+            s = max_torque / n
+            t0, t1, t2 = t0 * s, t1 * s, t2 * s
+        out[i, 0], out[i, 1], out[i, 2] = f0, f1, f2
+        out[i, 3], out[i, 4], out[i, 5] = t0, t1, t2
+
+
+_rotation_vector = helper(so3.rotation_vector_floats)
+
+
+@helper
+def _rotation_error(target, tip):
+    """Rotation vector (rad) of ``R_target·R_tipᵀ`` (the rotations of two 4x4 poses)."""
+    a, b, c = target[0, 0], target[0, 1], target[0, 2]
+    d, e, f = target[1, 0], target[1, 1], target[1, 2]
+    g, h, k = target[2, 0], target[2, 1], target[2, 2]
+    u0, u1, u2 = tip[0, 0], tip[0, 1], tip[0, 2]
+    v0, v1, v2 = tip[1, 0], tip[1, 1], tip[1, 2]
+    w0, w1, w2 = tip[2, 0], tip[2, 1], tip[2, 2]
+    return _rotation_vector(
+        a * u0 + b * u1 + c * u2, a * v0 + b * v1 + c * v2, a * w0 + b * w1 + c * w2,
+        d * u0 + e * u1 + f * u2, d * v0 + e * v1 + f * v2, d * w0 + e * w1 + f * w2,
+        g * u0 + h * u1 + k * u2, g * v0 + h * v1 + k * v2, g * w0 + h * w1 + k * w2,
+    )  # fmt: skip
 
 
 def handle_xfrc(
@@ -142,10 +183,3 @@ def handle_xfrc(
     # lever × f, written out (numpy's cross computes the same products, slower)
     moment = np.concatenate([ly * fz - lz * fy, lz * fx - lx * fz, lx * fy - ly * fx], axis=-1)
     return np.concatenate([f, rotate_rows(R_world_hrsv, wrench_hrsv[..., 3:]) + moment], axis=-1)
-
-
-def _clamp(v: list[float], limit: float) -> list[float]:
-    n = math.sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2])
-    if n > limit:
-        return [x * (limit / n) for x in v]
-    return v

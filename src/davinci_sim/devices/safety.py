@@ -119,13 +119,6 @@ def _clamp_rows(w, prev, max_force, max_torque, max_force_step, max_torque_step,
             out[i, j + 2] = pz + dz
 
 
-def limit_norms(v: np.ndarray, limit: float) -> np.ndarray:
-    """Rows of ``v`` (n, 3) scaled down to norm ``limit`` where longer (direction kept)."""
-    n = np.sqrt(np.einsum("ij,ij->i", v, v))
-    long = n > limit
-    return v * np.where(long, limit / np.where(long, n, 1.0), 1.0)[:, None]
-
-
 class WrenchLimiter:
     """Applies :func:`clamp_wrench` tick after tick, remembering the last output."""
 

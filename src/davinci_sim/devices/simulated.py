@@ -17,7 +17,7 @@ import mujoco
 import numpy as np
 
 from davinci_sim.devices.device import MasterDevice
-from davinci_sim.devices.hand import HandImpedance, hand_wrench, handle_xfrc
+from davinci_sim.devices.hand import HandImpedance, hand_wrenches, handle_xfrc
 from davinci_sim.devices.safety import WrenchLimits
 from davinci_sim.devices.state import DeviceInput
 from davinci_sim.sim.arms import MTM
@@ -186,9 +186,17 @@ class SimulatedMTM(MasterDevice):
         if self._hand_on or self._pushing or self._hand_applied:
             w = self._push.copy()
             if self._hand_on:
-                w += hand_wrench(
-                    self._hand_target, T, twist, self.hand, hold_orientation=self._hold_orientation
-                )
+                hand = self.hand
+                target = None if self._hand_target is None else self._hand_target[None]
+                w += hand_wrenches(
+                    target,
+                    T[None],
+                    twist[None],
+                    (hand.stiffness,),
+                    (hand.damping,),
+                    hand,
+                    hold_orientation=self._hold_orientation,
+                )[0]
             self._apply_hand(w, T)
         return DeviceInput(T, twist, arm.gripper.measured_jp(), t)
 

@@ -29,49 +29,39 @@ def angle_between(R_a, R_b) -> float:
 
 def rotation_vector(R) -> np.ndarray:
     """Rotation vector ``axis·angle`` (3,) of ``R``; exact also near 0 and π."""
-    r = np.asarray(R, dtype=float)
-    (a, b, c), (d, e, f), (g, h, i) = r.tolist()
+    (a, b, c), (d, e, f), (g, h, i) = np.asarray(R, dtype=float).tolist()
+    return np.array(rotation_vector_floats(a, b, c, d, e, f, g, h, i))
+
+
+def rotation_vector_floats(
+    a: float, b: float, c: float, d: float, e: float, f: float, g: float, h: float, i: float
+) -> tuple[float, float, float]:
+    """:func:`rotation_vector` of the rotation with rows ``(a, b, c), (d, e, f), (g, h, i)``,
+    on floats: plain arithmetic in numba's subset of Python, so compiled laws use this one
+    function too (e.g. the hand's law, :mod:`davinci_sim.devices.hand`)."""
     cos = max(-1.0, min(1.0, 0.5 * (a + e + i - 1.0)))
     angle = math.acos(cos)
     sx, sy, sz = h - f, c - g, d - b
     s = math.sin(angle)
     if s > 1e-6:
         k = 0.5 * angle / s
-        return np.array([sx * k, sy * k, sz * k])
+        return sx * k, sy * k, sz * k
     if angle < 0.5:  # near 0: sin θ ≈ θ
-        return np.array([0.5 * sx, 0.5 * sy, 0.5 * sz])
-    skew = np.array([sx, sy, sz])
-    # Near π: R ≈ 2·a·aᵀ − I; take the column of the largest diagonal element.
-    B = 0.5 * (r + np.eye(3))
-    i = int(np.argmax(np.diag(B)))
-    axis = B[:, i] / math.sqrt(max(B[i, i], 1e-300))
-    if np.dot(axis, skew) < 0:
-        axis = -axis
-    return axis * angle
-
-
-def rotation_vectors(R) -> np.ndarray:
-    """:func:`rotation_vector` of a batch of rotations ``(..., 3, 3)``, ``(..., 3)``.
-
-    Vectorised for angles below π − 1e-3 rad; the rare rotations near π (where the axis comes
-    from the symmetric part) go through :func:`rotation_vector` one by one.
-    """
-    r = np.asarray(R, dtype=float)
-    cos = np.clip(0.5 * (r[..., 0, 0] + r[..., 1, 1] + r[..., 2, 2] - 1.0), -1.0, 1.0)
-    angle = np.arccos(cos)
-    skew = np.stack(
-        [r[..., 2, 1] - r[..., 1, 2], r[..., 0, 2] - r[..., 2, 0], r[..., 1, 0] - r[..., 0, 1]],
-        axis=-1,
-    )
-    s = np.sin(angle)
-    # The scalar law: θ/(2 sin θ) when sin θ > 1e-6, 1/2 near 0 (sin θ ≈ θ).
-    k = np.where(s > 1e-6, 0.5 * angle / np.where(s > 1e-6, s, 1.0), 0.5)
-    out = skew * k[..., None]
-    near_pi = (s <= 1e-6) & (angle >= 0.5)
-    if np.any(near_pi):
-        for index in zip(*np.nonzero(near_pi), strict=True):
-            out[index] = rotation_vector(r[index])
-    return out
+        return 0.5 * sx, 0.5 * sy, 0.5 * sz
+    # Near π: R ≈ 2·a·aᵀ − I; take the column of B = (R + I)/2 with the largest diagonal
+    # element (the first on a tie).
+    b00, b11, b22 = 0.5 * (a + 1.0), 0.5 * (e + 1.0), 0.5 * (i + 1.0)
+    if b00 >= b11 and b00 >= b22:
+        u, v, w, bii = b00, 0.5 * d, 0.5 * g, b00
+    elif b11 >= b22:
+        u, v, w, bii = 0.5 * b, b11, 0.5 * h, b11
+    else:
+        u, v, w, bii = 0.5 * c, 0.5 * f, b22, b22
+    norm = math.sqrt(max(bii, 1e-300))
+    u, v, w = u / norm, v / norm, w / norm
+    if u * sx + v * sy + w * sz < 0:
+        u, v, w = -u, -v, -w
+    return u * angle, v * angle, w * angle
 
 
 def rotation_from_vector(w) -> np.ndarray:

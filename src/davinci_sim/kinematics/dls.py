@@ -15,12 +15,13 @@ from typing import NamedTuple
 import numpy as np
 
 from davinci_sim.kinematics.chain import DHChain
-from davinci_sim.kinematics.fk import _jacobian_spatial_floats
+from davinci_sim.kinematics.fk import forward_kinematics_and_jacobian
 from davinci_sim.kinematics.ik_base import (
     POSITION_TOLERANCE,
     ROTATION_TOLERANCE,
     IKResult,
     goal_and_seed,
+    goal_tuple,
     make_result,
     wrap_revolute,
 )
@@ -66,7 +67,8 @@ def dls_solve(
     converged = False
     it = 0
     for it in range(1, max_iterations + 1):  # noqa: B007 - 'it' is reported after the loop
-        J, f = _jacobian_spatial_floats(chain, q)
+        T, Jn = forward_kinematics_and_jacobian(chain, np.array(q))
+        f = goal_tuple(T)
         erx = ery = erz = 0.0
         for c in range(3):
             ux, uy, uz = f[c], f[3 + c], f[6 + c]
@@ -75,7 +77,6 @@ def dls_solve(
             ery += uz * vx - ux * vz
             erz += ux * vy - uy * vx
         e = np.array([gx - f[9], gy - f[10], gz - f[11], 0.5 * erx, 0.5 * ery, 0.5 * erz])
-        Jn = np.array(J)
         dq = Jn.T @ np.linalg.solve(Jn @ Jn.T + lam, e)
         dql = dq.tolist()
         q = [a + b for a, b in zip(q, dql, strict=True)]

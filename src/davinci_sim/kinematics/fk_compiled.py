@@ -1,15 +1,14 @@
-"""Pose and spatial Jacobian of one configuration as a compiled kernel (numba, through
-:mod:`davinci_sim.kinematics.jit`).
+"""Forward kinematics as one compiled kernel over rows (numba, through
+:mod:`davinci_sim.kinematics.jit`): the law of :mod:`~davinci_sim.kinematics.fk`, for one
+configuration (the live arm, a batch of one) and for many (the study's trials, the batched
+API), with the same arithmetic row by row, so a row's bits do not depend on the batch.
 
-The same arithmetic, operation for operation, as the float path of
-:mod:`~davinci_sim.kinematics.fk` (``_frames_floats``, ``_apply_tool``,
-``_jacobian_spatial_floats``), so the results are the same bits; compiled, one arm's pose
-and Jacobian cost ~1 µs instead of ~25 µs of Python float arithmetic, and the 1 kHz loop
-evaluates them for every teleoperated arm every tick.
-
-One kernel, :func:`tip_pose_and_jacobian`. Chain constants come packed as arrays
-(:func:`pack`): per joint ``revolute`` (1.0/0.0), ``cos α``, ``sin α``, ``a``, ``θ0`` and
-``d0`` (rows of ``links``, (6, n)), the convention, and the tool transform.
+:func:`tip_poses` runs :func:`tip_pose_row` (also called by other kernels, e.g. the PSM IK's
+FK check) on each row: the tip pose, the joint frames and, if asked, the spatial Jacobian.
+Compiled, one arm's pose and Jacobian cost ~1 µs instead of ~25 µs of Python float
+arithmetic (the fallback without numba: the same function, the same bits). Chain constants
+come packed as arrays (:func:`pack`): per joint ``revolute`` (1.0/0.0), ``cos α``, ``sin α``,
+``a``, ``θ0`` and ``d0`` (rows of ``links``, (6, n)), the convention, and the tool transform.
 """
 
 from __future__ import annotations
@@ -18,7 +17,7 @@ import math
 
 import numpy as np
 
-from davinci_sim.kinematics.jit import jit
+from davinci_sim.kinematics.jit import helper, jit
 
 
 def pack(links, modified: bool, R_tool, p_tool, tool_is_identity: bool) -> tuple:
@@ -34,12 +33,22 @@ def pack(links, modified: bool, R_tool, p_tool, tool_is_identity: bool) -> tuple
 
 
 @jit
-def tip_pose_and_jacobian(links, modified, tool, tool_is_identity, q, T, J, jacobian):
-    """``T_base_tip`` (links · tool) of ``q`` into ``T`` (4, 4) and, if ``jacobian``, the
-    spatial Jacobian (6, n) into ``J``. (One kernel: numba cannot call the Python fallback of
-    another, so the frames are computed inline.)"""
+def tip_poses(links, modified, tool, tool_is_identity, Q, T, J, jacobian, F):
+    """For each row ``Q[r]`` (n,): ``T_base_tip`` (links · tool) into ``T[r]`` (4, 4) and, if
+    ``jacobian``, the spatial Jacobian (6, n) into ``J[r]``; the joint frames ``T_base_i``
+    (n, 12: r00..r22 row-major, px, py, pz) into ``F[r]`` when ``F`` has a row per
+    configuration, else into the scratch ``F[0]``."""
+    keep = F.shape[0] == Q.shape[0]
+    for r in range(Q.shape[0]):
+        f = F[r] if keep else F[0]
+        tip_pose_row(links, modified, tool, tool_is_identity, Q[r], T[r], J[r], jacobian, f)
+
+
+@helper
+def tip_pose_row(links, modified, tool, tool_is_identity, q, T, J, jacobian, F):
+    """One configuration ``q`` (n,): the tip pose into ``T`` (4, 4), the joint frames into
+    ``F`` (n, 12) and, if ``jacobian``, the spatial Jacobian into ``J`` (6, n)."""
     n = q.shape[0]
-    F = np.empty((n, 12))  # T_base_i of each joint: r00..r22 row-major, px, py, pz
     r00, r01, r02, r10, r11, r12, r20, r21, r22 = 1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0
     px = 0.0
     py = 0.0
@@ -141,8 +150,8 @@ def tip_pose_and_jacobian(links, modified, tool, tool_is_identity, q, T, J, jaco
 def _warm_up() -> None:
     """Compile (or load from the cache) at import, with the one signature the callers use
     (C-contiguous float arrays, bools): never in the middle of a 1 kHz loop."""
-    T, J = np.empty((4, 4)), np.empty((6, 1))
-    tip_pose_and_jacobian(np.zeros((6, 1)), True, np.eye(4), True, np.zeros(1), T, J, True)
+    T, J, F = np.empty((1, 4, 4)), np.empty((1, 6, 1)), np.empty((1, 1, 12))
+    tip_poses(np.zeros((6, 1)), True, np.eye(4), True, np.zeros((1, 1)), T, J, True, F)
 
 
 _warm_up()

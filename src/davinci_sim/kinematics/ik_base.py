@@ -17,6 +17,7 @@ import numpy as np
 
 from davinci_sim.kinematics.chain import DHChain
 from davinci_sim.kinematics.fk import fk_tuple
+from davinci_sim.kinematics.jit import helper
 
 TWO_PI = 2.0 * math.pi
 
@@ -91,22 +92,27 @@ def goal_tuple(T: np.ndarray) -> tuple[float, ...]:
 # --- pose errors ----------------------------------------------------------------------------
 
 
+@helper
 def pose_errors(f: Sequence[float], g: Sequence[float]) -> tuple[float, float]:
     """Position (m) and rotation (rad) distance between two flat pose tuples.
 
     The angle uses atan2(sin, cos) of RᵀR_g: ``acos`` of the trace alone loses all precision
-    below ~1e-8 rad, which is exactly the range the IK acceptance test needs.
+    below ~1e-8 rad, which is exactly the range the IK acceptance test needs. (Plain float
+    arithmetic: compiled into the PSM IK kernel too, :func:`~davinci_sim.kinematics.jit.helper`.)
     """
     dp = math.sqrt((f[9] - g[9]) ** 2 + (f[10] - g[10]) ** 2 + (f[11] - g[11]) ** 2)
     # E = Rᵀ R_g via column dot products: E_ij = col_i(R) · col_j(R_g).
-    e = [
-        [f[i] * g[j] + f[3 + i] * g[3 + j] + f[6 + i] * g[6 + j] for j in range(3)]
-        for i in range(3)
-    ]
-    s = 0.5 * math.sqrt(
-        (e[2][1] - e[1][2]) ** 2 + (e[0][2] - e[2][0]) ** 2 + (e[1][0] - e[0][1]) ** 2
-    )
-    c = 0.5 * (e[0][0] + e[1][1] + e[2][2] - 1.0)
+    e00 = f[0] * g[0] + f[3] * g[3] + f[6] * g[6]
+    e11 = f[1] * g[1] + f[4] * g[4] + f[7] * g[7]
+    e22 = f[2] * g[2] + f[5] * g[5] + f[8] * g[8]
+    e01 = f[0] * g[1] + f[3] * g[4] + f[6] * g[7]
+    e02 = f[0] * g[2] + f[3] * g[5] + f[6] * g[8]
+    e10 = f[1] * g[0] + f[4] * g[3] + f[7] * g[6]
+    e12 = f[1] * g[2] + f[4] * g[5] + f[7] * g[8]
+    e20 = f[2] * g[0] + f[5] * g[3] + f[8] * g[6]
+    e21 = f[2] * g[1] + f[5] * g[4] + f[8] * g[7]
+    s = 0.5 * math.sqrt((e21 - e12) ** 2 + (e02 - e20) ** 2 + (e10 - e01) ** 2)
+    c = 0.5 * (e00 + e11 + e22 - 1.0)
     return dp, math.atan2(s, c)
 
 
@@ -118,11 +124,13 @@ def fk_errors(chain: DHChain, q: Sequence[float], goal: Sequence[float]) -> tupl
 # --- joint post-processing ------------------------------------------------------------------
 
 
+@helper
 def wrap_angle(x: float) -> float:
     """``x`` wrapped to (−π, π]."""
     return math.pi - (math.pi - x) % TWO_PI
 
 
+@helper
 def nearest_turn(x: float, reference: float) -> float:
     """``x`` shifted by the multiple of 2π that brings it nearest ``reference``."""
     return x + TWO_PI * round((reference - x) / TWO_PI)
@@ -144,20 +152,37 @@ def _limits(chain: DHChain) -> tuple[tuple[bool, float, float], ...]:
     return lim
 
 
+@helper
 def nearest_turn_within(x: float, reference: float, lo: float, hi: float) -> float:
     """:func:`nearest_turn`, but preferring turns within [lo, hi].
 
     The dVRK rule is "nearest the current value mod 2π" (dvrk.md 1.8). When that turn is out
     of the joint limits but another one is not (a roll of ±260° has room for two), the nearest
-    in-limit turn is returned instead of an answer that must then be refused.
+    in-limit turn is returned instead of an answer that must then be refused (the lower one
+    on a tie).
     """
     base = nearest_turn(x, reference)
-    if lo - LIMIT_SLACK <= base <= hi + LIMIT_SLACK:
+    lo, hi = lo - LIMIT_SLACK, hi + LIMIT_SLACK
+    if lo <= base <= hi:
         return base
-    inside = [
-        y for y in (base - TWO_PI, base + TWO_PI) if lo - LIMIT_SLACK <= y <= hi + LIMIT_SLACK
-    ]
-    return min(inside, key=lambda y: abs(y - reference)) if inside else base
+    best, found = base, False
+    for y in (base - TWO_PI, base + TWO_PI):
+        if lo <= y <= hi and (not found or abs(y - reference) < abs(best - reference)):
+            best, found = y, True
+    return best
+
+
+@helper
+def wrap_within(x: float, lo: float, hi: float) -> float:
+    """A revolute joint value wrapped to (−π, π], then moved by ±2π into [lo, hi] when it
+    is outside and that is possible (the rule of :func:`wrap_revolute`)."""
+    x = math.pi - (math.pi - x) % TWO_PI
+    if not lo <= x <= hi:
+        if lo <= x - TWO_PI <= hi:
+            x -= TWO_PI
+        elif lo <= x + TWO_PI <= hi:
+            x += TWO_PI
+    return x
 
 
 def wrap_revolute(chain: DHChain, q: Sequence[float]) -> list[float]:
@@ -167,17 +192,10 @@ def wrap_revolute(chain: DHChain, q: Sequence[float]) -> list[float]:
     outside its limits is moved by ±2π into them when that is possible. This only changes the
     representation of the same pose, never the pose.
     """
-    out = []
-    for (rev, lo, hi), x in zip(_limits(chain), q, strict=True):
-        if rev:
-            x = math.pi - (math.pi - x) % TWO_PI
-            if not lo <= x <= hi:
-                if lo <= x - TWO_PI <= hi:
-                    x -= TWO_PI
-                elif lo <= x + TWO_PI <= hi:
-                    x += TWO_PI
-        out.append(x)
-    return out
+    return [
+        wrap_within(x, lo, hi) if rev else x
+        for (rev, lo, hi), x in zip(_limits(chain), q, strict=True)
+    ]
 
 
 def within_limits(chain: DHChain, q: Sequence[float]) -> bool:

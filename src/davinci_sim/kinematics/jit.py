@@ -57,3 +57,21 @@ def jit(fn):
 
     call.py_func = fn
     return call
+
+
+def helper(fn):
+    """Make ``fn`` callable from :func:`jit` kernels (numba's ``register_jitable``); Python
+    callers still call the plain function. A law written once on floats (e.g.
+    :func:`~davinci_sim.geometry.so3.rotation_vector_floats`, the PSM IK's pieces) is then
+    compiled into the kernels that use it and stays an ordinary function everywhere else.
+    Returns ``fn``.
+
+    numba's on-disk cache of a kernel does not notice edits of the helpers it calls in
+    other modules: after changing such a helper, delete the ``__pycache__/*.nbi``/``*.nbc``
+    files of the kernels' modules (or compare with ``DAVINCI_SIM_JIT=0``).
+    """
+    if ENABLED:
+        from numba.extending import register_jitable
+
+        register_jitable(fn)
+    return fn

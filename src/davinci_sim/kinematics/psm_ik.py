@@ -24,7 +24,10 @@ Closed form (derivation, frames i = modified-DH frames of the chain, θ_i = q_i 
 * R₃ᵀR₅ = Rz(θ₄)·Rx(α₅)·Rz(θ₅) gives θ₄ (roll) and θ₅ (wrist pitch) by atan2.
 
 Up to 2 (θ₆) × 2 (θ₂) × σ candidates; the one within joint limits nearest the seed wins.
-Each answer is checked by FK. The one degenerate geometry (RCM on the wrist-yaw axis, where θ₆
+Each answer is checked by FK. The closed form is one compiled kernel over rows
+(:mod:`~davinci_sim.kinematics.psm_closed_form`): :func:`psm_ik_closed_form` solves a batch of one
+(the live arm), :func:`psm_ik_closed_form_batch` a batch of n (the study's trials). The one
+degenerate geometry (RCM on the wrist-yaw axis, where θ₆
 is undetermined) needs a wrist pitch near ±90°, outside the ±80° limits; should it spoil an
 answer anyway, DLS steps polish it (counted in ``iterations``) and the result is rechecked.
 """
@@ -34,8 +37,11 @@ from __future__ import annotations
 import math
 import weakref
 from dataclasses import dataclass
+from typing import NamedTuple
 
-from davinci_sim.geometry.so3 import mat3_mul as _mul
+import numpy as np
+
+from davinci_sim.kinematics import fk
 from davinci_sim.kinematics.chain import DHChain
 from davinci_sim.kinematics.dls import dls_solve
 from davinci_sim.kinematics.fk import fk_tuple
@@ -44,25 +50,27 @@ from davinci_sim.kinematics.ik_base import (
     POSITION_TOLERANCE,
     ROTATION_TOLERANCE,
     IKResult,
+    check_goal,
+    check_seed,
     failed_result,
     goal_and_seed,
+    goal_tuple,
     make_result,
-    nearest_turn_within,
     pose_errors,
-    within_limits,
-    wrap_angle,
-    wrap_revolute,
 )
-from davinci_sim.kinematics.rcm import rxrz as _rxrz
-from davinci_sim.kinematics.rcm import shaft_angles, tool_origin
-
-#: dvrk.md 1.8: goals closer than this to the RCM are rejected (m).
-MIN_GOAL_DISTANCE_FROM_RCM = 0.001
-#: dvrk.md 1.7 ``SafeDistanceFromRCM``: minimum RCM to shaft-end (frame 4) distance (m).
-SAFE_DISTANCE_FROM_RCM = 0.045
-#: Index of the roll joint (dvrk.md 1.2).
-ROLL = 3
-INSERTION = 2
+from davinci_sim.kinematics.psm_closed_form import (
+    INSERTION,
+    MIN_GOAL_DISTANCE_FROM_RCM,
+    NO_SOLUTION,
+    POLISH,
+    ROLL,
+    SAFE_DISTANCE_FROM_RCM,
+    SOLVED,
+    TOO_CLOSE,
+    closed_form_rows,
+    insertion_rule,
+    normalise_row,
+)
 
 # --- chain geometry ---------------------------------------------------------------------------
 
@@ -134,140 +142,133 @@ def psm_geometry(chain: DHChain) -> PSMGeometry:
 # --- closed form ----------------------------------------------------------------------------
 
 
-def _wrist_roots(
-    A: float, B: float, C0: float, k: float, pp: float, a6: float, Px: float, Py: float
-) -> tuple[list[float], int]:
-    """Roots θ of A sθ + B cθ = C0 + k·√(pp − 2a₆(Px cθ − Py sθ) + a₆²) (k = σ·cα₅, tiny)."""
-    Rm = math.hypot(A, B)
-    if Rm < 1e-12:
-        return [], 0
-    phi = math.atan2(A, B)
-    roots = []
-    steps = 0
-    for sgn in (1.0, -1.0):
-        th = None
-        c = C0 / Rm
-        for _ in range(12):
-            if abs(c) > 1.0:
-                th = None
-                break
-            new = phi + sgn * math.acos(c)
-            steps += 1
-            if th is not None and abs(new - th) <= 1e-15:
-                th = new
-                break
-            th = new
-            # |o₅|² = |p|² − 2a₆ p·x₅ + a₆², p·x₅ = Px cθ − Py sθ
-            rho2 = pp - 2.0 * a6 * (Px * math.cos(th) - Py * math.sin(th)) + a6 * a6
-            rho = math.sqrt(max(0.0, rho2))
-            c = (C0 + k * rho) / Rm
-        if th is not None:
-            roots.append(th)
-    return roots, steps
+@dataclass(frozen=True)
+class _Packed:
+    """A PSM chain's constants as the kernel's arrays (see ``closed_form_rows``), cached."""
+
+    geometry: np.ndarray
+    tool: np.ndarray
+    revolute: np.ndarray
+    lim_lo: np.ndarray
+    lim_hi: np.ndarray
+    fk: tuple
 
 
-def _candidates(g: PSMGeometry, goal: tuple[float, ...], seed: list[float]):
-    """Closed-form joint solutions (angles unwrapped) and the number of wrist steps.
-
-    Shaft branches whose yaw, pitch or insertion is outside the limits are only completed
-    (roll, wrist pitch) when no branch is within them, so that a failure still has a q.
-    """
-    R6, px, py, pz = tool_origin(goal, g.R_tool_T, g.p_tool)
-    if g.d6 != 0.0:
-        px, py, pz = px - g.d6 * R6[2], py - g.d6 * R6[5], pz - g.d6 * R6[8]
-    x6 = (R6[0], R6[3], R6[6])
-    y6 = (R6[1], R6[4], R6[7])
-    # P = R₆ᵀp: the RCM→tip vector in the frame-6 axes.
-    Px = x6[0] * px + x6[1] * py + x6[2] * pz
-    Py = y6[0] * px + y6[1] * py + y6[2] * pz
-    Pz = R6[2] * px + R6[5] * py + R6[8] * pz
-    pp = px * px + py * py + pz * pz
-    ca, sa, t0, a6 = g.ca, g.sa, g.theta0, g.a6
-    # σ = −1 (frame 4 behind the RCM) only exists with the tool inside the cannula.
-    sigmas = [1.0]
-    if math.sqrt(pp) - a6 <= -g.shaft0 - g.shaft_limits[2][0] + 1e-9:
-        sigmas.append(-1.0)
-    inside, outside = [], []
-    steps = 0
-    for sigma in sigmas:
-        roots, n = _wrist_roots(sa[5] * Px, sa[5] * Py, -ca[5] * Pz, sigma * ca[4], pp, a6, Px, Py)
-        steps += n
-        if not roots:  # degenerate (RCM on the wrist-yaw axis): keep the seed's wrist yaw
-            roots = [seed[5] + t0[5]]
-        for th6 in roots:
-            c6, s6 = math.cos(th6), math.sin(th6)
-            # o₅ = p − a₆·x₅ with x₅ = cθ₆·x₆ − sθ₆·y₆
-            ox = px - a6 * (c6 * x6[0] - s6 * y6[0])
-            oy = py - a6 * (c6 * x6[1] - s6 * y6[1])
-            oz = pz - a6 * (c6 * x6[2] - s6 * y6[2])
-            rho = math.sqrt(ox * ox + oy * oy + oz * oz)
-            if rho == 0.0:
-                continue
-            q3 = sigma * rho - g.shaft0
-            z3 = (sigma * ox / rho, sigma * oy / rho, sigma * oz / rho)
-            for th1, th2 in shaft_angles(ca, sa, z3):
-                shaft = (wrap_angle(th1 - t0[0]), wrap_angle(th2 - t0[1]), q3)
-                ok = all(lo <= x <= hi for x, (lo, hi) in zip(shaft, g.shaft_limits, strict=True))
-                (inside if ok else outside).append((th1, th2, q3, th6))
-    out = [_complete_wrist(g, R6, *c) for c in (inside or outside)]
-    return out, steps
+_PACKED: weakref.WeakKeyDictionary[DHChain, _Packed] = weakref.WeakKeyDictionary()
 
 
-def _complete_wrist(
-    g: PSMGeometry, R6: tuple[float, ...], th1: float, th2: float, q3: float, th6: float
-) -> list[float]:
-    """Roll and wrist pitch from R₃ᵀR₅ = Rz(θ₄)·Rx(α₅)·Rz(θ₅); returns the joint vector."""
-    ca, sa, t0 = g.ca, g.sa, g.theta0
-    M6 = _rxrz(ca[5], sa[5], th6)
-    R5 = _mul(R6, (M6[0], M6[3], M6[6], M6[1], M6[4], M6[7], M6[2], M6[5], M6[8]))
-    R3 = _mul(_mul(_rxrz(ca[0], sa[0], th1), _rxrz(ca[1], sa[1], th2)), _rxrz(ca[2], sa[2], t0[2]))
-    # Only the entries 02, 12, 20, 21 of M = R₃ᵀR₅ are needed.
-    M02 = R3[0] * R5[2] + R3[3] * R5[5] + R3[6] * R5[8]
-    M12 = R3[1] * R5[2] + R3[4] * R5[5] + R3[7] * R5[8]
-    M20 = R3[2] * R5[0] + R3[5] * R5[3] + R3[8] * R5[6]
-    M21 = R3[2] * R5[1] + R3[5] * R5[4] + R3[8] * R5[7]
-    s5 = sa[4]
-    th4 = math.atan2(s5 * M02, -s5 * M12)
-    th5 = math.atan2(s5 * M20, s5 * M21)
-    return [th1 - t0[0], th2 - t0[1], q3, th4 - t0[3], th5 - t0[4], th6 - t0[5]]
+def _packed(chain: DHChain) -> _Packed:
+    p = _PACKED.get(chain)
+    if p is None:
+        g = psm_geometry(chain)
+        roll = chain.joints[ROLL]
+        geometry = [*g.ca, *g.sa, *g.theta0, g.shaft0, g.a6, g.d6]
+        geometry += [x for lo_hi in g.shaft_limits for x in lo_hi] + [roll.qmin, roll.qmax]
+        p = _PACKED[chain] = _Packed(
+            np.array(geometry, dtype=float),
+            np.array([*g.R_tool_T, *g.p_tool], dtype=float),
+            np.array([j.is_revolute for j in chain.joints]),
+            np.array([j.qmin - LIMIT_SLACK for j in chain.joints]),
+            np.array([j.qmax + LIMIT_SLACK for j in chain.joints]),
+            fk._consts(chain).packed,
+        )
+    return p
 
 
-def _normalise(chain: DHChain, q: list[float], seed: list[float]) -> list[float]:
-    """Wrap revolute joints (dvrk.md 1.8), then put the roll nearest the current roll."""
-    q = wrap_revolute(chain, q)
+def _solve_rows(chain: DHChain, T: np.ndarray, S: np.ndarray, tolerance: np.ndarray):
+    """The kernel on checked goals (n, 4, 4) and seeds (n, 6): q, success, status, info."""
+    n = T.shape[0]
+    p = _packed(chain)
+    q, success = np.empty((n, 6)), np.empty(n, dtype=bool)
+    status, info = np.empty(n, dtype=np.int64), np.empty((n, 5))
+    closed_form_rows(
+        p.geometry, p.tool, p.revolute, p.lim_lo, p.lim_hi, *p.fk,
+        T, S, tolerance, q, success, status, info,
+    )  # fmt: skip
+    return q, success, status, info
+
+
+def _normalise(chain: DHChain, q, seed) -> list[float]:
+    """Wrap revolute joints (dvrk.md 1.8), then put the roll nearest the current roll (the
+    kernel's ``normalise_row``)."""
+    p = _packed(chain)
+    out = np.array(q, dtype=float)
     roll = chain.joints[ROLL]
-    q[ROLL] = nearest_turn_within(q[ROLL], seed[ROLL], roll.qmin, roll.qmax)
-    return q
+    normalise_row(
+        out, np.asarray(seed, float), p.revolute, p.lim_lo, p.lim_hi, roll.qmin, roll.qmax
+    )
+    return out.tolist()
 
 
-def _nearest(chain: DHChain, candidates: list[list[float]], seed: list[float]) -> list[float]:
-    """The candidate within joint limits nearest the seed (any candidate if none is)."""
-    return min(
-        candidates,
-        key=lambda q: (
-            not within_limits(chain, q),
-            sum((a - b) ** 2 for a, b in zip(q, seed, strict=True)),
-        ),
+def _row_result(
+    chain: DHChain,
+    g: PSMGeometry,
+    goal: tuple[float, ...],
+    seed: list[float],
+    q: np.ndarray,
+    status: int,
+    info: np.ndarray,
+    position_tolerance: float,
+    rotation_tolerance: float,
+) -> IKResult:
+    """The :class:`IKResult` of one row of the kernel: messages, and the reference DLS
+    polish of the rare ``POLISH`` rows."""
+    steps = int(info[0])
+    if status == TOO_CLOSE:
+        d = math.sqrt(goal[9] ** 2 + goal[10] ** 2 + goal[11] ** 2)
+        return failed_result(
+            chain,
+            seed,
+            goal,
+            f"goal {d * 1e3:.3g} mm from the RCM, closer than "
+            f"{MIN_GOAL_DISTANCE_FROM_RCM * 1e3:.0f} mm (dvrk.md 1.8); q is the seed",
+        )
+    if status == NO_SOLUTION:
+        return failed_result(
+            chain, seed, goal, "no closed-form solution (goal out of the PSM workspace)", steps
+        )
+    if status == POLISH:
+        # Near-degenerate wrist geometry: polish with the reference iteration.
+        sol = dls_solve(chain, goal, q.tolist())
+        q = _normalise(chain, sol.q, seed)
+        errors = pose_errors(fk_tuple(chain, q), goal)
+        return _finish(
+            chain, g, q, seed, goal, steps + sol.iterations, None, errors,
+            position_tolerance, rotation_tolerance,
+        )  # fmt: skip
+    adjusted = None
+    if info[4]:
+        adjusted = _adjusted_message(float(info[3]), float(q[INSERTION]))
+    return make_result(
+        chain,
+        q.tolist(),
+        goal,
+        iterations=steps,
+        adjusted=adjusted,
+        errors=(float(info[1]), float(info[2])),
+        position_tolerance=position_tolerance,
+        rotation_tolerance=rotation_tolerance,
+    )
+
+
+def _adjusted_message(old: float, new: float) -> str:
+    return (
+        f"insertion {old:.6g} m -> {new:.6g} m to keep the shaft end "
+        f"{SAFE_DISTANCE_FROM_RCM * 1e3:.0f} mm from the RCM"
     )
 
 
 def _insertion_safety(
     g: PSMGeometry, q: list[float], seed: list[float]
 ) -> tuple[list[float], str | None]:
-    """dvrk.md 1.8: keep the shaft end (frame 4) ≥ 45 mm from the RCM."""
-    if abs(q[INSERTION] + g.shaft0) >= SAFE_DISTANCE_FROM_RCM:
-        return q, None
-    q_min = SAFE_DISTANCE_FROM_RCM - g.shaft0
-    # Already shallower than allowed (e.g. engaging the tool): never pull out further.
-    new = max(q[INSERTION], seed[INSERTION]) if seed[INSERTION] < q_min else q_min
+    """dvrk.md 1.8: keep the shaft end (frame 4) ≥ 45 mm from the RCM (the kernel's
+    ``insertion_rule``), with the message saying so."""
+    new = insertion_rule(q[INSERTION], seed[INSERTION], g.shaft0)
     if new == q[INSERTION]:
         return q, None
     q = list(q)
     old, q[INSERTION] = q[INSERTION], new
-    return q, (
-        f"insertion {old:.6g} m -> {new:.6g} m to keep the shaft end "
-        f"{SAFE_DISTANCE_FROM_RCM * 1e3:.0f} mm from the RCM"
-    )
+    return q, _adjusted_message(old, new)
 
 
 def _finish(
@@ -308,13 +309,7 @@ def _too_close(chain: DHChain, seed, goal) -> IKResult | None:
     d = math.sqrt(goal[9] ** 2 + goal[10] ** 2 + goal[11] ** 2)
     if d >= MIN_GOAL_DISTANCE_FROM_RCM:
         return None
-    return failed_result(
-        chain,
-        seed,
-        goal,
-        f"goal {d * 1e3:.3g} mm from the RCM, closer than "
-        f"{MIN_GOAL_DISTANCE_FROM_RCM * 1e3:.0f} mm (dvrk.md 1.8); q is the seed",
-    )
+    return _row_result(chain, psm_geometry(chain), goal, seed, None, TOO_CLOSE, (0,), 0.0, 0.0)
 
 
 def psm_ik_closed_form(
@@ -325,7 +320,8 @@ def psm_ik_closed_form(
     position_tolerance: float = POSITION_TOLERANCE,
     rotation_tolerance: float = ROTATION_TOLERANCE,
 ) -> IKResult:
-    """Exact closed-form PSM IK (see the module docstring), with the dVRK post-processing.
+    """Exact closed-form PSM IK (see the module docstring), with the dVRK post-processing:
+    the kernel on a batch of one.
 
     Args:
         chain: a PSM chain (yaw, pitch, insertion, roll, wrist pitch, wrist yaw + tooltip).
@@ -340,27 +336,104 @@ def psm_ik_closed_form(
     Raises:
         ValueError: on a badly shaped or non-finite goal or seed, or a non-PSM chain.
     """
-    g = psm_geometry(chain)
-    goal, seed = goal_and_seed(chain, T_rcm_tip, q_seed)
-    early = _too_close(chain, seed, goal)
-    if early is not None:
-        return early
-    raw, steps = _candidates(g, goal, seed)
-    if not raw:
-        return failed_result(
-            chain, seed, goal, "no closed-form solution (goal out of the PSM workspace)", steps
-        )
-    q = _nearest(chain, [_normalise(chain, c, seed) for c in raw], seed)
-    errors = pose_errors(fk_tuple(chain, q), goal)
-    if errors[0] > position_tolerance or errors[1] > rotation_tolerance:
-        # Near-degenerate wrist geometry: polish with the reference iteration.
-        sol = dls_solve(chain, goal, q)
-        steps += sol.iterations
-        q = _normalise(chain, sol.q, seed)
-        errors = pose_errors(fk_tuple(chain, q), goal)
-    return _finish(
-        chain, g, q, seed, goal, steps, None, errors, position_tolerance, rotation_tolerance
+    g = psm_geometry(chain)  # raises for a chain that is not a PSM
+    T, S = check_goal(T_rcm_tip), check_seed(chain, q_seed)
+    q, success, status, info = _solve_rows(
+        chain,
+        np.ascontiguousarray(T).reshape(1, 4, 4),
+        np.ascontiguousarray(S).reshape(1, 6),
+        _tolerance(position_tolerance, rotation_tolerance),
     )
+    if success[0] and status[0] == SOLVED and not info[0, 4]:
+        # The common answer, as make_result builds it (pose within the tolerances, checked by
+        # the kernel; joints within the limits, the same test as limit_violations).
+        return IKResult(
+            q=q[0],
+            success=True,
+            message="ok",
+            iterations=int(info[0, 0]),
+            position_error=float(info[0, 1]),
+            rotation_error=float(info[0, 2]),
+        )
+    return _row_result(
+        chain, g, goal_tuple(T), S.tolist(), q[0], int(status[0]), info[0],
+        position_tolerance, rotation_tolerance,
+    )  # fmt: skip
+
+
+_DEFAULT_TOLERANCE = np.array([POSITION_TOLERANCE, ROTATION_TOLERANCE])
+_DEFAULT_TOLERANCE.setflags(write=False)
+
+
+def _tolerance(position_tolerance: float, rotation_tolerance: float) -> np.ndarray:
+    if position_tolerance == POSITION_TOLERANCE and rotation_tolerance == ROTATION_TOLERANCE:
+        return _DEFAULT_TOLERANCE
+    return np.array([position_tolerance, rotation_tolerance], dtype=float)
+
+
+class BatchIKResult(NamedTuple):
+    """Answers of :func:`psm_ik_closed_form_batch`, row i for goal i."""
+
+    q: np.ndarray
+    """Joint values, rad (revolute) / m (insertion), shape ``(n, 6)``."""
+    success: np.ndarray
+    """``IKResult.success`` of each row, bool, shape ``(n,)``."""
+
+
+def psm_ik_closed_form_batch(
+    chain: DHChain,
+    T_rcm_tip,
+    q_seed,
+    *,
+    position_tolerance: float = POSITION_TOLERANCE,
+    rotation_tolerance: float = ROTATION_TOLERANCE,
+) -> BatchIKResult:
+    """:func:`psm_ik_closed_form` for n goals at once (the same kernel, n rows): row i is
+    ``psm_ik_closed_form(chain, T_rcm_tip[i], q_seed[i])``'s ``q`` and ``success``, bit for
+    bit.
+
+    Args:
+        chain: a PSM chain (yaw, pitch, insertion, roll, wrist pitch, wrist yaw + tooltip).
+        T_rcm_tip: goal poses of the tool tip in the RCM frame, (n, 4, 4), m.
+        q_seed: current joints of each arm, (n, 6), rad / m.
+        position_tolerance, rotation_tolerance: acceptance of the FK check (m, rad).
+
+    Raises:
+        ValueError: on badly shaped or non-finite goals or seeds, or a non-PSM chain.
+    """
+    g = psm_geometry(chain)
+    T, S = _check_inputs(chain, T_rcm_tip, q_seed)
+    tolerance = _tolerance(position_tolerance, rotation_tolerance)
+    q, success, status, info = _solve_rows(chain, T, S, tolerance)
+    for i in np.flatnonzero(status == POLISH):
+        goal = tuple(T[i, :3, :3].ravel().tolist() + T[i, :3, 3].tolist())
+        r = _row_result(
+            chain, g, goal, S[i].tolist(), q[i], POLISH, info[i],
+            position_tolerance, rotation_tolerance,
+        )  # fmt: skip
+        q[i], success[i] = r.q, r.success
+    return BatchIKResult(q=q, success=success)
+
+
+def _check_inputs(chain: DHChain, T_rcm_tip, q_seed) -> tuple[np.ndarray, np.ndarray]:
+    T = np.ascontiguousarray(T_rcm_tip, dtype=float)
+    if T.ndim != 3 or T.shape[1:] != (4, 4):
+        raise ValueError(f"T_rcm_tip must have shape (n, 4, 4), got {T.shape}")
+    S = np.ascontiguousarray(q_seed, dtype=float)
+    if S.shape != (T.shape[0], chain.dof):
+        raise ValueError(
+            f"{chain.name}: q_seed must have shape ({T.shape[0]}, {chain.dof}) to match "
+            f"T_rcm_tip, got {S.shape}"
+        )
+    if not np.all(np.isfinite(T)):
+        bad = np.flatnonzero(~np.all(np.isfinite(T), axis=(1, 2)))
+        raise ValueError(f"T_rcm_tip must be finite; non-finite rows {bad[:10].tolist()}")
+    if not np.all(np.isfinite(S)):
+        bad = np.flatnonzero(~np.all(np.isfinite(S), axis=1))
+        raise ValueError(
+            f"{chain.name}: q_seed must be finite; non-finite rows {bad[:10].tolist()}"
+        )
+    return T, S
 
 
 def psm_ik_reference(
@@ -399,10 +472,12 @@ def psm_ik_reference(
 
 
 __all__ = [
+    "BatchIKResult",
     "MIN_GOAL_DISTANCE_FROM_RCM",
     "SAFE_DISTANCE_FROM_RCM",
     "PSMGeometry",
     "psm_geometry",
     "psm_ik_closed_form",
+    "psm_ik_closed_form_batch",
     "psm_ik_reference",
 ]

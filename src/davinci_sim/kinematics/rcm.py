@@ -11,8 +11,12 @@ import math
 from collections.abc import Sequence
 
 from davinci_sim.geometry.so3 import mat3_mul
+from davinci_sim.kinematics.jit import helper
+
+helper(mat3_mul)  # called by tool_origin in compiled kernels
 
 
+@helper
 def tool_origin(
     goal: Sequence[float], R_tool_T: Sequence[float], p_tool: Sequence[float]
 ) -> tuple[tuple[float, ...], float, float, float]:
@@ -28,6 +32,7 @@ def tool_origin(
     )
 
 
+@helper
 def rxrz(ca: float, sa: float, th: float) -> tuple[float, ...]:
     """Rx(α)·Rz(θ), the rotation of a modified-DH link (dvrk.md 1.1)."""
     ct, st = math.cos(th), math.sin(th)
@@ -41,24 +46,32 @@ def shaft_angles(
 
     Shared by the PSM and ECM closed forms (same first three links). Empty if unreachable.
     """
+    n, th1a, th2a, th1b, th2b = shaft_angle_pairs(ca, sa, z[0], z[1], z[2])
+    return [(th1a, th2a), (th1b, th2b)][:n]
+
+
+@helper
+def shaft_angle_pairs(ca, sa, zx: float, zy: float, zz: float):
+    """:func:`shaft_angles` as ``(count, θ₁, θ₂, θ₁', θ₂')`` (count 0, 1 or 2 answers; the
+    unused angles are 0): plain floats, so compiled kernels call it too."""
     vy, vz = -sa[2], ca[2]  # Rx(α₃)ẑ = (0, −sα₃, cα₃)
-    wx = z[0]
-    wy = ca[0] * z[1] + sa[0] * z[2]  # w = Rx(−α₁) z
-    wz = -sa[0] * z[1] + ca[0] * z[2]
+    wx = zx
+    wy = ca[0] * zy + sa[0] * zz  # w = Rx(−α₁) z
+    wz = -sa[0] * zy + ca[0] * zz
     # Rx(α₂)Rz(θ₂)v has z component sα₂·vy·cθ₂ + cα₂·vz, which must equal wz.
     den = sa[1] * vy
     if den == 0.0:
-        return []
+        return 0, 0.0, 0.0, 0.0, 0.0
     c2 = (wz - ca[1] * vz) / den
     if abs(c2) > 1.0:
         if abs(c2) > 1.0 + 1e-12:
-            return []
+            return 0, 0.0, 0.0, 0.0, 0.0
         c2 = math.copysign(1.0, c2)
     s2 = math.sqrt(max(0.0, 1.0 - c2 * c2))
-    out = []
-    for s in (s2, -s2) if s2 > 0.0 else (s2,):
-        mx = -vy * s  # m = Rx(α₂)Rz(θ₂)v, x and y
-        my = ca[1] * vy * c2 - sa[1] * vz
-        th1 = math.atan2(wy, wx) - math.atan2(my, mx)
-        out.append((th1, math.atan2(s, c2)))
-    return out
+    my = ca[1] * vy * c2 - sa[1] * vz  # m = Rx(α₂)Rz(θ₂)v, x and y
+    base = math.atan2(wy, wx)
+    th1a = base - math.atan2(my, -vy * s2)
+    th2a = math.atan2(s2, c2)
+    if not s2 > 0.0:
+        return 1, th1a, th2a, 0.0, 0.0
+    return 2, th1a, th2a, base - math.atan2(my, -vy * -s2), math.atan2(-s2, c2)

@@ -17,7 +17,7 @@ runs n trials as arrays instead:
   ``servo_cp`` twist feed-forward, Jᵀ·w of ``spatial/servo_cf``, joint limits, the tracking
   fault); the teleoperation's following law (:func:`~davinci_sim.console.teleop_math.follow_pose`,
   ``follow_twist``, ``follow_jaw``) and the batched closed-form PSM IK
-  (:func:`~davinci_sim.kinematics.psm_ik_batch.psm_ik_closed_form_batch`); the joint servo
+  (:func:`~davinci_sim.kinematics.psm_ik.psm_ik_closed_form_batch`); the joint servo
   (:func:`~davinci_sim.sim.servo.servo_ctrl`, ``JointServo.bias``); the fixture through the
   velocity filter and the frame change (:func:`~davinci_sim.haptics.fixture.fixture_force_camera`,
   :class:`~davinci_sim.haptics.velocity.VelocityFilter`) and the device's safety clamp
@@ -58,7 +58,7 @@ from davinci_sim.haptics.combine import combine
 from davinci_sim.haptics.fixture import fixture_force_camera
 from davinci_sim.haptics.velocity import DEFAULT_CUTOFF_HZ, VelocityFilter
 from davinci_sim.haptics.viscous import ViscousGuidance
-from davinci_sim.kinematics.psm_ik_batch import psm_ik_closed_form_batch
+from davinci_sim.kinematics.psm_ik import psm_ik_closed_form_batch
 from davinci_sim.sim import arm_laws as laws
 from davinci_sim.sim.jaw import finger_setpoints
 from davinci_sim.sim.servo import servo_ctrl
