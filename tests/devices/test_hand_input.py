@@ -152,3 +152,15 @@ def test_state_round_trip_resumes_identically(system):
     sim.set_state(state)
     sim.run_for(0.2)
     assert np.array_equal(tip(sim), first)
+
+
+def test_the_teleoperation_of_a_rate_input_keeps_the_tool_orientation(system):
+    sim, teleop, hand = system
+    assert teleop.rotation_locked()
+    R0 = sim.arms["PSM1"].measured_cp().T[:3, :3].copy()
+    for _ in range(10):
+        hand.command([0.03, -0.02, 0.02])
+        sim.run_for(0.1)
+    R1 = sim.arms["PSM1"].measured_cp().T[:3, :3]
+    angle = np.arccos(np.clip((np.trace(R0.T @ R1) - 1) / 2, -1, 1))
+    assert angle < np.radians(2)

@@ -177,6 +177,13 @@ def install_console_of(sim: Simulation, description: SystemDescription) -> Conso
         if not isinstance(device, SimulatedMTM):
             raise ValueError(f"a hand input needs {mtm} as a simulated MTM, got {device!r}")
         sim.add_component(HandInput(device), before=device.name)
+        # A rate input moves the handle, not its orientation: the teleoperations it drives
+        # lock rotation (dvrk.md 4.2, lock_rotation: the PSM keeps its tool's orientation,
+        # the MTM's motors hold the wrist), so a relaxed wrist cannot drift the tool into an
+        # orientation the MTM can no longer align with.
+        for teleop in console.psm_teleops.values():
+            if teleop.mtm_name == mtm:
+                teleop.lock_rotation(True)
     return console
 
 

@@ -72,7 +72,8 @@ class ConsoleDescription:
     """The simulated hands draw circles once their teleoperation follows (demos, benchmarks)."""
     hand_inputs: tuple[str, ...] = ()
     """MTMs whose simulated hand a rate input steers (keyboard, gamepad: the web console),
-    through a :class:`~davinci_sim.devices.hand_input.HandInput` component ``<MTM>/hand``."""
+    through a :class:`~davinci_sim.devices.hand_input.HandInput` component ``<MTM>/hand``;
+    their teleoperations lock rotation (the input moves the tool, not its orientation)."""
 
     @property
     def teleop_config(self) -> TeleopPSMConfig:
