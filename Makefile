@@ -20,9 +20,10 @@ $(STAMP): pyproject.toml scripts/system-deps.sh
 
 install: $(STAMP)
 
-# The web console with the seed's task: open the printed URL in a browser.
+# The web console with the seed's task: open the printed URL in a browser. The loop process
+# asks for real-time priority (granted to root or with CAP_SYS_NICE; else normal priority).
 run: install
-	$(BIN)/davinci-sim serve --task seed_path --home
+	$(BIN)/davinci-sim serve --task seed_path --home --realtime-priority 50
 
 lint: install
 	$(BIN)/ruff check src tests benchmarks examples

@@ -192,6 +192,9 @@ def cmd_serve(args: argparse.Namespace) -> int:
     logging.basicConfig(level=logging.INFO if args.verbose else logging.WARNING,
                         format="%(asctime)s %(levelname)s %(name)s: %(message)s")  # fmt: skip
     token = args.token or os.environ.get("DAVINCI_SIM_TOKEN") or None
+    if args.realtime_priority is not None and not 1 <= args.realtime_priority <= 99:
+        print("davinci-sim serve: --realtime-priority must be in 1..99", file=sys.stderr)
+        return 2
     web = not args.no_web
     runner = args.runner or ("process" if web else "thread")
     console = args.console or args.task is not None
@@ -237,6 +240,7 @@ def cmd_serve(args: argparse.Namespace) -> int:
             hand_inputs=hands,
             render_hz=args.image_rate if web else None,
             frame_task=web,
+            realtime_priority=args.realtime_priority,
             task=args.task,
             condition=args.condition,
             task_log=args.task_log,
@@ -260,6 +264,13 @@ def cmd_serve(args: argparse.Namespace) -> int:
             print(f"UDP {arm}: streaming to {ip}:{port}, commands to port {local}", flush=True)
         if "ros_connect" in info:
             print(f"client mode: connected to {info['ros_connect']}", flush=True)
+        loop = info.get("loop", {})
+        if args.realtime_priority is not None:
+            if loop.get("realtime_priority"):
+                print(f"loop process: SCHED_FIFO priority {args.realtime_priority}", flush=True)
+            else:
+                why = loop.get("realtime_priority_error", "not a process runner")
+                print(f"loop process: normal priority ({why})", flush=True)
         if "web" in info:
             print(f"web console: {info['web']}  <- open this in a browser", flush=True)
         if "bedside" in info:
@@ -454,6 +465,14 @@ def main(argv: list[str] | None = None) -> int:
         "--web-port", type=int, default=8080, help="port of the web console (default 8080)"
     )
     p.add_argument("--no-web", action="store_true", help="no web console")
+    p.add_argument(
+        "--realtime-priority",
+        type=int,
+        default=None,
+        metavar="N",
+        help="run the loop process with SCHED_FIFO priority N (1-99) as the dVRK runs its "
+        "control loops; needs root or CAP_SYS_NICE, else it runs at normal priority",
+    )
     p.add_argument("--no-bedside", action="store_true", help="web console without the 3-D view")
     p.add_argument("-v", "--verbose", action="store_true")
     p.set_defaults(func=cmd_serve)

@@ -78,3 +78,27 @@ def test_cli_serve_with_duration(capsys):
 def test_cli_serve_rejects_bad_options(capsys):
     assert cli.main(["serve", "--udp-ports", "PSM1:1", "--duration", "0"]) == 2
     assert "ARM=PORT" in capsys.readouterr().err
+
+
+def test_cli_serve_starts_the_web_console_and_says_where(capsys):
+    code = cli.main(["serve", "--scene", "psm1_ecm_mtmr", "--task", "seed_path", "--port", "0",
+                     "--images", "none", "--web-port", "0", "--no-bedside",
+                     "--realtime-priority", "50", "--duration", "2"])  # fmt: skip
+    out = capsys.readouterr().out
+    assert code == 0
+    assert "web console: http://127.0.0.1:" in out and "open this in a browser" in out
+    assert "loop process: " in out  # SCHED_FIFO granted or the reason it was not
+    assert "loop: " in out  # the process runner's period statistics
+
+
+def test_cli_serve_refuses_a_taken_web_port_and_a_bad_priority(capsys):
+    with socket.socket() as taken:
+        taken.bind(("127.0.0.1", 0))
+        taken.listen()
+        port = taken.getsockname()[1]
+        code = cli.main(["serve", "--scene", "psm1", "--port", "0", "--images", "none",
+                         "--web-port", str(port), "--no-bedside", "--duration", "1"])  # fmt: skip
+    assert code == 2
+    assert "choose another port" in capsys.readouterr().err
+    assert cli.main(["serve", "--realtime-priority", "0", "--duration", "0"]) == 2
+    assert "1..99" in capsys.readouterr().err

@@ -68,6 +68,8 @@ class ServeOptions:
     None: the task's own fixture)."""
     task_log: str | None = None
     """CSV file each finished repetition is appended to."""
+    realtime_priority: int | None = None
+    """Process runner: SCHED_FIFO priority of the loop (needs the privilege; None: normal)."""
     frame_task: bool = False
     """Bring the endoscope closer to the task once the ECM is homed (the web console's
     view: the task fills the image)."""
@@ -91,7 +93,8 @@ def serve_description(options: ServeOptions):
         if options.ros_connect is not None:
             arms = scene_arms(options.scene)
             devices = {m: DeviceDescription("network") for m in ("MTML", "MTMR") if m in arms}
-        hands = tuple(m for m in options.hand_inputs if m not in devices)
+        arms = scene_arms(options.scene)
+        hands = tuple(m for m in options.hand_inputs if m not in devices and m in arms)
         console = ConsoleDescription(devices=devices, hand_inputs=hands)
     task = None
     if options.task is not None:
@@ -114,6 +117,7 @@ def serve_description(options: ServeOptions):
         snapshot_period=1.0 / max(options.rate, 1.0),
         publish_qpos=options.images != "none" or options.render_hz is not None,
         render_hz=options.render_hz,
+        realtime_priority=options.realtime_priority if options.runner == "process" else None,
     )
 
 
@@ -152,6 +156,8 @@ def serve(
     try:
         system.start()
         started.append(system)
+        if process:
+            info["loop"] = dict(getattr(handle, "info", {}) or {})
         arm_names = set(handle.snapshot().arms)
         if options.server:
             nodes: list = [

@@ -303,6 +303,8 @@ def build_system(description: SystemDescription, *, start: bool = False) -> Syst
             render_hz=description.render_hz,
             render_model=functools.partial(scene_model, description),
             start_paused=description.start_paused,
+            realtime_priority=description.realtime_priority,
+            loop_cpu=description.loop_cpu,
         )
         system = System(description, None, handle)
     else:

@@ -129,6 +129,12 @@ class SystemDescription:
     render_hz: float | None = None
     """The runner renders the stereo endoscope at this rate in a render process
     (``handle.stereo_frame()``); None: it does not."""
+    realtime_priority: int | None = None
+    """Process runner: SCHED_FIFO priority of the loop process (1-99), as the dVRK runs its
+    control loops; needs the privilege (root or CAP_SYS_NICE), else the loop runs at normal
+    priority and the handle's ``info`` says why. None: normal priority."""
+    loop_cpu: int | None = None
+    """Process runner: pin the loop process to this CPU (None: the OS chooses)."""
 
     def __post_init__(self) -> None:
         if self.runner not in ("thread", "process", "none"):
@@ -141,6 +147,8 @@ class SystemDescription:
             raise ValueError(f"render_hz must be > 0 or None, got {self.render_hz!r}")
         if self.render_hz is not None and self.runner == "none":
             raise ValueError("render_hz needs a runner (thread or process)")
+        if self.realtime_priority is not None and not (1 <= self.realtime_priority <= 99):
+            raise ValueError(f"realtime_priority must be in 1..99, got {self.realtime_priority}")
 
     @property
     def console_description(self) -> ConsoleDescription | None:
