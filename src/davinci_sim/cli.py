@@ -1,4 +1,10 @@
-"""The ``davinci-sim`` command line: ``info``, ``snapshot``, ``demo``, ``serve`` and ``study``."""
+"""The ``davinci-sim`` command line: ``info``, ``snapshot``, ``demo``, ``serve`` and ``study``.
+
+Size: over 500 lines because the command line is one parser: each command is a short
+function that checks its options and calls the package, and ``serve`` alone has some forty
+options (the rosbridge server, UDP, client mode, the task, the web console); splitting the
+parser would scatter the one place a user's options are declared and checked.
+"""
 
 from __future__ import annotations
 

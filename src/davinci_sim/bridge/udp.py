@@ -18,9 +18,7 @@ operating state's enum is not documented (dvrk.md §5); it is sent as its name, 
 from __future__ import annotations
 
 import asyncio
-import atexit
 import logging
-import threading
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
@@ -30,6 +28,7 @@ import numpy as np
 from davinci_sim.bridge.rosbridge import codec
 from davinci_sim.bridge.rosbridge.publisher import PeriodicTask
 from davinci_sim.devices.streamer import encode_joint_state, encode_pose
+from davinci_sim.sim.runtime.service import AsyncService
 
 if TYPE_CHECKING:
     from davinci_sim.sim.handle import ArmSnapshot, SimHandle
@@ -280,7 +279,7 @@ class _Stream(asyncio.DatagramProtocol):
         _log.debug("%s: %s", self.config.arm, exc)
 
 
-class UdpStreamer:
+class UdpStreamer(AsyncService):
     """Streams arms of ``handle`` as dVRK socket streamers, in its own thread and loop.
 
     Args:
@@ -292,45 +291,17 @@ class UdpStreamer:
         names = [s.arm for s in streams]
         if len(set(names)) != len(names):
             raise ValueError(f"one stream per arm, got {names}")
+        super().__init__()
         self.handle = handle
         self.configs = tuple(streams)
         self.streams: dict[str, _Stream] = {}
-        self.loop: asyncio.AbstractEventLoop | None = None
-        self._thread: threading.Thread | None = None
-        self._ready = threading.Event()
-        self._error: BaseException | None = None
-        self._stop: asyncio.Event | None = None
         self._unsubscribe: Callable[[], None] | None = None
 
+    thread_name = "udp-streamer"
+
     def start(self, timeout: float = 5.0) -> UdpStreamer:
-        if self._thread is not None:
-            return self
-        self._ready.clear()
-        self._thread = threading.Thread(target=self._run, name="udp-streamer", daemon=True)
-        self._thread.start()
-        if not self._ready.wait(timeout):
-            raise TimeoutError("the UDP streamer did not start in time")
-        if self._error is not None:
-            self._thread.join(timeout)
-            self._thread = None
-            raise self._error
-        atexit.register(self.stop)
-        return self
-
-    def stop(self, timeout: float = 5.0) -> None:
-        if self._thread is None:
-            return
-        if self.loop is not None and self._stop is not None:
-            self.loop.call_soon_threadsafe(self._stop.set)
-        self._thread.join(timeout)
-        self._thread = None
-        atexit.unregister(self.stop)
-
-    def __enter__(self) -> UdpStreamer:
-        return self.start()
-
-    def __exit__(self, *exc) -> None:
-        self.stop()
+        """Bind every stream's socket and start publishing (raises what binding raised)."""
+        return super().start(timeout)
 
     def local_port(self, arm: str) -> int:
         """The port this arm's socket is bound to (where commands go)."""
@@ -344,23 +315,8 @@ class UdpStreamer:
             for a, s in self.streams.items()
         }
 
-    def _run(self) -> None:
-        loop = asyncio.new_event_loop()
-        self.loop = loop
-        try:
-            loop.run_until_complete(self._main())
-        except BaseException as e:
-            if not self._ready.is_set():
-                self._error = e
-                self._ready.set()
-            else:
-                _log.exception("UDP streamer stopped on an error")
-        finally:
-            loop.close()
-
-    async def _main(self) -> None:
+    async def main(self) -> None:
         loop = asyncio.get_running_loop()
-        self._stop = asyncio.Event()
         snap = self.handle.snapshot()
         try:
             for cfg in self.configs:
@@ -376,8 +332,8 @@ class UdpStreamer:
             self._unsubscribe = self.handle.subscribe(
                 lambda src, ev, payload: loop.call_soon_threadsafe(self._event, src, ev, payload)
             )
-            self._ready.set()
-            await self._stop.wait()
+            self.ready()
+            await self.stopping.wait()
         finally:
             if self._unsubscribe is not None:
                 self._unsubscribe()

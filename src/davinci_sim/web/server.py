@@ -34,7 +34,6 @@ import json
 import logging
 import math
 import struct
-import threading
 import time
 from dataclasses import dataclass, field
 from importlib import resources
@@ -43,6 +42,7 @@ from typing import Any
 import numpy as np
 
 from davinci_sim.model.cameras import CameraConfig
+from davinci_sim.sim.runtime.service import AsyncService
 from davinci_sim.web.protocol import OPERATOR_OPS, Command, ProtocolError, parse_message
 from davinci_sim.web.view import console_view
 
@@ -128,7 +128,7 @@ class _Client:
     """The page shows both eyes (it asked with the ``view`` op)."""
 
 
-class WebConsole:
+class WebConsole(AsyncService):
     """The web console of a running system; see the module docstring.
 
     Args:
@@ -155,6 +155,7 @@ class WebConsole:
     ) -> None:
         from davinci_sim.web.study_job import StudyJob
 
+        super().__init__()
         self.handle = handle
         self.study = None if study_task is None else StudyJob(study_task, self._notify)
         self.options = options or WebOptions()
@@ -166,48 +167,27 @@ class WebConsole:
         """Finished repetitions, each tagged with the trainee's name (``trainee``)."""
         self.trainee = ""
         self.operator: int | None = None
-        self.loop: asyncio.AbstractEventLoop | None = None
         self._clients: dict[int, _Client] = {}
         self._ids = itertools.count(1)
-        self._thread: threading.Thread | None = None
-        self._ready = threading.Event()
-        self._stop: asyncio.Event | None = None
-        self._error: BaseException | None = None
         self._port: int | None = None
         self._completed = 0
         self._frame_number = 0
         self._stats = {"frames_encoded": 0, "encode_time": 0.0, "states": 0}
 
     # ------------------------------------------------------------ lifecycle
+    thread_name = "web-console"
+
     def start(self, timeout: float = 10.0) -> WebConsole:
         """Bind and serve; returns when pages can connect.
 
         Raises:
             OSError: if the port cannot be bound (e.g. taken).
         """
-        if self._thread is not None:
-            return self
-        self._ready.clear()
-        self._error = None
-        self._thread = threading.Thread(target=self._run, name="web-console", daemon=True)
-        self._thread.start()
-        if not self._ready.wait(timeout):
-            raise TimeoutError("the web console did not start in time")
-        if self._error is not None:
-            self._thread.join(timeout)
-            self._thread = None
-            raise self._error
-        return self
+        return super().start(timeout)
 
     def stop(self, timeout: float = 10.0) -> None:
-        """Close every page's connection and free the port."""
-        thread = self._thread
-        if thread is None:
-            return
-        if self.loop is not None and self._stop is not None:
-            self.loop.call_soon_threadsafe(self._stop.set)
-        thread.join(timeout)
-        self._thread = None
+        """Close every page's connection, free the port, drop the study's files."""
+        super().stop(timeout)
         if self.study is not None:
             self.study.close()
 
@@ -216,12 +196,6 @@ class WebConsole:
         loop = self.loop
         if loop is not None and not loop.is_closed():
             loop.call_soon_threadsafe(self._broadcast, message)
-
-    def __enter__(self) -> WebConsole:
-        return self.start()
-
-    def __exit__(self, *exc) -> None:
-        self.stop()
 
     @property
     def port(self) -> int:
@@ -255,32 +229,9 @@ class WebConsole:
         return out.getvalue()
 
     # ------------------------------------------------------------ the thread
-    def _run(self) -> None:
-        loop = asyncio.new_event_loop()
-        self.loop = loop
-        try:
-            loop.run_until_complete(self._main())
-        except BaseException as e:
-            if not self._ready.is_set():
-                self._error = e
-                self._ready.set()
-            else:
-                _log.exception("the web console stopped on an error")
-        finally:
-            try:
-                pending = asyncio.all_tasks(loop)
-                for t in pending:
-                    t.cancel()
-                if pending:
-                    loop.run_until_complete(asyncio.gather(*pending, return_exceptions=True))
-            finally:
-                loop.close()
-                self.loop = None
-
-    async def _main(self) -> None:
+    async def main(self) -> None:
         from websockets.asyncio.server import serve
 
-        self._stop = asyncio.Event()
         async with serve(
             self._handler,
             self.options.host,
@@ -295,9 +246,9 @@ class WebConsole:
             tasks = [asyncio.create_task(self._state_loop())]
             if self.frames is not None:
                 tasks.append(asyncio.create_task(self._frame_loop()))
-            self._ready.set()
+            self.ready()
             try:
-                await self._stop.wait()
+                await self.stopping.wait()
             finally:
                 for t in tasks:
                     t.cancel()

@@ -8,12 +8,8 @@ accepted; there is no permessage-deflate, as rosbridge_server (rosbridge.md §1.
 
 from __future__ import annotations
 
-import asyncio
-import atexit
-import concurrent.futures
 import logging
-import threading
-from collections.abc import Callable, Coroutine, Sequence
+from collections.abc import Callable, Sequence
 from typing import Any, Protocol
 
 from websockets.asyncio.server import serve
@@ -23,6 +19,7 @@ from davinci_sim.bridge.rosbridge.core import Bridge
 from davinci_sim.bridge.rosbridge.rosapi import RosapiNode
 from davinci_sim.bridge.rosbridge.session import Session
 from davinci_sim.bridge.rosbridge.types import TypeRegistry
+from davinci_sim.sim.runtime.service import AsyncService
 
 _log = logging.getLogger("davinci_sim.bridge")
 
@@ -37,8 +34,9 @@ class Node(Protocol):
         """Stop tasks and release resources (called in the loop's thread at stop)."""
 
 
-class RosbridgeServer:
-    """A rosbridge v2 server in its own thread.
+class RosbridgeServer(AsyncService):
+    """A rosbridge v2 server in its own thread (an :class:`~davinci_sim.sim.runtime.service.
+    AsyncService`).
 
     Args:
         config: options (address, dialect, limits, authentication …).
@@ -56,57 +54,28 @@ class RosbridgeServer:
         registry: TypeRegistry | None = None,
         clock: Callable[[], float] | None = None,
     ) -> None:
+        super().__init__()
         self.config = config or BridgeConfig()
         self._nodes: list[Node] = [RosapiNode(), *nodes]
         self._registry = registry
         self._clock = clock
         self.bridge: Bridge | None = None
-        self.loop: asyncio.AbstractEventLoop | None = None
-        self._thread: threading.Thread | None = None
-        self._ready = threading.Event()
-        self._stop_event: asyncio.Event | None = None
-        self._error: BaseException | None = None
         self._port: int | None = None
 
     # ------------------------------------------------------------------ lifecycle
+    thread_name = "rosbridge"
+
     def start(self, timeout: float = 10.0) -> RosbridgeServer:
         """Bind and serve; returns when clients can connect.
 
         Raises:
             OSError: if the address cannot be bound (e.g. the port is taken).
         """
-        if self._thread is not None:
+        if self.running:
             return self
-        self._ready.clear()
-        self._error = None
-        self._thread = threading.Thread(target=self._run, name="rosbridge", daemon=True)
-        self._thread.start()
-        if not self._ready.wait(timeout):
-            raise TimeoutError("the rosbridge server did not start in time")
-        if self._error is not None:
-            self._thread.join(timeout)
-            self._thread = None
-            raise self._error
-        atexit.register(self.stop)
+        super().start(timeout)
         _log.info("rosbridge server on %s (ROS %d)", self.url, self.config.ros_version)
         return self
-
-    def stop(self, timeout: float = 10.0) -> None:
-        """Close every connection, detach the nodes, free the port."""
-        thread = self._thread
-        if thread is None:
-            return
-        if self.loop is not None and self._stop_event is not None:
-            self.loop.call_soon_threadsafe(self._stop_event.set)
-        thread.join(timeout)
-        self._thread = None
-        atexit.unregister(self.stop)
-
-    def __enter__(self) -> RosbridgeServer:
-        return self.start()
-
-    def __exit__(self, *exc) -> None:
-        self.stop()
 
     @property
     def port(self) -> int:
@@ -119,16 +88,7 @@ class RosbridgeServer:
     def url(self) -> str:
         return f"ws://{self.config.host}:{self.port}"
 
-    @property
-    def running(self) -> bool:
-        return self._thread is not None and self._thread.is_alive()
-
     # ------------------------------------------------------------------ helpers
-    def run_coroutine(self, coro: Coroutine) -> concurrent.futures.Future:
-        """Run ``coro`` in the server's loop (from another thread)."""
-        assert self.loop is not None
-        return asyncio.run_coroutine_threadsafe(coro, self.loop)
-
     def call(self, fn: Callable[[], Any], timeout: float = 5.0) -> Any:
         """Run ``fn()`` in the server's loop and return its result (from another thread)."""
 
@@ -142,31 +102,8 @@ class RosbridgeServer:
         return self.call(lambda: self.bridge.stats())
 
     # ------------------------------------------------------------------ the thread
-    def _run(self) -> None:
-        loop = asyncio.new_event_loop()
-        self.loop = loop
-        try:
-            loop.run_until_complete(self._main())
-        except BaseException as e:  # reported to start() if it happened there
-            if not self._ready.is_set():
-                self._error = e
-                self._ready.set()
-            else:
-                _log.exception("rosbridge server stopped on an error")
-        finally:
-            try:
-                pending = asyncio.all_tasks(loop)
-                for task in pending:
-                    task.cancel()
-                if pending:
-                    loop.run_until_complete(asyncio.gather(*pending, return_exceptions=True))
-            finally:
-                loop.close()
-                self.loop = None
-
-    async def _main(self) -> None:
+    async def main(self) -> None:
         cfg = self.config
-        self._stop_event = asyncio.Event()
         kwargs = {"clock": self._clock} if self._clock is not None else {}
         bridge = Bridge(cfg, self._registry, **kwargs)
         self.bridge = bridge
@@ -189,8 +126,8 @@ class RosbridgeServer:
                 close_timeout=2,
             ) as server:
                 self._port = server.sockets[0].getsockname()[1]
-                self._ready.set()
-                await self._stop_event.wait()
+                self.ready()
+                await self.stopping.wait()
                 server.close(close_connections=True)
                 await server.wait_closed()
         finally:
