@@ -83,6 +83,10 @@ class Page:
                 return m
         raise AssertionError(f"no {op!r} message in {timeout} s")
 
+    def take_control(self) -> None:
+        self.send(op="control", take=True)
+        self.next("control", where=lambda m: m["operator"] == self.hello["client"])
+
     def latest_state(self, timeout: float = 10.0) -> dict:
         """The newest state: skips what arrived while the test was not reading."""
         while True:
@@ -155,8 +159,7 @@ def test_a_synthetic_trainees_repetition_becomes_a_tagged_row_and_csv(console):
     try:
         page.send(op="trainee", name="Ada")
         assert page.next("trainee")["name"] == "Ada"
-        page.send(op="control", take=True)
-        page.next("control", where=lambda m: m["operator"] == page.hello["client"])
+        page.take_control()
         page.send(op="synthetic", action="start", subject=2, practice=5)
         page.next("state", where=lambda m: (m["synthetic"] or {}).get("running") is True)
         row = page.next("row", 90.0)["row"]
@@ -201,8 +204,7 @@ def test_the_operators_input_moves_the_tool_right_in_the_image(console):
     web, _ = console
     page = Page(web)
     try:
-        page.send(op="control", take=True)
-        page.next("control", where=lambda m: m["operator"] == page.hello["client"])
+        page.take_control()
         before = wait_following(page)
         p0 = np.array(before["tips"]["PSM1"]["p_camera"])
         u0 = before["tips"]["PSM1"]["pixel"][0]
@@ -237,8 +239,7 @@ def test_bad_input_is_refused_in_the_page_and_nothing_moves(console, text, words
     web, system = console
     page = Page(web)
     try:
-        page.send(op="control", take=True)
-        page.next("control", where=lambda m: m["operator"] == page.hello["client"])
+        page.take_control()
         # (an earlier test's last input still moves the hand until its timeout)
         still = page.next("state", 30.0, lambda m: m["hands"]["MTMR"]["velocity"] == [0, 0, 0])
         hand_before = still["hands"]["MTMR"]
@@ -260,8 +261,7 @@ def test_a_condition_from_the_page_reaches_the_running_fixture(console):
     web, system = console
     page = Page(web)
     try:
-        page.send(op="control", take=True)
-        page.next("control", where=lambda m: m["operator"] == page.hello["client"])
+        page.take_control()
         page.send(op="condition", condition={"type": "viscous", "B": 55.0, "G_max": 6.5})
         state = page.next("state", where=lambda m: "B=55" in m["task"]["condition"])
         assert state["task"]["condition"] == "viscous(B=55, G_max=6.5)"
