@@ -162,6 +162,8 @@ def test_a_synthetic_trainees_repetition_becomes_a_tagged_row_and_csv(console):
         page.take_control()
         page.send(op="synthetic", action="start", subject=2, practice=5)
         page.next("state", where=lambda m: (m["synthetic"] or {}).get("running") is True)
+        page.send(op="input", mtm="MTMR", axes=[1, 0, 0])  # the trainee has the MTM
+        assert "synthetic trainee has the MTM" in page.next("error")["message"]
         row = page.next("row", 90.0)["row"]
         assert row["trainee"] == "Ada" and row["repetition"] >= 1
         assert 0 < row["deviation_error"] < 0.005

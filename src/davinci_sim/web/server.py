@@ -438,6 +438,9 @@ class WebConsole(AsyncService):
             mtm = a["mtm"]
             if mtm not in self.hand_mtms:
                 raise CommandRefused(f"input: no hand on {mtm}; hands: {list(self.hand_mtms)}")
+            synthetic = (self.handle.snapshot().extras or {}).get("synthetic")
+            if synthetic is not None and synthetic["running"] and any(a["axes"]):
+                raise CommandRefused("input: a synthetic trainee has the MTM; stop it first")
             axes = np.asarray(a["axes"], dtype=float)
             # Screen right/up/in -> HRSV: x is the image's left, y up, z into the scene.
             v = self.options.hand_speed * np.array([-axes[0], axes[1], axes[2]])
