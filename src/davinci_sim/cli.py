@@ -198,8 +198,9 @@ def cmd_serve(args: argparse.Namespace) -> int:
     logging.basicConfig(level=logging.INFO if args.verbose else logging.WARNING,
                         format="%(asctime)s %(levelname)s %(name)s: %(message)s")  # fmt: skip
     token = args.token or os.environ.get("DAVINCI_SIM_TOKEN") or None
-    if args.realtime_priority is not None and not 1 <= args.realtime_priority <= 99:
-        print("davinci-sim serve: --realtime-priority must be in 1..99", file=sys.stderr)
+    problem = _serve_option_problem(args)
+    if problem is not None:
+        print(f"davinci-sim serve: {problem}", file=sys.stderr)
         return 2
     web = not args.no_web
     runner = args.runner or ("process" if web else "thread")
@@ -255,7 +256,8 @@ def cmd_serve(args: argparse.Namespace) -> int:
             from davinci_sim.bridge.app import task_condition
             from davinci_sim.tasks import load_task
 
-            task_condition(load_task(args.task), args.condition)
+            task = load_task(args.task)
+            task.fixture(task_condition(task, args.condition))  # checks the values too
     except ValueError as e:  # TaskError is a ValueError
         print(f"davinci-sim serve: {e}", file=sys.stderr)
         return 2
@@ -299,6 +301,27 @@ def cmd_serve(args: argparse.Namespace) -> int:
     return 0
 
 
+def _serve_option_problem(args: argparse.Namespace) -> str | None:
+    """What is wrong with ``serve``'s options that the parser cannot see (None: nothing)."""
+    import math
+
+    for name in ("rate", "tf_rate", "image_rate"):
+        value = getattr(args, name)
+        if not (math.isfinite(value) and value > 0):
+            return f"--{name.replace('_', '-')} must be a rate > 0 Hz, got {value:g}"
+    if args.duration is not None and not (math.isfinite(args.duration) and args.duration >= 0):
+        return f"--duration must be a time >= 0 s, got {args.duration:g}"
+    if args.condition is not None and args.task is None:
+        return "--condition needs --task (the condition of which task?)"
+    if args.realtime_priority is not None and not 1 <= args.realtime_priority <= 99:
+        return "--realtime-priority must be in 1..99"
+    for name in ("port", "web_port"):
+        value = getattr(args, name)
+        if not 0 <= value <= 65535:
+            return f"--{name.replace('_', '-')} must be a port in 0..65535, got {value}"
+    return None
+
+
 def cmd_study(args: argparse.Namespace) -> int:
     from davinci_sim.study import (
         TABLE_I,
@@ -309,9 +332,14 @@ def cmd_study(args: argparse.Namespace) -> int:
         write_outputs,
     )
 
+    out = Path(args.output)
+    if out.exists() and not out.is_dir():  # say so before hours of trials, not after
+        print(f"davinci-sim study: the output {out} exists and is not a folder", file=sys.stderr)
+        return 2
     try:
+        conditions = TABLE_I if args.conditions is None else parse_conditions(args.conditions)
         config = StudyConfig(
-            conditions=parse_conditions(args.conditions) if args.conditions else TABLE_I,
+            conditions=conditions,
             n_subjects=args.subjects,
             n_repetitions=args.repetitions,
             task=args.task,

@@ -39,3 +39,37 @@ def test_snapshot_draws_a_task_in_the_endoscope_view(tmp_path, capsys):
     assert magenta[changed].sum() > 20  # the path is drawn in the task's colour
     assert main(["snapshot", "--task", "no_such_task", "-o", str(tmp_path)]) == 2
     assert "no_such_task" in capsys.readouterr().err
+
+
+import pytest  # noqa: E402
+
+
+@pytest.mark.parametrize(
+    "argv, words",
+    [
+        (["serve", "--rate", "0"], "--rate must be a rate > 0"),
+        (["serve", "--tf-rate", "nan"], "--tf-rate must be a rate > 0"),
+        (["serve", "--image-rate", "-5"], "--image-rate must be a rate > 0"),
+        (["serve", "--duration", "-1"], "--duration must be a time >= 0"),
+        (["serve", "--condition", "B=40"], "--condition needs --task"),
+        (["serve", "--task", "seed_path", "--condition", "40:-5"], "G_max"),
+        (["serve", "--task", "seed_path", "--condition", "40:x"], "neither"),
+        (["serve", "--web-port", "70000"], "--web-port must be a port"),
+        (["serve", "--realtime-priority", "100"], "1..99"),
+        (["study", "--conditions", ""], "B:G_max"),
+        (["study", "--conditions", "40:nan"], "finite"),
+        (["study", "--conditions", "40:-5"], ">= 0"),
+    ],
+)
+def test_bad_options_fail_in_one_line_before_any_work(argv, words, capsys):
+    assert main(argv) == 2
+    err = capsys.readouterr().err
+    assert words in err and "Traceback" not in err and len(err.strip().splitlines()) == 1
+
+
+def test_study_refuses_an_output_that_is_a_file_before_the_first_trial(tmp_path, capsys):
+    target = tmp_path / "results.csv"
+    target.write_text("keep me")
+    assert main(["study", "--subjects", "1", "--repetitions", "1", "-o", str(target)]) == 2
+    assert "not a folder" in capsys.readouterr().err
+    assert target.read_text() == "keep me"  # nothing lost

@@ -27,6 +27,24 @@ def test_arms_start_disabled_and_home_to_the_dvrk_home_pose():
     assert any(s.is_busy for s in states) and not states[-1].is_busy and states[-1].is_homed
 
 
+def test_home_on_a_homed_enabled_arm_is_a_no_op_and_the_next_move_goes():
+    """The second run of an ``enable(); home(); move_jp()`` script (issue 11, 4)."""
+    sim = Simulation("psm1")
+    psm = sim.arms["PSM1"]
+    assert psm.state_command("enable") and psm.state_command("home")
+    assert sim.run_until(lambda: psm.is_homed() and not psm.is_busy(), 10)
+    goal = psm.setpoint_jp() + [0.1, -0.1, 0.02, 0.2, 0.1, 0.0]
+    assert psm.move_jp(goal)
+    assert sim.run_until(lambda: not psm.is_busy(), 10)
+    assert psm.state_command("enable") and psm.state_command("home")  # the second run
+    assert psm.is_homed() and not psm.is_busy()  # no homing trajectory
+    assert np.allclose(psm.setpoint_jp(), goal)  # it stays where it was
+    assert psm.move_jp(goal - [0.1, -0.1, 0.02, 0.2, 0.1, 0.0])  # and the first move goes
+    # A FAULT or an unhomed arm still homes.
+    assert psm.state_command("unhome") and not psm.is_homed()
+    assert psm.state_command("home") and psm.is_busy()
+
+
 def test_home_is_refused_when_disabled_and_changes_nothing():
     sim = Simulation("psm1")
     psm = sim.arms["PSM1"]

@@ -196,7 +196,14 @@ class Arm(ServoJoints):
             self._homed = False  # is_homed needs power (dvrk.md 2.4)
             self._enter(ops.DISABLED, hold=True)
         elif command == "home":
-            self._start_homing()
+            if self._homed and self._state == ops.ENABLED and not self._traj_homing:
+                # Already homed and powered: a no-op, as on the dVRK (dvrk.md 2.4, ENABLED:
+                # home -> same), so an enable(); home(); move_jp() script run twice does not
+                # lose its first move to a second homing.
+                self._status("already homed")
+                self._publish_state()
+            else:
+                self._start_homing()
         elif command == "unhome":
             self._homed = False
             self._publish_state()

@@ -15,6 +15,7 @@ trainee; the counterbalancing spreads this over the conditions.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 from davinci_sim.study.trial import TrialSpec
@@ -58,6 +59,8 @@ class StudyConfig:
         object.__setattr__(self, "conditions", conditions)
         if not conditions:
             raise StudyError("a study needs at least one condition")
+        if not all(math.isfinite(b) and math.isfinite(g) for b, g in conditions):
+            raise StudyError(f"B and G_max must be finite numbers, got {conditions!r}")
         if any(b < 0 or g < 0 for b, g in conditions):
             raise StudyError(f"B and G_max must be >= 0, got {conditions!r}")
         if self.n_subjects < 1 or self.n_repetitions < 1:
