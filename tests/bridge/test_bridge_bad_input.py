@@ -105,6 +105,27 @@ def test_oversized_messages_are_refused(setup, handle):
     still_fine(server, bad, seen, handle)
 
 
+def test_a_huge_bad_value_is_not_echoed_back_whole(setup, handle):
+    server, bad, _, seen = setup
+    huge_op = "x" * 60_000  # under the 64 kB limit: read, refused as an unknown op
+    bad.send({"op": huge_op, "id": "h"})
+    status = bad.status()
+    assert "unknown op" in status["msg"] and "characters left out" in status["msg"]
+    assert len(status["msg"]) <= 600
+    still_fine(server, bad, seen, handle)
+
+
+def test_unfinished_fragmented_messages_are_bounded_per_client(setup, handle):
+    server, bad, _, seen = setup
+    piece = "y" * 30_000
+    for k in range(6):  # six messages of 2 x 30 kB, each within the 64 kB limit, never finished
+        bad.send({"op": "fragment", "id": f"m{k}", "num": 0, "total": 2, "data": piece})
+    assert "dropped: too many bytes" in bad.status()["msg"]
+    sessions = server.call(lambda: list(server.bridge.sessions))
+    assert max(s.pending_fragment_bytes for s in sessions) <= 64_000
+    still_fine(server, bad, seen, handle)
+
+
 def test_invalid_commands_move_nothing(setup, handle, make_raw):
     server, bad, bystander, seen = setup
     enable_and_home(handle)

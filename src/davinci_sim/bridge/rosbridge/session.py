@@ -46,6 +46,22 @@ LEVELS = {"none": 0, "error": 1, "warning": 2, "info": 3}
 _session_ids = itertools.count(1)
 
 
+#: Longest text a problem report carries (log, ``/rosout``, ``status``), characters: reports
+#: quote what the client sent, which may be megabytes.
+MAX_REPORT = 500
+#: All clients together may hold this many times ``max_message_size`` bytes of unfinished
+#: fragmented messages.
+MAX_PENDING_CLIENTS = 4
+
+
+def shorten(text: str, limit: int = MAX_REPORT) -> str:
+    """``text``, or its start and end with how many characters were left out between."""
+    if len(text) <= limit:
+        return text
+    head, tail = text[: limit - 120], text[-80:]
+    return f"{head} … ({len(text) - len(head) - len(tail)} characters left out) … {tail}"
+
+
 class Session:
     """A connected client (one websocket)."""
 
@@ -186,16 +202,46 @@ class Session:
             return
         if len(parts) < total:
             self._fragments[op.id] = (t0, parts, size)
-            if len(self._fragments) > 100:  # bound the number of partial messages
-                oldest = min(self._fragments, key=lambda k: self._fragments[k][0])
-                del self._fragments[oldest]
+            self._bound_fragments(op.id)
             return
         self._fragments.pop(op.id, None)
         self.handle_frame("".join(parts[i] for i in range(total)))
 
+    @property
+    def pending_fragment_bytes(self) -> int:
+        """Bytes of the partial fragmented messages this client has sent."""
+        return sum(size for _, _, size in self._fragments.values())
+
+    def _bound_fragments(self, newest) -> None:
+        """Drop the oldest partial messages while this client holds more than 100 of them or
+        more than ``max_message_size`` bytes of them, or all clients together more than
+        ``MAX_PENDING_CLIENTS`` times that: a client cannot grow the server's memory by
+        starting many large fragmented messages (each alone is within the limit)."""
+        limit = self.bridge.config.max_message_size
+        everyone = sum(s.pending_fragment_bytes for s in self.bridge.sessions if s is not self)
+
+        def over() -> bool:
+            mine = self.pending_fragment_bytes
+            return (
+                len(self._fragments) > 100
+                or mine > limit
+                or (mine + everyone > MAX_PENDING_CLIENTS * limit)
+            )
+
+        while self._fragments and over():
+            oldest = min(self._fragments, key=lambda k: self._fragments[k][0])
+            del self._fragments[oldest]
+            self.report("error", f"fragmented message {oldest!r} dropped: too many bytes "
+                        "of unfinished fragmented messages")  # fmt: skip
+            if oldest == newest:
+                break
+
     # ================================================================ reporting
     def report(self, level: str, text: str, id: Id = None) -> None:
-        """A problem with what this client sent: log, ``/rosout``, and ``status`` if asked."""
+        """A problem with what this client sent: log, ``/rosout``, and ``status`` if asked.
+        A long text (one that echoes a huge bad value) is cut to :data:`MAX_REPORT` characters
+        with the number of characters left out, everywhere it goes."""
+        text = shorten(text)
         full = f"{self.name}: {text}"
         _log.log(logging.ERROR if level == "error" else logging.WARNING, full)
         self.bridge.rosout(level, full)
