@@ -246,3 +246,31 @@ def test_suj_arms_report_the_rcm_in_the_cart(psm_sim):
     assert st.state == "ENABLED" and st.is_homed
     # dvrk.md 1.6 [derived]: PSM1 RCM in the cart (0.0288 m precision of the table).
     assert np.allclose(suj.measured_cp().position, [-0.0288, 1.2198, 0.9591], atol=2e-4)
+
+
+@pytest.mark.parametrize(
+    "command, words",
+    [
+        (lambda a: a.servo_jp(a.setpoint_jp(), velocity=[1e300, 0, 0, 0, 0, 0]),
+         "velocity[0] (yaw) = 1e+300 is over"),
+        (lambda a: a.servo_jp(a.setpoint_jp(), velocity=[0, 0, 0, 0, 0, -1e3]), "velocity[5]"),
+        (lambda a: a.trajectory_j_set_ratio(1e-320), "ratio must be in [0.001, 1]"),
+        (lambda a: a.move_cp(_far(a.setpoint_cp().T)), "beyond 10 m"),
+        (lambda a: a.servo_cp(_far(a.setpoint_cp().T)), "beyond 10 m"),
+    ],
+)  # fmt: skip
+def test_huge_finite_values_are_refused_with_the_field_named(psm_sim, command, words):
+    """Finite but huge values (issue 11, 4) used to crash the physics or leak raw errors."""
+    psm = psm_sim.arms["PSM1"]
+    before = psm.setpoint_jp()
+    result = command(psm)
+    assert not result and words in result.message
+    psm_sim.run_for(0.1)
+    assert np.array_equal(before, psm.setpoint_jp())
+    assert psm.operating_state().state == "ENABLED"
+
+
+def _far(T):
+    T = T.copy()
+    T[0, 3] = 1e300
+    return T

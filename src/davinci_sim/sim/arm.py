@@ -56,6 +56,15 @@ __all__ = ["TRACKING_FAULT_TIME", "TRACKING_FAULT_TOLERANCE", "Arm"]
 STREAMING_REFUSAL_INTERVAL = 1.0
 
 
+#: servo_jp's velocity feed-forward may be this many times the dVRK's trajectory velocity
+#: limit per joint (dvrk.md 1.9) and no more (our bound: a teleoperated tool moves faster
+#: than a planned trajectory, but never by orders of magnitude).
+FEEDFORWARD_FACTOR = 10.0
+#: Smallest trajectory ratio (dvrk.md 1.9 allows ]0, 1]; our bound): 1e-3 already makes a
+#: 1 rad move last over half an hour, and a denormal such as 1e-320 overflows the planner.
+MIN_TRAJECTORY_RATIO = 1e-3
+
+
 class Arm(ServoJoints):
     """One arm of the simulation; see the module docstring. Created by the simulation."""
 
@@ -342,6 +351,18 @@ class Arm(ServoJoints):
             qd, msg = as_vector(velocity, self.dof, "velocity")
             if qd is None:
                 return self._refuse("servo_jp", msg)
+            # A feed-forward far beyond anything the arm can do would swing it into a
+            # tracking fault, or (1e300) make the physics diverge: bounded per joint at
+            # FEEDFORWARD_FACTOR times the dVRK's trajectory velocity limit (dvrk.md 1.9).
+            bound = FEEDFORWARD_FACTOR * self.kin.v_max
+            over = np.flatnonzero(np.abs(qd) > bound)
+            if over.size:
+                i = int(over[0])
+                return self._refuse(
+                    "servo_jp",
+                    f"velocity[{i}] ({self.chain.joint_names[i]}) = {qd[i]:.4g} is over "
+                    f"{bound[i]:.4g} ({FEEDFORWARD_FACTOR:g} x the dVRK trajectory limit)",
+                )
         self._servo_position(goal, qd)
         return ACCEPTED
 
@@ -421,8 +442,11 @@ class Arm(ServoJoints):
             r = float(ratio)
         except (TypeError, ValueError):
             return self._refuse("trajectory_j/set_ratio", f"ratio must be a number, got {ratio!r}")
-        if not (0.0 < r <= 1.0):
-            return self._refuse("trajectory_j/set_ratio", f"ratio must be in ]0, 1], got {r}")
+        if not (MIN_TRAJECTORY_RATIO <= r <= 1.0):
+            return self._refuse(
+                "trajectory_j/set_ratio",
+                f"ratio must be in [{MIN_TRAJECTORY_RATIO:g}, 1], got {r:.4g}",
+            )
         self._trajectory_ratio = r
         return ACCEPTED
 

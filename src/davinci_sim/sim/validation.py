@@ -42,6 +42,12 @@ def check_limits(q: np.ndarray, qmin: np.ndarray, qmax: np.ndarray, names, what:
     )
 
 
+#: Largest coordinate of a pose's position, m: every frame of the system (cart, camera,
+#: RCM, HRSV) is within a few metres of every other, so a goal beyond this is an error, not
+#: a place (and a value like 1e300 overflows the IK to NaN).
+MAX_TRANSLATION_M = 10.0
+
+
 def as_transform(value, what: str) -> tuple[np.ndarray | None, str]:
     """``value`` as a proper 4x4 homogeneous transform (orthonormal rotation), or a message."""
     try:
@@ -69,6 +75,12 @@ def as_transform(value, what: str) -> tuple[np.ndarray | None, str]:
         return None, f"{what}: rotation part is not a proper rotation matrix"
     if max(abs(f[12]), abs(f[13]), abs(f[14]), abs(f[15] - 1.0)) > 1e-12:
         return None, f"{what}: last row must be (0, 0, 0, 1)"
+    reach = max(abs(f[3]), abs(f[7]), abs(f[11]))
+    if reach > MAX_TRANSLATION_M:
+        return None, (
+            f"{what}: position ({f[3]:.4g}, {f[7]:.4g}, {f[11]:.4g}) m is beyond "
+            f"{MAX_TRANSLATION_M:g} m of its reference frame (no arm or console reaches it)"
+        )
     return T, ""
 
 
