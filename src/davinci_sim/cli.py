@@ -286,7 +286,8 @@ def cmd_serve(args: argparse.Namespace) -> int:
         print("ready (Ctrl-C to stop)", flush=True)
 
     try:
-        info = serve(options, stop=stop, on_ready=ready, parts=parts)
+        info = serve(options, stop=stop, on_ready=ready, parts=parts,
+                     on_warning=lambda text: print(f"warning: {text}", flush=True))  # fmt: skip
     except OSError as e:  # a port is taken (the rosbridge server's or the web console's)
         print(f"davinci-sim serve: {e}; choose another port (--port, --web-port)", file=sys.stderr)
         return 2

@@ -75,6 +75,40 @@ class ServeOptions:
     view: the task fills the image)."""
 
 
+class RealTimeWatch:
+    """Says once when a real-time simulation falls behind the wall clock: the simulated time
+    over the wall time of the last ``window`` seconds under ``threshold`` (after a first
+    window of start-up, which is not judged)."""
+
+    def __init__(self, window: float = 5.0, threshold: float = 0.95) -> None:
+        self.window, self.threshold = window, threshold
+        self._start: tuple[float, float] | None = None
+        self._said = False
+        self._skipped = False
+
+    def observe(self, wall: float, sim_time: float) -> str | None:
+        """The warning (once), or None; ``wall`` and ``sim_time`` in s."""
+        if self._start is None:
+            self._start = (wall, sim_time)
+            return None
+        w0, s0 = self._start
+        if wall - w0 < self.window:
+            return None
+        factor = (sim_time - s0) / (wall - w0)
+        self._start = (wall, sim_time)
+        if not self._skipped:  # the first window includes the start-up
+            self._skipped = True
+            return None
+        if self._said or factor >= self.threshold:
+            return None
+        self._said = True
+        return (
+            f"the simulation runs at {factor:.2f}x real time (over the last {self.window:g} s): "
+            "this machine cannot keep the 1 kHz loop; close other programs, use --runner "
+            "process and --realtime-priority, or fewer image topics"
+        )
+
+
 def serve_description(options: ServeOptions):
     """The :class:`~davinci_sim.system.SystemDescription` of ``options``: the scene, the
     console (its MTMs as network devices fed by the client mode with ``ros_connect``), the
@@ -127,6 +161,7 @@ def serve(
     stop: threading.Event | None = None,
     on_ready: Callable[[dict], None] | None = None,
     parts: Sequence[Callable[[Any, dict], Any]] = (),
+    on_warning: Callable[[str], None] | None = None,
 ) -> dict:
     """Run until ``stop`` is set or ``options.duration`` passes; returns final statistics.
 
@@ -134,7 +169,8 @@ def serve(
     ports and the client-mode URL. ``parts`` start more servers on the same system (the
     web console): each is called with the running :class:`~davinci_sim.system.System` and
     the ``info`` dict (to add its URLs), returns a started object with ``stop()``, and is
-    stopped with the rest.
+    stopped with the rest. ``on_warning(text)`` is told, once, when the simulation cannot
+    keep real time (:class:`RealTimeWatch`; also logged and put on ``/rosout``).
     """
     from davinci_sim.bridge.client_mode import ClientModeConfig, RosClientMode
     from davinci_sim.bridge.console_node import ConsoleNode
@@ -153,6 +189,7 @@ def serve(
     arm_names = set()
     started: list = []
     info: dict = {}
+    server = None
     try:
         system.start()
         started.append(system)
@@ -202,9 +239,18 @@ def serve(
             on_ready(info)
         end = None if options.duration is None else time.monotonic() + options.duration
         t0_wall, t0_sim = time.monotonic(), handle.snapshot().time
+        pace = RealTimeWatch() if options.real_time else None
         while not stop.wait(0.1):
             if end is not None and time.monotonic() >= end:
                 break
+            warning = pace.observe(time.monotonic(), handle.snapshot().time) if pace else None
+            if warning is not None:
+                info["real_time_warning"] = warning
+                _log.warning(warning)
+                if on_warning is not None:
+                    on_warning(warning)
+                if server is not None:
+                    server.call(lambda w=warning: server.bridge.rosout("warn", w))
         wall = time.monotonic() - t0_wall
         info["sim_over_wall"] = (handle.snapshot().time - t0_sim) / wall if wall > 0 else 0.0
         if process:  # (the thread runner has them too; `serve` reports the process's)
