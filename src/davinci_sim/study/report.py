@@ -56,6 +56,15 @@ def _label(c: tuple[float, float]) -> str:
     return f"B={c[0]:g} Ns/m, Gmax={c[1]:g} N"
 
 
+def short_labels(conditions) -> list[str]:
+    """Axis and table labels of ``conditions`` ((B, G_max) pairs): ``B=40`` while B tells
+    them apart, ``B=40/Gmax=5`` when two share a B (they would read the same)."""
+    bs = [b for b, _ in conditions]
+    if len(set(bs)) == len(bs):
+        return [f"B={b:g}" for b in bs]
+    return [f"B={b:g}/Gmax={g:g}" for b, g in conditions]
+
+
 def _by(rows, condition, key="repetition", metric="deviation_error"):
     out: dict[int, list[float]] = {}
     for r in rows:
@@ -104,7 +113,7 @@ def plot_figures(result: StudyResult, folder: Path) -> list[Path]:
         for c in range(C)
     ]
     ax.boxplot(data, whis=(5, 95))
-    ax.set_xticks(range(1, C + 1), [f"B={b:g}" for b, _ in cfg.conditions])
+    ax.set_xticks(range(1, C + 1), short_labels(cfg.conditions))
     ax.set_ylabel("deviation error e (mm)")
     ax.set_title("all repetitions of all subjects (whiskers 5-95 %)", fontsize=9)
     fig.tight_layout()
@@ -121,7 +130,7 @@ def plot_figures(result: StudyResult, folder: Path) -> list[Path]:
         color="tab:blue",
         capsize=4,
     )
-    ax.set_xticks(range(C), [f"B={b:g}" for b, _ in cfg.conditions])
+    ax.set_xticks(range(C), short_labels(cfg.conditions))
     ax.set_ylabel("completion time (s)")
     ax.set_title("mean over subjects (bars: sd of the subjects' means)", fontsize=9)
     fig.tight_layout()
@@ -284,21 +293,26 @@ def write_report(result: StudyResult, path: Path) -> None:
         "## Statistical tests",
         "",
         "Per-subject means; Friedman test across the conditions, then two-sided Wilcoxon "
-        f"signed-rank tests of every pair, Holm-corrected (α = {ALPHA}).",
+        f"signed-rank tests of every pair, Holm-corrected (α = {ALPHA})."
+        if C > 2
+        else "Per-subject means; with two conditions the test is the two-sided Wilcoxon "
+        "signed-rank test of the pair (Friedman's needs three or more).",
         "",
     ]
+    labels = short_labels(cfg.conditions)
     for metric in ("deviation_error", "completion_time"):  # the seed's claims' metrics
         unit, s = DECLARED[metric].report
-        fr = friedman(tables[metric])
         L.append(f"### {metric.replace('_', ' ')}")
         L.append("")
-        L.append(f"Friedman χ² = {_fmt(fr.statistic)}, p = {_fmt(fr.pvalue)}.")
-        L.append("")
+        if C > 2:
+            fr = friedman(tables[metric])
+            L.append(f"Friedman χ² = {_fmt(fr.statistic)}, p = {_fmt(fr.pvalue)}.")
+            L.append("")
         L.append(f"| pair | median difference ({unit}) | W | p | p (Holm) |")
         L.append("|---|---|---|---|---|")
         for p in pairwise_wilcoxon(tables[metric]):
             L.append(
-                f"| B={cfg.conditions[p.a][0]:g} vs B={cfg.conditions[p.b][0]:g} | "
+                f"| {labels[p.a]} vs {labels[p.b]} | "
                 f"{_fmt(p.median_difference * s)} | {_fmt(p.statistic)} | {_fmt(p.pvalue)} | "
                 f"{_fmt(p.p_holm)} |"
             )
