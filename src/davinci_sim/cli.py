@@ -255,9 +255,13 @@ def cmd_serve(args: argparse.Namespace) -> int:
         if args.task is not None:  # a bad task or condition: say so before starting anything
             from davinci_sim.bridge.app import task_condition
             from davinci_sim.tasks import load_task
+            from davinci_sim.tasks.check import task_problem
 
             task = load_task(args.task)
             task.fixture(task_condition(task, args.condition))  # checks the values too
+            problem = task_problem(task)
+            if problem is not None:
+                raise ValueError(problem)
     except ValueError as e:  # TaskError is a ValueError
         print(f"davinci-sim serve: {e}", file=sys.stderr)
         return 2
@@ -323,6 +327,34 @@ def _serve_option_problem(args: argparse.Namespace) -> str | None:
     return None
 
 
+def cmd_task_check(args: argparse.Namespace) -> int:
+    """Each point of a task: reachable by its PSM, and where the endoscope shows it."""
+    from davinci_sim.tasks import TaskError, load_task
+    from davinci_sim.tasks.check import check_task
+
+    try:
+        task = load_task(args.file if not Path(args.file).suffix else Path(args.file))
+        checks = check_task(task)
+    except (TaskError, ValueError, OSError) as e:
+        print(f"davinci-sim task check: {e}", file=sys.stderr)
+        return 2
+    print(f"task {task.name!r}: {task.teleop.psm} at keyframe {task.teleop.keyframe!r}, "
+          f"left endoscope image")  # fmt: skip
+    for c in checks:
+        x, y, z = c.p_task
+        seen = (
+            "behind the camera"
+            if c.pixel is None
+            else f"pixel ({c.pixel[0]:.0f}, {c.pixel[1]:.0f})"
+        )
+        print(f"  point {c.index}: ({x:+.4f}, {y:+.4f}, {z:+.4f}) m  "
+              f"{'reachable' if c.reachable else 'UNREACHABLE: ' + c.why}; "
+              f"{'in view' if c.in_view else 'OUT OF VIEW'}, {seen}")  # fmt: skip
+    bad = sum(not c.ok for c in checks)
+    print("ok" if not bad else f"{bad} point(s) fail")
+    return 0 if not bad else 1
+
+
 def cmd_study(args: argparse.Namespace) -> int:
     from davinci_sim.study import (
         TABLE_I,
@@ -336,6 +368,17 @@ def cmd_study(args: argparse.Namespace) -> int:
     out = Path(args.output)
     if out.exists() and not out.is_dir():  # say so before hours of trials, not after
         print(f"davinci-sim study: the output {out} exists and is not a folder", file=sys.stderr)
+        return 2
+    from davinci_sim.tasks import TaskError, load_task
+    from davinci_sim.tasks.check import task_problem
+
+    try:  # the task, loaded and checked here, before any worker starts
+        task = load_task(args.task if not Path(args.task).suffix else Path(args.task))
+        problem = task_problem(task)
+    except (TaskError, ValueError, OSError) as e:
+        problem = str(e)
+    if problem is not None:
+        print(f"davinci-sim study: {problem}", file=sys.stderr)
         return 2
     try:
         conditions = TABLE_I if args.conditions is None else parse_conditions(args.conditions)
@@ -511,6 +554,13 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--no-bedside", action="store_true", help="web console without the 3-D view")
     p.add_argument("-v", "--verbose", action="store_true")
     p.set_defaults(func=cmd_serve)
+    p = sub.add_parser("task", help="check a training task (reachability, view)")
+    task_sub = p.add_subparsers(dest="task_command", required=True)
+    p = task_sub.add_parser(
+        "check", help="is each point reachable by the task's PSM and in the endoscope's view?"
+    )
+    p.add_argument("file", help="task name (e.g. seed_path) or task file")
+    p.set_defaults(func=cmd_task_check)
     p = sub.add_parser(
         "study", help="the seed's user study with synthetic trainees (CSV, figures, report)"
     )

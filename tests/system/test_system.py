@@ -191,10 +191,9 @@ def test_the_path_labels_read_left_to_right_and_upright_in_the_endoscope(keyfram
     drawn facing a fixed world direction) had b left of e."""
     import mujoco
 
-    from davinci_sim.model.cameras import CameraConfig
+    from davinci_sim.model.cameras import CameraConfig, project_left
     from davinci_sim.system import SystemDescription, TaskDescription
     from davinci_sim.system.build import scene_model
-    from davinci_sim.web.view import project_left
 
     description = SystemDescription(
         scene="psm1_ecm_mtmr", keyframe=keyframe, task=TaskDescription("seed_path")

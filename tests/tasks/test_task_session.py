@@ -151,10 +151,9 @@ def test_a_refused_condition_changes_nothing(fresh_session, condition, words):
 
 
 def test_frame_view_brings_the_endoscope_to_the_task():
-    from davinci_sim.model.cameras import CameraConfig
+    from davinci_sim.model.cameras import CameraConfig, project_left
     from davinci_sim.system import SystemDescription, TaskDescription
     from davinci_sim.system.build import build_simulation
-    from davinci_sim.web.view import project_left
 
     description = SystemDescription(
         scene="psm1_ecm_mtmr", home=True, runner="none",

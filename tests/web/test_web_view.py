@@ -10,8 +10,8 @@ def test_path_guide_gives_the_closest_point_and_its_depth_against_an_independent
     import numpy as np
 
     from davinci_sim.geometry.path import Polyline
-    from davinci_sim.model.cameras import CameraConfig
-    from davinci_sim.web.view import path_guide, project_left
+    from davinci_sim.model.cameras import CameraConfig, project_left
+    from davinci_sim.web.view import path_guide
 
     # A camera at (0, 0, 1) looking down -z of the world (its z axis = world -z, y = world y).
     T_world_camera = np.array([[-1.0, 0, 0, 0], [0, 1, 0, 0], [0, 0, -1, 1.0], [0, 0, 0, 1]])
@@ -27,8 +27,7 @@ def test_path_guide_gives_the_closest_point_and_its_depth_against_an_independent
 
 
 def test_project_left_is_the_pinhole_of_the_left_camera():
-    from davinci_sim.model.cameras import CameraConfig
-    from davinci_sim.web.view import project_left
+    from davinci_sim.model.cameras import CameraConfig, project_left
 
     cam = CameraConfig()
     f = 240 / math.tan(math.radians(cam.fovy_deg) / 2)

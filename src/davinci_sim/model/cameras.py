@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -72,3 +73,16 @@ def add_external_camera(world, camera: ExternalCamera) -> None:
     R = look_at_rotation(camera.position, camera.target)
     set_pose(cam, transform(R, camera.position))
     cam.fovy = camera.fovy_deg
+
+
+def project_left(p_camera, camera: CameraConfig) -> tuple[float, float] | None:
+    """Pixel (u right, v down) of the camera-frame point ``p_camera`` (m; the ECM tip frame,
+    x to the image's left, y up, z into the scene) in the left endoscope image, or None
+    behind the camera: MuJoCo's pinhole, ``f = (h/2) / tan(fovy/2)``, principal point at the
+    image centre, the left camera half a baseline towards +x (:func:`T_tip_camera`)."""
+    x, y, z = (float(c) for c in p_camera)
+    if z <= 1e-6:
+        return None
+    f = 0.5 * camera.height / math.tan(math.radians(camera.fovy_deg) / 2.0)
+    x_left = x - camera.baseline_m / 2.0  # the left camera is half a baseline towards +x
+    return (camera.width / 2.0 - f * x_left / z, camera.height / 2.0 - f * y / z)

@@ -4,8 +4,7 @@ The heads-up display of the surgeon's view needs, besides the images, where each
 in the left endoscope image and where the guidance force points there. The PSMs'
 ``measured_cp`` is in the camera frame (the ECM tip, dvrk.md 1.6: x to the image's left, y up,
 z into the scene; :func:`davinci_sim.model.cameras.T_tip_camera`); the left camera sits half
-a baseline towards +x. :func:`project_left` is the pinhole projection of that camera
-(MuJoCo's: ``f = (h/2) / tan(fovy/2)``, principal point at the image centre). The haptic
+a baseline towards +x (:func:`davinci_sim.model.cameras.project_left` projects into it). The haptic
 loop's requested wrench is in HRSV, whose axes the teleoperation aligns with the camera
 frame's (dvrk.md 4.2), so the arrow is drawn from the tip along that force.
 """
@@ -17,21 +16,10 @@ from typing import Any
 
 import numpy as np
 
-from davinci_sim.model.cameras import CameraConfig
+from davinci_sim.model.cameras import CameraConfig, project_left
 
 #: Length of the drawn force arrow per newton, m (5 N, the seed's largest G_max: 2 cm).
 ARROW_M_PER_N = 0.004
-
-
-def project_left(p_camera, camera: CameraConfig) -> tuple[float, float] | None:
-    """Pixel (u right, v down) of the camera-frame point ``p_camera`` (m) in the left
-    endoscope image, or None behind the camera."""
-    x, y, z = (float(c) for c in p_camera)
-    if z <= 1e-6:
-        return None
-    f = 0.5 * camera.height / math.tan(math.radians(camera.fovy_deg) / 2.0)
-    x_left = x - camera.baseline_m / 2.0  # the left camera is half a baseline towards +x
-    return (camera.width / 2.0 - f * x_left / z, camera.height / 2.0 - f * y / z)
 
 
 def path_guide(p_camera, T_world_camera, path, camera: CameraConfig) -> dict:
