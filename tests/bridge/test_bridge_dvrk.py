@@ -166,9 +166,12 @@ def test_move_jp_then_servo_cp_move_the_arm(handle, make_server, make_ros):
     assert wait_for(
         lambda: np.linalg.norm(m.pose_matrix(cp[-1]["pose"])[:3, 3] - T[:3, 3]) < 5e-4, 3
     )
-    # the sim agrees with what was published
-    sim_T = handle.snapshot().arms["PSM1"].measured_cp.T
-    assert np.allclose(sim_T[:3, 3], T[:3, 3], atol=5e-4)
+    # the sim agrees with what was published (once settled: the topic's first sample within
+    # 0.5 mm may be on the way through, on a busy machine)
+    assert wait_for(
+        lambda: np.allclose(handle.snapshot().arms["PSM1"].measured_cp.T[:3, 3], T[:3, 3],
+                            atol=5e-4), 3
+    ), handle.snapshot().arms["PSM1"].measured_cp.T[:3, 3] - T[:3, 3]  # fmt: skip
 
 
 def test_jaw_and_gripper_wrench_topics(handle, make_server, make_ros):
