@@ -171,7 +171,6 @@ class WebConsole(AsyncService):
         self._ids = itertools.count(1)
         self._port: int | None = None
         self._completed = 0
-        self._frame_number = 0
         self._stats = {"frames_encoded": 0, "encode_time": 0.0, "states": 0}
 
     # ------------------------------------------------------------ lifecycle
@@ -210,9 +209,12 @@ class WebConsole(AsyncService):
         return f"http://{shown}:{self.port}/"
 
     def statistics(self) -> dict:
-        """Pages connected, frames encoded and mean encode time (s), state messages sent."""
+        """Pages connected, frames encoded and mean encode time (s), state messages sent, and
+        per page the frames sent and the frames it skipped (it was still sending one)."""
         s = dict(self._stats)
         s["pages"] = len(self._clients)
+        s["frames_sent_skipped"] = [(c.sent_frames, c.skipped_frames)
+                                    for c in self._clients.values()]  # fmt: skip
         n = s["frames_encoded"]
         s["encode_mean"] = s["encode_time"] / n if n else math.nan
         return s
@@ -594,7 +596,6 @@ class WebConsole(AsyncService):
             out = io.BytesIO()
             Image.fromarray(image).save(out, format="JPEG", quality=self.options.jpeg_quality)
             parts[k] = out.getvalue()
-        self._frame_number += 1
         header = FRAME_HEADER.pack(frame.frame & 0xFFFFFFFF, frame.time, len(parts[0]))
         return header + parts[0] + parts[1]
 
