@@ -284,7 +284,9 @@ def test_a_token_is_required_when_set(console):
         assert "token" in page.next("error")["message"]
         page.send(op="hello", token="wrong")
         assert "wrong" in page.next("error")["message"]
+        assert set(page.hello) == {"op", "client", "needs_token"}  # nothing before the token
         page.send(op="hello", token="s3cret")
+        assert page.next("hello")["camera"] == {"width": 640, "height": 480}
         page.next("welcome")
         assert page.next("state")["task"]["name"] == "short_path"
         page.close()

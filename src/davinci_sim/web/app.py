@@ -57,7 +57,7 @@ def web_part(options: WebOptions, *, bedside: bool = True) -> Callable[[Any, dic
         view = None
         web_options = options
         if bedside:
-            view = start_bedside(system, options)
+            view = start_bedside(system)
             if view is not None:
                 web_options = dataclasses.replace(options, bedside_port=view.port)
                 info["bedside"] = view.url
@@ -83,7 +83,7 @@ def web_part(options: WebOptions, *, bedside: bool = True) -> Callable[[Any, dic
     return make
 
 
-def start_bedside(system, options: WebOptions):
+def start_bedside(system):
     """The 3-D bedside view of ``system`` started on a free port next to the page's (None
     if it cannot start: the console works without it)."""
     try:

@@ -319,6 +319,9 @@ class WebConsole(AsyncService):
                 self._broadcast_control()
 
     def _hello(self, client: _Client) -> dict:
+        """What a page is told first: before it proved the token, only that it must."""
+        if not client.authed:
+            return {"op": "hello", "client": client.id, "needs_token": True}
         info: dict[str, Any] = {
             "op": "hello",
             "client": client.id,
@@ -390,6 +393,7 @@ class WebConsole(AsyncService):
                     self._push(client, {"op": "error", "message": "wrong or missing token"})
                     return
                 client.authed = True
+                self._push(client, self._hello(client))  # now the whole description
             self._push(client, {"op": "welcome", "client": client.id, "operator": self.operator})
             return
         if not client.authed:

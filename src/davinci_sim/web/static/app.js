@@ -82,13 +82,16 @@ function onMessage(m) {
 
 // ------------------------------------------------------------------ hello: build the panels
 function onHello(m) {
-  state.hello = m;
   state.client = m.client;
+  if (m.needs_token) {  // the server says nothing more until the page proves the token
+    if (!params.get("token")) showMessage("this console needs a token: open it with ?token=…");
+    return;
+  }
+  state.hello = m;
   state.operator = m.operator;
   $("trainee").value = m.trainee || "";
   const cam = m.camera;
   for (const id of ["endoscope", "overlay"]) { $(id).width = cam.width; $(id).height = cam.height; }
-  if (m.needs_token) showMessage("this console needs a token: open it with ?token=…");
   if (m.bedside_port) {
     $("bedside").src = `${location.protocol}//${location.hostname}:${m.bedside_port}/`;
   } else {
