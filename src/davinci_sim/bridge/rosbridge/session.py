@@ -156,8 +156,8 @@ class Session:
                 self.report("error", str(e), e.id)
             return
         if not self.authenticated and not isinstance(op, Auth | SetLevel):
-            self._refuse(f"{op.op}: missing token: this server needs an 'auth' op first, "
-                         '{"op": "auth", "mac": "<token>"} (or rosauth\'s MAC)', _id(op))  # fmt: skip
+            first = '{"op": "auth", "mac": "<token>"}'
+            self._refuse(f"{op.op}: missing token: send {first} first", _id(op))
             return
         if isinstance(op, Auth):
             self._auth(op)
