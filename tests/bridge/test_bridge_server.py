@@ -356,6 +356,27 @@ def test_token_authentication(make_server, make_raw):
     assert d.call("/rosapi/nodes")["result"] is True
 
 
+def test_roslibpy_authenticate_is_accepted(make_server):
+    """roslibpy's ``Ros.authenticate`` (sent on connection, before anything else), with the
+    rosauth MAC of integer times, as rosauth hashes them."""
+    from davinci_sim.bridge.rosbridge.auth import rosauth_mac
+    from davinci_sim.bridge.rosbridge.protocol import Auth
+
+    server = make_server(auth_token="s3cret")
+    now = int(time.time())
+    fields = dict(client="127.0.0.1", dest="127.0.0.1", rand="r4nd", t=now, level="user",
+                  end=now + 60)  # fmt: skip
+    ros = roslibpy.Ros("127.0.0.1", server.port)
+    ros.authenticate(rosauth_mac("s3cret", Auth(mac="", **fields)), **fields)
+    try:
+        ros.run(10)
+        topics = []
+        ros.get_topics(lambda r: topics.append(r["topics"]))
+        assert wait_for(lambda: topics, 10) and "/rosout" in topics[0]
+    finally:
+        ros.close()
+
+
 def _refused(client) -> dict:
     """The status a refused client gets, then checks that the server closed the connection
     (code 1008, policy violation)."""
