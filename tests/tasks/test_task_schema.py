@@ -120,3 +120,12 @@ def test_a_new_fixture_parameter_is_checked_from_the_kind_s_declaration():
         schema.check({**data, "fixture": {"type": "magnet", "on": 1}}, ())
     with pytest.raises(SchemaError, match=r"fixture.type: unknown fixture type 'magnet'"):
         task_schema(PathTask).check({**data, "fixture": {"type": "magnet"}}, ())
+
+
+def test_a_mapping_without_a_file_names_the_task_and_a_bad_kind_is_one_error():
+    from davinci_sim.tasks import TaskError, task_from_dict
+
+    with pytest.raises(TaskError, match=r"^task 'x': waypoints\[1\]: must be 3 numbers"):
+        task_from_dict({"name": "x", "waypoints": [[0, 0, 0], [1, 1]]})
+    with pytest.raises(TaskError, match="unknown kind"):
+        task_from_dict({"kind": ["path"], "name": "x"})

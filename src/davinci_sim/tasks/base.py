@@ -375,12 +375,12 @@ def task_from_dict(data: dict[str, Any], *, text: str | None = None, source: str
         raise TaskError(f"a task must be a mapping, got {type(data).__name__}")
     kinds = task_kinds()
     kind = data.get("kind", DEFAULT_KIND)
-    if kind not in kinds:
+    if not isinstance(kind, str) or kind not in kinds:
         raise TaskError(
             f"task {data.get('name', '?')!r}: unknown kind {kind!r}; kinds: {sorted(kinds)}"
         )
     try:
-        check_task_data(kinds[kind], data, text, source)
+        check_task_data(kinds[kind], data, text, source or f"task {data.get('name', '?')!r}")
     except SchemaError as e:
         raise TaskError(str(e)) from None
     data = dict(data)
