@@ -24,10 +24,12 @@ message has no line.
 from __future__ import annotations
 
 import math
+import numbers
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from typing import Any
 
+import numpy as np
 import yaml
 
 Path = tuple[str | int, ...]
@@ -74,7 +76,7 @@ class Number(Schema):
     above: float | None = None
 
     def check(self, value, path):
-        if isinstance(value, bool) or not isinstance(value, int | float):
+        if isinstance(value, bool | np.bool_) or not isinstance(value, numbers.Real):
             hint = ""
             if isinstance(value, str):
                 try:
@@ -83,10 +85,11 @@ class Number(Schema):
                 except ValueError:
                     pass
             raise SchemaError(path, f"must be a number{self._range()}, got {_show(value)}{hint}")
-        bad = not math.isfinite(value)
-        bad |= self.minimum is not None and value < self.minimum
-        bad |= self.maximum is not None and value > self.maximum
-        bad |= self.above is not None and value <= self.above
+        x = float(value)
+        bad = not math.isfinite(x)
+        bad |= self.minimum is not None and x < self.minimum
+        bad |= self.maximum is not None and x > self.maximum
+        bad |= self.above is not None and x <= self.above
         if bad:
             raise SchemaError(path, f"must be a finite number{self._range()}, got {_show(value)}")
 
