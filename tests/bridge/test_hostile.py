@@ -1,5 +1,6 @@
 """Hostile input (issue 11, item 4): the one list of the hostile cases, over rosbridge on
-loopback, each bounded (a few MB at most, deadlines only).
+loopback (the huge values over the dVRK's UDP stream too), each bounded (a few MB at most,
+deadlines only).
 
 One simulation (PSM1, the ECM and their setup joints, real time) and one server take every
 case in turn, as a scene under attack would. After each case the scene must be as it was
@@ -252,6 +253,39 @@ def test_extra_null_or_empty_optional_fields_are_accepted(scene, client, msg, ex
     with pytest.raises(TimeoutError):  # and no error status
         client.recv_until(lambda m: m.get("op") == "status", 0.2)
     assert_scene_unharmed(h, before, moved=("PSM1",))
+
+
+# ---------------------------------------------------------------- the same over UDP
+@pytest.mark.parametrize(
+    "arm, command, words",
+    [
+        ("PSM1", {"move_cp": {"Goal": {"Rotation": np.eye(3).tolist(),
+                                       "Translation": [1e300, 0.0, 0.0]}}}, "beyond 10 m"),
+        ("PSM1", {"servo_jp": {"Goal": [1e300, 0, 0, 0, 0, 0]}}, "outside its limits"),
+        ("ECM", {"move_jp": {"Goal": [0, 0, 1e300, 0]}}, "outside its limits"),
+    ],
+)  # fmt: skip
+def test_huge_values_over_udp_are_refused_with_the_field_named(scene, caplog, arm, command,
+                                                                words):  # fmt: skip
+    """The dVRK socket-streamer's commands reach the same checks (it has no reply channel:
+    the refusal is logged and counted)."""
+    import logging
+    import socket
+
+    from davinci_sim.bridge.udp import StreamConfig, UdpStreamer
+
+    h, _ = scene
+    settle(h, arm)
+    before = state_of(h)
+    sink = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    sink.bind(("127.0.0.1", 0))
+    cfg = StreamConfig(arm, sink.getsockname()[1], bind_port=0)
+    caplog.set_level(logging.ERROR, logger="davinci_sim")
+    with UdpStreamer(h, [cfg]) as streamer, sink:
+        sink.sendto(json.dumps(command).encode(), ("127.0.0.1", streamer.local_port(arm)))
+        assert wait_for(lambda: streamer.stats()[arm]["errors"] >= 1, 10)
+    assert words in caplog.text
+    assert_scene_unharmed(h, before)
 
 
 # ---------------------------------------------------------------- authentication
