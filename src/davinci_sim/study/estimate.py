@@ -6,15 +6,18 @@ or many), ``b`` per running trial (mostly its ``mj_step``). A chunk of trials la
 ``T_i`` ticks each then takes about ``a·max(T_i) + b·ΣT_i`` (the chunk runs until its last
 trial ends; ended trials stop costing), and the chunks run side by side, one per worker
 process (:func:`~davinci_sim.study.runner.processes`). :func:`estimate_study` measures
-``a`` and ``b`` on this machine (a few dozen ticks of a one-trial batch and of a batch of
-the largest chunk, ~1 s) and takes each trial's duration from its trainee's plan (the
-strokes' durations plus the visuomotor delay and the reaction time, capped by the timeout),
-which is a little longer than the trial (the task ends within the finish tolerance).
+``a`` and ``b`` on this machine as it is now (the mean tick of a one-trial batch and of a
+batch of the largest chunk, each timed for ≥ 0.15 s; ~1 s in all with the set-up) and
+takes each trial's duration from its trainee's plan (the strokes' durations plus the
+visuomotor delay and the reaction time, capped by the timeout), a little longer than the
+trial (the task ends within the finish tolerance).
 
 The calibration builds the trial set-up in this process (compiling the model, and the
 laws on a cold numba cache): the study's trials reuse it — in this process, and in worker
-processes started by fork — so it is not a cost added to the study. The estimate assumes
-the worker processes each have a free core; on a busy machine the study takes longer.
+processes started by fork — so it is not a cost added to the study. The calibration sees
+how busy the machine is while it runs (a tick waiting for the core is slower), but not the
+load the study's own worker processes add: with fewer free cores than workers the study
+takes longer than estimated.
 """
 
 from __future__ import annotations
@@ -28,8 +31,11 @@ from davinci_sim.study.config import StudyConfig, plan_trials
 from davinci_sim.study.runner import chunks, processes
 from davinci_sim.study.trial import TrialSpec, load_spec_task, setup_trial, trial_inputs
 
-#: Ticks timed for the calibration (after a few not timed).
+#: Ticks timed for the calibration, at least (after a few not timed) ...
 CALIBRATION_TICKS = 30
+#: ... and wall time spent timing each batch, at least, s: long enough to see the share of
+#: the CPU this process gets now (on a busy machine a tick waits for the core).
+CALIBRATION_S = 0.15
 
 
 @dataclass(frozen=True)
@@ -70,30 +76,28 @@ def planned_durations(specs: list[TrialSpec]) -> np.ndarray:
     return np.minimum(t, [s.timeout for s in specs])
 
 
+def _mean_time(tick, ticks: int) -> float:
+    """Mean wall time of ``tick()``, s, over at least ``ticks`` calls and
+    :data:`CALIBRATION_S` (the mean, not the median: waiting for the core is part of it)."""
+    for _ in range(3):
+        tick()
+    n, t0 = 0, time.perf_counter()
+    while n < ticks or time.perf_counter() - t0 < CALIBRATION_S:
+        tick()
+        n += 1
+    return (time.perf_counter() - t0) / n
+
+
 def _tick_cost(specs: list[TrialSpec], ticks: int) -> float:
-    """Wall time of one tick of a batch of ``specs``, s (median of ``ticks`` after 3)."""
+    """Wall time of one tick of a batch of ``specs``, s."""
     from davinci_sim.study.batch import TrialBatch
 
-    batch = TrialBatch(specs)
-    for _ in range(3):
-        batch.tick()
-    times = []
-    for _ in range(ticks):
-        t0 = time.perf_counter()
-        batch.tick()
-        times.append(time.perf_counter() - t0)
-    return float(np.median(times))
+    return _mean_time(TrialBatch(specs).tick, ticks)
 
 
 def _live_tick_cost(specs: list[TrialSpec], ticks: int) -> float:
     """Wall time of one tick of the live trial simulation (without the trainee's hand), s."""
-    sim = setup_trial(load_spec_task(specs[0])).sim
-    times = []
-    for _ in range(ticks):
-        t0 = time.perf_counter()
-        sim.tick()
-        times.append(time.perf_counter() - t0)
-    return float(np.median(times))
+    return _mean_time(setup_trial(load_spec_task(specs[0])).sim.tick, ticks)
 
 
 def estimate_study(
