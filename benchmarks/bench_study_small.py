@@ -9,7 +9,9 @@ Figures (``results/study_small.json``; wall times, s, unless the name says other
   (:func:`~davinci_sim.study.trial.setup_trial`: the model, homing, the reach to point 1,
   the teleoperation starting) and its first batch ticks, with an empty numba cache (every
   law compiled) and with the cache on disk; ``restore_s``: a later set-up in the same process
-  (the saved state restored).
+  (the saved state restored); ``forked_worker_cold_s``: the same first set-up and ticks in
+  a worker process forked after the cold one (what a study's workers pay: nothing is
+  compiled or built again).
 * ``calibration_s``, ``tick_ms`` (``a``), ``trial_tick_us`` (``b``): the estimate's
   calibration for the 16-trial study (:func:`~davinci_sim.study.estimate.estimate_study`).
 * ``cli_<n>_*``: ``davinci-sim study`` with n trials of the seed task in a fresh process:
@@ -52,7 +54,19 @@ for _ in range(20):
 t2 = time.perf_counter()
 TrialBatch(specs)
 t3 = time.perf_counter()
-print(json.dumps({"import": t1 - t0, "setup": t2 - t1, "restore": t3 - t2}))
+def worker(out):  # a worker process as the study starts them (fork: inherits the set-up)
+    t = time.perf_counter()
+    batch = TrialBatch(specs)
+    for _ in range(20):
+        batch.tick()
+    out.put(time.perf_counter() - t)
+import multiprocessing as mp
+q = mp.get_context().Queue()
+p = mp.get_context().Process(target=worker, args=(q,))
+p.start()
+forked = q.get()
+p.join()
+print(json.dumps({"import": t1 - t0, "setup": t2 - t1, "restore": t3 - t2, "forked": forked}))
 """
 
 
@@ -85,6 +99,7 @@ def setup_costs() -> dict:
         "setup_cold_s": cold["setup"],
         "setup_warm_s": warm["setup"],
         "restore_s": warm["restore"],
+        "forked_worker_cold_s": cold["forked"],
     }
 
 

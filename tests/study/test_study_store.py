@@ -66,11 +66,16 @@ def _csv_rows(path):
 
 
 @pytest.fixture(scope="module")
-def uninterrupted(tmp_path_factory, short_task):
-    """The reference: the same study run in one go (its CSV, timing columns dropped)."""
-    result = run_study(_config(short_task), progress=False)
+def reference(tmp_path_factory, short_task):
+    """The same study run in one go: its rows."""
+    return run_study(_config(short_task), progress=False).rows
+
+
+@pytest.fixture(scope="module")
+def uninterrupted(tmp_path_factory, reference):
+    """The reference's CSV rows, timing columns dropped."""
     path = tmp_path_factory.mktemp("reference") / "trials.csv"
-    write_csv(result.rows, path)
+    write_csv(reference, path)
     return _csv_rows(path)
 
 
@@ -195,3 +200,17 @@ def test_no_worker_process_for_a_single_trial(short_task, monkeypatch):
     assert len(result.rows) == 1 and result.rows[0]["finished"]
     assert runner.processes(1, 2) == 1
     assert 1 <= runner.processes(400, 64) <= runner.usable_cores()
+
+
+def test_a_study_stopped_while_writing_its_outputs_resumes_without_trials(
+    tmp_path, short_task, reference, uninterrupted, capsys
+):
+    out = tmp_path / "study"
+    rows = StudyRows.create(out, _config(short_task))
+    for i, row in enumerate(reference):
+        rows.append(i, row)
+    rows.close()
+    assert main(_args(short_task, out, "--resume")) == 0
+    printed = capsys.readouterr().out
+    assert "4 trials kept, 0 to run" in printed and "estimate:" not in printed
+    assert _csv_rows(out / "trials.csv") == uninterrupted
