@@ -94,11 +94,12 @@ def _local(specs: list[TrialSpec], workers: int, engine: str, on_row: RowSink) -
     _pool(specs, parts, engine, on_row)
 
 
-def _worker(k: int, specs: list[TrialSpec], part: list[int], engine: str, out, parent: int):
+def _worker(k: int, specs: list[TrialSpec], part: list[int], engine: str, out) -> None:
     """A worker process: runs one chunk, sending ``("row", i, row)`` as each trial ends
     (i: the position in the list the parent runs), then ``("done", k)`` or
     ``("error", k, text)``. It stops when its parent is gone (checked at each row)."""
     signal.signal(signal.SIGTERM, signal.SIG_DFL)  # (not the parent's handler, if any)
+    parent = os.getppid()  # (a fork server's, or the study's: whichever started it)
 
     def send(j: int, row: dict) -> None:
         if os.getppid() != parent:  # orphaned (the parent was killed): the rows have no reader
@@ -124,7 +125,7 @@ def _pool(specs: list[TrialSpec], parts: list[list[int]], engine: str, on_row: R
     procs = [
         ctx.Process(
             target=_worker,
-            args=(k, [specs[i] for i in part], part, engine, out, os.getpid()),
+            args=(k, [specs[i] for i in part], part, engine, out),
             name=f"davinci-sim-study-{k}",
             daemon=True,
         )
