@@ -124,7 +124,7 @@ def cli_study(name: str, *args: str) -> dict:
             capture_output=True, text=True, env=_env(), check=True,
         )  # fmt: skip
         process = time.perf_counter() - t0
-    estimate = re.search(r"about (\d+) s", run.stdout)
+    estimate = re.search(r"about ([\d.]+) s", run.stdout)
     ran = re.search(r"wall time ([\d.]+) s, simulated time ([\d.]+) s", run.stdout)
     return {
         f"{name}_process_s": process,
