@@ -446,7 +446,9 @@ def _run_study(args: argparse.Namespace, config, store) -> int:
         return 130
     except (ImportError, RuntimeError) as e:
         _drop_if_empty(store)
-        print(f"davinci-sim study: {e}", file=sys.stderr)
+        kept = (f" ({len(store.rows)} of {config.n_trials} trials are kept in {store.path}: "
+                "--resume runs the rest)" if store.rows else "")  # fmt: skip
+        print(f"davinci-sim study: {e}{kept}", file=sys.stderr)
         return 2
     except BaseException:
         _drop_if_empty(store)
