@@ -13,6 +13,7 @@ import bench_realtime  # noqa: E402
 import bench_render  # noqa: E402
 import bench_state  # noqa: E402
 import bench_study  # noqa: E402
+import bench_study_small  # noqa: E402
 import bench_teleop  # noqa: E402
 import bench_tick  # noqa: E402
 import bench_web  # noqa: E402
@@ -25,5 +26,6 @@ if __name__ == "__main__":
     bench_bridge.main()
     bench_teleop.main()
     bench_study.main()  # the 400-trial study, about 2 min
+    bench_study_small.main()  # 1 and 16 trials of the seed task, ~2 min (cold compile incl.)
     bench_realtime.main()  # 60 s of real time (plus warm-up)
     bench_web.main()  # the web console with two pages, 20 s

@@ -375,14 +375,7 @@ def cmd_task_check(args: argparse.Namespace) -> int:
 
 
 def cmd_study(args: argparse.Namespace) -> int:
-    from davinci_sim.study import (
-        TABLE_I,
-        StudyConfig,
-        StudyError,
-        parse_conditions,
-        run_study,
-        write_outputs,
-    )
+    from davinci_sim.study import TABLE_I, StudyConfig, StudyError, parse_conditions
 
     out = Path(args.output)
     if out.exists() and not out.is_dir():  # say so before hours of trials, not after
@@ -416,6 +409,13 @@ def cmd_study(args: argparse.Namespace) -> int:
     except StudyError as e:
         print(f"davinci-sim study: {e}", file=sys.stderr)
         return 2
+    from davinci_sim.study.store import StudyRows
+
+    try:  # where the rows go, before any trial: a new study, or the one to resume
+        store = StudyRows.resume(out, config) if args.resume else StudyRows.create(out, config)
+    except (StudyError, OSError) as e:
+        print(f"davinci-sim study: {e}", file=sys.stderr)
+        return 2
     print(
         f"study: {config.n_trials} trials ({config.n_subjects} subjects x "
         f"{len(config.conditions)} conditions x {config.n_repetitions} repetitions), "
@@ -423,16 +423,71 @@ def cmd_study(args: argparse.Namespace) -> int:
         f"{config.workers} worker(s)",
         flush=True,
     )
+    for note in store.notes:
+        print(f"note: {note}", flush=True)
+    if args.resume:
+        print(f"resuming: {len(store.rows)} trials kept, "
+              f"{config.n_trials - len(store.rows)} to run", flush=True)  # fmt: skip
+    return _run_study(args, config, store)
+
+
+class _Stopped(Exception):
+    """SIGTERM while a study runs (handled as Ctrl-C is: the rows kept so far stay)."""
+
+
+def _run_study(args: argparse.Namespace, config, store) -> int:
+    """Run the trials ``store`` does not hold yet, keeping each row as it ends; then write
+    the outputs. Stopped (Ctrl-C, SIGTERM), it says how to resume."""
+    import signal
+
+    from davinci_sim.study import plan_trials, run_study, write_outputs
+    from davinci_sim.study.estimate import estimate_study
+
+    def stop(signum, frame):
+        raise _Stopped
+
     try:
-        result = run_study(config, progress=not args.no_progress)
-    except ImportError as e:
-        print(f"davinci-sim study: {e}", file=sys.stderr)
+        previous = signal.signal(signal.SIGTERM, stop)
+    except ValueError:  # not the main thread: no handler
+        previous = None
+    try:
+        todo = [s for i, s in enumerate(plan_trials(config)) if i not in store.rows]
+        if todo:
+            print(estimate_study(config, todo).line(), flush=True)
+        result = run_study(
+            config, progress=not args.no_progress, done=dict(store.rows), on_row=store.append
+        )
+    except (KeyboardInterrupt, _Stopped):
+        store.close()
+        print(f"davinci-sim study: stopped; {len(store.rows)} of {config.n_trials} trials are "
+              f"kept in {store.path}: the same command with --resume runs the rest",
+              file=sys.stderr)  # fmt: skip
+        return 130
+    except (ImportError, RuntimeError) as e:
+        _drop_if_empty(store)
+        kept = (f" ({len(store.rows)} of {config.n_trials} trials are kept in {store.path}: "
+                "--resume runs the rest)" if store.rows else "")  # fmt: skip
+        print(f"davinci-sim study: {e}{kept}", file=sys.stderr)
         return 2
+    except BaseException:
+        _drop_if_empty(store)
+        raise
+    finally:
+        if previous is not None:
+            signal.signal(signal.SIGTERM, previous)
     for path in write_outputs(result, args.output):
         print(path)
+    store.finish()
     sim_time = sum(r["sim_time"] for r in result.rows)
     print(f"wall time {result.wall_time:.1f} s, simulated time {sim_time:.1f} s", flush=True)
     return 0
+
+
+def _drop_if_empty(store) -> None:
+    """A study that failed before its first row leaves no rows file (nothing to resume)."""
+    store.close()
+    if not store.rows:
+        store.finish()
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -612,6 +667,12 @@ def main(argv: list[str] | None = None) -> int:
     )
     p.add_argument("--output", "-o", default="study", help="output folder")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
+    p.add_argument(
+        "--resume",
+        action="store_true",
+        help="finish the interrupted study in the output folder (same options): run only "
+        "the trials whose rows it did not keep",
+    )
     p.set_defaults(func=cmd_study)
     args = parser.parse_args(argv)
     return args.func(args)

@@ -10,6 +10,10 @@
   (runner.py).
 * :func:`friedman`, :func:`pairwise_wilcoxon`, :func:`holm`, :func:`subject_means` (stats.py).
 * :func:`write_outputs` — ``trials.csv``, Figs 7-9, ``report.md`` (report.py).
+* :class:`~davinci_sim.study.store.StudyRows` — each trial's row kept on disk as it ends, to
+  resume an interrupted study; :func:`~davinci_sim.study.store.atomic_path` (store.py).
+* :func:`~davinci_sim.study.estimate.estimate_study` — a study's wall time, calibrated here
+  before it starts (estimate.py).
 """
 
 from davinci_sim.study.config import (

@@ -377,48 +377,78 @@ class TrialBatch:
         self._haptics()
         self._task()
 
-    def run(self, on_done: Callable[[int], None] | None = None) -> list[dict]:
+    def run(
+        self,
+        on_done: Callable[[int], None] | None = None,
+        on_row: Callable[[int, dict], None] | None = None,
+    ) -> list[dict]:
         """Tick until every trial has ended; returns the rows in ``specs`` order.
 
         ``on_done(k)`` is called with the number of trials that ended at each tick (for a
-        progress bar). Row timings: ``sim_time`` is the trial's own simulated time (from
-        the handle taken to its end); ``wall_time`` is the batch's wall time (set-up
-        included) shared out in proportion to each trial's ticks.
+        progress bar); ``on_row(i, row)`` with each trial's row as soon as it ends (``i``:
+        its position in ``specs``; the same row object is in the returned list), so that a
+        caller can keep it before the batch ends. Row timings: ``sim_time`` is the trial's
+        own simulated time (from the handle taken to its end); ``wall_time`` is its share
+        of the batch's wall time: the set-up shared equally, each tick's wall time shared
+        among the trials running in it.
         """
-        wall0 = time.perf_counter()
+        n = len(self.specs)
+        rows: list[dict | None] = [None] * n
+        wall = np.full(n, self.setup_wall / n)
         running = self.n
+        clock = time.perf_counter
+        t_tick = clock()
         while running:
+            ran = self.index[self.active]  # the trials this tick runs
             self.tick()
-            now = int(self.active.sum())
-            if on_done is not None and now != running:
-                on_done(running - now)
-            running = now
+            now = clock()
+            wall[ran] += (now - t_tick) / running
+            t_tick = now
+            still = int(self.active.sum())
+            if still != running:
+                if on_done is not None:
+                    on_done(running - still)
+                self._emit(rows, wall, on_row)
+            running = still
             # Halve the arrays whenever half the trials have ended: the per-tick cost of
             # the laws grows with the rows, ended or not.
             if running <= self.n // 2 and self.n >= COMPACT_MIN_ROWS:
                 self._compact()
-        self._retire(np.arange(self.n))
-        wall = time.perf_counter() - wall0 + self.setup_wall
+        self._emit(rows, wall, on_row)
+        return rows  # type: ignore[return-value]
+
+    def _emit(self, rows: list, wall: np.ndarray, on_row) -> None:
+        """Make the rows of the trials that have ended and have no row yet."""
+        ended = np.flatnonzero(~self.active)
+        new = [int(k) for k in ended if rows[self.index[k]] is None]
+        if not new:
+            return
+        self._retire(np.array(new))
         result = SimpleNamespace(**self._results)
-        total = max(int(self._ticks.sum()), 1)
-        rows = []
-        for i, spec in enumerate(self.specs):
-            row = trial_row(spec, self.task, result, i, bool(self._finished[i]))
+        for k in new:
+            i = int(self.index[k])
+            row = trial_row(self.specs[i], self.task, result, i, bool(self._finished[i]))
             row["sim_time"] = float(self._ticks[i]) * self.dt
-            row["wall_time"] = wall * float(self._ticks[i]) / total
-            rows.append(row)
-        return rows
+            row["wall_time"] = float(wall[i])
+            rows[i] = row
+            if on_row is not None:
+                on_row(i, row)
 
     setup_wall = 0.0
     """Wall time of building the batch, s (set by :func:`run_batch`)."""
 
 
-def run_batch(specs: list[TrialSpec], on_done: Callable[[int], None] | None = None) -> list[dict]:
-    """Run ``specs`` (one task and seed) as one :class:`TrialBatch`; rows in ``specs`` order."""
+def run_batch(
+    specs: list[TrialSpec],
+    on_done: Callable[[int], None] | None = None,
+    on_row: Callable[[int, dict], None] | None = None,
+) -> list[dict]:
+    """Run ``specs`` (one task and seed) as one :class:`TrialBatch`; rows in ``specs`` order
+    (``on_done``, ``on_row``: see :meth:`TrialBatch.run`)."""
     wall0 = time.perf_counter()
     batch = TrialBatch(specs)
     batch.setup_wall = time.perf_counter() - wall0
     try:
-        return batch.run(on_done)
+        return batch.run(on_done, on_row)
     finally:
         batch._setup.sim.close()

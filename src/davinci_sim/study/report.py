@@ -16,6 +16,7 @@ import numpy as np
 
 from davinci_sim.study.runner import StudyResult
 from davinci_sim.study.stats import friedman, pairwise_wilcoxon, subject_means
+from davinci_sim.study.store import atomic_path, write_text_atomic
 from davinci_sim.study.trial import METRICS
 from davinci_sim.tasks.task import PathTask
 
@@ -45,7 +46,8 @@ ALPHA = 0.05
 
 
 def write_csv(rows: list[dict], path: Path) -> None:
-    with open(path, "w", newline="") as f:
+    """``rows`` as CSV in ``path``, written whole or not at all (:func:`atomic_path`)."""
+    with atomic_path(path) as tmp, open(tmp, "w", newline="") as f:
         w = csv.DictWriter(f, fieldnames=COLUMNS)
         w.writeheader()
         for r in rows:
@@ -71,6 +73,11 @@ def _by(rows, condition, key="repetition", metric="deviation_error"):
         if r["condition"] == condition and np.isfinite(r[metric]):
             out.setdefault(r[key], []).append(float(r[metric]))
     return out
+
+
+def _savefig(fig, path: Path) -> None:
+    with atomic_path(path) as tmp:  # (whole or not at all)
+        fig.savefig(tmp, dpi=120)
 
 
 def plot_figures(result: StudyResult, folder: Path) -> list[Path]:
@@ -100,7 +107,7 @@ def plot_figures(result: StudyResult, folder: Path) -> list[Path]:
     axes[0][0].set_ylabel("deviation error e (mm)")
     fig.tight_layout()
     paths.append(folder / "fig7_deviation_per_repetition.png")
-    fig.savefig(paths[-1], dpi=120)
+    _savefig(fig, paths[-1])
     plt.close(fig)
     # Fig. 8: distribution of the deviation per condition.
     fig, ax = plt.subplots(figsize=(1.6 * C + 2, 3.5))
@@ -118,7 +125,7 @@ def plot_figures(result: StudyResult, folder: Path) -> list[Path]:
     ax.set_title("all repetitions of all subjects (whiskers 5-95 %)", fontsize=9)
     fig.tight_layout()
     paths.append(folder / "fig8_deviation_distribution.png")
-    fig.savefig(paths[-1], dpi=120)
+    _savefig(fig, paths[-1])
     plt.close(fig)
     # Fig. 9: mean completion time per condition (bars: sd over subjects' means).
     table = subject_means(rows, "completion_time", cfg.n_subjects, C)
@@ -135,7 +142,7 @@ def plot_figures(result: StudyResult, folder: Path) -> list[Path]:
     ax.set_title("mean over subjects (bars: sd of the subjects' means)", fontsize=9)
     fig.tight_layout()
     paths.append(folder / "fig9_completion_time.png")
-    fig.savefig(paths[-1], dpi=120)
+    _savefig(fig, paths[-1])
     plt.close(fig)
     return paths
 
@@ -269,6 +276,14 @@ def write_report(result: StudyResult, path: Path) -> None:
         f"{sim_time / max(result.wall_time, 1e-9):.2f}× real time overall, "
         f"{sim_time / max(trial_wall, 1e-9):.2f}× per worker",
         f"- unfinished trials (timed out): {sum(not r['finished'] for r in rows)}",
+        *(
+            [
+                f"- resumed: {result.resumed} trials were kept from an interrupted run (not run "
+                "again; the wall time above is this run's)"
+            ]
+            if result.resumed
+            else []
+        ),
         "",
         "## Summary",
         "",
@@ -355,11 +370,12 @@ def write_report(result: StudyResult, path: Path) -> None:
         "`fig9_completion_time.png`",
         "",
     ]
-    path.write_text("\n".join(L))
+    write_text_atomic(path, "\n".join(L))
 
 
 def write_outputs(result: StudyResult, folder) -> list[Path]:
-    """Write ``trials.csv``, the three figures and ``report.md`` into ``folder``."""
+    """Write ``trials.csv``, the three figures and ``report.md`` into ``folder``, each whole
+    or not at all (a temporary file in ``folder``, then renamed)."""
     folder = Path(folder)
     folder.mkdir(parents=True, exist_ok=True)
     write_csv(result.rows, folder / "trials.csv")

@@ -7,16 +7,24 @@ trial by trial on the live simulator (engine ``live``,
 :func:`~davinci_sim.study.trial.run_trial`, the slow reference). Every backend and worker
 count gives the same rows, in the plan's order: a trial's result depends only on its
 :class:`~davinci_sim.study.trial.TrialSpec`.
+
+Each trial's row reaches the caller (``run_study``'s ``on_row``) as soon as the trial ends,
+in the parent process, so that it can be kept before the study ends
+(:mod:`davinci_sim.study.store`); trials whose rows were kept by an interrupted run are not
+run again (``done``). The local backend starts a worker process per chunk only when there
+is more than one chunk, and never more processes than trials or usable cores (a batch pays
+a fixed cost per tick, once per process: more processes than cores only add to it).
 """
 
 from __future__ import annotations
 
+import multiprocessing
+import os
 import queue
-import threading
+import signal
 import time
-from collections.abc import Callable
-from concurrent.futures import ProcessPoolExecutor
-from multiprocessing import Manager
+import traceback
+from collections.abc import Callable, Mapping
 from typing import NamedTuple
 
 from tqdm import tqdm
@@ -24,28 +32,38 @@ from tqdm import tqdm
 from davinci_sim.study.config import StudyConfig, plan_trials
 from davinci_sim.study.trial import TrialSpec, run_trial
 
+#: A sink of finished rows: ``on_row(k, row)``, k the trial's position in the list run.
+RowSink = Callable[[int, dict], None]
+
 
 class StudyResult(NamedTuple):
     config: StudyConfig
     rows: list[dict]
     """One row per trial, in the plan's order (subject, condition block, repetition)."""
     wall_time: float
-    """Wall time of running the trials, s."""
+    """Wall time of running the trials, s (of this run only, when resumed)."""
+    resumed: int = 0
+    """Trials whose rows an earlier, interrupted run kept (not run again)."""
 
 
-def run_chunk(specs: list[TrialSpec], engine: str, progress=None) -> list[dict]:
+def run_chunk(
+    specs: list[TrialSpec], engine: str, progress=None, on_row: RowSink | None = None
+) -> list[dict]:
     """Run ``specs`` with ``engine``; ``progress`` (a queue or None) gets the number of
-    trials that end, as they end."""
+    trials that end, as they end; ``on_row(k, row)`` gets the row of ``specs[k]`` as soon
+    as that trial ends."""
     report = (lambda k: None) if progress is None else progress.put
     if engine == "live":
         rows = []
-        for spec in specs:
+        for k, spec in enumerate(specs):
             rows.append(run_trial(spec))
             report(1)
+            if on_row is not None:
+                on_row(k, rows[-1])
         return rows
     from davinci_sim.study.batch import run_batch
 
-    return run_batch(specs, on_done=report)
+    return run_batch(specs, on_done=report, on_row=on_row)
 
 
 def chunks(n: int, workers: int) -> list[list[int]]:
@@ -53,56 +71,99 @@ def chunks(n: int, workers: int) -> list[list[int]]:
     return [list(range(i, n, workers)) for i in range(min(workers, n))]
 
 
-def _gather(specs, parts, results, bar) -> list[dict]:
-    rows: list[dict | None] = [None] * len(specs)
-    for part, part_rows in zip(parts, results, strict=True):
-        for i, row in zip(part, part_rows, strict=True):
-            rows[i] = row
-    bar.n = len(specs)
-    bar.refresh()
-    return rows  # type: ignore[return-value]
+def usable_cores() -> int:
+    """CPU cores this process may run on."""
+    try:
+        return max(1, len(os.sched_getaffinity(0)))
+    except AttributeError:  # not on Linux
+        return max(1, os.cpu_count() or 1)
 
 
-def _drain(progress, bar, stop: threading.Event) -> None:
-    while not stop.is_set():
-        try:
-            bar.update(progress.get(timeout=0.2))
-        except queue.Empty:
-            continue
-        except (EOFError, OSError):
-            return
+def processes(n_trials: int, workers: int) -> int:
+    """Worker processes the local backend uses for ``n_trials`` trials with ``workers``
+    asked for: at most one per trial and per usable core; 1 means no process is started
+    (the trials run in the calling process)."""
+    return max(1, min(workers, n_trials, usable_cores()))
 
 
-def _local(specs: list[TrialSpec], workers: int, engine: str, bar) -> list[dict]:
-    parts = chunks(len(specs), workers)
+def _local(specs: list[TrialSpec], workers: int, engine: str, on_row: RowSink) -> None:
+    parts = chunks(len(specs), processes(len(specs), workers))
     if len(parts) == 1:
-        q: queue.SimpleQueue = queue.SimpleQueue()
-        stop = threading.Event()
-        drain = threading.Thread(target=_drain, args=(q, bar, stop), daemon=True)
-        drain.start()
-        try:
-            results = [run_chunk(specs, engine, q)]
-        finally:  # (the drain stops before the total is set: no update after it)
-            stop.set()
-            drain.join()
-        return _gather(specs, parts, results, bar)
-    with Manager() as manager, ProcessPoolExecutor(max_workers=len(parts)) as pool:
-        progress = manager.Queue()
-        stop = threading.Event()
-        drain = threading.Thread(target=_drain, args=(progress, bar, stop), daemon=True)
-        drain.start()
-        try:
-            futures = [
-                pool.submit(run_chunk, [specs[i] for i in part], engine, progress) for part in parts
-            ]
-            results = [f.result() for f in futures]
-        finally:
-            stop.set()
-            drain.join()
-    return _gather(specs, parts, results, bar)
+        run_chunk(specs, engine, on_row=on_row)
+        return
+    _pool(specs, parts, engine, on_row)
 
 
-def _ray(specs: list[TrialSpec], workers: int, engine: str, bar) -> list[dict]:
+def _worker(k: int, specs: list[TrialSpec], part: list[int], engine: str, out) -> None:
+    """A worker process: runs one chunk, sending ``("row", i, row)`` as each trial ends
+    (i: the position in the list the parent runs), then ``("done", k)`` or
+    ``("error", k, text)``. It stops when its parent is gone (checked at each row)."""
+    signal.signal(signal.SIGTERM, signal.SIG_DFL)  # (not the parent's handler, if any)
+    parent = os.getppid()  # (a fork server's, or the study's: whichever started it)
+
+    def send(j: int, row: dict) -> None:
+        if os.getppid() != parent:  # orphaned (the parent was killed): the rows have no reader
+            raise SystemExit(1)
+        out.put(("row", part[j], row))
+
+    try:
+        run_chunk(specs, engine, on_row=send)
+    except KeyboardInterrupt:  # Ctrl-C reaches the whole process group: the parent reports
+        return
+    except Exception as e:
+        out.put(("error", k, f"{type(e).__name__}: {e}\n{traceback.format_exc()}"))
+        return
+    out.put(("done", k))
+
+
+def _pool(specs: list[TrialSpec], parts: list[list[int]], engine: str, on_row: RowSink) -> None:
+    """One worker process per chunk (forked where possible: they inherit what the parent
+    has built, e.g. the compiled laws and the trial set-up); rows reach ``on_row`` in this
+    process as trials end. An exception here (Ctrl-C) stops the workers."""
+    ctx = multiprocessing.get_context()
+    out = ctx.Queue()
+    procs = [
+        ctx.Process(
+            target=_worker,
+            args=(k, [specs[i] for i in part], part, engine, out),
+            name=f"davinci-sim-study-{k}",
+            daemon=True,
+        )
+        for k, part in enumerate(parts)
+    ]
+    try:
+        for p in procs:
+            p.start()
+        pending = set(range(len(procs)))
+        while pending:
+            try:
+                msg = out.get(timeout=0.5)
+            except queue.Empty:
+                gone = [k for k in sorted(pending) if procs[k].exitcode is not None]
+                if gone:
+                    k = gone[0]
+                    raise RuntimeError(
+                        f"study worker {k} stopped (exit code {procs[k].exitcode}) "
+                        "before its trials ended"
+                    ) from None
+                continue
+            if msg[0] == "row":
+                on_row(msg[1], msg[2])
+            elif msg[0] == "done":
+                pending.discard(msg[1])
+            else:
+                raise RuntimeError(f"study worker {msg[1]} failed: {msg[2]}")
+    finally:
+        for p in procs:
+            if p.is_alive():
+                p.terminate()
+        for p in procs:
+            p.join()
+        out.close()
+        out.cancel_join_thread()
+
+
+def _ray(specs: list[TrialSpec], workers: int, engine: str, on_row: RowSink) -> None:
     try:
         import ray
     except ImportError as e:
@@ -114,21 +175,19 @@ def _ray(specs: list[TrialSpec], workers: int, engine: str, bar) -> list[dict]:
         parts = chunks(len(specs), workers)
         remote = ray.remote(run_chunk)
         refs = [remote.remote([specs[i] for i in part], engine) for part in parts]
-        results: list = [None] * len(refs)
         pending = list(refs)
-        while pending:
+        while pending:  # (a chunk's rows arrive when the chunk ends)
             done, pending = ray.wait(pending, num_returns=1)
             for ref in done:
-                k = refs.index(ref)
-                results[k] = ray.get(ref)
-                bar.update(len(parts[k]))
-        return _gather(specs, parts, results, bar)
+                part = parts[refs.index(ref)]
+                for i, row in zip(part, ray.get(ref), strict=True):
+                    on_row(i, row)
     finally:
         if started:
             ray.shutdown()
 
 
-BACKENDS: dict[str, Callable[[list[TrialSpec], int, str, tqdm], list[dict]]] = {
+BACKENDS: dict[str, Callable[[list[TrialSpec], int, str, RowSink], None]] = {
     "local": _local,
     "ray": _ray,
 }
@@ -136,32 +195,58 @@ BACKENDS: dict[str, Callable[[list[TrialSpec], int, str, tqdm], list[dict]]] = {
 
 class _Progress:
     """A progress sink for a caller's callback ``report(done, total)`` (a web page's bar),
-    with what the backends use of a tqdm bar (``update``, ``n``, ``refresh``)."""
+    with what :func:`run_study` uses of a tqdm bar (``update``)."""
 
-    def __init__(self, report: Callable[[int, int], None], total: int) -> None:
-        self.report, self.total, self.n = report, total, 0
+    def __init__(self, report: Callable[[int, int], None], total: int, done: int = 0) -> None:
+        self.report, self.total, self.n = report, total, done
 
     def update(self, k: int) -> None:
         self.n += k
-        self.refresh()
-
-    def refresh(self) -> None:
         self.report(self.n, self.total)
+
+    def close(self) -> None:
+        pass
 
 
 def run_study(
-    config: StudyConfig, *, progress: bool | Callable[[int, int], None] = True
+    config: StudyConfig,
+    *,
+    progress: bool | Callable[[int, int], None] = True,
+    done: Mapping[int, dict] | None = None,
+    on_row: Callable[[int, dict], None] | None = None,
 ) -> StudyResult:
     """Run every trial of ``config`` (see :func:`~davinci_sim.study.config.plan_trials`).
 
     ``progress``: a progress bar on the terminal (True), none (False), or a callback called
-    with (trials done, trials in all) as trials finish."""
+    with (trials done, trials in all) as trials finish. ``done``: rows already finished,
+    by plan index (kept by an interrupted run, :class:`~davinci_sim.study.store.StudyRows`):
+    those trials are not run again. ``on_row(index, row)``: called in this process with each
+    trial's row (plan index) as soon as the trial ends, e.g. to keep it on disk."""
     specs = plan_trials(config)
+    rows: list[dict | None] = [None] * len(specs)
+    for i, row in (done or {}).items():
+        if not 0 <= i < len(specs):
+            raise ValueError(f"a finished row's plan index {i} is not in 0..{len(specs) - 1}")
+        rows[i] = row
+    todo = [i for i, row in enumerate(rows) if row is None]
+    kept = len(specs) - len(todo)
     t0 = time.perf_counter()
     if callable(progress):
-        rows = BACKENDS[config.backend](specs, config.workers, config.engine,
-                                        _Progress(progress, len(specs)))  # fmt: skip
-        return StudyResult(config, rows, time.perf_counter() - t0)
-    with tqdm(total=len(specs), desc="trials", unit="trial", disable=not progress) as bar:
-        rows = BACKENDS[config.backend](specs, config.workers, config.engine, bar)
-    return StudyResult(config, rows, time.perf_counter() - t0)
+        bar = _Progress(progress, len(specs), kept)
+    else:
+        bar = tqdm(total=len(specs), initial=kept, desc="trials", unit="trial",
+                   disable=not progress)  # fmt: skip
+
+    def got(k: int, row: dict) -> None:
+        i = todo[k]
+        rows[i] = row
+        if on_row is not None:
+            on_row(i, row)
+        bar.update(1)
+
+    try:
+        if todo:
+            BACKENDS[config.backend]([specs[i] for i in todo], config.workers, config.engine, got)
+    finally:
+        bar.close()
+    return StudyResult(config, rows, time.perf_counter() - t0, kept)  # type: ignore[arg-type]
