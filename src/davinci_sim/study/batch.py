@@ -33,7 +33,8 @@ runs n trials as arrays instead:
 What the batch does not do: anything the study's trials never reach on the live path
 (clutch, a refused or faulted arm recovering, alignment, locks). It holds the camera and
 setup-joint frames as they are at the start (the ECM does not move in a trial); the live
-simulation re-reads them when those joints drift by 1e-6 rad (µm at the tool tip). A PSM
+simulation follows every change of those joints exactly (the setup joints yield ~1e-5 rad/s
+under the arms' reaction forces: µm at the tool tip over a trial). A PSM
 ``servo_cp`` whose IK fails keeps the previous setpoint, as the arm does; a PSM tracking
 fault (the arm would go to FAULT and the teleoperation stop) ends that trial, unfinished.
 ``tests/study`` checks that a batch reproduces :func:`~davinci_sim.study.trial.run_trial`
