@@ -113,7 +113,7 @@ class Simulation:
             if _has_joint(self.model, f"{name}/{kin.chain.joint_names[0]}"):
                 self.arms[name] = _ARM_CLASSES[kin.arm_type](name, kin, self)
         for name, suj in self._suj.items():
-            if _has_joint(self.model, f"SUJ/{name}/J0"):
+            if _has_joint(self.model, f"SUJ/{name}/{suj.chain.joint_names[0]}"):
                 self.arms[f"SUJ/{name}"] = SUJArm(f"SUJ/{name}", suj, self)
         self._init_frames()
         # Fingers (PSM jaws, MTM grippers) hold their initial opening.
