@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import copy
 import dataclasses
+import logging
 from collections.abc import Callable, Mapping
 from types import MappingProxyType
 
@@ -28,6 +29,7 @@ from davinci_sim.model import build_spec, resolve_scene
 from davinci_sim.sim.arm import Arm
 from davinci_sim.sim.arms import ECM, MTM, PSM, SUJArm
 from davinci_sim.sim.component import Component, check_component
+from davinci_sim.sim.divergence import DivergenceGuard, Owner, arms_with_bad, involved_arms
 from davinci_sim.sim.sensors import INSTRUMENT_BODIES, CameraRenderer, body_ids, contact_force
 from davinci_sim.sim.servo import JointServo
 from davinci_sim.sim.state import (
@@ -38,6 +40,8 @@ from davinci_sim.sim.state import (
     describe_scene,
     model_signature,
 )
+
+_log = logging.getLogger(__name__)
 
 ARM_NAMES = ("PSM1", "PSM2", "PSM3", "ECM", "MTML", "MTMR")
 #: Base frames, the camera frame and the SUJ RCMs are memoized on the exact joint values
@@ -125,6 +129,8 @@ class Simulation:
         }
         self._cameras: CameraRenderer | None = None
         self._components: dict[str, Component] = {}
+        self._guard = DivergenceGuard(self.model, self.data)
+        self._owners = self._arm_owners()
         self.keyframe = keyframe
         """The keyframe the simulation was built at (what :meth:`reset` returns to)."""
         # reset(): the simulation as built (physics, arms, servo), the components' states at
@@ -149,7 +155,11 @@ class Simulation:
         for arm in self.arms.values():
             arm._pre_step(t)
         self.servo.apply(self.data)
+        self._guard.save(self.data)
         mujoco.mj_step(self.model, self.data)
+        tripped = self._guard.tripped()
+        if tripped:
+            self._recover(tripped)
         self.tick_count += 1
         if self.encoder_noise_std > 0:
             self._noisy_qpos = self.data.qpos + self.rng.normal(
@@ -160,6 +170,49 @@ class Simulation:
             post_step = getattr(component, "post_step", None)
             if post_step is not None:
                 post_step(t)
+
+    def _recover(self, tripped: dict[str, int]) -> None:
+        """Undo a step MuJoCo found unstable: the physics back to before it (the clock
+        advances), the arms involved stopped and in FAULT with the reason, the rest ticking
+        on (:mod:`davinci_sim.sim.divergence`)."""
+        owners, data = self._owners, self.data
+        bad_ctrl = arms_with_bad(data, owners, ("ctrl",))
+        bad_after = arms_with_bad(data, owners, ("qpos", "qvel", "qacc"))
+        self._guard.rewind(data)
+        bad_before = arms_with_bad(data, owners, ("qpos", "qvel"))
+        arms = involved_arms(owners, tripped, bad_ctrl, bad_before, bad_after)
+        what = ", ".join(tripped)
+        stop = [owners[a].dofs for a in arms]
+        self._guard.settle(data, np.concatenate(stop) if stop else np.zeros(0, int))
+        where = ", ".join(arms) if arms else "no arm"
+        _log.warning(
+            "t = %.3f s: the physics diverged (MuJoCo: bad %s; involved: %s); restored to "
+            "the previous tick",
+            self.data.time, what, where,
+        )  # fmt: skip
+        for name in arms:
+            self.arms[name]._fault(
+                f"the simulation diverged (MuJoCo: bad {what} values on this arm's joints); "
+                "the physics was restored to the previous tick and the joints stopped"
+            )
+
+    def _arm_owners(self) -> dict[str, Owner]:
+        """Each arm's dofs and actuators (with its jaw or gripper) and its carrier."""
+        owners = {}
+        for name, arm in self.arms.items():
+            parts = [arm] + [getattr(arm, p) for p in ("jaw", "gripper") if hasattr(arm, p)]
+            carrier = f"SUJ/{name}" if f"SUJ/{name}" in self.arms else None
+            owners[name] = Owner(
+                np.concatenate([p._dofadr for p in parts]),
+                np.concatenate([p._idx for p in parts]),
+                carrier,
+            )
+        return owners
+
+    @property
+    def recoveries(self) -> int:
+        """How many diverged physics steps were undone (see :meth:`_recover`)."""
+        return self._guard.recoveries
 
     def step(self, n: int = 1) -> None:
         """``n`` ticks."""
@@ -394,6 +447,7 @@ class Simulation:
 
     def _restore(self, state: SimState) -> None:
         mujoco.mj_copyData(self.data, self.model, state.data)
+        self._guard.sync()  # the copied warning counts are the baseline
         self.tick_count = state.tick_count
         self.rng.bit_generator.state = copy.deepcopy(state.rng)
         self._noisy_qpos = None if state.noisy_qpos is None else state.noisy_qpos.copy()
@@ -436,6 +490,7 @@ class Simulation:
         self.set_state(dataclasses.replace(self._built, components=tuple(components)))
         if key >= 0:
             mujoco.mj_resetDataKeyframe(self.model, self.data, key)
+            self._guard.sync()
             mujoco.mj_forward(self.model, self.data)
             self.servo.q_ref[:] = self.data.qpos[self.servo.qposadr]
             self.servo.qd_ref[:] = 0.0
