@@ -17,10 +17,13 @@ ticks on: the other arms never see the unstable step.
 
 from __future__ import annotations
 
+import logging
 from dataclasses import dataclass
 
 import mujoco
 import numpy as np
+
+_log = logging.getLogger(__name__)
 
 #: MuJoCo's bound for a "huge" value in its stability checks (``mjMAXVAL``).
 MAX_VALUE = 1e10
@@ -42,6 +45,20 @@ class Owner:
     dofs: np.ndarray
     actuators: np.ndarray
     carrier: str | None = None
+
+
+def arm_owners(arms: dict) -> dict[str, Owner]:
+    """Each arm's dofs and actuators (with its jaw or gripper) and its carrier, for ``arms``
+    (name -> :class:`~davinci_sim.sim.arm.Arm`)."""
+    owners = {}
+    for name, arm in arms.items():
+        parts = [arm] + [getattr(arm, p) for p in ("jaw", "gripper") if hasattr(arm, p)]
+        owners[name] = Owner(
+            np.concatenate([p._dofadr for p in parts]),
+            np.concatenate([p._idx for p in parts]),
+            f"SUJ/{name}" if f"SUJ/{name}" in arms else None,
+        )
+    return owners
 
 
 def _bad(x: np.ndarray) -> bool:
@@ -164,3 +181,28 @@ class DivergenceGuard:
         mujoco.mj_forward(self._model, data)
         self.recoveries += 1
         self.sync()
+
+    def recover(
+        self, data: mujoco.MjData, owners: dict[str, Owner], tripped: dict[str, int]
+    ) -> tuple[tuple[str, ...], str]:
+        """Undo the step that raised ``tripped`` (:meth:`tripped`): rewind, find the arms
+        involved (:func:`involved_arms`), stop their joints and settle. Returns those arms
+        and the reason to give them."""
+        bad_ctrl = arms_with_bad(data, owners, ("ctrl",))
+        bad_after = arms_with_bad(data, owners, ("qpos", "qvel", "qacc"))
+        self.rewind(data)
+        bad_before = arms_with_bad(data, owners, ("qpos", "qvel"))
+        arms = involved_arms(owners, tripped, bad_ctrl, bad_before, bad_after)
+        stop = [owners[a].dofs for a in arms]
+        self.settle(data, np.concatenate(stop) if stop else np.zeros(0, dtype=int))
+        what = ", ".join(tripped)
+        _log.warning(
+            "t = %.3f s: the physics diverged (MuJoCo: bad %s; involved: %s); restored to "
+            "the previous tick",
+            data.time, what, ", ".join(arms) or "no arm",
+        )  # fmt: skip
+        reason = (
+            f"the simulation diverged (MuJoCo: bad {what} values on this arm's joints); "
+            "the physics was restored to the previous tick and the joints stopped"
+        )
+        return arms, reason

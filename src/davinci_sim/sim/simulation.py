@@ -15,7 +15,6 @@ from __future__ import annotations
 
 import copy
 import dataclasses
-import logging
 from collections.abc import Callable, Mapping
 from types import MappingProxyType
 
@@ -29,7 +28,7 @@ from davinci_sim.model import build_spec, resolve_scene
 from davinci_sim.sim.arm import Arm
 from davinci_sim.sim.arms import ECM, MTM, PSM, SUJArm
 from davinci_sim.sim.component import Component, check_component
-from davinci_sim.sim.divergence import DivergenceGuard, Owner, arms_with_bad, involved_arms
+from davinci_sim.sim.divergence import DivergenceGuard, arm_owners
 from davinci_sim.sim.sensors import INSTRUMENT_BODIES, CameraRenderer, body_ids, contact_force
 from davinci_sim.sim.servo import JointServo
 from davinci_sim.sim.state import (
@@ -41,16 +40,12 @@ from davinci_sim.sim.state import (
     model_signature,
 )
 
-_log = logging.getLogger(__name__)
-
 ARM_NAMES = ("PSM1", "PSM2", "PSM3", "ECM", "MTML", "MTMR")
-#: Base frames, the camera frame and the SUJ RCMs are memoized on the exact joint values
-#: they depend on (setup joints, ECM) and recomputed as soon as any of them changes at all:
-#: the setup joints yield a little (~1e-5 rad/s) under the arms' reaction forces, and a
-#: frame held within a tolerance of 1e-6 put ``measured_cp`` up to 3 µm off the model. A
-#: tolerance > 0 (rad or m) holds a frame while its joints stay that close to where it was
-#: computed: only for comparisons with the study's batch engine, which holds the frames
-#: (``tests/study``); 0, the default, is exact.
+#: The base frames and the camera frame are memoized on the exact values of the setup and
+#: ECM joints and recomputed when any of them changes at all: the setup joints yield a little
+#: under the arms' reaction forces, and a frame held within 1e-6 put ``measured_cp`` µm off
+#: the model. A tolerance > 0 (rad or m) holds the frames while the joints stay that close:
+#: only to compare with the study's batch engine, which holds them; 0, the default, is exact.
 BASE_FRAME_TOLERANCE = 0.0
 _ARM_CLASSES = {"PSM": PSM, "ECM": ECM, "MTM": MTM}
 
@@ -130,7 +125,7 @@ class Simulation:
         self._cameras: CameraRenderer | None = None
         self._components: dict[str, Component] = {}
         self._guard = DivergenceGuard(self.model, self.data)
-        self._owners = self._arm_owners()
+        self._owners = arm_owners(self.arms)
         self.keyframe = keyframe
         """The keyframe the simulation was built at (what :meth:`reset` returns to)."""
         # reset(): the simulation as built (physics, arms, servo), the components' states at
@@ -175,39 +170,9 @@ class Simulation:
         """Undo a step MuJoCo found unstable: the physics back to before it (the clock
         advances), the arms involved stopped and in FAULT with the reason, the rest ticking
         on (:mod:`davinci_sim.sim.divergence`)."""
-        owners, data = self._owners, self.data
-        bad_ctrl = arms_with_bad(data, owners, ("ctrl",))
-        bad_after = arms_with_bad(data, owners, ("qpos", "qvel", "qacc"))
-        self._guard.rewind(data)
-        bad_before = arms_with_bad(data, owners, ("qpos", "qvel"))
-        arms = involved_arms(owners, tripped, bad_ctrl, bad_before, bad_after)
-        what = ", ".join(tripped)
-        stop = [owners[a].dofs for a in arms]
-        self._guard.settle(data, np.concatenate(stop) if stop else np.zeros(0, int))
-        where = ", ".join(arms) if arms else "no arm"
-        _log.warning(
-            "t = %.3f s: the physics diverged (MuJoCo: bad %s; involved: %s); restored to "
-            "the previous tick",
-            self.data.time, what, where,
-        )  # fmt: skip
+        arms, reason = self._guard.recover(self.data, self._owners, tripped)
         for name in arms:
-            self.arms[name]._fault(
-                f"the simulation diverged (MuJoCo: bad {what} values on this arm's joints); "
-                "the physics was restored to the previous tick and the joints stopped"
-            )
-
-    def _arm_owners(self) -> dict[str, Owner]:
-        """Each arm's dofs and actuators (with its jaw or gripper) and its carrier."""
-        owners = {}
-        for name, arm in self.arms.items():
-            parts = [arm] + [getattr(arm, p) for p in ("jaw", "gripper") if hasattr(arm, p)]
-            carrier = f"SUJ/{name}" if f"SUJ/{name}" in self.arms else None
-            owners[name] = Owner(
-                np.concatenate([p._dofadr for p in parts]),
-                np.concatenate([p._idx for p in parts]),
-                carrier,
-            )
-        return owners
+            self.arms[name]._fault(reason)
 
     @property
     def recoveries(self) -> int:
@@ -248,20 +213,16 @@ class Simulation:
             self._frame_adr = np.concatenate([*parts, self.arms["ECM"]._qposadr])
 
     def _frames(self) -> dict:
-        """The base frames (by arm) and ``camera`` from the joints as they are now,
-        recomputed when a setup or ECM joint has changed at all (see
-        :data:`BASE_FRAME_TOLERANCE`); one compiled call (:func:`frames_into`) computes them
-        all. Teleoperation and haptics ask for these frames many times per tick: the same
-        joints give the same objects."""
+        """The base frames (by arm) and ``camera`` at the joints as they are now: one
+        compiled call (:func:`frames_into`) when a setup or ECM joint changed at all (see
+        :data:`BASE_FRAME_TOLERANCE`), else the same objects (asked many times per tick)."""
         q = self.measured_qpos()[self._frame_adr]
         key = q.tobytes()
-        entry = self._base_frames.get("frames")
-        if entry is not None:
-            if entry[0] == key:
-                return entry[1]
-            tol = BASE_FRAME_TOLERANCE
-            if tol > 0 and np.abs(q - np.frombuffer(entry[0])).max() <= tol:
-                return entry[1]
+        entry, tol = self._base_frames.get("frames"), BASE_FRAME_TOLERANCE
+        if entry is not None and (
+            entry[0] == key or (tol > 0 and np.abs(q - np.frombuffer(entry[0])).max() <= tol)
+        ):
+            return entry[1]
         plan = self._frame_plan
         k = len(plan.arms)
         out = frames_into(plan, q[: -plan.dof], q[-plan.dof :])
