@@ -97,6 +97,7 @@ class Arm(ServoJoints):
         self._body_cf_absolute = False
         self._T_user_base: tuple[np.ndarray, str] | None = None
         self._tol = np.array([TRACKING_FAULT_TOLERANCE[j.joint_type] for j in self.chain.joints])
+        self._feedforward_bound = (FEEDFORWARD_FACTOR * kin.v_max).tolist()
         self._tracking_bad_since = math.nan
         """When a joint went out of tracking tolerance, s (nan: none is)."""
         self._trajectory_ratio = 1.0
@@ -375,7 +376,7 @@ class Arm(ServoJoints):
     def _feedforward_over(self, qd: np.ndarray, what: str) -> str:
         """Message if a joint velocity feed-forward is over FEEDFORWARD_FACTOR x the dVRK's
         trajectory limit of its joint (dvrk.md 1.9), else ``""``."""
-        return check_bound(qd, FEEDFORWARD_FACTOR * self.kin.v_max, self.chain.joint_names,
+        return check_bound(qd, self._feedforward_bound, self.chain.joint_names,
                            what, f"(rad/s or m/s; {FEEDFORWARD_FACTOR:g} x the dVRK trajectory "
                            "limit)")  # fmt: skip
         return ACCEPTED

@@ -132,13 +132,16 @@ class DivergenceGuard:
         self._model = model
         self._state = np.empty(mujoco.mj_stateSize(model, _STATE))
         self._warnings = data.warning
+        # The four counters, kept: live views of data's memory (a lookup each tick costs
+        # four times more).
+        self._stats = tuple(data.warning[i] for i in WARNINGS)
         self._seen = self._counts()
         self.recoveries = 0
         """How many diverged steps were undone."""
 
     def _counts(self) -> tuple[int, ...]:
-        w = self._warnings
-        return tuple(w[i].number for i in WARNINGS)
+        a, b, c, d = self._stats  # every tick: no generator
+        return (a.number, b.number, c.number, d.number)
 
     def save(self, data: mujoco.MjData) -> None:
         """Keep ``data``'s integration state (call right before ``mj_step``)."""
