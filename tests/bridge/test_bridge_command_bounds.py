@@ -67,3 +67,32 @@ def test_a_twist_too_fast_for_the_joints_is_refused(handle, make_server, make_ra
         "pose_is_valid": {"data": True}, "pose": _pose(T),
         "twist_is_valid": {"data": True}, "twist": twist}})  # fmt: skip
     assert "twist as joint velocity" in raw.status()["msg"]
+
+
+def test_udp_commands_with_huge_numbers_are_refused(handle):
+    """The UDP stream's commands reach the same checks; a number no float holds is a bad
+    datagram, not an exception in the stream (issue 11, 4)."""
+    import json
+    import socket
+
+    from davinci_sim.bridge.udp import StreamConfig, UdpStreamer
+
+    enable_and_home(handle, "PSM1")
+    before = handle.snapshot().arms["PSM1"].setpoint_js.position.copy()
+    sink = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    sink.bind(("127.0.0.1", 0))
+    cfg = StreamConfig("PSM1", sink.getsockname()[1], bind_port=0)
+    with UdpStreamer(handle, [cfg]) as streamer:
+        sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+        dest = ("127.0.0.1", streamer.local_port("PSM1"))
+        sock.sendto(b'{"servo_jp": {"Goal": [1' + b"0" * 400 + b", 0, 0.1, 0, 0, 0]}}", dest)
+        T = handle.snapshot().arms["PSM1"].setpoint_cp.T
+        far = {"Rotation": T[:3, :3].tolist(), "Translation": [1e300, 0, 0]}
+        sock.sendto(json.dumps({"move_cp": {"Goal": far}}).encode(), dest)
+        assert wait_for(lambda: streamer.stats()["PSM1"]["errors"] >= 2, 5)
+        sock.sendto(json.dumps({"servo_jp": {"Goal": before.tolist()}}).encode(), dest)
+        time.sleep(0.1)
+        assert np.array_equal(handle.snapshot().arms["PSM1"].setpoint_js.position, before)
+        assert handle.snapshot().arms["PSM1"].operating_state.state == "ENABLED"
+        sock.close()
+    sink.close()

@@ -175,6 +175,9 @@ class TrialBatch:
             if mass not in by_mass:
                 by_mass[mass] = copy.copy(sim.model)
                 by_mass[mass].body_mass[device.hand_body] = mass
+                # MuJoCo's auto-reset back on (the live simulation turns it off to undo a
+                # diverged step itself): a diverged trial resets, faults and ends unfinished.
+                by_mass[mass].opt.disableflags &= ~int(mujoco.mjtDisableBit.mjDSBL_AUTORESET)
         self.models = [by_mass[m] for m in self.params.mass.tolist()]
         self.K = self.params.stiffness
         self.D = self.params.damping
