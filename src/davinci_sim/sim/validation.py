@@ -7,6 +7,7 @@ command on its error channel without raising.
 from __future__ import annotations
 
 import math
+import operator
 
 import numpy as np
 
@@ -116,6 +117,8 @@ def check_bound(values, bound, names, what: str, unit: str) -> str:
     if isinstance(bound, np.ndarray):
         bound = bound.tolist()
     b = [float(bound)] * len(v) if isinstance(bound, int | float) else bound
+    if len(v) == len(b) and all(map(operator.le, map(abs, v), b)):  # the common case
+        return ""
     for i, (x, limit) in enumerate(zip(v, b, strict=True)):
         if not abs(x) <= limit:
             return f"{what}[{i}] ({names[i]}) = {x:.4g} is over {limit:.4g} {unit}"
