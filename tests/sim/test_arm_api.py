@@ -282,6 +282,9 @@ def test_suj_arms_report_the_rcm_in_the_cart(psm_sim):
         (lambda a: a.insert_jp("deep"), "depth must be a number"),
         (lambda a: a.insert_jp(float("inf")), "depth is inf"),
         (lambda a: a.servo_jp([0.0] * 5 + ["x"] * 10**5), "characters)"),
+        (lambda a: a.servo_jp([10**400] * 6), "must be a sequence of 6 numbers"),
+        (lambda a: a.jaw.servo_jp(10**400), "too large for a float"),
+        (lambda a: a.trajectory_j_set_ratio(True), "ratio must be a number"),
     ],
 )  # fmt: skip
 def test_huge_finite_values_are_refused_with_the_field_named(psm_sim, command, words):

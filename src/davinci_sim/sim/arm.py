@@ -47,6 +47,7 @@ from davinci_sim.sim.validation import (
     ABSURD_FACTOR,
     MAX_JOINT_VALUE,
     as_bool,
+    as_number,
     as_transform,
     as_twist,
     as_vector,
@@ -462,10 +463,9 @@ class Arm(ServoJoints):
 
     def trajectory_j_set_ratio(self, ratio: float) -> CommandResult:
         """Scale the ``move_*`` velocity and acceleration limits, ratio in ]0, 1] (dvrk.md 1.9)."""
-        try:
-            r = float(ratio)
-        except (TypeError, ValueError):
-            return self._refuse("trajectory_j/set_ratio", f"ratio must be a number, got {ratio!r}")
+        r, msg = as_number(ratio, "ratio")  # not a bool, not a 400-digit integer
+        if r is None:
+            return self._refuse("trajectory_j/set_ratio", msg)
         if not (MIN_TRAJECTORY_RATIO <= r <= 1.0):
             return self._refuse(
                 "trajectory_j/set_ratio",

@@ -93,7 +93,10 @@ class Jaw(ServoJoints):
         ):
             # A plain number (the teleoperation's jaw, the fingers on a gripper, at 1 kHz):
             # checked as a float, without building arrays.
-            v, msg = (value, "") if math.isfinite(value) else (None, f"angle is {value!r}")
+            try:
+                v, msg = (value, "") if math.isfinite(value) else (None, f"angle is {value!r}")
+            except OverflowError:  # an integer no float holds
+                v, msg = None, "angle is too large for a float"
         else:
             v, msg = as_vector(np.atleast_1d(value) if np.ndim(value) == 0 else value, 1, "angle")
         if v is None:

@@ -16,7 +16,7 @@ def as_vector(value, n: int, what: str) -> tuple[np.ndarray | None, str]:
     """``value`` as a float vector of length ``n``, or ``(None, message)``."""
     try:
         v = np.asarray(value, dtype=float)
-    except (TypeError, ValueError):
+    except (TypeError, ValueError, OverflowError):  # OverflowError: a 400-digit integer
         return None, f"{what} must be a sequence of {n} numbers, got {short_repr(value)}"
     if v.ndim != 1 or v.shape[0] != n:
         return None, f"{what} must have {n} values, got shape {v.shape}"
@@ -53,7 +53,7 @@ def as_transform(value, what: str) -> tuple[np.ndarray | None, str]:
     """``value`` as a proper 4x4 homogeneous transform (orthonormal rotation), or a message."""
     try:
         T = np.asarray(value, dtype=float)
-    except (TypeError, ValueError):
+    except (TypeError, ValueError, OverflowError):
         return None, f"{what} must be a 4x4 transform, got {short_repr(value)}"
     if T.shape != (4, 4):
         return None, f"{what} must be a 4x4 transform, got shape {T.shape}"
@@ -167,7 +167,7 @@ def as_number(value, what: str) -> tuple[float | None, str]:
         return None, f"{what} must be a number, got {value!r}"
     try:
         x = float(value)
-    except (TypeError, ValueError):
+    except (TypeError, ValueError, OverflowError):
         return None, f"{what} must be a number, got {short_repr(value)}"
     if not math.isfinite(x):
         return None, f"{what} is {x!r}"
