@@ -279,3 +279,29 @@ def test_node_options_are_checked(handle):
         DvrkNode(handle, rate=5000)
     with pytest.raises(ValueError, match="tf_rate"):
         DvrkNode(handle, tf_rate=0)
+
+
+def test_setup_joints_carry_the_dvrk_names(handle, make_server, make_ros):
+    """/SUJ/<arm>/measured_js names SUJ_<arm>_J0…J5 (dvrk.md 1.6, section 6); a servo_jp
+    naming them moves the joint, one with other names is refused."""
+    server = make_server(handle)
+    ros = make_ros(server)
+    got = {arm: subscribe(ros, f"/SUJ/{arm}/measured_js", "sensor_msgs/JointState")
+           for arm in ("ECM", "PSM1")}  # fmt: skip
+    assert wait_for(lambda: all(got.values()), 10)
+    for arm, msgs in got.items():
+        assert msgs[-1]["name"] == [f"SUJ_{arm}_J{i}" for i in range(6)]
+    q = list(msgs[-1]["position"])
+    names = [f"SUJ_PSM1_J{i}" for i in range(6)]
+    goal = [q[0] + 0.01, *q[1:]]
+    errors = subscribe(ros, "/SUJ/PSM1/error", "std_msgs/String")
+    publish(ros, "/SUJ/PSM1/servo_jp", "sensor_msgs/JointState",
+            {"name": [f"J{i}" for i in range(6)], "position": goal})  # fmt: skip
+    assert wait_for(lambda: errors, 5)
+    assert "SUJ_PSM1_J0" in errors[-1]["data"]
+    publish(ros, "/SUJ/PSM1/servo_jp", "sensor_msgs/JointState",
+            {"name": names[::-1], "position": goal[::-1]})  # fmt: skip
+    assert wait_for(
+        lambda: abs(handle.snapshot().arms["SUJ/PSM1"].setpoint_js.position[0] - goal[0]) < 1e-12,
+        5,
+    )

@@ -125,9 +125,16 @@ def test_scale_for_all_teleoperations_and_refusals():
     assert console.set_scale(0.5)
     assert all(t.scale() == 0.5 for t in console.teleops().values())
     assert scales == [("scale", 0.5)] and console.snapshot().scale == 0.5
-    for bad in (0, -1, 2.0, "x", float("nan")):
+    for bad in (0, -1, 2.0, "x", float("nan"), 1e300, 10**400):
         assert not console.set_scale(bad)
     assert all(t.scale() == 0.5 for t in console.teleops().values())
+    # The ECM teleoperation's scale has the same bounds (it took 1e300, issue 11, 4).
+    ecm = console.ecm_teleop
+    assert ecm.set_scale(0.2) and ecm.scale() == 0.2
+    for bad in (0, -1, 1.5, 1e300, float("inf"), "x"):
+        result = ecm.set_scale(bad)
+        assert not result and "]0, 1]" in result.message
+    assert ecm.scale() == 0.2
 
 
 def test_event_forms_and_unknown_buttons():

@@ -87,6 +87,9 @@ def test_bad_pushes_are_refused_and_change_nothing():
         {"T_hrsv_tip": np.full((4, 4), np.nan)},
         {"gripper": float("nan")},
         {"twist": [0.0] * 5},
+        {"twist": [1e300, 0, 0, 0, 0, 0]},  # finite but absurd (issue 11, 4)
+        {"twist": [0, 0, 0, 0, 0, 1e3]},
+        {"gripper": 1e300},
         {"buttons": {"clutch": "maybe"}},
         {"buttons": [1]},
     ):

@@ -169,3 +169,23 @@ def test_an_external_program_teleoperates_psm1_through_udp(client):
         np.testing.assert_allclose(psm.setpoint_cp().position - p0, [0.002, 0, 0], atol=2e-5)
     finally:
         device.close()
+
+
+def test_huge_numbers_are_refused_not_raised(device, client):
+    """A 400-digit integer (no float holds it) and a finite but absurd twist (issue 11, 4):
+    reported, nothing taken, the device goes on."""
+    client.sendto(ss.datagram(measured_cp=ss.encode_pose(pose([0, 0, 0.3]))), device.address)
+    drain(device, 0.0)
+    before = device.input()
+    errors = []
+    device.channels.subscribe(
+        lambda ev, p: errors.append(p.text) if ev == "error" and "watchdog" not in p.text else None
+    )
+    huge = b'{"measured_cv": {"Velocity": [1' + b"0" * 400 + b", 0, 0, 0, 0, 0]}}"
+    client.sendto(huge, device.address)
+    drain(device, 1.0)
+    client.sendto(ss.datagram(measured_cv=ss.encode_twist([1e300, 0, 0, 0, 0, 0])), device.address)
+    drain(device, 2.5)
+    assert device.input() is before
+    assert any("finite numbers" in e and len(e) < 600 for e in errors), errors
+    assert any("twist[0] (vx) = 1e+300 is over 10" in e for e in errors), errors

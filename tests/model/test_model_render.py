@@ -81,5 +81,5 @@ def test_overview_shows_cart_table_and_console(renderer_factory):
     r.update_scene(d, camera="overview")
     seg = r.render()
     shown = {m.body(m.geom_bodyid[g]).name for g in np.unique(seg[..., 0]) if g >= 0}
-    for body in ("cart", "table", "console", "PSM1/pitch", "ECM/pitch", "SUJ/PSM1/J2"):
+    for body in ("cart", "table", "console", "PSM1/pitch", "ECM/pitch", "SUJ/PSM1/SUJ_PSM1_J2"):
         assert body in shown

@@ -26,7 +26,7 @@ def _joint_names(arm: str) -> list[str]:
     if kin.gripper is not None:
         names += [f"{arm}/gripper_1", f"{arm}/gripper_2"]
     if arm in load_suj():
-        names += [f"SUJ/{arm}/J{i}" for i in range(6)]
+        names += [f"SUJ/{arm}/SUJ_{arm}_J{i}" for i in range(6)]
     return names
 
 

@@ -257,17 +257,66 @@ def test_suj_arms_report_the_rcm_in_the_cart(psm_sim):
         (lambda a: a.trajectory_j_set_ratio(1e-320), "ratio must be in [0.001, 1]"),
         (lambda a: a.move_cp(_far(a.setpoint_cp().T)), "beyond 10 m"),
         (lambda a: a.servo_cp(_far(a.setpoint_cp().T)), "beyond 10 m"),
+        # The sweep of every value of every command (issue 11, 4): efforts, wrenches,
+        # twists, switches, names, kinematics queries, the jaw.
+        (lambda a: a.servo_jf([1e300, 0, 0, 0, 0, 0]), "effort[0] (yaw) = 1e+300 is over 33.16"),
+        (lambda a: a.servo_jf([0, 0, -1e3, 0, 0, 0]), "effort[2] (insertion)"),
+        (lambda a: a.servo_jf([0, 0, 0, 0, 0, float("nan")]), "NaN or inf"),
+        (lambda a: a.body.servo_cf([1e300, 0, 0, 0, 0, 0]), "wrench[0] (fx) = 1e+300 is over 100"),
+        (lambda a: a.spatial.servo_cf([0, 0, 0, 0, 0, -50]), "wrench[5] (tz) = -50 is over 10"),
+        (lambda a: a.servo_cp(a.setpoint_cp().T, twist=[1e300, 0, 0, 0, 0, 0]),
+         "twist[0] (vx) = 1e+300 is over 10"),
+        (lambda a: a.servo_cp(a.setpoint_cp().T, twist=[0, 0, 0, 0, 0, 1e3]), "twist[5] (wz)"),
+        (lambda a: a.servo_cp(a.setpoint_cp().T, twist=[9, 0, 0, 0, 0, 0]),
+         "twist as joint velocity"),
+        (lambda a: a.jaw.servo_jf(1e300), "effort[0] (jaw) = 1e+300 is over 1.6"),
+        (lambda a: a.jaw.servo_jp(1e300), "outside its limits"),
+        (lambda a: a.use_gravity_compensation("false"), "enabled must be true or false"),
+        (lambda a: a.body_set_cf_orientation_absolute(2), "absolute must be true or false"),
+        (lambda a: a.set_base_frame(np.eye(4), 5), "reference_frame must be a name"),
+        (lambda a: a.set_base_frame(np.eye(4), "x" * 10**6), "(1000002 characters)"),
+        (lambda a: a.forward_kinematics([1e300])[1], "within ±1000"),
+        (lambda a: a.local.forward_kinematics([0, 1e300])[1], "within ±1000"),
+        (lambda a: a.inverse_kinematics([1e300, 0, 0.1, 0, 0, 0], a.setpoint_cp().T)[1],
+         "reference joints[0] (yaw) = 1e+300 is over 1000"),
+        (lambda a: a.insert_jp("deep"), "depth must be a number"),
+        (lambda a: a.insert_jp(float("inf")), "depth is inf"),
+        (lambda a: a.servo_jp([0.0] * 5 + ["x"] * 10**5), "characters)"),
+        (lambda a: a.servo_jp([10**400] * 6), "must be a sequence of 6 numbers"),
+        (lambda a: a.jaw.servo_jp(10**400), "too large for a float"),
+        (lambda a: a.trajectory_j_set_ratio(True), "ratio must be a number"),
     ],
 )  # fmt: skip
 def test_huge_finite_values_are_refused_with_the_field_named(psm_sim, command, words):
-    """Finite but huge values (issue 11, 4) used to crash the physics or leak raw errors."""
+    """Finite but huge values (issue 11, 4) used to crash the physics or leak raw errors;
+    a refusal names the field, echoes at most a few hundred characters of the value and
+    changes nothing (setpoints, servo references, modes, the arm's state)."""
     psm = psm_sim.arms["PSM1"]
     before = psm.setpoint_jp()
+    servo = psm_sim.servo.get_state()
+    arm_state = psm.get_state()
     result = command(psm)
     assert not result and words in result.message
+    assert len(result.message) < 600
+    for name, value in psm_sim.servo.get_state().items():
+        np.testing.assert_array_equal(value, servo[name], err_msg=name)
+    assert psm.get_state().keys() == arm_state.keys()
+    assert psm.user_base_frame() is None and psm.wrench_setpoint() is None
     psm_sim.run_for(0.1)
     assert np.array_equal(before, psm.setpoint_jp())
     assert psm.operating_state().state == "ENABLED"
+    assert psm_sim.recoveries == 0
+
+
+def test_values_within_the_bounds_are_accepted_and_clamped(psm_sim):
+    """Between the dVRK's limit and the absurd bound, efforts are clamped to ftmax (as the
+    dVRK's controller does); bools and names of the right kind are taken."""
+    psm = psm_sim.arms["PSM1"]
+    assert psm.servo_jf([5 * 3.316101, 0, 0, 0, 0, 0])
+    assert psm_sim.servo.tau_ff[psm.actuator_indices[0]] == pytest.approx(3.316101)
+    assert psm.use_gravity_compensation(1) and psm.use_gravity_compensation(False)
+    assert psm.body_set_cf_orientation_absolute(np.bool_(True))
+    assert psm.set_base_frame(np.eye(4), "table")
 
 
 def _far(T):

@@ -23,8 +23,8 @@ def _specs(task: str, timeout: float = 60.0) -> list[TrialSpec]:
 
 
 def test_batch_is_the_live_simulation_to_machine_precision(short_task, monkeypatch):
-    """With the base frames held (the live simulation re-reads them when the ECM and setup
-    joints drift by 1e-6; the batch holds them, see study.batch), every joint of every trial
+    """With the base frames held (the live simulation follows every change of the ECM and
+    setup joints; the batch holds them, see study.batch), every joint of every trial
     follows the live simulation's to ~1e-12 over a whole second of assisted following."""
     monkeypatch.setattr(simulation, "BASE_FRAME_TOLERANCE", np.inf)
     # Set-ups built here start under the patched tolerance: keep them out of later tests.

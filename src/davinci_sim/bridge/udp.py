@@ -154,7 +154,10 @@ def _numbers(value: Any, what: str, n: int | None = None) -> list[float]:
         raise StreamError(f"{what} must be a list of numbers, got {value!r}"[:200])
     if n is not None and len(value) != n:
         raise StreamError(f"{what} must have {n} values, got {len(value)}")
-    return [float(v) for v in value]
+    try:
+        return [float(v) for v in value]
+    except OverflowError:  # an integer of hundreds of digits
+        raise StreamError(f"{what}: a number is too large for a float") from None
 
 
 def _goal(payload: Any, key: str = "Goal") -> Any:

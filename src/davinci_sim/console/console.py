@@ -32,6 +32,7 @@ from davinci_sim.devices.buttons import ButtonEvent, parse_button_event
 from davinci_sim.sim.channels import Channels
 from davinci_sim.sim.state import capture, restore
 from davinci_sim.sim.types import ACCEPTED, CommandResult
+from davinci_sim.sim.validation import short_repr
 
 if TYPE_CHECKING:
     from davinci_sim.console.haptic_loop import HapticLoop
@@ -139,7 +140,9 @@ class Console:
         """``/console/teleop/set_scale``: the scale of every teleoperation."""
         s = as_scale(scale)
         if not (0.0 < s <= 1.0):
-            return self._refuse("teleop/set_scale", f"scale must be in ]0, 1], got {scale!r}")
+            return self._refuse(
+                "teleop/set_scale", f"scale must be in ]0, 1], got {short_repr(scale)}"
+            )
         for t in self.teleops().values():
             t.set_scale(s)
         self._scale = s

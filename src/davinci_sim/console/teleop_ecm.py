@@ -11,7 +11,6 @@ teleoperations with the camera pedal (dvrk.md 2.3), so the PSMs hold meanwhile.
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
@@ -28,6 +27,7 @@ from davinci_sim.sim.arms import ECM
 from davinci_sim.sim.channels import Channels
 from davinci_sim.sim.state import capture, restore
 from davinci_sim.sim.types import ACCEPTED, CommandResult
+from davinci_sim.sim.validation import short_repr
 
 if TYPE_CHECKING:
     from davinci_sim.sim.simulation import Simulation
@@ -94,8 +94,9 @@ class TeleopECM(TeleopBase):
 
     def set_scale(self, scale: float) -> CommandResult:
         s = tm.as_scale(scale)
-        if not (math.isfinite(s) and s > 0):
-            return self._refuse("set_scale", f"scale must be > 0, got {scale!r}")
+        # ]0, 1] as the PSM teleoperations' (dvrk.md 4.1: > 0, schema maximum 1.0).
+        if not (0.0 < s <= 1.0):
+            return self._refuse("set_scale", f"scale must be in ]0, 1], got {short_repr(scale)}")
         self._scale = s
         self.channels.emit("scale", s)
         if self._current == ENABLED and self._following:

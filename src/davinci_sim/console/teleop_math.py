@@ -22,7 +22,7 @@ def as_scale(value) -> float:
     """A scale command's value as a float (nan when it is not a number: the caller refuses)."""
     try:
         return float(value)
-    except (TypeError, ValueError):
+    except (TypeError, ValueError, OverflowError):  # OverflowError: a 400-digit integer
         return math.nan
 
 

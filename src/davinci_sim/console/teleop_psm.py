@@ -42,6 +42,7 @@ from davinci_sim.sim.arms import PSM
 from davinci_sim.sim.channels import Channels
 from davinci_sim.sim.state import capture, restore
 from davinci_sim.sim.types import ACCEPTED, CommandResult
+from davinci_sim.sim.validation import short_repr
 
 if TYPE_CHECKING:
     from davinci_sim.sim.simulation import Simulation
@@ -191,7 +192,7 @@ class TeleopPSM(TeleopBase):
         """Translation scale in ]0, 1] (dvrk.md 4.1); re-anchors without a jump."""
         s = tm.as_scale(scale)
         if not (0.0 < s <= 1.0):
-            return self._refuse("set_scale", f"scale must be in ]0, 1], got {scale!r}")
+            return self._refuse("set_scale", f"scale must be in ]0, 1], got {short_repr(scale)}")
         self._scale = s
         self.channels.emit("scale", s)
         self._reanchor()

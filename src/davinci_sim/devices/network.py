@@ -23,7 +23,11 @@ from davinci_sim.devices.safety import WrenchLimits
 from davinci_sim.devices.state import DeviceInput
 from davinci_sim.geometry import so3
 from davinci_sim.sim.types import ACCEPTED, CommandResult
-from davinci_sim.sim.validation import as_transform, as_vector
+from davinci_sim.sim.validation import as_transform, as_twist, as_vector
+
+#: A remote gripper opening beyond one turn is an error (the MTM's gripper spans 0 to 60°,
+#: dvrk.md 1.5).
+MAX_GRIPPER_RAD = 2 * np.pi
 
 
 class NetworkDevice(MasterDevice):
@@ -91,13 +95,17 @@ class NetworkDevice(MasterDevice):
             if T is None:
                 return self._refuse_push(msg)
         if twist is not None:
-            tw, msg = as_vector(twist, 6, "twist")
+            tw, msg = as_twist(twist, "twist")
             if tw is None:
                 return self._refuse_push(msg)
         if gripper is not None:
             g, msg = as_vector([gripper] if np.ndim(gripper) == 0 else gripper, 1, "gripper")
             if g is None:
                 return self._refuse_push(msg)
+            if not abs(g[0]) <= MAX_GRIPPER_RAD:
+                return self._refuse_push(
+                    f"gripper = {g[0]:.4g} rad is beyond ±{MAX_GRIPPER_RAD:.4g} rad (one turn)"
+                )
             gripper = float(g[0])
         events = []
         if buttons is not None:

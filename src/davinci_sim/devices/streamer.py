@@ -29,7 +29,7 @@ from collections.abc import Mapping
 import numpy as np
 
 from davinci_sim.devices.buttons import ButtonEvent, parse_button_event
-from davinci_sim.sim.validation import as_transform
+from davinci_sim.sim.validation import as_transform, short_repr
 
 #: Datagram names the UDP device understands as a master's state (dvrk.md 5, streamerMTML).
 POSE = "measured_cp"
@@ -70,10 +70,12 @@ def is_valid(payload: Mapping) -> bool:
 def _numbers(value, n: int, what: str) -> np.ndarray:
     try:
         arr = np.asarray(value, dtype=float)
-    except (TypeError, ValueError):
-        raise StreamerFormatError(f"{what} must be {n} numbers, got {value!r}") from None
+    except (TypeError, ValueError, OverflowError):  # OverflowError: an integer of 400 digits
+        raise StreamerFormatError(
+            f"{what} must be {n} finite numbers, got {short_repr(value)}"
+        ) from None
     if arr.shape != (n,) or not np.all(np.isfinite(arr)):
-        raise StreamerFormatError(f"{what} must be {n} finite numbers, got {value!r}")
+        raise StreamerFormatError(f"{what} must be {n} finite numbers, got {short_repr(value)}")
     return arr
 
 

@@ -128,6 +128,12 @@ class SUJArmKinematics:
     """Joint values J0…J5 of the simulated SUJ (m, rad)."""
 
 
+def suj_joint_names(arm: str) -> list[str]:
+    """The dVRK's names of the setup joints carrying ``arm`` (``ECM``, ``PSM1``…):
+    ``SUJ_<arm>_J0`` … ``SUJ_<arm>_J5`` (dvrk.md 1.6, section 6)."""
+    return [f"SUJ_{arm}_J{i}" for i in range(6)]
+
+
 @cache
 def load_suj() -> dict[str, SUJArmKinematics]:
     """The four SUJ arms of the simulated Classic patient cart, keyed by carried arm."""
@@ -137,6 +143,12 @@ def load_suj() -> dict[str, SUJArmKinematics]:
         chain = chain_from_json(
             {"convention": data["convention"], "joints": a["links"]}, f"SUJ/{name}"
         )
+        # The dVRK names the setup joints SUJ_<arm>_J0…J5 on every interface (6 per arm,
+        # the ECM's too: MUX_ARRAY_SIZE; dvrk.md 1.6 and section 6): measured_js, topics,
+        # and here the model's joints (``SUJ/<arm>/SUJ_<arm>_J0``).
+        expected = tuple(suj_joint_names(name))
+        if chain.joint_names != expected:
+            raise ValueError(f"{SUJ_FILE}: SUJ/{name} joints {chain.joint_names} != {expected}")
         out[name] = SUJArmKinematics(
             name=name,
             plug_number=int(a["plug_number"]),

@@ -1,7 +1,7 @@
 """Build the MuJoCo model of a scene: :func:`build_spec` and :func:`build_model`.
 
 The world frame is the dVRK cart frame (z up, origin on the floor at the cart). Tree:
-``cart`` → ``SUJ/<ARM>/base`` → ``SUJ/<ARM>/J0…J5`` → ``<ARM>/base`` (RCM) → arm joints;
+``cart`` → ``SUJ/<ARM>/base`` → ``SUJ/<ARM>/SUJ_<ARM>_J0…J5`` → ``<ARM>/base`` (RCM) → arm joints;
 ``console`` → ``console/HRSV`` → ``MTM<L|R>/base`` → arm joints; ``table``; ``object/bead``.
 
 Keyframes:

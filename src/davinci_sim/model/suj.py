@@ -1,7 +1,8 @@
 """The patient cart and its setup-joint (SUJ) arms (dvrk.md 1.6).
 
 The cart frame is the world frame. Each SUJ arm is a 6-joint modified-DH chain (J0 the
-vertical lift along the column) named ``SUJ/<ARM>/J0`` … ``J5`` below a base body
+vertical lift along the column) whose joints have the dVRK's names, ``SUJ/<ARM>/SUJ_<ARM>_J0``
+… ``SUJ_<ARM>_J5`` (dvrk.md 1.6), below a base body
 ``SUJ/<ARM>/base`` placed at ``T_cart_sujbase`` (``world_origin_to_SUJ``). The visual links
 follow the DH geometry: the lift carriage, the vertical posts (d) and the two horizontal
 arms (a = 0.4318 m), the tilt joints and the mounting bracket of the carried arm.

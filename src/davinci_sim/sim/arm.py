@@ -43,7 +43,19 @@ from davinci_sim.sim.types import (
     JointState,
     OperatingState,
 )
-from davinci_sim.sim.validation import as_transform, as_vector, check_limits
+from davinci_sim.sim.validation import (
+    ABSURD_FACTOR,
+    MAX_JOINT_VALUE,
+    as_bool,
+    as_number,
+    as_transform,
+    as_twist,
+    as_vector,
+    as_wrench,
+    check_bound,
+    check_limits,
+    short_repr,
+)
 
 if TYPE_CHECKING:
     from davinci_sim.sim.simulation import Simulation
@@ -86,6 +98,7 @@ class Arm(ServoJoints):
         self._body_cf_absolute = False
         self._T_user_base: tuple[np.ndarray, str] | None = None
         self._tol = np.array([TRACKING_FAULT_TOLERANCE[j.joint_type] for j in self.chain.joints])
+        self._feedforward_bound = (FEEDFORWARD_FACTOR * kin.v_max).tolist()
         self._tracking_bad_since = math.nan
         """When a joint went out of tracking tolerance, s (nan: none is)."""
         self._trajectory_ratio = 1.0
@@ -297,15 +310,17 @@ class Arm(ServoJoints):
         if fault:
             i = int(np.flatnonzero(bad)[0])
             err = np.abs(q - q_ref)
-            self.channels.message(
-                "error",
+            self._fault(
                 f"tracking error on joint {self.chain.joint_names[i]!r}: {err[i]:.4g} exceeds "
-                f"{self._tol[i]:.4g}; arm in FAULT",
-                t,
+                f"{self._tol[i]:.4g}"
             )
-            self._hold_here()
-            self._state = ops.FAULT
-            self._publish_state()
+
+    def _fault(self, reason: str) -> None:
+        """Go to FAULT holding where the joints are, saying ``reason`` on ``error``."""
+        self.channels.message("error", f"{reason}; arm in FAULT", self._now())
+        self._hold_here()
+        self._state = ops.FAULT
+        self._publish_state()
 
     # ------------------------------------------------------------ joint space
     def measured_js(self) -> JointState:
@@ -354,16 +369,17 @@ class Arm(ServoJoints):
             # A feed-forward far beyond anything the arm can do would swing it into a
             # tracking fault, or (1e300) make the physics diverge: bounded per joint at
             # FEEDFORWARD_FACTOR times the dVRK's trajectory velocity limit (dvrk.md 1.9).
-            bound = FEEDFORWARD_FACTOR * self.kin.v_max
-            over = np.flatnonzero(np.abs(qd) > bound)
-            if over.size:
-                i = int(over[0])
-                return self._refuse(
-                    "servo_jp",
-                    f"velocity[{i}] ({self.chain.joint_names[i]}) = {qd[i]:.4g} is over "
-                    f"{bound[i]:.4g} ({FEEDFORWARD_FACTOR:g} x the dVRK trajectory limit)",
-                )
+            msg = self._feedforward_over(qd, "velocity")
+            if msg:
+                return self._refuse("servo_jp", msg)
         self._servo_position(goal, qd)
+
+    def _feedforward_over(self, qd: np.ndarray, what: str) -> str:
+        """Message if a joint velocity feed-forward is over FEEDFORWARD_FACTOR x the dVRK's
+        trajectory limit of its joint (dvrk.md 1.9), else ``""``."""
+        return check_bound(qd, self._feedforward_bound, self.chain.joint_names,
+                           what, f"(rad/s or m/s; {FEEDFORWARD_FACTOR:g} x the dVRK trajectory "
+                           "limit)")  # fmt: skip
         return ACCEPTED
 
     def servo_jr(self, increment) -> CommandResult:
@@ -390,6 +406,12 @@ class Arm(ServoJoints):
             return self._refuse("servo_jf", why)
         e, msg = as_vector(effort, self.dof, "effort")
         if e is None:
+            return self._refuse("servo_jf", msg)
+        # Up to ABSURD_FACTOR x a joint's ftmax: clamped to ftmax as the dVRK's controller
+        # does (dvrk.md 1.1); beyond: an error, refused.
+        msg = check_bound(e, ABSURD_FACTOR * self.chain.ftmax, self.chain.joint_names,
+                          "effort", f"(N·m or N; {ABSURD_FACTOR:g} x ftmax)")  # fmt: skip
+        if msg:
             return self._refuse("servo_jf", msg)
         self._set_effort(np.clip(e, -self.chain.ftmax, self.chain.ftmax))
         return ACCEPTED
@@ -433,15 +455,17 @@ class Arm(ServoJoints):
         return ACCEPTED
 
     def use_gravity_compensation(self, enabled: bool) -> CommandResult:
-        self._sim.servo.gravity_compensation[self._idx] = bool(enabled)
+        on, msg = as_bool(enabled, "enabled")
+        if on is None:
+            return self._refuse("use_gravity_compensation", msg)
+        self._sim.servo.gravity_compensation[self._idx] = on
         return ACCEPTED
 
     def trajectory_j_set_ratio(self, ratio: float) -> CommandResult:
         """Scale the ``move_*`` velocity and acceleration limits, ratio in ]0, 1] (dvrk.md 1.9)."""
-        try:
-            r = float(ratio)
-        except (TypeError, ValueError):
-            return self._refuse("trajectory_j/set_ratio", f"ratio must be a number, got {ratio!r}")
+        r, msg = as_number(ratio, "ratio")  # not a bool, not a 400-digit integer
+        if r is None:
+            return self._refuse("trajectory_j/set_ratio", msg)
         if not (MIN_TRAJECTORY_RATIO <= r <= 1.0):
             return self._refuse(
                 "trajectory_j/set_ratio",
@@ -477,6 +501,12 @@ class Arm(ServoJoints):
         T, msg = as_transform(T_reference_base, "base frame")
         if T is None:
             return self._refuse("set_base_frame", msg)
+        if not isinstance(reference_frame, str) or len(reference_frame) > 256:
+            return self._refuse(
+                "set_base_frame",
+                f"reference_frame must be a name (a string of up to 256 characters), got "
+                f"{short_repr(reference_frame)}",
+            )
         self._T_user_base = (T, reference_frame or f"{self.name}_reference")
         return ACCEPTED
 
@@ -526,12 +556,17 @@ class Arm(ServoJoints):
             return self._refuse("servo_cp", msg)
         qd = np.zeros(self.dof)
         if twist is not None:
-            tw, msg = as_vector(twist, 6, "twist")
+            tw, msg = as_twist(twist, "twist")
             if tw is None:
                 return self._refuse("servo_cp", msg)
             local = rotate_pairs(self.base_frame()[0][:3, :3].T, tw)
             # The Jacobian at the measured joints (cached this tick), as a servo loop does.
             qd = laws.joint_velocity(self._measured_kinematics(jacobian=True)[2], local)
+            # Near a singularity a modest twist needs huge joint rates: the same bound as
+            # servo_jp's velocity (FEEDFORWARD_FACTOR x the dVRK trajectory limit).
+            msg = self._feedforward_over(qd, "twist as joint velocity")
+            if msg:
+                return self._refuse("servo_cp", msg)
         self._servo_position(q, qd)
         return ACCEPTED
 
@@ -545,10 +580,12 @@ class Arm(ServoJoints):
 
     def forward_kinematics(self, jp) -> tuple[CartesianPose | None, CommandResult]:
         """Pose of the frame after ``len(jp)`` joints, with the base frame (dvrk.md 2.2)."""
-        q = np.asarray(jp, dtype=float) if np.ndim(jp) == 1 else None
-        if q is None or not (1 <= q.shape[0] <= self.dof) or not np.isfinite(q).all():
+        q = _joint_query(jp, self.dof)
+        if q is None:
             return None, self._refuse(
-                "forward_kinematics", f"needs 1..{self.dof} finite joint values, got {jp!r}"
+                "forward_kinematics",
+                f"needs 1..{self.dof} finite joint values within ±{MAX_JOINT_VALUE:g}, "
+                f"got {short_repr(jp)}",
             )
         chain = self.chain.truncated(q.shape[0], with_tool=True)
         T_ref_base, ref = self.base_frame()
@@ -558,6 +595,10 @@ class Arm(ServoJoints):
     def inverse_kinematics(self, jp, T_goal) -> tuple[np.ndarray | None, CommandResult]:
         """Joints reaching ``T_goal`` (base frame's reference) seeded with ``jp``."""
         seed, msg = as_vector(jp, self.dof, "reference joints")
+        if seed is not None:
+            msg = check_bound(seed, MAX_JOINT_VALUE, self.chain.joint_names,
+                              "reference joints", "(rad or m)")  # fmt: skip
+            seed = None if msg else seed
         T, msg2 = as_transform(T_goal, "goal")
         if seed is None or T is None:
             return None, self._refuse("inverse_kinematics", msg or msg2)
@@ -595,7 +636,7 @@ class Arm(ServoJoints):
         why = self._not_ready()
         if why:
             return self._refuse(f"{kind}/servo_cf", why)
-        w, msg = as_vector(wrench, 6, "wrench")
+        w, msg = as_wrench(wrench, "wrench")
         if w is None:
             return self._refuse(f"{kind}/servo_cf", msg)
         if self._wrench is None or self._wrench[0] != kind:  # entering this wrench mode
@@ -624,7 +665,10 @@ class Arm(ServoJoints):
 
     def body_set_cf_orientation_absolute(self, absolute: bool) -> CommandResult:
         """Express ``body`` wrenches in the base frame's orientation instead of the tip's."""
-        self._body_cf_absolute = bool(absolute)
+        on, msg = as_bool(absolute, "absolute")
+        if on is None:
+            return self._refuse("body/set_cf_orientation_absolute", msg)
+        self._body_cf_absolute = on
         return ACCEPTED
 
     # -------------------------------------------------------------- state
@@ -663,6 +707,17 @@ class Arm(ServoJoints):
         return self._T_user_base
 
 
+def _joint_query(jp, dof: int) -> np.ndarray | None:
+    """``jp`` as 1..``dof`` finite joint values within ±MAX_JOINT_VALUE, or None."""
+    try:
+        q = np.asarray(jp, dtype=float) if np.ndim(jp) == 1 else None
+    except (TypeError, ValueError):
+        return None
+    if q is None or not (1 <= q.shape[0] <= dof) or not (np.abs(q) <= MAX_JOINT_VALUE).all():
+        return None
+    return q
+
+
 class _LocalView:
     """``arm.local.*``: the same quantities without the base frame (dvrk.md 2.2)."""
 
@@ -687,10 +742,12 @@ class _LocalView:
 
     def forward_kinematics(self, jp) -> tuple[CartesianPose | None, CommandResult]:
         arm = self._arm
-        q = np.asarray(jp, dtype=float) if np.ndim(jp) == 1 else None
-        if q is None or not (1 <= q.shape[0] <= arm.dof) or not np.isfinite(q).all():
+        q = _joint_query(jp, arm.dof)
+        if q is None:
             return None, arm._refuse(
-                "local/forward_kinematics", f"needs 1..{arm.dof} finite joint values, got {jp!r}"
+                "local/forward_kinematics",
+                f"needs 1..{arm.dof} finite joint values within ±{MAX_JOINT_VALUE:g}, "
+                f"got {short_repr(jp)}",
             )
         T = fk.forward_kinematics(arm.chain.truncated(q.shape[0], with_tool=True), q)
         return CartesianPose(T, f"{arm.name}_base", arm.name, arm._now()), ACCEPTED

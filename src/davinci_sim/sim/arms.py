@@ -15,6 +15,7 @@ from davinci_sim.kinematics.chain import DHChain
 from davinci_sim.sim.arm import Arm
 from davinci_sim.sim.jaw import Jaw
 from davinci_sim.sim.types import ACCEPTED, CommandResult
+from davinci_sim.sim.validation import as_number
 
 if TYPE_CHECKING:
     from davinci_sim.sim.simulation import Simulation
@@ -71,9 +72,7 @@ class PSM(Arm):
 
     def insert_jp(self, depth: float) -> CommandResult:
         """``move_jp`` with only the insertion joint changed (dvrk_python ``insert_jp``)."""
-        goal = self.setpoint_jp()
-        goal[2] = depth
-        return self.move_jp(goal)
+        return _insert_jp(self, depth)
 
     def get_state(self) -> dict:
         """The arm's state (:meth:`Arm.get_state`) and the jaw's."""
@@ -114,9 +113,17 @@ class ECM(Arm):
         return ""
 
     def insert_jp(self, depth: float) -> CommandResult:
-        goal = self.setpoint_jp()
-        goal[2] = depth
-        return self.move_jp(goal)
+        """``move_jp`` with only the insertion joint changed."""
+        return _insert_jp(self, depth)
+
+
+def _insert_jp(arm: Arm, depth) -> CommandResult:
+    d, msg = as_number(depth, "depth")
+    if d is None:
+        return arm._refuse("insert_jp", msg)
+    goal = arm.setpoint_jp()
+    goal[2] = d
+    return arm.move_jp(goal)
 
 
 #: MTM joints that orient the handle: wrist platform, pitch, yaw, roll (dvrk.md 1.5). Their

@@ -16,7 +16,7 @@ from davinci_sim.sim.servo import ServoJoints
 from davinci_sim.sim.state import capture, restore
 from davinci_sim.sim.trajectory import JointTrajectory, plan_trajectory
 from davinci_sim.sim.types import ACCEPTED, CommandResult, JointState
-from davinci_sim.sim.validation import as_vector, check_limits
+from davinci_sim.sim.validation import ABSURD_FACTOR, as_vector, check_bound, check_limits
 
 if TYPE_CHECKING:
     from davinci_sim.sim.arm import Arm
@@ -93,7 +93,10 @@ class Jaw(ServoJoints):
         ):
             # A plain number (the teleoperation's jaw, the fingers on a gripper, at 1 kHz):
             # checked as a float, without building arrays.
-            v, msg = (value, "") if math.isfinite(value) else (None, f"angle is {value!r}")
+            try:
+                v, msg = (value, "") if math.isfinite(value) else (None, f"angle is {value!r}")
+            except OverflowError:  # an integer no float holds
+                v, msg = None, "angle is too large for a float"
         else:
             v, msg = as_vector(np.atleast_1d(value) if np.ndim(value) == 0 else value, 1, "angle")
         if v is None:
@@ -129,6 +132,11 @@ class Jaw(ServoJoints):
             return self._arm._refuse(f"{self._command_prefix}/servo_jf", why)
         v, msg = as_vector(np.atleast_1d(effort) if np.ndim(effort) == 0 else effort, 1, "effort")
         if v is None:
+            return self._arm._refuse(f"{self._command_prefix}/servo_jf", msg)
+        # Clamped to ftmax (dvrk.md 1.2 jaw: 0.16) up to ABSURD_FACTOR x ftmax; refused beyond.
+        msg = check_bound(v, ABSURD_FACTOR * self.spec.ftmax, (self.spec.name,), "effort",
+                          f"(N·m; {ABSURD_FACTOR:g} x ftmax)")  # fmt: skip
+        if msg:
             return self._arm._refuse(f"{self._command_prefix}/servo_jf", msg)
         self._traj = None
         self._set(None, 0.0, effort=float(np.clip(v[0], -self.spec.ftmax, self.spec.ftmax)))

@@ -21,14 +21,14 @@ from types import MappingProxyType
 import mujoco
 import numpy as np
 
-from davinci_sim.geometry.se3 import invert_transform
 from davinci_sim.kinematics import fk
 from davinci_sim.kinematics.arms import load_arm, load_suj
-from davinci_sim.kinematics.suj import T_cart_rcm
+from davinci_sim.kinematics.suj import T_cart_rcm, frame_plan, frames_into
 from davinci_sim.model import build_spec, resolve_scene
 from davinci_sim.sim.arm import Arm
 from davinci_sim.sim.arms import ECM, MTM, PSM, SUJArm
 from davinci_sim.sim.component import Component, check_component
+from davinci_sim.sim.divergence import DivergenceGuard, arm_owners
 from davinci_sim.sim.sensors import INSTRUMENT_BODIES, CameraRenderer, body_ids, contact_force
 from davinci_sim.sim.servo import JointServo
 from davinci_sim.sim.state import (
@@ -41,12 +41,12 @@ from davinci_sim.sim.state import (
 )
 
 ARM_NAMES = ("PSM1", "PSM2", "PSM3", "ECM", "MTML", "MTMR")
-#: Default base frames (and the camera frame) are reused while the joints they depend on
-#: move by less than this (rad or m) from where they were computed: the setup joints yield a
-#: little (~1e-5 rad/s) under the arms' reaction forces, and recomputing their chains every
-#: tick costs the 1 kHz loop ~40 µs. The error is at most ~1.5 µm at the tool tip (1.5 m of
-#: lever), far below what the dVRK's setup-joint potentiometers resolve.
-BASE_FRAME_TOLERANCE = 1e-6
+#: The base frames and the camera frame are memoized on the exact values of the setup and
+#: ECM joints and recomputed when any of them changes at all: the setup joints yield a little
+#: under the arms' reaction forces, and a frame held within 1e-6 put ``measured_cp`` µm off
+#: the model. A tolerance > 0 (rad or m) holds the frames while the joints stay that close:
+#: only to compare with the study's batch engine, which holds them; 0, the default, is exact.
+BASE_FRAME_TOLERANCE = 0.0
 _ARM_CLASSES = {"PSM": PSM, "ECM": ECM, "MTM": MTM}
 
 
@@ -105,16 +105,16 @@ class Simulation:
         mujoco.mj_forward(self.model, self.data)
         self.servo = JointServo(self.model)
         self._noisy_qpos: np.ndarray | None = None
-        self._base_frames: dict[str, tuple[int, np.ndarray, object]] = {}
-        self._base_adr: dict[str, np.ndarray] = {}
+        self._base_frames: dict[str, tuple[bytes, dict]] = {}
         self.arms: dict[str, Arm] = {}
         for name in ARM_NAMES:
             kin = load_arm(name)
             if _has_joint(self.model, f"{name}/{kin.chain.joint_names[0]}"):
                 self.arms[name] = _ARM_CLASSES[kin.arm_type](name, kin, self)
         for name, suj in self._suj.items():
-            if _has_joint(self.model, f"SUJ/{name}/J0"):
+            if _has_joint(self.model, f"SUJ/{name}/{suj.chain.joint_names[0]}"):
                 self.arms[f"SUJ/{name}"] = SUJArm(f"SUJ/{name}", suj, self)
+        self._init_frames()
         # Fingers (PSM jaws, MTM grippers) hold their initial opening.
         self.servo.q_ref[:] = self.data.qpos[self.servo.qposadr]
         self._instrument_bodies = {
@@ -124,6 +124,8 @@ class Simulation:
         }
         self._cameras: CameraRenderer | None = None
         self._components: dict[str, Component] = {}
+        self._guard = DivergenceGuard(self.model, self.data)
+        self._owners = arm_owners(self.arms)
         self.keyframe = keyframe
         """The keyframe the simulation was built at (what :meth:`reset` returns to)."""
         # reset(): the simulation as built (physics, arms, servo), the components' states at
@@ -148,7 +150,11 @@ class Simulation:
         for arm in self.arms.values():
             arm._pre_step(t)
         self.servo.apply(self.data)
+        self._guard.save(self.data)
         mujoco.mj_step(self.model, self.data)
+        tripped = self._guard.tripped()
+        if tripped:
+            self._recover(tripped)
         self.tick_count += 1
         if self.encoder_noise_std > 0:
             self._noisy_qpos = self.data.qpos + self.rng.normal(
@@ -159,6 +165,19 @@ class Simulation:
             post_step = getattr(component, "post_step", None)
             if post_step is not None:
                 post_step(t)
+
+    def _recover(self, tripped: dict[str, int]) -> None:
+        """Undo a step MuJoCo found unstable: the physics back to before it (the clock
+        advances), the arms involved stopped and in FAULT with the reason, the rest ticking
+        on (:mod:`davinci_sim.sim.divergence`)."""
+        arms, reason = self._guard.recover(self.data, self._owners, tripped)
+        for name in arms:
+            self.arms[name]._fault(reason)
+
+    @property
+    def recoveries(self) -> int:
+        """How many diverged physics steps were undone (see :meth:`_recover`)."""
+        return self._guard.recoveries
 
     def step(self, n: int = 1) -> None:
         """``n`` ticks."""
@@ -183,73 +202,62 @@ class Simulation:
         return self.data.qpos if self._noisy_qpos is None else self._noisy_qpos
 
     # ------------------------------------------------------------ frames
-    def _T_cart_rcm(self, arm: str) -> np.ndarray:
-        return T_cart_rcm(self._suj[arm], self.arms[f"SUJ/{arm}"].measured_jp())
+    def _init_frames(self) -> None:
+        """The SUJ frame kernel's plan for the setup-joint arms present (dvrk.md 1.6)."""
+        self._frame_plan = None
+        self._frame_adr = np.zeros(0, dtype=int)
+        if "ECM" in self.arms and "SUJ/ECM" in self.arms:
+            suj = {n: s for n, s in self._suj.items() if f"SUJ/{n}" in self.arms}
+            self._frame_plan = frame_plan(suj, self.arms["ECM"].chain, "ECM")
+            parts = [self.arms[f"SUJ/{n}"]._qposadr for n in self._frame_plan.arms]
+            self._frame_adr = np.concatenate([*parts, self.arms["ECM"]._qposadr])
+
+    def _frames(self) -> dict:
+        """The base frames (by arm) and ``camera`` at the joints as they are now: one
+        compiled call (:func:`frames_into`) when a setup or ECM joint changed at all (see
+        :data:`BASE_FRAME_TOLERANCE`), else the same objects (asked many times per tick)."""
+        q = self.measured_qpos()[self._frame_adr]
+        key = q.tobytes()
+        entry, tol = self._base_frames.get("frames"), BASE_FRAME_TOLERANCE
+        if entry is not None and (
+            entry[0] == key or (tol > 0 and np.abs(q - np.frombuffer(entry[0])).max() <= tol)
+        ):
+            return entry[1]
+        plan = self._frame_plan
+        k = len(plan.arms)
+        out = frames_into(plan, q[: -plan.dof], q[-plan.dof :])
+        out.setflags(write=False)
+        frames = {"camera": out[k]}
+        for i, name in enumerate(plan.arms):
+            frames[name] = (out[k + 2 + i], "Cart" if i == plan.reference else "ECM")
+        self._base_frames["frames"] = (key, frames)
+        return frames
 
     def default_base_frame(self, arm: str) -> tuple[np.ndarray, str]:
-        """Base frame of ``arm`` as the dVRK system computes it (dvrk.md 1.6, 1.5).
+        """Base frame of ``arm`` as the dVRK system computes it (dvrk.md 1.6, 1.5), from the
+        joints as they are now (exactly: see :data:`BASE_FRAME_TOLERANCE`).
 
         PSM: its RCM in the ECM tip (camera) frame, reference ``ECM``; ECM: its RCM in the
         cart, reference ``Cart``; MTM: its base in ``HRSV``; SUJ arm: its base in the cart.
         """
-        return self._cached_frame(arm, self._compute_base_frame)
+        kin_type = self.arms[arm].kin.arm_type
+        if kin_type == "MTM":
+            return self.arms[arm].kin.T_reference_base, "HRSV"
+        if kin_type == "SUJ":
+            return self._suj[arm.split("/", 1)[1]].T_cart_sujbase, "Cart"
+        if f"SUJ/{arm}" not in self.arms:
+            return np.eye(4), f"{arm}_base"
+        if self._frame_plan is not None:
+            return self._frames()[arm]
+        # A PSM on its setup joints without an ECM on its own: its RCM in the cart.
+        return T_cart_rcm(self._suj[arm], self.arms[f"SUJ/{arm}"].measured_jp()), "Cart"
 
     def T_cart_camera(self) -> np.ndarray:
         """The ECM tip (camera frame) in the cart (world) frame, 4x4, m (dvrk.md 1.6)."""
         if "ECM" not in self.arms:
             raise KeyError("no ECM in this simulation: there is no camera frame")
-        return self._cached_frame("camera", self._compute_camera_frame)
-
-    def _cached_frame(self, key: str, compute):
-        # Cached per tick, and across ticks while the joints it depends on stay within
-        # BASE_FRAME_TOLERANCE: teleoperation and haptics ask for these frames many times per
-        # tick, and the setup joints and the ECM are mostly still.
-        entry = self._base_frames.get(key)
-        if entry is not None and entry[0] == self.tick_count:
-            return entry[2]
-        q = self.measured_qpos()[self._base_qposadr(key)]
-        if entry is not None and (
-            q.size == 0 or np.abs(q - entry[1]).max() <= BASE_FRAME_TOLERANCE
-        ):
-            self._base_frames[key] = (self.tick_count, entry[1], entry[2])
-            return entry[2]
-        result = compute(key)
-        self._base_frames[key] = (self.tick_count, q.copy(), result)
-        return result
-
-    def _base_qposadr(self, arm: str) -> np.ndarray:
-        """qpos addresses of the joints ``arm``'s default base frame depends on."""
-        adr = self._base_adr.get(arm)
-        if adr is None:
-            kin_type = "camera" if arm == "camera" else self.arms[arm].kin.arm_type
-            names = []
-            if kin_type == "camera":
-                names = ["SUJ/ECM", "ECM"]
-            elif kin_type in ("PSM", "ECM") and f"SUJ/{arm}" in self.arms:
-                names = ["SUJ/ECM", "ECM", f"SUJ/{arm}"] if kin_type == "PSM" else ["SUJ/ECM"]
-            names = [n for n in names if n in self.arms]
-            parts = [self.arms[n]._qposadr for n in names]
-            adr = np.concatenate(parts) if parts else np.zeros(0, dtype=int)
-            self._base_adr[arm] = adr
-        return adr
-
-    def _compute_base_frame(self, arm: str) -> tuple[np.ndarray, str]:
-        kin_type = self.arms[arm].kin.arm_type
-        if kin_type == "MTM":
-            result = (self.arms[arm].kin.T_reference_base, "HRSV")
-        elif kin_type == "SUJ":
-            result = (self._suj[arm.split("/", 1)[1]].T_cart_sujbase, "Cart")
-        elif f"SUJ/{arm}" not in self.arms:
-            result = (np.eye(4), f"{arm}_base")
-        elif kin_type == "ECM":
-            result = (self._T_cart_rcm("ECM"), "Cart")
-        elif "ECM" in self.arms and "SUJ/ECM" in self.arms:
-            result = (invert_transform(self.T_cart_camera()) @ self._T_cart_rcm(arm), "ECM")
-        else:
-            result = (self._T_cart_rcm(arm), "Cart")
-        return result
-
-    def _compute_camera_frame(self, _key: str) -> np.ndarray:
+        if self._frame_plan is not None:
+            return self._frames()["camera"]
         ecm = self.arms["ECM"]
         return self.default_base_frame("ECM")[0] @ fk.forward_kinematics(
             ecm.chain, ecm.measured_jp()
@@ -400,6 +408,7 @@ class Simulation:
 
     def _restore(self, state: SimState) -> None:
         mujoco.mj_copyData(self.data, self.model, state.data)
+        self._guard.sync()  # the copied warning counts are the baseline
         self.tick_count = state.tick_count
         self.rng.bit_generator.state = copy.deepcopy(state.rng)
         self._noisy_qpos = None if state.noisy_qpos is None else state.noisy_qpos.copy()
@@ -442,6 +451,7 @@ class Simulation:
         self.set_state(dataclasses.replace(self._built, components=tuple(components)))
         if key >= 0:
             mujoco.mj_resetDataKeyframe(self.model, self.data, key)
+            self._guard.sync()
             mujoco.mj_forward(self.model, self.data)
             self.servo.q_ref[:] = self.data.qpos[self.servo.qposadr]
             self.servo.qd_ref[:] = 0.0

@@ -14,8 +14,8 @@ changes while the simulation ticks.
   bit-identical. ``physics`` is the compact, documented part (for comparisons and
   records);
 - the simulation's own: tick count, the random generator's state, the encoder-noise sample,
-  the joint servo's references and gains, the cached base frames (kept, not recomputed:
-  within their tolerance the cache keeps an older frame on purpose);
+  the joint servo's references and gains, the memo of the base frames (exact: the frames
+  of the restored joints);
 - every arm's (:meth:`Arm.get_state <davinci_sim.sim.arm.Arm.get_state>`) and every
   component's ``get_state()``, in tick order.
 
@@ -64,7 +64,7 @@ class SimState:
     servo: dict
     """The joint servo's references, masks and gains (``JointServo`` attributes)."""
     base_frames: dict
-    """The simulation's base-frame cache (``Simulation._base_frames``)."""
+    """The simulation's base-frame memo (``Simulation._base_frames``)."""
     arms: dict
     """Arm name -> that arm's ``get_state()``."""
     components: tuple

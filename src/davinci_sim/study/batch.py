@@ -33,7 +33,8 @@ runs n trials as arrays instead:
 What the batch does not do: anything the study's trials never reach on the live path
 (clutch, a refused or faulted arm recovering, alignment, locks). It holds the camera and
 setup-joint frames as they are at the start (the ECM does not move in a trial); the live
-simulation re-reads them when those joints drift by 1e-6 rad (µm at the tool tip). A PSM
+simulation follows every change of those joints exactly (the setup joints yield ~1e-5 rad/s
+under the arms' reaction forces: µm at the tool tip over a trial). A PSM
 ``servo_cp`` whose IK fails keeps the previous setpoint, as the arm does; a PSM tracking
 fault (the arm would go to FAULT and the teleoperation stop) ends that trial, unfinished.
 ``tests/study`` checks that a batch reproduces :func:`~davinci_sim.study.trial.run_trial`
@@ -174,6 +175,9 @@ class TrialBatch:
             if mass not in by_mass:
                 by_mass[mass] = copy.copy(sim.model)
                 by_mass[mass].body_mass[device.hand_body] = mass
+                # MuJoCo's auto-reset back on (the live simulation turns it off to undo a
+                # diverged step itself): a diverged trial resets, faults and ends unfinished.
+                by_mass[mass].opt.disableflags &= ~int(mujoco.mjtDisableBit.mjDSBL_AUTORESET)
         self.models = [by_mass[m] for m in self.params.mass.tolist()]
         self.K = self.params.stiffness
         self.D = self.params.damping

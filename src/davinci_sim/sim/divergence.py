@@ -1,0 +1,211 @@
+"""Divergence recovery: an unstable step is undone and only the arms involved fault.
+
+MuJoCo checks every step for NaN, inf or huge values (beyond ``mjMAXVAL`` = 1e10) in
+``qpos``, ``qvel``, ``qacc`` and ``ctrl`` and reports them as warnings (``mjWARN_BADQPOS``,
+``BADQVEL``, ``BADQACC``, ``BADCTRL``). By default it then resets the whole ``MjData`` to
+``qpos0`` (auto-reset) or drops every actuator's ``ctrl`` for the step: in a scene of servoed
+arms every arm and setup joint jumps, and all of them fault (issue 11: PSM1 and the four
+setup-joint arms, the setup joints displaced until a restart).
+
+Here the simulation turns auto-reset off and, every tick, keeps MuJoCo's integration state
+as it was right before ``mj_step`` (``mj_getState``, ~1 µs). When a step raises one of those
+warnings, the simulation tells which arms were involved (:func:`involved_arms`),
+the simulation puts the physics back to the saved state (the clock still advances), stops
+the joints of those arms, faults them with the reason on their ``error`` channel, and
+ticks on: the other arms never see the unstable step.
+"""
+
+from __future__ import annotations
+
+import logging
+from dataclasses import dataclass
+
+import mujoco
+import numpy as np
+
+_log = logging.getLogger(__name__)
+
+#: MuJoCo's bound for a "huge" value in its stability checks (``mjMAXVAL``).
+MAX_VALUE = 1e10
+_W = mujoco.mjtWarning
+WARNINGS = {
+    int(_W.mjWARN_BADQPOS): "position",
+    int(_W.mjWARN_BADQVEL): "velocity",
+    int(_W.mjWARN_BADQACC): "acceleration",
+    int(_W.mjWARN_BADCTRL): "actuator control",
+}
+_STATE = mujoco.mjtState.mjSTATE_INTEGRATION
+
+
+@dataclass(frozen=True)
+class Owner:
+    """What belongs to one arm: its joints' ``qvel`` addresses (dofs, with its jaw or
+    gripper), its actuators, and the arm that carries it (its setup-joint arm), if any."""
+
+    dofs: np.ndarray
+    actuators: np.ndarray
+    carrier: str | None = None
+
+
+def arm_owners(arms: dict) -> dict[str, Owner]:
+    """Each arm's dofs and actuators (with its jaw or gripper) and its carrier, for ``arms``
+    (name -> :class:`~davinci_sim.sim.arm.Arm`)."""
+    owners = {}
+    for name, arm in arms.items():
+        parts = [arm] + [getattr(arm, p) for p in ("jaw", "gripper") if hasattr(arm, p)]
+        owners[name] = Owner(
+            np.concatenate([p._dofadr for p in parts]),
+            np.concatenate([p._idx for p in parts]),
+            f"SUJ/{name}" if f"SUJ/{name}" in arms else None,
+        )
+    return owners
+
+
+def _bad(x: np.ndarray) -> bool:
+    """NaN, inf or beyond :data:`MAX_VALUE` (MuJoCo's test)."""
+    return x.size > 0 and not bool((np.abs(x) <= MAX_VALUE).all())
+
+
+def arms_with_bad(data: mujoco.MjData, owners: dict[str, Owner], fields) -> list[str]:
+    """The arms with a bad value (:func:`_bad`) in any of ``fields`` of ``data``
+    (``"ctrl"``: their actuators; ``"qpos"``, ``"qvel"``, ``"qacc"``: their joints)."""
+    out = []
+    for name, o in owners.items():
+        for f in fields:
+            if f == "ctrl":
+                x = data.ctrl[o.actuators]
+            elif f == "qpos":
+                x = data.qpos[_qpos_of(data, o.dofs)]
+            else:
+                x = getattr(data, f)[o.dofs]
+            if _bad(x):
+                out.append(name)
+                break
+    return out
+
+
+def involved_arms(
+    owners: dict[str, Owner],
+    tripped: dict[str, int],
+    bad_ctrl: list[str],
+    bad_before: list[str],
+    bad_after: list[str],
+) -> tuple[str, ...]:
+    """The arms a diverged step involves.
+
+    ``tripped``: the warnings the step raised (name -> MuJoCo's ``lastinfo``, its first bad
+    index); ``bad_ctrl``: arms whose own ``ctrl`` was bad (their command was: they are the
+    ones); ``bad_before``: arms with a bad position or velocity before the step (written
+    between ticks: the divergence starts there); ``bad_after``: arms with a bad value after
+    the step. Of these, a setup-joint arm whose carried arm is there too is left out: it
+    diverges because the arm it carries does (the two are one kinematic tree). If no arm
+    shows a bad value, the arm owning MuJoCo's first bad index.
+    """
+    if bad_ctrl:
+        return tuple(bad_ctrl)
+    if bad_before:
+        return tuple(bad_before)
+    carried = {owners[n].carrier for n in bad_after}
+    arms = [n for n in bad_after if n not in carried]
+    if not arms and tripped:
+        if "actuator control" in tripped:
+            first, key = tripped["actuator control"], "actuators"
+        else:
+            first, key = next(iter(tripped.values())), "dofs"
+        arms = [n for n, o in owners.items() if first in getattr(o, key)]
+    return tuple(arms)
+
+
+def _qpos_of(data: mujoco.MjData, dofs: np.ndarray) -> np.ndarray:
+    model = data.model
+    return model.jnt_qposadr[model.dof_jntid[dofs]]
+
+
+class DivergenceGuard:
+    """Keeps the last good integration state and watches MuJoCo's stability warnings.
+
+    Turns MuJoCo's auto-reset off on ``model`` (the state before the bad step is what the
+    simulation restores, and the bad values tell which arms were involved)."""
+
+    def __init__(self, model: mujoco.MjModel, data: mujoco.MjData) -> None:
+        model.opt.disableflags |= int(mujoco.mjtDisableBit.mjDSBL_AUTORESET)
+        self._model = model
+        self._state = np.empty(mujoco.mj_stateSize(model, _STATE))
+        self._warnings = data.warning
+        # The four counters, kept: live views of data's memory (a lookup each tick costs
+        # four times more).
+        self._stats = tuple(data.warning[i] for i in WARNINGS)
+        self._seen = self._counts()
+        self.recoveries = 0
+        """How many diverged steps were undone."""
+
+    def _counts(self) -> tuple[int, ...]:
+        a, b, c, d = self._stats  # every tick: no generator
+        return (a.number, b.number, c.number, d.number)
+
+    def save(self, data: mujoco.MjData) -> None:
+        """Keep ``data``'s integration state (call right before ``mj_step``)."""
+        mujoco.mj_getState(self._model, data, self._state, _STATE)
+
+    def sync(self) -> None:
+        """Take the warning counts as they are now (after a restore of a whole state)."""
+        self._seen = self._counts()
+
+    def tripped(self) -> dict[str, int]:
+        """The stability warnings raised since the last call or :meth:`sync` (name ->
+        ``lastinfo``), empty if none (the common case: one tuple comparison)."""
+        counts = self._counts()
+        if counts == self._seen:
+            return {}
+        out = {
+            name: self._warnings[i].lastinfo
+            for (i, name), now, before in zip(WARNINGS.items(), counts, self._seen, strict=True)
+            if now != before
+        }
+        self._seen = counts
+        return out
+
+    def rewind(self, data: mujoco.MjData) -> None:
+        """Put ``data``'s integration state back to the saved one, keeping its clock (the
+        derived quantities are stale until :meth:`settle`)."""
+        time = data.time
+        mujoco.mj_setState(self._model, data, self._state, _STATE)
+        data.time = time
+
+    def settle(self, data: mujoco.MjData, stop_dofs: np.ndarray) -> None:
+        """After :meth:`rewind`: zero the velocities of ``stop_dofs`` and any velocity still
+        bad; a position still bad (written between ticks) goes back to the model's
+        ``qpos0``; recompute the derived quantities (``mj_forward``)."""
+        data.qvel[stop_dofs] = 0.0
+        data.qvel[~(np.abs(data.qvel) <= MAX_VALUE)] = 0.0
+        bad_q = ~(np.abs(data.qpos) <= MAX_VALUE)
+        data.qpos[bad_q] = self._model.qpos0[bad_q]
+        data.qacc_warmstart[:] = 0.0
+        mujoco.mj_forward(self._model, data)
+        self.recoveries += 1
+        self.sync()
+
+    def recover(
+        self, data: mujoco.MjData, owners: dict[str, Owner], tripped: dict[str, int]
+    ) -> tuple[tuple[str, ...], str]:
+        """Undo the step that raised ``tripped`` (:meth:`tripped`): rewind, find the arms
+        involved (:func:`involved_arms`), stop their joints and settle. Returns those arms
+        and the reason to give them."""
+        bad_ctrl = arms_with_bad(data, owners, ("ctrl",))
+        bad_after = arms_with_bad(data, owners, ("qpos", "qvel", "qacc"))
+        self.rewind(data)
+        bad_before = arms_with_bad(data, owners, ("qpos", "qvel"))
+        arms = involved_arms(owners, tripped, bad_ctrl, bad_before, bad_after)
+        stop = [owners[a].dofs for a in arms]
+        self.settle(data, np.concatenate(stop) if stop else np.zeros(0, dtype=int))
+        what = ", ".join(tripped)
+        _log.warning(
+            "t = %.3f s: the physics diverged (MuJoCo: bad %s; involved: %s); restored to "
+            "the previous tick",
+            data.time, what, ", ".join(arms) or "no arm",
+        )  # fmt: skip
+        reason = (
+            f"the simulation diverged (MuJoCo: bad {what} values on this arm's joints); "
+            "the physics was restored to the previous tick and the joints stopped"
+        )
+        return arms, reason
