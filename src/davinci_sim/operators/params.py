@@ -166,3 +166,10 @@ def sample_subjects(n: int, seed: int = 0) -> SubjectParams:
         raise ValueError(f"need at least one subject, got {n}")
     draws = [sample_subject(seed, i) for i in range(n)]
     return SubjectParams(**{k: np.array([d[k] for d in draws]) for k in draws[0]})
+
+
+#: How the trainees were made, for a study's report (method section).
+TRAINEE_METHOD = (
+    "Each subject is one draw of the parameters of `davinci_sim.operators.params` (sources "
+    "in its table); nothing is fitted to the seed's results."
+)
