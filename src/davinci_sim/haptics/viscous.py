@@ -36,11 +36,13 @@ Degenerate cases, all continuous and finite:
   is the law as printed (``transition = 0``; G = 0 only exactly on the path), as the seed's
   prototype ran it on a real console. An option scales G by ``min(1, ‖φ‖/transition)``:
   zero on the path, growing linearly over the first ``transition`` metres, exactly the
-  seed's law beyond. Measured with the study's trainees on ``seed_path`` (B = 40,
-  ``benchmarks/bench_ramp.py``): as printed, the force on the hand turns by more than 90°
-  from one tick to the next 0.27 times per second; a 0.05 mm ramp (below the hand's tremor)
-  makes that 0.009 /s for 6 % less mean force; the 0.5 mm ramp used before (the trainees'
-  guided deviations lie inside it) removed the flips but also 60 % of the mean force.
+  seed's law beyond. Measured with the study's (calibrated) trainees on ``seed_path``
+  (B = 40, G_max = 5, ``benchmarks/bench_ramp.py``): as printed, the force on the hand turns
+  by more than 90° from one tick to the next 0.12 times per second (one flip every ~8 s);
+  a 0.05 mm ramp (below the hand's tremor) removes them for 2 % less mean force; the 0.5 mm
+  ramp used before removed 29 % of the mean force and the deviation grew by 22 %. The
+  live console keeps the law as printed too (one law for the console and the study); a
+  user who feels the flips on a real MTM can set ``transition: 0.00005``.
 
 The remaining discontinuity is the path's, not the law's: on the medial axis of the path
 (points equidistant from two parts of it, see :mod:`davinci_sim.geometry.path`) φ itself
