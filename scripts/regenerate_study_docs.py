@@ -15,7 +15,8 @@ from pathlib import Path
 
 import davinci_sim  # noqa: F401  (sets MUJOCO_GL)
 from davinci_sim.study import StudyConfig, run_study, write_outputs
-from davinci_sim.study.report import read_csv, write_report
+from davinci_sim.study.compare import read_csv
+from davinci_sim.study.report import write_report
 
 FOLDER = Path(__file__).resolve().parent.parent / "docs" / "study" / "seed_path"
 

@@ -17,6 +17,7 @@ import numpy as np
 
 from davinci_sim.haptics.kinds import describe_fixture, viscous_law
 from davinci_sim.operators.params import TRAINEE_METHOD
+from davinci_sim.study.compare import comparison
 from davinci_sim.study.config import pair_labels
 from davinci_sim.study.runner import StudyResult
 from davinci_sim.study.stats import friedman, pairwise_wilcoxon, subject_means
@@ -57,28 +58,6 @@ def write_csv(rows: list[dict], path: Path) -> None:
         w.writeheader()
         for r in rows:
             w.writerow({k: (repr(v) if isinstance(v, float) else v) for k, v in r.items()})
-
-
-def read_csv(path) -> list[dict]:
-    """The rows of a study's ``trials.csv`` (numbers as numbers), e.g. an earlier run's, to
-    compare with (:func:`write_report`'s ``previous``)."""
-    rows = []
-    with open(path, newline="") as f:
-        for r in csv.DictReader(f):
-            row: dict = {}
-            for k, v in r.items():
-                if v in ("True", "False"):
-                    row[k] = v == "True"
-                else:
-                    try:
-                        row[k] = int(v)
-                    except ValueError:
-                        try:
-                            row[k] = float(v)
-                        except ValueError:
-                            row[k] = v
-            rows.append(row)
-    return rows
 
 
 def _label(c) -> str:
@@ -301,46 +280,6 @@ def _fmt(x: float, digits: int = 4) -> str:
     return "nan" if not np.isfinite(x) else f"{x:.{digits}g}"
 
 
-def _changes(result: StudyResult, previous: list[dict] | None, changes: str | None) -> list:
-    """The section comparing this study with an earlier run of it (``previous``: its rows),
-    with ``changes`` (what differs, markdown) said first."""
-    if previous is None and not changes:
-        return []
-    L = ["## Compared with the previous run", ""]
-    if changes:
-        L += [changes.strip(), ""]
-    if previous is None:
-        return L
-    cfg, rows = result.config, result.rows
-    C, n = len(cfg.conditions), cfg.n_subjects
-    keep = [r for r in previous if 0 <= int(r["condition"]) < C]
-    n_old = max((int(r["subject"]) for r in keep), default=-1) + 1
-    if not keep or n_old < 1:
-        return [*L, "The previous run has none of these conditions.", ""]
-    metrics = [m for m in ("deviation_error", "mean_force", "completion_time")
-               if all(m in r for r in keep)]  # fmt: skip
-    L.append(
-        "Means over subjects of each subject's mean, previous → this run "
-        "(conditions matched by their place in the list)."
-    )
-    L.append("")
-    L.append("| condition | " + " | ".join(
-        f"{DECLARED[m].label} ({DECLARED[m].report[0]})" for m in metrics) + " |")  # fmt: skip
-    L.append("|---|" + "---|" * len(metrics))
-    labels = short_labels(cfg.conditions)
-    for c in range(C):
-        cells = []
-        for m in metrics:
-            unit, s = DECLARED[m].report
-            old = np.nanmean(subject_means(keep, m, n_old, C)[:, c]) * s
-            new = np.nanmean(subject_means(rows, m, n, C)[:, c]) * s
-            change = f" ({(new - old) / old:+.0%})" if old else ""
-            cells.append(f"{_fmt(old)} → {_fmt(new)}{change}")
-        L.append(f"| {labels[c]} | " + " | ".join(cells) + " |")
-    L.append("")
-    return L
-
-
 def write_report(
     result: StudyResult,
     path: Path,
@@ -379,7 +318,7 @@ def write_report(
         "",
         TRAINEE_METHOD,
         "",
-        *_changes(result, previous, changes),
+        *comparison(result, previous, changes),
         "## Run time",
         "",
         f"- wall time of the study: {result.wall_time:.1f} s "
