@@ -375,7 +375,8 @@ def cmd_task_check(args: argparse.Namespace) -> int:
 
 
 def cmd_study(args: argparse.Namespace) -> int:
-    from davinci_sim.study import TABLE_I, StudyConfig, StudyError, parse_conditions
+    from davinci_sim.study import StudyConfig, StudyError, parse_conditions
+    from davinci_sim.study.config import parse_fixture
 
     out = Path(args.output)
     if out.exists() and not out.is_dir():  # say so before hours of trials, not after
@@ -393,7 +394,11 @@ def cmd_study(args: argparse.Namespace) -> int:
         print(f"davinci-sim study: {problem}", file=sys.stderr)
         return 2
     try:
-        conditions = TABLE_I if args.conditions is None else parse_conditions(args.conditions)
+        # The task's conditions unless the command line gives some (pairs, names, entries).
+        conditions = None
+        if args.conditions is not None or args.fixture:
+            conditions = () if args.conditions is None else parse_conditions(args.conditions, task)
+            conditions += tuple(parse_fixture(text) for text in args.fixture or ())
         config = StudyConfig(
             conditions=conditions,
             n_subjects=args.subjects,
@@ -405,6 +410,7 @@ def cmd_study(args: argparse.Namespace) -> int:
             backend=args.backend,
             timeout=args.timeout,
             engine=args.engine,
+            transition=args.transition,
         )
     except StudyError as e:
         print(f"davinci-sim study: {e}", file=sys.stderr)
@@ -423,6 +429,9 @@ def cmd_study(args: argparse.Namespace) -> int:
         f"{config.workers} worker(s)",
         flush=True,
     )
+    from davinci_sim.study.report import law_summary
+
+    print(law_summary(config.conditions), flush=True)
     for note in store.notes:
         print(f"note: {note}", flush=True)
     if args.resume:
@@ -643,7 +652,24 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument(
         "--conditions",
         default=None,
-        help="B:G_max pairs (N·s/m:N), e.g. '0:0,20:2,40:5,60:8' (default: the seed's Table I)",
+        help="B:G_max pairs (N·s/m:N, the seed's viscous law) or the task's condition names, "
+        "e.g. '0:0,20:2,40:5,60:8' (default: the task's conditions, else the seed's Table I)",
+    )
+    p.add_argument(
+        "--fixture",
+        action="append",
+        metavar="ENTRY",
+        help="a condition as a fixture entry (YAML mapping), e.g. "
+        "'{type: spring, stiffness: 200, name: k200}' or '{type: mypkg.laws:MyLaw, k: 1}'; "
+        "repeat for more (after the --conditions ones)",
+    )
+    p.add_argument(
+        "--transition",
+        type=float,
+        default=None,
+        metavar="M",
+        help="on-path ramp of the viscous conditions that set none, m (default 0: the seed's "
+        "law as printed; e.g. 0.0005 for a 0.5 mm ramp)",
     )
     p.add_argument("--task", default="seed_path", help="task name or task file")
     p.add_argument("--seed", type=int, default=0)

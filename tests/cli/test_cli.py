@@ -59,6 +59,12 @@ import pytest  # noqa: E402
         (["study", "--conditions", ""], "B:G_max"),
         (["study", "--conditions", "40:nan"], "finite"),
         (["study", "--conditions", "40:-5"], ">= 0"),
+        (["study", "--conditions", "B=1000"], "condition of the task"),
+        (["study", "--fixture", "{type: magnet}"], "unknown fixture type"),
+        (["study", "--fixture", "{type: spring, stiffnes: 1}"], "unknown keys"),
+        (["study", "--fixture", "[1, 2]"], "mapping with a 'type'"),
+        (["study", "--fixture", "{type: no_such_module:Law}"], "cannot import"),
+        (["study", "--transition", "-0.001"], "transition must be"),
     ],
 )
 def test_bad_options_fail_in_one_line_before_any_work(argv, words, capsys):

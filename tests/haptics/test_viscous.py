@@ -143,13 +143,13 @@ def test_approaching_head_on_brakes():
 
 
 def test_as_printed_the_law_is_discontinuous_on_the_path():
-    """With transition = 0 (the law as printed) the force flips as the tool crosses the
-    path sideways: the discontinuity the default ramp removes."""
+    """With transition = 0 (the law as printed, the default) the force flips as the tool
+    crosses the path sideways: the discontinuity an on-path ramp (an option) removes."""
     v = np.array([0.02, 0.0, 0.0])
-    above = viscous_guidance(v, [0, -1e-9, 0], B=40.0, G_max=5.0, transition=0.0)
+    above = viscous_guidance(v, [0, -1e-9, 0], B=40.0, G_max=5.0)
     below = viscous_guidance(v, [0, 1e-9, 0], B=40.0, G_max=5.0, transition=0.0)
     assert np.linalg.norm(above - below) == pytest.approx(2 * 0.02 * 40 / math.sqrt(2))
-    ramped = viscous_guidance(v, [0, 1e-9, 0], B=40.0, G_max=5.0)
+    ramped = viscous_guidance(v, [0, 1e-9, 0], B=40.0, G_max=5.0, transition=0.0005)
     assert np.linalg.norm(ramped) < 1e-5
 
 

@@ -58,7 +58,9 @@ def test_trainee_completes_the_seed_task_through_the_console():
         monitor.update(sim.time, tip, force)
     assert monitor.phase == Phase.FINISHED, (monitor.phase, trainee.phase)
     r = monitor.results
-    assert r.deviation_error[0] < 0.0015
+    # Within the task's tolerance tube: a fast trainee (50 mm/s, 3x the median) with the
+    # calibrated signal-dependent noise, which grows with the command (operators.params).
+    assert r.deviation_error[0] < task.tube_radius
     assert r.path_length[0] > 0.9 * task.path.length - 2 * task.start_tolerance
     assert 0.0 < r.peak_force[0] <= 5.0 + 1e-9  # the guidance acted, capped at G_max
     assert peak > 0.0  # and reached the MTM

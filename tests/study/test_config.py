@@ -15,7 +15,12 @@ from davinci_sim.study import (
 
 def test_defaults_are_the_seed_study():
     c = StudyConfig()
-    assert c.conditions == TABLE_I == ((0, 0), (20, 2), (40, 5), (60, 8))
+    assert TABLE_I == ((0, 0), (20, 2), (40, 5), (60, 8))
+    # The seed_path task's conditions: Table I, the seed's viscous law as printed.
+    assert [(e["type"], e["B"], e["G_max"], e["transition"]) for e in c.conditions] == [
+        ("viscous", b, g, 0.0) for b, g in TABLE_I
+    ]
+    assert [e["name"] for e in c.conditions] == ["B=0", "B=20", "B=40", "B=60"]
     assert (c.n_subjects, c.n_repetitions, c.n_trials) == (10, 10, 400)
 
 

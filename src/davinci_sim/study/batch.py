@@ -22,7 +22,11 @@ runs n trials as arrays instead:
   velocity filter and the frame change (:func:`~davinci_sim.haptics.fixture.fixture_force_camera`,
   :class:`~davinci_sim.haptics.velocity.VelocityFilter`) and the device's safety clamp
   (:func:`~davinci_sim.devices.safety.clamp_wrenches`); the task state machine and the
-  metrics. Only ``mj_step`` runs per trial (MuJoCo's C), and only for trials still running.
+  metrics. The fixture is any the task offers (:mod:`davinci_sim.haptics.kinds`: the
+  seed's viscous law, spring, a registered or ``module:Name`` law): each condition's
+  fixture is built as the live trial builds it (``task.fixture`` of the trial's entry) and
+  called with the rows of that condition (:meth:`TrialBatch.fixture_forces`). Only
+  ``mj_step`` runs per trial (MuJoCo's C), and only for trials still running.
 * The order within a tick is the live simulation's: trainee, hand, teleoperation, arms,
   servo, physics, then the haptic loop and the task on the new state.
 
@@ -55,10 +59,8 @@ from davinci_sim.console import teleop_math as tm
 from davinci_sim.devices.hand import hand_wrenches, handle_xfrc
 from davinci_sim.devices.safety import clamp_wrenches
 from davinci_sim.geometry.so3 import rotate_pairs, rotate_rows
-from davinci_sim.haptics.combine import combine
 from davinci_sim.haptics.fixture import fixture_force_camera
 from davinci_sim.haptics.velocity import DEFAULT_CUTOFF_HZ, VelocityFilter
-from davinci_sim.haptics.viscous import ViscousGuidance
 from davinci_sim.kinematics.psm_ik import psm_ik_closed_form_batch
 from davinci_sim.sim import arm_laws as laws
 from davinci_sim.sim.jaw import finger_setpoints
@@ -181,11 +183,19 @@ class TrialBatch:
         self.models = [by_mass[m] for m in self.params.mass.tolist()]
         self.K = self.params.stiffness
         self.D = self.params.damping
-        # One viscous guidance with each trial's (B, G_max), then the task's walls: the sum
-        # FixtureField computes for each trial's condition (condition_spec; (0, 0) is no
-        # force either way).
-        self.B = np.array([s.B for s in specs], dtype=float)
-        self.G_max = np.array([s.G_max for s in specs], dtype=float)
+        # Each condition's fixture, as the live trial builds it (task.fixture of the trial's
+        # entry: its guidance plus the task's walls), and each trial's condition.
+        self.fixtures = {}
+        for s in specs:
+            if s.condition not in self.fixtures:
+                self.fixtures[s.condition] = task.fixture(s.fixture)
+            elif s.fixture != specs[self._first_of(s.condition)].fixture:
+                raise ValueError(
+                    f"condition {s.condition} has two fixture entries in one batch: "
+                    f"{s.fixture!r} and {specs[self._first_of(s.condition)].fixture!r}"
+                )
+        self.cond = np.array([s.condition for s in specs], dtype=int)
+        """The condition (key of :attr:`fixtures`) of each current row."""
         self.index = np.arange(n)
         """Position of each current row in ``specs`` (rows of ended trials are dropped)."""
         self.velocity = VelocityFilter((n,), dt=self.dt, cutoff_hz=DEFAULT_CUTOFF_HZ)
@@ -199,22 +209,18 @@ class TrialBatch:
         self.ticks = np.zeros(n, dtype=np.int64)
         self._bad_since = np.full(n, np.nan)
         self.requested = np.zeros((n, 3))
-        self._fixture()
         self._kinematics()
         self._results = {name: np.full(n, np.nan) for name in METRICS}
         self._finished = np.zeros(n, dtype=bool)
         self._ticks = np.zeros(n, dtype=np.int64)
 
-    def _fixture(self) -> None:
-        self.fixture = combine(
-            ViscousGuidance(self.task.path, B=self.B, G_max=self.G_max),
-            self.task.fixture({"type": "none"}),
-        )
+    def _first_of(self, condition: int) -> int:
+        return next(i for i, s in enumerate(self.specs) if s.condition == condition)
 
     #: Arrays with one row per running trial (see :meth:`_compact`).
     _ROWS = (
         "Q", "V", "bias", "xipos", "q_ref", "qd_ref", "tau_ff", "ghost", "jaw_catching_up",
-        "jaw_sent", "wrench_sent", "T_hand", "K", "D", "B", "G_max", "t_end", "active", "fault",
+        "jaw_sent", "wrench_sent", "T_hand", "K", "D", "cond", "t_end", "active", "fault",
         "ticks", "_bad_since", "requested", "T_psm", "J_psm", "T_mtm", "J_mtm", "twist_mtm",
         "index",
     )  # fmt: skip
@@ -242,7 +248,6 @@ class TrialBatch:
         self.metrics = self.metrics.take(keep)
         self.state = type(self.state)(*(a[keep] for a in self.state))
         self.n = len(keep)
-        self._fixture()
 
     # ------------------------------------------------------------ per tick
     def _kinematics(self) -> None:
@@ -319,13 +324,30 @@ class TrialBatch:
         """The haptic loop on the new state: fixture force → safety clamp → MTM efforts."""
         p = self.T_psm[:, :3, 3]
         v = self.velocity.update(p)
-        self.requested = fixture_force_camera(self.fixture, self.T_task_camera, p, v)
+        self.requested = self.fixture_forces(p, v)
         w = np.concatenate([self.requested, np.zeros((self.n, 3))], axis=1)
         self.wrench_sent = clamp_wrenches(w, self.wrench_sent, self.limits, self.dt)
         # spatial/servo_cf: the wrench in the MTM base orientation, Jᵀ·w, clamped to ftmax.
         R_base_hrsv = self.T_hrsv_mtmbase[:3, :3].T
         tau = laws.wrench_effort(self.J_mtm, R_base_hrsv, self.wrench_sent, self.mtm_ftmax)
         self.tau_ff[:, self.mtm_act] = tau
+
+    def fixture_forces(self, p_camera_tip: np.ndarray, v_camera_tip: np.ndarray) -> np.ndarray:
+        """Each row's fixture force (n, 3), N, camera axes, for tips at ``p_camera_tip``
+        moving at ``v_camera_tip`` ((n, 3), camera frame): the fixture protocol of the live
+        haptic loop (:func:`~davinci_sim.haptics.fixture.fixture_force_camera`, the frame
+        change and ``fixture.force``), called once per condition with that condition's rows.
+        A fixture's law is row-wise, so a row gets the same bits in any batch."""
+        T = self.T_task_camera
+        if len(self.fixtures) == 1:
+            (fixture,) = self.fixtures.values()
+            return fixture_force_camera(fixture, T, p_camera_tip, v_camera_tip)
+        out = np.zeros((self.n, 3))
+        for c, fixture in self.fixtures.items():
+            rows = np.flatnonzero(self.cond == c)
+            if len(rows):
+                out[rows] = fixture_force_camera(fixture, T, p_camera_tip[rows], v_camera_tip[rows])
+        return out
 
     def _task(self) -> None:
         """The task on the new state: one :class:`~davinci_sim.tasks.Sample` of every trial

@@ -7,6 +7,14 @@ C, each condition follows each other equally often (first-order carry-over balan
 odd C it is a cyclic Latin square. ``order="fixed"`` runs the conditions as listed (the
 seed does not say in which order its subjects did them).
 
+Conditions: each is a fixture entry of the task (``{"type": ..., params, "name": ...}``, any
+kind of :mod:`davinci_sim.haptics.kinds`: the seed's viscous law, spring, a registered or
+``module:Name`` law), or a (B, G_max) pair, the seed's viscous law as printed. By default
+they are the task file's ``conditions`` (Table I for ``seed_path``), or Table I when the
+task has none. A viscous condition runs the seed's law as printed (no on-path ramp) unless
+its entry sets ``transition`` or the study sets one for all (:attr:`StudyConfig.transition`);
+every trial's row says which law ran.
+
 Practice carries across conditions: the practice count j of the trainee's power law of
 practice (:class:`~davinci_sim.operators.SubjectParams`) counts all the subject's trials so
 far, j = (block − 1)·n_repetitions + repetition, so a later block is done by a more practised
@@ -16,7 +24,9 @@ trainee; the counterbalancing spreads this over the conditions.
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
 from dataclasses import dataclass
+from pathlib import Path
 
 from davinci_sim.study.trial import TrialSpec
 
@@ -35,8 +45,10 @@ class StudyError(ValueError):
 class StudyConfig:
     """A simulated user study (see the module docstring)."""
 
-    conditions: tuple[tuple[float, float], ...] = TABLE_I
-    """(B, G_max) of each condition, N·s/m and N."""
+    conditions: tuple | None = None
+    """The conditions: fixture entries (mappings) or (B, G_max) pairs (N·s/m, N); None: the
+    task's own conditions, else Table I. Stored as the entries that run (every parameter,
+    a unique ``name`` each: :func:`resolve_conditions`)."""
     n_subjects: int = 10
     n_repetitions: int = 10
     task: str = "seed_path"
@@ -53,16 +65,11 @@ class StudyConfig:
     engine: str = "batch"
     """``batch`` (trials stepped together, :mod:`davinci_sim.study.batch`) or ``live`` (one
     live simulation per trial: the slow reference the batch is checked against)."""
+    transition: float | None = None
+    """Width of the on-path ramp of the viscous conditions that do not set their own, m
+    (None or 0: the seed's law as printed)."""
 
     def __post_init__(self) -> None:
-        conditions = tuple((float(b), float(g)) for b, g in self.conditions)
-        object.__setattr__(self, "conditions", conditions)
-        if not conditions:
-            raise StudyError("a study needs at least one condition")
-        if not all(math.isfinite(b) and math.isfinite(g) for b, g in conditions):
-            raise StudyError(f"B and G_max must be finite numbers, got {conditions!r}")
-        if any(b < 0 or g < 0 for b, g in conditions):
-            raise StudyError(f"B and G_max must be >= 0, got {conditions!r}")
         if self.n_subjects < 1 or self.n_repetitions < 1:
             raise StudyError("n_subjects and n_repetitions must be >= 1")
         if self.order not in ORDERS:
@@ -75,24 +82,135 @@ class StudyConfig:
             raise StudyError(f"workers must be >= 1, got {self.workers!r}")
         if not self.timeout > 0:
             raise StudyError(f"timeout must be > 0, got {self.timeout!r}")
+        t = self.transition
+        if t is not None and not (isinstance(t, int | float) and math.isfinite(t) and t >= 0):
+            raise StudyError(f"transition must be a number >= 0 (m), got {t!r}")
+        conditions = resolve_conditions(self.conditions, self.task, transition=t)
+        object.__setattr__(self, "conditions", conditions)
 
     @property
     def n_trials(self) -> int:
         return self.n_subjects * len(self.conditions) * self.n_repetitions
 
 
-def parse_conditions(text: str) -> tuple[tuple[float, float], ...]:
-    """``"0:0,20:2,40:5,60:8"`` → ((0, 0), (20, 2), (40, 5), (60, 8))."""
+def study_task(task: str):
+    """The task of a study (a name or a file), or StudyError."""
+    from davinci_sim.tasks import TaskError, load_task
+
+    try:
+        return load_task(task if not Path(task).suffix else Path(task))
+    except (TaskError, ValueError, OSError) as e:
+        raise StudyError(str(e)) from e
+
+
+def resolve_conditions(conditions, task, *, transition: float | None = None) -> tuple[dict, ...]:
+    """The fixture entries a study runs (see :class:`StudyConfig`): (B, G_max) pairs become
+    viscous entries, viscous entries without ``transition`` get ``transition`` (None: 0, the
+    law as printed), every entry gets its parameters' defaults and a unique name, and each
+    is checked against the task (``task``: a name or file, or a loaded task).
+
+    Raises:
+        StudyError: no conditions, a bad pair or entry, or one the task does not offer.
+    """
+    from davinci_sim.haptics.kinds import resolve_fixture
+    from davinci_sim.tasks import TaskError
+
+    loaded = study_task(task) if isinstance(task, str) else task
+    if conditions is None:
+        conditions = getattr(loaded, "conditions", ()) or TABLE_I
+    conditions = tuple(conditions)
+    if not conditions:
+        raise StudyError("a study needs at least one condition")
+    pairs = [c for c in conditions if not isinstance(c, Mapping)]
+    for pair in pairs:
+        try:
+            b, g = (float(x) for x in pair)
+        except (TypeError, ValueError) as e:
+            raise StudyError(
+                f"a condition is a fixture entry or a (B, G_max) pair, got {pair!r}"
+            ) from e
+        if not (math.isfinite(b) and math.isfinite(g)):
+            raise StudyError(f"B and G_max must be finite numbers, got {pair!r}")
+        if b < 0 or g < 0:
+            raise StudyError(f"B and G_max must be >= 0, got {pair!r}")
+    labels = iter(pair_labels([tuple(float(x) for x in p) for p in pairs]))
+    out = []
+    for c in conditions:
+        if isinstance(c, Mapping):
+            entry = dict(c)
+        else:
+            b, g = (float(x) for x in c)
+            entry = {"name": next(labels), "type": "viscous", "B": b, "G_max": g}
+        if entry.get("type") == "viscous" and "transition" not in entry:
+            entry["transition"] = float(transition or 0.0)
+        try:
+            loaded.check_fixture(entry)
+            entry = resolve_fixture(entry)
+        except (TaskError, KeyError, ValueError, TypeError) as e:
+            raise StudyError(f"condition {c!r}: {e.args[0] if e.args else e}") from e
+        out.append(entry)
+    names = [e.get("name") or _entry_label(e) for e in out]
+    for i, e in enumerate(out):
+        e["name"] = names[i] if names.count(names[i]) == 1 else f"{names[i]} #{i + 1}"
+    return tuple(out)
+
+
+def pair_labels(pairs) -> list[str]:
+    """Labels of (B, G_max) conditions: ``B=40`` while B tells them apart, ``B=40/Gmax=5``
+    when two share a B (they would read the same)."""
+    bs = [b for b, _ in pairs]
+    if len(set(bs)) == len(bs):
+        return [f"B={b:g}" for b in bs]
+    return [f"B={b:g}/Gmax={g:g}" for b, g in pairs]
+
+
+def _entry_label(entry: Mapping) -> str:
+    params = ", ".join(
+        f"{k}={v:g}" if isinstance(v, float) else f"{k}={v}"
+        for k, v in entry.items()
+        if k not in ("type", "name")
+    )
+    kind = entry.get("type", "none")
+    return f"{kind}({params})" if params else kind
+
+
+def parse_conditions(text: str, task=None) -> tuple:
+    """``"0:0,20:2,40:5,60:8"`` → ((0, 0), (20, 2), (40, 5), (60, 8)); with ``task`` (a
+    loaded task), an item may also be the name of one of its conditions (its entry).
+
+    Raises:
+        StudyError: an item that is neither (the message lists the task's names).
+    """
+    names = {c["name"]: c for c in getattr(task, "conditions", ())}
     out = []
     for item in text.split(","):
+        if item.strip() in names:
+            out.append(dict(names[item.strip()]))
+            continue
         try:
             b, g = item.split(":")
             out.append((float(b), float(g)))
         except ValueError as e:
+            known = f" or a condition of the task: {sorted(names)}" if names else ""
             raise StudyError(
-                f"conditions are 'B:G_max' pairs separated by commas, got {text!r}"
+                f"conditions are 'B:G_max' pairs separated by commas{known}, got {text!r}"
             ) from e
     return tuple(out)
+
+
+def parse_fixture(text: str) -> dict:
+    """A fixture entry written as a YAML or JSON mapping, e.g.
+    ``'{type: spring, stiffness: 200, name: k200}'`` (StudyError if it is not one)."""
+    import yaml
+
+    try:
+        entry = yaml.safe_load(text)
+    except yaml.YAMLError as e:
+        raise StudyError(f"a fixture is a YAML mapping, got {text!r}: {e}") from e
+    if not isinstance(entry, dict) or "type" not in entry:
+        raise StudyError(f"a fixture is a mapping with a 'type', e.g. '{{type: spring, "
+                         f"stiffness: 200}}', got {text!r}")  # fmt: skip
+    return entry
 
 
 def williams_row(row: int, n: int) -> list[int]:
@@ -120,15 +238,13 @@ def plan_trials(config: StudyConfig) -> list[TrialSpec]:
     specs = []
     for s in range(config.n_subjects):
         for block, c in enumerate(condition_order(config, s), start=1):
-            B, G = config.conditions[c]
             for r in range(1, config.n_repetitions + 1):
                 specs.append(
                     TrialSpec(
                         task=config.task,
                         subject=s,
                         condition=c,
-                        B=B,
-                        G_max=G,
+                        fixture=config.conditions[c],
                         repetition=r,
                         order=block,
                         practice=(block - 1) * config.n_repetitions + r,

@@ -3,8 +3,9 @@
 The claims section compares the simulated study with the seed's results (§III) on the
 numbers only: each claim has a rule stated in the report, and the verdict is what the rule
 gives (``agrees``, ``direction agrees, not significant``, or ``does not agree``). The claims
-refer to Table I's conditions, so they are checked only for a study with 4 conditions whose
-first has no assistance (B = G_max = 0) and whose B increases.
+refer to Table I's conditions, so they are checked only for a study with 4 viscous conditions
+whose first has no assistance (B = G_max = 0) and whose B increases. The report says which
+law each condition ran (:func:`~davinci_sim.haptics.kinds.describe_fixture`).
 """
 
 from __future__ import annotations
@@ -14,6 +15,10 @@ from pathlib import Path
 
 import numpy as np
 
+from davinci_sim.haptics.kinds import describe_fixture, viscous_law
+from davinci_sim.operators.params import TRAINEE_METHOD
+from davinci_sim.study.compare import comparison
+from davinci_sim.study.config import pair_labels
 from davinci_sim.study.runner import StudyResult
 from davinci_sim.study.stats import friedman, pairwise_wilcoxon, subject_means
 from davinci_sim.study.store import atomic_path, write_text_atomic
@@ -28,8 +33,11 @@ SUMMARY = tuple(m for m in PathTask.METRICS if m.report is not None)
 COLUMNS = (
     "subject",
     "condition",
+    "condition_name",
     "B",
     "G_max",
+    "fixture",
+    "law",
     "order",
     "repetition",
     "practice",
@@ -54,17 +62,40 @@ def write_csv(rows: list[dict], path: Path) -> None:
             w.writerow({k: (repr(v) if isinstance(v, float) else v) for k, v in r.items()})
 
 
-def _label(c: tuple[float, float]) -> str:
-    return f"B={c[0]:g} Ns/m, Gmax={c[1]:g} N"
+def _label(c) -> str:
+    """The long label of a condition (a fixture entry or a (B, G_max) pair)."""
+    if not isinstance(c, dict):
+        return f"B={c[0]:g} Ns/m, Gmax={c[1]:g} N"
+    if c.get("type") == "viscous":
+        return f"B={c['B']:g} Ns/m, Gmax={c['G_max']:g} N"
+    return str(c.get("name", c.get("type")))
 
 
 def short_labels(conditions) -> list[str]:
-    """Axis and table labels of ``conditions`` ((B, G_max) pairs): ``B=40`` while B tells
-    them apart, ``B=40/Gmax=5`` when two share a B (they would read the same)."""
-    bs = [b for b, _ in conditions]
-    if len(set(bs)) == len(bs):
-        return [f"B={b:g}" for b in bs]
-    return [f"B={b:g}/Gmax={g:g}" for b, g in conditions]
+    """Axis and table labels of ``conditions``: fixture entries by their names; (B, G_max)
+    pairs ``B=40`` while B tells them apart, ``B=40/Gmax=5`` when two share a B."""
+    if all(isinstance(c, dict) for c in conditions):
+        return [str(c.get("name", c.get("type"))) for c in conditions]
+    return pair_labels(conditions)
+
+
+def _viscous_b(conditions) -> list[float] | None:
+    """The B of each condition if every one is the seed's viscous law (else None)."""
+    if not all(c.get("type") == "viscous" for c in conditions):
+        return None
+    return [float(c["B"]) for c in conditions]
+
+
+def law_summary(conditions) -> str:
+    """Which law the study ran, in one sentence (the viscous conditions' ramp said)."""
+    ramps = {c.get("transition", 0.0) for c in conditions if c.get("type") == "viscous"}
+    kinds = sorted({c.get("type", "none") for c in conditions})
+    if kinds == ["viscous"] and len(ramps) == 1:
+        return f"Viscous guidance, {viscous_law(ramps.pop())}."
+    parts = [k for k in kinds if k != "viscous"]
+    if ramps:
+        parts.append("viscous, " + " and ".join(viscous_law(t) for t in sorted(ramps)))
+    return "Fixtures: " + "; ".join(parts) + " (each condition's law below)."
 
 
 def _by(rows, condition, key="repetition", metric="deviation_error"):
@@ -166,8 +197,10 @@ def claims(result: StudyResult) -> list[tuple[str, str, str]]:
     """(claim of the seed, what the simulation gives, verdict) for Table I-like studies."""
     cfg, rows = result.config, result.rows
     C, n = len(cfg.conditions), cfg.n_subjects
-    b = [c[0] for c in cfg.conditions]
-    if C != 4 or cfg.conditions[0] != (0.0, 0.0) or b != sorted(b):
+    b = _viscous_b(cfg.conditions)
+    if C != 4 or b is None or b != sorted(b):
+        return []
+    if (cfg.conditions[0]["B"], cfg.conditions[0]["G_max"]) != (0.0, 0.0):
         return []
     dev = subject_means(rows, "deviation_error", n, C)
     ct = subject_means(rows, "completion_time", n, C)
@@ -254,7 +287,16 @@ def _fmt(x: float, digits: int = 4) -> str:
     return "nan" if not np.isfinite(x) else f"{x:.{digits}g}"
 
 
-def write_report(result: StudyResult, path: Path) -> None:
+def write_report(
+    result: StudyResult,
+    path: Path,
+    *,
+    previous: list[dict] | None = None,
+    changes: str | None = None,
+) -> None:
+    """Write ``report.md``. ``previous``: the rows of an earlier run of the same study
+    (:func:`read_csv`), compared per condition; ``changes``: what differs from it
+    (markdown, said first in that section)."""
     cfg, rows = result.config, result.rows
     C, n = len(cfg.conditions), cfg.n_subjects
     sim_time = sum(r["sim_time"] for r in rows)
@@ -267,6 +309,23 @@ def write_report(result: StudyResult, path: Path) -> None:
         f"`{cfg.engine}` engine, backend `{cfg.backend}` with {cfg.workers} worker(s); trial "
         f"timeout {cfg.timeout:g} s (simulated).",
         "",
+        law_summary(cfg.conditions),
+        "",
+        "## Conditions",
+        "",
+        "| condition | law that ran | fixture entry |",
+        "|---|---|---|",
+        *(
+            f"| {label} | {describe_fixture(c)} | "
+            f"`{ {k: v for k, v in c.items() if k != 'name'} }` |"
+            for label, c in zip(short_labels(cfg.conditions), cfg.conditions, strict=True)
+        ),
+        "",
+        "## Synthetic trainees",
+        "",
+        TRAINEE_METHOD,
+        "",
+        *comparison(result, previous, changes),
         "## Run time",
         "",
         f"- wall time of the study: {result.wall_time:.1f} s "

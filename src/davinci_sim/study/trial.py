@@ -26,6 +26,8 @@ when, or with which other trials.
 
 from __future__ import annotations
 
+import json
+import math
 import time
 from dataclasses import dataclass
 from pathlib import Path
@@ -50,7 +52,12 @@ METRICS = tuple(m.name for m in PathTask.METRICS)
 
 @dataclass(frozen=True)
 class TrialSpec:
-    """Everything one trial needs (picklable, sent to a worker process)."""
+    """Everything one trial needs (picklable, sent to a worker process).
+
+    The condition is a fixture entry of the task's kind (``fixture``, e.g. a task file's
+    condition, :mod:`davinci_sim.haptics.kinds`); ``B`` and ``G_max`` alone stand for the
+    seed's viscous law as printed (:func:`condition_spec`). ``B`` and ``G_max`` are the
+    viscous entry's (NaN for other kinds)."""
 
     task: str
     """Task name or path of a task file (:func:`~davinci_sim.tasks.load_task`)."""
@@ -58,30 +65,51 @@ class TrialSpec:
     """Subject index in the population of :attr:`seed`."""
     condition: int
     """Index of the condition in the study's list."""
-    B: float
-    """Viscosity of the guidance, N·s/m."""
-    G_max: float
-    """Saturation of the guidance force, N."""
-    repetition: int
+    B: float | None = None
+    """Viscosity of the guidance, N·s/m (viscous conditions; else NaN)."""
+    G_max: float | None = None
+    """Saturation of the guidance force, N (viscous conditions; else NaN)."""
+    repetition: int = 1
     """Repetition in this condition, 1-based."""
-    order: int
+    order: int = 1
     """Position of this condition in the subject's order, 1-based."""
-    practice: int
+    practice: int = 1
     """Practice count j ≥ 1 of the power law (all the trials of the subject so far, +1)."""
-    seed: int
+    seed: int = 0
     timeout: float = 60.0
     """Simulated time allowed from taking the handle, s."""
+    fixture: dict | None = None
+    """The condition's fixture entry as it runs (type, name, every parameter:
+    :func:`~davinci_sim.haptics.kinds.resolve_fixture`)."""
+
+    def __post_init__(self) -> None:
+        from davinci_sim.haptics.kinds import resolve_fixture
+
+        entry = self.fixture
+        if entry is None:
+            if self.B is None or self.G_max is None:
+                raise ValueError("a trial needs a fixture entry, or B and G_max")
+            entry = condition_spec(self.B, self.G_max)
+        entry = resolve_fixture(entry)
+        object.__setattr__(self, "fixture", entry)
+        viscous = entry["type"] == "viscous"
+        for name in ("B", "G_max"):
+            given, value = getattr(self, name), entry.get(name) if viscous else math.nan
+            if given is not None and viscous and float(given) != value:
+                raise ValueError(f"{name}={given!r} contradicts the fixture entry {entry!r}")
+            object.__setattr__(self, name, float(value))
 
     @property
     def key(self) -> tuple[int, int, int, int]:
         return (self.seed, self.subject, self.condition, self.repetition)
 
 
-def condition_spec(B: float, G_max: float) -> dict:
-    """A task fixture entry for the viscous guidance (B, G_max); none when both are 0."""
-    if B == 0 and G_max == 0:
-        return {"type": "none"}
-    return {"type": "viscous", "B": float(B), "G_max": float(G_max)}
+def condition_spec(B: float, G_max: float, *, transition: float = 0.0) -> dict:
+    """The viscous fixture entry of (B, G_max): the seed's law as printed (``transition``
+    0, the default), or with an on-path ramp of ``transition`` m. (B, G_max) = (0, 0) is
+    the law with no force at all (the unassisted condition)."""
+    return {"type": "viscous", "B": float(B), "G_max": float(G_max),
+            "transition": float(transition)}  # fmt: skip
 
 
 def study_scene(task) -> SceneConfig:
@@ -239,11 +267,17 @@ def trial_inputs(specs: list[TrialSpec], task: PathTask, T_world_camera, hand_st
 def trial_row(spec: TrialSpec, task: PathTask, result, i: int, finished: bool) -> dict:
     """The CSV row of trial ``i`` of a batch's metrics ``result`` (an (n,) array per metric
     name) without timings: the spec's fields, then ``task``'s declared metrics."""
+    from davinci_sim.haptics.kinds import describe_fixture
+
+    params = {k: v for k, v in spec.fixture.items() if k != "name"}
     row = {
         "subject": spec.subject,
         "condition": spec.condition,
+        "condition_name": spec.fixture.get("name", ""),
         "B": spec.B,
         "G_max": spec.G_max,
+        "fixture": json.dumps(params, sort_keys=True),
+        "law": describe_fixture(spec.fixture),
         "order": spec.order,
         "repetition": spec.repetition,
         "practice": spec.practice,
@@ -278,7 +312,7 @@ def run_trial(spec: TrialSpec) -> dict:
     device.hand = hand_impedance(params)
     hand = TraineeHand(trainee, device, sim.arms[psm])
     sim.add_component(hand, before=next(iter(sim.components)))  # the hand acts first
-    fixture = task.fixture(condition_spec(spec.B, spec.G_max))
+    fixture = task.fixture(spec.fixture)
     setup.console.haptics.add_field(
         FixtureField(fixture, frame=task.frame), mtm=mtm, name="guidance"
     )

@@ -258,19 +258,26 @@ class Task(ABC):
         TypeError); by default :meth:`guidance` itself."""
         self.guidance(spec)
 
+    def fixture_keys(self, kind: str) -> set[str] | None:
+        """The parameter names a fixture entry of type ``kind`` may have (None: whatever
+        its law takes, checked when it is built); KeyError if the kind offers no such type.
+        By default :attr:`FIXTURE_TYPES`."""
+        if kind not in self.FIXTURE_TYPES:
+            raise KeyError(f"unknown fixture type {kind!r}; types: {list(self.FIXTURE_TYPES)}")
+        return set(self.FIXTURE_TYPES[kind])
+
     def check_fixture(self, spec: dict, *, condition: bool = False) -> None:
         """Refuse a fixture entry of a type or with parameters the kind does not offer."""
         if not isinstance(spec, dict):
             raise TaskError(f"task {self.name!r}: a fixture entry must be a mapping, got {spec!r}")
         kind = spec.get("type", "none")
-        if kind not in self.FIXTURE_TYPES:
-            raise TaskError(
-                f"task {self.name!r}: unknown fixture type {kind!r}; "
-                f"types: {list(self.FIXTURE_TYPES)}"
-            )
-        allowed = self.FIXTURE_TYPES[kind] | {"type", "name"}
+        try:
+            keys = self.fixture_keys(kind)
+        except KeyError as e:
+            raise TaskError(f"task {self.name!r}: {e.args[0]}") from e
+        allowed = (keys or set()) | {"type", "name"}
         unknown = set(spec) - allowed
-        if unknown:
+        if keys is not None and unknown:
             raise TaskError(
                 f"task {self.name!r}: unknown keys {sorted(unknown)} for a {kind} fixture; "
                 f"keys: {sorted(allowed)}"

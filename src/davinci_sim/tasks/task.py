@@ -11,9 +11,13 @@ task (§II-D); :func:`available_tasks` lists them, :func:`load_task` reads one b
 from a path, :meth:`PathTask.to_dict` / :func:`save_task` write one.
 
 Fixture entries (``fixture``, each of ``conditions``): ``type`` is ``viscous`` (B, G_max,
-transition: :class:`~davinci_sim.haptics.viscous.ViscousGuidance`), ``spring`` (stiffness,
-damping, max_force, transition: :class:`~davinci_sim.haptics.spring.SpringGuidance`) or
-``none``; a condition also has a ``name``. Walls (``walls``): ``type: plane`` (point, normal,
+transition: :class:`~davinci_sim.haptics.viscous.ViscousGuidance`; ``transition`` defaults
+to 0, the seed's law as printed, a positive value is an on-path ramp of that width, m),
+``spring`` (stiffness, damping, max_force, transition:
+:class:`~davinci_sim.haptics.spring.SpringGuidance`), ``none``, a kind registered with
+:func:`~davinci_sim.haptics.kinds.register_fixture_kind`, or an importable
+``package.module:Name`` (a user's own law, :mod:`davinci_sim.haptics.kinds`); a condition
+also has a ``name``. Walls (``walls``): ``type: plane`` (point, normal,
 stiffness, damping, damping_depth, max_force) or ``type: sphere`` (center, radius, keep_out,
 …), see :mod:`davinci_sim.haptics.wall`. A task's fixture is its guidance plus its walls, in
 the task's frame.
@@ -30,8 +34,7 @@ import numpy as np
 from davinci_sim.geometry.path import Polyline, rounded_polyline
 from davinci_sim.haptics.combine import combine
 from davinci_sim.haptics.fixture import Fixture
-from davinci_sim.haptics.spring import SpringGuidance
-from davinci_sim.haptics.viscous import DEFAULT_TRANSITION, ViscousGuidance
+from davinci_sim.haptics.kinds import build_fixture, fixture_kind
 from davinci_sim.tasks.base import (
     FRAMES,
     Sample,
@@ -88,6 +91,8 @@ class PathTask(Task, kind="path"):
     }  # fmt: skip
     """The file's fields besides the common ones (:mod:`davinci_sim.tasks.schema`)."""
     FILE_REQUIRED = ("waypoints",)
+    #: The built-in guidance types (:mod:`davinci_sim.haptics.kinds`); registered kinds and
+    #: ``module:Name`` laws are offered too (:meth:`fixture_keys`).
     FIXTURE_TYPES = {
         "viscous": {"B", "G_max", "transition"},
         "spring": {"stiffness", "damping", "max_force", "transition"},
@@ -243,6 +248,12 @@ class PathTask(Task, kind="path"):
         return self.path.closest_point(np.asarray(tip, dtype=float).reshape(-1, 3)).distance
 
     # ------------------------------------------------------------ fixtures
+    def fixture_keys(self, kind: str) -> set[str] | None:
+        """Any guidance kind of :mod:`davinci_sim.haptics.kinds`: built in, registered, or
+        an importable ``module:Name`` (its parameters are checked when it is built)."""
+        k = fixture_kind(kind)  # KeyError: no such kind
+        return None if k.params is None else set(k.params)
+
     def guidance(self, spec: dict, path: Polyline | None = None):
         """Viscous or spring guidance along ``path`` (default: the task's), or None."""
         return _guidance(spec, self.path if path is None else path)
@@ -326,11 +337,5 @@ _COMMON = ("name", "description", "frame", "teleop", "fixture", "conditions", "w
 
 
 def _guidance(spec: dict, path: Polyline):
-    kind = spec.get("type", "none")
-    params = {k: float(v) for k, v in spec.items() if k not in ("type", "name")}
-    if kind == "viscous":
-        params.setdefault("transition", DEFAULT_TRANSITION)
-        return ViscousGuidance(path, **params)
-    if kind == "spring":
-        return SpringGuidance(path, **params)
-    return None
+    # One registry builds every kind (haptics.kinds): the live loop and the study alike.
+    return build_fixture(spec, path)
