@@ -61,6 +61,10 @@ def arm_owners(arms: dict) -> dict[str, Owner]:
     return owners
 
 
+def _mujoco_warning(message: str) -> None:
+    logging.getLogger("mujoco").warning("%s", message)
+
+
 def _bad(x: np.ndarray) -> bool:
     """NaN, inf or beyond :data:`MAX_VALUE` (MuJoCo's test)."""
     return x.size > 0 and not bool((np.abs(x) <= MAX_VALUE).all())
@@ -129,6 +133,11 @@ class DivergenceGuard:
 
     def __init__(self, model: mujoco.MjModel, data: mujoco.MjData) -> None:
         model.opt.disableflags |= int(mujoco.mjtDisableBit.mjDSBL_AUTORESET)
+        if mujoco.get_mju_user_warning() is None:
+            # MuJoCo's own warnings go to the log (logger "mujoco"), not to its default
+            # handler, which prints them and appends them to MUJOCO_LOG.TXT in the current
+            # directory. (Process-wide; a handler someone installed is kept.)
+            mujoco.set_mju_user_warning(_mujoco_warning)
         self._model = model
         self._state = np.empty(mujoco.mj_stateSize(model, _STATE))
         self._warnings = data.warning
