@@ -29,7 +29,7 @@ from dataclasses import dataclass
 from datetime import UTC, datetime
 from pathlib import Path
 
-from davinci_sim.records.schema import SCHEMA_VERSION, SchemaError, migrate
+from davinci_sim.records.schema import SCHEMA_VERSION, SchemaError, migrate, version_of
 
 #: Environment variable naming the records file (overrides the per-user default).
 ENV_VAR = "DAVINCI_SIM_RECORDS"
@@ -144,6 +144,8 @@ class RecordsDB:
             raise RecordsError(f"cannot open the records file {self.path}: {e}") from e
         try:
             conn.execute(f"PRAGMA busy_timeout = {BUSY_TIMEOUT_MS}")
+            if version_of(conn) > SCHEMA_VERSION:  # before anything changes the file
+                migrate(conn)  # (raises SchemaError)
             conn.execute("PRAGMA journal_mode = WAL")
             conn.execute("PRAGMA synchronous = FULL")
             conn.execute("PRAGMA foreign_keys = ON")
