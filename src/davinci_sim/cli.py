@@ -209,13 +209,19 @@ def cmd_serve(args: argparse.Namespace) -> int:
     hands = ("MTML", "MTMR") if web and console and args.ros_connect is None else ()
     parts = []
     try:
+        records = None
+        if args.task is not None and not args.no_records:  # every attempt recorded
+            from davinci_sim.records import records_part
+
+            records = records_part(args.trainee or DEFAULT_TRAINEE, path=args.records,
+                                   task=args.task, condition=args.condition)  # fmt: skip
         if web:
             from davinci_sim.web.app import web_part
             from davinci_sim.web.server import WebOptions
 
             web_options = WebOptions(host=args.host, port=args.web_port, token=token,
                                      frame_rate=args.image_rate)  # fmt: skip
-            parts.append(web_part(web_options, bedside=not args.no_bedside))
+            parts.append(web_part(web_options, bedside=not args.no_bedside, records=records))
         options = ServeOptions(
             scene=args.scene,
             keyframe=args.keyframe,
@@ -263,12 +269,11 @@ def cmd_serve(args: argparse.Namespace) -> int:
             problem = task_problem(task)
             if problem is not None:
                 raise ValueError(problem)
-            if not args.no_records:  # every attempt recorded for the trainee
-                from davinci_sim.records import RecordsDB, records_part
+            if records is not None:  # (an unusable records file: say so now)
+                from davinci_sim.records import RecordsDB
 
-                RecordsDB(args.records).close()  # (an unusable file: say so now)
-                parts.append(records_part(args.trainee or DEFAULT_TRAINEE, path=args.records,
-                                          task=args.task, condition=args.condition))  # fmt: skip
+                RecordsDB(records.path).close()
+                parts.insert(0, records)  # (attached before any page can start a repetition)
     except ValueError as e:  # TaskError and RecordsError are ValueErrors
         print(f"davinci-sim serve: {e}", file=sys.stderr)
         return 2

@@ -139,7 +139,32 @@ def draw_curves(
     metrics: Sequence[str] | None = None,
     pass_marks: Mapping[str, float] | None = None,
 ) -> Path:
-    """Draw ``trainee``'s learning curves (see the module docstring) to the PNG ``path``.
+    """Draw ``trainee``'s learning curves (see the module docstring) to the PNG ``path``
+    (the arguments as :func:`curves_png`'s).
+
+    Raises:
+        RecordsError: as :func:`curves_png`, or a file that cannot be written (nothing is
+            written then).
+    """
+    png = curves_png(db, trainee, task=task, metrics=metrics, pass_marks=pass_marks)
+    out = Path(path)
+    try:
+        out.write_bytes(png)
+    except OSError as e:
+        raise RecordsError(f"cannot write {out}: {e.strerror or e}") from e
+    return out
+
+
+def curves_png(
+    db: RecordsDB,
+    trainee: str,
+    *,
+    task: str | None = None,
+    metrics: Sequence[str] | None = None,
+    pass_marks: Mapping[str, float] | None = None,
+) -> bytes:
+    """``trainee``'s learning curves (see the module docstring) as PNG bytes. Drawn on a
+    figure of its own (no pyplot state), so any thread may draw.
 
     Args:
         task: one task (None: every task of the trainee, one row each).
@@ -150,13 +175,9 @@ def draw_curves(
             the score.
 
     Raises:
-        RecordsError: an unknown trainee or task, no attempts, an unknown metric, or a
-            file that cannot be written (nothing is written then).
+        RecordsError: an unknown trainee or task, no attempts, an unknown metric.
     """
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    from matplotlib.figure import Figure
 
     attempts = db.attempts(trainee, task=task)
     if not attempts:
@@ -174,22 +195,17 @@ def draw_curves(
     if not names:
         raise RecordsError("no metric to draw (none has a better direction); name one")
     marks = dict(pass_marks or {})
-    fig, axes = plt.subplots(len(tasks), len(names), squeeze=False,
-                             figsize=(4.0 * len(names), 3.2 * len(tasks)))  # fmt: skip
+    fig = Figure(figsize=(4.0 * len(names), 3.2 * len(tasks)))
+    axes = fig.subplots(len(tasks), len(names), squeeze=False)
     for row, (task_name, rows) in enumerate(tasks.items()):
         for col, name in enumerate(names):
             _draw_one(axes[row][col], rows, name, marks.get(name))
             axes[row][col].set_title(f"{task_name}: {name.replace('_', ' ')}", fontsize=9)
     fig.suptitle(f"learning curves of {trainee}")
     fig.tight_layout()
-    out = Path(path)
-    try:
-        fig.savefig(out, dpi=100, format="png")
-    except OSError as e:
-        raise RecordsError(f"cannot write {out}: {e.strerror or e}") from e
-    finally:
-        plt.close(fig)
-    return out
+    out = io.BytesIO()
+    fig.savefig(out, dpi=100, format="png")
+    return out.getvalue()
 
 
 def _series(rows: Sequence[dict], name: str) -> tuple[list[float], str | None, str | None]:
