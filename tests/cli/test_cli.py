@@ -73,3 +73,19 @@ def test_study_refuses_an_output_that_is_a_file_before_the_first_trial(tmp_path,
     assert main(["study", "--subjects", "1", "--repetitions", "1", "-o", str(target)]) == 2
     assert "not a folder" in capsys.readouterr().err
     assert target.read_text() == "keep me"  # nothing lost
+
+
+@pytest.mark.parametrize(
+    "argv, words",
+    [
+        (["serve", "--trainee", "ana"], "--trainee needs --task"),
+        (["serve", "--task", "seed_path", "--trainee", " "], "non-empty"),
+        (["serve", "--task", "seed_path", "--trainee", "a\tb"], "printable"),
+        (["serve", "--task", "seed_path", "--records", "{folder}"], "records file"),
+    ],
+)
+def test_bad_records_options_fail_in_one_line_before_any_work(argv, words, capsys, tmp_path):
+    argv = [a.replace("{folder}", str(tmp_path)) for a in argv]
+    assert main(argv) == 2
+    err = capsys.readouterr().err
+    assert words in err and "Traceback" not in err and len(err.strip().splitlines()) == 1

@@ -156,7 +156,10 @@ class AttemptRecorder:
 
     # ------------------------------------------------------------ lifecycle
     def start(self) -> AttemptRecorder:
+        """Start the writer thread; it opens the file and starts the trainee's session at
+        once (its start time: now), saying so with ``on_error`` if it cannot."""
         if self._thread is None:
+            self._queue.put(("open", None, None))
             self._thread = threading.Thread(target=self._run, name="records", daemon=True)
             self._thread.start()
         return self
@@ -183,9 +186,12 @@ class AttemptRecorder:
             what, value, when = self._queue.get()
             if what == "row":
                 self._write(value, when)
+            elif what == "open":
+                self._try_open()
             elif what == "trainee":
                 self._end_session()
                 self.trainee = value
+                self._try_open()
             elif what == "flush":
                 value.set()
             elif what == "stop":
@@ -201,6 +207,14 @@ class AttemptRecorder:
         if self._session is None:
             self._session = self._db.start_session(self.trainee, source=self.source)
         return self._db
+
+    def _try_open(self) -> None:
+        try:
+            self._open()
+        except Exception as e:  # said now; tried again with the next attempt
+            where = self._db.path if self._db is not None else self.path or "the records"
+            self._report(f"cannot start {self.trainee!r}'s session in {where}: {_reason(e)}")
+            self._reset_connection()
 
     def _end_session(self) -> None:
         if self._db is not None and self._session is not None:
