@@ -66,11 +66,12 @@ def run(tmp_path_factory):
         t_after = handle.snapshot().time
         wait_for(handle, lambda: False, 0.2)  # the loop goes on after the failures
         running_on = handle.snapshot().time > t_after
+        refused = handle.call("task", "report", "loud", "x").result(10)  # not a level
     finally:
         recorder.stop()
         broken.stop()
         system.stop()
-    yield path, info, recorder, broken, events, finished, running_on
+    yield path, info, recorder, broken, events, finished, (running_on, refused)
 
 
 def test_each_finished_repetition_is_an_attempt_of_the_trainee(run):
@@ -100,10 +101,11 @@ def test_each_finished_repetition_is_an_attempt_of_the_trainee(run):
 
 
 def test_a_records_file_that_cannot_be_written_is_said_and_the_simulation_goes_on(run):
-    _, _, _, broken, events, _, running_on = run
+    _, _, _, broken, events, _, (running_on, refused) = run
     assert len(broken.failed) == 2 and broken.recorded == []
     errors = [p.text for s, e, p in events if s == "task" and e == "error"]
     assert len(errors) == 3  # at the start, then at each attempt
     assert "records: cannot start 'ana''s session in" in errors[0]
     assert all("records: cannot record repetition" in text for text in errors[1:])
     assert running_on
+    assert not refused and "level must be" in refused.message
