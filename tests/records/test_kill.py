@@ -39,9 +39,27 @@ WRITER = textwrap.dedent("""
 """)
 
 
-def run_and_kill(path: Path, stop_after: int, kill_after_lines: int) -> list[int]:
+#: The console's way: an AttemptRecorder (its writer thread) is given the session's rows;
+#: once flushed, it prints the ids it recorded and waits to be killed.
+RECORDER = textwrap.dedent("""
+    import sys, time
+    from davinci_sim.records import AttemptRecorder
+    path, n = sys.argv[1], int(sys.argv[2])
+    recorder = AttemptRecorder(path, "kim", source="kill test").start()
+    for i in range(1, n + 1):
+        recorder.submit({"task": "seed_path", "condition": "B=40", "repetition": i,
+                         **{f"m{j}": i + j / 100 for j in range(20)}})
+    recorder.flush()
+    for a in recorder.recorded:
+        print(a, flush=True)
+    print("done", flush=True)
+    time.sleep(600)
+""")
+
+
+def run_and_kill(path: Path, stop_after: int, kill_after_lines: int, script=WRITER) -> list[int]:
     env = dict(os.environ, PYTHONPATH=SRC + os.pathsep + os.environ.get("PYTHONPATH", ""))
-    proc = subprocess.Popen([sys.executable, "-c", WRITER, str(path), str(stop_after)],
+    proc = subprocess.Popen([sys.executable, "-c", script, str(path), str(stop_after)],
                             stdout=subprocess.PIPE, text=True, env=env)  # fmt: skip
     ids = []
     try:
@@ -91,3 +109,14 @@ def test_killed_while_recording_keeps_every_recorded_attempt_whole(tmp_path):
         s = db.start_session("kim")
         db.record_attempt(s, task="seed_path", metrics={})
         assert len(db.attempts("kim")) == len(attempts) + 1
+
+
+def test_a_killed_console_keeps_every_attempt_its_recorder_wrote(tmp_path):
+    path = tmp_path / "r.sqlite3"
+    ids = run_and_kill(path, stop_after=7, kill_after_lines=0, script=RECORDER)
+    assert len(ids) == 7
+    attempts = check_file(path, ids)
+    assert [a["repetition"] for a in attempts] == list(range(1, 8))
+    with RecordsDB(path) as db:
+        (session,) = db.sessions("kim")
+    assert session["ended_at"] is None  # (killed: the session was never ended)

@@ -13,8 +13,8 @@ only queues the row (the thread runner calls subscribers from its loop thread, a
 waits for the disk). A write that fails (disk full, a locked or unusable file) does not stop
 anything: the recorder reports it with ``on_error(text)`` — ``serve`` puts it on the
 session's message channel, as the session does when its CSV log cannot be written — and
-tries again with the next attempt (the file is reopened); the rows it could not write stay
-in :attr:`AttemptRecorder.failed`.
+tries again with the next attempt; the rows it could not write stay in
+:attr:`AttemptRecorder.failed`.
 
 A session row (``TaskSession._record``) is ``task``, ``condition``, ``repetition``, then
 the task's declared metrics; any further numeric column is stored as a metric too, and the
@@ -111,13 +111,20 @@ class AttemptRecorder:
         self.component = component
         self.recorded: list[int] = []
         """Ids of the attempts written so far."""
-        self.failed: list[dict] = []
-        """Rows that could not be written."""
+        self._pending: list[tuple[dict, datetime]] = []
+        """Rows of the current session not written yet (retried, oldest first)."""
+        self._abandoned: list[dict] = []
         self._queue: queue.Queue = queue.Queue()
         self._thread: threading.Thread | None = None
         self._unsubscribe: Callable[[], None] | None = None
         self._db: RecordsDB | None = None
         self._session: int | None = None
+
+    @property
+    def failed(self) -> list[dict]:
+        """Rows not written: those still retried and those given up on (the trainee changed
+        or the recorder stopped while the file could not be written)."""
+        return [*self._abandoned, *(row for row, _ in self._pending)]
 
     # ------------------------------------------------------------ wiring
     def attach(self, handle) -> AttemptRecorder:
@@ -185,16 +192,19 @@ class AttemptRecorder:
         while True:
             what, value, when = self._queue.get()
             if what == "row":
-                self._write(value, when)
+                self._pending.append((value, when))
+                self._write_pending()
             elif what == "open":
                 self._try_open()
             elif what == "trainee":
+                self._give_up_pending()
                 self._end_session()
                 self.trainee = value
                 self._try_open()
             elif what == "flush":
                 value.set()
             elif what == "stop":
+                self._give_up_pending()
                 self._end_session()
                 if self._db is not None:
                     self._db.close()
@@ -224,35 +234,61 @@ class AttemptRecorder:
                 self._report(f"cannot end the records session in {self._db.path}: {e}")
         self._session = None
 
+    def _write_pending(self) -> None:
+        """Write the pending rows, oldest first; stop at the first that fails (said for
+        the newest row only: the older ones were said when they came)."""
+        while self._pending:
+            row, ended = self._pending[0]
+            try:
+                self._write(row, ended)
+            except Exception as e:  # disk full, locked, unusable: the simulation goes on
+                newest = self._pending[-1][0]
+                where = self._db.path if self._db is not None else self.path or "the records"
+                waiting = len(self._pending)
+                self._report(f"cannot record repetition {newest.get('repetition')} of "
+                             f"{self.trainee!r} in {where}: {_reason(e)} ({waiting} "
+                             "attempt(s) kept, tried again with the next)")  # fmt: skip
+                # The connection and the session stay: a lock or a full disk passes, and
+                # the next attempt goes into the same session (a file that could not be
+                # opened or a session that could not start are tried again by _open).
+                return
+            self._pending.pop(0)
+
+    def _give_up_pending(self) -> None:
+        """Before the session ends: one more try, then the rows left are given up on (they
+        are not written in another trainee's session)."""
+        if not self._pending:
+            return
+        self._write_pending()
+        if self._pending:
+            self._abandoned.extend(row for row, _ in self._pending)
+            self._report(f"{len(self._pending)} attempt(s) of {self.trainee!r} could not be "
+                         "recorded and are given up")  # fmt: skip
+            self._pending.clear()
+
     def _write(self, row: dict, ended: datetime) -> None:
-        try:
-            db = self._open()
-            metrics, score = split_row(row)
-            self.recorded.append(
-                db.record_attempt(
-                    self._session,
-                    task=str(row.get("task", getattr(self.task, "name", ""))),
-                    kind=getattr(self.task, "kind", None),
-                    condition=str(row.get("condition", "")),
-                    settings=self._settings_of(str(row.get("condition", ""))),
-                    repetition=row.get("repetition"),
-                    started_at=_started(ended, metrics.get("completion_time")),
-                    ended_at=ended.isoformat(timespec="milliseconds"),
-                    metrics=metrics,
-                    info=self.info,
-                    score=score,
-                )
+        """Write one row as an attempt of the session (raises what the file raises)."""
+        db = self._open()
+        metrics, score = split_row(row)
+        self.recorded.append(
+            db.record_attempt(
+                self._session,
+                task=str(row.get("task", getattr(self.task, "name", ""))),
+                kind=getattr(self.task, "kind", None),
+                condition=str(row.get("condition", "")),
+                settings=self._settings_of(str(row.get("condition", ""))),
+                repetition=row.get("repetition"),
+                started_at=_started(ended, metrics.get("completion_time")),
+                ended_at=ended.isoformat(timespec="milliseconds"),
+                metrics=metrics,
+                info=self.info,
+                score=score,
             )
-        except Exception as e:  # disk full, locked, unusable: the simulation goes on
-            self.failed.append(row)
-            where = self._db.path if self._db is not None else self.path or "the records"
-            self._report(f"cannot record repetition {row.get('repetition')} of "
-                         f"{self.trainee!r} in {where}: {_reason(e)}")  # fmt: skip
-            self._reset_connection()
+        )
 
     def _reset_connection(self) -> None:
-        """Drop the connection after a failure: the next attempt reopens the file and
-        starts a new session (the failed one may not have been created)."""
+        """Drop the connection after a failed start: the next attempt reopens the file
+        and starts the session."""
         if self._db is not None:
             try:
                 self._db.close()
