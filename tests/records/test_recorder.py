@@ -82,3 +82,36 @@ def test_rows_that_cannot_be_written_before_the_trainee_changes_are_given_up(tmp
     assert recorder.failed == [row(1), row(2)] and recorder.recorded == []
     assert "1 attempt(s) of 'ana' could not be recorded and are given up" in errors
     assert "1 attempt(s) of 'ben' could not be recorded and are given up" in errors
+
+
+def test_the_marks_of_the_tasks_scoring_are_kept_with_the_attempt_and_drawn(tmp_path):
+    from types import SimpleNamespace
+
+    from matplotlib.figure import Figure
+
+    from davinci_sim.records.report import _draw_one
+
+    class Scoring:  # what the trainer scores give a task: Task.scoring (tasks/scoring.py)
+        pass_score = 70.0
+
+        def score(self, values):
+            assert values["deviation_error"] == 0.002  # the row's metric values
+            return SimpleNamespace(marks={"deviation_error": 0.0025})
+
+    seed = load_task("seed_path")
+    task = SimpleNamespace(name=seed.name, kind=seed.kind, METRICS=seed.METRICS,
+                           scoring=Scoring(), conditions=())  # fmt: skip
+    path = tmp_path / "r.sqlite3"
+    recorder = AttemptRecorder(path, "ana", task=task).start()
+    recorder.submit(row(1, score=64.0, passed=False))
+    recorder.stop()
+    with RecordsDB(path) as db:
+        (a,) = db.attempts("ana")
+    assert a["pass_marks"] == {"deviation_error": 0.0025}
+    assert (a["score"], a["passed"], a["pass_mark"]) == (64.0, False, 70.0)
+    ax = Figure().subplots()
+    _draw_one(ax, [a], "deviation_error", None)  # the recorded mark: the band at 2.5 mm
+    assert any(list(line.get_ydata()) == [0.0025, 0.0025] for line in ax.lines)
+    ax = Figure().subplots()
+    _draw_one(ax, [a], "score", None)
+    assert any(list(line.get_ydata()) == [70.0, 70.0] for line in ax.lines)

@@ -27,7 +27,7 @@ def test_an_empty_file_gets_every_migration(tmp_path):
         assert db.conn.execute("PRAGMA journal_mode").fetchone()[0] == "wal"
     t = tables(path)
     assert set(t) == {"trainees", "sessions", "attempts", "metrics", "scores"}
-    assert t["metrics"] == ["attempt_id", "name", "value", "unit", "better"]
+    assert t["metrics"] == ["attempt_id", "name", "value", "unit", "better", "pass_mark"]
     assert t["scores"] == ["attempt_id", "score", "passed", "pass_mark"]
     assert {"software_version", "host", "started_at", "ended_at"} <= set(t["sessions"])
     assert {"settings", "condition", "repetition", "finished", "kind"} <= set(t["attempts"])
@@ -64,7 +64,7 @@ def test_a_version_1_file_is_migrated_and_keeps_its_rows(tmp_path):
     with RecordsDB(path) as db:
         (a,) = db.attempts("ana")
         assert a["metrics"] == {"deviation_error": (0.002, "m", None)}  # no direction in v1
-        assert a["score"] is None and a["passed"] is None
+        assert a["score"] is None and a["passed"] is None and a["pass_marks"] == {}
         assert a["software_version"] == "0.0.9"
         # and the migrated file takes version 2's rows
         s = db.start_session("ana")

@@ -252,12 +252,15 @@ class RecordsDB:
         finished: bool = True,
         info: Mapping[str, MetricInfo] | None = None,
         score: Score | None = None,
+        pass_marks: Mapping[str, float] | None = None,
     ) -> int:
         """Write one attempt with its metrics (name → value; ``info`` gives units and
-        directions) and its score, in one committed transaction; returns the attempt's id.
-        Non-numeric metric values are not metrics and are left out; NaN is stored as NULL.
+        directions, ``pass_marks`` the marks they were judged against) and its score, in
+        one committed transaction; returns the attempt's id. Non-numeric metric values are
+        not metrics and are left out; NaN is stored as NULL.
         """
         info = info or {}
+        marks = pass_marks or {}
         settings_text = json.dumps(dict(settings or {}), sort_keys=True, default=str)
         ended = ended_at or now()
 
@@ -273,10 +276,11 @@ class RecordsDB:
                 if isinstance(value, str | bytes) or value is None and name not in info:
                     continue
                 meta = info.get(name, MetricInfo())
-                rows.append((attempt, str(name), _number(value), meta.unit, meta.better))
+                mark = _number(marks.get(name))
+                rows.append((attempt, str(name), _number(value), meta.unit, meta.better, mark))
             conn.executemany(
-                "INSERT INTO metrics (attempt_id, name, value, unit, better) "
-                "VALUES (?, ?, ?, ?, ?)",
+                "INSERT INTO metrics (attempt_id, name, value, unit, better, pass_mark) "
+                "VALUES (?, ?, ?, ?, ?, ?)",
                 rows,
             )
             if score is not None:
@@ -327,7 +331,8 @@ class RecordsDB:
         """Attempts in the order they were recorded (of ``trainee`` and ``task`` if given):
         each a dict of the attempt's columns, ``trainee``, ``session``,
         ``software_version``, ``host``, ``score``/``passed``/``pass_mark`` (None when not
-        scored) and ``metrics`` (name → (value, unit, better), in recorded order).
+        scored), ``metrics`` (name → (value, unit, better), in recorded order) and
+        ``pass_marks`` (name → the metric's pass mark in that attempt, where it had one).
 
         Raises:
             RecordsError: an unknown trainee.
@@ -350,17 +355,22 @@ class RecordsDB:
             params,
         )
         metrics: dict[int, dict] = {r["id"]: {} for r in rows}
+        marks: dict[int, dict] = {r["id"]: {} for r in rows}
         if rows:
             for m in self._all(
-                "SELECT m.attempt_id, m.name, m.value, m.unit, m.better FROM metrics m "
+                "SELECT m.attempt_id, m.name, m.value, m.unit, m.better, m.pass_mark "
+                "FROM metrics m "
                 "JOIN attempts a ON a.id = m.attempt_id JOIN sessions s ON s.id = a.session_id"
                 + (" WHERE " + " AND ".join(where) if where else "")
                 + " ORDER BY m.attempt_id, m.rowid",
                 params,
             ):
                 metrics[m["attempt_id"]][m["name"]] = (m["value"], m["unit"], m["better"])
+                if m["pass_mark"] is not None:
+                    marks[m["attempt_id"]][m["name"]] = m["pass_mark"]
         for r in rows:
             r["metrics"] = metrics[r["id"]]
+            r["pass_marks"] = marks[r["id"]]
             r["finished"] = bool(r["finished"])
             r["passed"] = None if r["passed"] is None else bool(r["passed"])
         return rows

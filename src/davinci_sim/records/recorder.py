@@ -55,6 +55,23 @@ def metric_info(task) -> dict[str, MetricInfo]:
     }
 
 
+def scoring_marks(task) -> Callable[[Mapping[str, Any]], tuple[dict, float | None]] | None:
+    """The pass marks of ``task``'s attempts from its scoring, when the task has one (the
+    trainer scores' ``Task.scoring``: ``score(values).marks``, metric → mark in its unit,
+    and ``pass_score``, the overall score to reach, %); None without scoring."""
+    scoring = getattr(task, "scoring", None)
+    if scoring is None or not callable(getattr(scoring, "score", None)):
+        return None
+
+    def marks(row: Mapping[str, Any]) -> tuple[dict, float | None]:
+        values = {k: v for k, v in row.items() if isinstance(v, int | float)}
+        return dict(getattr(scoring.score(values), "marks", {}) or {}), getattr(
+            scoring, "pass_score", None
+        )
+
+    return marks
+
+
 def split_row(row: Mapping[str, Any]) -> tuple[dict, Score | None]:
     """A session row's metrics (every column but :data:`ROW_KEYS` and :data:`SCORE_KEYS`)
     and its score (None when the row has none of the score columns)."""
@@ -86,6 +103,10 @@ class AttemptRecorder:
         source: what ran the session (``serve``, ``web`` …), stored with the session.
         on_error: told each failure, as one line of text (default: logged).
         component: the session's component name (the events' source).
+        pass_marks: ``row -> (marks, pass_score)``: each metric's pass mark in the attempt
+            (name → value in its unit) and the overall score it had to reach (None: none),
+            stored with the attempt; default: the task's scoring's (:func:`scoring_marks`),
+            none without it.
     """
 
     def __init__(
@@ -99,8 +120,10 @@ class AttemptRecorder:
         source: str = "",
         on_error: Callable[[str], None] | None = None,
         component: str = "task",
+        pass_marks: Callable[[Mapping[str, Any]], tuple[dict, float | None]] | None = None,
     ) -> None:
         self.path = path
+        self.pass_marks = pass_marks if pass_marks is not None else scoring_marks(task)
         self.trainee = check_name(trainee)
         self.task = task
         self.info = metric_info(task) if task is not None else {}
@@ -270,6 +293,9 @@ class AttemptRecorder:
         """Write one row as an attempt of the session (raises what the file raises)."""
         db = self._open()
         metrics, score = split_row(row)
+        marks, pass_score = self.pass_marks(row) if self.pass_marks is not None else ({}, None)
+        if score is not None and pass_score is not None:
+            score = Score(score.score, score.passed, pass_score)
         self.recorded.append(
             db.record_attempt(
                 self._session,
@@ -283,6 +309,7 @@ class AttemptRecorder:
                 metrics=metrics,
                 info=self.info,
                 score=score,
+                pass_marks=marks,
             )
         )
 

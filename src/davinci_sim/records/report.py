@@ -10,9 +10,10 @@ CSV, and learning curves as figures.
   the metric (y, in its unit) against the attempt number (x, in the order recorded), the
   sessions' boundaries dotted; with a pass mark, the pass band (the side of the mark that
   passes, by the metric's better direction) shaded and the attempts that pass filled. The
-  pass marks come from the ``pass_marks`` argument (``--pass-mark METRIC=VALUE``; the
-  scores' work supplies the programme's marks there), and for the overall ``score`` from
-  the attempts' recorded pass mark.
+  pass mark of a metric is the ``pass_marks`` argument's (``--pass-mark METRIC=VALUE``),
+  else the one the trainee's latest attempt with a mark was judged against (recorded with
+  the attempt from the task's scoring), and for the overall ``score`` the score the latest
+  scored attempt had to reach.
 """
 
 from __future__ import annotations
@@ -224,8 +225,11 @@ def _series(rows: Sequence[dict], name: str) -> tuple[list[float], str | None, s
 
 def _draw_one(ax, rows: Sequence[dict], name: str, mark: float | None) -> None:
     values, unit, better = _series(rows, name)
-    if name == "score" and mark is None:
-        recorded = [r["pass_mark"] for r in rows if r["pass_mark"] is not None]
+    if mark is None:  # the mark the latest attempt that had one was judged against
+        if name == "score":
+            recorded = [r["pass_mark"] for r in rows if r["pass_mark"] is not None]
+        else:
+            recorded = [r["pass_marks"][name] for r in rows if name in r["pass_marks"]]
         mark = recorded[-1] if recorded else None
     x = list(range(1, len(rows) + 1))
     ax.plot(x, values, "-", color="tab:blue", lw=1.2)

@@ -23,8 +23,11 @@ Version 2 — scores:
 
 * ``metrics.better``: ``lower``, ``higher`` or ``neither`` (the declaration's direction),
   NULL when not declared;
-* ``scores(attempt_id, score, passed, pass_mark)``: the attempt's overall score, whether it
-  passed and against which pass mark (each NULL when not scored).
+* ``metrics.pass_mark``: the mark the metric was judged against in this attempt (the
+  programme's, or the expert reference's mean + 1 SD), in the metric's unit; NULL when it
+  had none (the history keeps the mark of its day when a programme changes it);
+* ``scores(attempt_id, score, passed, pass_mark)``: the attempt's overall score (%),
+  whether it passed, and the score it had to reach (each NULL when not known).
 
 Times are ISO 8601 text in UTC (``2026-11-23T15:02:03.123+00:00``).
 """
@@ -76,6 +79,7 @@ MIGRATIONS: tuple[str, ...] = (
     # 2: the metrics' better direction; the attempts' scores.
     """
     ALTER TABLE metrics ADD COLUMN better TEXT;
+    ALTER TABLE metrics ADD COLUMN pass_mark REAL;
     CREATE TABLE scores (
         attempt_id INTEGER PRIMARY KEY REFERENCES attempts(id) ON DELETE CASCADE,
         score REAL,
