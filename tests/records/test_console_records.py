@@ -110,3 +110,36 @@ def test_a_records_file_that_cannot_be_written_is_said_and_the_simulation_goes_o
     assert "records: cannot record repetition" in errors[2] and "(2 attempt(s) kept" in errors[2]
     assert running_on
     assert not refused and "level must be" in refused.message
+
+
+def test_the_loop_in_its_own_process_is_recorded_too(tmp_path):
+    """``serve``'s runner with the web console: the session lives in the loop process, its
+    rows come through the handle's events."""
+    path = tmp_path / "records.sqlite3"
+    description = SystemDescription(
+        scene="psm1_ecm_mtmr",
+        home=True,
+        runner="process",
+        real_time=False,
+        task=TaskDescription(SHORT_TASK),
+        console=ConsoleDescription(
+            hand_inputs=("MTMR",), operator_present=True, teleop_enabled=True
+        ),
+    )
+    system = build_system(description)
+    part = records_part("ana", path=path, task=SHORT_TASK)
+    system.start()
+    recorder = part(system, {})
+    rows = []
+    system.handle.subscribe(lambda s, e, p: rows.append(p) if e == "results" else None)
+    try:
+        handle = system.handle
+        assert handle.call("synthetic", "start", subject=3, practice=5).result(30)
+        assert wait_for(handle, lambda: len(recorder.recorded) == 1, 60.0)
+        (row,) = rows
+    finally:
+        recorder.stop()
+        system.stop()
+    with RecordsDB(path) as db:
+        (attempt,) = db.attempts("ana")
+    assert attempt["metrics"]["deviation_error"][0] == pytest.approx(row["deviation_error"])
