@@ -105,6 +105,15 @@ def test_curve_writes_a_png(records, tmp_path, capsys):
     assert Image.open(png2).size[1] > 1.5 * Image.open(png).size[1]  # one row per task
 
 
+def test_curves_in_columns(records):
+    from davinci_sim.records.report import curves_png
+
+    with RecordsDB(records) as db:
+        wide = Image.open(io.BytesIO(curves_png(db, "ana", task="seed_path")))
+        two = Image.open(io.BytesIO(curves_png(db, "ana", task="seed_path", columns=2)))
+    assert wide.size == (1200, 320) and two.size == (800, 640)  # 3 panels of 400 x 320 px
+
+
 def test_the_default_curves_are_the_score_and_the_metrics_with_a_direction(records):
     with RecordsDB(records) as db:
         assert curve_metrics(db.attempts("ana", task="seed_path")) == [

@@ -105,7 +105,7 @@ class RecordsPart:
             if self._curve is not None and self._curve[0] == key:
                 return self._curve[1]
             with RecordsDB(self.path, create=False) as db:
-                png = curves_png(db, self.trainee, task=self.task_name)
+                png = curves_png(db, self.trainee, task=self.task_name, columns=2)  # (a panel)
             self._curve = (key, png)
             return png
 

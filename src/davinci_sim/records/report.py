@@ -163,6 +163,7 @@ def curves_png(
     task: str | None = None,
     metrics: Sequence[str] | None = None,
     pass_marks: Mapping[str, float] | None = None,
+    columns: int | None = None,
 ) -> bytes:
     """``trainee``'s learning curves (see the module docstring) as PNG bytes. Drawn on a
     figure of its own (no pyplot state), so any thread may draw.
@@ -174,6 +175,7 @@ def curves_png(
         pass_marks: metric name → pass mark (in the metric's unit); passing is at or below
             it for a lower-is-better metric, at or above for a higher-is-better one and for
             the score.
+        columns: panels per row (None: one row per task, one column per metric).
 
     Raises:
         RecordsError: an unknown trainee or task, no attempts, an unknown metric.
@@ -196,12 +198,16 @@ def curves_png(
     if not names:
         raise RecordsError("no metric to draw (none has a better direction); name one")
     marks = dict(pass_marks or {})
-    fig = Figure(figsize=(4.0 * len(names), 3.2 * len(tasks)))
-    axes = fig.subplots(len(tasks), len(names), squeeze=False)
-    for row, (task_name, rows) in enumerate(tasks.items()):
-        for col, name in enumerate(names):
-            _draw_one(axes[row][col], rows, name, marks.get(name))
-            axes[row][col].set_title(f"{task_name}: {name.replace('_', ' ')}", fontsize=9)
+    panels = [(task_name, rows, name) for task_name, rows in tasks.items() for name in names]
+    ncols = len(names) if columns is None else max(1, min(int(columns), len(panels)))
+    nrows = -(-len(panels) // ncols)
+    fig = Figure(figsize=(4.0 * ncols, 3.2 * nrows))
+    axes = fig.subplots(nrows, ncols, squeeze=False).ravel()
+    for ax, (task_name, rows, name) in zip(axes, panels, strict=False):
+        _draw_one(ax, rows, name, marks.get(name))
+        ax.set_title(f"{task_name}: {name.replace('_', ' ')}", fontsize=9)
+    for ax in axes[len(panels) :]:
+        ax.set_visible(False)
     fig.suptitle(f"learning curves of {trainee}")
     fig.tight_layout()
     out = io.BytesIO()
