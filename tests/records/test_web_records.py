@@ -73,12 +73,19 @@ def test_the_page_gets_the_trainees_learning_curves(web):
     open_web, _, part = web
     status, body = get(f"http://127.0.0.1:{open_web.port}/records/curve.png?n=1")
     assert status == 200 and Image.open(io.BytesIO(body)).format == "PNG"
-    part.set_trainee("cy")  # no attempt yet: nothing to draw
+    curve = Image.open(io.BytesIO(body)).size
+    part.set_trainee("cy")  # no attempt yet: a note
     try:
         status, body = get(f"http://127.0.0.1:{open_web.port}/records/curve.png")
-        assert status == 404 and body == b"no learning curve: no attempt of the trainee yet\n"
+        assert status == 200 and Image.open(io.BytesIO(body)).size == (600, 50) != curve
     finally:
         part.set_trainee("ana")
+
+
+def test_the_page_is_told_whether_there_are_records(web):
+    open_web, _, _ = web
+    with connect(f"ws://127.0.0.1:{open_web.port}/ws", open_timeout=10) as ws:
+        assert next_op(ws, "hello")["records"] is True
 
 
 def test_with_a_token_only_a_page_with_it_gets_the_curves(web):

@@ -15,7 +15,7 @@ from __future__ import annotations
 import threading
 from pathlib import Path
 
-from davinci_sim.records.db import RecordsDB, check_name, default_path
+from davinci_sim.records.db import RecordsDB, RecordsError, check_name, default_path
 from davinci_sim.records.recorder import AttemptRecorder
 
 
@@ -91,21 +91,22 @@ class RecordsPart:
 
     def curve_png(self) -> bytes:
         """The current trainee's learning curves at the served task, as PNG
-        (:func:`~davinci_sim.records.report.curves_png`), drawn again only once another
-        attempt is recorded or the trainee changed.
-
-        Raises:
-            RecordsError: no records file yet, or no attempt of the trainee at the task.
-        """
-        from davinci_sim.records.report import curves_png
+        (:func:`~davinci_sim.records.report.curves_png`; a one-line note while the trainee
+        has no attempt there), drawn again only once another attempt is recorded or the
+        trainee changed."""
+        from davinci_sim.records.report import curves_png, note_png
 
         with self._curve_lock:
             recorded = 0 if self.recorder is None else len(self.recorder.recorded)
             key = (self.trainee, recorded)
             if self._curve is not None and self._curve[0] == key:
                 return self._curve[1]
-            with RecordsDB(self.path, create=False) as db:
-                png = curves_png(db, self.trainee, task=self.task_name, columns=2)  # (a panel)
+            try:
+                with RecordsDB(self.path, create=False) as db:
+                    png = curves_png(db, self.trainee, task=self.task_name, columns=2)
+            except RecordsError:  # no attempt yet (or no file yet): a note instead
+                at = f" at {self.task_name}" if self.task_name else ""
+                png = note_png(f"no recorded attempt of {self.trainee}{at} yet")
             self._curve = (key, png)
             return png
 

@@ -215,6 +215,17 @@ def curves_png(
     return out.getvalue()
 
 
+def note_png(text: str) -> bytes:
+    """A one-line note as a small PNG (where a learning curve would be)."""
+    from matplotlib.figure import Figure
+
+    fig = Figure(figsize=(6.0, 0.5))
+    fig.text(0.5, 0.5, text, ha="center", va="center", fontsize=10, color="0.35")
+    out = io.BytesIO()
+    fig.savefig(out, dpi=100, format="png")
+    return out.getvalue()
+
+
 def _series(rows: Sequence[dict], name: str) -> tuple[list[float], str | None, str | None]:
     """(values, unit, better) of metric ``name`` over ``rows`` (nan: not measured)."""
     if name == "score":

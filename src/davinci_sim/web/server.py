@@ -290,8 +290,9 @@ class WebConsole(AsyncService):
                 return connection.respond(403, "wrong or missing token\n")
         try:
             body = await asyncio.to_thread(self.records.curve_png)
-        except ValueError:  # (RecordsError: no attempt yet; its text names a server path)
-            return connection.respond(404, "no learning curve: no attempt of the trainee yet\n")
+        except Exception:  # (its text may name a path of the server: logged, not sent)
+            _log.exception("cannot draw the learning curves")
+            return connection.respond(500, "cannot draw the learning curves\n")
         headers = Headers([("Content-Type", "image/png"), ("Cache-Control", "no-store")])
         return Response(200, "OK", headers, body)
 
@@ -368,6 +369,7 @@ class WebConsole(AsyncService):
             "operator": self.operator,
             "trainee": self.trainee,
             "study": self.study is not None,
+            "records": self.records is not None,
         }
         task = self.task
         if task is not None:

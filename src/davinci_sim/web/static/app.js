@@ -83,9 +83,10 @@ function onMessage(m) {
   }
 }
 
-// The trainee's learning curves from the trainee records (hidden when the server has none,
-// or the trainee no attempt yet).
+// The trainee's learning curves from the trainee records (when the server has them; the
+// server draws a note while the trainee has no attempt).
 function refreshCurve() {
+  if (!state.hello || !state.hello.records) return;  // no trainee records on this server
   const img = $("curve");
   const query = new URLSearchParams({ n: String(Date.now()) });
   if (params.get("token")) query.set("token", params.get("token"));
