@@ -1,4 +1,5 @@
-"""The ``davinci-sim`` command line: ``info``, ``snapshot``, ``demo``, ``serve`` and ``study``.
+"""The ``davinci-sim`` command line: ``info``, ``snapshot``, ``demo``, ``serve``, ``task``,
+``trainees`` and ``study``.
 
 Size: over 500 lines because the command line is one parser: each command is a short
 function that checks its options and calls the package, and ``serve`` alone has some forty
@@ -212,13 +213,19 @@ def cmd_serve(args: argparse.Namespace) -> int:
     hands = ("MTML", "MTMR") if web and console and args.ros_connect is None else ()
     parts = []
     try:
+        records = None
+        if args.task is not None and not args.no_records:  # every attempt recorded
+            from davinci_sim.records import records_part
+
+            records = records_part(args.trainee or DEFAULT_TRAINEE, path=args.records,
+                                   task=args.task, condition=args.condition)  # fmt: skip
         if web:
             from davinci_sim.web.app import web_part
             from davinci_sim.web.server import WebOptions
 
             web_options = WebOptions(host=args.host, port=args.web_port, token=token,
                                      frame_rate=args.image_rate)  # fmt: skip
-            parts.append(web_part(web_options, bedside=not args.no_bedside))
+            parts.append(web_part(web_options, bedside=not args.no_bedside, records=records))
         options = ServeOptions(
             scene=args.scene,
             keyframe=args.keyframe,
@@ -266,7 +273,12 @@ def cmd_serve(args: argparse.Namespace) -> int:
             problem = task_problem(task)
             if problem is not None:
                 raise ValueError(problem)
-    except ValueError as e:  # TaskError is a ValueError
+            if records is not None:  # (an unusable records file: say so now)
+                from davinci_sim.records import RecordsDB
+
+                RecordsDB(records.path).close()
+                parts.insert(0, records)  # (attached before any page can start a repetition)
+    except ValueError as e:  # TaskError and RecordsError are ValueErrors
         print(f"davinci-sim serve: {e}", file=sys.stderr)
         return 2
     stop = threading.Event()
@@ -287,6 +299,8 @@ def cmd_serve(args: argparse.Namespace) -> int:
             else:
                 why = loop.get("realtime_priority_error", "not a process runner")
                 print(f"loop process: normal priority ({why})", flush=True)
+        if "records" in info:
+            print(f"trainee records: {info['records']} (trainee {info['trainee']!r})", flush=True)
         if "web" in info:
             print(f"web console: {info['web']}  <- open this in a browser", flush=True)
         if "bedside" in info:
@@ -324,6 +338,15 @@ def _serve_option_problem(args: argparse.Namespace) -> str | None:
         return f"--duration must be a time >= 0 s, got {args.duration:g}"
     if args.condition is not None and args.task is None:
         return "--condition needs --task (the condition of which task?)"
+    if args.trainee is not None and args.task is None:
+        return "--trainee needs --task (the attempts at which task?)"
+    if args.trainee is not None:
+        from davinci_sim.records.db import RecordsError, check_name
+
+        try:
+            check_name(args.trainee)
+        except RecordsError as e:
+            return f"--trainee: {e}"
     if args.realtime_priority is not None and not 1 <= args.realtime_priority <= 99:
         return "--realtime-priority must be in 1..99"
     for name in ("port", "web_port"):
@@ -372,6 +395,64 @@ def cmd_task_check(args: argparse.Namespace) -> int:
     bad = sum(not c.ok for c in checks)
     print("ok" if not bad else f"{bad} point(s) fail")
     return 0 if not bad else 1
+
+
+#: The trainee ``serve --task`` records the attempts of without ``--trainee``.
+DEFAULT_TRAINEE = "guest"
+
+
+def cmd_trainees(args: argparse.Namespace) -> int:
+    """The trainee records: list, show, export, curve (see ``davinci_sim.records.report``)."""
+    from davinci_sim.records import RecordsDB, RecordsError
+    from davinci_sim.records import report as records_report
+
+    where = f"davinci-sim trainees {args.trainees_command}"
+    try:
+        pass_marks = dict(_pass_mark(text) for text in getattr(args, "pass_mark", None) or ())
+        with RecordsDB(args.records, create=False) as db:
+            if args.trainees_command == "list":
+                print(records_report.list_text(db))
+            elif args.trainees_command == "show":
+                print(records_report.show_text(db, args.name))
+            elif args.trainees_command == "export":
+                if args.csv in (None, "-"):
+                    records_report.export_csv(db, sys.stdout, args.trainee)
+                else:
+                    import io
+
+                    buffer = io.StringIO()
+                    n = records_report.export_csv(db, buffer, args.trainee)
+                    try:
+                        Path(args.csv).write_text(buffer.getvalue(), encoding="utf-8")
+                    except OSError as e:
+                        raise RecordsError(f"cannot write {args.csv}: {e.strerror or e}") from e
+                    print(f"{args.csv}: {n} attempt(s)")
+            else:
+                out = records_report.draw_curves(
+                    db, args.name, args.output, task=args.task, metrics=args.metric,
+                    pass_marks=pass_marks,
+                )  # fmt: skip
+                print(out)
+    except RecordsError as e:
+        print(f"{where}: {e}", file=sys.stderr)
+        return 2
+    return 0
+
+
+def _pass_mark(text: str) -> tuple[str, float]:
+    """``METRIC=VALUE`` of ``--pass-mark``."""
+    import math
+
+    from davinci_sim.records import RecordsError
+
+    name, sep, value = text.partition("=")
+    try:
+        mark = float(value)
+    except ValueError:
+        mark = math.nan
+    if not sep or not name or not math.isfinite(mark):
+        raise RecordsError(f"--pass-mark wants METRIC=VALUE (a finite number), got {text!r}")
+    return name, mark
 
 
 def cmd_study(args: argparse.Namespace) -> int:
@@ -499,6 +580,12 @@ def _drop_if_empty(store) -> None:
         store.finish()
 
 
+_RECORDS_HELP = (
+    "the trainee records file (default: $DAVINCI_SIM_RECORDS, else "
+    "$XDG_DATA_HOME/davinci-sim/records.sqlite3, else ~/.local/share/davinci-sim/records.sqlite3)"
+)
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(
         prog="davinci-sim", description="Simulator of the da Vinci Research Kit (dVRK)."
@@ -615,6 +702,14 @@ def main(argv: list[str] | None = None) -> int:
     )
     p.add_argument("--task-log", default=None, help="CSV file the repetitions are appended to")
     p.add_argument(
+        "--trainee",
+        default=None,
+        help=f"whose attempts these are: each finished repetition of --task is recorded in "
+        f"the trainee records under this name (default: {DEFAULT_TRAINEE!r})",
+    )
+    p.add_argument("--records", default=None, metavar="FILE", help=_RECORDS_HELP)
+    p.add_argument("--no-records", action="store_true", help="do not record the attempts")
+    p.add_argument(
         "--runner",
         default=None,
         choices=["thread", "process"],
@@ -644,6 +739,33 @@ def main(argv: list[str] | None = None) -> int:
     )
     p.add_argument("file", help="task name (e.g. seed_path) or task file")
     p.set_defaults(func=cmd_task_check)
+    p = sub.add_parser("trainees", help="the trainee records: list, show, export, curves")
+    trainees_sub = p.add_subparsers(dest="trainees_command", required=True)
+    p = trainees_sub.add_parser("list", help="the trainees, their sessions and attempts")
+    p.add_argument("--records", default=None, metavar="FILE", help=_RECORDS_HELP)
+    p.set_defaults(func=cmd_trainees)
+    p = trainees_sub.add_parser("show", help="a trainee's sessions, attempts, latest metrics")
+    p.add_argument("name", help="the trainee")
+    p.add_argument("--records", default=None, metavar="FILE", help=_RECORDS_HELP)
+    p.set_defaults(func=cmd_trainees)
+    p = trainees_sub.add_parser("export", help="every attempt as CSV, the metrics as columns")
+    p.add_argument("--csv", nargs="?", const="-", default="-", metavar="FILE",
+                   help="CSV file (default: standard output)")  # fmt: skip
+    p.add_argument("--trainee", default=None, help="only this trainee's attempts")
+    p.add_argument("--records", default=None, metavar="FILE", help=_RECORDS_HELP)
+    p.set_defaults(func=cmd_trainees)
+    p = trainees_sub.add_parser("curve", help="a trainee's learning curves as a PNG figure")
+    p.add_argument("name", help="the trainee")
+    p.add_argument("--task", default=None, help="one task (default: each task, one row each)")
+    p.add_argument("--metric", action="append", default=None,
+                   help="a metric to draw (repeatable; 'score': the overall score; default: "
+                   "the score if scored, then each metric with a better direction)")  # fmt: skip
+    p.add_argument("--pass-mark", action="append", default=None, metavar="METRIC=VALUE",
+                   help="pass mark of a metric, in its unit (repeatable): the pass band is "
+                   "drawn (the score's recorded pass mark is used by default)")  # fmt: skip
+    p.add_argument("--output", "-o", required=True, help="the PNG file")
+    p.add_argument("--records", default=None, metavar="FILE", help=_RECORDS_HELP)
+    p.set_defaults(func=cmd_trainees)
     p = sub.add_parser(
         "study", help="the seed's user study with synthetic trainees (CSV, figures, report)"
     )

@@ -121,3 +121,19 @@ def test_the_taken_port_message_says_9090_is_rosbridge_s_and_works_without_a_hol
     held.close()
     assert port_holder(port) is None  # nobody listens any more
     assert port_holder(port, proc="/nonexistent") is None
+
+
+@pytest.mark.parametrize(
+    "argv, words",
+    [
+        (["serve", "--trainee", "ana"], "--trainee needs --task"),
+        (["serve", "--task", "seed_path", "--trainee", " "], "non-empty"),
+        (["serve", "--task", "seed_path", "--trainee", "a\tb"], "printable"),
+        (["serve", "--task", "seed_path", "--records", "{folder}"], "records file"),
+    ],
+)
+def test_bad_records_options_fail_in_one_line_before_any_work(argv, words, capsys, tmp_path):
+    argv = [a.replace("{folder}", str(tmp_path)) for a in argv]
+    assert main(argv) == 2
+    err = capsys.readouterr().err
+    assert words in err and "Traceback" not in err and len(err.strip().splitlines()) == 1

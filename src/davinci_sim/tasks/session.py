@@ -188,6 +188,15 @@ class TaskSession:
         self.channels.message("status", f"repetition {self.repetition}: reset", self.sim.time)
         return ACCEPTED
 
+    def report(self, level: str, text: str) -> CommandResult:
+        """Put ``text`` on the session's message channel at ``level`` (``error``,
+        ``warning`` or ``status``): how a part outside the loop tells about the session (the
+        trainee records, when an attempt cannot be written)."""
+        if level not in ("error", "warning", "status"):
+            return CommandResult(False, f"{self.name}: level must be error, warning or status")
+        self.channels.message(level, str(text), self.sim.time)
+        return ACCEPTED
+
     # ------------------------------------------------------------ component
     def pre_step(self, t: float) -> None:
         """Nothing before the physics step: the session samples in :meth:`post_step`."""

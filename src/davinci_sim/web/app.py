@@ -40,10 +40,14 @@ class WebPart:
                 _log.exception("stopping %r failed", part)
 
 
-def web_part(options: WebOptions, *, bedside: bool = True) -> Callable[[Any, dict], WebPart]:
+def web_part(
+    options: WebOptions, *, bedside: bool = True, records=None
+) -> Callable[[Any, dict], WebPart]:
     """A ``serve`` part that starts the web console on the running system: the page at
     ``options.host:options.port``, the 3-D view on the next free port if ``bedside``. Adds
-    ``info["web"]`` (the page's URL) and ``info["bedside"]`` (the 3-D view's)."""
+    ``info["web"]`` (the page's URL) and ``info["bedside"]`` (the 3-D view's). ``records``:
+    the trainee records' part (:class:`~davinci_sim.records.console.RecordsPart`) the page's
+    trainee field sets the trainee of."""
 
     def make(system, info: dict) -> WebPart:
         from davinci_sim.model import resolve_scene
@@ -69,6 +73,7 @@ def web_part(options: WebOptions, *, bedside: bool = True) -> Callable[[Any, dic
             camera=resolve_scene(description.scene).endoscope,
             hand_mtms=hands,
             study_task=None if description.task is None else description.task.task,
+            records=records,
         )
         try:
             console.start()

@@ -10,7 +10,8 @@ thread or its own process, is never waited on. What it streams to every page:
   and right JPEG; the right one only while some page shows both eyes, else empty), from the
   one render pipeline (``System.frames()``), each pair encoded once for all pages;
 - each finished repetition's row, tagged with the trainee's name (``rows``), also offered
-  as CSV at ``/results.csv``.
+  as CSV at ``/results.csv``; with the trainee records, the trainee's learning curves at
+  ``/records/curve.png``.
 
 A page sends the commands of :mod:`davinci_sim.web.protocol`; they are checked there before
 anything is called, and a refused one comes back as an ``error`` message to that page only.
@@ -140,6 +141,9 @@ class WebConsole(AsyncService):
         camera: the endoscope's camera (image size, field of view, baseline).
         hand_mtms: MTMs whose hand the page steers (``<MTM>/hand`` components).
         study_task: the task (name or file) the study tab runs studies of; None: no study tab.
+        records: the trainee records' ``serve`` part
+            (:class:`~davinci_sim.records.console.RecordsPart`): the page's trainee field
+            sets whose attempts are recorded; None: the name only tags the rows.
     """
 
     def __init__(
@@ -152,6 +156,7 @@ class WebConsole(AsyncService):
         camera: CameraConfig | None = None,
         hand_mtms: tuple[str, ...] = (),
         study_task: str | None = None,
+        records=None,
     ) -> None:
         from davinci_sim.web.study_job import StudyJob
 
@@ -165,7 +170,9 @@ class WebConsole(AsyncService):
         self.hand_mtms = tuple(hand_mtms)
         self.rows: list[dict] = []
         """Finished repetitions, each tagged with the trainee's name (``trainee``)."""
-        self.trainee = ""
+        self.records = records
+        """The trainee records (``set_trainee(name) -> name``; None: not recorded)."""
+        self.trainee = "" if records is None else records.trainee
         self.operator: int | None = None
         self._clients: dict[int, _Client] = {}
         self._ids = itertools.count(1)
@@ -238,7 +245,7 @@ class WebConsole(AsyncService):
             self._handler,
             self.options.host,
             self.options.port,
-            process_request=self._http,
+            process_request=self._process_request,
             compression=None,
             max_size=64 * 1024,
             ping_interval=20,
@@ -260,6 +267,35 @@ class WebConsole(AsyncService):
                 await server.wait_closed()
 
     # ------------------------------------------------------------ HTTP
+    async def _process_request(self, connection, request):
+        path = request.path.split("?", 1)[0]
+        if path == "/records/curve.png":  # drawn in a worker thread: the pages stream on
+            return await self._curve(connection, request)
+        return self._http(connection, request)
+
+    async def _curve(self, connection, request):
+        """The trainee's learning curves (PNG) from the trainee records; with a token, only
+        for a request that carries it (``?token=``): the records are personal data."""
+        import hmac
+        from urllib.parse import parse_qs, urlsplit
+
+        from websockets.datastructures import Headers
+        from websockets.http11 import Response
+
+        if self.records is None:
+            return connection.respond(404, "no trainee records on this server\n")
+        if self.options.token is not None:
+            given = parse_qs(urlsplit(request.path).query).get("token", [""])[0]
+            if not hmac.compare_digest(given.encode(), self.options.token.encode()):
+                return connection.respond(403, "wrong or missing token\n")
+        try:
+            body = await asyncio.to_thread(self.records.curve_png)
+        except Exception:  # (its text may name a path of the server: logged, not sent)
+            _log.exception("cannot draw the learning curves")
+            return connection.respond(500, "cannot draw the learning curves\n")
+        headers = Headers([("Content-Type", "image/png"), ("Cache-Control", "no-store")])
+        return Response(200, "OK", headers, body)
+
     def _http(self, connection, request):
         from websockets.datastructures import Headers
         from websockets.http11 import Response
@@ -333,6 +369,7 @@ class WebConsole(AsyncService):
             "operator": self.operator,
             "trainee": self.trainee,
             "study": self.study is not None,
+            "records": self.records is not None,
         }
         task = self.task
         if task is not None:
@@ -406,7 +443,14 @@ class WebConsole(AsyncService):
             self._push(client, {"op": "pong", "t": command.args["t"], "server": time.time()})
             return
         if command.op == "trainee":
-            self.trainee = command.args["name"]
+            name = command.args["name"]
+            if self.records is not None:  # the next attempts are recorded as this trainee's
+                try:
+                    name = self.records.set_trainee(name)
+                except ValueError as e:
+                    self._push(client, {"op": "error", "message": f"trainee: {e}"})
+                    return
+            self.trainee = name
             self._broadcast({"op": "trainee", "name": self.trainee})
             return
         if command.op == "control":

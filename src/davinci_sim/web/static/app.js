@@ -71,13 +71,28 @@ function onMessage(m) {
     case "welcome": state.operator = m.operator; updateControl(); break;
     case "state": onState(m); break;
     case "control": state.operator = m.operator; updateControl(); break;
-    case "row": addRow(m.row); break;
-    case "trainee": if (document.activeElement !== $("trainee")) $("trainee").value = m.name; break;
+    case "row": addRow(m.row); refreshCurve(); break;
+    case "trainee":
+      if (document.activeElement !== $("trainee")) $("trainee").value = m.name;
+      refreshCurve();
+      break;
     case "error": showMessage(m.message, "error"); break;
     case "pong": state.rtt = performance.now() - m.t; break;
     case "study": onStudy(m); break;
     default: break;
   }
+}
+
+// The trainee's learning curves from the trainee records (when the server has them; the
+// server draws a note while the trainee has no attempt).
+function refreshCurve() {
+  if (!state.hello || !state.hello.records) return;  // no trainee records on this server
+  const img = $("curve");
+  const query = new URLSearchParams({ n: String(Date.now()) });
+  if (params.get("token")) query.set("token", params.get("token"));
+  img.onload = () => { img.hidden = false; };
+  img.onerror = () => { img.hidden = true; };
+  img.src = `records/curve.png?${query}`;
 }
 
 // ------------------------------------------------------------------ hello: build the panels
@@ -90,6 +105,7 @@ function onHello(m) {
   state.hello = m;
   state.operator = m.operator;
   $("trainee").value = m.trainee || "";
+  refreshCurve();
   const cam = m.camera;
   for (const id of ["endoscope", "overlay"]) { $(id).width = cam.width; $(id).height = cam.height; }
   if (m.bedside_port) {

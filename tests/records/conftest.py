@@ -1,0 +1,5 @@
+"""Shared setup of the trainee records' tests."""
+
+import os
+
+os.environ.setdefault("MUJOCO_GL", "egl")  # offscreen rendering; must precede mujoco's import
