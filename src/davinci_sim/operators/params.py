@@ -62,6 +62,30 @@ learning exponent α    uniform 0.2-0.6                power law of practice
 =====================  ============================  =================================
 
 Nothing here is fitted to the seed's results.
+
+**Expert profile** (:func:`sample_experts`, the reference group of the pass marks,
+:mod:`davinci_sim.tasks.scoring`): an expert is the same person model with the physiology
+drawn as above (mass, stiffness, damping, delay, tremor, reaction time: practice does not
+change them) and the skill parameters of someone at the plateau of the learning curve,
+from its own random stream. All four are **assumptions** anchored on the direction the
+literature reports, not fitted values:
+
+=====================  ============================  =================================
+parameter              expert distribution            why
+=====================  ============================  =================================
+practised tool speed   lognormal 25 mm/s, ×/÷ 1.2     experts finish robotic training
+                                                     tasks in about half to two-thirds
+                                                     of novices' time (Judkins,
+                                                     Oleynikov & Stergiou 2009)
+novice excess E        lognormal 0.1, ×/÷ 1.3         on the plateau: the first
+                                                     repetition ~10 % off practised
+signal-dependent       lognormal 0.07, ×/÷ 1.2        practice reduces movement
+noise coefficient k                                  variability (Shmuelof, Krakauer &
+                                                     Mazzoni 2012)
+crossover frequency    normal 5 rad/s, sd 0.5         practice raises the crossover
+                                                     frequency of manual control
+                                                     (McRuer & Jex 1967)
+=====================  ============================  =================================
 """
 
 from __future__ import annotations
@@ -166,3 +190,36 @@ def sample_subjects(n: int, seed: int = 0) -> SubjectParams:
         raise ValueError(f"need at least one subject, got {n}")
     draws = [sample_subject(seed, i) for i in range(n)]
     return SubjectParams(**{k: np.array([d[k] for d in draws]) for k in draws[0]})
+
+
+def sample_expert(seed: int, index: int) -> dict[str, float]:
+    """The parameters of expert ``index`` of population ``seed``: subject ``index``'s
+    physiology with an expert's skill (see the module's expert table)."""
+    draw = sample_subject(seed, index)
+    rng = np.random.default_rng([int(seed), int(index), 0xE4E7])
+    draw.update(
+        speed=_lognormal(rng, 0.025, 1.2),
+        novice_excess=_lognormal(rng, 0.1, 1.3),
+        noise=_lognormal(rng, 0.07, 1.2),
+        crossover=_normal(rng, 5.0, 0.5),
+    )
+    return draw
+
+
+def sample_experts(n: int, seed: int = 0) -> SubjectParams:
+    """``n`` experts of population ``seed`` (the reference group of the pass marks)."""
+    if n < 1:
+        raise ValueError(f"need at least one expert, got {n}")
+    draws = [sample_expert(seed, i) for i in range(n)]
+    return SubjectParams(**{k: np.array([d[k] for d in draws]) for k in draws[0]})
+
+
+#: Populations of synthetic trainees by name: the trainees (novices) and the experts.
+POPULATIONS = {"trainee": sample_subjects, "expert": sample_experts}
+
+
+def sample_population(population: str, n: int, seed: int = 0) -> SubjectParams:
+    """``n`` subjects of ``population`` (a name of :data:`POPULATIONS`)."""
+    if population not in POPULATIONS:
+        raise ValueError(f"unknown population {population!r}; populations: {list(POPULATIONS)}")
+    return POPULATIONS[population](n, seed=seed)

@@ -17,6 +17,7 @@ import numpy as np
 from davinci_sim.study.runner import StudyResult
 from davinci_sim.study.stats import friedman, pairwise_wilcoxon, subject_means
 from davinci_sim.study.trial import METRICS
+from davinci_sim.tasks.scoring import SCORE_COLUMNS
 from davinci_sim.tasks.task import PathTask
 
 #: The metrics' declarations (the study's task kind), by name.
@@ -36,6 +37,7 @@ COLUMNS = (
     "task",
     "finished",
     *METRICS,
+    *SCORE_COLUMNS,
     "sim_time",
     "wall_time",
 )
