@@ -176,10 +176,10 @@ class Scoring:
         return AttemptScore(score, (passed and bool(finished)) if judged else None, parts, marks)
 
     def row(self, values: dict[str, Any], finished: bool = True) -> dict[str, Any]:
-        """The :data:`SCORE_COLUMNS` of an attempt: ``score`` (%, float) and ``passed``
-        (bool, or None without a pass mark)."""
+        """The :data:`SCORE_COLUMNS` of an attempt: ``score`` (%, float; None when nothing
+        is scored) and ``passed`` (bool; None without a pass mark)."""
         s = self.score(values, finished)
-        return {"score": s.score, "passed": s.passed}
+        return {"score": s.score if math.isfinite(s.score) else None, "passed": s.passed}
 
 
 def parse_scoring(spec: dict, metrics: tuple[Metric, ...], task: str = "?") -> Scoring:

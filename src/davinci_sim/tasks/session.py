@@ -247,7 +247,7 @@ class TaskSession:
         self._recorded = True
         self.channels.emit("results", dict(row))
         verdict = {True: "passed", False: "not passed", None: "no pass mark"}[row["passed"]]
-        score = "" if math.isnan(row["score"]) else f"score {row['score']:.0f} % ({verdict}); "
+        score = "" if row["score"] is None else f"score {row['score']:.0f} % ({verdict}); "
         self.channels.message(
             "status",
             f"repetition {self.repetition} done: {score}{self.task.summary(row)}",
