@@ -191,10 +191,13 @@ class PathTask(Task, kind="path"):
         """Arc length of each numbered point's place on the path (N,), m."""
         return self._rounded[1]
 
-    @property
+    @cached_property
     def markers(self) -> np.ndarray:
-        """The numbered points as drawn: their places on the path (N, 3), m, in the frame."""
-        return self.path.point_at(self.marker_arc_lengths)
+        """The numbered points as drawn: their places on the path (N, 3), m, in the frame
+        (read-only; computed once: the missed-targets metric reads it every tick)."""
+        m = self.path.point_at(self.marker_arc_lengths)
+        m.setflags(write=False)
+        return m
 
     @property
     def view_points(self) -> np.ndarray:
