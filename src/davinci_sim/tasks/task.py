@@ -50,8 +50,8 @@ from davinci_sim.tasks.state import initial_state, task_step
 from davinci_sim.tasks.trainer import PATH_MISSED_TARGETS, trainer_metrics
 
 #: A crawl along the path, m/s: the path kind's completion time scoring 0 % is its length
-#: at this speed (our choice: ~5x slower than the synthetic novices' practised speed).
-FAIL_SPEED = 0.002
+#: at this speed (our choice: a third of the synthetic trainees' median practised speed).
+FAIL_SPEED = 0.005
 
 __all__ = [
     "FRAMES",
@@ -128,12 +128,13 @@ class PathTask(Task, kind="path"):
 
     @property
     def SCORING(self) -> dict:  # noqa: N802 (the kind's declaration, from the geometry)
-        """What a path attempt is scored on: deviation (weight 2; 0 % at a mean distance of
-        ``tube_radius``), time (0 % at the path's length crawled at :data:`FAIL_SPEED`),
-        economy (0 % at 3x the path's length), time outside the tube (0 % at half the
-        failing time), collisions (5), excessive force (5 s), out of view (the path's
-        length), master workspace (3x the numbered points' box diagonal over the motion
-        scale), missed targets (all of points 2..N−1). 100 %: the expert reference."""
+        """What a path attempt is scored on, and the values scoring 0 % (our choices):
+        deviation (weight 2; a mean distance of ``tube_radius``), time (the path's length
+        crawled at :data:`FAIL_SPEED`), economy (1.5x the path's length), time outside the
+        tube (half the failing time), collisions (5), excessive force (5 s), out of view
+        (the path's length), master workspace (2x the numbered points' box diagonal over
+        the motion scale), missed targets (all of points 2..N−1); weight 1 but deviation.
+        100 %: the expert reference's means."""
         L = float(self.path.length)
         box = np.ptp(self.waypoints, axis=0)
         span = float(np.linalg.norm(box)) / self.teleop.scale
@@ -142,12 +143,12 @@ class PathTask(Task, kind="path"):
             "metrics": {
                 "deviation_error": {"weight": 2.0, "fail": self.tube_radius},
                 "completion_time": {"weight": 1.0, "fail": t_fail},
-                "path_length": {"weight": 1.0, "fail": 3.0 * L},
+                "path_length": {"weight": 1.0, "fail": 1.5 * L},
                 "time_outside": {"weight": 1.0, "fail": t_fail / 2.0},
                 "instrument_collisions": {"weight": 1.0, "fail": 5.0},
                 "excessive_force": {"weight": 1.0, "fail": 5.0},
                 "out_of_view": {"weight": 1.0, "fail": L},
-                "master_workspace": {"weight": 1.0, "fail": 3.0 * span},
+                "master_workspace": {"weight": 1.0, "fail": 2.0 * span},
                 "missed_targets": {"weight": 1.0, "fail": float(max(len(self.waypoints) - 2, 1))},
             }
         }
