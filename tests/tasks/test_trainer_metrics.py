@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+from pathlib import Path
 from types import SimpleNamespace
 
 import mujoco
@@ -198,3 +199,54 @@ def test_instrument_contacts_leave_out_ignored_objects():
     with_object = InstrumentContacts(model, "PSM1").measure(model, data)
     without = InstrumentContacts(model, "PSM1", ignore=("object/",)).measure(model, data)
     assert with_object[0] == without[0] + 1
+
+
+def test_the_live_sample_sees_the_instruments_contacts_at_the_console():
+    """At the console with the patient side of the scene, the tool (clutched, moved by the
+    PSM) driven down onto the bead on the scene's post: the live sample has the jaws'
+    contacts and their force, the tip in view, the master's position; before, none."""
+    import dataclasses
+
+    from davinci_sim.model.config import SceneConfig
+    from davinci_sim.study.trial import trial_description
+    from davinci_sim.system import install_console_of, new_simulation
+    from davinci_sim.tasks import load_task
+    from davinci_sim.tasks.session import live_sample
+
+    task = load_task(str(Path(__file__).resolve().parents[1] / "study" / "short_path.yaml"))
+    scene = SceneConfig(arms=("PSM1", "ECM", "MTMR"), include_patient=True)
+    description = dataclasses.replace(trial_description(task), scene=scene)
+    sim = new_simulation(description)
+    try:
+        psm = sim.arms["PSM1"]
+        psm.state_command("enable")
+        psm.state_command("home")
+        assert sim.run_until(lambda: psm.is_homed() and not psm.is_busy(), 30.0)
+        console = install_console_of(sim, description)
+        teleop = console.psm_teleops["MTMR_PSM1"]
+        assert sim.run_until(teleop.is_following, 30.0)
+        T_task_camera = task.T_task_camera(sim.T_cart_camera())
+
+        def sample():
+            return live_sample(task, T_task_camera, teleop, console, sim.time)
+
+        before = sample()
+        assert before.contacts[0] == 0 and before.tool_force[0] == 0.0
+        assert before.visible[0] and np.all(np.isfinite(before.master))
+        teleop.clutch(True)
+        goal = psm.setpoint_cp().T.copy()
+        goal[:3, 3] = (np.linalg.inv(T_task_camera) @ [0.02, 1.2, 0.755, 1.0])[:3]
+        assert psm.move_cp(goal)
+        touched = None
+        for _ in range(3000):
+            sim.tick()
+            s = sample()
+            if s.contacts[0] > 0:
+                touched = s
+                break
+        assert touched is not None, "the tool never touched the bead"
+        assert touched.tool_force[0] > 0.0
+        probe = InstrumentContacts(sim.model, "PSM1", ignore=("object/",))
+        assert probe.measure(sim.model, sim.data) == (0, 0.0)  # the bead is an object/
+    finally:
+        sim.close()
