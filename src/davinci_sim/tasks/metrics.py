@@ -14,6 +14,8 @@ with one of the reducers :class:`Mean`, :class:`Peak`, :class:`PairSum`, :class:
 :class:`Count` or :class:`Ratio`. :class:`MetricsAccumulator` runs the reducers of a list of
 metrics for n trials, sample by sample, without storing the trajectories (O(n) memory
 whatever the duration); its :meth:`~MetricsAccumulator.result` is a :class:`MetricValues`.
+Reducers: ``init(n, task)``, ``add``, ``final``; a metric reading an optional sample field
+(``Metric.needs``) is nan when a sample lacks it (:mod:`davinci_sim.tasks.trainer`).
 
 **The path-following metrics** (:data:`PATH_METRICS`, the seed's task): over the samples
 i = 1..K of a repetition at times t_i (s), with tip positions p_i (m, task frame), distances
