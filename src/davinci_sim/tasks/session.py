@@ -300,34 +300,30 @@ def live_sample(task: Task, T_task_camera, teleop: TeleopPSM, console: Console, 
     the task's frame), the guidance force the haptic loop requested for the task's MTM (0
     before it has run), the clutch; ``t`` the simulated time, s. The trainer metrics'
     fields: whether the tip is in the left endoscope image, the master handle's position
-    (HRSV: the simulated MTM's measured pose, else the device's last input; None before
-    one), and the instrument's contacts and their force (MuJoCo's contacts of the last
-    step, :class:`~davinci_sim.tasks.trainer.InstrumentContacts`)."""
-    from davinci_sim.model.cameras import in_left_image
+    (HRSV: the device's input of this tick, read before the step, so one tick behind the
+    study batch's, which reads the MTM after it; None before the first input), and the
+    instrument's contacts and their force (MuJoCo's contacts of the last step,
+    :class:`~davinci_sim.tasks.trainer.InstrumentContacts`)."""
+    from davinci_sim.model.cameras import project_left
 
     p_camera = teleop.psm.measured_cp().T
     tip = (np.asarray(T_task_camera) @ p_camera)[:3, 3]
     requested = console.haptics.snapshot().requested.get(task.teleop.mtm)
     force = None if requested is None else requested[:3]
     sim = console.sim
-    visible = in_left_image(p_camera[:3, 3], sim.endoscope)
+    camera = sim.endoscope
+    uv = project_left(p_camera[:3, 3], camera)  # (one point: the scalar form is cheaper)
+    visible = uv is not None and 0 <= uv[0] < camera.width and 0 <= uv[1] < camera.height
     count, contact_force = _contacts(sim, task).measure(sim.model, sim.data)
-    master = _master_position(teleop)
-    clutch = teleop.is_clutched()
-    return Sample.of(
-        t, tip, force, clutch, visible=visible, master=master, contacts=count,
-        tool_force=contact_force,
+    reading = teleop.device.input()
+    master = None if reading is None else reading.T_hrsv_tip[:3, 3].reshape(1, 3)
+    # One trial: the arrays built directly (Sample.of's conversions cost more, every tick).
+    f = np.zeros((1, 3)) if force is None else np.asarray(force, dtype=float).reshape(1, 3)
+    return Sample(
+        np.array([float(t)]), tip.reshape(1, 3), f, np.array([bool(teleop.is_clutched())]),
+        visible=np.array([visible]), master=master, contacts=np.array([count], dtype=np.int64),
+        tool_force=np.array([contact_force]),
     )  # fmt: skip
-
-
-def _master_position(teleop: TeleopPSM):
-    """The master handle's position in HRSV, m (None before the device has an input)."""
-    device = teleop.device
-    arm = getattr(device, "arm", None)
-    if arm is not None:  # a simulated MTM: its measured pose, as the study's batch reads it
-        return arm.measured_cp().T[:3, 3]
-    reading = device.input()
-    return None if reading is None else reading.T_hrsv_tip[:3, 3]
 
 
 #: InstrumentContacts by (model id, PSM, ignored prefixes): (model, contacts), the few

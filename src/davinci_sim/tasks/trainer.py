@@ -245,8 +245,11 @@ class InstrumentContacts:
         if ncon == 0:
             return 0, 0.0
         g = data.contact.geom[:ncon]
-        a, b = g[:, 0], g[:, 1]
-        hit = (self.tool_geom[a] & self.other_geom[b]) | (self.tool_geom[b] & self.other_geom[a])
+        tool = self.tool_geom[g]  # (ncon, 2)
+        if not tool.any():  # (the usual case: contacts elsewhere in the scene)
+            return 0, 0.0
+        other = self.other_geom[g]
+        hit = (tool[:, 0] & other[:, 1]) | (tool[:, 1] & other[:, 0])
         force = 0.0
         for i in np.flatnonzero(hit).tolist():
             self._contact_force(model, data, i, self._force)
