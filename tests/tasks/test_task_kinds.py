@@ -36,6 +36,7 @@ from davinci_sim.tasks import (
 )
 from davinci_sim.tasks.base import check_keys, common_fields
 from davinci_sim.tasks.metrics import Count, Elapsed, Mean, PairSum, Peak
+from davinci_sim.tasks.scoring import SCORE_COLUMNS
 from davinci_sim.tasks.session import SESSION_COLUMNS, session_columns
 
 
@@ -274,7 +275,9 @@ def test_a_session_of_the_new_kind_logs_and_publishes_its_declared_metrics(kind,
     assert psm.move_cp(T)
     assert sim.run_until(lambda: bool(session.results), 10.0)
     row = session.results[0]
-    assert list(row) == [*SESSION_COLUMNS, *names] == list(session_columns(task))
+    assert list(row) == [*SESSION_COLUMNS, *names, *SCORE_COLUMNS] == list(session_columns(task))
+    # The kind scores nothing: no score, nothing to pass.
+    assert row["score"] is None and row["passed"] is None
     assert row["task"] == "reach_short" and row["condition"] == "none"
     assert 0 < row["reach_time"] < 5 and row["samples"] > 10
     assert row["mean_distance"] < np.linalg.norm(task.target - task.start)
@@ -289,7 +292,7 @@ def test_a_session_of_the_new_kind_logs_and_publishes_its_declared_metrics(kind,
     spec = TrialSpec("reach", subject=0, condition=0, B=0.0, G_max=0.0, repetition=1, order=1,
                      practice=1, seed=0)  # fmt: skip
     study_row = trial_row(spec, task, session.monitor.results, 0, True)
-    assert list(study_row)[-len(names) :] == names
+    assert list(study_row)[-len(names) - 2 :] == [*names, *SCORE_COLUMNS]
     assert {k: study_row[k] for k in names} == {k: row[k] for k in names}
     sim.close()
 

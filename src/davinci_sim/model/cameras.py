@@ -86,3 +86,17 @@ def project_left(p_camera, camera: CameraConfig) -> tuple[float, float] | None:
     f = 0.5 * camera.height / math.tan(math.radians(camera.fovy_deg) / 2.0)
     x_left = x - camera.baseline_m / 2.0  # the left camera is half a baseline towards +x
     return (camera.width / 2.0 - f * x_left / z, camera.height / 2.0 - f * y / z)
+
+
+def in_left_image(p_camera, camera: CameraConfig) -> np.ndarray:
+    """(n,) bool: the camera-frame points ``p_camera`` (n, 3), m, project inside the left
+    endoscope image (0 ≤ u < width, 0 ≤ v < height, in front of the camera): the rows of
+    :func:`project_left`, for a batch of points."""
+    p = np.asarray(p_camera, dtype=float).reshape(-1, 3)
+    x, y, z = p[:, 0], p[:, 1], p[:, 2]
+    front = z > 1e-6
+    f = 0.5 * camera.height / math.tan(math.radians(camera.fovy_deg) / 2.0)
+    zs = np.where(front, z, 1.0)
+    u = camera.width / 2.0 - f * (x - camera.baseline_m / 2.0) / zs
+    v = camera.height / 2.0 - f * y / zs
+    return front & (u >= 0) & (u < camera.width) & (v >= 0) & (v < camera.height)

@@ -67,6 +67,20 @@ Nothing here is fitted to the seed's results.
 Calibration (issue 11): one parameter, the median of k (:data:`NOISE_MEDIAN`), is set so that
 the trainees' unassisted deviation on the seed's task matches a target; see
 :data:`CALIBRATION` for the target, the fit and why the target is an assumption.
+
+**Expert profile** (:func:`sample_experts`, the reference group of the pass marks,
+:mod:`davinci_sim.tasks.scoring`): an expert is a trainee at the plateau of the power law
+of practice. Expert i of seed s is subject i of seed s (the same physiology and the same
+*practised* skill: speed, noise, crossover, which the power law already treats as the
+plateau) with a novice excess E drawn lognormal 0.1 ×/÷ 1.3 from its own stream instead of
+1.0: their first repetition is ~10 % off practised where a novice's is ~100 %. This is an
+**assumption** that keeps the reference consistent with the trainee model (a trainee who
+practises approaches the experts, and the learning curves can cross the pass band),
+rather than a separately calibrated expert group; with E = 1 at j = 1 the novices take
+about twice the experts' time, the ratio reported between novices and experts on robotic
+training tasks (Judkins, Oleynikov & Stergiou 2009) and the roughly halved dVSS task times
+over training (Foell et al. 2013, in the table above). A separately measured expert group
+(9 experts x 5 repetitions, Hugo RAS's) would replace this profile when such data is used.
 """
 
 from __future__ import annotations
@@ -201,3 +215,31 @@ TRAINEE_METHOD = (
     "Each subject is one draw of the parameters of `davinci_sim.operators.params` (sources "
     "in its table); nothing is fitted to the seed's results. " + CALIBRATION
 )
+
+
+def sample_expert(seed: int, index: int) -> dict[str, float]:
+    """The parameters of expert ``index`` of population ``seed``: subject ``index`` at the
+    plateau of the power law of practice (see the module docstring's expert profile)."""
+    draw = sample_subject(seed, index)
+    rng = np.random.default_rng([int(seed), int(index), 0xE4E7])
+    draw["novice_excess"] = _lognormal(rng, 0.1, 1.3)
+    return draw
+
+
+def sample_experts(n: int, seed: int = 0) -> SubjectParams:
+    """``n`` experts of population ``seed`` (the reference group of the pass marks)."""
+    if n < 1:
+        raise ValueError(f"need at least one expert, got {n}")
+    draws = [sample_expert(seed, i) for i in range(n)]
+    return SubjectParams(**{k: np.array([d[k] for d in draws]) for k in draws[0]})
+
+
+#: Populations of synthetic trainees by name: the trainees (novices) and the experts.
+POPULATIONS = {"trainee": sample_subjects, "expert": sample_experts}
+
+
+def sample_population(population: str, n: int, seed: int = 0) -> SubjectParams:
+    """``n`` subjects of ``population`` (a name of :data:`POPULATIONS`)."""
+    if population not in POPULATIONS:
+        raise ValueError(f"unknown population {population!r}; populations: {list(POPULATIONS)}")
+    return POPULATIONS[population](n, seed=seed)

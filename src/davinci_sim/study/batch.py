@@ -22,11 +22,15 @@ runs n trials as arrays instead:
   velocity filter and the frame change (:func:`~davinci_sim.haptics.fixture.fixture_force_camera`,
   :class:`~davinci_sim.haptics.velocity.VelocityFilter`) and the device's safety clamp
   (:func:`~davinci_sim.devices.safety.clamp_wrenches`); the task state machine and the
-  metrics. The fixture is any the task offers (:mod:`davinci_sim.haptics.kinds`: the
-  seed's viscous law, spring, a registered or ``module:Name`` law): each condition's
-  fixture is built as the live trial builds it (``task.fixture`` of the trial's entry) and
-  called with the rows of that condition (:meth:`TrialBatch.fixture_forces`). Only
-  ``mj_step`` runs per trial (MuJoCo's C), and only for trials still running.
+  metrics (with the trainer metrics' sample fields: the tip in the left image,
+  :func:`~davinci_sim.model.cameras.in_left_image`; the MTM handle position; the
+  instrument's contacts, :class:`~davinci_sim.tasks.trainer.InstrumentContacts`, read only
+  when a trial's step has any). The fixture is any the task offers
+  (:mod:`davinci_sim.haptics.kinds`: the seed's viscous law, spring, a registered or
+  ``module:Name`` law): each condition's fixture is built as the live trial builds it
+  (``task.fixture`` of the trial's entry) and called with the rows of that condition
+  (:meth:`TrialBatch.fixture_forces`). Only ``mj_step`` runs per trial (MuJoCo's C),
+  and only for trials still running.
 * The order within a tick is the live simulation's: trainee, hand, teleoperation, arms,
   servo, physics, then the haptic loop and the task on the new state.
 
@@ -62,6 +66,7 @@ from davinci_sim.geometry.so3 import rotate_pairs, rotate_rows
 from davinci_sim.haptics.fixture import fixture_force_camera
 from davinci_sim.haptics.velocity import DEFAULT_CUTOFF_HZ, VelocityFilter
 from davinci_sim.kinematics.psm_ik import psm_ik_closed_form_batch
+from davinci_sim.model.cameras import in_left_image
 from davinci_sim.sim import arm_laws as laws
 from davinci_sim.sim.jaw import finger_setpoints
 from davinci_sim.sim.servo import servo_ctrl
@@ -75,6 +80,7 @@ from davinci_sim.study.trial import (
 )
 from davinci_sim.tasks import Phase, Sample
 from davinci_sim.tasks.state import advance
+from davinci_sim.tasks.trainer import InstrumentContacts
 
 #: Below this many rows a batch is not compacted any more (the fixed cost per tick dominates).
 COMPACT_MIN_ROWS = 8
@@ -209,6 +215,11 @@ class TrialBatch:
         self.ticks = np.zeros(n, dtype=np.int64)
         self._bad_since = np.full(n, np.nan)
         self.requested = np.zeros((n, 3))
+        # The trainer metrics' sample fields: the left image, the instrument's contacts.
+        self.camera = sim.endoscope
+        self._contacts = InstrumentContacts(sim.model, task.teleop.psm, task.CONTACT_IGNORE)
+        self.n_contacts = np.zeros(n, dtype=np.int64)
+        self.contact_force = np.zeros(n)
         self._kinematics()
         self._results = {name: np.full(n, np.nan) for name in METRICS}
         self._finished = np.zeros(n, dtype=bool)
@@ -222,7 +233,7 @@ class TrialBatch:
         "Q", "V", "bias", "xipos", "q_ref", "qd_ref", "tau_ff", "ghost", "jaw_catching_up",
         "jaw_sent", "wrench_sent", "T_hand", "K", "D", "cond", "t_end", "active", "fault",
         "ticks", "_bad_since", "requested", "T_psm", "J_psm", "T_mtm", "J_mtm", "twist_mtm",
-        "index",
+        "index", "n_contacts", "contact_force",
     )  # fmt: skip
 
     def _retire(self, rows: np.ndarray) -> None:
@@ -355,8 +366,12 @@ class TrialBatch:
         through the state machine and the metrics (:func:`~davinci_sim.tasks.state.advance`,
         as the live trial's monitor); a trial ends when finished or timed out."""
         T = self.T_task_camera
-        tip = rotate_rows(T[:3, :3], self.T_psm[:, :3, 3]) + T[:3, 3]
-        sample = Sample.of(self.time, tip, self.requested)
+        p_camera = self.T_psm[:, :3, 3]
+        tip = rotate_rows(T[:3, :3], p_camera) + T[:3, 3]
+        sample = Sample.of(
+            self.time, tip, self.requested, visible=in_left_image(p_camera, self.camera),
+            master=self.T_mtm[:, :3, 3], contacts=self.n_contacts, tool_force=self.contact_force,
+        )  # fmt: skip
         # A trial that has ended keeps its state.
         self.state, _ = advance(self.task, self.state, self.metrics, sample, self.active)
         phase = self.state.phase
@@ -386,11 +401,16 @@ class TrialBatch:
         # once for the batch)
         qfrc_bias, qfrc_gravcomp = self._qfrc
         active = np.flatnonzero(self.active)
+        contacts, n_contacts, contact_force = self._contacts, self.n_contacts, self.contact_force
         for i in active.tolist():
             d = self.datas[i]
             d.ctrl[:] = ctrl[i]
             d.xfrc_applied[body] = xfrc[i]
             mujoco.mj_step(self.models[i], d)
+            if d.ncon:  # (the study scene has no patient: usually none)
+                n_contacts[i], contact_force[i] = contacts.measure(self.models[i], d)
+            elif n_contacts[i]:
+                n_contacts[i], contact_force[i] = 0, 0.0
             Q[i] = d.qpos
             V[i] = d.qvel
             qfrc_bias[i] = d.qfrc_bias

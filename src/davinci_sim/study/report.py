@@ -23,6 +23,7 @@ from davinci_sim.study.runner import StudyResult
 from davinci_sim.study.stats import friedman, pairwise_wilcoxon, subject_means
 from davinci_sim.study.store import atomic_path, write_text_atomic
 from davinci_sim.study.trial import METRICS
+from davinci_sim.tasks.scoring import SCORE_COLUMNS
 from davinci_sim.tasks.task import PathTask
 
 #: The metrics' declarations (the study's task kind), by name.
@@ -45,6 +46,7 @@ COLUMNS = (
     "task",
     "finished",
     *METRICS,
+    *SCORE_COLUMNS,
     "sim_time",
     "wall_time",
 )

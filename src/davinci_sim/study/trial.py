@@ -99,6 +99,10 @@ class TrialSpec:
                 raise ValueError(f"{name}={given!r} contradicts the fixture entry {entry!r}")
             object.__setattr__(self, name, float(value))
 
+    population: str = "trainee"
+    """Synthetic population of the subject (:data:`~davinci_sim.operators.params.POPULATIONS`:
+    ``trainee``, or ``expert`` for the reference of the pass marks)."""
+
     @property
     def key(self) -> tuple[int, int, int, int]:
         return (self.seed, self.subject, self.condition, self.repetition)
@@ -244,12 +248,17 @@ def build_setup(task: PathTask, *, seed: int = 0) -> TrialSetup:
 
 def trial_inputs(specs: list[TrialSpec], task: PathTask, T_world_camera, hand_start):
     """The trainees of ``specs`` (one batch, one task and seed): ``(params, trainee)``."""
-    from davinci_sim.operators import SyntheticTrainee, sample_subjects
+    from davinci_sim.operators import SyntheticTrainee
+    from davinci_sim.operators.params import sample_population
 
     seeds = {s.seed for s in specs}
     if len(seeds) != 1:
         raise ValueError(f"one batch of trials needs one seed, got {sorted(seeds)}")
-    subjects = sample_subjects(max(s.subject for s in specs) + 1, seed=seeds.pop())
+    populations = {s.population for s in specs}
+    if len(populations) != 1:
+        raise ValueError(f"one batch of trials needs one population, got {sorted(populations)}")
+    n = max(s.subject for s in specs) + 1
+    subjects = sample_population(populations.pop(), n, seed=seeds.pop())
     params = subjects.take([s.subject for s in specs])
     trainee = SyntheticTrainee(
         params,
@@ -266,7 +275,8 @@ def trial_inputs(specs: list[TrialSpec], task: PathTask, T_world_camera, hand_st
 
 def trial_row(spec: TrialSpec, task: PathTask, result, i: int, finished: bool) -> dict:
     """The CSV row of trial ``i`` of a batch's metrics ``result`` (an (n,) array per metric
-    name) without timings: the spec's fields, then ``task``'s declared metrics."""
+    name) without timings: the spec's fields, then ``task``'s declared metrics, then the
+    attempt's ``score`` and ``passed`` (:meth:`~davinci_sim.tasks.base.Task.score`)."""
     from davinci_sim.haptics.kinds import describe_fixture
 
     params = {k: v for k, v in spec.fixture.items() if k != "name"}
@@ -286,6 +296,7 @@ def trial_row(spec: TrialSpec, task: PathTask, result, i: int, finished: bool) -
         "finished": bool(finished),
     }
     row.update(metric_row(task.METRICS, result, i))
+    row.update(task.score(row, bool(finished)))
     return row
 
 

@@ -11,6 +11,11 @@
 * :class:`Metric`, :class:`MetricsAccumulator`, :data:`PATH_METRICS`,
   :func:`repetition_metrics` — metrics declared once per kind and computed from the samples
   (metrics.py).
+* :data:`TRAINER_METRICS`, :func:`trainer_metrics`, :class:`InstrumentContacts` — the metrics
+  trainers score (collisions, excessive force, out of view, master workspace, drops, missed
+  targets) declared once for every kind (trainer.py).
+* :class:`Scoring`, :data:`SCORE_COLUMNS`, :func:`load_reference` — an attempt's overall
+  score (0-100 %) and pass/fail against marks from an expert reference (scoring.py).
 * :func:`add_path_visual` — the path and numbered markers in a ``mujoco.MjSpec`` (scene.py).
 * :class:`TaskSession`, :func:`install_task` — a task done at the simulated console, its
   fixture in the haptic loop and its repetitions measured (session.py).
@@ -37,6 +42,7 @@ from davinci_sim.tasks.metrics import (
     repetition_metrics,
 )
 from davinci_sim.tasks.scene import add_path_visual
+from davinci_sim.tasks.scoring import SCORE_COLUMNS, Scoring, load_reference
 from davinci_sim.tasks.session import TaskSession, TaskSessionState, install_task
 from davinci_sim.tasks.state import (
     Phase,
@@ -48,9 +54,16 @@ from davinci_sim.tasks.state import (
     task_step,
 )
 from davinci_sim.tasks.task import PathTask
+from davinci_sim.tasks.trainer import TRAINER_METRICS, InstrumentContacts, trainer_metrics
 
 __all__ = [
     "PATH_METRICS",
+    "SCORE_COLUMNS",
+    "TRAINER_METRICS",
+    "InstrumentContacts",
+    "Scoring",
+    "load_reference",
+    "trainer_metrics",
     "Metric",
     "MetricValues",
     "MetricsAccumulator",

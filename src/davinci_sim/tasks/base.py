@@ -84,11 +84,25 @@ class Sample:
     """(n, 3) guidance force the haptic loop requests on the hand (HRSV = camera axes), N."""
     clutch: np.ndarray
     """(n,) bool: the clutch pedal is pressed."""
+    # Optional (None: not sampled; metrics that need one are then nan, see Metric.needs).
+    visible: np.ndarray | None = None
+    """(n,) bool: the tool tip projects inside the left endoscope image."""
+    master: np.ndarray | None = None
+    """(n, 3) the master (MTM handle) position in HRSV, m."""
+    contacts: np.ndarray | None = None
+    """(n,) int: contacts of the instrument with the scene at this tick (its own arm's and the
+    task's objects' left out, :class:`~davinci_sim.tasks.trainer.InstrumentContacts`)."""
+    tool_force: np.ndarray | None = None
+    """(n,) total normal force of those contacts on the instrument, N."""
 
     @classmethod
-    def of(cls, time, tip, force=None, clutch=None) -> Sample:
+    def of(
+        cls, time, tip, force=None, clutch=None, *, visible=None, master=None, contacts=None,
+        tool_force=None,
+    ) -> Sample:  # fmt: skip
         """A sample of n trials: ``tip`` (n, 3) or (3,) for one; ``time`` scalar or (n,);
-        ``force`` (n, 3) (None: 0); ``clutch`` (n,) or scalar (None: released)."""
+        ``force`` (n, 3) (None: 0); ``clutch`` (n,) or scalar (None: released); the
+        optional fields (n,) or scalar, ``master`` (n, 3) or (3,) (None: not sampled)."""
         p = np.asarray(tip, dtype=float).reshape(-1, 3)
         n = len(p)
         f = np.zeros((n, 3)) if force is None else np.asarray(force, dtype=float).reshape(n, 3)
@@ -100,7 +114,11 @@ class Sample:
         else:
             c = np.asarray(clutch, dtype=bool)
             c = np.full(n, bool(c)) if c.ndim == 0 else c.reshape(n)
-        return cls(t, p, f, c)
+        if visible is None and master is None and contacts is None and tool_force is None:
+            return cls(t, p, f, c)
+        x = None if master is None else np.asarray(master, dtype=float).reshape(n, 3)
+        v, k, g = _rows(visible, n, bool), _rows(contacts, n, np.int64), _rows(tool_force, n, float)
+        return cls(t, p, f, c, visible=v, master=x, contacts=k, tool_force=g)
 
     @cached_property
     def force_magnitude(self) -> np.ndarray:
@@ -113,17 +131,29 @@ class Sample:
 
     def take(self, rows) -> Sample:
         """The trials ``rows`` (indices)."""
-        return Sample(self.time[rows], self.tip[rows], self.force[rows], self.clutch[rows])
+        return Sample(*(None if (a := getattr(self, k)) is None else a[rows] for k in _FIELDS))
 
     def where(self, mask, other: Sample) -> Sample:
-        """``other``'s rows where ``mask`` (n,) is true, this sample's elsewhere."""
+        """``other``'s rows where ``mask`` (n,) is true, this sample's elsewhere (an optional
+        field is None unless both have it)."""
         m = np.asarray(mask, dtype=bool)
-        return Sample(
-            np.where(m, other.time, self.time),
-            np.where(m[:, None], other.tip, self.tip),
-            np.where(m[:, None], other.force, self.force),
-            np.where(m, other.clutch, self.clutch),
-        )
+        out = []
+        for k in _FIELDS:
+            a, b = getattr(self, k), getattr(other, k)
+            ok = a is not None and b is not None
+            out.append(np.where(m.reshape(-1, *([1] * (a.ndim - 1))), b, a) if ok else None)
+        return Sample(*out)
+
+
+_FIELDS = ("time", "tip", "force", "clutch", "visible", "master", "contacts", "tool_force")
+
+
+def _rows(value, n: int, dtype):
+    """An optional per-trial field as (n,) of ``dtype`` (None stays None)."""
+    if value is None:
+        return None
+    a = np.asarray(value, dtype=dtype)
+    return np.full(n, a, dtype=dtype) if a.ndim == 0 else a.reshape(n)
 
 
 class Task(ABC):
@@ -136,6 +166,10 @@ class Task(ABC):
     """The kind's metrics, in the order of the rows' columns."""
     FIXTURE_TYPES: ClassVar[dict[str, set[str]]] = {"none": set()}
     """Fixture ``type`` → its parameters (see :meth:`guidance`)."""
+    SCORING: ClassVar[dict] = {}
+    """Scored metrics, weights, thresholds: a file's ``scoring:`` (:mod:`~.scoring`)."""
+    CONTACT_IGNORE: ClassVar[tuple[str, ...]] = ()
+    """Body-name prefixes whose contacts with the instrument are not collisions."""
 
     name: str
     description: str
@@ -185,6 +219,13 @@ class Task(ABC):
             raise TaskError(f"task {self.name!r}: condition names must be unique, got {names}")
         for wall in self.walls:
             make_wall(self.name, wall)
+        from davinci_sim.tasks.scoring import merge_scoring, parse_scoring
+
+        try:
+            spec = merge_scoring(self.SCORING, getattr(self, "scoring_spec", None) or {})
+            parse_scoring(spec, self.METRICS, self.name)
+        except ValueError as e:
+            raise TaskError(f"task {self.name!r}: {e}") from e
 
     # ------------------------------------------------------------ scene
     @abstractmethod
@@ -230,6 +271,17 @@ class Task(ABC):
     def metrics_accumulator(self, n: int) -> MetricsAccumulator:
         """An accumulator of the kind's ``METRICS`` for ``n`` trials of this task."""
         return MetricsAccumulator(self.METRICS, n, self)
+
+    @cached_property
+    def scoring(self):
+        """The task's :class:`~davinci_sim.tasks.scoring.Scoring` (its reference loaded)."""
+        from davinci_sim.tasks.scoring import task_scoring
+
+        return task_scoring(self)
+
+    def score(self, values: dict, finished: bool = True) -> dict:
+        """``score`` (%) and ``passed`` of an attempt's metric ``values`` (name → value)."""
+        return self.scoring.row(values, finished)
 
     def summary(self, row: dict) -> str:
         """A repetition's row in a few words (the session's status message)."""
@@ -316,7 +368,7 @@ class Task(ABC):
 def common_fields(data: dict[str, Any]) -> dict[str, Any]:
     """The constructor arguments common to every kind, from a file's mapping: ``teleop``
     (a :class:`TeleopSpec`), ``fixture_spec``, ``conditions``, ``walls``, and ``name``,
-    ``description``, ``frame`` when present."""
+    ``description``, ``frame``, ``scoring_spec`` (the file's ``scoring``) when present."""
     name = data.get("name", "?")
     kw = {k: data[k] for k in ("name", "description", "frame") if k in data}
     try:
@@ -326,6 +378,11 @@ def common_fields(data: dict[str, Any]) -> dict[str, Any]:
     kw["fixture_spec"] = dict(data.get("fixture", {"type": "none"}))
     kw["conditions"] = tuple(dict(c) for c in data.get("conditions", ()))
     kw["walls"] = tuple(dict(w) for w in data.get("walls", ()))
+    if "scoring" in data:  # only for kinds whose files may have it (check_keys)
+        scoring = data["scoring"]
+        if not isinstance(scoring, dict):
+            raise TaskError(f"task {name!r}: scoring must be a mapping, got {scoring!r}")
+        kw["scoring_spec"] = dict(scoring)
     return kw
 
 

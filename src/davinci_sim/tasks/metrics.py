@@ -14,6 +14,8 @@ with one of the reducers :class:`Mean`, :class:`Peak`, :class:`PairSum`, :class:
 :class:`Count` or :class:`Ratio`. :class:`MetricsAccumulator` runs the reducers of a list of
 metrics for n trials, sample by sample, without storing the trajectories (O(n) memory
 whatever the duration); its :meth:`~MetricsAccumulator.result` is a :class:`MetricValues`.
+Reducers: ``init(n, task)``, ``add``, ``final``; a metric reading an optional sample field
+(``Metric.needs``) is nan when a sample lacks it (:mod:`davinci_sim.tasks.trainer`).
 
 **The path-following metrics** (:data:`PATH_METRICS`, the seed's task): over the samples
 i = 1..K of a repetition at times t_i (s), with tip positions p_i (m, task frame), distances
@@ -46,6 +48,7 @@ the independent reference the accumulator is tested against.
 from __future__ import annotations
 
 import copy
+import math
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any, NamedTuple
@@ -184,7 +187,7 @@ class Mean:
 
     value: Value
 
-    def init(self, n: int):
+    def init(self, n: int, task=None):
         return np.zeros(n)
 
     def add(self, acc, m, pair, task, prev, s, obs):
@@ -200,7 +203,7 @@ class Peak:
 
     value: Value
 
-    def init(self, n: int):
+    def init(self, n: int, task=None):
         return np.zeros(n)
 
     def add(self, acc, m, pair, task, prev, s, obs):
@@ -218,7 +221,7 @@ class PairSum:
     value: PairValue
     integer: bool = False
 
-    def init(self, n: int):
+    def init(self, n: int, task=None):
         return np.zeros(n, dtype=np.int64 if self.integer else float)
 
     def add(self, acc, m, pair, task, prev, s, obs):
@@ -232,7 +235,7 @@ class PairSum:
 class Elapsed:
     """t_K − t_1, s (nan without samples)."""
 
-    def init(self, n: int):
+    def init(self, n: int, task=None):
         return (np.full(n, np.nan), np.full(n, np.nan))
 
     def add(self, acc, m, pair, task, prev, s, obs):
@@ -247,7 +250,7 @@ class Elapsed:
 class Count:
     """K, the number of samples of the repetition."""
 
-    def init(self, n: int):
+    def init(self, n: int, task=None):
         return None
 
     def add(self, acc, m, pair, task, prev, s, obs):
@@ -265,7 +268,7 @@ class Ratio:
     numerator: str
     denominator: str
 
-    def init(self, n: int):
+    def init(self, n: int, task=None):
         return None
 
     def add(self, acc, m, pair, task, prev, s, obs):
@@ -297,6 +300,13 @@ class Metric:
     """Short label in tables (default: the name with spaces)."""
     report: tuple[str, float] | None = None
     """(unit, scale) of the study report's summary table (None: not in the table)."""
+    display: tuple[str, float] | None = None
+    """(unit, scale) trainers read it in, e.g. ``("cm", 100.0)`` for a length in m (None:
+    :attr:`unit`)."""
+    needs: tuple[str, ...] = ()
+    """Optional :class:`~davinci_sim.tasks.base.Sample` fields the value reads (``visible``,
+    ``master``, ``contacts``, ``tool_force``): where a sample lacks one (None), the metric
+    is *unavailable*, nan in the results."""
 
     def __post_init__(self) -> None:
         if self.better not in ("lower", "higher", "neither"):
@@ -339,8 +349,13 @@ class MetricValues:
 
 def metric_row(metrics: tuple[Metric, ...], values, i: int = 0) -> dict[str, int | float]:
     """Row ``i`` of ``values`` (anything with an (n,) attribute per metric name) as
-    name → int (counts) or float, in the declaration's order."""
-    return {m.name: (int if m.integer else float)(getattr(values, m.name)[i]) for m in metrics}
+    name → int (counts) or float, in the declaration's order; an unavailable count is a
+    float nan."""
+    row: dict[str, int | float] = {}
+    for m in metrics:
+        v = float(getattr(values, m.name)[i])
+        row[m.name] = int(v) if m.integer and math.isfinite(v) else v
+    return row
 
 
 class MetricsAccumulator:
@@ -360,9 +375,10 @@ class MetricsAccumulator:
 
     def reset(self, mask=None) -> None:
         """Start over, all trials or those where ``mask`` (n,) is true."""
-        fresh = [m.reduce.init(self.n) for m in self.metrics]
+        fresh = [m.reduce.init(self.n, self.task) for m in self.metrics]
         if mask is None:
             self._acc = fresh
+            self._missing: set[str] = set()
             self._k = np.zeros(self.n, dtype=np.int64)
             self._prev_in = np.zeros(self.n, dtype=bool)
             self._prev = None
@@ -379,6 +395,7 @@ class MetricsAccumulator:
         out._acc = [_take(a, rows) for a in self._acc]
         out._k = self._k[rows]
         out._prev_in = self._prev_in[rows]
+        out._missing = set(self._missing)
         out._prev = None if self._prev is None else self._prev.take(rows)
         out.n = len(rows)
         return out
@@ -389,10 +406,14 @@ class MetricsAccumulator:
         m = np.asarray(mask, dtype=bool)
         pair = m & self._prev_in
         prev = sample if self._prev is None else self._prev
-        self._acc = [
-            metric.reduce.add(acc, m, pair, self.task, prev, sample, obs)
-            for metric, acc in zip(self.metrics, self._acc, strict=True)
-        ]
+        acc_new = []
+        for metric, acc in zip(self.metrics, self._acc, strict=True):
+            if metric.needs and any(getattr(sample, f) is None for f in metric.needs):
+                self._missing.add(metric.name)  # the sample cannot tell: unavailable
+                acc_new.append(acc)
+                continue
+            acc_new.append(metric.reduce.add(acc, m, pair, self.task, prev, sample, obs))
+        self._acc = acc_new
         self._k = self._k + m
         self._prev_in = m.copy()
         self._prev = sample if self._prev is None else self._prev.where(m, sample)
@@ -401,7 +422,10 @@ class MetricsAccumulator:
         done: dict[str, np.ndarray] = {}
         with np.errstate(invalid="ignore", divide="ignore"):
             for metric, acc in zip(self.metrics, self._acc, strict=True):
-                done[metric.name] = metric.reduce.final(acc, self._k, done)
+                value = metric.reduce.final(acc, self._k, done)
+                if metric.name in self._missing:
+                    value = np.full(self.n, np.nan)
+                done[metric.name] = value
         return MetricValues(self.metrics, done)
 
     def get_state(self) -> dict:
@@ -417,8 +441,9 @@ def _where(m, fresh, acc):
     if acc is None:
         return None
     if isinstance(acc, tuple):
-        return tuple(np.where(m, f, a) for f, a in zip(fresh, acc, strict=True))
-    return np.where(m, fresh, acc)
+        return tuple(_where(m, f, a) for f, a in zip(fresh, acc, strict=True))
+    # (n,) mask against (n, ...) reductions (e.g. an (n, 3) extent)
+    return np.where(m.reshape(-1, *([1] * (np.ndim(acc) - 1))), fresh, acc)
 
 
 def _take(acc, rows):
@@ -459,7 +484,7 @@ PATH_METRICS: tuple[Metric, ...] = (
     Metric("completion_time", "s", "lower", "time from leaving point 1 to reaching the last "
            "point", Elapsed(), report=("s", 1.0)),
     Metric("path_length", "m", "lower", "length of the tool tip's trajectory (economy of "
-           "motion)", PairSum(_step_length), report=("mm", 1e3)),
+           "motion)", PairSum(_step_length), report=("mm", 1e3), display=("cm", 100.0)),
     Metric("mean_speed", "m/s", "higher", "path length over completion time",
            Ratio("path_length", "completion_time"), report=("mm/s", 1e3)),
     Metric("peak_force", "N", "neither", "largest guidance force on the hand",

@@ -33,6 +33,7 @@ from davinci_sim.sim.state import capture, restore
 from davinci_sim.sim.types import ACCEPTED, CommandResult
 from davinci_sim.tasks.base import Sample, Task
 from davinci_sim.tasks.metrics import MetricValues
+from davinci_sim.tasks.scoring import SCORE_COLUMNS
 from davinci_sim.tasks.state import Phase, TaskMonitor
 
 if TYPE_CHECKING:
@@ -49,8 +50,9 @@ SESSION_COLUMNS = ("task", "condition", "repetition")
 
 
 def session_columns(task: Task) -> tuple[str, ...]:
-    """The columns of ``task``'s session rows (CSV log, ``/task/results``)."""
-    return (*SESSION_COLUMNS, *(m.name for m in task.METRICS))
+    """The columns of ``task``'s session rows (CSV log, ``/task/results``): the session's,
+    the task's metrics, then the score (:data:`~davinci_sim.tasks.scoring.SCORE_COLUMNS`)."""
+    return (*SESSION_COLUMNS, *(m.name for m in task.METRICS), *SCORE_COLUMNS)
 
 
 @dataclass(frozen=True)
@@ -249,12 +251,15 @@ class TaskSession:
     def _record(self, metrics: MetricValues, t: float) -> None:
         row = {"task": self.task.name, "condition": self.condition, "repetition": self.repetition}
         row.update(metrics.row(0))
+        row.update(self.task.score(row))
         self.results.append(row)
         self._recorded = True
         self.channels.emit("results", dict(row))
+        verdict = {True: "passed", False: "not passed", None: "no pass mark"}[row["passed"]]
+        score = "" if row["score"] is None else f"score {row['score']:.0f} % ({verdict}); "
         self.channels.message(
             "status",
-            f"repetition {self.repetition} done: {self.task.summary(row)}",
+            f"repetition {self.repetition} done: {score}{self.task.summary(row)}",
             t,
         )
         if self.log is not None:
@@ -302,11 +307,52 @@ def live_sample(task: Task, T_task_camera, teleop: TeleopPSM, console: Console, 
     """The :class:`~davinci_sim.tasks.base.Sample` of ``task`` at the simulated console now:
     the tool tip of ``teleop``'s PSM in the task's frame (``T_task_camera``: the camera in
     the task's frame), the guidance force the haptic loop requested for the task's MTM (0
-    before it has run), the clutch; ``t`` the simulated time, s."""
-    tip = (np.asarray(T_task_camera) @ teleop.psm.measured_cp().T)[:3, 3]
+    before it has run), the clutch; ``t`` the simulated time, s. The trainer metrics'
+    fields: whether the tip is in the left endoscope image, the master handle's position
+    (HRSV: the device's input of this tick, read before the step, so one tick behind the
+    study batch's, which reads the MTM after it; None before the first input), and the
+    instrument's contacts and their force (MuJoCo's contacts of the last step,
+    :class:`~davinci_sim.tasks.trainer.InstrumentContacts`)."""
+    from davinci_sim.model.cameras import project_left
+
+    p_camera = teleop.psm.measured_cp().T
+    tip = (np.asarray(T_task_camera) @ p_camera)[:3, 3]
     requested = console.haptics.snapshot().requested.get(task.teleop.mtm)
     force = None if requested is None else requested[:3]
-    return Sample.of(t, tip, force, teleop.is_clutched())
+    sim = console.sim
+    camera = sim.endoscope
+    uv = project_left(p_camera[:3, 3], camera)  # (one point: the scalar form is cheaper)
+    visible = uv is not None and 0 <= uv[0] < camera.width and 0 <= uv[1] < camera.height
+    count, contact_force = _contacts(sim, task).measure(sim.model, sim.data)
+    reading = teleop.device.input()
+    master = None if reading is None else reading.T_hrsv_tip[:3, 3].reshape(1, 3)
+    # One trial: the arrays built directly (Sample.of's conversions cost more, every tick).
+    f = np.zeros((1, 3)) if force is None else np.asarray(force, dtype=float).reshape(1, 3)
+    return Sample(
+        np.array([float(t)]), tip.reshape(1, 3), f, np.array([bool(teleop.is_clutched())]),
+        visible=np.array([visible]), master=master, contacts=np.array([count], dtype=np.int64),
+        tool_force=np.array([contact_force]),
+    )  # fmt: skip
+
+
+#: InstrumentContacts by (model id, PSM, ignored prefixes): (model, contacts), the few
+#: most recent (building one reads every body's name).
+_CONTACTS: dict[tuple, tuple] = {}
+
+
+def _contacts(sim: Simulation, task: Task):
+    """The :class:`~davinci_sim.tasks.trainer.InstrumentContacts` of ``task``'s PSM in
+    ``sim``'s model (built once per model)."""
+    from davinci_sim.tasks.trainer import InstrumentContacts
+
+    key = (id(sim.model), task.teleop.psm, task.CONTACT_IGNORE)
+    entry = _CONTACTS.get(key)
+    if entry is None or entry[0] is not sim.model:  # (an id reused by a new model)
+        entry = (sim.model, InstrumentContacts(sim.model, *key[1:]))
+        _CONTACTS[key] = entry
+        while len(_CONTACTS) > 4:
+            del _CONTACTS[next(iter(_CONTACTS))]
+    return entry[1]
 
 
 def _condition_label(spec: dict) -> str:

@@ -51,6 +51,11 @@ from davinci_sim.tasks.base import (
 from davinci_sim.tasks.metrics import PATH_METRICS
 from davinci_sim.tasks.schema import NONNEGATIVE, POINT, ListOf, Number, Record, Vector
 from davinci_sim.tasks.state import initial_state, task_step
+from davinci_sim.tasks.trainer import PATH_MISSED_TARGETS, trainer_metrics
+
+#: A crawl along the path, m/s: the path kind's completion time scoring 0 % is its length
+#: at this speed (our choice: a third of the synthetic trainees' median practised speed).
+FAIL_SPEED = 0.005
 
 __all__ = [
     "FRAMES",
@@ -78,7 +83,9 @@ class VisualSpec:
 class PathTask(Task, kind="path"):
     """A path-following task (see the module docstring for the file format)."""
 
-    METRICS = PATH_METRICS
+    #: The path metrics, then the trainers' (:mod:`davinci_sim.tasks.trainer`; missed
+    #: targets: the numbered points 2..N−1 never within tube_radius).
+    METRICS = (*PATH_METRICS, *trainer_metrics(replace=(PATH_MISSED_TARGETS,)))
     FILE_FIELDS: ClassVar[dict] = {
         "waypoints": ListOf(POINT, min_items=2, what="points [x, y, z]"),
         **dict.fromkeys(("corner_radius", "start_tolerance", "finish_tolerance",
@@ -118,6 +125,8 @@ class PathTask(Task, kind="path"):
     conditions: tuple[dict, ...] = ()
     walls: tuple[dict, ...] = ()
     visual: VisualSpec = field(default_factory=VisualSpec)
+    scoring_spec: dict = field(default_factory=dict)
+    """The file's ``scoring`` (updates :attr:`SCORING`, :mod:`davinci_sim.tasks.scoring`)."""
 
     def __post_init__(self) -> None:
         w = np.array(self.waypoints, dtype=float)
@@ -134,6 +143,33 @@ class PathTask(Task, kind="path"):
             self.path  # noqa: B018 (builds and checks the corners)
         except ValueError as e:
             raise TaskError(f"task {self.name!r}: {e}") from e
+
+    @property
+    def SCORING(self) -> dict:  # noqa: N802 (the kind's declaration, from the geometry)
+        """What a path attempt is scored on, and the values scoring 0 % (our choices):
+        deviation (weight 2; a mean distance of ``tube_radius``), time (the path's length
+        crawled at :data:`FAIL_SPEED`), economy (1.5x the path's length), time outside the
+        tube (half the failing time), collisions (5), excessive force (5 s), out of view
+        (the path's length), master workspace (2x the numbered points' box diagonal over
+        the motion scale), missed targets (all of points 2..N−1); weight 1 but deviation.
+        100 %: the expert reference's means."""
+        L = float(self.path.length)
+        box = np.ptp(self.waypoints, axis=0)
+        span = float(np.linalg.norm(box)) / self.teleop.scale
+        t_fail = L / FAIL_SPEED
+        return {
+            "metrics": {
+                "deviation_error": {"weight": 2.0, "fail": self.tube_radius},
+                "completion_time": {"weight": 1.0, "fail": t_fail},
+                "path_length": {"weight": 1.0, "fail": 1.5 * L},
+                "time_outside": {"weight": 1.0, "fail": t_fail / 2.0},
+                "instrument_collisions": {"weight": 1.0, "fail": 5.0},
+                "excessive_force": {"weight": 1.0, "fail": 5.0},
+                "out_of_view": {"weight": 1.0, "fail": L},
+                "master_workspace": {"weight": 1.0, "fail": 2.0 * span},
+                "missed_targets": {"weight": 1.0, "fail": float(max(len(self.waypoints) - 2, 1))},
+            }
+        }
 
     @classmethod
     def along(
@@ -174,10 +210,13 @@ class PathTask(Task, kind="path"):
         """Arc length of each numbered point's place on the path (N,), m."""
         return self._rounded[1]
 
-    @property
+    @cached_property
     def markers(self) -> np.ndarray:
-        """The numbered points as drawn: their places on the path (N, 3), m, in the frame."""
-        return self.path.point_at(self.marker_arc_lengths)
+        """The numbered points as drawn: their places on the path (N, 3), m, in the frame
+        (read-only; computed once: the missed-targets metric reads it every tick)."""
+        m = self.path.point_at(self.marker_arc_lengths)
+        m.setflags(write=False)
+        return m
 
     @property
     def view_points(self) -> np.ndarray:
@@ -297,6 +336,7 @@ class PathTask(Task, kind="path"):
             "conditions",
             "walls",
             "visual",
+            "scoring",
         }
         check_keys(data, known, required=("name", "waypoints"))
         name = data.get("name", "?")
@@ -330,10 +370,11 @@ class PathTask(Task, kind="path"):
             "visual": {
                 k: list(v) if isinstance(v, tuple) else v for k, v in vars(self.visual).items()
             },
+            **({"scoring": dict(self.scoring_spec)} if self.scoring_spec else {}),
         }
 
 
-_COMMON = ("name", "description", "frame", "teleop", "fixture", "conditions", "walls")
+_COMMON = ("name", "description", "frame", "teleop", "fixture", "conditions", "walls", "scoring")
 
 
 def _guidance(spec: dict, path: Polyline):

@@ -1,0 +1,257 @@
+"""The metrics trainers score an attempt by, declared once for every kind of task.
+
+The VR robotic-surgery simulators (da Vinci Skills Simulator, Mimic dV-Trainer, Hugo RAS)
+report each attempt on a fixed set of metrics with units (the project's reference notes,
+training.md §1). This module declares those that the existing task metrics do not already
+give, as :class:`~davinci_sim.tasks.metrics.Metric` values a kind adds to its ``METRICS``
+(:func:`trainer_metrics`); the other two are the path kind's own declarations, reused:
+
+========================  ======  ================================================================
+metric                    unit    definition (over the samples of the repetition)
+========================  ======  ================================================================
+``completion_time``       s       time to complete: t_K − t_1 (:data:`PATH_METRICS`)
+``path_length``           m       economy of motion: Σ ‖p_i − p_{i−1}‖ of the tool tip (shown in cm)
+``instrument_collisions`` 1       onsets of instrument contact: pairs (i−1, i) with no contact at
+                                  i−1 and ≥ 1 at i (``Sample.contacts``)
+``excessive_force``       s       Σ (t_i − t_{i−1}) over pairs whose sample i has a contact force on
+                                  the instrument above the threshold (``Sample.tool_force``; the
+                                  threshold: the task's scoring, ``force_threshold``, N)
+``out_of_view``           m       Σ ‖p_i − p_{i−1}‖ over pairs whose sample i is outside the left
+                                  endoscope image (``Sample.visible``; shown in cm)
+``master_workspace``      m       diagonal of the box the master handle positions span, HRSV
+                                  (‖max_i x_i − min_i x_i‖ per axis; ``Sample.master``; shown in cm)
+``drops``                 1       objects dropped: Σ of the task's ``dropped`` observation (a count
+                                  per sample; 0 for a kind without objects)
+``missed_targets``        1       targets missed: Σ of the task's ``missed`` observation; the path
+                                  kind counts instead the numbered points 2..N−1 the tip never came
+                                  within ``tube_radius`` of (:data:`PATH_MISSED_TARGETS`)
+========================  ======  ================================================================
+
+The master workspace range is a box diagonal, not the diameter of the set of positions: a
+box is kept from sample to sample (the diameter needs every pair), lies between the
+diameter and √3 times it, and equals it for motion along one line.
+
+Collisions are MuJoCo's contacts (:class:`InstrumentContacts`): the model generates none
+between the two instruments (their geoms' contype/conaffinity exclude each other), so a
+clash of instruments is not counted; contacts with the table, the patient, the objects of
+other tasks are. Metrics read optional sample fields (``Metric.needs``): an engine that
+does not sample one gives nan for the metric (unavailable), never a made-up 0.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from davinci_sim.tasks.metrics import PATH_METRICS, Metric, PairSum
+
+if TYPE_CHECKING:
+    import mujoco
+
+#: Contact force above which the instrument's force is *excessive*, N, when the task's
+#: scoring does not say: our assumption (no simulator publishes its threshold), of the
+#: order of the 2-5 N tool-tissue forces at which retraction starts to injure tissue.
+DEFAULT_FORCE_THRESHOLD = 2.0
+
+
+def force_threshold(task) -> float:
+    """The excessive-force threshold of ``task`` (its scoring's), N."""
+    scoring = getattr(task, "scoring", None)
+    return float(getattr(scoring, "force_threshold", DEFAULT_FORCE_THRESHOLD))
+
+
+# ---------------------------------------------------------------- reducers
+@dataclass(frozen=True)
+class Extent:
+    """‖max_i x_i − min_i x_i‖ of a per-sample point x_i (n, 3): the diagonal of the box
+    the points span (0 with fewer than one sample)."""
+
+    value: object
+    """``value(task, sample, obs) -> (n, 3)``."""
+
+    def init(self, n: int, task=None):
+        return (np.full((n, 3), np.inf), np.full((n, 3), -np.inf))
+
+    def add(self, acc, m, pair, task, prev, s, obs):
+        lo, hi = acc
+        x = self.value(task, s, obs)
+        mm = m[:, None]
+        return (np.where(mm, np.minimum(lo, x), lo), np.where(mm, np.maximum(hi, x), hi))
+
+    def final(self, acc, k, done):
+        lo, hi = acc
+        span = np.where(np.isfinite(hi - lo), hi - lo, 0.0)
+        return np.linalg.norm(span, axis=1)
+
+
+@dataclass(frozen=True)
+class Sum:
+    """Σ value_i over the repetition's samples (e.g. events the task observes); integer
+    when ``integer``."""
+
+    value: object
+    """``value(task, sample, obs) -> (n,)``."""
+    integer: bool = False
+
+    def init(self, n: int, task=None):
+        return np.zeros(n, dtype=np.int64 if self.integer else float)
+
+    def add(self, acc, m, pair, task, prev, s, obs):
+        return acc + np.where(m, self.value(task, s, obs), 0)
+
+    def final(self, acc, k, done):
+        return acc.copy()
+
+
+@dataclass(frozen=True)
+class Unreached:
+    """Targets the tip never came within a tolerance of: ``targets(task)`` (k, 3) in the
+    task's frame, m; ``tolerance(task)``, m. (n, k) flags, kept from sample to sample."""
+
+    targets: object
+    tolerance: object
+
+    def init(self, n: int, task=None):
+        k = 0 if task is None else len(self.targets(task))
+        return np.zeros((n, k), dtype=bool)
+
+    def add(self, acc, m, pair, task, prev, s, obs):
+        pts = np.asarray(self.targets(task), dtype=float).reshape(-1, 3)
+        d = np.linalg.norm(s.tip[:, None, :] - pts[None, :, :], axis=2)
+        return acc | (m[:, None] & (d <= self.tolerance(task)))
+
+    def final(self, acc, k, done):
+        return (~acc).sum(axis=1).astype(np.int64)
+
+
+# ---------------------------------------------------------------- values
+def _contact_onset(task, prev, s, obs):
+    return (s.contacts > 0) & ~(prev.contacts > 0)
+
+
+def _over_force(task, prev, s, obs):
+    return np.where(s.tool_force > force_threshold(task), s.time - prev.time, 0.0)
+
+
+def _unseen_step(task, prev, s, obs):
+    return np.where(s.visible, 0.0, np.linalg.norm(s.tip - prev.tip, axis=1))
+
+
+def _master(task, s, obs):
+    return s.master
+
+
+def _observed(key: str):
+    def value(task, s, obs):
+        v = obs.get(key)
+        return np.zeros(s.n, dtype=np.int64) if v is None else np.asarray(v, dtype=np.int64)
+
+    value.__name__ = f"observed_{key}"
+    return value
+
+
+_BY_NAME = {m.name: m for m in PATH_METRICS}
+
+#: Time to complete and economy of motion: the path kind's declarations (shown in s, cm).
+TIME = _BY_NAME["completion_time"]
+ECONOMY = _BY_NAME["path_length"]
+
+INSTRUMENT_COLLISIONS = Metric(
+    "instrument_collisions", "1", "lower",
+    "contacts of the instrument with the scene (onsets)",
+    PairSum(_contact_onset, True), integer=True, label="collisions", needs=("contacts",),
+)  # fmt: skip
+EXCESSIVE_FORCE = Metric(
+    "excessive_force", "s", "lower",
+    "time the instrument's contact force is above the threshold (force_threshold, N)",
+    PairSum(_over_force), label="excessive force", needs=("tool_force",),
+)  # fmt: skip
+OUT_OF_VIEW = Metric(
+    "out_of_view", "m", "lower",
+    "distance the tool tip travels outside the left endoscope image",
+    PairSum(_unseen_step), label="out of view", display=("cm", 100.0), needs=("visible",),
+)  # fmt: skip
+MASTER_WORKSPACE = Metric(
+    "master_workspace", "m", "lower",
+    "diagonal of the box the master handle positions span (HRSV)",
+    Extent(_master), label="master workspace", display=("cm", 100.0), needs=("master",),
+)  # fmt: skip
+DROPS = Metric(
+    "drops", "1", "lower", "objects dropped (0 for a task without objects)",
+    Sum(_observed("dropped"), True), integer=True,
+)  # fmt: skip
+MISSED_TARGETS = Metric(
+    "missed_targets", "1", "lower", "targets missed (the task's 'missed' observations)",
+    Sum(_observed("missed"), True), integer=True, label="missed targets",
+)  # fmt: skip
+#: The path kind's missed targets: numbered points 2..N−1 never within ``tube_radius``.
+PATH_MISSED_TARGETS = Metric(
+    "missed_targets", "1", "lower",
+    "numbered points 2..N-1 the tip never came within tube_radius of",
+    Unreached(lambda task: task.markers[1:-1], lambda task: task.tube_radius),
+    integer=True, label="missed targets",
+)  # fmt: skip
+
+#: The trainer metrics a kind adds to its own (time and economy are usually among its own).
+TRAINER_METRICS: tuple[Metric, ...] = (
+    INSTRUMENT_COLLISIONS, EXCESSIVE_FORCE, OUT_OF_VIEW, MASTER_WORKSPACE, DROPS, MISSED_TARGETS,
+)  # fmt: skip
+
+
+def trainer_metrics(*, replace: tuple[Metric, ...] = (), leave_out=()) -> tuple[Metric, ...]:
+    """:data:`TRAINER_METRICS` with the kind's own declarations of some of them (same
+    ``name``) in their place, and without those named in ``leave_out``."""
+    own = {m.name: m for m in replace}
+    return tuple(own.get(m.name, m) for m in TRAINER_METRICS if m.name not in set(leave_out))
+
+
+# ---------------------------------------------------------------- contacts
+class InstrumentContacts:
+    """The contacts of one PSM's instrument (the bodies from ``<psm>/roll`` down: shaft,
+    wrist, jaws) with anything but its own arm and the bodies named with one of
+    ``ignore`` (prefixes, e.g. the objects a task grasps): their number and total normal
+    force, N, at the current state of ``data``.
+
+    Args:
+        model: the compiled model.
+        psm: the arm's name (``PSM1``).
+        ignore: body-name prefixes whose contacts with the instrument are not collisions.
+    """
+
+    def __init__(self, model: mujoco.MjModel, psm: str, ignore: tuple[str, ...] = ()) -> None:
+        import mujoco
+
+        names = [model.body(i).name for i in range(model.nbody)]
+        root = names.index(f"{psm}/roll") if f"{psm}/roll" in names else None
+        tool = np.zeros(model.nbody, dtype=bool)
+        arm = np.array([n.startswith(f"{psm}/") for n in names])
+        if root is not None:
+            for i in range(model.nbody):  # parents come before children in MuJoCo's order
+                tool[i] = i == root or (i > 0 and tool[model.body_parentid[i]])
+        ignored = np.array([bool(ignore) and n.startswith(tuple(ignore)) for n in names])
+        skip = arm | ignored
+        self.tool_geom = tool[model.geom_bodyid]
+        """(ngeom,) geoms of the instrument."""
+        self.other_geom = ~skip[model.geom_bodyid]
+        """(ngeom,) geoms whose contact with the instrument counts."""
+        self._force = np.zeros(6)
+        self._contact_force = mujoco.mj_contactForce
+
+    def measure(self, model: mujoco.MjModel, data: mujoco.MjData) -> tuple[int, float]:
+        """(contacts, total normal force, N) of the instrument at ``data``'s state."""
+        ncon = data.ncon
+        if ncon == 0:
+            return 0, 0.0
+        g = data.contact.geom[:ncon]
+        tool = self.tool_geom[g]  # (ncon, 2)
+        if not tool.any():  # (the usual case: contacts elsewhere in the scene)
+            return 0, 0.0
+        other = self.other_geom[g]
+        hit = (tool[:, 0] & other[:, 1]) | (tool[:, 1] & other[:, 0])
+        force = 0.0
+        for i in np.flatnonzero(hit).tolist():
+            self._contact_force(model, data, i, self._force)
+            force += abs(float(self._force[0]))  # normal component, contact frame
+        return int(hit.sum()), force
