@@ -144,11 +144,11 @@ def test_a_task_file_updates_the_kinds_scoring(tmp_path):
         ({"metrics": {"samples": {"weight": 1, "fail": 1}}}, "no better direction"),
         ({"metrics": {"drops": {"weight": 1}}}, "needs 'fail'"),
         ({"metrics": {"drops": {"weight": -1, "fail": 1}}}, "weight must be >= 0"),
-        ({"metrics": {"drops": {"fail": "many"}}}, "finite number"),
+        ({"metrics": {"drops": {"fail": "many"}}}, "drops.fail: must be a number"),
         ({"pass_score": 120}, "pass_score"),
         ({"force_threshold": -1}, "force_threshold"),
-        ({"marks": {}}, "unknown scoring keys"),
-        ("all", "scoring must be a mapping"),
+        ({"marks": {}}, "scoring.marks: unknown field"),
+        ("all", "scoring: must be a mapping"),
     ],
 )
 def test_a_bad_scoring_is_refused_with_what_to_fix(scoring, message, tmp_path):

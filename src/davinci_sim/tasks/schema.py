@@ -183,6 +183,23 @@ class Record(Schema):
 
 
 @dataclass(frozen=True)
+class MapOf(Schema):
+    """A mapping of names (strings) to values of one schema (e.g. scored metrics by name:
+    which names are allowed is the kind's business, checked where it knows them)."""
+
+    value: Schema
+    what: str = "a mapping"
+
+    def check(self, value, path):
+        if not isinstance(value, Mapping):
+            raise SchemaError(path, f"must be {self.what}, got {_show(value)}")
+        for key, x in value.items():
+            if not isinstance(key, str):
+                raise SchemaError(path, f"names must be strings, got {_show(key)}")
+            self.value.check(x, (*path, key))
+
+
+@dataclass(frozen=True)
 class Tagged(Schema):
     """A mapping whose ``tag`` field (default ``default``) selects one of ``variants``."""
 
@@ -250,6 +267,19 @@ COMMON_FIELDS: dict[str, Schema] = {
         {"psm": Text(), "mtm": Text(), "scale": Number(above=0.0, maximum=1.0), "keyframe": Text()}
     ),  # fmt: skip
     "walls": ListOf(Tagged(WALL_TYPES, what="wall"), what="walls"),
+    # The attempt's score (tasks/scoring.py: the metric names are checked against the
+    # kind's declared metrics there).
+    "scoring": Record(
+        {
+            "pass_score": Number(minimum=0.0, maximum=100.0),
+            "force_threshold": Number(minimum=0.0),
+            "reference": Text(),
+            "metrics": MapOf(
+                Record({k: Number() for k in ("weight", "fail", "expert", "pass_mark")}),
+                what="a mapping of metric names to {weight, fail, expert, pass_mark}",
+            ),
+        }
+    ),
 }
 
 
