@@ -21,7 +21,7 @@ import subprocess
 import sys
 import time
 
-from common import write
+from common import RESULTS, write
 from davinci_sim.bridge import BridgeConfig, RosbridgeServer
 from davinci_sim.bridge.dvrk_node import DvrkNode
 from davinci_sim.bridge.endoscope import EndoscopeNode, QposProbe
@@ -198,6 +198,81 @@ def measure_images(seconds: float) -> dict:
     }
 
 
+FIRST_FRAME_CLIENT = r"""
+import asyncio, json, sys, time
+from websockets.asyncio.client import connect
+
+url, topic, n = sys.argv[1], sys.argv[2], int(sys.argv[3])
+
+async def main():
+    out = []
+    async with connect(url, compression=None, max_size=None) as ws:
+        for k in range(n):
+            await ws.send(json.dumps({"op": "subscribe", "topic": topic, "id": f"s{k}"}))
+            t0 = time.perf_counter()
+            while True:
+                data = await asyncio.wait_for(ws.recv(), 120)
+                if '"op":"publish"' in data[:40]:
+                    break
+            out.append(time.perf_counter() - t0)
+            await ws.send(json.dumps({"op": "unsubscribe", "topic": topic, "id": f"s{k}"}))
+            await asyncio.sleep(1.0)  # the node sees no subscriber, the renderer idles
+            while True:  # drop what was queued before the unsubscribe took effect
+                try:
+                    await asyncio.wait_for(ws.recv(), 0.05)
+                except asyncio.TimeoutError:
+                    break
+    print(json.dumps(out))
+
+asyncio.run(main())
+"""
+
+
+def first_frames(url: str, n: int) -> list[float]:
+    """Seconds from each of ``n`` subscriptions to the left JPEG topic to its first image
+    message (one client in another process; unsubscribed for 1 s between)."""
+    topic = "/jhu_daVinci/left/image_raw/compressed"
+    out = subprocess.run([sys.executable, "-c", FIRST_FRAME_CLIENT, url, topic, str(n)],
+                         capture_output=True, text=True, timeout=300, check=True)  # fmt: skip
+    return json.loads(out.stdout)
+
+
+def measure_first_frame(n: int = 5) -> dict:
+    """Time to first frame (item 2 of issue 11): subscribe → first endoscope image, with the
+    render pipeline started with the server. Two set-ups: the node's own render process
+    (``serve --no-web``: thread runner, full scene) and ``serve``'s (the process runner
+    renders at the image rate, as with the web console), each timed from start to its first
+    frame too (``…_pipeline_start_s``: what a subscriber waited before, when the pipeline
+    started at the first subscription)."""
+    import threading
+
+    from davinci_sim.bridge.app import ServeOptions, serve
+
+    figures = {}
+    for tag, runner, render_hz in (("node", "thread", None), ("runner", "process", 30.0)):
+        ready, stop = {}, threading.Event()
+        options = ServeOptions(scene="full", bridge=BridgeConfig(port=0), runner=runner,
+                               render_hz=render_hz, images="jpeg")  # fmt: skip
+        t0 = time.perf_counter()
+        thread = threading.Thread(target=serve, args=(options,), daemon=True,
+                                  kwargs={"stop": stop, "on_ready": ready.update})  # fmt: skip
+        thread.start()
+        try:
+            while "url" not in ready:
+                time.sleep(0.05)
+            figures[f"first_frame_{tag}_serve_ready_s"] = time.perf_counter() - t0
+            figures[f"first_frame_{tag}_pipeline_start_s"] = ready.get("first_frame_s", -1.0)
+            times = [1000 * t for t in first_frames(ready["url"], n)]
+        finally:
+            stop.set()
+            thread.join(60)
+        figures[f"first_frame_{tag}_subscribe_to_image_ms_median"] = statistics.median(times)
+        figures[f"first_frame_{tag}_subscribe_to_image_ms_max"] = max(times)
+        print(tag, times, flush=True)
+    figures["first_frame_subscriptions"] = n
+    return figures
+
+
 def measure_reader(n: int = 2000) -> dict:
     """What the process runner's reader spends per published state for a 1 kHz bridge: the
     snapshot of the full scene, every arm's operating state and 7 arms' ``measured_js``
@@ -235,7 +310,14 @@ def measure_reader(n: int = 2000) -> dict:
 
 
 def main(seconds: float = 5.0) -> None:
+    if "--first-frame" in sys.argv:  # only the time to first frame, into the last results
+        figures = json.loads((RESULTS / "bridge.json").read_text())
+        figures.pop("machine", None)
+        figures.update(measure_first_frame())
+        write("bridge", figures)
+        return
     figures: dict = {}
+    figures.update(measure_first_frame())
     figures.update(measure_reader())
     figures.update(measure_images(seconds))
     print(figures, flush=True)

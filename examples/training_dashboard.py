@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import sys
 import time
 
 import roslibpy
@@ -33,6 +34,13 @@ def describe_result(row: dict) -> str:
     )
 
 
+def say(line: str) -> None:
+    """Print one line in one write: roslibpy calls back from its own thread, and print()
+    writes the text and the newline separately (two threads' lines could interleave)."""
+    sys.stdout.write(line + "\n")
+    sys.stdout.flush()
+
+
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--host", default="127.0.0.1")
@@ -51,15 +59,15 @@ def main() -> int:
         key = (state["phase"], state["repetition"])
         if key != last_phase:  # the distance changes all the time: print phase changes
             last_phase = key
-            print(describe(state), flush=True)
+            say(describe(state))
 
     roslibpy.Topic(ros, "/task/state", "std_msgs/String").subscribe(on_state)
     roslibpy.Topic(ros, "/task/results", "std_msgs/String").subscribe(
-        lambda msg: print(describe_result(json.loads(msg["data"])), flush=True)
+        lambda msg: say(describe_result(json.loads(msg["data"])))
     )
     if args.reset:
         roslibpy.Topic(ros, "/task/reset", "std_msgs/Empty").publish(roslibpy.Message({}))
-        print("reset sent", flush=True)
+        say("reset sent")
     time.sleep(args.duration)
     ros.close()
     return 0

@@ -203,6 +203,10 @@ def cmd_serve(args: argparse.Namespace) -> int:
         print(f"davinci-sim serve: {problem}", file=sys.stderr)
         return 2
     web = not args.no_web
+    problem = _taken_port_problem(args, web)
+    if problem is not None:  # before the scene is built
+        print(f"davinci-sim serve: {problem}", file=sys.stderr)
+        return 2
     runner = args.runner or ("process" if web else "thread")
     console = args.console or args.task is not None
     hands = ("MTML", "MTMR") if web and console and args.ros_connect is None else ()
@@ -293,7 +297,9 @@ def cmd_serve(args: argparse.Namespace) -> int:
         info = serve(options, stop=stop, on_ready=ready, parts=parts,
                      on_warning=lambda text: print(f"warning: {text}", flush=True))  # fmt: skip
     except OSError as e:  # a port is taken (the rosbridge server's or the web console's)
-        print(f"davinci-sim serve: {e}; choose another port (--port, --web-port)", file=sys.stderr)
+        problem = _taken_port_problem(args, web)  # (taken meanwhile: say by what, if known)
+        print(f"davinci-sim serve: {problem or f'{e}; choose another port (--port, --web-port)'}",
+              file=sys.stderr)  # fmt: skip
         return 2
     print(f"stopped; simulation ran at {info.get('sim_over_wall', 0):.3f}x real time", flush=True)
     stats = info.get("period_statistics")
@@ -324,6 +330,19 @@ def _serve_option_problem(args: argparse.Namespace) -> str | None:
         value = getattr(args, name)
         if not 0 <= value <= 65535:
             return f"--{name.replace('_', '-')} must be a port in 0..65535, got {value}"
+    return None
+
+
+def _taken_port_problem(args: argparse.Namespace, web: bool) -> str | None:
+    """The first of ``serve``'s ports that is taken, what holds it if that can be known, and
+    the option that chooses another (None: all free)."""
+    from davinci_sim.bridge.ports import port_holder, port_taken, taken_port_message
+
+    ports = [("--port", args.port)] if not args.no_server else []
+    ports += [("--web-port", args.web_port)] if web else []
+    for option, port in ports:
+        if port_taken(args.host, port):
+            return taken_port_message(port, option, port_holder(port))
     return None
 
 

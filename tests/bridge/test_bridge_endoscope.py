@@ -83,16 +83,33 @@ def test_camera_info_pinhole():
     assert set(camera_info(ROS1, 640, 480, 45.0, 0.005, "right", 0.0)) >= {"K", "P", "D", "R"}
 
 
-def test_no_render_process_without_image_subscribers(probed_handle, make_server, make_ros):
-    endo = EndoscopeNode(probed_handle, "psm1")
-    server = make_server(nodes=[endo])
+def test_the_render_pipeline_starts_with_the_server_and_idles_without_image_subscribers(
+    probed_handle, make_server, make_ros
+):
+    """The render process starts with the server and has a frame before anyone subscribes
+    (the first image is not a process start-up away); camera_info alone does not make it
+    render at the image rate; an image subscriber's first image shows the pose of its
+    subscription or later (never the warm-up frame), from the same process."""
+    h = probed_handle
+    endo = EndoscopeNode(h, "psm1")
+    server = make_server(nodes=[endo], stamp_clock="sim")
+    assert wait_for(endo.ready.is_set, 120), "no first frame (render start-up)"
+    pid = endo.render_pid()
+    assert pid is not None  # started before any subscription
     ros = make_ros(server)
-    info = []
+    info, left = [], []
     roslibpy.Topic(ros, "/jhu_daVinci/left/camera_info", "sensor_msgs/CameraInfo").subscribe(
         info.append
     )
-    assert wait_for(lambda: len(info) > 3)
-    assert endo.worker == []  # camera_info alone does not start rendering
+    assert wait_for(lambda: len(info) > 30, 30)
+    assert endo.worker[0].statistics().frames <= 3  # the warm-up only, not 30 Hz
+    t_subscribed = h.snapshot().time
+    roslibpy.Topic(ros, "/jhu_daVinci/left/image_raw/compressed",
+                   "sensor_msgs/CompressedImage").subscribe(left.append)  # fmt: skip
+    assert wait_for(lambda: left, 60), "no image"
+    stamp = left[0]["header"]["stamp"]
+    assert stamp["sec"] + 1e-9 * stamp["nanosec"] >= t_subscribed - 1e-6
+    assert endo.render_pid() == pid
     with pytest.raises(ValueError, match="encoding"):
         EndoscopeNode(probed_handle, "psm1", encoding="png")
 

@@ -99,6 +99,6 @@ def test_cli_serve_refuses_a_taken_web_port_and_a_bad_priority(capsys):
         code = cli.main(["serve", "--scene", "psm1", "--port", "0", "--images", "none",
                          "--web-port", str(port), "--no-bedside", "--duration", "1"])  # fmt: skip
     assert code == 2
-    assert "choose another port" in capsys.readouterr().err
+    assert "choose another with --web-port PORT" in capsys.readouterr().err
     assert cli.main(["serve", "--realtime-priority", "0", "--duration", "0"]) == 2
     assert "1..99" in capsys.readouterr().err

@@ -344,12 +344,7 @@ def test_token_authentication(make_server, make_raw):
     from davinci_sim.bridge.rosbridge.protocol import Auth
 
     server = make_server(auth_token="s3cret")
-    c = make_raw(server)
-    c.send({"op": "call_service", "service": "/rosapi/topics", "id": "x"})
-    status = c.status()
-    assert status["level"] == "error" and "not authenticated" in status["msg"]
-    c.send({"op": "auth", "mac": "guess"})
-    assert "wrong token" in c.status()["msg"]
+    c = make_raw(server, level=None)  # no set_level: the refusal is sent anyway
     c.send({"op": "auth", "mac": "s3cret"})
     assert "/rosout" in c.call("/rosapi/topics")["values"]["topics"]
     # rosauth form: the secret never travels
@@ -359,16 +354,79 @@ def test_token_authentication(make_server, make_raw):
     d = make_raw(server)
     d.send({"op": "auth", "mac": mac, **fields})
     assert d.call("/rosapi/nodes")["result"] is True
-    expired = dict(fields, end=time.time() - 1)
-    e = make_raw(server)
-    e.send({"op": "auth", "mac": rosauth_mac("s3cret", Auth(mac="", **expired)), **expired})
-    assert "expired" in e.status()["msg"]
-    # three failures close the connection
-    for _ in range(3):
-        e.send({"op": "auth", "mac": "nope"})
-    with pytest.raises(Exception):  # noqa: B017 - closed: any websockets error
+
+
+def test_roslibpy_authenticate_is_accepted(make_server):
+    """roslibpy's ``Ros.authenticate`` (sent on connection, before anything else), with the
+    rosauth MAC of integer times, as rosauth hashes them."""
+    from davinci_sim.bridge.rosbridge.auth import rosauth_mac
+    from davinci_sim.bridge.rosbridge.protocol import Auth
+
+    server = make_server(auth_token="s3cret")
+    now = int(time.time())
+    fields = dict(client="127.0.0.1", dest="127.0.0.1", rand="r4nd", t=now, level="user",
+                  end=now + 60)  # fmt: skip
+    ros = roslibpy.Ros("127.0.0.1", server.port)
+    ros.authenticate(rosauth_mac("s3cret", Auth(mac="", **fields)), **fields)
+    try:
+        ros.run(10)
+        topics = []
+        ros.get_topics(lambda r: topics.append(r["topics"]))
+        assert wait_for(lambda: topics, 10) and "/rosout" in topics[0]
+    finally:
+        ros.close()
+
+
+def _refused(client) -> dict:
+    """The status a refused client gets, then checks that the server closed the connection
+    (code 1008, policy violation)."""
+    from websockets.exceptions import ConnectionClosed
+
+    status = client.status()
+    with pytest.raises(ConnectionClosed) as closed:
         for _ in range(10):
-            e.recv(1.0)
+            client.recv(2.0)
+    assert closed.value.rcvd.code == 1008
+    return status
+
+
+@pytest.mark.parametrize(
+    "first, reason",
+    [
+        ({"op": "call_service", "service": "/rosapi/topics", "id": "x"}, "missing token"),
+        ({"op": "subscribe", "topic": "/rosout"}, "missing token"),
+        ({"op": "auth", "mac": "guess"}, "invalid token"),
+        ({"op": "auth"}, "mac"),
+    ],
+)
+def test_a_client_without_the_token_reads_why_before_the_connection_closes(
+    make_server, make_raw, first, reason
+):
+    """A wrong or missing token: one ``status`` op at level error naming the reason, sent
+    whatever ``set_level`` asked (roslibjs emits it; a raw client reads it), then the
+    connection closes; nothing the client sent was done."""
+    server = make_server(auth_token="s3cret")
+    c = make_raw(server, level=None)
+    c.send(first)
+    status = _refused(c)
+    assert status["level"] == "error" and reason in status["msg"], status
+    if "id" in first:
+        assert status["id"] == first["id"]
+    assert server.stats()["sessions"] == [] or all(
+        not s["subscriptions"] for s in server.stats()["sessions"]
+    )
+
+
+def test_an_expired_rosauth_mac_is_refused_with_a_status(make_server, make_raw):
+    from davinci_sim.bridge.rosbridge.auth import rosauth_mac
+    from davinci_sim.bridge.rosbridge.protocol import Auth
+
+    server = make_server(auth_token="s3cret")
+    expired = dict(client="127.0.0.1", dest="127.0.0.1", rand="r", t=time.time() - 120,
+                   level="admin", end=time.time() - 1)  # fmt: skip
+    e = make_raw(server, level=None)
+    e.send({"op": "auth", "mac": rosauth_mac("s3cret", Auth(mac="", **expired)), **expired})
+    assert "expired" in _refused(e)["msg"]
 
 
 def test_stop_frees_the_port(make_server, make_ros):

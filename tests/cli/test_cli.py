@@ -73,3 +73,45 @@ def test_study_refuses_an_output_that_is_a_file_before_the_first_trial(tmp_path,
     assert main(["study", "--subjects", "1", "--repetitions", "1", "-o", str(target)]) == 2
     assert "not a folder" in capsys.readouterr().err
     assert target.read_text() == "keep me"  # nothing lost
+
+
+def _listening_socket():
+    import socket
+
+    s = socket.socket()
+    s.bind(("127.0.0.1", 0))
+    s.listen()
+    return s
+
+
+@pytest.mark.parametrize("option", ["--port", "--web-port"])
+def test_serve_on_a_taken_port_names_the_option_and_this_process(option, capsys):
+    """The port held by this test process: one line, before the scene is built, naming the
+    port, the process that holds it (this one, by pid) and the option to change."""
+    import os
+
+    held = _listening_socket()
+    try:
+        port = held.getsockname()[1]
+        argv = ["serve", "--scene", "psm1", "--duration", "0", "--port", "0", option, str(port)]
+        assert main(argv) == 2
+    finally:
+        held.close()
+    err = capsys.readouterr().err
+    assert len(err.strip().splitlines()) == 1 and "Traceback" not in err
+    assert f"port {port} is taken by process {os.getpid()} (" in err
+    assert f"choose another with {option} PORT" in err
+
+
+def test_the_taken_port_message_says_9090_is_rosbridge_s_and_works_without_a_holder():
+    from davinci_sim.bridge.ports import PortHolder, port_holder, taken_port_message
+
+    text = taken_port_message(9090, "--port", PortHolder(42, "rosbridge_websocket"))
+    assert text.startswith("port 9090 is taken by process 42 (rosbridge_websocket)")
+    assert "real rosbridge server's default port" in text and text.endswith("--port PORT")
+    assert "rosbridge" not in taken_port_message(8080, "--web-port")
+    held = _listening_socket()
+    port = held.getsockname()[1]
+    held.close()
+    assert port_holder(port) is None  # nobody listens any more
+    assert port_holder(port, proc="/nonexistent") is None

@@ -155,6 +155,24 @@ def serve_description(options: ServeOptions):
     )
 
 
+#: Longest wait, s, for the render pipeline's first frame before ``serve`` says it is ready
+#: anyway (a render process that cannot start is logged and retried by the pipeline).
+FIRST_FRAME_WAIT = 60.0
+
+
+def _wait_first_frame(endoscope, stop: threading.Event, info: dict) -> None:
+    """Wait until ``endoscope``'s render pipeline (started with the server) has its first
+    frame, ``stop`` is set, or :data:`FIRST_FRAME_WAIT` passes; ``info["first_frame_s"]``:
+    the wait, s."""
+    t0 = time.monotonic()
+    while not endoscope.ready.wait(0.05):
+        if stop.is_set() or time.monotonic() - t0 > FIRST_FRAME_WAIT:
+            _log.warning("no endoscope image after %.0f s; serving without waiting for it",
+                         time.monotonic() - t0)  # fmt: skip
+            return
+    info["first_frame_s"] = time.monotonic() - t0
+
+
 def serve(
     options: ServeOptions,
     *,
@@ -189,7 +207,7 @@ def serve(
     arm_names = set()
     started: list = []
     info: dict = {}
-    server = None
+    server = endoscope = None
     try:
         system.start()
         started.append(system)
@@ -204,10 +222,11 @@ def serve(
                 SystemNode(handle),
             ]
             if options.images != "none":
-                nodes.append(EndoscopeNode(handle, options.scene, rate=options.image_rate,
-                                           encoding=options.images, rig=options.rig,
-                                           handle_frames=options.render_hz is not None,
-                                           model=system.model_source))  # fmt: skip
+                endoscope = EndoscopeNode(handle, options.scene, rate=options.image_rate,
+                                          encoding=options.images, rig=options.rig,
+                                          handle_frames=options.render_hz is not None,
+                                          model=system.model_source)  # fmt: skip
+                nodes.append(endoscope)
             server = RosbridgeServer(options.bridge, nodes=nodes).start()
             started.append(server)
             info["url"] = server.url
@@ -235,6 +254,8 @@ def serve(
             info["ros_connect"] = options.ros_connect
         for make in parts:
             started.append(make(system, info))
+        if endoscope is not None:  # ready means a subscriber's first image comes at once
+            _wait_first_frame(endoscope, stop, info)
         if on_ready is not None:
             on_ready(info)
         end = None if options.duration is None else time.monotonic() + options.duration

@@ -10,9 +10,17 @@ Rendering a stereo pair takes ~22 ms of CPU; done in the simulation's thread it 
 the 1 kHz loop, and in this process it would hold the GIL. The frames come from the one
 stereo render pipeline (:class:`~davinci_sim.sim.runtime.render.StereoFrames`, a render
 process reading joint positions from shared memory): the handle's own (a runner created with
-``render_hz``), or one started when the first image subscriber comes and fed the snapshots'
-``qpos`` (see :class:`QposProbe`) at the image rate. New frames are JPEG-encoded in a worker
-thread (Pillow releases the interpreter lock); the bridge only forwards bytes.
+``render_hz``), or one of this node's, started with the server and fed the snapshots'
+``qpos`` (see :class:`QposProbe`) at the image rate while images are subscribed. New frames
+are JPEG-encoded in a worker thread (Pillow releases the interpreter lock); the bridge only
+forwards bytes.
+
+Time to the first image: starting a render process (interpreter, MuJoCo, the model, the GL
+context) takes seconds, so the pipeline starts with the server and renders one frame at once
+(:attr:`EndoscopeNode.ready` is set when it is there; ``serve`` waits for it before saying
+it is ready). It then idles until images are subscribed: a subscriber's first image is the
+next render of the current pose, not a process start-up, and never the warm-up frame (frames
+older than the subscription are not sent).
 """
 
 from __future__ import annotations
@@ -20,6 +28,7 @@ from __future__ import annotations
 import asyncio
 import logging
 import math
+import threading
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -158,6 +167,10 @@ class EndoscopeNode:
         self._task: PeriodicTask | None = None
         self._last_frame_number: int | None = None
         self._encoding = False
+        self._since_tick: int | None = None
+        self.ready = threading.Event()
+        """Set once the render pipeline has produced its first frame (started with the
+        server: :meth:`attach`)."""
 
     def attach(self, bridge: Bridge) -> None:
         self.bridge = bridge
@@ -174,6 +187,7 @@ class EndoscopeNode:
             if self.encoding in ("raw", "both"):
                 entry["raw"] = bridge.advertise(f"{ns}/image_raw", "sensor_msgs/Image", node=NODE)
             self.topics[side] = entry
+        self._warm_up()  # the render pipeline starts with the server, not at a subscription
         self._task = PeriodicTask(1.0 / self.rate, self._tick)
         self._task.start()
 
@@ -185,8 +199,8 @@ class EndoscopeNode:
 
     @property
     def worker(self) -> list:
-        """This node's render process (empty until the first image subscriber, or if the
-        handle renders)."""
+        """This node's render process (started with the server; empty if the handle
+        renders)."""
         return self.source.renderers
 
     def render_pid(self) -> int | None:
@@ -206,13 +220,29 @@ class EndoscopeNode:
     def _stop_worker(self) -> None:
         self.source.stop()
 
+    def _warm_up(self) -> None:
+        """Until the first frame is there, start the pipeline and give it the current pose
+        (the render process starts on the first :meth:`StereoFrames.latest`)."""
+        if not self.ready.is_set() and self.source.latest() is not None:
+            self.ready.set()
+
     def _tick(self) -> None:
-        if not self._wanted():
-            return
         if not self._image_wanted():
-            self._publish_info(self.bridge.now())
+            self._since_tick = None
+            self._warm_up()
+            if self._wanted():
+                self._publish_info(self.bridge.now())
             return
-        self._encode_and_publish(self.source.latest())
+        if self._since_tick is None:  # images wanted from now: no frame older than this
+            self._since_tick = self.handle.snapshot().tick
+        frame = self.source.latest()
+        if frame is None:
+            return
+        self.ready.set()
+        tick = getattr(frame, "tick", None)
+        if tick is not None and tick < self._since_tick:
+            return  # the warm-up frame, or one rendered before the subscription
+        self._encode_and_publish(frame)
 
     def _encode_and_publish(self, frame) -> None:
         """Encode a new frame in a worker thread, then publish it (one encoding at a time:

@@ -422,17 +422,26 @@ def _load_builtin_kinds() -> None:
     import davinci_sim.tasks.task  # noqa: F401 (registers "path")
 
 
-def task_from_dict(data: dict[str, Any]) -> Task:
-    """The task of a file's mapping; its ``kind`` (default ``path``) selects the class."""
+def task_from_dict(data: dict[str, Any], *, text: str | None = None, source: str = "") -> Task:
+    """The task of a file's mapping; its ``kind`` (default ``path``) selects the class. The
+    mapping is first checked against the kind's schema (:mod:`davinci_sim.tasks.schema`);
+    ``text``, the file's, and ``source``, its name, put the line in the message."""
+    from davinci_sim.tasks.schema import SchemaError, check_task_data
+
     if not isinstance(data, dict):
         raise TaskError(f"a task must be a mapping, got {type(data).__name__}")
     kinds = task_kinds()
-    data = dict(data)
-    kind = data.pop("kind", DEFAULT_KIND)
-    if kind not in kinds:
+    kind = data.get("kind", DEFAULT_KIND)
+    if not isinstance(kind, str) or kind not in kinds:
         raise TaskError(
             f"task {data.get('name', '?')!r}: unknown kind {kind!r}; kinds: {sorted(kinds)}"
         )
+    try:
+        check_task_data(kinds[kind], data, text, source or f"task {data.get('name', '?')!r}")
+    except SchemaError as e:
+        raise TaskError(str(e)) from None
+    data = dict(data)
+    data.pop("kind", None)
     return kinds[kind].from_dict(data)
 
 
@@ -483,7 +492,7 @@ def load_task(name_or_path: str | Path = "seed_path") -> Task:
         raise TaskError(f"cannot parse task file {source!r}: {e}") from e
     if not isinstance(data, dict):
         raise TaskError(f"task file {source!r} must hold a mapping")
-    return task_from_dict(data)
+    return task_from_dict(data, text=text, source=source)
 
 
 def save_task(task: Task, path: str | Path) -> None:

@@ -23,7 +23,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 from functools import cached_property
-from typing import Any
+from typing import Any, ClassVar
 
 import numpy as np
 
@@ -46,6 +46,7 @@ from davinci_sim.tasks.base import (
     save_task,
 )
 from davinci_sim.tasks.metrics import PATH_METRICS
+from davinci_sim.tasks.schema import NONNEGATIVE, POINT, ListOf, Number, Record, Vector
 from davinci_sim.tasks.state import initial_state, task_step
 from davinci_sim.tasks.trainer import PATH_MISSED_TARGETS, trainer_metrics
 
@@ -82,6 +83,18 @@ class PathTask(Task, kind="path"):
     #: The path metrics, then the trainers' (:mod:`davinci_sim.tasks.trainer`; missed
     #: targets: the numbered points 2..N−1 never within tube_radius).
     METRICS = (*PATH_METRICS, *trainer_metrics(replace=(PATH_MISSED_TARGETS,)))
+    FILE_FIELDS: ClassVar[dict] = {
+        "waypoints": ListOf(POINT, min_items=2, what="points [x, y, z]"),
+        **dict.fromkeys(("corner_radius", "start_tolerance", "finish_tolerance",
+                         "tube_radius"), NONNEGATIVE),
+        "min_progress": Number(minimum=0.0, maximum=1.0),
+        "visual": Record({"tube_radius": NONNEGATIVE, "marker_radius": NONNEGATIVE,
+                          "path_rgba": Vector(4, "r, g, b, a", Number(minimum=0.0, maximum=1.0)),
+                          "marker_rgba": Vector(4, "r, g, b, a",
+                                                Number(minimum=0.0, maximum=1.0))}),
+    }  # fmt: skip
+    """The file's fields besides the common ones (:mod:`davinci_sim.tasks.schema`)."""
+    FILE_REQUIRED = ("waypoints",)
     FIXTURE_TYPES = {
         "viscous": {"B", "G_max", "transition"},
         "spring": {"stiffness", "damping", "max_force", "transition"},

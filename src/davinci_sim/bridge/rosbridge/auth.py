@@ -33,4 +33,4 @@ def check_auth(secret: str, op: Auth, now: float | None = None) -> tuple[bool, s
         if end and end < (time.time() if now is None else now):
             return False, "auth: the authorization has expired"
         return True, ""
-    return False, "auth: wrong token"
+    return False, "auth: invalid token ('mac' is neither the server's token nor its rosauth MAC)"

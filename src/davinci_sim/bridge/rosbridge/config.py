@@ -30,8 +30,11 @@ class BridgeConfig:
     control_queue_length: int = 1000
     """Service responses, status and action messages kept per client (oldest dropped)."""
     auth_token: str | None = None
-    """If set, every client must first send an ``auth`` op whose ``mac`` is this token, or the
-    rosauth-style SHA-512 of ``token + client + dest + rand + t + level + end``."""
+    """If set, every client must first send an ``auth`` op whose ``mac`` is this token
+    (``{"op": "auth", "mac": TOKEN}``), or the rosauth-style SHA-512 of ``token + client +
+    dest + rand + t + level + end`` (roslibpy's ``Ros.authenticate``); only ``set_level`` may
+    come before it. A client that sends anything else first, or a wrong or expired ``mac``,
+    gets a ``status`` op at level error saying why, then the connection closes (code 1008)."""
     service_timeout: float = 10.0
     """Seconds to wait for a client that provides a service or an action server."""
     fragment_timeout: float = 60.0

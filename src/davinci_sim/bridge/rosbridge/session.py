@@ -95,6 +95,8 @@ class Session:
         self.received = 0
         self.sent = 0
         self.closed = False
+        self._close_after: tuple[int, str] | None = None
+        """(code, reason): close once the queued replies are sent (a refused client)."""
 
     # ================================================================ incoming
     async def run(self) -> None:
@@ -117,6 +119,8 @@ class Session:
                 await writer
 
     def handle_frame(self, frame: str | bytes) -> None:
+        if self._close_after is not None:
+            return  # refused: the status is on its way, then the connection closes
         limit = self.bridge.config.max_message_size
         size = len(frame)
         if isinstance(frame, str) and size * 4 > limit:
@@ -146,10 +150,14 @@ class Session:
         try:
             op = parse_op(value)
         except OpError as e:
-            self.report("error", str(e), e.id)
+            if not self.authenticated:
+                self._refuse(str(e), e.id)
+            else:
+                self.report("error", str(e), e.id)
             return
         if not self.authenticated and not isinstance(op, Auth | SetLevel):
-            self.report("error", f"{op.op}: not authenticated (send an 'auth' op first)", _id(op))
+            first = '{"op": "auth", "mac": "<token>"}'
+            self._refuse(f"{op.op}: missing token: send {first} first", _id(op))
             return
         if isinstance(op, Auth):
             self._auth(op)
@@ -173,10 +181,16 @@ class Session:
             _log.info("%s: authenticated", self.name)
             return
         self.auth_failures += 1
-        self.report("error", why)
-        if self.auth_failures >= 3:
-            _log.warning("%s: too many failed auth attempts; closing", self.name)
-            asyncio.ensure_future(self.ws.close(1008, "authentication failed"))
+        self._refuse(why)
+
+    def _refuse(self, why: str, id: Id = None) -> None:
+        """Refuse an unauthenticated client: a ``status`` op at level error saying why (sent
+        whatever ``set_level`` asked: without it the client would only see its calls time
+        out), then close the connection (code 1008, policy violation), as rosbridge's ROS 1
+        server closes a client that does not authenticate."""
+        self.report("error", why, id, always=True)
+        self._close_after = (1008, shorten(f"authentication failed: {why}", 120))
+        self._wake.set()
 
     def _fragment(self, op: Fragment) -> None:
         cfg = self.bridge.config
@@ -237,15 +251,16 @@ class Session:
                 break
 
     # ================================================================ reporting
-    def report(self, level: str, text: str, id: Id = None) -> None:
-        """A problem with what this client sent: log, ``/rosout``, and ``status`` if asked.
-        A long text (one that echoes a huge bad value) is cut to :data:`MAX_REPORT` characters
-        with the number of characters left out, everywhere it goes."""
+    def report(self, level: str, text: str, id: Id = None, *, always: bool = False) -> None:
+        """A problem with what this client sent: log, ``/rosout``, and ``status`` if asked
+        (``always``: whatever the client asked). A long text (one that echoes a huge bad
+        value) is cut to :data:`MAX_REPORT` characters with the number of characters left
+        out, everywhere it goes."""
         text = shorten(text)
         full = f"{self.name}: {text}"
         _log.log(logging.ERROR if level == "error" else logging.WARNING, full)
         self.bridge.rosout(level, full)
-        if LEVELS.get(level, 3) <= self.status_level:
+        if always or LEVELS.get(level, 3) <= self.status_level:
             self.send_op(StatusOut(level, text, id))
 
     # ================================================================ outgoing
@@ -333,6 +348,9 @@ class Session:
         try:
             while True:
                 self._wake.clear()
+                if self._close_after is not None and not self._control:
+                    await ws.close(*self._close_after)
+                    return
                 frame = self._next_frame()
                 if frame is None:
                     delay = self._next_delay()
