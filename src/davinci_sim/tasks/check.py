@@ -1,7 +1,8 @@
 """Is a task doable where it is? :func:`check_task`, per point: reachable, and in view.
 
 Before a study spends minutes on trials (or a session starts), the task's points
-(:attr:`~davinci_sim.tasks.base.Task.view_points`: a path's numbered points) are checked on
+(:attr:`~davinci_sim.tasks.base.Task.check_points`, by default its ``view_points``: a
+path's numbered points; a peg board's pegs) are checked on
 the task's own scene at its start keyframe: the task's PSM must reach each point with the
 tool's orientation at that keyframe (the dVRK's IK: within joint limits, dvrk.md 1.2 and
 1.8, the 45 mm insertion rule), and the left endoscope camera must see it (in front of the
@@ -55,7 +56,8 @@ def check_task(task: Task) -> list[PointCheck]:
         goal = psm.setpoint_cp().T.copy()  # the tool's orientation at the keyframe
         seed = psm.setpoint_jp()
         out = []
-        for k, p in enumerate(np.asarray(task.view_points, dtype=float), start=1):
+        points = np.asarray(task.check_points, dtype=float).reshape(-1, 3)
+        for k, p in enumerate(points, start=1):
             p_camera = (T_camera_task @ np.append(p, 1.0))[:3]
             goal[:3, 3] = p_camera
             q, result = psm.inverse_kinematics(seed, goal)

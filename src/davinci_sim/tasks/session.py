@@ -314,9 +314,10 @@ def live_sample(task: Task, T_task_camera, teleop: TeleopPSM, console: Console, 
     count, contact_force = _contacts(sim, task).measure(sim.model, sim.data)
     master = _master_position(teleop)
     clutch = teleop.is_clutched()
+    extra = task.scene_fields(sim.model, sim.data, _SCENE_CACHE)  # (a kind's objects)
     return Sample.of(
         t, tip, force, clutch, visible=visible, master=master, contacts=count,
-        tool_force=contact_force,
+        tool_force=contact_force, **extra,
     )  # fmt: skip
 
 
@@ -329,6 +330,9 @@ def _master_position(teleop: TeleopPSM):
     reading = device.input()
     return None if reading is None else reading.T_hrsv_tip[:3, 3]
 
+
+#: What kinds keep between ticks to read the scene (:meth:`Task.scene_fields`).
+_SCENE_CACHE: dict = {}
 
 #: InstrumentContacts by (model id, PSM, ignored prefixes): (model, contacts), the few
 #: most recent (building one reads every body's name).
