@@ -13,8 +13,8 @@ ring centres (n, k, 3), m, and ``grasp``, the bit mask of the jaws touching each
 :class:`~davinci_sim.tasks.peg_scene.PegProbe`):
 
 * a ring is *held* by an instrument when both its jaws touch it;
-* it is *resting* when not held and its centre moved slower than ``rest_speed`` since the
-  previous sample;
+* it is *resting* when no jaw touches it and its centre has moved slower than
+  ``rest_speed`` for ``rest_time`` (speeds from consecutive samples);
 * it is *on a peg* when the peg's axis passes through its hole (the centre within
   ``ring_radius − ring_tube_radius`` of the axis, horizontally) and its centre is lower
   than the peg's top;
@@ -66,6 +66,9 @@ from davinci_sim.tasks.state import Phase
 from davinci_sim.tasks.trainer import ECONOMY, TIME, Sum, trainer_metrics
 
 
+_IDLE, _READY, _RUNNING, _FINISHED, _RESULTS = (int(p) for p in Phase)
+
+
 def _observed(key: str):
     def value(task, s, obs):
         return np.asarray(obs[key], dtype=np.int64)
@@ -104,6 +107,8 @@ class PegState(NamedTuple):
     """(n,) time of the previous sample, s (nan before the first)."""
     p_prev: np.ndarray
     """(n, k, 3) ring centres at the previous sample, m."""
+    t_still: np.ndarray
+    """(n, k) since when the ring has been slow and untouched, s (nan: it is not)."""
     owner: np.ndarray
     """(n, k) 1 + index of the instrument that last held the ring alone (0: none)."""
     carried: np.ndarray
@@ -139,6 +144,7 @@ class PegTransferTask(Task, kind="peg_transfer"):
         "wall_thickness": Number(above=0.0),
         "time_limit": NONNEGATIVE,
         "rest_speed": Number(above=0.0),
+        "rest_time": NONNEGATIVE,
         "instruments": ListOf(Text(), min_items=1, what="PSM names"),
         "scoring": _AnyMapping(),
     }
@@ -175,7 +181,9 @@ class PegTransferTask(Task, kind="peg_transfer"):
     time_limit: float = 300.0
     """s (0: none). The ICRA 2026 variant: 180."""
     rest_speed: float = 0.01
-    """A ring slower than this (m/s) and not held is resting."""
+    """A ring untouched by the jaws and slower than this (m/s) ..."""
+    rest_time: float = 0.1
+    """... for this long (s) is resting."""
     instruments: tuple[str, ...] = ("PSM1", "PSM2")
     """The PSMs whose jaws hold rings (hand-offs are between them)."""
     frame: str = "world"
@@ -309,7 +317,8 @@ class PegTransferTask(Task, kind="peg_transfer"):
         k = self.n_rings
         return PegState(
             np.full(n, Phase.IDLE, dtype=np.int8), np.full(n, np.nan), np.full(n, np.nan),
-            np.full(n, np.nan), np.full((n, k, 3), np.nan), np.zeros((n, k), dtype=np.int64),
+            np.full(n, np.nan), np.full((n, k, 3), np.nan), np.full((n, k), np.nan),
+            np.zeros((n, k), dtype=np.int64),
             np.zeros((n, k), bool), np.zeros((n, k), bool), np.zeros((n, k), bool),
             np.zeros((n, k), bool),
         )  # fmt: skip
@@ -322,20 +331,30 @@ class PegTransferTask(Task, kind="peg_transfer"):
         return PegState(*(np.where(m.reshape(-1, *([1] * (f.ndim - 1))), f, s)
                           for f, s in zip(fresh, state, strict=True)))  # fmt: skip
 
+    @cached_property
+    def _lookups(self):
+        """Per peg index (−1: none, the last entry): is a start peg, is a target peg."""
+        P = len(self.pegs)
+        start, target = np.zeros(P + 1, bool), np.zeros(P + 1, bool)
+        start[list(self.start_pegs)] = True
+        target[list(self.target_pegs)] = True
+        return start, target, 2 * np.arange(len(self.instruments))
+
     def peg_of(self, objects) -> np.ndarray:
         """(n, k) index of the peg each ring (centres (n, k, 3), m) is on, −1: none."""
         p = np.asarray(objects, dtype=float)
-        d = np.linalg.norm(p[..., None, :2] - self.pegs[None, None, :, :], axis=-1)
-        inside = d <= self.ring_radius - self.ring_tube_radius
+        delta = p[..., None, :2] - self.pegs
+        d2 = np.einsum("...i,...i->...", delta, delta)
+        hole = self.ring_radius - self.ring_tube_radius
+        inside = d2 <= hole * hole
         low = p[..., 2] <= self.board_top + self.peg_height
-        idx = np.argmin(np.where(inside, d, np.inf), axis=-1)
+        idx = np.argmin(np.where(inside, d2, np.inf), axis=-1)
         return np.where(inside.any(axis=-1) & low, idx, -1)
 
     def holders(self, grasp) -> np.ndarray:
         """(n, k, A) bool: instrument a holds ring k (both its jaws touch it)."""
         g = np.asarray(grasp, dtype=np.int64)
-        shifts = 2 * np.arange(len(self.instruments))
-        return ((g[..., None] >> shifts) & 3) == 3
+        return ((g[..., None] >> self._lookups[2]) & 3) == 3
 
     def step(self, state: PegState, sample: Sample):
         """One sample of n trials (pure; see the module docstring). Observations:
@@ -346,17 +365,28 @@ class PegTransferTask(Task, kind="peg_transfer"):
         if sample.objects is None or sample.grasp is None:
             raise ValueError(f"task {self.name!r} needs the sample's objects and grasp "
                              "(PegTransferTask.scene_fields)")  # fmt: skip
-        p = np.asarray(sample.objects, dtype=float).reshape(sample.n, self.n_rings, 3)
+        n, k = sample.n, self.n_rings
+        p = np.asarray(sample.objects, dtype=float).reshape(n, k, 3)
         t = sample.time
-        hold = self.holders(sample.grasp.reshape(sample.n, self.n_rings))
+        grasp = sample.grasp.reshape(n, k)
+        hold = self.holders(grasp)
         held = hold.any(axis=-1)
         alone = hold.sum(axis=-1) == 1
         who = np.argmax(hold, axis=-1) + 1
         dt = (t - state.t_prev)[:, None]
-        speed = np.linalg.norm(p - state.p_prev, axis=-1) / np.where(dt > 0, dt, np.nan)
-        resting = ~held & (speed < self.rest_speed)  # nan (first sample) is not resting
+        step = p - state.p_prev
+        v2 = np.einsum("...i,...i->...", step, step)
+        # Resting: no jaw touches it (a ring held still, or touched by one jaw of a grasp
+        # being changed, is not resting) and slower than rest_speed for rest_time (a ring
+        # just let go is still at the first sample without contact).
+        slow = (grasp == 0) & (v2 < (self.rest_speed * dt) ** 2) & (dt > 0)
+        t_still = np.where(slow, np.where(np.isnan(state.t_still), t[:, None], state.t_still),
+                           np.nan)  # fmt: skip
+        with np.errstate(invalid="ignore"):
+            resting = slow & (t[:, None] - t_still >= self.rest_time)
         peg = self.peg_of(p)
-        on_target = np.isin(peg, self.target_pegs)
+        is_start, is_target, _ = self._lookups
+        on_target = is_target[peg]
 
         handoff = state.carried & alone & (state.owner > 0) & (state.owner != who)
         owner = np.where(alone, who, state.owner)
@@ -374,24 +404,24 @@ class PegTransferTask(Task, kind="peg_transfer"):
 
         phase = state.phase
         new = phase.copy()
-        on_start = np.isin(peg, self.start_pegs) & resting
-        new[(phase == Phase.IDLE) & on_start.all(axis=1)] = Phase.READY
-        begin = (phase == Phase.READY) & held.any(axis=1)
-        new[begin] = Phase.RUNNING
+        on_start = is_start[peg] & resting
+        new[(phase == _IDLE) & on_start.all(axis=1)] = _READY
+        begin = (phase == _READY) & held.any(axis=1)
+        new[begin] = _RUNNING
         t_start = np.where(begin, t, state.t_start)
-        running = (phase == Phase.RUNNING) | begin
+        running = (phase == _RUNNING) | begin
         if self.time_limit > 0:
-            timeout = t - t_start >= self.time_limit  # (nan before the start: False)
+            with np.errstate(invalid="ignore"):
+                timeout = t - t_start >= self.time_limit  # (nan before the start: False)
         else:
             timeout = np.zeros_like(running)
         finish = running & (done.all(axis=1) | timeout)
-        new[finish] = Phase.FINISHED
-        new[phase == Phase.FINISHED] = Phase.RESULTS
+        new[finish] = _FINISHED
+        new[phase == _FINISHED] = _RESULTS
         t_finish = np.where(finish, t, state.t_finish)
 
-        tip = sample.tip
-        d = np.linalg.norm(p - tip[:, None, :], axis=-1)
-        d = np.where(done, np.inf, d).min(axis=1)
+        rel = p - sample.tip[:, None, :]
+        d = np.sqrt(np.where(done, np.inf, np.einsum("...i,...i->...", rel, rel)).min(axis=1))
         obs = {
             "distance": np.where(np.isfinite(d), d, 0.0),
             "transferred": transfer.sum(axis=1),
@@ -401,8 +431,8 @@ class PegTransferTask(Task, kind="peg_transfer"):
             "held": np.where(held, who, 0),
             "peg": peg,
         }
-        new_state = PegState(new, t_start, t_finish, t.astype(float), p.copy(), owner, carried,
-                             handed, loose, done)  # fmt: skip
+        new_state = PegState(new, t_start, t_finish, t.astype(float), p.copy(), t_still, owner,
+                             carried, handed, loose, done)  # fmt: skip
         return new_state, obs
 
     def at_start(self, tip) -> np.ndarray:
@@ -431,7 +461,7 @@ class PegTransferTask(Task, kind="peg_transfer"):
     _FIELDS = ("pegs", "start_pegs", "target_pegs", "board_center", "board_top",
                "board_half_size", "board_thickness", "peg_radius", "peg_height", "ring_radius",
                "ring_tube_radius", "ring_segments", "wall", "wall_height", "wall_thickness",
-               "time_limit", "rest_speed", "instruments")  # fmt: skip
+               "time_limit", "rest_speed", "rest_time", "instruments")  # fmt: skip
 
     @classmethod
     def from_dict(cls, data: dict[str, Any]) -> PegTransferTask:
