@@ -154,8 +154,18 @@ class Sample:
         return Sample(*out)
 
 
-_FIELDS = ("time", "tip", "force", "clutch", "visible", "master", "contacts", "tool_force",
-           "objects", "grasp")
+_FIELDS = (
+    "time",
+    "tip",
+    "force",
+    "clutch",
+    "visible",
+    "master",
+    "contacts",
+    "tool_force",
+    "objects",
+    "grasp",
+)
 
 
 def _rows(value, n: int, dtype):

@@ -65,7 +65,6 @@ from davinci_sim.tasks.schema import (
 from davinci_sim.tasks.state import Phase
 from davinci_sim.tasks.trainer import ECONOMY, TIME, Sum, trainer_metrics
 
-
 _IDLE, _READY, _RUNNING, _FINISHED, _RESULTS = (int(p) for p in Phase)
 
 
