@@ -154,18 +154,8 @@ class Sample:
         return Sample(*out)
 
 
-_FIELDS = (
-    "time",
-    "tip",
-    "force",
-    "clutch",
-    "visible",
-    "master",
-    "contacts",
-    "tool_force",
-    "objects",
-    "grasp",
-)
+_FIELDS = ("time", "tip", "force", "clutch", "visible", "master", "contacts", "tool_force",
+           "objects", "grasp")  # fmt: skip
 
 
 def _rows(value, n: int, dtype):
