@@ -16,8 +16,9 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
-import davinci_sim  # noqa: E402, F401  (sets MUJOCO_GL)
 import numpy as np  # noqa: E402
+
+import davinci_sim  # noqa: E402, F401  (sets MUJOCO_GL)
 from common import summary, time_each, write  # noqa: E402
 from davinci_sim.model import SceneConfig  # noqa: E402
 from davinci_sim.sim.simulation import Simulation  # noqa: E402

@@ -363,3 +363,25 @@ def test_a_scripted_operator_transfers_a_ring_over_the_wall_with_a_hand_off(icra
         assert op.monitor.phase == Phase.RUNNING  # two rings to go
     finally:
         op.sim.close()
+
+
+def test_a_console_session_reads_the_rings_from_the_scene():
+    """``serve --task peg_transfer_icra``'s system: the board drawn in the full scene (every
+    keyframe extended by the rings), the session sampling the rings each tick."""
+    from davinci_sim.system import ConsoleDescription, SystemDescription, build_simulation
+    from davinci_sim.system.description import TaskDescription
+
+    console = ConsoleDescription(operator_present=True, teleop_enabled=True)
+    task = TaskDescription("peg_transfer_icra", condition="route_spring")
+    sim = build_simulation(SystemDescription("full", console=console, task=task))
+    try:
+        session = sim.components["task"]
+        sim.run_for(0.3)
+        obs = session.monitor.observations
+        assert session.snapshot().phase == "READY"  # every ring at rest on a start peg
+        assert obs["peg"][0].tolist() == list(session.task.start_pegs)
+        assert obs["held"][0].tolist() == [0, 0, 0]
+        sim.reset()  # back to the keyframe: the rings on their pegs again
+        assert sim.model.nkey >= 2 and sim.model.key_qpos.shape[1] == sim.model.nq
+    finally:
+        sim.close()
