@@ -257,13 +257,39 @@ class Operator:
         if wait:
             self.wait(n)
 
+    def glide(self, moves, speed=0.15):
+        """Stream ``servo_cp`` setpoints along straight lines to ``moves`` (arm → world
+        point) at once, minimum-jerk timed (peak ``speed``, m/s): a script's (or a
+        teleoperation's) motion, faster than ``move_cp``'s joint trajectories."""
+        sim = self.sim
+        lines = {n: (self.tip(n)[:3, 3].copy(), np.asarray(p, float)) for n, p in moves.items()}
+        far = max(np.linalg.norm(b - a) for a, b in lines.values())
+        duration = max(0.1, 1.875 * far / speed)
+        t0 = sim.time
+        while sim.time - t0 < duration:
+            x = min(1.0, (sim.time - t0 + sim.model.opt.timestep) / duration)
+            s = x**3 * (10 - 15 * x + 6 * x * x)
+            for n, (a, b) in lines.items():
+                G = np.eye(4)
+                G[:3, :3], G[:3, 3] = self.R[n], a + s * (b - a)
+                assert sim.arms[n].servo_cp(self.T_camera_world @ G)
+            sim.tick()
+        sim.run_for(0.1)
+
     def wait(self, *arms):
         assert self.sim.run_until(lambda: not any(self.sim.arms[n].is_busy() for n in arms), 10)
-        self.sim.run_for(0.05)
+        self.sim.run_for(0.02)
 
-    def jaw(self, n, angle):
+    def jaw(self, n, angle, wait=True, servo=False):
+        """move_jp (the dVRK's jaw trajectory), or servo_jp for 0.1 s (as a teleoperation
+        streams the gripper's angle)."""
+        if servo:
+            assert self.sim.arms[n].jaw.servo_jp(angle)
+            self.sim.run_for(0.1 if wait else 0.0)
+            return
         assert self.sim.arms[n].jaw.move_jp(angle)
-        assert self.sim.run_until(lambda: not self.sim.arms[n].jaw.is_busy(), 5)
+        if wait:
+            assert self.sim.run_until(lambda: not self.sim.arms[n].jaw.is_busy(), 5)
 
     def ring(self, i):
         d = self.sim.data
@@ -285,10 +311,10 @@ class Operator:
             return points[0]
         return max(points, key=lambda p: np.linalg.norm(p - far_from))
 
-    def pick(self, n, i, far_from=None):
+    def pick(self, n, i, far_from=None, approach=0.02):
         p = self.grasp_pivot(n, i, far_from=far_from)
         self.jaw(n, 0.8)  # open: 46° (dVRK jaw range −40°…80°)
-        self.move(n, p - 0.02 * self.R[n][:, 2])
+        self.move(n, p - approach * self.R[n][:, 2])
         self.move(n, p)
         self.jaw(n, -0.35)  # the dVRK's close (−20°): the jaw effort saturates on the ring
         return p
@@ -334,33 +360,42 @@ def test_a_grasped_ring_stays_in_the_jaws_while_the_psm_moves_and_drops_when_the
 
 
 def test_a_scripted_operator_transfers_a_ring_over_the_wall_with_a_hand_off(icra):
+    """PSM2 lifts a ring off a start peg, brings it over the wall, PSM1 grasps it too, PSM2
+    lets go, PSM1 drops it on a target peg (servo_cp streamed by the script; jaws by
+    servo_jp): the state records one hand-off and one transfer."""
     op = Operator(icra)
     try:
-        p2 = op.pick("PSM2", 0)
-        assert op.monitor.phase == Phase.RUNNING
-        # Over the wall, near PSM1; PSM1 comes above the ring meanwhile.
-        op.move("PSM2", p2 + [0, 0, 0.045])
-        c = op.ring(0)[0]
-        hand_off = np.array([icra.board_center[0] + 0.007, icra.board_center[1], 0.845])
-        op.move("PSM2", op.tip("PSM2")[:3, 3] + hand_off - c)
+        t0 = op.sim.time
+        hand_off = np.array([icra.board_center[0] + 0.007, icra.board_center[1], 0.835])
+        op.jaw("PSM1", 0.8, wait=False, servo=True)
+        op.jaw("PSM2", 0.8, servo=True)  # open: 46° (dVRK jaw range −40°…80°)
+        p2 = op.grasp_pivot("PSM2", 0)
+        # PSM2 above the ring while PSM1 goes to wait above the hand-off place.
+        op.glide({"PSM2": p2 - 0.01 * op.R["PSM2"][:, 2], "PSM1": hand_off + [-0.01, 0, 0.02]})
+        op.glide({"PSM2": p2})
+        op.jaw("PSM2", -0.35, servo=True)  # the dVRK close (−20°): full jaw effort on the ring
+        assert op.bits(0) == PSM2_JAWS and op.monitor.phase == Phase.RUNNING
+        op.glide({"PSM2": p2 + [0, 0, 0.02]})  # off the peg (15 mm)
+        op.glide({"PSM2": op.tip("PSM2")[:3, 3] + hand_off - op.ring(0)[0]})  # over the wall
         assert op.bits(0) == PSM2_JAWS
-        op.pick("PSM1", 0, far_from=op.tip("PSM2")[:3, 3])
+        op.glide({"PSM1": op.grasp_pivot("PSM1", 0, far_from=op.tip("PSM2")[:3, 3])})
+        op.jaw("PSM1", -0.35, servo=True)
         assert op.bits(0) == PSM1_JAWS | PSM2_JAWS
-        op.jaw("PSM2", 0.8)
-        op.move("PSM2", op.tip("PSM2")[:3, 3] + [0.02, 0, 0.02], wait=False)
-        op.wait("PSM2")
+        op.jaw("PSM2", 0.8, servo=True)
+        op.glide({"PSM2": op.tip("PSM2")[:3, 3] + [0.01, 0, 0.01]})
         assert op.bits(0) == PSM1_JAWS
         assert op.totals["handoffs"] == 1
         # Over a target peg, the ring's hole around it; open.
         x, y = icra.pegs[icra.target_pegs[2]]
         above = np.array([x, y, icra.board_top + icra.peg_height + 0.006])
-        op.move("PSM1", op.tip("PSM1")[:3, 3] + above - op.ring(0)[0])
-        op.jaw("PSM1", 0.8)
-        op.sim.run_for(0.5)
+        op.glide({"PSM1": op.tip("PSM1")[:3, 3] + above - op.ring(0)[0]})
+        op.jaw("PSM1", 0.8, servo=True)
+        op.sim.run_for(0.4)
         assert icra.peg_of(op.ring(0)[0][None, None])[0, 0] == icra.target_pegs[2]
         assert op.totals == {"transferred": 1, "handoffs": 1, "dropped": 0}
         assert op.monitor.state.done[0].tolist() == [True, False, False]
         assert op.monitor.phase == Phase.RUNNING  # two rings to go
+        print(f"simulated {op.sim.time - t0:.2f} s")
     finally:
         op.sim.close()
 

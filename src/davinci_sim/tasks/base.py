@@ -26,6 +26,11 @@ loaded). A kind provides:
 
 Samples are measured from the tick where a trial is RUNNING to the one where it is
 FINISHED, the same for every kind.
+
+Size: one module over 500 lines because the protocol, the one :class:`Sample` record that
+every engine fills (its optional fields: the trainer metrics', a kind's objects) and the
+registry of kinds and files are what every kind imports together; split, each part would
+import the others.
 """
 
 from __future__ import annotations
