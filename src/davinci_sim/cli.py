@@ -357,7 +357,8 @@ def cmd_task_check(args: argparse.Namespace) -> int:
     except (TaskError, ValueError, OSError) as e:
         print(f"davinci-sim task check: {e}", file=sys.stderr)
         return 2
-    print(f"task {task.name!r}: {task.teleop.psm} at keyframe {task.teleop.keyframe!r}, "
+    arms = " or ".join(getattr(task, "instruments", None) or (task.teleop.psm,))
+    print(f"task {task.name!r}: {arms} at keyframe {task.teleop.keyframe!r}, "
           f"left endoscope image")  # fmt: skip
     for c in checks:
         x, y, z = c.p_task
