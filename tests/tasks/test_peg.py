@@ -420,3 +420,18 @@ def test_a_console_session_reads_the_rings_from_the_scene():
         assert sim.model.nkey >= 2 and sim.model.key_qpos.shape[1] == sim.model.nq
     finally:
         sim.close()
+
+
+def test_scenes_without_the_board_are_unchanged(plain):
+    """The board, rings and noslip solver come with the task only (the seed's path scene
+    and the study's keep their physics)."""
+    from davinci_sim.model import build_model, build_spec
+
+    bare = build_model("psm1")
+    assert bare.opt.noslip_iterations == 0
+    spec = build_spec("psm1")
+    plain.draw(spec)
+    drawn = spec.compile()
+    assert drawn.opt.noslip_iterations > 0
+    assert drawn.nq == bare.nq + 7 * plain.n_rings  # one free joint per ring, appended
+    assert np.array_equal(drawn.key_qpos[:, : bare.nq], bare.key_qpos)
