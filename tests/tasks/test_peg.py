@@ -14,6 +14,7 @@ from davinci_sim.tasks.check import check_task
 from davinci_sim.tasks.peg import PegTransferTask
 from davinci_sim.tasks.peg_scene import ring_mass
 from davinci_sim.tasks.state import Phase, TaskMonitor
+from davinci_sim.tasks.trainer import InstrumentContacts
 
 SCENE = SceneConfig(arms=("PSM1", "PSM2", "ECM"), include_console=False)
 PSM1_JAWS, PSM2_JAWS = 0b0011, 0b1100
@@ -210,6 +211,7 @@ class Operator:
         m, d = self.sim.model, self.sim.data
         self.probe = task.probe(m)
         self.monitor = TaskMonitor(task)
+        contacts = InstrumentContacts(m, task.teleop.psm, task.CONTACT_IGNORE)
         self.totals = {"transferred": 0, "handoffs": 0, "dropped": 0}
         self._every, self._ticks, cache = every, 0, {}
         op = self
@@ -225,7 +227,9 @@ class Operator:
                 if op._ticks % op._every:
                     return
                 tip = d.site_xpos[m.site(f"{task.teleop.psm}/tip").id]
-                op.monitor.observe(Sample.of(t, tip, **task.scene_fields(m, d, cache)))
+                count, force = contacts.measure(m, d)
+                op.monitor.observe(Sample.of(t, tip, contacts=count, tool_force=force,
+                                             **task.scene_fields(m, d, cache)))  # fmt: skip
                 for k in op.totals:
                     op.totals[k] += int(op.monitor.observations[k][0])
 
@@ -362,7 +366,9 @@ def test_a_grasped_ring_stays_in_the_jaws_while_the_psm_moves_and_drops_when_the
 def test_a_scripted_operator_transfers_a_ring_over_the_wall_with_a_hand_off(icra):
     """PSM2 lifts a ring off a start peg, brings it over the wall, PSM1 grasps it too, PSM2
     lets go, PSM1 drops it on a target peg (servo_cp streamed by the script; jaws by
-    servo_jp): the state records one hand-off and one transfer."""
+    servo_jp): the state records one hand-off and one transfer, and the attempt (the ICRA
+    board with one ring, to keep it short) is finished and scored."""
+    icra = dataclasses.replace(icra, name="peg_transfer_icra_one_ring", start_pegs=(3,))
     op = Operator(icra)
     try:
         t0 = op.sim.time
@@ -393,8 +399,15 @@ def test_a_scripted_operator_transfers_a_ring_over_the_wall_with_a_hand_off(icra
         op.sim.run_for(0.4)
         assert icra.peg_of(op.ring(0)[0][None, None])[0, 0] == icra.target_pegs[2]
         assert op.totals == {"transferred": 1, "handoffs": 1, "dropped": 0}
-        assert op.monitor.state.done[0].tolist() == [True, False, False]
-        assert op.monitor.phase == Phase.RUNNING  # two rings to go
+        assert op.monitor.phase >= Phase.FINISHED
+        row = op.monitor.results.row(0)
+        assert (row["transferred"], row["handoffs"], row["drops"], row["missed_targets"]) == (
+            1, 1, 0, 0)  # fmt: skip
+        assert 0 < row["completion_time"] < op.sim.time - t0
+        assert row["path_length"] > 0.05  # PSM1's tip: to the hand-off, over the peg
+        assert row["instrument_collisions"] == 0  # touching the ring is no collision
+        score = icra.score(row)
+        assert score["score"] > 50 and score["passed"] is None  # no pass mark set
         print(f"simulated {op.sim.time - t0:.2f} s")
     finally:
         op.sim.close()
