@@ -394,7 +394,11 @@ def cmd_study(args: argparse.Namespace) -> int:
 
     try:  # the task, loaded and checked here, before any worker starts
         task = load_task(args.task if not Path(args.task).suffix else Path(args.task))
-        problem = task_problem(task)
+        if task.kind != "path":  # the synthetic trainees follow a path
+            problem = (f"task {task.name!r} is a {task.kind} task; the study's synthetic "
+                       "trainees do path tasks (kind 'path') only")  # fmt: skip
+        else:
+            problem = task_problem(task)
     except (TaskError, ValueError, OSError) as e:
         problem = str(e)
     if problem is not None:

@@ -448,3 +448,12 @@ def test_scenes_without_the_board_are_unchanged(plain):
     assert drawn.opt.noslip_iterations > 0
     assert drawn.nq == bare.nq + 7 * plain.n_rings  # one free joint per ring, appended
     assert np.array_equal(drawn.key_qpos[:, : bare.nq], bare.key_qpos)
+
+
+def test_the_study_refuses_a_peg_task_in_one_line(tmp_path, capsys):
+    from davinci_sim.cli import main
+
+    assert main(["study", "--task", "peg_transfer", "-o", str(tmp_path / "out")]) == 2
+    err = capsys.readouterr().err
+    assert "peg_transfer task" in err and "path" in err and "Traceback" not in err
+    assert not (tmp_path / "out").exists()
