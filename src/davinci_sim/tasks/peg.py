@@ -79,7 +79,6 @@ def _observed(key: str):
 TRANSFERRED = Metric(
     "transferred", "1", "higher", "rings transferred to a target peg (one point per peg)",
     Sum(_observed("transferred"), True), integer=True, label="rings transferred",
-    report=("", 1.0),
 )  # fmt: skip
 HANDOFFS = Metric(
     "handoffs", "1", "neither", "hand-offs of a carried ring between the instruments",
