@@ -380,7 +380,8 @@ def cmd_task_check(args: argparse.Namespace) -> int:
     except (TaskError, ValueError, OSError) as e:
         print(f"davinci-sim task check: {e}", file=sys.stderr)
         return 2
-    print(f"task {task.name!r}: {task.teleop.psm} at keyframe {task.teleop.keyframe!r}, "
+    arms = " or ".join(getattr(task, "instruments", None) or (task.teleop.psm,))
+    print(f"task {task.name!r}: {arms} at keyframe {task.teleop.keyframe!r}, "
           f"left endoscope image")  # fmt: skip
     for c in checks:
         x, y, z = c.p_task
@@ -468,7 +469,11 @@ def cmd_study(args: argparse.Namespace) -> int:
 
     try:  # the task, loaded and checked here, before any worker starts
         task = load_task(args.task if not Path(args.task).suffix else Path(args.task))
-        problem = task_problem(task)
+        if task.kind != "path":  # the synthetic trainees follow a path
+            problem = (f"task {task.name!r} is a {task.kind} task; the study's synthetic "
+                       "trainees do path tasks (kind 'path') only")  # fmt: skip
+        else:
+            problem = task_problem(task)
     except (TaskError, ValueError, OSError) as e:
         problem = str(e)
     if problem is not None:

@@ -26,6 +26,11 @@ loaded). A kind provides:
 
 Samples are measured from the tick where a trial is RUNNING to the one where it is
 FINISHED, the same for every kind.
+
+Size: one module over 500 lines because the protocol, the one :class:`Sample` record that
+every engine fills (its optional fields: the trainer metrics', a kind's objects) and the
+registry of kinds and files are what every kind imports together; split, each part would
+import the others.
 """
 
 from __future__ import annotations
@@ -94,11 +99,17 @@ class Sample:
     task's objects' left out, :class:`~davinci_sim.tasks.trainer.InstrumentContacts`)."""
     tool_force: np.ndarray | None = None
     """(n,) total normal force of those contacts on the instrument, N."""
+    objects: np.ndarray | None = None
+    """(n, k, 3) centres of the task's k graspable objects, task frame, m (a kind with
+    objects fills it: :meth:`Task.scene_fields`)."""
+    grasp: np.ndarray | None = None
+    """(n, k) int: bit mask of the jaws touching each object (bit 2·a + j: jaw j of the
+    task's instrument a)."""
 
     @classmethod
     def of(
         cls, time, tip, force=None, clutch=None, *, visible=None, master=None, contacts=None,
-        tool_force=None,
+        tool_force=None, objects=None, grasp=None,
     ) -> Sample:  # fmt: skip
         """A sample of n trials: ``tip`` (n, 3) or (3,) for one; ``time`` scalar or (n,);
         ``force`` (n, 3) (None: 0); ``clutch`` (n,) or scalar (None: released); the
@@ -114,11 +125,14 @@ class Sample:
         else:
             c = np.asarray(clutch, dtype=bool)
             c = np.full(n, bool(c)) if c.ndim == 0 else c.reshape(n)
-        if visible is None and master is None and contacts is None and tool_force is None:
+        if (visible is None and master is None and contacts is None and tool_force is None
+                and objects is None and grasp is None):  # fmt: skip
             return cls(t, p, f, c)
         x = None if master is None else np.asarray(master, dtype=float).reshape(n, 3)
         v, k, g = _rows(visible, n, bool), _rows(contacts, n, np.int64), _rows(tool_force, n, float)
-        return cls(t, p, f, c, visible=v, master=x, contacts=k, tool_force=g)
+        o = None if objects is None else np.asarray(objects, dtype=float).reshape(n, -1, 3)
+        j = None if grasp is None else np.asarray(grasp, dtype=np.int64).reshape(n, -1)
+        return cls(t, p, f, c, visible=v, master=x, contacts=k, tool_force=g, objects=o, grasp=j)
 
     @cached_property
     def force_magnitude(self) -> np.ndarray:
@@ -145,7 +159,8 @@ class Sample:
         return Sample(*out)
 
 
-_FIELDS = ("time", "tip", "force", "clutch", "visible", "master", "contacts", "tool_force")
+_FIELDS = ("time", "tip", "force", "clutch", "visible", "master", "contacts", "tool_force",
+           "objects", "grasp")  # fmt: skip
 
 
 def _rows(value, n: int, dtype):
@@ -240,6 +255,19 @@ class Task(ABC):
         """(k, 3) points the endoscope should frame to show the task, task frame, m (a
         session can bring the camera to them: :meth:`TaskSession.frame_view`)."""
         return np.asarray(self.start, dtype=float).reshape(1, 3)
+
+    @property
+    def check_points(self) -> np.ndarray:
+        """(k, 3) points the task's PSM must reach, task frame, m (``task check``);
+        by default the :attr:`view_points`."""
+        return np.asarray(self.view_points, dtype=float).reshape(-1, 3)
+
+    def scene_fields(self, model, data, cache: dict) -> dict:
+        """Optional :class:`Sample` fields the kind reads from the simulation at
+        ``data``'s state (e.g. its objects: ``objects``, ``grasp``); ``cache`` is the
+        caller's dict, kept between ticks, for lookups built once per model. Nothing by
+        default: a kind without objects reads nothing."""
+        return {}
 
     # ------------------------------------------------------------ state machine
     @abstractmethod
@@ -426,6 +454,7 @@ def task_kinds() -> dict[str, type[Task]]:
 
 
 def _load_builtin_kinds() -> None:
+    import davinci_sim.tasks.peg  # noqa: F401 (registers "peg_transfer")
     import davinci_sim.tasks.task  # noqa: F401 (registers "path")
 
 

@@ -1,11 +1,12 @@
 """Is a task doable where it is? :func:`check_task`, per point: reachable, and in view.
 
 Before a study spends minutes on trials (or a session starts), the task's points
-(:attr:`~davinci_sim.tasks.base.Task.view_points`: a path's numbered points) are checked on
-the task's own scene at its start keyframe: the task's PSM must reach each point with the
-tool's orientation at that keyframe (the dVRK's IK: within joint limits, dvrk.md 1.2 and
-1.8, the 45 mm insertion rule), and the left endoscope camera must see it (in front of the
-camera, inside the image). ``davinci-sim task check FILE`` prints the table; ``study`` and
+(:attr:`~davinci_sim.tasks.base.Task.check_points`, by default its ``view_points``: a path's
+numbered points; a peg board's pegs) are checked on the task's own scene at its start
+keyframe: the task's PSM (or one of its instruments) must reach each point with the tool's
+orientation at that keyframe (the dVRK's IK: within joint limits, dvrk.md 1.2 and 1.8, the
+45 mm insertion rule), and the left endoscope camera must see it (in front of the camera,
+inside the image). ``davinci-sim task check FILE`` prints the table; ``study`` and
 ``serve --task`` refuse a task that fails it before any work.
 """
 
@@ -15,6 +16,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from davinci_sim.kinematics.ik import inverse_kinematics
 from davinci_sim.model.cameras import project_left
 from davinci_sim.model.config import SceneConfig
 from davinci_sim.tasks.base import Task
@@ -41,32 +43,44 @@ class PointCheck:
 
 
 def check_task(task: Task) -> list[PointCheck]:
-    """Check every view point of ``task`` (see the module docstring)."""
+    """Check every point of ``task`` (see the module docstring); for a kind done with
+    several instruments (``task.instruments``: peg transfer's PSM1 and PSM2, each working
+    its side of the board) a point is reachable when one of them reaches it."""
     from davinci_sim.sim.simulation import Simulation
 
-    psm_name = task.teleop.psm
-    scene = SceneConfig(arms=(psm_name, "ECM"), include_console=False, include_patient=False)
+    psms = tuple(getattr(task, "instruments", None) or (task.teleop.psm,))
+    scene = SceneConfig(arms=(*psms, "ECM"), include_console=False, include_patient=False)
     sim = Simulation(scene, keyframe=task.teleop.keyframe)
     try:
-        psm = sim.arms[psm_name]
         camera = scene.endoscope
         T_task_camera = task.T_task_camera(sim.T_cart_camera())
         T_camera_task = np.linalg.inv(T_task_camera)
-        goal = psm.setpoint_cp().T.copy()  # the tool's orientation at the keyframe
-        seed = psm.setpoint_jp()
+        # The tools' orientations at the keyframe, and their joints as the IK's seeds.
+        start = {n: (sim.arms[n].setpoint_cp().T.copy(), sim.arms[n].setpoint_jp()) for n in psms}
         out = []
-        for k, p in enumerate(np.asarray(task.view_points, dtype=float), start=1):
+        points = np.asarray(task.check_points, dtype=float).reshape(-1, 3)
+        for k, p in enumerate(points, start=1):
             p_camera = (T_camera_task @ np.append(p, 1.0))[:3]
-            goal[:3, 3] = p_camera
-            q, result = psm.inverse_kinematics(seed, goal)
+            why, reached = [], False
+            for n in psms:
+                goal, seed = start[n]
+                goal[:3, 3] = p_camera
+                # The kinematics' IK, not the arm's command: a point one instrument
+                # cannot reach is no error to log when another does.
+                arm = sim.arms[n]
+                result = inverse_kinematics(arm.kin, np.linalg.inv(arm.base_frame()[0]) @ goal,
+                                            seed)  # fmt: skip
+                reached |= bool(result.success)
+                if not result.success:
+                    why.append(f"{n}: inverse_kinematics: {result.message}")
             pixel = project_left(p_camera, camera)
             in_view = pixel is not None and (
                 0 <= pixel[0] < camera.width and 0 <= pixel[1] < camera.height
             )
-            why = "" if q is not None else result.message
             shown = None if pixel is None else (float(pixel[0]), float(pixel[1]))
             p_task = (float(p[0]), float(p[1]), float(p[2]))
-            out.append(PointCheck(k, p_task, q is not None, why, shown, bool(in_view)))
+            why = [] if reached else why
+            out.append(PointCheck(k, p_task, reached, "; ".join(why), shown, bool(in_view)))
         return out
     finally:
         sim.close()

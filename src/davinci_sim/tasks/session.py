@@ -326,6 +326,12 @@ def live_sample(task: Task, T_task_camera, teleop: TeleopPSM, console: Console, 
     count, contact_force = _contacts(sim, task).measure(sim.model, sim.data)
     reading = teleop.device.input()
     master = None if reading is None else reading.T_hrsv_tip[:3, 3].reshape(1, 3)
+    extra = task.scene_fields(sim.model, sim.data, _SCENE_CACHE)  # (a kind's objects)
+    if extra:  # Sample.of shapes the kind's fields
+        return Sample.of(
+            t, tip, force, teleop.is_clutched(), visible=visible, master=master,
+            contacts=count, tool_force=contact_force, **extra,
+        )  # fmt: skip
     # One trial: the arrays built directly (Sample.of's conversions cost more, every tick).
     f = np.zeros((1, 3)) if force is None else np.asarray(force, dtype=float).reshape(1, 3)
     return Sample(
@@ -333,6 +339,10 @@ def live_sample(task: Task, T_task_camera, teleop: TeleopPSM, console: Console, 
         visible=np.array([visible]), master=master, contacts=np.array([count], dtype=np.int64),
         tool_force=np.array([contact_force]),
     )  # fmt: skip
+
+
+#: What kinds keep between ticks to read the scene (:meth:`Task.scene_fields`).
+_SCENE_CACHE: dict = {}
 
 
 #: InstrumentContacts by (model id, PSM, ignored prefixes): (model, contacts), the few
