@@ -26,6 +26,10 @@ loaded). A kind provides:
 
 Samples are measured from the tick where a trial is RUNNING to the one where it is
 FINISHED, the same for every kind.
+
+Size: a little over 500 lines — the protocol, the one sample record every engine fills and
+the registry that reads task files are one contract; split, each part would import the
+others.
 """
 
 from __future__ import annotations
@@ -94,15 +98,22 @@ class Sample:
     task's objects' left out, :class:`~davinci_sim.tasks.trainer.InstrumentContacts`)."""
     tool_force: np.ndarray | None = None
     """(n,) total normal force of those contacts on the instrument, N."""
+    T_task_camera: np.ndarray | None = None
+    """(n, 4, 4) the endoscope's camera (ECM tip) frame in the task's frame, m (the camera
+    targeting exercise's input)."""
+    R_task_tip: np.ndarray | None = None
+    """(n, 3, 3) the tool tip frame's orientation in the task's frame (column 2, z: the
+    direction the jaws point; the needle targeting exercise's input)."""
 
     @classmethod
     def of(
         cls, time, tip, force=None, clutch=None, *, visible=None, master=None, contacts=None,
-        tool_force=None,
+        tool_force=None, T_task_camera=None, R_task_tip=None,
     ) -> Sample:  # fmt: skip
         """A sample of n trials: ``tip`` (n, 3) or (3,) for one; ``time`` scalar or (n,);
         ``force`` (n, 3) (None: 0); ``clutch`` (n,) or scalar (None: released); the
-        optional fields (n,) or scalar, ``master`` (n, 3) or (3,) (None: not sampled)."""
+        optional fields (n,) or scalar, ``master`` (n, 3) or (3,), ``T_task_camera``
+        (n, 4, 4) or (4, 4), ``R_task_tip`` (n, 3, 3) or (3, 3) (None: not sampled)."""
         p = np.asarray(tip, dtype=float).reshape(-1, 3)
         n = len(p)
         f = np.zeros((n, 3)) if force is None else np.asarray(force, dtype=float).reshape(n, 3)
@@ -114,11 +125,15 @@ class Sample:
         else:
             c = np.asarray(clutch, dtype=bool)
             c = np.full(n, bool(c)) if c.ndim == 0 else c.reshape(n)
-        if visible is None and master is None and contacts is None and tool_force is None:
+        optional = (visible, master, contacts, tool_force, T_task_camera, R_task_tip)
+        if all(o is None for o in optional):
             return cls(t, p, f, c)
         x = None if master is None else np.asarray(master, dtype=float).reshape(n, 3)
         v, k, g = _rows(visible, n, bool), _rows(contacts, n, np.int64), _rows(tool_force, n, float)
-        return cls(t, p, f, c, visible=v, master=x, contacts=k, tool_force=g)
+        cam = None if T_task_camera is None else _matrices(T_task_camera, n, 4)
+        rot = None if R_task_tip is None else _matrices(R_task_tip, n, 3)
+        return cls(t, p, f, c, visible=v, master=x, contacts=k, tool_force=g,
+                   T_task_camera=cam, R_task_tip=rot)  # fmt: skip
 
     @cached_property
     def force_magnitude(self) -> np.ndarray:
@@ -145,7 +160,14 @@ class Sample:
         return Sample(*out)
 
 
-_FIELDS = ("time", "tip", "force", "clutch", "visible", "master", "contacts", "tool_force")
+_FIELDS = ("time", "tip", "force", "clutch", "visible", "master", "contacts", "tool_force",
+           "T_task_camera", "R_task_tip")  # fmt: skip
+
+
+def _matrices(value, n: int, k: int) -> np.ndarray:
+    """(k, k) or (n, k, k) matrices as (n, k, k) floats."""
+    a = np.asarray(value, dtype=float)
+    return np.broadcast_to(a, (n, k, k)).copy() if a.ndim == 2 else a.reshape(n, k, k)
 
 
 def _rows(value, n: int, dtype):
@@ -419,6 +441,7 @@ def task_kinds() -> dict[str, type[Task]]:
 
 
 def _load_builtin_kinds() -> None:
+    import davinci_sim.tasks.exercises  # noqa: F401 (camera_targeting, ring_walk, needle_targeting)
     import davinci_sim.tasks.task  # noqa: F401 (registers "path")
 
 

@@ -302,11 +302,13 @@ def live_sample(task: Task, T_task_camera, teleop: TeleopPSM, console: Console, 
     fields: whether the tip is in the left endoscope image, the master handle's position
     (HRSV: the simulated MTM's measured pose, else the device's last input; None before
     one), and the instrument's contacts and their force (MuJoCo's contacts of the last
-    step, :class:`~davinci_sim.tasks.trainer.InstrumentContacts`)."""
+    step, :class:`~davinci_sim.tasks.trainer.InstrumentContacts`); the camera's pose and the
+    tool's orientation in the task's frame (for the exercises that score them)."""
     from davinci_sim.model.cameras import in_left_image
 
     p_camera = teleop.psm.measured_cp().T
-    tip = (np.asarray(T_task_camera) @ p_camera)[:3, 3]
+    T_task_tip = np.asarray(T_task_camera) @ p_camera
+    tip = T_task_tip[:3, 3]
     requested = console.haptics.snapshot().requested.get(task.teleop.mtm)
     force = None if requested is None else requested[:3]
     sim = console.sim
@@ -316,7 +318,7 @@ def live_sample(task: Task, T_task_camera, teleop: TeleopPSM, console: Console, 
     clutch = teleop.is_clutched()
     return Sample.of(
         t, tip, force, clutch, visible=visible, master=master, contacts=count,
-        tool_force=contact_force,
+        tool_force=contact_force, T_task_camera=T_task_camera, R_task_tip=T_task_tip[:3, :3],
     )  # fmt: skip
 
 
