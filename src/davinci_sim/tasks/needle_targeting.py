@@ -135,7 +135,7 @@ class NeedleTargetingTask(Task, kind="needle_targeting"):
     targets: np.ndarray
     """(K, 3) the targets in order, task frame, m."""
     directions: np.ndarray
-    """(K, 3) the direction the tool must point at each (unit vectors after loading)."""
+    """(K, 3) the direction the tool must point at each, as given (any length > 0)."""
     target_radius: float = 0.003
     angle_tolerance: float = 20.0
     """deg (the file's unit)."""
@@ -154,7 +154,8 @@ class NeedleTargetingTask(Task, kind="needle_targeting"):
         n = self.name
         object.__setattr__(self, "start", points(n, "start", self.start)[0])
         t = points(n, "targets", self.targets)
-        d = unit_rows(self.directions, n, "directions")
+        unit_rows(self.directions, n, "directions")  # (checks them)
+        d = points(n, "directions", self.directions)
         if len(d) != len(t):
             raise TaskError(f"task {n!r}: one direction per target ({len(t)}), got {len(d)}")
         object.__setattr__(self, "targets", t)
@@ -202,6 +203,11 @@ class NeedleTargetingTask(Task, kind="needle_targeting"):
 
     # ------------------------------------------------------------ geometry
     @cached_property
+    def unit_directions(self) -> np.ndarray:
+        """(K, 3) :attr:`directions` as unit vectors."""
+        return unit_rows(self.directions, self.name, "directions")
+
+    @cached_property
     def sequence(self) -> Polyline:
         """The straight runs start → target 1 → … → target K, task frame, m."""
         return Polyline(np.vstack([self.start, self.targets]))
@@ -214,7 +220,7 @@ class NeedleTargetingTask(Task, kind="needle_targeting"):
     def view_directions(self) -> np.ndarray:
         """(k, 3) the tool direction each view point needs (None rows: any), for the
         reachability check: the start none (nan), each target its direction."""
-        return np.vstack([np.full(3, np.nan), self.directions])
+        return np.vstack([np.full(3, np.nan), self.unit_directions])
 
     # ------------------------------------------------------------ Task
     def draw(self, spec, *, T_world_camera=None, prefix: str = "task/"):
@@ -225,7 +231,8 @@ class NeedleTargetingTask(Task, kind="needle_targeting"):
         T = None if self.frame == "world" else np.asarray(T_world_camera, dtype=float)
         start = world_points(self, self.start, T_world_camera)[0]
         targets = world_points(self, self.targets, T_world_camera)
-        dirs = self.directions if T is None else self.directions @ T[:3, :3].T
+        u = self.unit_directions
+        dirs = u if T is None else u @ T[:3, :3].T
         body.sphere("start", start, 0.0018, (0.2, 0.9, 0.3, 1.0))
         right, up = viewer_axes(T_world_camera)
         for k, (p, d) in enumerate(zip(targets, dirs, strict=True), start=1):
@@ -258,7 +265,7 @@ class NeedleTargetingTask(Task, kind="needle_targeting"):
         k = np.minimum(state.target, K - 1)
         d = np.linalg.norm(tip - self.targets[k], axis=1)
         inside = running & (state.target < K) & (d <= self.target_radius)
-        angle = angle_between(sample.R_task_tip[:, :, 2], self.directions[k])
+        angle = angle_between(sample.R_task_tip[:, :, 2], self.unit_directions[k])
         best = np.where(inside, np.minimum(state.best, angle), state.best)
         aligned = inside & (angle <= math.radians(self.angle_tolerance))
         hold = np.where(aligned, np.where(np.isnan(state.hold_since), t, state.hold_since),
