@@ -372,3 +372,14 @@ def test_camera_targeting_solved_at_the_console():
     assert row["camera_path_length"] >= np.linalg.norm(views[1] - views[0]) - 1e-3
     assert row["path_length"] < 0.002  # the instrument stayed where it was
     assert row["score"] is not None
+
+
+@pytest.mark.parametrize("name", EXERCISES)
+def test_the_web_study_tab_refuses_an_exercise_with_the_reason(name):
+    """The study (trials, batch engine, report) is the path kind's: an exercise is refused
+    before any thread starts, saying why."""
+    from davinci_sim.web.study_job import StudyJob
+
+    job = StudyJob(name, lambda message: None)
+    why = job.start(1, 1)
+    assert why is not None and name in why and "path" in why and not job.running
