@@ -183,6 +183,8 @@ def test_ring_walk_contact_metrics_on_a_constructed_run():
     for k in range(1000):
         tips.append([k * 1e-4 + 5e-5, off[k], 0.0])
         phases.append(monitor.observe(Sample.of(k * DT, tips[-1]))[0])
+        if k == 500:
+            assert task.progress(monitor.state) == "50 % of the wire"
         if phases[-1] == Phase.FINISHED:
             break
     first, last = phases.index(Phase.RUNNING), len(phases) - 1
@@ -286,6 +288,8 @@ def test_needle_targeting_solved_at_the_console():
         assert psm.move_cp(goal)
         assert sim.run_until(lambda: not psm.is_busy(), 5.0)
         sim.run_for(task.dwell + 0.02)
+        if not session.results:  # the panel says which target is next
+            assert session.snapshot().progress == "touch target 2 of 2"
     assert session.results, session.snapshot()
     row = session.results[0]
     _row_columns(task, row)
@@ -365,6 +369,8 @@ def test_camera_targeting_solved_at_the_console():
         assert ecm.move_cp(goal)
         assert sim.run_until(lambda: not ecm.is_busy(), 10.0)
         sim.run_for(task.dwell + 0.02)
+        if not session.results:
+            assert session.snapshot().progress == "centre target 2 of 2"
     assert session.results, session.snapshot()
     row = session.results[0]
     _row_columns(task, row)

@@ -305,6 +305,11 @@ class Task(ABC):
         """``score`` (%) and ``passed`` of an attempt's metric ``values`` (name → value)."""
         return self.scoring.row(values, finished)
 
+    def progress(self, state) -> str:
+        """Where the first trial of ``state`` is within a repetition, in a few words for
+        the console's panel (e.g. ``target 2 of 4``; "" by default)."""
+        return ""
+
     def summary(self, row: dict) -> str:
         """A repetition's row in a few words (the session's status message)."""
         shown = [m for m in self.METRICS if m.report is not None][:2]

@@ -281,6 +281,13 @@ class CameraTargetingTask(Task, kind="camera_targeting"):
         }
         return new, obs
 
+    def progress(self, state) -> str:
+        """``centre target k of K`` while running."""
+        if int(state.phase[0]) not in (Phase.RUNNING, Phase.FINISHED):
+            return ""
+        k = min(int(state.target[0]) + 1, len(self.targets))
+        return f"centre target {k} of {len(self.targets)}"
+
     def at_start(self, tip) -> np.ndarray:
         """True wherever the tool is: the exercise is the camera's (see the docstring)."""
         return np.ones(len(np.asarray(tip, dtype=float).reshape(-1, 3)), dtype=bool)

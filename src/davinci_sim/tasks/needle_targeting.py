@@ -292,6 +292,13 @@ class NeedleTargetingTask(Task, kind="needle_targeting"):
         }
         return new, obs
 
+    def progress(self, state) -> str:
+        """``touch target k of K`` while running."""
+        if int(state.phase[0]) not in (Phase.RUNNING, Phase.FINISHED):
+            return ""
+        k = min(int(state.target[0]) + 1, len(self.targets))
+        return f"touch target {k} of {len(self.targets)}"
+
     def at_start(self, tip) -> np.ndarray:
         p = np.asarray(tip, dtype=float).reshape(-1, 3)
         return np.linalg.norm(p - self.start, axis=1) <= self.start_tolerance

@@ -36,6 +36,7 @@ from davinci_sim.tasks.base import TaskError
 from davinci_sim.tasks.exercise_parts import VisualBody, positive, viewer_axes
 from davinci_sim.tasks.metrics import PATH_METRICS, Metric, PairSum
 from davinci_sim.tasks.schema import Number
+from davinci_sim.tasks.state import Phase
 from davinci_sim.tasks.task import PathTask
 from davinci_sim.tasks.trainer import ECONOMY, TIME, trainer_metrics
 
@@ -134,6 +135,12 @@ class RingWalkTask(PathTask, kind="ring_walk"):
                 "master_workspace": {"weight": 1.0, "fail": 3.0 * span, "expert": span},
             }
         }
+
+    def progress(self, state) -> str:
+        """How far along the wire the ring has been, % of its length, while running."""
+        if int(state.phase[0]) != Phase.RUNNING:
+            return ""
+        return f"{100.0 * float(state.progress[0]) / self.path.length:.0f} % of the wire"
 
     def summary(self, row: dict) -> str:
         return (f"{row['contact_count']} contacts, {row['contact_time']:.2f} s touching, "

@@ -71,6 +71,8 @@ class TaskSessionState:
     """Tool tip to the path, m (nan before the first tick)."""
     last: dict = field(default_factory=dict)
     """The last repetition's row (empty before the first)."""
+    progress: str = ""
+    """Where the repetition is, in the task's words (:meth:`Task.progress`)."""
 
 
 class TaskSession:
@@ -276,6 +278,7 @@ class TaskSession:
             completed=len(self.results),
             distance_to_path=self._distance,
             last=dict(self.results[-1]) if self.results else {},
+            progress=self.task.progress(self.monitor.state),
         )
 
     # ------------------------------------------------------------ state
