@@ -389,3 +389,56 @@ def test_the_web_study_tab_refuses_an_exercise_with_the_reason(name):
     job = StudyJob(name, lambda message: None)
     why = job.start(1, 1)
     assert why is not None and name in why and "path" in why and not job.running
+
+
+def test_camera_targeting_with_the_camera_pedal_and_both_hands():
+    """At the console with both MTMs (simulated devices): the camera pedal held, a scripted
+    operator turns both hands about the eyes (HRSV) by the target's angles off the view
+    axis, a few times (a proportional loop, 150 ms apart), as a person steers the view:
+    the target, 3 cm to the image's left at the right depth, is acquired; the instrument,
+    its teleoperation suspended by the pedal, does not move; the masters did."""
+    from davinci_sim.console import SIMULATED_SYSTEM, install_console
+    from davinci_sim.model.config import SceneConfig
+    from davinci_sim.sim.simulation import Simulation
+
+    scene = SceneConfig(arms=("PSM1", "ECM", "MTML", "MTMR"), include_patient=False)
+    sim = Simulation(scene, keyframe="surgical")
+    console = install_console(sim, teleop_config=SIMULATED_SYSTEM.replace(align_mtm=False))
+    console.emulate_operator_present([1])
+    console.teleop_enable(True)
+    assert sim.run_until(console.psm_teleops["MTMR_PSM1"].is_following, 5)
+    T_cart_camera = sim.T_cart_camera().copy()
+    target = (T_cart_camera @ np.array([0.03, 0.005, 0.20, 1.0]))[:3]
+    tip = (T_cart_camera @ sim.arms["PSM1"].measured_cp().T)[:3, 3]
+    task = CameraTargetingTask("pedal", start=tip, targets=[target], depth=0.20,
+                               depth_tolerance=0.02, centre_tolerance=2.0, dwell=0.2)  # fmt: skip
+    session = install_task(sim, task)
+    left, right = sim.components["MTML/device"], sim.components["MTMR/device"]
+    assert console.emulate_camera([1])
+    assert sim.run_until(console.ecm_teleop.is_following, 2)
+    left.grasp(hold_orientation=False)
+    right.grasp(hold_orientation=False)
+    sim.run_for(0.05)
+    assert session.snapshot().phase == "READY"
+    p_left, p_right = left.input().position.copy(), right.input().position.copy()
+    yaw = pitch = 0.0
+    for _ in range(20):
+        if session.results:
+            break
+        q = np.linalg.solve(sim.T_cart_camera(), np.append(target, 1.0))[:3]
+        yaw += 0.8 * math.atan2(q[0], q[2])  # the target's angle to the image's left
+        pitch += 0.8 * math.atan2(q[1], q[2])  # ... and up
+        c, s = math.cos(-yaw), math.sin(-yaw)
+        R = np.array([[1, 0, 0], [0, math.cos(pitch), -math.sin(pitch)],
+                      [0, math.sin(pitch), math.cos(pitch)]]) @ np.array(
+            [[c, 0, s], [0, 1, 0], [-s, 0, c]])  # fmt: skip
+        left.move_hand(R @ p_left)
+        right.move_hand(R @ p_right)
+        sim.run_for(0.15)
+    assert session.results, session.snapshot()
+    row = session.results[0]
+    assert row["targets_acquired"] == 1
+    assert row["camera_path_length"] > 0.005  # the view turned ~9°: the tip moves ~1 cm
+    assert row["path_length"] < 1e-6 and row["out_of_view"] < 1e-6
+    assert row["master_workspace"] > 0.005
+    sim.close()
