@@ -442,3 +442,19 @@ def test_camera_targeting_with_the_camera_pedal_and_both_hands():
     assert row["path_length"] < 1e-6 and row["out_of_view"] < 1e-6
     assert row["master_workspace"] > 0.005
     sim.close()
+
+
+def test_the_sample_carries_camera_poses_and_tool_orientations():
+    """``Sample.of`` takes one pose for every trial or one each; ``take`` and ``where``
+    keep them per trial (a field is None unless both samples have it)."""
+    T = _camera_pose([0.0, 0.0, 0.1])
+    s = Sample.of([0.0, 1.0], np.zeros((2, 3)), T_task_camera=T, R_task_tip=np.eye(3))
+    assert s.T_task_camera.shape == (2, 4, 4) and s.R_task_tip.shape == (2, 3, 3)
+    np.testing.assert_array_equal(s.T_task_camera[1], T)
+    other = Sample.of([0.0, 1.0], np.ones((2, 3)), T_task_camera=np.stack([np.eye(4)] * 2),
+                      R_task_tip=np.stack([-np.eye(3)] * 2))  # fmt: skip
+    mixed = s.where([False, True], other)
+    np.testing.assert_array_equal(mixed.T_task_camera[0], T)
+    np.testing.assert_array_equal(mixed.R_task_tip[1], -np.eye(3))
+    assert s.take([1]).T_task_camera.shape == (1, 4, 4)
+    assert s.where([True, True], Sample.of([0.0, 1.0], np.ones((2, 3)))).R_task_tip is None
