@@ -170,10 +170,11 @@ class CameraTargetingTask(Task, kind="camera_targeting"):
     @property
     def SCORING(self) -> dict:  # noqa: N802 (the kind's declaration, from the geometry)
         """Scored: targets acquired (weight 2; 100 % all, 0 % none), time (100 % at 3 s per
-        target, 0 % at 30 s), camera path (100 % the straight runs between the targets'
-        viewpoints, 0 % 4x), instrument economy (0 % at 5 cm: it should stay still),
-        collisions (5), excessive force (5 s), out of view (5 cm), master workspace (0 %
-        at 30 cm). The 100 % values are our choice until an expert reference exists."""
+        target, 0 % at 30 s), camera path (100 % the straight runs between the targets: the
+        camera, nearer the ECM's RCM than they are, needs less; 0 % 4x), instrument
+        economy (0 % at 5 cm: it should stay still), collisions (5), excessive force (5 s),
+        out of view (5 cm), master workspace (0 % at 30 cm). The 100 % values are our
+        choice until an expert reference exists."""
         K = len(self.targets)
         runs = float(np.linalg.norm(np.diff(self.targets, axis=0), axis=1).sum())
         return {

@@ -87,7 +87,8 @@ class RingWalkTask(PathTask, kind="ring_walk"):
     METRICS = (TIME, CONTACT_TIME, CONTACT_COUNT, DEVIATION, ECONOMY,
                *trainer_metrics(leave_out=("drops", "missed_targets")))  # fmt: skip
     FILE_FIELDS: ClassVar[dict] = {
-        **{k: v for k, v in PathTask.FILE_FIELDS.items() if k != "tube_radius"},
+        # (no tube: the ring's clearance is the tolerance; no look: the wire is drawn as it is)
+        **{k: v for k, v in PathTask.FILE_FIELDS.items() if k not in ("tube_radius", "visual")},
         "ring_radius": Number(above=0.0),
         "wire_radius": Number(above=0.0),
     }
@@ -187,6 +188,7 @@ class RingWalkTask(PathTask, kind="ring_walk"):
     def to_dict(self) -> dict[str, Any]:
         out = super().to_dict()
         out.pop("tube_radius", None)
+        out.pop("visual", None)
         out["ring_radius"] = self.ring_radius
         out["wire_radius"] = self.wire_radius
         return out
