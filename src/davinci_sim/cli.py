@@ -393,7 +393,10 @@ def cmd_study(args: argparse.Namespace) -> int:
 
     try:  # the task, loaded and checked here, before any worker starts
         task = load_task(args.task if not Path(args.task).suffix else Path(args.task))
-        problem = task_problem(task)
+        problem = None
+        if task.kind != "path":  # the trials, engines and report are the path kind's
+            problem = f"the study runs path tasks; {args.task!r} is a {task.kind} exercise"
+        problem = problem or task_problem(task)
     except (TaskError, ValueError, OSError) as e:
         problem = str(e)
     if problem is not None:

@@ -381,6 +381,15 @@ def test_camera_targeting_solved_at_the_console():
 
 
 @pytest.mark.parametrize("name", EXERCISES)
+def test_the_study_command_refuses_an_exercise_with_the_reason(name, tmp_path, capsys):
+    from davinci_sim.cli import main
+
+    assert main(["study", "--task", name, "--output", str(tmp_path / "out")]) == 2
+    assert f"is a {name} exercise" in capsys.readouterr().err
+    assert not (tmp_path / "out").exists()
+
+
+@pytest.mark.parametrize("name", EXERCISES)
 def test_the_web_study_tab_refuses_an_exercise_with_the_reason(name):
     """The study (trials, batch engine, report) is the path kind's: an exercise is refused
     before any thread starts, saying why."""
