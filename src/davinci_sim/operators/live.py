@@ -65,6 +65,9 @@ class SyntheticOperator:
         if isinstance(practice, bool) or not isinstance(practice, int) or practice < 1:
             return CommandResult(False, f"{self.name}: practice must be an integer >= 1")
         task, sim = self.session.task, self.session.sim
+        if not hasattr(task, "path_in_camera"):  # the trainee model follows a path
+            return CommandResult(False, f"{self.name}: a synthetic trainee follows a path; "
+                                        f"the {task.kind} exercise has none")  # fmt: skip
         params = sample_subjects(subject + 1, seed=self.seed).take([subject])
         trainee = SyntheticTrainee(
             params,

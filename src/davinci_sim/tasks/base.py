@@ -105,15 +105,22 @@ class Sample:
     grasp: np.ndarray | None = None
     """(n, k) int: bit mask of the jaws touching each object (bit 2·a + j: jaw j of the
     task's instrument a)."""
+    T_task_camera: np.ndarray | None = None
+    """(n, 4, 4) the endoscope's camera (ECM tip) frame in the task's frame, m (the camera
+    targeting exercise's input)."""
+    R_task_tip: np.ndarray | None = None
+    """(n, 3, 3) the tool tip frame's orientation in the task's frame (column 2, z: the
+    direction the jaws point; the needle targeting exercise's input)."""
 
     @classmethod
     def of(
         cls, time, tip, force=None, clutch=None, *, visible=None, master=None, contacts=None,
-        tool_force=None, objects=None, grasp=None,
+        tool_force=None, objects=None, grasp=None, T_task_camera=None, R_task_tip=None,
     ) -> Sample:  # fmt: skip
         """A sample of n trials: ``tip`` (n, 3) or (3,) for one; ``time`` scalar or (n,);
         ``force`` (n, 3) (None: 0); ``clutch`` (n,) or scalar (None: released); the
-        optional fields (n,) or scalar, ``master`` (n, 3) or (3,) (None: not sampled)."""
+        optional fields (n,) or scalar, ``master`` (n, 3) or (3,), ``T_task_camera``
+        (n, 4, 4) or (4, 4), ``R_task_tip`` (n, 3, 3) or (3, 3) (None: not sampled)."""
         p = np.asarray(tip, dtype=float).reshape(-1, 3)
         n = len(p)
         f = np.zeros((n, 3)) if force is None else np.asarray(force, dtype=float).reshape(n, 3)
@@ -125,14 +132,18 @@ class Sample:
         else:
             c = np.asarray(clutch, dtype=bool)
             c = np.full(n, bool(c)) if c.ndim == 0 else c.reshape(n)
-        if (visible is None and master is None and contacts is None and tool_force is None
-                and objects is None and grasp is None):  # fmt: skip
+        optional = (visible, master, contacts, tool_force, objects, grasp, T_task_camera,
+                    R_task_tip)  # fmt: skip
+        if all(o is None for o in optional):
             return cls(t, p, f, c)
         x = None if master is None else np.asarray(master, dtype=float).reshape(n, 3)
         v, k, g = _rows(visible, n, bool), _rows(contacts, n, np.int64), _rows(tool_force, n, float)
         o = None if objects is None else np.asarray(objects, dtype=float).reshape(n, -1, 3)
         j = None if grasp is None else np.asarray(grasp, dtype=np.int64).reshape(n, -1)
-        return cls(t, p, f, c, visible=v, master=x, contacts=k, tool_force=g, objects=o, grasp=j)
+        cam = None if T_task_camera is None else _matrices(T_task_camera, n, 4)
+        rot = None if R_task_tip is None else _matrices(R_task_tip, n, 3)
+        return cls(t, p, f, c, visible=v, master=x, contacts=k, tool_force=g, objects=o,
+                   grasp=j, T_task_camera=cam, R_task_tip=rot)  # fmt: skip
 
     @cached_property
     def force_magnitude(self) -> np.ndarray:
@@ -160,7 +171,13 @@ class Sample:
 
 
 _FIELDS = ("time", "tip", "force", "clutch", "visible", "master", "contacts", "tool_force",
-           "objects", "grasp")  # fmt: skip
+           "objects", "grasp", "T_task_camera", "R_task_tip")  # fmt: skip
+
+
+def _matrices(value, n: int, k: int) -> np.ndarray:
+    """(k, k) or (n, k, k) matrices as (n, k, k) floats."""
+    a = np.asarray(value, dtype=float)
+    return np.broadcast_to(a, (n, k, k)).copy() if a.ndim == 2 else a.reshape(n, k, k)
 
 
 def _rows(value, n: int, dtype):
@@ -311,6 +328,11 @@ class Task(ABC):
         """``score`` (%) and ``passed`` of an attempt's metric ``values`` (name → value)."""
         return self.scoring.row(values, finished)
 
+    def progress(self, state) -> str:
+        """Where the first trial of ``state`` is within a repetition, in a few words for
+        the console's panel (e.g. ``target 2 of 4``; "" by default)."""
+        return ""
+
     def summary(self, row: dict) -> str:
         """A repetition's row in a few words (the session's status message)."""
         shown = [m for m in self.METRICS if m.report is not None][:2]
@@ -454,6 +476,7 @@ def task_kinds() -> dict[str, type[Task]]:
 
 
 def _load_builtin_kinds() -> None:
+    import davinci_sim.tasks.exercises  # noqa: F401 (camera_targeting, ring_walk, needle_targeting)
     import davinci_sim.tasks.peg  # noqa: F401 (registers "peg_transfer")
     import davinci_sim.tasks.task  # noqa: F401 (registers "path")
 

@@ -8,6 +8,15 @@ orientation at that keyframe (the dVRK's IK: within joint limits, dvrk.md 1.2 an
 45 mm insertion rule), and the left endoscope camera must see it (in front of the camera,
 inside the image). ``davinci-sim task check FILE`` prints the table; ``study`` and
 ``serve --task`` refuse a task that fails it before any work.
+
+Two optional declarations of a kind widen the check: ``view_directions`` ((k, 3), one per
+view point, nan rows for none) — the tool must reach that point *pointing that way* (its
+tip frame's z; the orientation nearest the keyframe's that does); ``camera_targets``
+((k, 3), with ``depth``, m) — points the operator must centre in the endoscope's view
+from ``depth``: the ECM must reach the camera pose on the line from its RCM through the
+point (its shaft passes through the RCM), and at that pose the point must show at the
+image's centre (checked by the ECM's forward kinematics); those rows follow the view
+points, numbered on.
 """
 
 from __future__ import annotations
@@ -59,12 +68,17 @@ def check_task(task: Task) -> list[PointCheck]:
         start = {n: (sim.arms[n].setpoint_cp().T.copy(), sim.arms[n].setpoint_jp()) for n in psms}
         out = []
         points = np.asarray(task.check_points, dtype=float).reshape(-1, 3)
+        directions = getattr(task, "view_directions", None)
         for k, p in enumerate(points, start=1):
             p_camera = (T_camera_task @ np.append(p, 1.0))[:3]
+            d = None if directions is None else np.asarray(directions[k - 1], dtype=float)
             why, reached = [], False
             for n in psms:
-                goal, seed = start[n]
+                R_keyframe, seed = start[n][0][:3, :3], start[n][1]
+                goal = start[n][0].copy()
                 goal[:3, 3] = p_camera
+                if d is not None and np.all(np.isfinite(d)):
+                    goal[:3, :3] = _pointing(R_keyframe, T_camera_task[:3, :3] @ d)
                 # The kinematics' IK, not the arm's command: a point one instrument
                 # cannot reach is no error to log when another does.
                 arm = sim.arms[n]
@@ -81,9 +95,52 @@ def check_task(task: Task) -> list[PointCheck]:
             p_task = (float(p[0]), float(p[1]), float(p[2]))
             why = [] if reached else why
             out.append(PointCheck(k, p_task, reached, "; ".join(why), shown, bool(in_view)))
+        targets = getattr(task, "camera_targets", None)
+        if targets is not None:
+            first = len(out) + 1
+            for k, p in enumerate(np.asarray(targets, dtype=float), start=first):
+                out.append(_camera_check(sim, task, k, p, T_camera_task, camera))
         return out
     finally:
         sim.close()
+
+
+def _pointing(R_keyframe: np.ndarray, d: np.ndarray) -> np.ndarray:
+    """The rotation nearest ``R_keyframe`` whose z axis is ``d`` (the shortest turn)."""
+    a, b = R_keyframe[:, 2], d / np.linalg.norm(d)
+    axis, c = np.cross(a, b), float(a @ b)
+    s = float(np.linalg.norm(axis))
+    if s < 1e-12:  # parallel (no turn) or opposite (half a turn about the frame's x)
+        return R_keyframe if c > 0 else R_keyframe @ np.diag([1.0, -1.0, -1.0])
+    K = np.array([[0, -axis[2], axis[1]], [axis[2], 0, -axis[0]], [-axis[1], axis[0], 0]]) / s
+    turn = np.eye(3) + s * K + (1.0 - c) * (K @ K)  # Rodrigues: angle atan2(s, c) about axis
+    return turn @ R_keyframe
+
+
+def _camera_check(sim, task: Task, k: int, p_task, T_camera_task, camera) -> PointCheck:
+    """Can the ECM centre ``p_task`` at ``task.depth``? (see the module docstring)"""
+    ecm = sim.arms["ECM"]
+    T_cart_task = sim.T_cart_camera() @ T_camera_task
+    p_cart = (T_cart_task @ np.append(p_task, 1.0))[:3]
+    rcm = ecm.base_frame()[0][:3, 3]
+    axis = (p_cart - rcm) / np.linalg.norm(p_cart - rcm)
+    goal = ecm.measured_cp().T.copy()
+    goal[:3, 3] = p_cart - float(task.depth) * axis
+    q, result = ecm.inverse_kinematics(ecm.setpoint_jp(), goal)
+    shown, centred = None, False
+    if q is not None:
+        pose, _ = ecm.forward_kinematics(q)
+        T_cart_camera = pose.T
+        p_camera = np.linalg.solve(T_cart_camera, np.append(p_cart, 1.0))[:3]
+        pixel = project_left(p_camera, camera)
+        if pixel is not None:
+            shown = (float(pixel[0]), float(pixel[1]))
+            off = np.degrees(np.arctan2(np.hypot(p_camera[0], p_camera[1]), p_camera[2]))
+            centred = bool(off <= task.centre_tolerance
+                           and abs(p_camera[2] - task.depth) <= task.depth_tolerance)  # fmt: skip
+    why = "" if q is not None else f"the ECM cannot centre it: {result.message}"
+    p = tuple(float(x) for x in p_task)
+    return PointCheck(k, p, q is not None, why, shown, centred)
 
 
 def task_problem(task: Task) -> str | None:

@@ -71,6 +71,8 @@ class TaskSessionState:
     """Tool tip to the path, m (nan before the first tick)."""
     last: dict = field(default_factory=dict)
     """The last repetition's row (empty before the first)."""
+    progress: str = ""
+    """Where the repetition is, in the task's words (:meth:`Task.progress`)."""
 
 
 class TaskSession:
@@ -285,6 +287,7 @@ class TaskSession:
             completed=len(self.results),
             distance_to_path=self._distance,
             last=dict(self.results[-1]) if self.results else {},
+            progress=self.task.progress(self.monitor.state),
         )
 
     # ------------------------------------------------------------ state
@@ -312,11 +315,13 @@ def live_sample(task: Task, T_task_camera, teleop: TeleopPSM, console: Console, 
     (HRSV: the device's input of this tick, read before the step, so one tick behind the
     study batch's, which reads the MTM after it; None before the first input), and the
     instrument's contacts and their force (MuJoCo's contacts of the last step,
-    :class:`~davinci_sim.tasks.trainer.InstrumentContacts`)."""
+    :class:`~davinci_sim.tasks.trainer.InstrumentContacts`); the camera's pose and the tool's
+    orientation in the task's frame (for the exercises that score them)."""
     from davinci_sim.model.cameras import project_left
 
     p_camera = teleop.psm.measured_cp().T
-    tip = (np.asarray(T_task_camera) @ p_camera)[:3, 3]
+    T_task_tip = np.asarray(T_task_camera) @ p_camera
+    tip = T_task_tip[:3, 3]
     requested = console.haptics.snapshot().requested.get(task.teleop.mtm)
     force = None if requested is None else requested[:3]
     sim = console.sim
@@ -327,17 +332,17 @@ def live_sample(task: Task, T_task_camera, teleop: TeleopPSM, console: Console, 
     reading = teleop.device.input()
     master = None if reading is None else reading.T_hrsv_tip[:3, 3].reshape(1, 3)
     extra = task.scene_fields(sim.model, sim.data, _SCENE_CACHE)  # (a kind's objects)
-    if extra:  # Sample.of shapes the kind's fields
-        return Sample.of(
-            t, tip, force, teleop.is_clutched(), visible=visible, master=master,
-            contacts=count, tool_force=contact_force, **extra,
-        )  # fmt: skip
     # One trial: the arrays built directly (Sample.of's conversions cost more, every tick).
     f = np.zeros((1, 3)) if force is None else np.asarray(force, dtype=float).reshape(1, 3)
+    objects, grasp = extra.get("objects"), extra.get("grasp")
     return Sample(
         np.array([float(t)]), tip.reshape(1, 3), f, np.array([bool(teleop.is_clutched())]),
         visible=np.array([visible]), master=master, contacts=np.array([count], dtype=np.int64),
         tool_force=np.array([contact_force]),
+        objects=None if objects is None else np.asarray(objects, dtype=float).reshape(1, -1, 3),
+        grasp=None if grasp is None else np.asarray(grasp, dtype=np.int64).reshape(1, -1),
+        T_task_camera=np.asarray(T_task_camera, dtype=float).reshape(1, 4, 4),
+        R_task_tip=T_task_tip[:3, :3].reshape(1, 3, 3),
     )  # fmt: skip
 
 

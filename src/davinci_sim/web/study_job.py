@@ -49,7 +49,14 @@ class StudyJob:
         if not 1 <= repetitions <= MAX_REPETITIONS:
             return f"repetitions must be in 1..{MAX_REPETITIONS}"
         from davinci_sim.study import StudyConfig, StudyError
+        from davinci_sim.tasks import TaskError, load_task
 
+        try:  # the study's trials, engines and report are the path kind's
+            kind = load_task(self.task if not Path(self.task).suffix else Path(self.task)).kind
+        except (TaskError, OSError) as e:
+            return str(e)
+        if kind != "path":
+            return f"the study runs path tasks; {self.task!r} is a {kind} exercise"
         try:
             config = StudyConfig(n_subjects=subjects, n_repetitions=repetitions,
                                  task=self.task, seed=seed, workers=1)  # fmt: skip

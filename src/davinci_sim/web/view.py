@@ -129,6 +129,7 @@ def console_view(snap, camera: CameraConfig, task=None) -> dict[str, Any]:
             "repetition": int(task.repetition),
             "completed": int(task.completed),
             "distance": _finite(task.distance_to_path),
+            "progress": getattr(task, "progress", ""),
         },
         "synthetic": _synthetic(synthetic),
         "sources": sources,

@@ -169,7 +169,7 @@ function onState(s) {
   $("pages").textContent = `${s.pages} page${s.pages === 1 ? "" : "s"}`;
   const task = s.task;
   if (task) {
-    $("phase").textContent = task.phase;
+    $("phase").textContent = task.progress ? `${task.phase} · ${task.progress}` : task.phase;
     $("repetition").textContent = `${task.repetition} (${task.completed} done) — ${task.condition}`;
     $("deviation").textContent = task.distance == null ? "–" : `${(1000 * task.distance).toFixed(1)} mm`;
   }
