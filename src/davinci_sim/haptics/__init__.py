@@ -5,6 +5,8 @@
 * Virtual fixtures, pure ``force(p, v)`` laws: :class:`ViscousGuidance` (the seed's
   equations (1)-(7), viscous.py), :class:`SpringGuidance`, :class:`PlaneWall`,
   :class:`SphereWall`, :func:`combine`; :class:`FixtureField` plugs one into the loop.
+* Fixture kinds (kinds.py): what a task file's fixture entry builds (``viscous``, ``spring``,
+  ``none``, registered kinds, ``module:Name`` laws) and how its law is described.
 
 The wrench clamp is the devices' (``devices.safety``), the loop that runs the fields every
 tick is the console's (``console.haptic_loop``), paths and closest points are ``geometry.path``.
