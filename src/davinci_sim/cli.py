@@ -470,8 +470,8 @@ def cmd_study(args: argparse.Namespace) -> int:
     try:  # the task, loaded and checked here, before any worker starts
         task = load_task(args.task if not Path(args.task).suffix else Path(args.task))
         if task.kind != "path":  # the synthetic trainees follow a path
-            problem = (f"task {task.name!r} is a {task.kind} task; the study's synthetic "
-                       "trainees do path tasks (kind 'path') only")  # fmt: skip
+            problem = (f"task {task.name!r} is a {task.kind} exercise; the study's synthetic "
+                       "trainees, engines and report do path tasks (kind 'path') only")  # fmt: skip
         else:
             problem = task_problem(task)
     except (TaskError, ValueError, OSError) as e:

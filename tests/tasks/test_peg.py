@@ -455,5 +455,5 @@ def test_the_study_refuses_a_peg_task_in_one_line(tmp_path, capsys):
 
     assert main(["study", "--task", "peg_transfer", "-o", str(tmp_path / "out")]) == 2
     err = capsys.readouterr().err
-    assert "peg_transfer task" in err and "path" in err and "Traceback" not in err
+    assert "peg_transfer exercise" in err and "path" in err and "Traceback" not in err
     assert not (tmp_path / "out").exists()

@@ -177,8 +177,9 @@ def test_the_shipped_reference_loads_and_gives_the_seed_task_its_pass_marks():
     means = {k: v.mean for k, v in ref.metrics.items()}
     assert scoring.score(means).score == pytest.approx(100.0)
     assert scoring.score(means).passed is True
-    # plausible experts: faster than 10 s, within a millimetre of the path
-    assert 1.0 < means["completion_time"] < 10.0 and means["deviation_error"] < 1e-3
+    # plausible experts: faster than 10 s, well inside the task's 3 mm tolerance (the expert
+    # profile is a trainee at the plateau, with the calibrated trainees' noise: ~1 mm)
+    assert 1.0 < means["completion_time"] < 10.0 and means["deviation_error"] < 2e-3
 
 
 def test_a_task_changed_since_its_reference_does_not_use_it(tmp_path):
