@@ -164,7 +164,9 @@ def test_a_synthetic_trainees_repetition_becomes_a_tagged_row_and_csv(console):
         page.next("state", where=lambda m: (m["synthetic"] or {}).get("running") is True)
         page.send(op="input", mtm="MTMR", axes=[1, 0, 0])  # the trainee has the MTM
         assert "synthetic trainee has the MTM" in page.next("error")["message"]
-        row = page.next("row", 90.0)["row"]
+        # A deadline, not a duration: one repetition is ~10 s simulated, and the served
+        # loop runs far below real time on a busy 2-core machine.
+        row = page.next("row", 300.0)["row"]
         assert row["trainee"] == "Ada" and row["repetition"] >= 1
         assert 0 < row["deviation_error"] < 0.005
         csv = urllib.request.urlopen(f"http://127.0.0.1:{web.port}/results.csv").read().decode()
