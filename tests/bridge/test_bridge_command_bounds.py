@@ -36,6 +36,9 @@ class _Pose:
         ("/PSM1/trajectory_j/set_ratio", {"data": 1e-320}, "ratio must be in [0.001, 1]"),
         ("/SUJ/PSM1/servo_jp", {"position": [1e300, 0, 0, 0, 0, 0]},
          "joint 'SUJ_PSM1_J0' = 1e+300 is outside its limits"),
+        # JSON integers are unbounded: one no float holds is refused by the message check
+        ("/PSM1/servo_jp", {"position": [10**400, 0, 0.1, 0, 0, 0]},
+         "an integer of 401 digits is too large for float64"),
     ],
 )  # fmt: skip
 def test_absurd_values_are_refused_by_the_arm(handle, make_server, make_raw, topic, msg, expected):

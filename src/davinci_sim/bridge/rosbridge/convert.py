@@ -81,7 +81,13 @@ def _scalar(registry: TypeRegistry, typ: str, value: Any, path: str) -> Any:
             raise MessageError(f"{path}: null is not a number ({typ}; NaN/inf are not accepted)")
         if isinstance(value, bool) or not isinstance(value, int | float):
             raise MessageError(f"{path}: expected a number ({typ}), got {_type_label(value)}")
-        value = float(value)
+        try:
+            value = float(value)
+        except OverflowError:  # JSON integers have no bound; a float does
+            digits = len(str(abs(value)))
+            raise MessageError(
+                f"{path}: an integer of {digits} digits is too large for {typ}"
+            ) from None
         if not math.isfinite(value):
             raise MessageError(f"{path}: NaN and infinity are not accepted")
         return value
