@@ -190,18 +190,30 @@ class TrialBatch:
         self.K = self.params.stiffness
         self.D = self.params.damping
         # Each condition's fixture, as the live trial builds it (task.fixture of the trial's
-        # entry: its guidance plus the task's walls), and each trial's condition.
+        # entry: its guidance plus the task's walls), keyed by the condition's index. An
+        # adaptive condition's trials may run with different B (study.adaptive): one key
+        # per (condition, B) then, negative (-1, -2, ...) so as not to meet a condition's.
         self.fixtures = {}
+        firsts: dict[int, dict] = {}
+        adaptive: dict[tuple, int] = {}
+        cond = []
         for s in specs:
-            if s.condition not in self.fixtures:
-                self.fixtures[s.condition] = task.fixture(s.fixture)
-            elif s.fixture != specs[self._first_of(s.condition)].fixture:
+            first = firsts.setdefault(s.condition, s.fixture)
+            if s.fixture["type"] == "adaptive":
+                key = adaptive.setdefault((s.condition, s.B), -1 - len(adaptive))
+            elif s.fixture != first:
                 raise ValueError(
                     f"condition {s.condition} has two fixture entries in one batch: "
-                    f"{s.fixture!r} and {specs[self._first_of(s.condition)].fixture!r}"
+                    f"{s.fixture!r} and {first!r}"
                 )
-        self.cond = np.array([s.condition for s in specs], dtype=int)
-        """The condition (key of :attr:`fixtures`) of each current row."""
+            else:
+                key = s.condition
+            if key not in self.fixtures:
+                self.fixtures[key] = task.fixture(s.fixture)
+            cond.append(key)
+        self.cond = np.array(cond, dtype=int)
+        """The key of each current row's fixture in :attr:`fixtures` (its condition's
+        index; adaptive trials: a negative key per (condition, B))."""
         self.index = np.arange(n)
         """Position of each current row in ``specs`` (rows of ended trials are dropped)."""
         self.velocity = VelocityFilter((n,), dt=self.dt, cutoff_hz=DEFAULT_CUTOFF_HZ)
@@ -224,9 +236,6 @@ class TrialBatch:
         self._results = {name: np.full(n, np.nan) for name in METRICS}
         self._finished = np.zeros(n, dtype=bool)
         self._ticks = np.zeros(n, dtype=np.int64)
-
-    def _first_of(self, condition: int) -> int:
-        return next(i for i, s in enumerate(self.specs) if s.condition == condition)
 
     #: Arrays with one row per running trial (see :meth:`_compact`).
     _ROWS = (
