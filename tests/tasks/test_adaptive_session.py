@@ -122,3 +122,14 @@ def test_a_task_file_with_a_bad_adaptive_condition_is_refused(bad, tmp_path):
     data["conditions"] = [{"name": "a", "type": "adaptive", "mode": "fading", "zero_at": 5}]
     path.write_text(yaml.safe_dump(data))
     assert load_task(path).condition("a")["zero_at"] == 5
+
+
+def test_serve_condition_takes_an_adaptive_entry():
+    from davinci_sim.system import task_condition
+
+    task = load_task(SHORT_TASK)
+    entry = task_condition(task, "{type: adaptive, mode: fading, B0: 40, zero_at: 8}")
+    assert entry == {"type": "adaptive", "mode": "fading", "B0": 40, "zero_at": 8}
+    task.fixture(entry)
+    with pytest.raises(ValueError, match="YAML mapping"):
+        task_condition(task, "{type: adaptive, mode: [")

@@ -83,6 +83,32 @@ def resolve(spec: TrialSpec, history: Sequence[int], rows: Sequence[dict | None]
     return dataclasses.replace(spec, fixture={**spec.fixture, "B": B}, B=None, G_max=None)
 
 
+def fixture_keys(specs: Sequence[TrialSpec]) -> list[int]:
+    """The key of each trial's fixture in a batch (:class:`~davinci_sim.study.batch.TrialBatch`):
+    its condition's index, one fixture per condition; an adaptive condition's trials may run
+    with different B, so one key per (condition, B) for them, negative (-1, -2, ...) so as
+    not to meet a condition's.
+
+    Raises:
+        ValueError: two trials of a non-adaptive condition with different entries.
+    """
+    firsts: dict[int, dict] = {}
+    adaptive: dict[tuple, int] = {}
+    keys = []
+    for s in specs:
+        first = firsts.setdefault(s.condition, s.fixture)
+        if s.fixture["type"] == "adaptive":
+            keys.append(adaptive.setdefault((s.condition, s.B), -1 - len(adaptive)))
+        elif s.fixture != first:
+            raise ValueError(
+                f"condition {s.condition} has two fixture entries in one batch: "
+                f"{s.fixture!r} and {first!r}"
+            )
+        else:
+            keys.append(s.condition)
+    return keys
+
+
 def _error(row: dict, metric: str) -> float:
     if metric not in row:
         raise ValueError(f"an adaptive condition's error metric {metric!r} is not a column "

@@ -70,6 +70,7 @@ from davinci_sim.model.cameras import in_left_image
 from davinci_sim.sim import arm_laws as laws
 from davinci_sim.sim.jaw import finger_setpoints
 from davinci_sim.sim.servo import servo_ctrl
+from davinci_sim.study.adaptive import fixture_keys
 from davinci_sim.study.trial import (
     METRICS,
     TrialSpec,
@@ -189,31 +190,16 @@ class TrialBatch:
         self.models = [by_mass[m] for m in self.params.mass.tolist()]
         self.K = self.params.stiffness
         self.D = self.params.damping
-        # Each condition's fixture, as the live trial builds it (task.fixture of the trial's
-        # entry: its guidance plus the task's walls), keyed by the condition's index. An
-        # adaptive condition's trials may run with different B (study.adaptive): one key
-        # per (condition, B) then, negative (-1, -2, ...) so as not to meet a condition's.
+        # Each trial's fixture as the live trial builds it (task.fixture of its entry: its
+        # guidance plus the task's walls), one per key (its condition's index, or for an
+        # adaptive trial its condition and B: study.adaptive.fixture_keys).
+        keys = fixture_keys(specs)
         self.fixtures = {}
-        firsts: dict[int, dict] = {}
-        adaptive: dict[tuple, int] = {}
-        cond = []
-        for s in specs:
-            first = firsts.setdefault(s.condition, s.fixture)
-            if s.fixture["type"] == "adaptive":
-                key = adaptive.setdefault((s.condition, s.B), -1 - len(adaptive))
-            elif s.fixture != first:
-                raise ValueError(
-                    f"condition {s.condition} has two fixture entries in one batch: "
-                    f"{s.fixture!r} and {first!r}"
-                )
-            else:
-                key = s.condition
+        for s, key in zip(specs, keys, strict=True):
             if key not in self.fixtures:
                 self.fixtures[key] = task.fixture(s.fixture)
-            cond.append(key)
-        self.cond = np.array(cond, dtype=int)
-        """The key of each current row's fixture in :attr:`fixtures` (its condition's
-        index; adaptive trials: a negative key per (condition, B))."""
+        self.cond = np.array(keys, dtype=int)
+        """The key of each current row's fixture in :attr:`fixtures`."""
         self.index = np.arange(n)
         """Position of each current row in ``specs`` (rows of ended trials are dropped)."""
         self.velocity = VelocityFilter((n,), dt=self.dt, cutoff_hz=DEFAULT_CUTOFF_HZ)
