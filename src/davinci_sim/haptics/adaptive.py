@@ -13,10 +13,12 @@ function of the history of the trainee's errors in this condition, gives the nex
   ``max_step`` per repetition, and stays in [B_min, B_max]. Repetitions without a finite
   error (none yet) leave B as it is. The idea — the robot assists only as much as the
   error says is needed, and withdraws otherwise — is the assist-as-needed principle of
-  robot-aided motor training (Emken, Bobrow & Reinkensmeyer 2005/2007, error-based
-  adaptation with a forgetting term; reviewed in Marchal-Crespo & Reinkensmeyer 2009, "Review
-  of control strategies for robotic movement training after neurologic injury", J
-  NeuroEng Rehabil 6:20). This linear, target-error form with a step limit is ours.
+  robot-aided motor training (Emken, Bobrow & Reinkensmeyer, "Robotic movement training as
+  an optimization problem: designing a controller that assists only as needed", ICORR 2005:
+  an error-based update with a forgetting term; reviewed in Marchal-Crespo & Reinkensmeyer
+  2009, "Review of control strategies for robotic movement training after neurologic
+  injury", J NeuroEng Rehabil 6:20). This linear, target-error form with a step limit is
+  ours.
 * ``mode: fading`` — guidance withdrawn over practice: at repetition j (1-based, in this
   condition) ``B_j = B0·max(0, 1 − (j − 1)/(zero_at − 1))``: B0 at the first repetition,
   linearly down to 0 at repetition ``zero_at`` and after. The reason to fade is the guidance
