@@ -11,7 +11,7 @@ import pytest
 from davinci_sim.haptics.adaptive import AdaptiveRule, B_schedule, fading_B
 from davinci_sim.haptics.kinds import fixture_params
 from davinci_sim.study import StudyConfig, plan_trials, run_study
-from davinci_sim.study.adaptive import histories, ready, resolve
+from davinci_sim.study.adaptive import histories, ready, resolve, rounds
 from davinci_sim.study.report import TIMING_COLUMNS, write_outputs
 
 AAN = {"type": "adaptive", "name": "aan", "mode": "assist_as_needed", "B0": 20.0, "G_max": 5.0,
@@ -67,6 +67,14 @@ def test_rounds_wait_for_the_history_and_nothing_else(short_task):
     assert sorted((specs[i].fixture["name"], specs[i].repetition) for i in now) == sorted(
         [("fade", r) for r in (1, 2, 3)] * 2 + [("aan", 1)] * 2
     )
+    # The estimate's rounds are the runner's: round r = repetition r + 1 of each aan block.
+    of_round = rounds(specs)
+    assert {i for i, r in enumerate(of_round) if r == 0} == set(now)
+    assert all(of_round[i] == s.repetition - 1 for i, s in enumerate(specs)
+               if s.fixture["name"] == "aan")  # fmt: skip
+    assert rounds([s for s in specs if s.repetition > 1]) == [
+        s.repetition - 2 if s.fixture["name"] == "aan" else 0 for s in specs if s.repetition > 1
+    ]  # (resumed after the first repetitions: the rest move one round up)
     first = resolve(specs[now[0]], hist[now[0]], rows)
     assert first.B in (20.0, 40.0) and first.fixture["B"] == first.B
     # A non-adaptive condition's spec is not touched.

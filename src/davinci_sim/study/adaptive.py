@@ -83,6 +83,17 @@ def resolve(spec: TrialSpec, history: Sequence[int], rows: Sequence[dict | None]
     return dataclasses.replace(spec, fixture={**spec.fixture, "B": B}, B=None, G_max=None)
 
 
+def rounds(specs: Sequence[TrialSpec]) -> list[int]:
+    """The round (0-based) in which :func:`~davinci_sim.study.runner.run_study` runs each
+    trial of ``specs`` (the trials still to run): 0 for one that needs no history, else the
+    number of its subject's earlier repetitions of the condition among ``specs``."""
+    out = []
+    for s, h in zip(specs, histories(specs), strict=True):
+        rule = rule_of(s)
+        out.append(len(h) if rule is not None and rule.uses_history else 0)
+    return out
+
+
 def fixture_keys(specs: Sequence[TrialSpec]) -> list[int]:
     """The key of each trial's fixture in a batch (:class:`~davinci_sim.study.batch.TrialBatch`):
     its condition's index, one fixture per condition; an adaptive condition's trials may run
