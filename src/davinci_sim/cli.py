@@ -702,7 +702,8 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument(
         "--condition",
         default=None,
-        help="the task's condition: a condition name (e.g. 'B=40') or B:G_max, e.g. 40:5 "
+        help="the task's condition: a condition name (e.g. 'B=40'), B:G_max, e.g. 40:5, or a "
+        "fixture entry (YAML mapping), e.g. '{type: adaptive, mode: fading, B0: 40, zero_at: 8}' "
         "(default: the task's own fixture)",
     )
     p.add_argument("--task-log", default=None, help="CSV file the repetitions are appended to")

@@ -11,6 +11,9 @@ batch engine with one row per trial of the condition. Kinds offered:
   G_max, transition. ``transition`` defaults to 0, the law as printed; a positive value is
   the width of an on-path ramp (m), an explicit option that the study reports.
 * ``spring`` — :class:`~davinci_sim.haptics.spring.SpringGuidance`.
+* ``adaptive`` — the seed's viscous law with a B that follows the trainee between
+  repetitions (``mode: assist_as_needed`` or ``fading``, :mod:`davinci_sim.haptics.adaptive`);
+  the entry's ``B`` is the B of the repetition that runs (absent: B0).
 * ``none`` — no guidance.
 * any name registered with :func:`register_fixture_kind` (e.g. by a module the user imports
   before loading the task);
@@ -31,6 +34,7 @@ from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from typing import Any
 
+from davinci_sim.haptics import adaptive
 from davinci_sim.haptics.fixture import Fixture
 from davinci_sim.haptics.spring import SpringGuidance
 from davinci_sim.haptics.viscous import ViscousGuidance
@@ -205,3 +209,10 @@ register_fixture_kind(
     describe=_describe_spring,
 )
 register_fixture_kind("none", lambda path: None, params=set(), describe=lambda p: "no guidance")
+register_fixture_kind(
+    "adaptive",
+    adaptive.build_adaptive,
+    params=adaptive.PARAMS,
+    defaults=adaptive.DEFAULTS,
+    describe=adaptive.describe_adaptive,
+)

@@ -70,6 +70,7 @@ from davinci_sim.model.cameras import in_left_image
 from davinci_sim.sim import arm_laws as laws
 from davinci_sim.sim.jaw import finger_setpoints
 from davinci_sim.sim.servo import servo_ctrl
+from davinci_sim.study.adaptive import fixture_keys
 from davinci_sim.study.trial import (
     METRICS,
     TrialSpec,
@@ -189,19 +190,16 @@ class TrialBatch:
         self.models = [by_mass[m] for m in self.params.mass.tolist()]
         self.K = self.params.stiffness
         self.D = self.params.damping
-        # Each condition's fixture, as the live trial builds it (task.fixture of the trial's
-        # entry: its guidance plus the task's walls), and each trial's condition.
+        # Each trial's fixture as the live trial builds it (task.fixture of its entry: its
+        # guidance plus the task's walls), one per key (its condition's index, or for an
+        # adaptive trial its condition and B: study.adaptive.fixture_keys).
+        keys = fixture_keys(specs)
         self.fixtures = {}
-        for s in specs:
-            if s.condition not in self.fixtures:
-                self.fixtures[s.condition] = task.fixture(s.fixture)
-            elif s.fixture != specs[self._first_of(s.condition)].fixture:
-                raise ValueError(
-                    f"condition {s.condition} has two fixture entries in one batch: "
-                    f"{s.fixture!r} and {specs[self._first_of(s.condition)].fixture!r}"
-                )
-        self.cond = np.array([s.condition for s in specs], dtype=int)
-        """The condition (key of :attr:`fixtures`) of each current row."""
+        for s, key in zip(specs, keys, strict=True):
+            if key not in self.fixtures:
+                self.fixtures[key] = task.fixture(s.fixture)
+        self.cond = np.array(keys, dtype=int)
+        """The key of each current row's fixture in :attr:`fixtures`."""
         self.index = np.arange(n)
         """Position of each current row in ``specs`` (rows of ended trials are dropped)."""
         self.velocity = VelocityFilter((n,), dt=self.dt, cutoff_hz=DEFAULT_CUTOFF_HZ)
@@ -224,9 +222,6 @@ class TrialBatch:
         self._results = {name: np.full(n, np.nan) for name in METRICS}
         self._finished = np.zeros(n, dtype=bool)
         self._ticks = np.zeros(n, dtype=np.int64)
-
-    def _first_of(self, condition: int) -> int:
-        return next(i for i, s in enumerate(self.specs) if s.condition == condition)
 
     #: Arrays with one row per running trial (see :meth:`_compact`).
     _ROWS = (

@@ -5,7 +5,9 @@ The batch engine's wall time per 1 ms tick is about ``a + b·n`` for n running t
 or many), ``b`` per running trial (mostly its ``mj_step``). A chunk of trials lasting
 ``T_i`` ticks each then takes about ``a·max(T_i) + b·ΣT_i`` (the chunk runs until its last
 trial ends; ended trials stop costing), and the chunks run side by side, one per worker
-process (:func:`~davinci_sim.study.runner.processes`). :func:`estimate_study` measures
+process (:func:`~davinci_sim.study.runner.processes`); adaptive conditions' rounds
+(:mod:`davinci_sim.study.adaptive`) run one after the other, each as long as its slowest
+chunk. :func:`estimate_study` measures
 ``a`` and ``b`` on this machine as it is now (the mean tick of a one-trial batch and of a
 batch of the largest chunk, each timed for ≥ 0.15 s; ~1 s in all with the set-up) and
 takes each trial's duration from its trainee's plan (the strokes' durations plus the
@@ -27,6 +29,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from davinci_sim.study.adaptive import rounds
 from davinci_sim.study.config import StudyConfig, plan_trials
 from davinci_sim.study.runner import chunks, processes
 from davinci_sim.study.trial import TrialSpec, load_spec_task, setup_trial, trial_inputs
@@ -129,9 +132,14 @@ def estimate_study(
             b = 0.0
         a = max(a - b, 0.0)
     wall = 0.0
-    for part in parts:
-        T = durations[part] / dt
-        wall = max(wall, a * float(T.max()) + b * float(T.sum()))
+    of_round = rounds(specs)  # (adaptive conditions run in rounds, one after the other)
+    for r in sorted(set(of_round)):
+        members = [i for i, k in enumerate(of_round) if k == r]
+        slowest = 0.0
+        for part in chunks(len(members), min(n_proc, len(members))):
+            T = durations[[members[i] for i in part]] / dt
+            slowest = max(slowest, a * float(T.max()) + b * float(T.sum()))
+        wall += slowest
     return StudyEstimate(
         n_trials=len(specs),
         processes=n_proc,

@@ -11,9 +11,11 @@ count gives the same rows, in the plan's order: a trial's result depends only on
 Each trial's row reaches the caller (``run_study``'s ``on_row``) as soon as the trial ends,
 in the parent process, so that it can be kept before the study ends
 (:mod:`davinci_sim.study.store`); trials whose rows were kept by an interrupted run are not
-run again (``done``). The local backend starts a worker process per chunk only when there
-is more than one chunk, and never more processes than trials or usable cores (a batch pays
-a fixed cost per tick, once per process: more processes than cores only add to it).
+run again (``done``). Adaptive conditions run in rounds, each trial's B resolved from its
+subject's earlier rows (:mod:`davinci_sim.study.adaptive`). The local backend starts a
+worker process per chunk only when there is more than one chunk, and never more processes
+than trials or usable cores (a batch pays a fixed cost per tick, once per process: more
+processes than cores only add to it).
 """
 
 from __future__ import annotations
@@ -29,6 +31,7 @@ from typing import NamedTuple
 
 from tqdm import tqdm
 
+from davinci_sim.study import adaptive
 from davinci_sim.study.config import StudyConfig, plan_trials
 from davinci_sim.study.trial import TrialSpec, run_trial
 
@@ -237,16 +240,28 @@ def run_study(
         bar = tqdm(total=len(specs), initial=kept, desc="trials", unit="trial",
                    disable=not progress)  # fmt: skip
 
-    def got(k: int, row: dict) -> None:
-        i = todo[k]
-        rows[i] = row
-        if on_row is not None:
-            on_row(i, row)
-        bar.update(1)
-
+    hist = adaptive.histories(specs)
     try:
-        if todo:
-            BACKENDS[config.backend]([specs[i] for i in todo], config.workers, config.engine, got)
+        # Rounds (study.adaptive): all that needs no earlier row first, then each round the
+        # adaptive trials whose history is in. No adaptive condition: one round, as before.
+        while todo:
+            now = [i for i in todo if adaptive.ready(specs[i], hist[i], rows)]
+            if not now:
+                raise RuntimeError(f"{len(todo)} adaptive trials wait for rows that never come")
+            run = [adaptive.resolve(specs[i], hist[i], rows) for i in now]
+
+            def got(k: int, row: dict, now=now) -> None:
+                i = now[k]
+                rows[i] = row
+                if on_row is not None:
+                    on_row(i, row)
+                bar.update(1)
+
+            BACKENDS[config.backend](run, config.workers, config.engine, got)
+            missing = [i for i in now if rows[i] is None]
+            if missing:
+                raise RuntimeError(f"trials {missing[:5]} ended without a row")
+            todo = [i for i in todo if rows[i] is None]
     finally:
         bar.close()
     return StudyResult(config, rows, time.perf_counter() - t0, kept)  # type: ignore[arg-type]

@@ -57,7 +57,9 @@ class TrialSpec:
     The condition is a fixture entry of the task's kind (``fixture``, e.g. a task file's
     condition, :mod:`davinci_sim.haptics.kinds`); ``B`` and ``G_max`` alone stand for the
     seed's viscous law as printed (:func:`condition_spec`). ``B`` and ``G_max`` are the
-    viscous entry's (NaN for other kinds)."""
+    viscous entry's (NaN for other kinds); an adaptive entry's are the B that runs (its
+    ``B``, set by the study's runner, :mod:`~davinci_sim.study.adaptive`; NaN before) and its
+    G_max."""
 
     task: str
     """Task name or path of a task file (:func:`~davinci_sim.tasks.load_task`)."""
@@ -93,6 +95,11 @@ class TrialSpec:
         entry = resolve_fixture(entry)
         object.__setattr__(self, "fixture", entry)
         viscous = entry["type"] == "viscous"
+        if entry["type"] == "adaptive":  # the B that runs (NaN until the study resolves it)
+            values = {"B": entry.get("B", math.nan), "G_max": entry["G_max"]}
+            for name, value in values.items():
+                object.__setattr__(self, name, float(value))
+            return
         for name in ("B", "G_max"):
             given, value = getattr(self, name), entry.get(name) if viscous else math.nan
             if given is not None and viscous and float(given) != value:

@@ -164,8 +164,9 @@ class SystemDescription:
 
 
 def task_condition(task: Task, condition: str | dict | None) -> dict | str | None:
-    """A task's condition from its description: a condition name of ``task`` (kept), or
-    ``B:G_max`` (viscous guidance, N·s/m : N) as a fixture entry.
+    """A task's condition from its description: a condition name of ``task`` (kept),
+    ``B:G_max`` (viscous guidance, N·s/m : N) as a fixture entry, or a fixture entry written
+    as a YAML mapping (``'{type: adaptive, mode: fading, B0: 40}'``, any kind).
 
     Raises:
         ValueError: if ``condition`` is neither.
@@ -174,6 +175,16 @@ def task_condition(task: Task, condition: str | dict | None) -> dict | str | Non
         return condition
     if condition in {c.get("name") for c in task.conditions}:
         return condition
+    if condition.lstrip().startswith("{"):
+        import yaml
+
+        try:
+            entry = yaml.safe_load(condition)
+        except yaml.YAMLError as e:
+            raise ValueError(f"condition {condition!r} is not a YAML mapping: {e}") from None
+        if not isinstance(entry, dict):
+            raise ValueError(f"condition {condition!r} is not a YAML mapping")
+        return entry
     try:
         B, G = (float(x) for x in condition.split(":"))
     except ValueError:

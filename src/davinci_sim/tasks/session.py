@@ -12,6 +12,14 @@ condition, repetition, then the task's declared metrics, :func:`session_columns`
 :attr:`TaskSession.results`, emitted on the ``results`` channel and appended to a CSV file
 if one is given.
 
+An adaptive condition (fixture entry ``type: adaptive``, :mod:`davinci_sim.haptics.adaptive`)
+changes the guidance's B after each finished repetition, never inside one: the error the
+rule declares (``metric``, e.g. ``deviation_error``) of the repetitions so far in the
+condition goes through :func:`~davinci_sim.haptics.adaptive.next_B`, and the fixture of the
+haptic loop's field becomes the seed's viscous law with the new B. The B that ran is the
+row's ``guidance_B`` column (adaptive conditions only, after ``repetition``); the B now is
+the state's :attr:`TaskSessionState.guidance_B`.
+
 Repetitions follow one another by themselves: once a repetition's results are in, bringing
 the tool back to point 1 starts the next one; :meth:`TaskSession.reset` abandons the
 current repetition at any time (dvrk-style command, callable over the bridge as
@@ -73,6 +81,9 @@ class TaskSessionState:
     """The last repetition's row (empty before the first)."""
     progress: str = ""
     """Where the repetition is, in the task's words (:meth:`Task.progress`)."""
+    guidance_B: float | None = None
+    """The B (N·s/m) the guidance runs with now, in an adaptive condition (None in
+    another)."""
 
 
 class TaskSession:
@@ -117,6 +128,8 @@ class TaskSession:
         self.channels = Channels(name)
         self.field_name = f"{name}/guidance"
         self.condition = ""
+        self._adaptive: dict | None = None
+        """An adaptive condition's entry, errors so far and B (None: not adaptive)."""
         self._install_condition(condition)
         teleop.set_scale(task.teleop.scale)
         self.log = None if log is None else Path(log)
@@ -138,13 +151,14 @@ class TaskSession:
         if isinstance(condition, str):
             spec = task.condition(condition)
         fixture = task.fixture(spec)  # checks the entry before anything changes
+        adaptive = _adaptive_start(task, spec if spec is not None else task.fixture_spec)
         haptics = self.console.haptics
         if self.field_name in haptics.field_names():
             haptics.remove_field(self.field_name)
-        haptics.add_field(
-            FixtureField(fixture, frame=task.frame), mtm=task.teleop.mtm, name=self.field_name
-        )
+        self._field = FixtureField(fixture, frame=task.frame)
+        haptics.add_field(self._field, mtm=task.teleop.mtm, name=self.field_name)
         self.condition = _condition_label(spec if spec is not None else task.fixture_spec)
+        self._adaptive = adaptive
 
     # ------------------------------------------------------------ commands
     def frame_view(self, distance: float = VIEW_DISTANCE) -> CommandResult:
@@ -252,6 +266,8 @@ class TaskSession:
 
     def _record(self, metrics: MetricValues, t: float) -> None:
         row = {"task": self.task.name, "condition": self.condition, "repetition": self.repetition}
+        if self._adaptive is not None:
+            row["guidance_B"] = self._adaptive["B"]
         row.update(metrics.row(0))
         row.update(self.task.score(row))
         self.results.append(row)
@@ -266,12 +282,41 @@ class TaskSession:
         )
         if self.log is not None:
             self._append(row)
+        if self._adaptive is not None:
+            self._adapt(row, t)
+
+    def _adapt(self, row: dict, t: float) -> None:
+        """After a finished repetition of an adaptive condition: the rule's next B from the
+        errors so far, put in the guidance field (between repetitions only)."""
+        from davinci_sim.haptics.adaptive import AdaptiveRule, next_B
+        from davinci_sim.haptics.kinds import fixture_params
+
+        state = self._adaptive
+        rule = AdaptiveRule.of(fixture_params(state["entry"]))
+        value = row.get(rule.metric)
+        state["errors"].append(math.nan if value is None else float(value))
+        state["B"] = next_B(state["B"], state["errors"], rule)
+        self._apply_B()
+        self.channels.message("status", f"guidance B for the next repetition: "
+                                        f"{state['B']:.3g} N·s/m", t)  # fmt: skip
+
+    def _apply_B(self) -> None:
+        """The guidance field's fixture: the adaptive entry with the current B."""
+        state = self._adaptive
+        self._field.fixture = self.task.fixture({**state["entry"], "B": state["B"]})
 
     def _append(self, row: dict) -> None:
+        """Append ``row`` to the log under the file's header (a new file: the row's keys;
+        a column the header lacks, e.g. ``guidance_B`` after a change of condition, is left
+        out, a column the row lacks is empty)."""
         try:
             new = not self.log.exists() or self.log.stat().st_size == 0
+            names = list(row)
+            if not new:
+                with open(self.log, newline="") as f:
+                    names = next(csv.reader(f), names)
             with open(self.log, "a", newline="") as f:
-                writer = csv.DictWriter(f, fieldnames=list(row))
+                writer = csv.DictWriter(f, fieldnames=names, extrasaction="ignore", restval="")
                 if new:
                     writer.writeheader()
                 writer.writerow(row)
@@ -288,22 +333,26 @@ class TaskSession:
             distance_to_path=self._distance,
             last=dict(self.results[-1]) if self.results else {},
             progress=self.task.progress(self.monitor.state),
+            guidance_B=None if self._adaptive is None else self._adaptive["B"],
         )
 
     # ------------------------------------------------------------ state
     _STATE = ("results", "repetition", "_distance", "_recorded", "condition", "_frame_at",
-              "_framed")  # fmt: skip
+              "_framed", "_adaptive")  # fmt: skip
 
     def get_state(self) -> dict:
         """The monitor's state, the rows so far, the repetition number, the last distance,
-        whether this repetition's row is in and the condition's label. (The guidance field
-        and its filter are the haptic loop's.)"""
+        whether this repetition's row is in, the condition's label and, in an adaptive
+        condition, its errors so far and B. (The guidance field and its filter are the
+        haptic loop's; :meth:`set_state` gives its fixture the restored B.)"""
         return {"monitor": self.monitor.get_state(), **capture(self, self._STATE)}
 
     def set_state(self, state: dict) -> None:
         state = dict(state)
         self.monitor.set_state(state.pop("monitor"))
         restore(self, state, self._STATE)
+        if self._adaptive is not None:
+            self._apply_B()
 
 
 def live_sample(task: Task, T_task_camera, teleop: TeleopPSM, console: Console, t: float) -> Sample:
@@ -370,11 +419,34 @@ def _contacts(sim: Simulation, task: Task):
     return entry[1]
 
 
+def _adaptive_start(task: Task, spec: dict) -> dict | None:
+    """An adaptive entry's starting state in a session (its entry, no errors, the B of
+    the first repetition: the entry's ``B`` if it sets one, else the rule's), or None for
+    another kind. ValueError if the task has no column of the rule's error metric."""
+    if spec.get("type") != "adaptive":
+        return None
+    from davinci_sim.haptics.adaptive import AdaptiveRule, B_at
+    from davinci_sim.haptics.kinds import fixture_params
+
+    rule = AdaptiveRule.of(fixture_params(spec))
+    names = [m.name for m in task.METRICS]
+    if rule.metric not in names:
+        raise ValueError(f"the adaptive rule's metric {rule.metric!r} is not one of task "
+                         f"{task.name!r}'s: {names}")  # fmt: skip
+    B = spec.get("B")
+    B = B_at(1, [], rule) if B is None else float(B)
+    return {"entry": {k: v for k, v in spec.items() if k != "B"}, "errors": [], "B": B}
+
+
 def _condition_label(spec: dict) -> str:
     if spec.get("name"):
         return str(spec["name"])
     kind = spec.get("type", "none")
-    params = ", ".join(f"{k}={v:g}" for k, v in spec.items() if k not in ("type", "name"))
+    params = ", ".join(
+        f"{k}={v:g}" if isinstance(v, int | float) else f"{k}={v}"
+        for k, v in spec.items()
+        if k not in ("type", "name")
+    )
     return f"{kind}({params})" if params else kind
 
 

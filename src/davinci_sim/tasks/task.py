@@ -32,6 +32,8 @@ from typing import Any, ClassVar
 import numpy as np
 
 from davinci_sim.geometry.path import Polyline, rounded_polyline
+from davinci_sim.haptics.adaptive import MODES
+from davinci_sim.haptics.adaptive import PARAMS as ADAPTIVE_PARAMS
 from davinci_sim.haptics.combine import combine
 from davinci_sim.haptics.fixture import Fixture
 from davinci_sim.haptics.kinds import build_fixture, fixture_kind
@@ -49,7 +51,7 @@ from davinci_sim.tasks.base import (
     save_task,
 )
 from davinci_sim.tasks.metrics import PATH_METRICS
-from davinci_sim.tasks.schema import NONNEGATIVE, POINT, ListOf, Number, Record, Vector
+from davinci_sim.tasks.schema import NONNEGATIVE, POINT, ListOf, Number, Record, Text, Vector
 from davinci_sim.tasks.state import initial_state, task_step
 from davinci_sim.tasks.trainer import PATH_MISSED_TARGETS, trainer_metrics
 
@@ -103,8 +105,11 @@ class PathTask(Task, kind="path"):
     FIXTURE_TYPES = {
         "viscous": {"B", "G_max", "transition"},
         "spring": {"stiffness", "damping", "max_force", "transition"},
+        "adaptive": set(ADAPTIVE_PARAMS),
         "none": set(),
     }
+    #: The adaptive entry's parameters that are not numbers (for the file schema).
+    FIXTURE_PARAMETERS = {"mode": Text(MODES), "metric": Text()}
 
     name: str
     waypoints: np.ndarray

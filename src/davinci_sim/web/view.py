@@ -106,6 +106,7 @@ def console_view(snap, camera: CameraConfig, task=None) -> dict[str, Any]:
             mtm = name.split("/")[0]
             sources[mtm] = _source(s.kind, mtm in hands, bool(synthetic and synthetic["running"]))
     task = extras.get("task")
+    guidance_B = getattr(task, "guidance_B", None)  # (an adaptive condition's B now)
     view = {
         "time": float(snap.time),
         "tick": int(snap.tick),
@@ -130,6 +131,7 @@ def console_view(snap, camera: CameraConfig, task=None) -> dict[str, Any]:
             "completed": int(task.completed),
             "distance": _finite(task.distance_to_path),
             "progress": getattr(task, "progress", ""),
+            "guidance_B": None if guidance_B is None else _finite(guidance_B),
         },
         "synthetic": _synthetic(synthetic),
         "sources": sources,

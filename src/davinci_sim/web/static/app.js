@@ -151,6 +151,7 @@ function setSlider(id, value) { $(id).value = value; $(`${id}-out`).textContent 
 const FIXTURE_SLIDERS = {
   viscous: { label: "B", unit: "N·s/m", max: 100, step: 1, value: 40, cap: "G<sub>max</sub>" },
   spring: { label: "K", unit: "N/m", max: 500, step: 10, value: 200, cap: "F<sub>max</sub>" },
+  adaptive: { label: "B₀", unit: "N·s/m", max: 60, step: 1, value: 40, cap: "G<sub>max</sub>" },
 };
 
 function showFixtureType(type) {
@@ -170,7 +171,8 @@ function onState(s) {
   const task = s.task;
   if (task) {
     $("phase").textContent = task.progress ? `${task.phase} · ${task.progress}` : task.phase;
-    $("repetition").textContent = `${task.repetition} (${task.completed} done) — ${task.condition}`;
+    const B = task.guidance_B == null ? "" : ` (B now ${task.guidance_B.toFixed(1)} N·s/m)`;
+    $("repetition").textContent = `${task.repetition} (${task.completed} done) — ${task.condition}${B}`;
     $("deviation").textContent = task.distance == null ? "–" : `${(1000 * task.distance).toFixed(1)} mm`;
   }
   const tip = taskTip(s);
@@ -456,6 +458,7 @@ function setupPanels() {
     const entry = { type };
     if (type === "viscous") { entry.B = Number($("B").value); entry.G_max = Number($("G").value); }
     if (type === "spring") { entry.stiffness = Number($("B").value); entry.max_force = Number($("G").value); }
+    if (type === "adaptive") { entry.B0 = Number($("B").value); entry.G_max = Number($("G").value); }
     $("condition").value = "__custom";
     send({ op: "condition", condition: entry });
   };
