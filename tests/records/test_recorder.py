@@ -20,6 +20,24 @@ def test_a_row_is_split_into_metrics_and_score():
     assert metrics == {"deviation_error": 0.002, "completion_time": 12.5} and score is None
     metrics, score = split_row(row(1, score=81.0, passed=1, pass_mark=70.0))
     assert "score" not in metrics and score == Score(81.0, True, 70.0)
+    metrics, _ = split_row(row(1, guidance_B=28.0))  # an adaptive fixture's B: not a metric
+    assert "guidance_B" not in metrics
+
+
+def test_an_adaptive_repetitions_B_is_kept_with_its_settings(tmp_path):
+    path = tmp_path / "r.sqlite3"
+    settings = {"type": "adaptive", "mode": "assist_as_needed"}
+    recorder = AttemptRecorder(
+        path, "ana", task=load_task("seed_path"), condition="aan", settings=settings
+    )
+    recorder.start()
+    recorder.submit(dict(row(1, guidance_B=28.0), condition="aan"))
+    assert recorder.flush(30)
+    recorder.stop()
+    with RecordsDB(path) as db:
+        (attempt,) = db.attempts("ana")
+    assert "guidance_B" not in attempt["metrics"]
+    assert '"guidance_B": 28.0' in attempt["settings"] and '"adaptive"' in attempt["settings"]
 
 
 def test_rows_become_attempts_with_units_settings_and_times(tmp_path):

@@ -45,6 +45,9 @@ _log = logging.getLogger("davinci_sim.records")
 ROW_KEYS = ("task", "condition", "repetition")
 #: Row columns read as the attempt's score: overall score, passed (bool), pass mark.
 SCORE_KEYS = {"score": "score", "passed": "passed", "pass_mark": "pass_mark"}
+#: Row columns that say how the attempt ran, not how it went: stored with its settings (an
+#: adaptive fixture's B of that repetition, ``tasks.session``), never as a metric.
+SETTING_KEYS = ("guidance_B",)
 
 
 def metric_info(task) -> dict[str, MetricInfo]:
@@ -73,9 +76,10 @@ def scoring_marks(task) -> Callable[[Mapping[str, Any]], tuple[dict, float | Non
 
 
 def split_row(row: Mapping[str, Any]) -> tuple[dict, Score | None]:
-    """A session row's metrics (every column but :data:`ROW_KEYS` and :data:`SCORE_KEYS`)
-    and its score (None when the row has none of the score columns)."""
-    metrics = {k: v for k, v in row.items() if k not in ROW_KEYS and k not in SCORE_KEYS}
+    """A session row's metrics (every column but :data:`ROW_KEYS`, :data:`SCORE_KEYS` and
+    :data:`SETTING_KEYS`) and its score (None when the row has none of the score columns)."""
+    skip = (*ROW_KEYS, *SCORE_KEYS, *SETTING_KEYS)
+    metrics = {k: v for k, v in row.items() if k not in skip}
     found = {field: row[key] for key, field in SCORE_KEYS.items() if key in row}
     if not found:
         return metrics, None
@@ -302,7 +306,10 @@ class AttemptRecorder:
                 task=str(row.get("task", getattr(self.task, "name", ""))),
                 kind=getattr(self.task, "kind", None),
                 condition=str(row.get("condition", "")),
-                settings=self._settings_of(str(row.get("condition", ""))),
+                settings={
+                    **self._settings_of(str(row.get("condition", ""))),
+                    **{k: row[k] for k in SETTING_KEYS if row.get(k) is not None},
+                },
                 repetition=row.get("repetition"),
                 started_at=_started(ended, metrics.get("completion_time")),
                 ended_at=ended.isoformat(timespec="milliseconds"),
