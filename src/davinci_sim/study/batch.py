@@ -52,6 +52,7 @@ on the same trials.
 from __future__ import annotations
 
 import copy
+import json
 import time
 from collections.abc import Callable
 from types import SimpleNamespace
@@ -191,17 +192,16 @@ class TrialBatch:
         self.D = self.params.damping
         # Each condition's fixture, as the live trial builds it (task.fixture of the trial's
         # entry: its guidance plus the task's walls), and each trial's condition.
+        # (Keyed by the entry: a condition's retention trials run with its fixture off.)
         self.fixtures = {}
+        keys: dict[str, int] = {}
         for s in specs:
-            if s.condition not in self.fixtures:
-                self.fixtures[s.condition] = task.fixture(s.fixture)
-            elif s.fixture != specs[self._first_of(s.condition)].fixture:
-                raise ValueError(
-                    f"condition {s.condition} has two fixture entries in one batch: "
-                    f"{s.fixture!r} and {specs[self._first_of(s.condition)].fixture!r}"
-                )
-        self.cond = np.array([s.condition for s in specs], dtype=int)
-        """The condition (key of :attr:`fixtures`) of each current row."""
+            key = json.dumps(s.fixture, sort_keys=True)
+            if key not in keys:
+                keys[key] = len(keys)
+                self.fixtures[keys[key]] = task.fixture(s.fixture)
+        self.cond = np.array([keys[json.dumps(s.fixture, sort_keys=True)] for s in specs])
+        """The fixture (key of :attr:`fixtures`) of each current row."""
         self.index = np.arange(n)
         """Position of each current row in ``specs`` (rows of ended trials are dropped)."""
         self.velocity = VelocityFilter((n,), dt=self.dt, cutoff_hz=DEFAULT_CUTOFF_HZ)
@@ -224,9 +224,6 @@ class TrialBatch:
         self._results = {name: np.full(n, np.nan) for name in METRICS}
         self._finished = np.zeros(n, dtype=bool)
         self._ticks = np.zeros(n, dtype=np.int64)
-
-    def _first_of(self, condition: int) -> int:
-        return next(i for i, s in enumerate(self.specs) if s.condition == condition)
 
     #: Arrays with one row per running trial (see :meth:`_compact`).
     _ROWS = (
@@ -273,9 +270,12 @@ class TrialBatch:
     def _hand(self) -> np.ndarray:
         """Trainee step and its hand on the handle: ``xfrc_applied`` of the handle (n, 6)."""
         tr = self.trainee
-        x_eq = tr.command(self.dt, self.T_psm[:, :3, 3])
+        x_eq = tr.command(self.dt, self.T_psm[:, :3, 3], self.wrench_sent[:, :3])
         self.T_hand[:, :3, 3] = x_eq
-        w = hand_wrenches(self.T_hand, self.T_mtm, self.twist_mtm, self.K, self.D, self.impedance)
+        # (the limb's impedance now: the subject's, times 1 + co-contraction, Mechanisms)
+        w = hand_wrenches(
+            self.T_hand, self.T_mtm, self.twist_mtm, tr.stiffness, tr.damping, self.impedance
+        )
         w[:, :3] += tr.push_force()
         R, p = self.R_world_hrsv, self.p_world_hrsv
         return handle_xfrc(w, self.T_mtm[:, :3, 3], R, p, self.xipos)
