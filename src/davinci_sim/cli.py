@@ -513,7 +513,11 @@ def cmd_study(args: argparse.Namespace) -> int:
         return 2
     print(
         f"study: {config.n_trials} trials ({config.n_subjects} subjects x "
-        f"{len(config.conditions)} conditions x {config.n_repetitions} repetitions), "
+        f"{len(config.conditions)} conditions x {config.n_repetitions} repetitions"
+        + (f" + {config.retention} retention" if config.retention else "")
+        + (f", {config.design}-subject" if config.design != "within" else "")
+        + (f", mechanisms {'+'.join(config.mechanisms)}" if config.mechanisms else "")
+        + "), "
         f"task {config.task}, {config.engine} engine, backend {config.backend}, "
         f"{config.workers} worker(s)",
         flush=True,

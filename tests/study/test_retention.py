@@ -111,3 +111,28 @@ def test_small_study_with_a_retention_block(short_task, tmp_path):
         assert text in report
     header = (tmp_path / "trials.csv").read_text().splitlines()[0].split(",")
     assert "block" in header and "own_practice" in header
+
+
+def test_between_design_report_uses_independent_groups():
+    """Constructed rows of a between-subject study (4 subjects, 2 conditions): the section
+    says which design ran, uses Kruskal-Wallis / Mann-Whitney, and names the practised
+    condition whose retention deviation is lowest (subjects 0, 2 practised B=0: 2 mm;
+    subjects 1, 3 practised B=40: 3 and 4 mm)."""
+    from davinci_sim.study import StudyResult
+    from davinci_sim.study.retention import retention_section
+
+    cfg = StudyConfig(n_subjects=4, n_repetitions=1, retention=1, design="between",
+                      conditions=((0, 0), (40, 5)))  # fmt: skip
+    rows = []
+    for s in range(4):
+        c = s % 2
+        for block, dev in (("practice", 0.001), ("retention", 0.002 + 0.001 * c * (s // 2 + 1))):
+            rows.append({"subject": s, "condition": c, "block": block, "repetition": 1,
+                         "finished": True, "deviation_error": dev,
+                         "completion_time": 10.0 + s})  # fmt: skip
+    text = "\n".join(retention_section(StudyResult(cfg, rows, 1.0), ["B=0", "B=40"]))
+    assert "Design: between subjects" in text
+    assert "Mann-Whitney" in text and "| B=0 vs B=40 | -1.5 |" in text
+    assert "lowest mean deviation followed practice with B=0 (2 mm)" in text
+    assert "| B=40 | 1 | 3.5 ± 0.5 |" in text
+    assert retention_section(StudyResult(StudyConfig(n_subjects=1), [], 1.0), []) == []
