@@ -100,6 +100,22 @@ def mechanisms_text(cfg) -> str:
     )
 
 
+def stiffening_reach(rows: list[dict], labels: list[str], n_conditions: int) -> str:
+    """How often the guidance reached the stiffening threshold: the share of each
+    condition's practice trials whose peak guidance force exceeded it."""
+    threshold = Mechanisms.named(["stiffening"]).stiffening_threshold
+    parts = []
+    for c in range(n_conditions):
+        peaks = [float(r["peak_force"]) for r in rows if r["condition"] == c]
+        if peaks:
+            share = float(np.mean(np.array(peaks) > threshold))
+            parts.append(f"{labels[c]} {share:.0%} (largest {max(peaks):.2g} N)")
+    return (
+        f"The stiffening acts only while the force on the hand exceeds {threshold:g} N: "
+        "practice trials whose peak guidance force exceeded it: " + ", ".join(parts) + "."
+    )
+
+
 def retention_section(result, labels: list[str]) -> list[str]:
     """The report's lines on the retention block (none when the study ran none)."""
     cfg, rows = result.config, result.rows
@@ -111,6 +127,8 @@ def retention_section(result, labels: list[str]) -> list[str]:
     paired = cfg.design != "between"
     L = ["## Retention: the fixture off after each condition's practice", ""]
     L += [design_text(cfg), "", mechanisms_text(cfg), ""]
+    if "stiffening" in cfg.mechanisms:
+        L += [stiffening_reach(prac, labels, C), ""]
     L += [
         "Means over subjects of each subject's retention mean (± sd over subjects), per "
         "practised condition; 'end of practice' is the mean of the practice block's last "
