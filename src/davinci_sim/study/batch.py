@@ -188,19 +188,21 @@ class TrialBatch:
                 # diverged step itself): a diverged trial resets, faults and ends unfinished.
                 by_mass[mass].opt.disableflags &= ~int(mujoco.mjtDisableBit.mjDSBL_AUTORESET)
         self.models = [by_mass[m] for m in self.params.mass.tolist()]
-        self.K = self.params.stiffness
-        self.D = self.params.damping
         # Each condition's fixture, as the live trial builds it (task.fixture of the trial's
         # entry: its guidance plus the task's walls), and each trial's condition.
-        # (Keyed by the entry: a condition's retention trials run with its fixture off.)
-        self.fixtures = {}
-        keys: dict[str, int] = {}
+        # (Key: a practice trial's condition; a retention trial's fixture-off entry: < 0.)
+        self.fixtures, entries, keys = {}, {}, []
         for s in specs:
-            key = json.dumps(s.fixture, sort_keys=True)
-            if key not in keys:
-                keys[key] = len(keys)
-                self.fixtures[keys[key]] = task.fixture(s.fixture)
-        self.cond = np.array([keys[json.dumps(s.fixture, sort_keys=True)] for s in specs])
+            entry = json.dumps(s.fixture, sort_keys=True)
+            off = s.block != "practice"
+            key = entries.setdefault(entry, -1 - len(entries)) if off else s.condition
+            if key not in self.fixtures:
+                self.fixtures[key] = (entry, task.fixture(s.fixture))
+            elif self.fixtures[key][0] != entry:
+                raise ValueError(f"condition {s.condition}: two fixture entries in one batch")
+            keys.append(key)
+        self.fixtures = {k: f for k, (_, f) in self.fixtures.items()}
+        self.cond = np.array(keys, dtype=int)
         """The fixture (key of :attr:`fixtures`) of each current row."""
         self.index = np.arange(n)
         """Position of each current row in ``specs`` (rows of ended trials are dropped)."""
@@ -228,7 +230,7 @@ class TrialBatch:
     #: Arrays with one row per running trial (see :meth:`_compact`).
     _ROWS = (
         "Q", "V", "bias", "xipos", "q_ref", "qd_ref", "tau_ff", "ghost", "jaw_catching_up",
-        "jaw_sent", "wrench_sent", "T_hand", "K", "D", "cond", "t_end", "active", "fault",
+        "jaw_sent", "wrench_sent", "T_hand", "cond", "t_end", "active", "fault",
         "ticks", "_bad_since", "requested", "T_psm", "J_psm", "T_mtm", "J_mtm", "twist_mtm",
         "index", "n_contacts", "contact_force",
     )  # fmt: skip
@@ -272,10 +274,8 @@ class TrialBatch:
         tr = self.trainee
         x_eq = tr.command(self.dt, self.T_psm[:, :3, 3], self.wrench_sent[:, :3])
         self.T_hand[:, :3, 3] = x_eq
-        # (the limb's impedance now: the subject's, times 1 + co-contraction, Mechanisms)
-        w = hand_wrenches(
-            self.T_hand, self.T_mtm, self.twist_mtm, tr.stiffness, tr.damping, self.impedance
-        )
+        K, D = tr.stiffness, tr.damping  # (the subject's, × (1 + co-contraction))
+        w = hand_wrenches(self.T_hand, self.T_mtm, self.twist_mtm, K, D, self.impedance)
         w[:, :3] += tr.push_force()
         R, p = self.R_world_hrsv, self.p_world_hrsv
         return handle_xfrc(w, self.T_mtm[:, :3, 3], R, p, self.xipos)
