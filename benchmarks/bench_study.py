@@ -3,12 +3,16 @@ wall time against the ≤ 60 s target (issue 9), and the per-tick cost of a batc
 and 50: the per-trial-tick cost, measurable while the machine is otherwise busy).
 
 ``python benchmarks/bench_study.py`` writes ``results/study.json``; ``--output DIR`` also
-keeps the study's outputs (CSV, figures, report) in DIR.
+keeps the study's outputs (CSV, figures, report) in DIR. ``--retention N`` (and
+``--mechanisms NAMES``) runs the study with N retention repetitions after each practice
+block (400 + 40·N trials) and writes ``results/study_retention.json`` instead (issue 12).
+The machine is shared: wall times vary with its load (``load_avg_1min`` at the start).
 """
 
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 import tempfile
 import time
@@ -40,8 +44,9 @@ def tick_cost(n: int = 200, ticks: int = 500) -> dict:
     }
 
 
-def main(output: str | None = None) -> dict:
-    config = StudyConfig(workers=2)
+def main(output: str | None = None, retention: int = 0, mechanisms: tuple = ()) -> dict:
+    config = StudyConfig(workers=2, retention=retention, mechanisms=mechanisms)
+    load = os.getloadavg()[0]
     t0 = time.perf_counter()
     result = run_study(config, progress=False)
     wall = time.perf_counter() - t0
@@ -50,6 +55,9 @@ def main(output: str | None = None) -> dict:
     sim_time = sum(r["sim_time"] for r in result.rows)
     figures = {
         "trials": len(result.rows),
+        "retention_repetitions": retention,
+        "mechanisms": "+".join(config.mechanisms),
+        "load_avg_1min": load,
         "workers": config.workers,
         "study_wall_s": wall,
         "target_wall_s": 60.0,
@@ -59,11 +67,14 @@ def main(output: str | None = None) -> dict:
         **tick_cost(),
         **tick_cost(50),
     }
-    write("study", figures)
+    write("study_retention" if retention else "study", figures)
     return figures
 
 
 if __name__ == "__main__":
     parser = argparse.ArgumentParser(description=__doc__)
     parser.add_argument("--output", help="keep the study's outputs in this folder")
-    print(main(parser.parse_args().output))
+    parser.add_argument("--retention", type=int, default=0, help="as davinci-sim study's")
+    parser.add_argument("--mechanisms", default="", help="as davinci-sim study's")
+    args = parser.parse_args()
+    print(main(args.output, args.retention, tuple(m for m in args.mechanisms.split(",") if m)))

@@ -5,7 +5,8 @@ its report comparing it with the run the folder held before, and what changed si
 ``trials.csv`` as the previous run, runs the study (10 subjects x Table I x 10 repetitions,
 2 workers, ~2 min on 2 idle cores), writes the outputs, then the report with a "Compared with
 the previous run" section (the per-condition means, previous -> this run) led by the text of
-``--changes`` (markdown).
+``--changes`` (markdown). ``--retention N`` and ``--mechanisms NAMES`` as ``davinci-sim
+study``'s.
 """
 
 from __future__ import annotations
@@ -21,10 +22,10 @@ from davinci_sim.study.report import write_report
 FOLDER = Path(__file__).resolve().parent.parent / "docs" / "study" / "seed_path"
 
 
-def main(changes: str | None) -> None:
+def main(changes: str | None, retention: int = 0, mechanisms: tuple[str, ...] = ()) -> None:
     old = FOLDER / "trials.csv"
     previous = read_csv(old) if old.exists() else None
-    result = run_study(StudyConfig(workers=2))
+    result = run_study(StudyConfig(workers=2, retention=retention, mechanisms=mechanisms))
     write_outputs(result, FOLDER)
     write_report(result, FOLDER / "report.md", previous=previous, changes=changes)
     print(f"wall time {result.wall_time:.1f} s")
@@ -33,5 +34,11 @@ def main(changes: str | None) -> None:
 if __name__ == "__main__":
     parser = argparse.ArgumentParser(description=__doc__)
     parser.add_argument("--changes", help="markdown file: what changed since the previous run")
+    parser.add_argument("--retention", type=int, default=0, help="as davinci-sim study's")
+    parser.add_argument("--mechanisms", default="", help="as davinci-sim study's")
     args = parser.parse_args()
-    main(Path(args.changes).read_text() if args.changes else None)
+    main(
+        Path(args.changes).read_text() if args.changes else None,
+        args.retention,
+        tuple(m for m in args.mechanisms.split(",") if m),
+    )

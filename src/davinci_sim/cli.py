@@ -497,6 +497,9 @@ def cmd_study(args: argparse.Namespace) -> int:
             timeout=args.timeout,
             engine=args.engine,
             transition=args.transition,
+            retention=args.retention,
+            design=args.design,
+            mechanisms=tuple(m for m in (args.mechanisms or "").split(",") if m.strip()),
         )
     except StudyError as e:
         print(f"davinci-sim study: {e}", file=sys.stderr)
@@ -510,7 +513,11 @@ def cmd_study(args: argparse.Namespace) -> int:
         return 2
     print(
         f"study: {config.n_trials} trials ({config.n_subjects} subjects x "
-        f"{len(config.conditions)} conditions x {config.n_repetitions} repetitions), "
+        f"{len(config.conditions)} conditions x {config.n_repetitions} repetitions"
+        + (f" + {config.retention} retention" if config.retention else "")
+        + (f", {config.design}-subject" if config.design != "within" else "")
+        + (f", mechanisms {'+'.join(config.mechanisms)}" if config.mechanisms else "")
+        + "), "
         f"task {config.task}, {config.engine} engine, backend {config.backend}, "
         f"{config.workers} worker(s)",
         flush=True,
@@ -798,6 +805,29 @@ def main(argv: list[str] | None = None) -> int:
         metavar="M",
         help="on-path ramp of the viscous conditions that set none, m (default 0: the seed's "
         "law as printed; e.g. 0.0005 for a 0.5 mm ramp)",
+    )
+    p.add_argument(
+        "--retention",
+        type=int,
+        default=0,
+        metavar="N",
+        help="N repetitions with the fixture off after each condition's practice block "
+        "(rows with block=retention; the report compares the conditions on them)",
+    )
+    p.add_argument(
+        "--design",
+        default="within",
+        choices=["within", "between"],
+        help="within: every subject does every condition (counterbalanced); between: "
+        "subject s does condition s mod C only",
+    )
+    p.add_argument(
+        "--mechanisms",
+        default=None,
+        metavar="NAMES",
+        help="trainee reactions to guidance, comma-separated: reliance (guided practice "
+        "trains the own correction less), stiffening (co-contraction under strong force); "
+        "default: none",
     )
     p.add_argument("--task", default="seed_path", help="task name or task file")
     p.add_argument("--seed", type=int, default=0)

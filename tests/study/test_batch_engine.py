@@ -2,11 +2,14 @@
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 import pytest
 
 import davinci_sim.sim.simulation as simulation
 import davinci_sim.study.trial as trial
+from davinci_sim.operators.params import Mechanisms
 from davinci_sim.study import TrialSpec, run_trial
 from davinci_sim.study.batch import TrialBatch, run_batch
 from davinci_sim.study.report import COLUMNS, TIMING_COLUMNS
@@ -22,14 +25,22 @@ def _specs(task: str, timeout: float = 60.0) -> list[TrialSpec]:
     ]  # fmt: skip
 
 
-def test_batch_is_the_live_simulation_to_machine_precision(short_task, monkeypatch):
+@pytest.mark.parametrize("mechanisms", [(), ("reliance", "stiffening")])
+def test_batch_is_the_live_simulation_to_machine_precision(short_task, monkeypatch, mechanisms):
     """With the base frames held (the live simulation follows every change of the ECM and
     setup joints; the batch holds them, see study.batch), every joint of every trial
-    follows the live simulation's to ~1e-12 over a whole second of assisted following."""
+    follows the live simulation's to ~1e-12 over a whole second of assisted following;
+    with the trainee mechanisms on too (the co-contraction is a law both engines share:
+    the force felt is the wrench the MTM renders, the limb's impedance the trainee's)."""
     monkeypatch.setattr(simulation, "BASE_FRAME_TOLERANCE", np.inf)
     # Set-ups built here start under the patched tolerance: keep them out of later tests.
     monkeypatch.setattr(trial, "_SETUPS", {})
     spec = _specs(short_task)[1]
+    if mechanisms:
+        spec = dataclasses.replace(spec, mechanisms=mechanisms, own_practice=2.44)
+        # A low threshold, so that the short run's guidance (~1 N) makes the arm co-contract.
+        low = Mechanisms(reliance=0.8, stiffening_gain=2.0, stiffening_threshold=0.2)
+        monkeypatch.setattr(Mechanisms, "named", classmethod(lambda cls, names: low))
     batch = TrialBatch([spec])
     from davinci_sim.haptics.fixture import FixtureField
     from davinci_sim.operators.console import TraineeHand, hand_impedance
@@ -53,6 +64,11 @@ def test_batch_is_the_live_simulation_to_machine_precision(short_task, monkeypat
         peak = max(peak, np.linalg.norm(setup.device.wrench()))
     np.testing.assert_allclose(batch.wrench_sent[0], setup.device.wrench(), atol=1e-9)
     assert peak > 0.2  # the guidance was really pushing (N)
+    co = batch.trainee.co_contraction
+    np.testing.assert_allclose(co, hand.trainee.co_contraction, atol=1e-9)
+    assert (co[0] > 0.1) == bool(mechanisms)
+    if mechanisms:
+        assert setup.device.hand.stiffness > params.stiffness[0]
     sim.close()
 
 

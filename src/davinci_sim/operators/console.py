@@ -17,6 +17,7 @@ path as a person's hand. One trial per simulation; for many trials at once see t
 from __future__ import annotations
 
 import copy
+import dataclasses
 
 import numpy as np
 
@@ -78,7 +79,11 @@ class TraineeHand:
             self.device.grasp(handle)
         tr = self.trainee
         tip = self.psm.measured_cp().T[:3, 3]
-        x_eq = tr.command(tr.dt, tip[None])
+        x_eq = tr.command(tr.dt, tip[None], self.device.wrench()[None, :3])
+        K, D = float(tr.stiffness[0]), float(tr.damping[0])
+        hand = self.device.hand
+        if K != hand.stiffness or D != hand.damping:  # co-contraction (Mechanisms)
+            self.device.hand = dataclasses.replace(hand, stiffness=K, damping=D)
         self.device.move_hand(x_eq[0])
         self.device.push(tr.push_force()[0])
 

@@ -85,6 +85,7 @@ over training (Foell et al. 2013, in the table above). A separately measured exp
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, fields
 
 import numpy as np
@@ -243,3 +244,110 @@ def sample_population(population: str, n: int, seed: int = 0) -> SubjectParams:
     if population not in POPULATIONS:
         raise ValueError(f"unknown population {population!r}; populations: {list(POPULATIONS)}")
     return POPULATIONS[population](n, seed=seed)
+
+
+# ---------------------------------------------------------------- training mechanisms
+#: The trainee mechanisms a study may switch on (:class:`Mechanisms`), by name.
+MECHANISMS = ("reliance", "stiffening")
+
+
+@dataclass(frozen=True)
+class Mechanisms:
+    """Two reactions of the trainees to guidance, each off unless switched on (a study's
+    ``mechanisms``; its report says which ran). Population constants: every subject shares
+    them (no published spread to draw from).
+
+    **Reliance on guidance** (the *guidance hypothesis*: Salmoni, Schmidt & Walter 1984,
+    Psychol. Bull. 95:355; for haptic guidance: Sigrist, Rauter, Riener & Wolf 2013,
+    Psychon. Bull. Rev. 20:21, and Oquendo et al. 2023, arXiv 2309.05187, whose haptic-
+    guidance group was the worst on the final unassisted day). A trainee who practises with
+    guidance leaves part of the correcting to it and learns less of their own: the practice
+    count of the *own-correction* skill (the power law's factor on the crossover ω_c and the
+    motor noise k) grows by ``1 − reliance · s`` per guided trial instead of 1, where
+    ``s = G / (G + reliance_half_force)`` ∈ [0, 1[ is the strength of the guidance felt,
+    from the condition's force bound G (N: the viscous G_max, a spring's max_force;
+    :func:`guidance_strength`). The motion plan (speed) still practises at the full count:
+    what the guidance replaces is the trainee's own correction, not the path's knowledge.
+    ``reliance`` = 0.8 and ``reliance_half_force`` = 2 N are **assumptions** (the studies
+    give the direction, not a rate): at Table I's G_max = 2, 5, 8 N a guided trial counts
+    0.6, 0.43, 0.36 of an unguided one for the own correction.
+
+    **Arm stiffening under strong guidance** (co-contraction: the limb's impedance rises
+    against disturbing or unstable forces, Burdet, Osu, Franklin, Milner & Kawato 2001,
+    Nature 414:446; Franklin, Burdet et al. 2008, J. Neurosci. 28:11165; co-contraction
+    raises endpoint stiffness several-fold, Gomi & Osu 1998, J. Neurosci. 18:8965; the
+    seed's trainees found B = 60 "oscillating and disturbing"). The co-contraction level
+    c ≥ 0 follows ``stiffening_gain · max(0, ‖F‖ − stiffening_threshold)`` (‖F‖ the MTM's
+    force on the hand, N) with a first-order lag ``stiffening_time`` (s), at most
+    ``stiffening_max``; the limb's stiffness and damping are the relaxed ones times 1 + c
+    (the damping keeps B = 0.05·K), so the guidance moves a stiffened hand less (F/K). The
+    threshold 3 N (between Table I's 2 N and 5 N bounds), gain 0.5 /N, lag 0.2 s and the
+    cap 2 (stiffness ×3) are **assumptions** of the orders the sources report.
+    """
+
+    reliance: float = 0.0
+    """Fraction of a guided trial's own-correction practice the guidance takes away at full
+    strength, in [0, 1] (0: off)."""
+    reliance_half_force: float = 2.0
+    """The guidance force bound at which half of ``reliance`` applies, N."""
+    stiffening_gain: float = 0.0
+    """Co-contraction per newton of force above the threshold, 1/N (0: off)."""
+    stiffening_threshold: float = 3.0
+    """Force on the hand above which the trainee co-contracts, N."""
+    stiffening_time: float = 0.2
+    """Time constant of the co-contraction, s."""
+    stiffening_max: float = 2.0
+    """Largest co-contraction: stiffness and damping at most (1 + this) times relaxed."""
+
+    def __post_init__(self) -> None:
+        for f in fields(self):
+            v = getattr(self, f.name)
+            if not (isinstance(v, int | float) and np.isfinite(v) and v >= 0):
+                raise ValueError(f"Mechanisms.{f.name} must be a finite number >= 0, got {v!r}")
+        if self.reliance > 1:
+            raise ValueError(f"Mechanisms.reliance must be in [0, 1], got {self.reliance!r}")
+        if self.reliance_half_force <= 0 or self.stiffening_time <= 0:
+            raise ValueError("reliance_half_force and stiffening_time must be > 0")
+
+    @classmethod
+    def named(cls, names) -> Mechanisms:
+        """The mechanisms of ``names`` (a subset of :data:`MECHANISMS`) on at their
+        documented values, the others off."""
+        names = tuple(names)
+        unknown = [n for n in names if n not in MECHANISMS]
+        if unknown:
+            raise ValueError(f"unknown mechanisms {unknown}; mechanisms: {list(MECHANISMS)}")
+        return cls(
+            reliance=0.8 if "reliance" in names else 0.0,
+            stiffening_gain=0.5 if "stiffening" in names else 0.0,
+        )
+
+    def own_practice_step(self, guidance_bound: float) -> float:
+        """What one trial counts for the own-correction skill under guidance whose force
+        bound is ``guidance_bound`` N (1 unguided)."""
+        g = max(float(guidance_bound), 0.0)
+        strength = 1.0 if math.isinf(g) else g / (g + self.reliance_half_force)
+        return 1.0 - self.reliance * strength
+
+    def co_contraction_target(self, force_norm) -> np.ndarray:
+        """Co-contraction the force ``force_norm`` (N, (n,)) drives towards."""
+        excess = np.maximum(np.asarray(force_norm, dtype=float) - self.stiffening_threshold, 0)
+        return np.minimum(self.stiffening_gain * excess, self.stiffening_max)
+
+
+def guidance_strength(entry) -> float:
+    """The force bound of a fixture entry, N: a viscous law's G_max (0 when B is 0), a
+    spring's max_force (0 when its stiffness is 0), else the entry's ``G_max`` or
+    ``max_force``; 0 for ``none``; +inf for a kind that declares no bound (a guided
+    condition of unknown strength counts as fully guided for the reliance)."""
+    kind = entry.get("type", "none")
+    if kind == "none":
+        return 0.0
+    if kind == "viscous":
+        return float(entry.get("G_max", 0.0)) if float(entry.get("B", 0.0)) > 0 else 0.0
+    if kind == "spring" and float(entry.get("stiffness", 0.0)) <= 0:
+        return 0.0
+    for key in ("G_max", "max_force"):
+        if key in entry:
+            return float(entry[key])
+    return math.inf

@@ -33,11 +33,16 @@ The model, per trial (the parameters and their sources: :mod:`davinci_sim.operat
    so that the free hand trembles with the subject's rms amplitude at 8-12 Hz.
 6. **Practice.** Repetition j (1 = first) scales the practised values by the power law of
    practice P(j) = 1 + E·j^(−α) (Newell & Rosenbloom 1981): speed / P, noise k · P,
-   crossover ω_c / P.
+   crossover ω_c / P. With reliance on guidance
+   (:class:`~davinci_sim.operators.params.Mechanisms`) the crossover and the noise follow
+   their own practice count ``own_practice`` (guided trials count less), the speed j.
+7. **Co-contraction** (optional, :class:`~davinci_sim.operators.params.Mechanisms`): the
+   force the MTM applies to the hand above a threshold drives a co-contraction level c
+   (first-order lag) that scales the limb's stiffness and damping by 1 + c.
 
-Not modelled: depth misperception in the stereo view, grip and co-contraction changes under
-force, fatigue, clutching (a trainee never clutches: the seed task fits in the MTM's
-workspace at scale 0.6), the MTM's orientation.
+Not modelled: depth misperception in the stereo view, grip changes under force, fatigue,
+clutching (a trainee never clutches: the seed task fits in the MTM's workspace at scale
+0.6), the MTM's orientation.
 
 Two ways to couple it to an MTM: :meth:`step` integrates the limb itself (the handle follows
 the hand rigidly; put the handle's inertia into ``mass``); or call :meth:`command` each tick
@@ -57,7 +62,7 @@ import numpy as np
 
 from davinci_sim.geometry.path import Polyline
 from davinci_sim.operators.noise import MotorNoise, Tremor, TrialNoise
-from davinci_sim.operators.params import TREMOR_BANDWIDTH_HZ, SubjectParams
+from davinci_sim.operators.params import TREMOR_BANDWIDTH_HZ, Mechanisms, SubjectParams
 from davinci_sim.operators.plan import path_plan, straight_plan, stroke_durations
 
 #: Shortest reach to point 1, s (a minimum-jerk reach of a few mm still takes a while).
@@ -97,6 +102,10 @@ class SyntheticTrainee:
         noise_keys: one integer key per trial (sequence), seeding its noise streams.
         dt: step, s.
         motor_noise, tremor: switch the noise sources (for tests).
+        own_practice: practice count of the own correction (crossover, noise) (n,), ≥ 1;
+            None: ``repetition`` (no reliance on guidance).
+        mechanisms: the reactions to guidance (co-contraction; the reliance is in
+            ``own_practice``); None: off.
     """
 
     def __init__(
@@ -113,6 +122,8 @@ class SyntheticTrainee:
         dt: float = 0.001,
         motor_noise: bool = True,
         tremor: bool = True,
+        own_practice=None,
+        mechanisms: Mechanisms | None = None,
     ) -> None:
         n = len(params)
         self.n = n
@@ -136,8 +147,17 @@ class SyntheticTrainee:
         factor = params.practice_factor(np.broadcast_to(np.asarray(repetition), (n,)))
         self.practice = factor
         self.speed = params.speed / factor
+        if own_practice is not None:
+            own = np.broadcast_to(np.asarray(own_practice, dtype=float), (n,))
+            if not np.all(np.isfinite(own) & (own >= 1.0)):
+                raise ValueError(f"own_practice must be >= 1, got {own_practice!r}")
+            factor = params.practice_factor(own)
+        self.own_practice_factor = factor
         self.noise_k = params.noise * factor if motor_noise else np.zeros(n)
         self.crossover = params.crossover / factor
+        self.mechanisms = mechanisms or Mechanisms()
+        self.co_contraction = np.zeros(n)
+        """Co-contraction level c of each trial (stiffness and damping × (1 + c))."""
         self.durations = stroke_durations(np.diff(self.knots), self.speed)
         # Tremor force gain: free-hand displacement rms per axis A/√3 at the tremor peak.
         w = 2 * np.pi * params.tremor_frequency
@@ -178,7 +198,8 @@ class SyntheticTrainee:
 
     #: Attributes with one entry per trial along their first axis (see :meth:`take`).
     _PER_TRIAL = (
-        "practice", "speed", "noise_k", "crossover", "durations", "delay_steps", "_obs",
+        "practice", "own_practice_factor", "co_contraction", "speed", "noise_k", "crossover",
+        "durations", "delay_steps", "_obs",
         "x", "v", "x_eq", "v_eq", "t_reach", "reach_from", "reach_time", "t_follow",
         "last_tremor_force", "feedforward_force", "_v_plan",
     )  # fmt: skip
@@ -233,19 +254,45 @@ class SyntheticTrainee:
         return p, v, valid
 
     # ------------------------------------------------------------ step
-    def command(self, dt: float, observed_tip) -> np.ndarray:
+    @property
+    def stiffness(self) -> np.ndarray:
+        """The limb's stiffness now (n,), N/m: relaxed × (1 + co-contraction)."""
+        return self.params.stiffness * (1.0 + self.co_contraction)
+
+    @property
+    def damping(self) -> np.ndarray:
+        """The limb's damping now (n,), N·s/m: relaxed × (1 + co-contraction)."""
+        return self.params.damping * (1.0 + self.co_contraction)
+
+    def feel(self, dt: float, force_on_hand) -> None:
+        """The co-contraction's step for the force the MTM applies to the hand now, (n, 3),
+        N (HRSV): c ← c + (c_target(‖F‖) − c)·dt/τ. Nothing changes with stiffening off."""
+        m = self.mechanisms
+        if m.stiffening_gain <= 0:
+            return
+        norm = np.linalg.norm(np.asarray(force_on_hand, dtype=float), axis=1)
+        target = m.co_contraction_target(norm)
+        self.co_contraction = self.co_contraction + (target - self.co_contraction) * (
+            dt / m.stiffening_time
+        )
+
+    def command(self, dt: float, observed_tip, force_on_hand=None) -> np.ndarray:
         """Perceive, plan and command for one step; returns the equilibrium point (n, 3).
 
         Args:
             dt: the step, s (must be the ``dt`` given at construction: the delays are
                 counted in steps).
             observed_tip: the tool tip as the endoscope shows it now, (n, 3), m, camera.
+            force_on_hand: the force the MTM applies to the hand now (n, 3), N, HRSV, for
+                the co-contraction (:meth:`feel`); None: not felt.
         """
         if abs(dt - self.dt) > 1e-12:
             raise ValueError(f"this trainee steps every {self.dt} s, got dt={dt!r}")
         y = np.asarray(observed_tip, dtype=float)
         if y.shape != (self.n, 3):
             raise ValueError(f"observed_tip must be ({self.n}, 3), got {y.shape}")
+        if force_on_hand is not None:
+            self.feel(dt, force_on_hand)
         k, t = self.k, self.time
         size = self._obs.shape[1]
         self._obs[:, k % size] = y
@@ -292,15 +339,15 @@ class SyntheticTrainee:
         """The part of :meth:`hand_force` that does not depend on the handle (n, 3), HRSV,
         N: ``D·ẋ_eq`` + inertia feed-forward + tremor. On an MTM the device's hand spring
         and damper (stiffness K, damping D, target ``x_eq``) add the rest."""
-        D = self.params.damping[:, None]
+        D = self.damping[:, None]
         return D * self.v_eq + self.feedforward_force + self.last_tremor_force
 
     def hand_force(self, position, velocity) -> np.ndarray:
         """Force the hand applies to a handle at ``position``/``velocity`` (n, 3), HRSV, N:
         the limb's spring and damper about the equilibrium, the inertia feed-forward and
         the tremor."""
-        K = self.params.stiffness[:, None]
-        D = self.params.damping[:, None]
+        K = self.stiffness[:, None]
+        D = self.damping[:, None]
         spring = K * (self.x_eq - position) + D * (self.v_eq - velocity)
         return spring + self.feedforward_force + self.last_tremor_force
 
@@ -315,7 +362,7 @@ class SyntheticTrainee:
         Returns:
             The hand (MTM handle) position and velocity after the step, HRSV.
         """
-        self.command(dt, observed_tip)
+        self.command(dt, observed_tip, force_on_hand)
         f = self.hand_force(self.x, self.v) + np.asarray(force_on_hand, dtype=float)
         self.v = self.v + f / self.params.mass[:, None] * dt
         self.x = self.x + self.v * dt

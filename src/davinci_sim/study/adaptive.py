@@ -25,6 +25,7 @@ conditions runs in one round, as before, with the same rows; rows stay keyed by 
 from __future__ import annotations
 
 import dataclasses
+import json
 import math
 from collections.abc import Sequence
 
@@ -97,19 +98,23 @@ def rounds(specs: Sequence[TrialSpec]) -> list[int]:
 def fixture_keys(specs: Sequence[TrialSpec]) -> list[int]:
     """The key of each trial's fixture in a batch (:class:`~davinci_sim.study.batch.TrialBatch`):
     its condition's index, one fixture per condition; an adaptive condition's trials may run
-    with different B, so one key per (condition, B) for them, negative (-1, -2, ...) so as
-    not to meet a condition's.
+    with different B, so one key per (condition, B) for them, and a retention trial's
+    fixture-off entry one of its own, negative (-1, -2, ...) so as not to meet a condition's.
 
     Raises:
         ValueError: two trials of a non-adaptive condition with different entries.
     """
     firsts: dict[int, dict] = {}
-    adaptive: dict[tuple, int] = {}
+    negative: dict[tuple, int] = {}
     keys = []
     for s in specs:
+        if getattr(s, "block", "practice") != "practice":  # a retention trial: fixture off
+            entry = ("off", json.dumps(s.fixture, sort_keys=True))
+            keys.append(negative.setdefault(entry, -1 - len(negative)))
+            continue
         first = firsts.setdefault(s.condition, s.fixture)
         if s.fixture["type"] == "adaptive":
-            keys.append(adaptive.setdefault((s.condition, s.B), -1 - len(adaptive)))
+            keys.append(negative.setdefault((s.condition, s.B), -1 - len(negative)))
         elif s.fixture != first:
             raise ValueError(
                 f"condition {s.condition} has two fixture entries in one batch: "

@@ -188,11 +188,10 @@ class TrialBatch:
                 # diverged step itself): a diverged trial resets, faults and ends unfinished.
                 by_mass[mass].opt.disableflags &= ~int(mujoco.mjtDisableBit.mjDSBL_AUTORESET)
         self.models = [by_mass[m] for m in self.params.mass.tolist()]
-        self.K = self.params.stiffness
-        self.D = self.params.damping
         # Each trial's fixture as the live trial builds it (task.fixture of its entry: its
-        # guidance plus the task's walls), one per key (its condition's index, or for an
-        # adaptive trial its condition and B: study.adaptive.fixture_keys).
+        # guidance plus the task's walls), one per key (a practice trial's condition index;
+        # negative for an adaptive trial's (condition, B) and a retention trial's fixture-off
+        # entry: study.adaptive.fixture_keys).
         keys = fixture_keys(specs)
         self.fixtures = {}
         for s, key in zip(specs, keys, strict=True):
@@ -226,7 +225,7 @@ class TrialBatch:
     #: Arrays with one row per running trial (see :meth:`_compact`).
     _ROWS = (
         "Q", "V", "bias", "xipos", "q_ref", "qd_ref", "tau_ff", "ghost", "jaw_catching_up",
-        "jaw_sent", "wrench_sent", "T_hand", "K", "D", "cond", "t_end", "active", "fault",
+        "jaw_sent", "wrench_sent", "T_hand", "cond", "t_end", "active", "fault",
         "ticks", "_bad_since", "requested", "T_psm", "J_psm", "T_mtm", "J_mtm", "twist_mtm",
         "index", "n_contacts", "contact_force",
     )  # fmt: skip
@@ -268,9 +267,10 @@ class TrialBatch:
     def _hand(self) -> np.ndarray:
         """Trainee step and its hand on the handle: ``xfrc_applied`` of the handle (n, 6)."""
         tr = self.trainee
-        x_eq = tr.command(self.dt, self.T_psm[:, :3, 3])
+        x_eq = tr.command(self.dt, self.T_psm[:, :3, 3], self.wrench_sent[:, :3])
         self.T_hand[:, :3, 3] = x_eq
-        w = hand_wrenches(self.T_hand, self.T_mtm, self.twist_mtm, self.K, self.D, self.impedance)
+        K, D = tr.stiffness, tr.damping  # (the subject's, × (1 + co-contraction))
+        w = hand_wrenches(self.T_hand, self.T_mtm, self.twist_mtm, K, D, self.impedance)
         w[:, :3] += tr.push_force()
         R, p = self.R_world_hrsv, self.p_world_hrsv
         return handle_xfrc(w, self.T_mtm[:, :3, 3], R, p, self.xipos)

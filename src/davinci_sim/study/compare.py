@@ -49,9 +49,11 @@ def comparison(result: StudyResult, previous: list[dict] | None, changes: str | 
         L += [changes.strip(), ""]
     if previous is None:
         return L
-    cfg, rows = result.config, result.rows
+    cfg = result.config
+    rows = [r for r in result.rows if r.get("block", "practice") == "practice"]
     C, n = len(cfg.conditions), cfg.n_subjects
     keep = [r for r in previous if 0 <= int(r["condition"]) < C]
+    keep = [r for r in keep if r.get("block", "practice") == "practice"]
     n_old = max((int(r["subject"]) for r in keep), default=-1) + 1
     if not keep or n_old < 1:
         return [*L, "The previous run has none of these conditions.", ""]

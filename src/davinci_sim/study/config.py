@@ -19,6 +19,21 @@ Practice carries across conditions: the practice count j of the trainee's power 
 practice (:class:`~davinci_sim.operators.SubjectParams`) counts all the subject's trials so
 far, j = (block − 1)·n_repetitions + repetition, so a later block is done by a more practised
 trainee; the counterbalancing spreads this over the conditions.
+
+Retention (``retention`` = N > 0): right after each condition's practice block, N
+repetitions of the same task with the fixture off (rows with ``block`` = ``retention`` and
+the practised condition's index and name; their fixture is ``none``). The practice count
+continues through them. In the within-subject design this measures the *carry-over* of
+each condition's practice into unassisted performance, on top of all the practice before
+it (every subject practises every condition, in a counterbalanced order); the between-
+subject design (``design="between"``: subject s practises only condition s mod C, then
+its retention block) is the design of the guidance-hypothesis literature, each subject's
+retention measuring one condition's training.
+
+Mechanisms (``mechanisms``): the trainee reactions to guidance switched on
+(:class:`~davinci_sim.operators.params.Mechanisms`): ``reliance`` (a guided trial counts
+less for the trainee's own correction: each trial's ``own_practice``) and ``stiffening``
+(co-contraction under strong guidance).
 """
 
 from __future__ import annotations
@@ -33,6 +48,7 @@ from davinci_sim.study.trial import TrialSpec
 #: The seed's Table I: (B in N·s/m, G_max in N).
 TABLE_I: tuple[tuple[float, float], ...] = ((0.0, 0.0), (20.0, 2.0), (40.0, 5.0), (60.0, 8.0))
 ORDERS = ("latin", "fixed")
+DESIGNS = ("within", "between")
 BACKENDS = ("local", "ray")
 ENGINES = ("batch", "live")
 
@@ -69,7 +85,27 @@ class StudyConfig:
     """Width of the on-path ramp of the viscous conditions that do not set their own, m
     (None or 0: the seed's law as printed)."""
 
+    retention: int = 0
+    """Repetitions with the fixture off after each condition's practice block (0: none)."""
+    design: str = "within"
+    """``within`` (every subject does every condition) or ``between`` (subject s does
+    condition s mod C only)."""
+    mechanisms: tuple[str, ...] = ()
+    """Trainee mechanisms on (:data:`~davinci_sim.operators.params.MECHANISMS`)."""
+
     def __post_init__(self) -> None:
+        from davinci_sim.operators.params import MECHANISMS
+
+        if not isinstance(self.retention, int) or self.retention < 0:
+            raise StudyError(f"retention must be an integer >= 0, got {self.retention!r}")
+        if self.design not in DESIGNS:
+            raise StudyError(f"unknown design {self.design!r}; designs: {DESIGNS}")
+        mechanisms = (self.mechanisms,) if isinstance(self.mechanisms, str) else self.mechanisms
+        mechanisms = tuple(dict.fromkeys(mechanisms))
+        unknown = [m for m in mechanisms if m not in MECHANISMS]
+        if unknown:
+            raise StudyError(f"unknown mechanisms {unknown}; mechanisms: {list(MECHANISMS)}")
+        object.__setattr__(self, "mechanisms", tuple(m for m in MECHANISMS if m in mechanisms))
         if self.n_subjects < 1 or self.n_repetitions < 1:
             raise StudyError("n_subjects and n_repetitions must be >= 1")
         if self.order not in ORDERS:
@@ -90,7 +126,9 @@ class StudyConfig:
 
     @property
     def n_trials(self) -> int:
-        return self.n_subjects * len(self.conditions) * self.n_repetitions
+        per_block = self.n_repetitions + self.retention
+        blocks = 1 if self.design == "between" else len(self.conditions)
+        return self.n_subjects * blocks * per_block
 
 
 def study_task(task: str):
@@ -228,28 +266,54 @@ def williams_row(row: int, n: int) -> list[int]:
 
 
 def condition_order(config: StudyConfig, subject: int) -> list[int]:
-    """Indices of the conditions in the order subject ``subject`` does them."""
+    """Indices of the conditions in the order subject ``subject`` does them (one condition,
+    s mod C, in the between-subject design)."""
     n = len(config.conditions)
+    if config.design == "between":
+        return [subject % n]
     return williams_row(subject, n) if config.order == "latin" else list(range(n))
 
 
+#: The fixture of a retention block: off.
+NO_FIXTURE = {"type": "none", "name": "off"}
+
+
 def plan_trials(config: StudyConfig) -> list[TrialSpec]:
-    """Every trial of the study, in the order each subject does them."""
+    """Every trial of the study, in the order each subject does them: per condition block,
+    its practice repetitions, then its retention repetitions (fixture off). The practice
+    count j runs on through all of a subject's trials; with ``reliance`` on, each trial's
+    own-correction count is 1 + the sum of the earlier trials' steps
+    (:meth:`~davinci_sim.operators.params.Mechanisms.own_practice_step`)."""
+    from davinci_sim.operators.params import Mechanisms, guidance_strength
+
+    mechanisms = Mechanisms.named(config.mechanisms)
+    reliance = mechanisms.reliance > 0
     specs = []
     for s in range(config.n_subjects):
+        j, own = 0, 1.0
         for block, c in enumerate(condition_order(config, s), start=1):
-            for r in range(1, config.n_repetitions + 1):
-                specs.append(
-                    TrialSpec(
-                        task=config.task,
-                        subject=s,
-                        condition=c,
-                        fixture=config.conditions[c],
-                        repetition=r,
-                        order=block,
-                        practice=(block - 1) * config.n_repetitions + r,
-                        seed=config.seed,
-                        timeout=config.timeout,
+            runs = [("practice", config.conditions[c], config.n_repetitions),
+                    ("retention", NO_FIXTURE, config.retention)]  # fmt: skip
+            for kind, fixture, count in runs:
+                step = mechanisms.own_practice_step(guidance_strength(fixture))
+                for r in range(1, count + 1):
+                    j += 1
+                    specs.append(
+                        TrialSpec(
+                            task=config.task,
+                            subject=s,
+                            condition=c,
+                            fixture=fixture,
+                            repetition=r,
+                            order=block,
+                            practice=j,
+                            seed=config.seed,
+                            timeout=config.timeout,
+                            block=kind,
+                            condition_name=config.conditions[c]["name"],
+                            own_practice=own if reliance else None,
+                            mechanisms=config.mechanisms,
+                        )
                     )
-                )
+                    own += step
     return specs

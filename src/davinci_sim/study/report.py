@@ -19,6 +19,12 @@ from davinci_sim.haptics.kinds import describe_fixture, viscous_law
 from davinci_sim.operators.params import TRAINEE_METHOD
 from davinci_sim.study.compare import comparison
 from davinci_sim.study.config import pair_labels
+from davinci_sim.study.retention import (
+    block_rows,
+    mechanisms_text,
+    plot_retention,
+    retention_section,
+)
 from davinci_sim.study.runner import StudyResult
 from davinci_sim.study.stats import friedman, pairwise_wilcoxon, subject_means
 from davinci_sim.study.store import atomic_path, write_text_atomic
@@ -40,8 +46,11 @@ COLUMNS = (
     "fixture",
     "law",
     "order",
+    "block",
     "repetition",
     "practice",
+    "own_practice",
+    "mechanisms",
     "seed",
     "task",
     "finished",
@@ -119,7 +128,7 @@ def plot_figures(result: StudyResult, folder: Path) -> list[Path]:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    cfg, rows = result.config, result.rows
+    cfg, rows = result.config, block_rows(result.rows, "practice")
     C = len(cfg.conditions)
     paths = []
     # Fig. 7: mean deviation per repetition, 20th-80th percentile bars, a panel per condition.
@@ -197,8 +206,10 @@ def _lower(dev, pairs, a, b) -> str:
 
 def claims(result: StudyResult) -> list[tuple[str, str, str]]:
     """(claim of the seed, what the simulation gives, verdict) for Table I-like studies."""
-    cfg, rows = result.config, result.rows
+    cfg, rows = result.config, block_rows(result.rows, "practice")
     C, n = len(cfg.conditions), cfg.n_subjects
+    if cfg.design != "within":  # (the rules use paired tests)
+        return []
     b = _viscous_b(cfg.conditions)
     if C != 4 or b is None or b != sorted(b):
         return []
@@ -299,15 +310,23 @@ def write_report(
     """Write ``report.md``. ``previous``: the rows of an earlier run of the same study
     (:func:`read_csv`), compared per condition; ``changes``: what differs from it
     (markdown, said first in that section)."""
-    cfg, rows = result.config, result.rows
+    cfg, all_rows = result.config, result.rows
+    rows = block_rows(all_rows, "practice")
     C, n = len(cfg.conditions), cfg.n_subjects
-    sim_time = sum(r["sim_time"] for r in rows)
-    trial_wall = sum(r["wall_time"] for r in rows)
+    sim_time = sum(r["sim_time"] for r in all_rows)
+    trial_wall = sum(r["wall_time"] for r in all_rows)
+    blocks = 1 if cfg.design == "between" else C
+    retention = (
+        f" + {cfg.retention} retention repetitions (fixture off) after each practice block"
+        if cfg.retention else ""
+    )  # fmt: skip
     L = [
         "# Simulated user study",
         "",
-        f"Task `{cfg.task}`, {n} subjects × {C} conditions × {cfg.n_repetitions} repetitions "
-        f"= {len(rows)} trials; seed {cfg.seed}; condition order `{cfg.order}`; "
+        f"Task `{cfg.task}`, {cfg.design}-subject design: {n} subjects × {blocks} condition "
+        f"block(s) × ({cfg.n_repetitions} practice repetitions{retention}) "
+        f"= {len(all_rows)} trials ({len(rows)} practice); seed {cfg.seed}; condition order "
+        f"`{cfg.order}`; "
         f"`{cfg.engine}` engine, backend `{cfg.backend}` with {cfg.workers} worker(s); trial "
         f"timeout {cfg.timeout:g} s (simulated).",
         "",
@@ -327,6 +346,8 @@ def write_report(
         "",
         TRAINEE_METHOD,
         "",
+        mechanisms_text(cfg),
+        "",
         *comparison(result, previous, changes),
         "## Run time",
         "",
@@ -336,7 +357,7 @@ def write_report(
         "handle, the tool at point 1, to the end); "
         f"{sim_time / max(result.wall_time, 1e-9):.2f}× real time overall, "
         f"{sim_time / max(trial_wall, 1e-9):.2f}× per worker",
-        f"- unfinished trials (timed out): {sum(not r['finished'] for r in rows)}",
+        f"- unfinished trials (timed out): {sum(not r['finished'] for r in all_rows)}",
         *(
             [
                 f"- resumed: {result.resumed} trials were kept from an interrupted run (not run "
@@ -393,6 +414,13 @@ def write_report(
                 f"{_fmt(p.p_holm)} |"
             )
         L.append("")
+    if cfg.design == "between":
+        L += [
+            "(Between-subject design: each subject did one condition, so the paired tests "
+            "above have no complete subject; see the retention section's independent tests.)",
+            "",
+        ]
+    L += retention_section(result, labels)
     L += ["## The seed's claims", ""]
     found = claims(result)
     if not found:
@@ -419,8 +447,9 @@ def write_report(
         "The trainees (`davinci_sim.operators`) are a motor-control model: delayed visual "
         "feedback, minimum-jerk plans, signal-dependent noise, tremor, a limb impedance the "
         "guidance pushes against, a power law of practice. They do not misjudge depth in the "
-        "stereo view, stiffen or relax their grip under force, feel the guidance as "
-        "intrusive, get tired or clutch. A claim that hinges on such a reaction (e.g. strong "
+        "stereo view, feel the guidance as intrusive, get tired or clutch; they rely on the "
+        "guidance or stiffen their arm under it only when those mechanisms are on (above). "
+        "A claim that hinges on such a reaction (e.g. strong "
         "guidance feeling too aggressive) is outside what this study can reproduce; a "
         "disagreement there says more about the model than about the fixture.",
         "",
@@ -428,7 +457,7 @@ def write_report(
         "",
         "- `trials.csv`: one row per trial, every metric",
         "- `fig7_deviation_per_repetition.png`, `fig8_deviation_distribution.png`, "
-        "`fig9_completion_time.png`",
+        "`fig9_completion_time.png`" + (", `fig10_retention.png`" if cfg.retention else ""),
         "",
     ]
     write_text_atomic(path, "\n".join(L))
@@ -441,5 +470,7 @@ def write_outputs(result: StudyResult, folder) -> list[Path]:
     folder.mkdir(parents=True, exist_ok=True)
     write_csv(result.rows, folder / "trials.csv")
     paths = [folder / "trials.csv", *plot_figures(result, folder)]
+    extra = plot_retention(result, folder, short_labels(result.config.conditions))
+    paths += [extra] if extra is not None else []
     write_report(result, folder / "report.md")
     return [*paths, folder / "report.md"]

@@ -90,3 +90,34 @@ def pairwise_wilcoxon(table) -> list[PairwiseResult]:
         PairwiseResult(a, b, s, p, float(q), med)
         for (a, b, s, p, med), q in zip(raw, adjusted, strict=True)
     ]
+
+
+def kruskal(table) -> FriedmanResult:
+    """Kruskal-Wallis test over the columns (independent groups) of ``table`` (subjects ×
+    conditions, nan where a subject did not do the condition: the between-subject design);
+    nan if fewer than 2 groups have 2 or more values."""
+    groups = [c[np.isfinite(c)] for c in np.asarray(table, dtype=float).T]
+    groups = [g for g in groups if len(g) >= 2]
+    if len(groups) < 2 or all(np.all(g == groups[0][0]) for g in groups):
+        return FriedmanResult(float("nan"), float("nan"))
+    s, p = stats.kruskal(*groups)
+    return FriedmanResult(float(s), float(p))
+
+
+def pairwise_mannwhitney(table) -> list[PairwiseResult]:
+    """Two-sided Mann-Whitney U test of every pair of columns (independent groups), Holm-
+    corrected; ``median_difference`` is median(a) − median(b)."""
+    t = np.asarray(table, dtype=float)
+    raw = []
+    for a, b in combinations(range(t.shape[1]), 2):
+        x, y = t[np.isfinite(t[:, a]), a], t[np.isfinite(t[:, b]), b]
+        if len(x) == 0 or len(y) == 0:
+            raw.append((a, b, float("nan"), 1.0, float("nan")))
+            continue
+        s, p = stats.mannwhitneyu(x, y, alternative="two-sided")
+        raw.append((a, b, float(s), float(p), float(np.median(x) - np.median(y))))
+    adjusted = holm([r[3] for r in raw]) if raw else []
+    return [
+        PairwiseResult(a, b, s, p, float(q), med)
+        for (a, b, s, p, med), q in zip(raw, adjusted, strict=True)
+    ]

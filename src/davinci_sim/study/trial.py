@@ -106,13 +106,27 @@ class TrialSpec:
                 raise ValueError(f"{name}={given!r} contradicts the fixture entry {entry!r}")
             object.__setattr__(self, name, float(value))
 
+    block: str = "practice"
+    """``practice`` (the condition's fixture) or ``retention`` (after the practice of
+    :attr:`condition`, its fixture off: :attr:`fixture` is ``none``)."""
+    own_practice: float | None = None
+    """Practice count of the trainee's own correction (reliance on guidance,
+    :class:`~davinci_sim.operators.params.Mechanisms`); None: :attr:`practice`."""
+    condition_name: str | None = None
+    """Name of :attr:`condition` when :attr:`fixture` is not its entry (a retention
+    trial's practised condition); None: the fixture's name."""
+    mechanisms: tuple[str, ...] = ()
+    """The trainee mechanisms on (:data:`~davinci_sim.operators.params.MECHANISMS`)."""
     population: str = "trainee"
     """Synthetic population of the subject (:data:`~davinci_sim.operators.params.POPULATIONS`:
     ``trainee``, or ``expert`` for the reference of the pass marks)."""
 
     @property
-    def key(self) -> tuple[int, int, int, int]:
-        return (self.seed, self.subject, self.condition, self.repetition)
+    def key(self) -> tuple[int, ...]:
+        """The seed of the trial's noise: (seed, subject, condition, repetition), and a
+        fifth entry 1 for a retention trial (its noise differs from the practice's)."""
+        base = (self.seed, self.subject, self.condition, self.repetition)
+        return base if self.block == "practice" else (*base, 1)
 
 
 def condition_spec(B: float, G_max: float, *, transition: float = 0.0) -> dict:
@@ -256,7 +270,7 @@ def build_setup(task: PathTask, *, seed: int = 0) -> TrialSetup:
 def trial_inputs(specs: list[TrialSpec], task: PathTask, T_world_camera, hand_start):
     """The trainees of ``specs`` (one batch, one task and seed): ``(params, trainee)``."""
     from davinci_sim.operators import SyntheticTrainee
-    from davinci_sim.operators.params import sample_population
+    from davinci_sim.operators.params import Mechanisms, sample_population
 
     seeds = {s.seed for s in specs}
     if len(seeds) != 1:
@@ -264,6 +278,9 @@ def trial_inputs(specs: list[TrialSpec], task: PathTask, T_world_camera, hand_st
     populations = {s.population for s in specs}
     if len(populations) != 1:
         raise ValueError(f"one batch of trials needs one population, got {sorted(populations)}")
+    mechanisms = {tuple(sorted(s.mechanisms)) for s in specs}
+    if len(mechanisms) != 1:
+        raise ValueError(f"one batch of trials needs one set of mechanisms, got {mechanisms}")
     n = max(s.subject for s in specs) + 1
     subjects = sample_population(populations.pop(), n, seed=seeds.pop())
     params = subjects.take([s.subject for s in specs])
@@ -276,6 +293,8 @@ def trial_inputs(specs: list[TrialSpec], task: PathTask, T_world_camera, hand_st
         scale=task.teleop.scale,
         start_tolerance=task.start_tolerance,
         noise_keys=[s.key for s in specs],
+        own_practice=[s.practice if s.own_practice is None else s.own_practice for s in specs],
+        mechanisms=Mechanisms.named(mechanisms.pop()),
     )
     return params, trainee
 
@@ -290,14 +309,17 @@ def trial_row(spec: TrialSpec, task: PathTask, result, i: int, finished: bool) -
     row = {
         "subject": spec.subject,
         "condition": spec.condition,
-        "condition_name": spec.fixture.get("name", ""),
+        "condition_name": spec.condition_name or spec.fixture.get("name", ""),
         "B": spec.B,
         "G_max": spec.G_max,
         "fixture": json.dumps(params, sort_keys=True),
         "law": describe_fixture(spec.fixture),
         "order": spec.order,
+        "block": spec.block,
         "repetition": spec.repetition,
         "practice": spec.practice,
+        "own_practice": spec.practice if spec.own_practice is None else spec.own_practice,
+        "mechanisms": "+".join(spec.mechanisms),
         "seed": spec.seed,
         "task": task.name,
         "finished": bool(finished),
