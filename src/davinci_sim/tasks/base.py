@@ -436,6 +436,23 @@ def common_fields(data: dict[str, Any]) -> dict[str, Any]:
     return kw
 
 
+def common_to_dict(task) -> dict[str, Any]:
+    """The common fields of ``task`` as its file has them (the inverse of
+    :func:`common_fields`)."""
+    out = {
+        "name": task.name,
+        "description": task.description,
+        "frame": task.frame,
+        "teleop": vars(task.teleop).copy(),
+        "fixture": dict(task.fixture_spec),
+        "conditions": [dict(c) for c in task.conditions],
+        "walls": [dict(w) for w in task.walls],
+    }
+    if getattr(task, "scoring_spec", None):
+        out["scoring"] = dict(task.scoring_spec)
+    return out
+
+
 def check_keys(data: dict[str, Any], known: set[str], required=("name",)) -> None:
     """Refuse unknown or missing keys of a task file's mapping."""
     name = data.get("name", "?")

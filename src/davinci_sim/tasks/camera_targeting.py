@@ -46,10 +46,9 @@ from typing import Any, ClassVar, NamedTuple
 
 import numpy as np
 
-from davinci_sim.tasks.base import Sample, Task, TeleopSpec
+from davinci_sim.tasks.base import Sample, Task, TeleopSpec, common_to_dict
 from davinci_sim.tasks.exercise_parts import (
     VisualBody,
-    common_to_dict,
     fields_from_dict,
     points,
     positive,

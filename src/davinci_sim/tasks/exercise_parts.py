@@ -34,22 +34,6 @@ def fields_from_dict(data: dict[str, Any], own: tuple[str, ...], required: tuple
     return kw
 
 
-def common_to_dict(task) -> dict[str, Any]:
-    """The common fields of ``task`` as its file has them."""
-    out = {
-        "name": task.name,
-        "description": task.description,
-        "frame": task.frame,
-        "teleop": vars(task.teleop).copy(),
-        "fixture": dict(task.fixture_spec),
-        "conditions": [dict(c) for c in task.conditions],
-        "walls": [dict(w) for w in task.walls],
-    }
-    if getattr(task, "scoring_spec", None):
-        out["scoring"] = dict(task.scoring_spec)
-    return out
-
-
 def points(task: str, name: str, value, *, min_items: int = 1) -> np.ndarray:
     """``value`` as a read-only (k, 3) array of finite numbers (k ≥ ``min_items``)."""
     a = np.array(value, dtype=float)

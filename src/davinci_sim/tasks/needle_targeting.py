@@ -38,11 +38,10 @@ import numpy as np
 
 from davinci_sim.geometry.path import Polyline
 from davinci_sim.haptics.viscous import DEFAULT_TRANSITION, ViscousGuidance
-from davinci_sim.tasks.base import Sample, Task, TaskError, TeleopSpec
+from davinci_sim.tasks.base import Sample, Task, TaskError, TeleopSpec, common_to_dict
 from davinci_sim.tasks.exercise_parts import (
     VisualBody,
     angle_between,
-    common_to_dict,
     fields_from_dict,
     points,
     positive,

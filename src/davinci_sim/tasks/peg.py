@@ -50,7 +50,14 @@ from typing import Any, ClassVar, NamedTuple
 import numpy as np
 
 from davinci_sim.geometry.path import Polyline
-from davinci_sim.tasks.base import Sample, Task, TaskError, TeleopSpec, common_fields
+from davinci_sim.tasks.base import (
+    Sample,
+    Task,
+    TaskError,
+    TeleopSpec,
+    common_fields,
+    common_to_dict,
+)
 from davinci_sim.tasks.metrics import Metric
 from davinci_sim.tasks.schema import (
     NONNEGATIVE,
@@ -473,18 +480,9 @@ class PegTransferTask(Task, kind="peg_transfer"):
             raise TaskError(f"task {data.get('name', '?')!r}: {e}") from e
 
     def to_dict(self) -> dict[str, Any]:
-        out: dict[str, Any] = {"name": self.name, "description": self.description,
-                               "frame": self.frame}  # fmt: skip
+        out = common_to_dict(self)
         for k in self._FIELDS:
             v = getattr(self, k)
             out[k] = v.tolist() if isinstance(v, np.ndarray) else (
                 list(v) if isinstance(v, tuple) else v)  # fmt: skip
-        out.update({
-            "teleop": vars(self.teleop).copy(),
-            "fixture": dict(self.fixture_spec),
-            "conditions": [dict(c) for c in self.conditions],
-            "walls": [dict(w) for w in self.walls],
-        })  # fmt: skip
-        if self.scoring_spec:
-            out["scoring"] = dict(self.scoring_spec)
         return out

@@ -47,6 +47,7 @@ from davinci_sim.tasks.base import (
     check_keys,
     check_number,
     common_fields,
+    common_to_dict,
     load_task,
     save_task,
 )
@@ -359,23 +360,16 @@ class PathTask(Task, kind="path"):
 
     def to_dict(self) -> dict[str, Any]:
         return {
-            "name": self.name,
-            "description": self.description,
-            "frame": self.frame,
+            **common_to_dict(self),
             "waypoints": self.waypoints.tolist(),
             "corner_radius": self.corner_radius,
             "start_tolerance": self.start_tolerance,
             "finish_tolerance": self.finish_tolerance,
             "min_progress": self.min_progress,
             "tube_radius": self.tube_radius,
-            "teleop": vars(self.teleop).copy(),
-            "fixture": dict(self.fixture_spec),
-            "conditions": [dict(c) for c in self.conditions],
-            "walls": [dict(w) for w in self.walls],
             "visual": {
                 k: list(v) if isinstance(v, tuple) else v for k, v in vars(self.visual).items()
             },
-            **({"scoring": dict(self.scoring_spec)} if self.scoring_spec else {}),
         }
 
 
