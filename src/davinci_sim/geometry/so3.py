@@ -125,3 +125,33 @@ def rotate_pairs(R: np.ndarray, w: np.ndarray) -> np.ndarray:
             ]
         )
     return np.concatenate([rotate_rows(R, w[..., :3]), rotate_rows(R, w[..., 3:])], axis=-1)
+
+
+def rpy_from_matrix(R) -> tuple[float, float, float]:
+    """URDF/ROS ``(roll, pitch, yaw)`` (rad) of ``R = Rz(yaw)·Ry(pitch)·Rx(roll)`` (fixed axes
+    x, then y, then z). At gimbal lock (pitch = ±π/2) roll is 0 and yaw carries the rest."""
+    r = np.asarray(R, dtype=float)
+    sp = max(-1.0, min(1.0, -float(r[2, 0])))
+    pitch = math.asin(sp)
+    if abs(sp) < 1.0 - 1e-12:
+        roll = math.atan2(float(r[2, 1]), float(r[2, 2]))
+        yaw = math.atan2(float(r[1, 0]), float(r[0, 0]))
+    else:  # cos(pitch) = 0: only yaw ∓ roll is defined
+        roll = 0.0
+        yaw = math.atan2(-float(r[0, 1]), float(r[1, 1]))
+    return roll, pitch, yaw
+
+
+def matrix_from_rpy(roll: float, pitch: float, yaw: float) -> np.ndarray:
+    """``Rz(yaw)·Ry(pitch)·Rx(roll)``, the rotation of a URDF ``rpy`` (rad); inverse of
+    :func:`rpy_from_matrix`."""
+    cr, sr = math.cos(roll), math.sin(roll)
+    cp, sp = math.cos(pitch), math.sin(pitch)
+    cy, sy = math.cos(yaw), math.sin(yaw)
+    return np.array(
+        [
+            [cy * cp, cy * sp * sr - sy * cr, cy * sp * cr + sy * sr],
+            [sy * cp, sy * sp * sr + cy * cr, sy * sp * cr - cy * sr],
+            [-sp, cp * sr, cp * cr],
+        ]
+    )
