@@ -1,4 +1,4 @@
-"""The ``davinci-sim`` command line: ``info``, ``snapshot``, ``demo``, ``serve``, ``task``,
+"""The ``davinci-sim`` command line: ``info``, ``urdf``, ``snapshot``, ``demo``, ``serve``, ``task``,
 ``trainees`` and ``study``.
 
 Size: over 500 lines because the command line is one parser: each command is a short
@@ -51,6 +51,17 @@ def cmd_info(args: argparse.Namespace) -> int:
     print("Scenes:")
     for name, cfg in SCENES.items():
         print(f"  {name:16s} arms: {', '.join(cfg.arms)}")
+    return 0
+
+
+def cmd_urdf(args: argparse.Namespace) -> int:
+    from davinci_sim.model.urdf import scene_robot
+
+    text = scene_robot(args.scene).to_xml()
+    if args.output is None:
+        sys.stdout.write(text)
+    else:
+        Path(args.output).write_text(text)
     return 0
 
 
@@ -605,6 +616,10 @@ def main(argv: list[str] | None = None) -> int:
     sub = parser.add_subparsers(dest="command", required=True)
     p = sub.add_parser("info", help="arms, joints and scene variants")
     p.set_defaults(func=cmd_info)
+    p = sub.add_parser("urdf", help="the robot's URDF (generated from the model), to stdout")
+    p.add_argument("--scene", default="full", choices=_scene_names())
+    p.add_argument("--output", "-o", default=None, help="write to this file instead")
+    p.set_defaults(func=cmd_urdf)
     p = sub.add_parser("snapshot", help="endoscope images and an overview as PNG")
     p.add_argument("--scene", default="full", choices=_scene_names())
     p.add_argument("--output", "-o", default="snapshots", help="folder for the PNG files")

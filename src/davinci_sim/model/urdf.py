@@ -243,7 +243,7 @@ class _Colours:
             rgba = self.model.mat_rgba[matid]
         else:
             name = "rgba_" + "_".join(f"{x:.3f}" for x in rgba)
-        self.used.setdefault(name, tuple(float(x) for x in rgba))
+        self.used.setdefault(name, tuple(round(float(x), 4) for x in rgba))
         return name
 
 
