@@ -1,5 +1,5 @@
-"""The ``davinci-sim`` command line: ``info``, ``urdf``, ``snapshot``, ``demo``, ``serve``, ``task``,
-``trainees`` and ``study``.
+"""The ``davinci-sim`` command line: ``info``, ``urdf``, ``snapshot``, ``demo``, ``serve``,
+``task``, ``trainees`` and ``study``.
 
 Size: over 500 lines because the command line is one parser: each command is a short
 function that checks its options and calls the package, and ``serve`` alone has some forty

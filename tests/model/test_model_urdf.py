@@ -30,9 +30,7 @@ def parsed(robot, tmp_path_factory):
 
 
 def _random_values(robot, rng):
-    return {
-        j.name: rng.uniform(j.lower, j.upper) for j in robot.joints if j.name in robot.actuated
-    }
+    return {j.name: rng.uniform(j.lower, j.upper) for j in robot.joints if j.name in robot.actuated}
 
 
 def _mujoco_link_pose(model, data, b):

@@ -149,7 +149,8 @@ def serve_description(options: ServeOptions):
         # Snapshots cost ~0.2 ms of the loop for the full system with the console: take them
         # at the publish rate, not every tick, so the 1 kHz loop keeps its margin.
         snapshot_period=1.0 / max(options.rate, 1.0),
-        publish_qpos=options.images != "none" or options.render_hz is not None,
+        # qpos in the snapshots: the images' renderer and the robot's /tf and /joint_states.
+        publish_qpos=options.server or options.images != "none" or options.render_hz is not None,
         render_hz=options.render_hz,
         realtime_priority=options.realtime_priority if options.runner == "process" else None,
     )
@@ -194,6 +195,7 @@ def serve(
     from davinci_sim.bridge.console_node import ConsoleNode
     from davinci_sim.bridge.dvrk_node import DvrkNode
     from davinci_sim.bridge.endoscope import EndoscopeNode
+    from davinci_sim.bridge.robot_node import RobotNode
     from davinci_sim.bridge.rosbridge.server import RosbridgeServer
     from davinci_sim.bridge.system_node import SystemNode
     from davinci_sim.bridge.task_node import TaskNode
@@ -220,6 +222,7 @@ def serve(
                 ConsoleNode(handle, rate=options.rate),
                 TaskNode(handle),
                 SystemNode(handle),
+                RobotNode(handle, system.model_source, rate=options.tf_rate),
             ]
             if options.images != "none":
                 endoscope = EndoscopeNode(handle, options.scene, rate=options.image_rate,

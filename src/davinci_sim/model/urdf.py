@@ -321,12 +321,12 @@ def robot_from_model(model: mujoco.MjModel, name: str = "davinci") -> Robot:
             # MuJoCo: the body is at body_pos/quat when qpos = qpos0 (the joint's ref); URDF:
             # the child is at the origin when q = 0. So the origin is the rest pose turned
             # (or slid) back by ref about the joint's axis through its anchor.
-            back = transform(rotation_from_vector(-axis * ref)) if hinge else transform(
-                p=-axis * ref
+            back = (
+                transform(rotation_from_vector(-axis * ref)) if hinge else transform(p=-axis * ref)
             )
             T_origin = T_pb @ transform(p=anchor) @ back
             T_link_body[b] = transform(p=-anchor)
-            lo, hi = (model.jnt_range[j] if model.jnt_limited[j] else (-math.pi, math.pi))
+            lo, hi = model.jnt_range[j] if model.jnt_limited[j] else (-math.pi, math.pi)
             mj_name = model.joint(j).name
             jn = joint_name(mj_name)
             joints.append(Joint(
@@ -336,7 +336,8 @@ def robot_from_model(model: mujoco.MjModel, name: str = "davinci") -> Robot:
             ))  # fmt: skip
             addresses[jn] = int(model.jnt_qposadr[j])
         links.append(link)
-        for g in range(int(model.body_geomadr[b]), int(model.body_geomadr[b] + model.body_geomnum[b])):
+        g0 = int(model.body_geomadr[b])
+        for g in range(g0, g0 + int(model.body_geomnum[b])):
             shapes.extend(_shapes(model, g, link, T_link_body[b], colours))
         if model.body_mass[b] > 0:
             T_com = T_link_body[b] @ _T(model.body_ipos[b], model.body_iquat[b])

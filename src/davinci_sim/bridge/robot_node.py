@@ -1,0 +1,147 @@
+"""The robot for Foxglove, RViz and ``robot_state_publisher`` users: its description, every
+frame on ``/tf`` and the joint states (what ``robot_state_publisher`` gives on a real robot).
+
+* ``/robot_description`` (``std_msgs/String``, latched: a new subscriber gets it at once, as
+  ROS 2's transient-local topic) and the ROS 1 parameter ``/robot_description``: the URDF of
+  the running model (:mod:`davinci_sim.model.urdf`: cart, setup joints, PSMs, ECM, console and
+  MTMs, cameras; the dVRK's joint names);
+* ``/tf_static`` (``tf2_msgs/TFMessage``, latched): every fixed joint, once;
+* ``/tf`` at ``rate`` (50 Hz, the dVRK's tf rate) while someone subscribes: every moving
+  joint (the setup joints, every arm joint, the jaws' fingers, the MTM grippers, and the
+  parallelograms' mimic links), beside the ``measured_cp`` frames the dVRK node publishes
+  on the same topic. The tree is rooted at ``world``; ``Cart`` and ``HRSV`` are its links, so
+  ``measured_cp`` (``Cart`` → ``ECM``, ``ECM`` → ``PSM1``, ``HRSV`` → ``MTML`` …) hangs in it;
+* ``/joint_states`` (``sensor_msgs/JointState``) at the same rate while subscribed: every
+  moving joint of the URDF (mimic joints excluded, as ``joint_state_publisher`` does), so a
+  ``robot_state_publisher`` fed from it reproduces ``/tf``.
+
+The values are the simulation's joint positions, ``qpos`` (exact, where ``measured_js``
+may carry encoder noise): the snapshots must carry them (``extras["qpos"]``, the system
+built with ``publish_qpos``; ``serve`` does so whenever the server runs).
+"""
+
+from __future__ import annotations
+
+import json
+import logging
+import time
+from collections.abc import Callable
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from davinci_sim.bridge.dvrk_messages import quaternion_from_matrix
+from davinci_sim.bridge.rosbridge.publisher import PeriodicTask
+from davinci_sim.model.urdf import Robot, robot_from_model
+
+if TYPE_CHECKING:
+    import mujoco
+
+    from davinci_sim.bridge.rosbridge.core import Bridge
+    from davinci_sim.sim.handle import SimHandle
+
+_log = logging.getLogger("davinci_sim.bridge")
+
+NODE = "/davinci_sim/robot_state_publisher"
+
+
+class RobotNode:
+    """Serves the robot's description, ``/tf``, ``/tf_static`` and ``/joint_states``.
+
+    Args:
+        handle: the running simulation (its snapshots carry ``extras["qpos"]``).
+        model: the simulation's compiled model, or a callable returning it (e.g.
+            ``System.model_source``).
+        rate: publish rate of ``/tf`` and ``/joint_states``, Hz (the dVRK's tf rate, 50).
+    """
+
+    def __init__(
+        self,
+        handle: SimHandle,
+        model: mujoco.MjModel | Callable[[], mujoco.MjModel],
+        *,
+        rate: float = 50.0,
+    ) -> None:
+        if not 0 < rate <= 1000:
+            raise ValueError(f"rate must be in ]0, 1000] Hz, got {rate!r}")
+        self.handle = handle
+        self.rate = rate
+        m = model() if callable(model) else model
+        self.nq = int(m.nq)
+        self.robot: Robot = robot_from_model(m)
+        self.urdf = self.robot.to_xml()
+        self.moving = [j for j in self.robot.joints if j.type != "fixed"]
+        self.published = 0
+        self._warned = False
+        self._task: PeriodicTask | None = None
+
+    # ------------------------------------------------------------------ setup
+    def attach(self, bridge: Bridge) -> None:
+        self.bridge = bridge
+        d = bridge.dialect
+        description = bridge.advertise("/robot_description", "std_msgs/String", node=NODE,
+                                       latch=True)  # fmt: skip
+        bridge.publish(description, {"data": self.urdf})
+        bridge.params["/robot_description"] = json.dumps(self.urdf)
+        static = bridge.advertise("/tf_static", "tf2_msgs/TFMessage", node=NODE, latch=True)
+        stamp = self._stamp(self.handle.snapshot().time)
+        bridge.publish(static, {"transforms": [
+            _transform(d, j.parent, j.child, j.T_parent_origin, stamp)
+            for j in self.robot.joints if j.type == "fixed"
+        ]})  # fmt: skip
+        self.tf = bridge.advertise("/tf", "tf2_msgs/TFMessage", node=NODE)
+        self.joint_states = bridge.advertise("/joint_states", "sensor_msgs/JointState", node=NODE)
+        self._task = PeriodicTask(1.0 / self.rate, self._publish)
+        self._task.start()
+
+    async def detach(self) -> None:
+        if self._task is not None:
+            await self._task.stop()
+        self.bridge.params.pop("/robot_description", None)
+        self.bridge.remove_node(NODE)
+
+    # ------------------------------------------------------------------ publishing
+    def _stamp(self, sim_time: float) -> float:
+        return sim_time if self.bridge.config.stamp_clock == "sim" else time.time()
+
+    def _publish(self) -> None:
+        if not (self.tf.subscriptions or self.joint_states.subscriptions):
+            return
+        snap = self.handle.snapshot()
+        qpos = snap.extras.get("qpos")
+        if qpos is None or len(qpos) != self.nq:
+            if not self._warned:
+                self._warned = True
+                _log.warning("/tf and /joint_states: the snapshots carry no qpos of %d values "
+                             "(build the system with publish_qpos=True)", self.nq)  # fmt: skip
+            return
+        values = self.robot.joint_values(qpos)
+        stamp = self._stamp(snap.time)
+        d = self.bridge.dialect
+        if self.joint_states.subscriptions:
+            self.bridge.publish(self.joint_states, {
+                "header": d.header(stamp, "", self.joint_states.next_seq()),
+                "name": list(values), "position": list(values.values()),
+                "velocity": [], "effort": [],
+            })  # fmt: skip
+        if self.tf.subscriptions:
+            transforms = [
+                _transform(d, j.parent, j.child, T, stamp)
+                for j, T in self.robot.transforms(values)
+                if j.type != "fixed"
+            ]
+            self.bridge.publish(self.tf, {"transforms": transforms})
+        self.published += 1
+
+
+def _transform(d, parent: str, child: str, T: np.ndarray, stamp: float) -> dict:
+    """``geometry_msgs/TransformStamped``: ``child``'s pose in ``parent``."""
+    x, y, z, w = quaternion_from_matrix(T[:3, :3])
+    return {
+        "header": d.header(stamp, parent, 0),
+        "child_frame_id": child,
+        "transform": {
+            "translation": {"x": float(T[0, 3]), "y": float(T[1, 3]), "z": float(T[2, 3])},
+            "rotation": {"x": x, "y": y, "z": z, "w": w},
+        },
+    }
