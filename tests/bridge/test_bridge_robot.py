@@ -30,13 +30,14 @@ def robot_handle():
     h.stop()
 
 
-@pytest.fixture(scope="module")
-def robot_server(robot_handle):
+@pytest.fixture(scope="module", params=[1, 2], ids=["ros1", "ros2"])
+def robot_server(robot_handle, request):
+    """The server in both dialects (ROS 1 and ROS 2 message and type names)."""
     from davinci_sim.bridge import BridgeConfig, RosbridgeServer
 
     sim_model = robot_handle.sim.model
     nodes = [DvrkNode(robot_handle, tf_rate=50.0), RobotNode(robot_handle, sim_model, rate=50.0)]
-    server = RosbridgeServer(BridgeConfig(port=0), nodes=nodes).start()
+    server = RosbridgeServer(BridgeConfig(port=0, ros_version=request.param), nodes=nodes).start()
     yield server
     server.stop()
 

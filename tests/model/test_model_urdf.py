@@ -172,3 +172,15 @@ def test_bad_model_is_refused():
     b.add_joint(type=mujoco.mjtJoint.mjJNT_HINGE, axis=[1, 0, 0])
     with pytest.raises(ValueError, match="only one hinge"):
         robot_from_model(spec.compile())
+
+
+def test_batched_transforms_equal_each_joint_alone(robot):
+    """/tf's all-at-once transforms equal each joint's own (Joint.T_parent_child), mimic
+    joints following their joint."""
+    rng = np.random.default_rng(11)
+    values = _random_values(robot, rng)
+    batch = robot.moving_transforms(values)
+    assert len(batch) == len(robot.moving) == len(robot.actuated) + 4
+    for j, T in zip(robot.moving, batch, strict=True):
+        q = values[j.mimic[0]] * j.mimic[1] + j.mimic[2] if j.mimic else values[j.name]
+        np.testing.assert_allclose(T, j.T_parent_child(q), atol=1e-14, err_msg=j.name)

@@ -29,6 +29,7 @@ from collections.abc import Callable
 from typing import TYPE_CHECKING
 
 import numpy as np
+from scipy.spatial.transform import Rotation
 
 from davinci_sim.bridge.dvrk_messages import quaternion_from_matrix
 from davinci_sim.bridge.rosbridge.publisher import PeriodicTask
@@ -125,10 +126,20 @@ class RobotNode:
                 "velocity": [], "effort": [],
             })  # fmt: skip
         if self.tf.subscriptions:
+            T = self.robot.moving_transforms(values)
+            xyz = T[:, :3, 3].tolist()
+            quat = Rotation.from_matrix(T[:, :3, :3]).as_quat().tolist()  # (x, y, z, w)
+            header = d.header(stamp, "", 0)
             transforms = [
-                _transform(d, j.parent, j.child, T, stamp)
-                for j, T in self.robot.transforms(values)
-                if j.type != "fixed"
+                {
+                    "header": {**header, "frame_id": j.parent},
+                    "child_frame_id": j.child,
+                    "transform": {
+                        "translation": {"x": p[0], "y": p[1], "z": p[2]},
+                        "rotation": {"x": r[0], "y": r[1], "z": r[2], "w": r[3]},
+                    },
+                }
+                for j, p, r in zip(self.robot.moving, xyz, quat, strict=True)
             ]
             self.bridge.publish(self.tf, {"transforms": transforms})
         self.published += 1

@@ -44,6 +44,7 @@ import math
 import xml.etree.ElementTree as ET
 from collections.abc import Mapping
 from dataclasses import dataclass
+from functools import cached_property
 
 import mujoco
 import numpy as np
@@ -173,17 +174,44 @@ class Robot:
         q = np.asarray(qpos, dtype=float)
         return {name: float(q[adr]) for name, adr in self.qpos_addresses.items()}
 
+    @cached_property
+    def moving(self) -> tuple[Joint, ...]:
+        """The joints that are not fixed (actuated and mimic), in tree order."""
+        return tuple(j for j in self.joints if j.type != "fixed")
+
+    @cached_property
+    def _batch(self) -> tuple:
+        mv = self.moving
+        origins = np.stack([j.T_parent_origin for j in mv])
+        axes = np.stack([j.axis for j in mv])
+        revolute = np.array([j.type == "revolute" for j in mv])
+        source = [j.mimic[0] if j.mimic else j.name for j in mv]
+        multiplier = np.array([j.mimic[1] if j.mimic else 1.0 for j in mv])
+        offset = np.array([j.mimic[2] if j.mimic else 0.0 for j in mv])
+        K = np.zeros((len(mv), 3, 3))  # the axes' cross-product matrices (Rodrigues)
+        K[:, 0, 1], K[:, 0, 2], K[:, 1, 2] = -axes[:, 2], axes[:, 1], -axes[:, 0]
+        K -= K.transpose(0, 2, 1)
+        return origins, axes, revolute, source, multiplier, offset, K, K @ K
+
+    def moving_transforms(self, values: Mapping[str, float]) -> np.ndarray:
+        """``T_parent_child`` (n, 4, 4) of the :attr:`moving` joints at the actuated joints'
+        ``values`` (mimic joints follow theirs; a missing value counts as 0), all at once:
+        what ``/tf`` publishes at its rate."""
+        origins, axes, revolute, source, multiplier, offset, K, K2 = self._batch
+        q = multiplier * np.array([values.get(name, 0.0) for name in source]) + offset
+        s, c = np.sin(q)[:, None, None], np.cos(q)[:, None, None]
+        M = np.zeros((len(q), 4, 4))
+        M[:, :3, :3] = np.where(revolute[:, None, None], np.eye(3) + s * K + (1 - c) * K2,
+                                np.eye(3))  # fmt: skip
+        M[:, :3, 3] = np.where(revolute[:, None], 0.0, axes * q[:, None])
+        M[:, 3, 3] = 1.0
+        return origins @ M
+
     def transforms(self, values: Mapping[str, float]) -> list[tuple[Joint, np.ndarray]]:
         """``(joint, T_parent_child)`` of every joint at the actuated joints' ``values``
-        (mimic joints follow theirs; a missing value counts as 0)."""
-        out = []
-        for j in self.joints:
-            if j.mimic is not None:
-                q = j.mimic[1] * values.get(j.mimic[0], 0.0) + j.mimic[2]
-            else:
-                q = values.get(j.name, 0.0)
-            out.append((j, j.T_parent_child(q)))
-        return out
+        (see :meth:`moving_transforms`), in tree order."""
+        moving = dict(zip(self.moving, self.moving_transforms(values), strict=True))
+        return [(j, moving[j] if j in moving else j.T_parent_origin) for j in self.joints]
 
     def link_poses(self, values: Mapping[str, float]) -> dict[str, np.ndarray]:
         """``T_root_link`` of every link at ``values`` (forward kinematics)."""
