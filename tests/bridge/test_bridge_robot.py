@@ -177,3 +177,20 @@ def test_no_qpos_in_the_snapshots_is_said_once_and_publishes_nothing(caplog):
         h.stop()
     with pytest.raises(ValueError, match="rate"):
         RobotNode(h, sim.model, rate=0)
+
+
+def test_serve_publishes_the_robot(make_ros):
+    """``davinci-sim serve`` (no images) runs the robot node with qpos in its snapshots."""
+    from bridge_helpers import serving
+
+    from davinci_sim.bridge.app import ServeOptions
+    from davinci_sim.bridge.rosbridge.config import BridgeConfig
+
+    options = ServeOptions(scene="psm1", images="none", bridge=BridgeConfig(port=0))
+    with serving(options) as server:
+        ros = make_ros(server)
+        description = subscribe(ros, "/robot_description", "std_msgs/String")
+        states = subscribe(ros, "/joint_states", "sensor_msgs/JointState")
+        assert wait_for(lambda: description and states, 10)
+        assert "PSM1_wrist_yaw" in description[0]["data"]
+        assert "PSM1_wrist_yaw" in states[-1]["name"]
