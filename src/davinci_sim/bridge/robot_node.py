@@ -15,6 +15,9 @@ frame on ``/tf`` and the joint states (what ``robot_state_publisher`` gives on a
   moving joint of the URDF (mimic joints excluded, as ``joint_state_publisher`` does), so a
   ``robot_state_publisher`` fed from it reproduces ``/tf``.
 
+The messages are built by pure functions (:func:`tf_message`, :func:`static_tf_message`,
+:func:`joint_state_message`) that another transport (client mode) can publish as they are.
+
 The values are the simulation's joint positions, ``qpos`` (exact, where ``measured_js``
 may carry encoder noise): the snapshots must carry them (``extras["qpos"]``, the system
 built with ``publish_qpos``; ``serve`` does so whenever the server runs).
@@ -25,13 +28,12 @@ from __future__ import annotations
 import json
 import logging
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from typing import TYPE_CHECKING
 
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from davinci_sim.bridge.dvrk_messages import quaternion_from_matrix
 from davinci_sim.bridge.rosbridge.publisher import PeriodicTask
 from davinci_sim.model.urdf import Robot, robot_from_model
 
@@ -39,6 +41,7 @@ if TYPE_CHECKING:
     import mujoco
 
     from davinci_sim.bridge.rosbridge.core import Bridge
+    from davinci_sim.bridge.rosbridge.dialect import Dialect
     from davinci_sim.sim.handle import SimHandle
 
 _log = logging.getLogger("davinci_sim.bridge")
@@ -86,10 +89,7 @@ class RobotNode:
         bridge.params["/robot_description"] = json.dumps(self.urdf)
         static = bridge.advertise("/tf_static", "tf2_msgs/TFMessage", node=NODE, latch=True)
         stamp = self._stamp(self.handle.snapshot().time)
-        bridge.publish(static, {"transforms": [
-            _transform(d, j.parent, j.child, j.T_parent_origin, stamp)
-            for j in self.robot.joints if j.type == "fixed"
-        ]})  # fmt: skip
+        bridge.publish(static, static_tf_message(self.robot, d, stamp))
         self.tf = bridge.advertise("/tf", "tf2_msgs/TFMessage", node=NODE)
         self.joint_states = bridge.advertise("/joint_states", "sensor_msgs/JointState", node=NODE)
         self._task = PeriodicTask(1.0 / self.rate, self._publish)
@@ -120,39 +120,52 @@ class RobotNode:
         stamp = self._stamp(snap.time)
         d = self.bridge.dialect
         if self.joint_states.subscriptions:
-            self.bridge.publish(self.joint_states, {
-                "header": d.header(stamp, "", self.joint_states.next_seq()),
-                "name": list(values), "position": list(values.values()),
-                "velocity": [], "effort": [],
-            })  # fmt: skip
+            seq = self.joint_states.next_seq()
+            self.bridge.publish(self.joint_states, joint_state_message(values, d, stamp, seq))
         if self.tf.subscriptions:
-            T = self.robot.moving_transforms(values)
-            xyz = T[:, :3, 3].tolist()
-            quat = Rotation.from_matrix(T[:, :3, :3]).as_quat().tolist()  # (x, y, z, w)
-            header = d.header(stamp, "", 0)
-            transforms = [
-                {
-                    "header": {**header, "frame_id": j.parent},
-                    "child_frame_id": j.child,
-                    "transform": {
-                        "translation": {"x": p[0], "y": p[1], "z": p[2]},
-                        "rotation": {"x": r[0], "y": r[1], "z": r[2], "w": r[3]},
-                    },
-                }
-                for j, p, r in zip(self.robot.moving, xyz, quat, strict=True)
-            ]
-            self.bridge.publish(self.tf, {"transforms": transforms})
+            self.bridge.publish(self.tf, tf_message(self.robot, values, d, stamp))
         self.published += 1
 
 
-def _transform(d, parent: str, child: str, T: np.ndarray, stamp: float) -> dict:
-    """``geometry_msgs/TransformStamped``: ``child``'s pose in ``parent``."""
-    x, y, z, w = quaternion_from_matrix(T[:3, :3])
+# =========================================================================== messages
+def _transforms(d: Dialect, joints, T: np.ndarray, stamp: float) -> list[dict]:
+    """``geometry_msgs/TransformStamped`` of each joint: its child's pose ``T[i]`` (n, 4, 4)
+    in its parent."""
+    xyz = T[:, :3, 3].tolist()
+    quat = Rotation.from_matrix(T[:, :3, :3]).as_quat().tolist()  # (x, y, z, w)
+    header = d.header(stamp, "", 0)
+    return [
+        {
+            "header": {**header, "frame_id": j.parent},
+            "child_frame_id": j.child,
+            "transform": {
+                "translation": {"x": p[0], "y": p[1], "z": p[2]},
+                "rotation": {"x": r[0], "y": r[1], "z": r[2], "w": r[3]},
+            },
+        }
+        for j, p, r in zip(joints, xyz, quat, strict=True)
+    ]
+
+
+def tf_message(robot: Robot, values: Mapping[str, float], d: Dialect, stamp: float) -> dict:
+    """``tf2_msgs/TFMessage`` of every moving joint of ``robot`` at the joint ``values``
+    (rad, m; see :meth:`~davinci_sim.model.urdf.Robot.moving_transforms`)."""
+    return {"transforms": _transforms(d, robot.moving, robot.moving_transforms(values), stamp)}
+
+
+def static_tf_message(robot: Robot, d: Dialect, stamp: float) -> dict:
+    """``tf2_msgs/TFMessage`` of every fixed joint of ``robot`` (``/tf_static``)."""
+    fixed = [j for j in robot.joints if j.type == "fixed"]
+    return {"transforms": _transforms(d, fixed, np.stack([j.T_parent_origin for j in fixed]),
+                                      stamp)}  # fmt: skip
+
+
+def joint_state_message(values: Mapping[str, float], d: Dialect, stamp: float, seq: int = 0):
+    """``sensor_msgs/JointState`` of the joint ``values`` (URDF joint name → rad or m)."""
     return {
-        "header": d.header(stamp, parent, 0),
-        "child_frame_id": child,
-        "transform": {
-            "translation": {"x": float(T[0, 3]), "y": float(T[1, 3]), "z": float(T[2, 3])},
-            "rotation": {"x": x, "y": y, "z": z, "w": w},
-        },
+        "header": d.header(stamp, "", seq),
+        "name": list(values),
+        "position": [float(v) for v in values.values()],
+        "velocity": [],
+        "effort": [],
     }
