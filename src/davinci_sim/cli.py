@@ -57,7 +57,15 @@ def cmd_info(args: argparse.Namespace) -> int:
 def cmd_urdf(args: argparse.Namespace) -> int:
     from davinci_sim.model.urdf import scene_robot
 
-    text = scene_robot(args.scene).to_xml()
+    robot = scene_robot(args.scene)
+    if args.arm is not None:
+        try:
+            robot = robot.arm(args.arm)
+        except KeyError:
+            print(f"davinci-sim urdf: no arm {args.arm!r} in scene {args.scene!r}; its arms: "
+                  f"{', '.join(robot.arms)}", file=sys.stderr)  # fmt: skip
+            return 2
+    text = robot.to_xml()
     if args.output is None:
         sys.stdout.write(text)
     else:
@@ -618,6 +626,7 @@ def main(argv: list[str] | None = None) -> int:
     p.set_defaults(func=cmd_info)
     p = sub.add_parser("urdf", help="the robot's URDF (generated from the model), to stdout")
     p.add_argument("--scene", default="full", choices=_scene_names())
+    p.add_argument("--arm", default=None, help="one arm alone (PSM1, SUJ/PSM1 …), as the dVRK's")
     p.add_argument("--output", "-o", default=None, help="write to this file instead")
     p.set_defaults(func=cmd_urdf)
     p = sub.add_parser("snapshot", help="endoscope images and an overview as PNG")

@@ -92,6 +92,14 @@ def test_description_is_latched_and_a_parameter(ros, description, parsed):
     # a second, later subscriber gets it too (latched)
     again = subscribe(ros, "/robot_description", "std_msgs/String")
     assert wait_for(lambda: again) and again[0]["data"] == description
+    # each arm alone, its joints named as its measured_js (the dVRK's per-arm launch files)
+    arm = subscribe(ros, "/PSM1/robot_description", "std_msgs/String")
+    js = subscribe(ros, "/PSM1/measured_js", "sensor_msgs/JointState")
+    assert wait_for(lambda: arm and js)
+    psm1 = yourdfpy.URDF.load(io.BytesIO(arm[0]["data"].encode()), load_meshes=False)
+    assert set(js[-1]["name"]) <= set(psm1.actuated_joint_names)
+    assert set(psm1.link_map) < set(parsed.link_map)  # the same frames
+    assert roslibpy.Param(ros, "/SUJ/PSM1/robot_description").get(timeout=5).startswith("<?xml")
 
 
 def test_tf_tree_is_connected_complete_and_matches_the_urdf(ros, parsed, robot_handle):

@@ -184,3 +184,35 @@ def test_batched_transforms_equal_each_joint_alone(robot):
     for j, T in zip(robot.moving, batch, strict=True):
         q = values[j.mimic[0]] * j.mimic[1] + j.mimic[2] if j.mimic else values[j.name]
         np.testing.assert_allclose(T, j.T_parent_child(q), atol=1e-14, err_msg=j.name)
+
+
+def test_each_arm_alone_as_the_dvrk_describes_it(full_model, robot, tmp_path):
+    """Per-arm URDFs: the arm's links with the same names, joints named as its measured_js,
+    and the same kinematics from its base."""
+    from davinci_sim.kinematics.arms import load_arm, load_suj
+
+    assert set(robot.arms) == {"PSM1", "PSM2", "PSM3", "ECM", "MTML", "MTMR", "SUJ/PSM1",
+                               "SUJ/PSM2", "SUJ/PSM3", "SUJ/ECM"}  # fmt: skip
+    values = _random_values(robot, np.random.default_rng(5))
+    whole = robot.link_poses(values)
+    for arm in robot.arms:
+        part = robot.arm(arm)
+        path = tmp_path / f"{arm.replace('/', '_')}.urdf"
+        path.write_text(part.to_xml())
+        parsed = yourdfpy.URDF.load(str(path), load_meshes=False)
+        if arm.startswith("SUJ/"):
+            names = load_suj()[arm[4:]].chain.joint_names
+        else:
+            names = load_arm(arm).chain.joint_names
+        assert set(names) <= set(parsed.actuated_joint_names), arm
+        assert set(part.links) <= set(robot.links)
+        assert parsed.base_link == part.root == f"{arm.replace('/', '_')}_base_link"
+        prefix = arm.replace("/", "_") + "_"
+        own = {(n if arm.startswith("SUJ") else n.removeprefix(prefix)): v
+               for n, v in values.items() if n.startswith(prefix)}  # fmt: skip
+        poses = part.link_poses(own)
+        T_world_root = whole[part.root]
+        for link, T in poses.items():
+            np.testing.assert_allclose(T_world_root @ T, whole[link], atol=1e-12, err_msg=link)
+    with pytest.raises(KeyError, match="PSM7"):
+        robot.arm("PSM7")

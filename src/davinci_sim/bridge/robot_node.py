@@ -5,6 +5,9 @@ frame on ``/tf`` and the joint states (what ``robot_state_publisher`` gives on a
   ROS 2's transient-local topic) and the ROS 1 parameter ``/robot_description``: the URDF of
   the running model (:mod:`davinci_sim.model.urdf`: cart, setup joints, PSMs, ECM, console and
   MTMs, cameras; the dVRK's joint names);
+* ``/<ARM>/robot_description`` (latched, and parameters): each arm alone (``PSM1``,
+  ``SUJ/PSM1`` …), as the dVRK's launch files describe them: the same link names, so they
+  draw from the same ``/tf``, and the joints named as ``/<ARM>/measured_js`` names them;
 * ``/tf_static`` (``tf2_msgs/TFMessage``, latched): every fixed joint, once;
 * ``/tf`` at ``rate`` (50 Hz, the dVRK's tf rate) while someone subscribes: every moving
   joint (the setup joints, every arm joint, the jaws' fingers, the MTM grippers, and the
@@ -74,6 +77,7 @@ class RobotNode:
         self.nq = int(m.nq)
         self.robot: Robot = robot_from_model(m)
         self.urdf = self.robot.to_xml()
+        self.arm_urdfs = {arm: self.robot.arm(arm).to_xml() for arm in self.robot.arms}
         self.moving = [j for j in self.robot.joints if j.type != "fixed"]
         self.published = 0
         self._warned = False
@@ -87,6 +91,11 @@ class RobotNode:
                                        latch=True)  # fmt: skip
         bridge.publish(description, {"data": self.urdf})
         bridge.params["/robot_description"] = json.dumps(self.urdf)
+        for arm, urdf in self.arm_urdfs.items():  # each arm alone, as the dVRK describes it
+            topic = bridge.advertise(f"/{arm}/robot_description", "std_msgs/String", node=NODE,
+                                     latch=True)  # fmt: skip
+            bridge.publish(topic, {"data": urdf})
+            bridge.params[f"/{arm}/robot_description"] = json.dumps(urdf)
         static = bridge.advertise("/tf_static", "tf2_msgs/TFMessage", node=NODE, latch=True)
         stamp = self._stamp(self.handle.snapshot().time)
         bridge.publish(static, static_tf_message(self.robot, d, stamp))
@@ -98,7 +107,8 @@ class RobotNode:
     async def detach(self) -> None:
         if self._task is not None:
             await self._task.stop()
-        self.bridge.params.pop("/robot_description", None)
+        for name in ("", *(f"/{arm}" for arm in self.arm_urdfs)):
+            self.bridge.params.pop(f"{name}/robot_description", None)
         self.bridge.remove_node(NODE)
 
     # ------------------------------------------------------------------ publishing

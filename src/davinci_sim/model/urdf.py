@@ -42,7 +42,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from functools import cached_property
 
 import mujoco
@@ -211,6 +211,54 @@ class Robot:
         (see :meth:`moving_transforms`), in tree order."""
         moving = dict(zip(self.moving, self.moving_transforms(values), strict=True))
         return [(j, moving[j] if j in moving else j.T_parent_origin) for j in self.joints]
+
+    def arm(self, arm: str) -> Robot:
+        """The part of one arm, as the dVRK describes each arm on its own: the links named
+        ``<prefix>…`` (``PSM1`` → ``PSM1_…``, ``SUJ/PSM1`` → ``SUJ_PSM1_…``), rooted at the
+        arm's base link, with the same link names (so it draws from the same ``/tf``) and
+        the joints named as the arm's ``measured_js`` names them (``yaw``, ``pitch`` …;
+        ``jaw_1``/``jaw_2`` the fingers; the setup joints keep ``SUJ_PSM1_J0`` …).
+
+        Raises:
+            KeyError: no link of that arm.
+        """
+        prefix = arm.replace("/", "_") + "_"
+        links = tuple(n for n in self.links if n.startswith(prefix))
+        if not links:
+            raise KeyError(f"no link of arm {arm!r} (its links would start with {prefix!r})")
+        kept = set(links)
+        joints = [j for j in self.joints if j.parent in kept and j.child in kept]
+        roots = kept - {j.child for j in joints}
+        if len(roots) != 1:
+            raise KeyError(f"arm {arm!r}: its links {sorted(roots)} are not one tree")
+        root = roots.pop()
+        renamed = {j.name: j.name.removeprefix(prefix) if not arm.startswith("SUJ") else j.name
+                   for j in joints}  # fmt: skip
+
+        def rename(j: Joint) -> Joint:
+            mimic = None if j.mimic is None else (renamed[j.mimic[0]], *j.mimic[1:])
+            return replace(j, name=renamed[j.name], mimic=mimic)
+
+        return Robot(
+            arm.replace("/", "_"),
+            (root, *(n for n in links if n != root)),
+            tuple(rename(j) for j in joints),
+            tuple(x for x in self.shapes if x.link in kept),
+            tuple(x for x in self.inertials if x.link in kept),
+            self.materials,
+            {renamed[n]: a for n, a in self.qpos_addresses.items() if n in renamed},
+        )
+
+    @property
+    def arms(self) -> tuple[str, ...]:
+        """The arms :meth:`arm` describes (``PSM1`` …, ``SUJ/PSM1`` …), by their joints."""
+        out = []
+        for j in self.joints:
+            if j.source is not None and "/" in j.source:
+                arm = j.source.rsplit("/", 1)[0]
+                if arm not in out:
+                    out.append(arm)
+        return tuple(out)
 
     def link_poses(self, values: Mapping[str, float]) -> dict[str, np.ndarray]:
         """``T_root_link`` of every link at ``values`` (forward kinematics)."""
