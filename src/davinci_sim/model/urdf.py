@@ -5,7 +5,9 @@ tendons of a compiled :class:`mujoco.MjModel` (the one :func:`~davinci_sim.model
 makes from the dVRK kinematics) and returns a :class:`Robot`: a frozen value that writes the
 URDF (:meth:`Robot.to_xml`) and gives every joint's transform at given joint values
 (:meth:`Robot.transforms`, what ``robot_state_publisher`` computes; the bridge's
-``/tf``, ``/tf_static`` and ``/joint_states`` come from it).
+``/tf``, ``/tf_static`` and ``/joint_states`` come from it). :meth:`Robot.arm` is one arm
+alone, as the dVRK's launch files describe each arm (its joints named as its
+``measured_js``).
 
 Names (frames as the dVRK's URDF spells them, joints as the bridge publishes them):
 
