@@ -33,11 +33,11 @@ parallelogram's back link is a tendon drawn between the yaw and pitch bodies. He
 the dVRK's own URDF, it becomes a link ``<ARM>_pitch_back_link`` on a joint that mimics
 ``<ARM>_pitch`` (multiplier 1), hinged at the lower pivot: it stays parallel to the
 instrument, which is what the parallelogram does. Geometry: boxes, cylinders and spheres
-as URDF primitives, a capsule as a cylinder and two spheres; the floor plane and free
-bodies (loose objects such as the bead) are not part of the robot and are left out.
-Limits: MuJoCo's joint ranges; effort the joint servo's force range; velocity the dVRK's
-trajectory limit where the dVRK gives one, else 0 (URDF's "unknown": the braked setup
-joints, the MTM's passive gripper).
+as URDF primitives, a capsule as a cylinder and two spheres; the scene's fixed bodies (the
+operating table, the bead's post) are fixed links; the floor plane and free bodies (loose
+objects such as the bead) are left out. Limits: MuJoCo's joint ranges; effort the joint
+servo's force range; velocity the dVRK's trajectory limit where the dVRK gives one, else 0
+(the braked setup joints and the MTM's passive gripper have none: read 0 as "not given").
 """
 
 from __future__ import annotations
