@@ -155,7 +155,7 @@ def run_script(script: str, args: list[str], options: RunOptions,
             say(f"davinci-sim run: connected to {options.connect}")
         else:
             system, bridge = _start_in_process(options)
-            stops += [system, bridge]
+            stops += [bridge, system]  # the loop stops first: no answer left for the bridge
             connection = bridge.connect()
             say(f"davinci-sim run: simulation {options.scene!r} in this process "
                 f"(arms {', '.join(sorted(system.handle.snapshot().arms))})")  # fmt: skip
