@@ -178,7 +178,8 @@ class utils:  # noqa: N801 (crtk's name)
 
     def _subscribe(self, topic: str, type_name: str) -> _Stream:
         stream = _Stream()
-        self._ral.subscriber(topic, type_name, stream)
+        # only the newest is read: a client busy elsewhere must not fall behind a queue
+        self._ral.subscriber(topic, type_name, stream, queue_size=1)
         return stream
 
     # ------------------------------------------------------------ operating state

@@ -274,7 +274,8 @@ class ral:  # noqa: N801 (crtk's name)
     def subscriber(self, topic: str, msg_type: str, callback: Callable, queue_size: int = 10,
                    latch: bool = False, *args: Any, **kwargs: Any) -> Subscriber:  # fmt: skip
         sub = Subscriber(self._add_namespace_to(topic), _type_name(msg_type))
-        self._client.subscribe(sub.topic_name, sub.type, lambda d: callback(Message(d)))
+        self._client.subscribe(sub.topic_name, sub.type, lambda d: callback(Message(d)),
+                               queue_length=int(queue_size))  # fmt: skip
         self._subscribers.append(sub)
         return sub
 

@@ -120,14 +120,21 @@ class RosbridgeClient:
             raise TransportError("the connection to the simulation is closed")
         self.connection.send(json.dumps(op))
 
-    def subscribe(self, topic: str, type_name: str, callback: MessageCallback) -> None:
+    def subscribe(self, topic: str, type_name: str, callback: MessageCallback,
+                  queue_length: int = 0) -> None:  # fmt: skip
+        """Call ``callback(msg)`` for each message of ``topic``. ``queue_length`` > 0 bounds
+        the server's queue for this client (the oldest dropped: 1 for a value of which only
+        the newest matters); 0: the server's default (the first subscription decides)."""
         with self._lock:
             first = topic not in self._callbacks
             self._callbacks.setdefault(topic, []).append(callback)
             self._types.setdefault(topic, type_name)
         if first:
-            self._send({"op": "subscribe", "topic": topic, "type": type_name,
-                        "id": f"subscribe:{topic}:{next(self._ids)}"})  # fmt: skip
+            op = {"op": "subscribe", "topic": topic, "type": type_name,
+                  "id": f"subscribe:{topic}:{next(self._ids)}"}  # fmt: skip
+            if queue_length > 0:
+                op["queue_length"] = int(queue_length)
+            self._send(op)
 
     def publish(self, topic: str, type_name: str, msg: dict) -> None:
         with self._lock:
