@@ -43,14 +43,14 @@ class example_application:
         jp, _ = self.arm.measured_jp()
         print(f"move_jp_error_deg: {math.degrees(numpy.max(numpy.abs(jp[[0, 1, 3, 4, 5]] - goal[[0, 1, 3, 4, 5]]))):.3f}")
         print(f"move_jp_insertion_error_mm: {1000 * abs(jp[2] - goal[2]):.3f}")
-        # a relative move: 10 degrees on the first joint, then back
+        # a relative move: 5 degrees on the first joint, then back
         delta = numpy.zeros(len(goal))
-        delta[0] = math.radians(10.0)
+        delta[0] = math.radians(5.0)
         self.arm.move_jr(delta).wait()
         jp, _ = self.arm.measured_jp()
         print(f"move_jr_yaw_deg: {math.degrees(jp[0]):.3f}")
         self.arm.move_jr(-delta).wait()
-        self.arm.insert_jp(0.14).wait()
+        self.arm.insert_jp(0.13).wait()
         print(f"insert_jp_mm: {1000 * self.arm.measured_jp()[0][2]:.3f}")
 
     def cartesian_moves(self):

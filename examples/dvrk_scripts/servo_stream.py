@@ -45,11 +45,17 @@ def run(ral, arm, rate_hz, duration):
     elapsed = time.monotonic() - t0
     print(f"servo_jp_sent: {samples}")
     print(f"loop_rate_hz: {samples / elapsed:.1f}")
-    time.sleep(0.2)
-    jp, _ = arm.measured_jp()
+    # the arm settles on the last command
+    t1 = time.monotonic()
+    while time.monotonic() - t1 < 5.0:
+        jp, _ = arm.measured_jp()
+        if numpy.max(numpy.abs(jp[0:2] - goal[0:2])) < math.radians(0.2):
+            break
+        time.sleep(0.01)
     print(f"final_error_deg: {math.degrees(numpy.max(numpy.abs(jp[0:2] - goal[0:2]))):.3f}")
     setpoint, _ = arm.setpoint_jp()
     print(f"setpoint_error_deg: {math.degrees(numpy.max(numpy.abs(setpoint[0:2] - goal[0:2]))):.3f}")
+    print("done")
 
 
 if __name__ == "__main__":

@@ -144,6 +144,8 @@ def run_script(script: str, args: list[str], options: RunOptions,
     from davinci_sim.compat import ral as ral_module
     from davinci_sim.compat.transport import RosbridgeClient, WebSocketConnection
 
+    if not pathlib.Path(script).is_file():  # before starting anything
+        raise FileNotFoundError(f"no such script: {script}")
     choice = module_choice(options.force_compat)
     say(f"davinci-sim run: {choice.describe()}")
     install_modules(choice)
