@@ -36,12 +36,17 @@ def run(ral, args):
     console = dvrk.console(ral)
     teleop = dvrk.teleop_psm(ral, f"{args.mtm}_{args.psm}")
     psm = dvrk.psm(ral, args.psm)
-    buttons = {name: crtk.joystick_button(ral, f"/console/{name}")
-               for name in ("clutch", "camera", "operator_present")}
+    buttons = {
+        name: crtk.joystick_button(ral, f"/console/{name}")
+        for name in ("clutch", "camera", "operator_present")
+    }
     emulate = {name: ral.publisher(f"/console/emulate_{name}", Joy) for name in buttons}
     enabled = threading.Event()
-    ral.subscriber("/console/teleop/enabled", "std_msgs/Bool",
-                   lambda msg: enabled.set() if msg.data else enabled.clear())
+    ral.subscriber(
+        "/console/teleop/enabled",
+        "std_msgs/Bool",
+        lambda msg: enabled.set() if msg.data else enabled.clear(),
+    )
     ral.check_connections()
 
     system.power_on()

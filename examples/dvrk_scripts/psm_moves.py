@@ -41,7 +41,9 @@ class example_application:
         print(f"busy_after_move_jp: {handle.is_busy()}")
         print(f"move_jp_wait: {handle.wait()}")
         jp, _ = self.arm.measured_jp()
-        print(f"move_jp_error_deg: {math.degrees(numpy.max(numpy.abs(jp[[0, 1, 3, 4, 5]] - goal[[0, 1, 3, 4, 5]]))):.3f}")
+        angles = [0, 1, 3, 4, 5]  # (joint 2 is the insertion, in m)
+        error = numpy.max(numpy.abs(jp[angles] - goal[angles]))
+        print(f"move_jp_error_deg: {math.degrees(error):.3f}")
         print(f"move_jp_insertion_error_mm: {1000 * abs(jp[2] - goal[2]):.3f}")
         # a relative move: 5 degrees on the first joint, then back
         delta = numpy.zeros(len(goal))
@@ -84,8 +86,9 @@ class example_application:
 if __name__ == "__main__":
     argv = crtk.ral.parse_argv(sys.argv[1:])  # skip the script's name and ROS arguments
     parser = argparse.ArgumentParser()
-    parser.add_argument("-a", "--arm", type=str, default="PSM1",
-                        choices=["PSM1", "PSM2", "PSM3"], help="arm name")
+    parser.add_argument(
+        "-a", "--arm", type=str, default="PSM1", choices=["PSM1", "PSM2", "PSM3"], help="arm name"
+    )
     args = parser.parse_args(argv)
     ral = crtk.ral("psm_moves")
     application = example_application(ral, args.arm)

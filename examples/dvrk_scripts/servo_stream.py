@@ -54,7 +54,9 @@ def run(ral, arm, rate_hz, duration):
         time.sleep(0.01)
     print(f"final_error_deg: {math.degrees(numpy.max(numpy.abs(jp[0:2] - goal[0:2]))):.3f}")
     setpoint, _ = arm.setpoint_jp()
-    print(f"setpoint_error_deg: {math.degrees(numpy.max(numpy.abs(setpoint[0:2] - goal[0:2]))):.3f}")
+    print(
+        f"setpoint_error_deg: {math.degrees(numpy.max(numpy.abs(setpoint[0:2] - goal[0:2]))):.3f}"
+    )
     print("done")
 
 

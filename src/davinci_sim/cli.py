@@ -881,19 +881,33 @@ def main(argv: list[str] | None = None) -> int:
         "simulation started in this process (default) or a running rosbridge server "
         "(--connect). An installed ROS crtk/dvrk/PyKDL is not shadowed.",
     )
-    p.add_argument("--connect", default=None, metavar="ws://HOST:PORT",
-                   help="use a running rosbridge server (davinci-sim serve, or a real one)")
+    p.add_argument(
+        "--connect",
+        default=None,
+        metavar="ws://HOST:PORT",
+        help="use a running rosbridge server (davinci-sim serve, or a real one)",
+    )
     p.add_argument("--token", default=None, help="--connect: the server's token")
     p.add_argument("--scene", default="full", choices=_scene_names())
     p.add_argument("--keyframe", default="home", choices=["home", "surgical"])
     p.add_argument("--seed", type=int, default=0)
-    p.add_argument("--no-console", action="store_true",
-                   help="in-process: no surgeon console (teleoperations, pedals)")
+    p.add_argument(
+        "--no-console",
+        action="store_true",
+        help="in-process: no surgeon console (teleoperations, pedals)",
+    )
     p.add_argument("--home", action="store_true", help="in-process: enable and home the arms")
-    p.add_argument("--rate", type=float, default=100.0,
-                   help="in-process: publish rate of the arms' states, Hz (default 100)")
-    p.add_argument("--force-compat", action="store_true",
-                   help="use davinci-sim's crtk and dvrk even if ROS's are installed")
+    p.add_argument(
+        "--rate",
+        type=float,
+        default=100.0,
+        help="in-process: publish rate of the arms' states, Hz (default 100)",
+    )
+    p.add_argument(
+        "--force-compat",
+        action="store_true",
+        help="use davinci-sim's crtk and dvrk even if ROS's are installed",
+    )
     p.add_argument("script", help="the Python script")
     p.add_argument("args", nargs=argparse.REMAINDER, help="the script's arguments")
     p.set_defaults(func=cmd_run)

@@ -13,12 +13,12 @@ SCRIPTS = ROOT / "examples" / "dvrk_scripts"
 
 def run(args: list[str], *, env: dict | None = None, timeout: float = 180.0):
     """``davinci-sim run ARGS`` with this interpreter and the tree's ``src`` first."""
-    environment = dict(os.environ)
-    environment["PYTHONPATH"] = os.pathsep.join(
-        [str(ROOT / "src"), *([environ] if (environ := (env or {}).pop("PYTHONPATH", "")) else [])])
-    environment.update(env or {})
-    return subprocess.run([sys.executable, "-m", "davinci_sim.cli", "run", *args],
-                          capture_output=True, text=True, timeout=timeout, env=environment)  # fmt: skip
+    env = dict(env or {})
+    extra = env.pop("PYTHONPATH", "")
+    environment = {**os.environ, **env}
+    environment["PYTHONPATH"] = os.pathsep.join(p for p in (str(ROOT / "src"), extra) if p)
+    command = [sys.executable, "-m", "davinci_sim.cli", "run", *args]
+    return subprocess.run(command, capture_output=True, text=True, timeout=timeout, env=environment)
 
 
 def values(stdout: str) -> dict[str, str]:

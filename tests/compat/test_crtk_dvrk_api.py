@@ -29,8 +29,10 @@ def system():
                                     console=ConsoleDescription(), runner="thread",
                                     snapshot_period=0.01)  # fmt: skip
     system = build_system(description, start=True)
-    servers = [InProcessBridge(system.handle).start(),
-               RosbridgeServer(BridgeConfig(port=0), nodes=dvrk_nodes(system.handle)).start()]
+    servers = [
+        InProcessBridge(system.handle).start(),
+        RosbridgeServer(BridgeConfig(port=0), nodes=dvrk_nodes(system.handle)).start(),
+    ]
     yield system, servers
     system.stop()
     for s in servers:
@@ -123,10 +125,12 @@ def test_move_cp_and_jaw(system, psm):
     assert np.allclose(T[:3, :3], goal.M.array, atol=5e-3)
     assert psm.jaw.open(math.radians(40)).wait() is True
     assert snap(system).arms["PSM1"].jaw_measured_js.position[0] == pytest.approx(
-        math.radians(40), abs=math.radians(1))
+        math.radians(40), abs=math.radians(1)
+    )
     assert psm.jaw.close().wait() is True
     assert now(system, "PSM1/jaw", "setpoint_js").position[0] == pytest.approx(
-        math.radians(-20), abs=1e-6)
+        math.radians(-20), abs=1e-6
+    )
     psm.jaw.servo_jp(np.array([math.radians(10)]))
     settle(0.3)
     assert psm.jaw.setpoint_jp()[0][0] == pytest.approx(math.radians(10), abs=1e-6)

@@ -53,7 +53,9 @@ def test_quaternion_both_ways_as_scipy():
         assert np.allclose(q, rot.as_quat()) or np.allclose(q, -rot.as_quat())
         if np.trace(rot.as_matrix()) > 0:
             assert q[3] > 0  # KDL's branch for a positive trace
-    assert np.allclose(K.Rotation.Quaternion(0, 0, 2, 0).array, R.from_quat([0, 0, 1, 0]).as_matrix())
+    assert np.allclose(
+        K.Rotation.Quaternion(0, 0, 2, 0).array, R.from_quat([0, 0, 1, 0]).as_matrix()
+    )
     with pytest.raises(ValueError):
         K.Rotation.Quaternion(0, 0, 0, 0)
 
@@ -76,7 +78,9 @@ def test_axis_angle_and_rotation_vector_as_scipy():
 def test_rotation_constructors_inverse_and_products():
     A, B = ROTATIONS[0].as_matrix(), ROTATIONS[1].as_matrix()
     MA = K.Rotation(*A.ravel())  # row after row
-    assert np.allclose(K.Rotation(K.Vector(*A[:, 0]), K.Vector(*A[:, 1]), K.Vector(*A[:, 2])).array, A)
+    assert np.allclose(
+        K.Rotation(K.Vector(*A[:, 0]), K.Vector(*A[:, 1]), K.Vector(*A[:, 2])).array, A
+    )
     assert MA[1, 2] == A[1, 2]
     assert np.allclose(MA.Inverse().array, A.T)
     assert np.allclose((MA * K.Rotation(*B.ravel())).array, A @ B)
@@ -101,7 +105,9 @@ def test_vector_semantics():
     assert a.Normalize() == 5.0 and a.Norm() == pytest.approx(1.0)
     zero = K.Vector()
     assert zero.Normalize() == 0.0 and list(zero) == [1.0, 0.0, 0.0]
-    assert K.Vector(1, 2, 3) == K.Vector(1, 2, 3 + 1e-9) and K.Vector(1, 2, 3) != K.Vector(1, 2, 3.1)
+    assert K.Vector(1, 2, 3) == K.Vector(1, 2, 3 + 1e-9) and K.Vector(1, 2, 3) != K.Vector(
+        1, 2, 3.1
+    )
     with pytest.raises(IndexError):
         a[3]
     with pytest.raises(TypeError):
@@ -142,7 +148,9 @@ def test_twist_and_wrench_change_frames_as_the_adjoint():
         w = K.Wrench(K.Vector(*t[:3]), K.Vector(*t[3:]))
         # a wrench (f, τ) maps with the dual: f' = R f, τ' = R τ + p × R f
         Rm, p = T[:3, :3], T[:3, 3]
-        assert np.allclose((frame(T) * w).array, [*(Rm @ t[:3]), *(Rm @ t[3:] + np.cross(p, Rm @ t[:3]))])
+        assert np.allclose(
+            (frame(T) * w).array, [*(Rm @ t[:3]), *(Rm @ t[3:] + np.cross(p, Rm @ t[:3]))]
+        )
         # power is frame-independent
         assert K.dot(frame(T) * tw, frame(T) * w) == pytest.approx(K.dot(tw, w))
         v = K.Vector(*rng.normal(size=3))

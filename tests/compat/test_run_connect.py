@@ -48,7 +48,8 @@ def test_psm_homing_moves_and_jaw_over_rosbridge(server):
     assert float(v["jaw_closed_deg"]) < 0.0  # squeezing, toward -20°
     # the simulator is where the script left it
     assert now(system, "PSM1/jaw", "setpoint_js").position[0] == pytest.approx(
-        math.radians(-20.0), abs=1e-6)
+        math.radians(-20.0), abs=1e-6
+    )
     assert now(system, "PSM1", "setpoint_jp")[2] == pytest.approx(0.13, abs=1e-3)
     assert now(system, "PSM1", "is_homed")
 
@@ -63,7 +64,6 @@ def test_servo_jp_streaming_over_rosbridge(server):
     # the stream's last command: yaw back near its start (a full cosine period)
     last = 2 * math.radians(5.0) * 0.5 * (1 - math.cos(2 * math.pi * 199 / 200))
     assert now(system, "PSM1", "setpoint_jp")[0] == pytest.approx(last, abs=1e-6)
-
 
 
 PROBE = """

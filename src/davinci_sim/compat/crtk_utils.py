@@ -173,8 +173,7 @@ class utils:  # noqa: N801 (crtk's name)
             return stream.msg
         if stream.received_ns == 0:
             raise TimeoutError("no data received yet")
-        raise TimeoutError(
-            f"last data received more than {self._connection_timeout} seconds ago")
+        raise TimeoutError(f"last data received more than {self._connection_timeout} seconds ago")
 
     def _subscribe(self, topic: str, type_name: str) -> _Stream:
         stream = _Stream()
@@ -268,11 +267,13 @@ class utils:  # noqa: N801 (crtk's name)
 
     def _home(self, timeout: float = 0.0) -> bool:
         return self._command_and_wait(
-            "home", lambda: self._os["is_homed"] and not self._os["is_busy"], timeout)
+            "home", lambda: self._os["is_homed"] and not self._os["is_busy"], timeout
+        )
 
     def _unhome(self, timeout: float = 0.0) -> bool:
         return self._command_and_wait(
-            "unhome", lambda: not self._os["is_homed"] and not self._os["is_busy"], timeout)
+            "unhome", lambda: not self._os["is_homed"] and not self._os["is_busy"], timeout
+        )
 
     def _is_busy(self, start_time=None, extra=None):
         if start_time is None:
@@ -288,7 +289,8 @@ class utils:  # noqa: N801 (crtk's name)
         if is_busy:
             return self._wait_until(lambda: self._last_busy_time > start_time, left)
         return self._wait_until(
-            lambda: self._last_busy_time > start_time and not self._os["is_busy"], left)
+            lambda: self._last_busy_time > start_time and not self._os["is_busy"], left
+        )
 
     # ------------------------------------------------------------ joint states
     def _add_js(self, kind: str) -> None:
@@ -378,7 +380,7 @@ class utils:  # noqa: N801 (crtk's name)
         self._add_command("free", "std_msgs/Empty", lambda: {})
 
     def add_servo_jp(self) -> None:
-        def build(setpoint_p, setpoint_v=np.array([])):
+        def build(setpoint_p, setpoint_v=()):
             return {"position": _floats(setpoint_p), "velocity": _floats(setpoint_v)}
 
         self._add_command("servo_jp", "sensor_msgs/JointState", build)
@@ -493,4 +495,3 @@ class joystick_button:  # noqa: N801 (crtk's name)
                 return False
             if value is None or value == self._value:
                 return True
-

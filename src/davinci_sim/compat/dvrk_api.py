@@ -289,8 +289,8 @@ class system:  # noqa: N801
 
     def beep(self, duration: float, frequency: float, volume: float = 1.0) -> None:
         dim = {"label": "values", "size": 3, "stride": 1}
-        self._beep_pub.publish({"layout": {"dim": [dim], "data_offset": 0},
-                                "data": [float(duration), float(frequency), float(volume)]})  # fmt: skip
+        values = [float(duration), float(frequency), float(volume)]
+        self._beep_pub.publish({"layout": {"dim": [dim], "data_offset": 0}, "data": values})
 
     def string_to_speech(self, string: str) -> None:
         self._speech_pub.publish({"data": str(string)})

@@ -23,6 +23,10 @@ be imported). Written from KDL's documented behaviour:
 
 Every object keeps its numbers in a float numpy array; ``.array`` (not in PyKDL) hands it
 out for tests and conversions.
+
+Size: one module, as PyKDL is one module to its users (``import PyKDL``) and its classes
+operate on each other (a rotation or frame times a vector, twist or wrench; ``diff`` of every
+kind): split, each part would import all the others.
 """
 
 from __future__ import annotations
@@ -159,7 +163,7 @@ class Vector:
     __hash__ = None  # mutable, compared with a tolerance
 
     def __repr__(self) -> str:
-        return "[%12.6f,%12.6f,%12.6f]" % tuple(self.array)
+        return "[" + ",".join(f"{v:12.6f}" for v in self.array) + "]"
 
     def __reduce__(self):
         return (Vector, tuple(float(v) for v in self.array))
@@ -217,7 +221,9 @@ class Rotation:
         elif len(args) == 3 and all(isinstance(a, Vector) for a in args):
             self.array = np.column_stack([a.array for a in args])
         else:
-            raise TypeError(f"Rotation() takes 0 or 9 numbers, 3 Vectors or a Rotation, got {args!r}")
+            raise TypeError(
+                f"Rotation() takes 0 or 9 numbers, 3 Vectors or a Rotation, got {args!r}"
+            )
 
     # ---------------------------------------------------------- constructors
     @staticmethod
@@ -399,7 +405,7 @@ class Rotation:
     __hash__ = None
 
     def __repr__(self) -> str:
-        rows = ";\n ".join("%12.6f,%12.6f,%12.6f" % tuple(r) for r in self.array)
+        rows = ";\n ".join(",".join(f"{v:12.6f}" for v in r) for r in self.array)
         return f"[{rows}]"
 
     def __reduce__(self):

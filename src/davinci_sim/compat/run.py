@@ -15,6 +15,7 @@ rosbridge, unless ``force_compat``; ``PyKDL`` is ours only when the real one is 
 from __future__ import annotations
 
 import importlib.util
+import json
 import os
 import pathlib
 import runpy
@@ -59,11 +60,15 @@ class ModuleChoice:
             ros = "crtk, dvrk: davinci-sim's (davinci_sim.compat)"
             if self.real_crtk or self.real_dvrk:
                 ros += " (a real one is installed; " + (
-                    "--force-compat)" if self.force_compat else "both are needed to use them)")
+                    "--force-compat)" if self.force_compat else "both are needed to use them)"
+                )
         else:
             ros = f"crtk, dvrk: the installed ones ({self.real_crtk}, {self.real_dvrk})"
-        kdl = f"PyKDL: the installed one ({self.real_kdl})" if self.real_kdl else (
-            "PyKDL: davinci-sim's subset (davinci_sim.compat.kdl)")
+        kdl = (
+            f"PyKDL: the installed one ({self.real_kdl})"
+            if self.real_kdl
+            else ("PyKDL: davinci-sim's subset (davinci_sim.compat.kdl)")
+        )
         return f"{ros}; {kdl}"
 
 
@@ -164,7 +169,7 @@ def run_script(script: str, args: list[str], options: RunOptions,
         client = RosbridgeClient(connection, description=options.connect or "in-process")
         stops.append(client)
         if options.token:
-            connection.send('{"op": "auth", "mac": %s}' % _json_str(options.token))
+            connection.send(json.dumps({"op": "auth", "mac": options.token}))
         os.environ[ral_module.ENV_URL] = options.connect or ""
         ral_module.set_client(client)
         return run_path_as_main(script, args)
@@ -172,12 +177,6 @@ def run_script(script: str, args: list[str], options: RunOptions,
         ral_module.set_client(None)
         for part in reversed(stops):
             part.close() if hasattr(part, "close") else part.stop()
-
-
-def _json_str(s: str) -> str:
-    import json
-
-    return json.dumps(s)
 
 
 def _start_in_process(options: RunOptions):
