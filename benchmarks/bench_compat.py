@@ -20,8 +20,8 @@ import statistics
 import time
 
 import numpy as np
-from common import machine, summary, time_each, write
 
+from common import machine, summary, time_each, write
 from davinci_sim.bridge.rosbridge.config import BridgeConfig
 from davinci_sim.bridge.rosbridge.server import RosbridgeServer
 from davinci_sim.compat import dvrk_api as dvrk
