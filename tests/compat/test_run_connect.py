@@ -60,7 +60,6 @@ def test_servo_jp_streaming_over_rosbridge(server):
     assert v["servo_jp_sent"] == "200"
     assert float(v["setpoint_error_deg"]) < 1e-3  # the last command is the arm's setpoint
     assert float(v["final_error_deg"]) < 0.5  # settled on the last command
-    assert 5.0 < float(v["mid_stream_yaw_deg"]) < 15.0  # halfway: 10° of the cosine
     # the stream's last command: yaw back near its start (a full cosine period)
     last = 2 * math.radians(5.0) * 0.5 * (1 - math.cos(2 * math.pi * 199 / 200))
     assert now(system, "PSM1", "setpoint_jp")[0] == pytest.approx(last, abs=1e-6)
