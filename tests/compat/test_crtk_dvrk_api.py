@@ -19,6 +19,7 @@ from davinci_sim.compat import ral as ral_module
 from davinci_sim.compat.crtk_utils import joystick_button
 from davinci_sim.compat.inprocess import InProcessBridge, dvrk_nodes
 from davinci_sim.compat.ral import ral as make_ral
+from davinci_sim.compat.run import echo_arm_messages
 from davinci_sim.compat.transport import RosbridgeClient, WebSocketConnection
 from davinci_sim.system import ConsoleDescription, SystemDescription, build_system
 
@@ -155,11 +156,14 @@ def test_servo_jp_stream_reaches_the_arm(system, ral, psm):
         settle()
 
 
-def test_refused_command_changes_nothing_and_wait_times_out(system, psm):
+def test_refused_command_changes_nothing_and_wait_times_out(system, ral, psm):
+    said: list[str] = []
+    assert "/PSM1/error" in echo_arm_messages(ral._client, said.append)  # davinci-sim run's
     before = now(system, "PSM1", "setpoint_jp").copy()
     handle = psm.move_jp(np.zeros(3))  # wrong size: refused by the bridge
     assert handle.wait(timeout=0.5) is False
     assert np.allclose(now(system, "PSM1", "setpoint_jp"), before)
+    assert any(s.startswith("[error] PSM1: move_jp") for s in said), said
 
 
 def test_missing_arm_times_out_as_crtk(ral):
@@ -205,3 +209,22 @@ def test_console_scale_and_pedal_events(system, ral):
     emulate.publish({"buttons": [0]})
     assert clutch.wait(timeout=5, value=0) is True
     assert clutch.wait(timeout=0.2) is False  # no event: a time-out
+
+
+def test_ecm_suj_and_teleop(system, ral):
+    ecm = dvrk.ecm(ral, "ECM")
+    suj = dvrk.suj(ral)
+    teleop = dvrk.teleop_psm(ral, "MTMR_PSM1")
+    ecm.check_connections(10)
+    cp, _ = ecm.measured_cp(wait_timeout=2)
+    assert np.allclose(cp.array, snap(system).arms["ECM"].measured_cp.T, atol=1e-3)
+    jp, _ = suj.PSM1.measured_jp(wait_timeout=2)
+    assert np.allclose(jp, snap(system).arms["SUJ/PSM1"].measured_js.position, atol=1e-6)
+    assert suj.PSM1.local.measured_cp(wait_timeout=2)[0].p.Norm() > 0
+    assert suj.ECM.operating_state() in ("ENABLED", "DISABLED")
+    teleop.set_scale(0.15)
+    deadline = time.monotonic() + 5
+    while teleop.get_scale() != pytest.approx(0.15) and time.monotonic() < deadline:
+        settle()
+    assert teleop.get_scale() == pytest.approx(0.15)
+    assert now(system, "MTMR_PSM1", "snapshot").scale == pytest.approx(0.15)

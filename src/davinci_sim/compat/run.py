@@ -171,12 +171,34 @@ def run_script(script: str, args: list[str], options: RunOptions,
         if options.token:
             connection.send(json.dumps({"op": "auth", "mac": options.token}))
         os.environ[ral_module.ENV_URL] = options.connect or ""
+        if options.connect:  # (in this process, the bridge's own log says them)
+            echo_arm_messages(client, lambda text: print(text, file=sys.stderr, flush=True))
         ral_module.set_client(client)
         return run_path_as_main(script, args)
     finally:
         ral_module.set_client(None)
         for part in reversed(stops):
             part.close() if hasattr(part, "close") else part.stop()
+
+
+def echo_arm_messages(client, out: Callable[[str], None]) -> list[str]:
+    """Pass every ``/<arm>/error`` and ``/<arm>/warning`` the server has to ``out`` (the
+    dVRK mirrors them to its log; a script's refused command is said there); returns the
+    topics. A server without ``/rosapi`` gives none."""
+    try:
+        listing = client.call_service("/rosapi/topics", {}, timeout=5.0)
+    except (RuntimeError, TimeoutError, ConnectionError):
+        return []
+    pairs = zip(listing.get("topics", []), listing.get("types", []), strict=False)
+    topics = [n for n, t in pairs if n.endswith(("/error", "/warning")) and t.endswith("String")]
+    for name in topics:
+        level = name.rsplit("/", 1)[1]
+
+        def echo(msg: dict, level: str = level) -> None:
+            out(f"[{level}] {msg.get('data', '')}")
+
+        client.subscribe(name, "std_msgs/String", echo)
+    return topics
 
 
 def _start_in_process(options: RunOptions):
