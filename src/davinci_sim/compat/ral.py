@@ -19,6 +19,7 @@ import logging
 import os
 import threading
 import time
+import weakref
 from collections.abc import Callable
 from typing import Any
 
@@ -31,8 +32,40 @@ ENV_URL = "DAVINCI_SIM_CONNECT"
 
 _client: RosbridgeClient | None = None
 _client_lock = threading.Lock()
-_shutdown = threading.Event()
-_shutdown_callbacks: list[Callable[[], None]] = []
+
+
+class _Context:
+    """What rclpy's context is to its nodes: shut down once, for every ``ral`` of one client
+    (by ``ral.shutdown()`` or when the connection closes), with its ``on_shutdown``
+    callbacks."""
+
+    def __init__(self) -> None:
+        self.down = threading.Event()
+        self.callbacks: list[Callable[[], None]] = []
+        self._lock = threading.Lock()
+
+    def shutdown(self) -> None:
+        with self._lock:
+            if self.down.is_set():
+                return
+            self.down.set()
+        for callback in list(self.callbacks):
+            try:
+                callback()
+            except Exception:
+                _log.exception("on_shutdown callback failed")
+
+
+_contexts: weakref.WeakKeyDictionary[RosbridgeClient, _Context] = weakref.WeakKeyDictionary()
+
+
+def _context(client_: RosbridgeClient) -> _Context:
+    with _client_lock:
+        context = _contexts.get(client_)
+        if context is None:
+            context = _contexts[client_] = _Context()
+            client_.close_callbacks.append(context.shutdown)
+        return context
 
 
 def set_client(client: RosbridgeClient | None) -> None:
@@ -40,7 +73,6 @@ def set_client(client: RosbridgeClient | None) -> None:
     global _client
     with _client_lock:
         _client = client
-        _shutdown.clear()
 
 
 def client() -> RosbridgeClient:
@@ -53,14 +85,6 @@ def client() -> RosbridgeClient:
             url = os.environ.get(ENV_URL, DEFAULT_URL)
             _client = RosbridgeClient(WebSocketConnection(url), description=url)
         return _client
-
-
-def _run_shutdown_callbacks() -> None:
-    for callback in list(_shutdown_callbacks):
-        try:
-            callback()
-        except Exception:
-            _log.exception("on_shutdown callback failed")
 
 
 class Message:
@@ -186,12 +210,7 @@ class ral:  # noqa: N801 (crtk's name)
         self._publishers: list[Publisher] = []
         self._subscribers: list[Subscriber] = []
         self._client = node if node is not None else client()
-        self._client.close_callbacks.append(self._on_connection_closed)
-
-    def _on_connection_closed(self) -> None:
-        if not _shutdown.is_set():
-            _shutdown.set()
-            _run_shutdown_callbacks()
+        self._context = _context(self._client)
 
     # ------------------------------------------------------------ names
     def node_name(self) -> str:
@@ -246,9 +265,7 @@ class ral:  # noqa: N801 (crtk's name)
         """Nothing to start: messages arrive on the connection's reader thread."""
 
     def shutdown(self) -> None:
-        if not _shutdown.is_set():
-            _shutdown.set()
-            _run_shutdown_callbacks()
+        self._context.shutdown()
 
     def spin_and_execute(self, function: Callable, *arguments: Any) -> None:
         self.spin()
@@ -259,10 +276,10 @@ class ral:  # noqa: N801 (crtk's name)
         self.shutdown()
 
     def on_shutdown(self, callback: Callable[[], None]) -> None:
-        _shutdown_callbacks.append(callback)
+        self._context.callbacks.append(callback)
 
     def is_shutdown(self) -> bool:
-        return _shutdown.is_set() or self._client.closed.is_set()
+        return self._context.down.is_set() or self._client.closed.is_set()
 
     # ------------------------------------------------------------ topics
     def publisher(self, topic: str, msg_type: str, queue_size: int = 10, latch: bool = False,
