@@ -88,6 +88,9 @@ def test_exit_codes_as_python(tmp_path):
     text = tmp_path / "text.py"
     text.write_text("import sys\nsys.exit('failed to home within 10 seconds')\n")
     assert run_module.run_path_as_main(str(text), []) == 1
+    raises = tmp_path / "raises.py"
+    raises.write_text("raise ValueError('the script is wrong')\n")
+    assert run_module.run_path_as_main(str(raises), []) == 1  # not taken for our own error
 
 
 def test_cli_errors(clean_path, tmp_path, capsys):

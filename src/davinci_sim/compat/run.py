@@ -20,6 +20,7 @@ import os
 import pathlib
 import runpy
 import sys
+import traceback
 from collections.abc import Callable
 from dataclasses import dataclass
 
@@ -98,8 +99,9 @@ def _python_path(choice: ModuleChoice) -> str:
 
 
 def run_path_as_main(script: str, args: list[str]) -> int:
-    """Run ``script`` as ``__main__`` with ``sys.argv = [script, *args]``; its exit code
-    (``sys.exit``'s value: None → 0, an int, or a message → printed, 1)."""
+    """Run ``script`` as ``__main__`` with ``sys.argv = [script, *args]``; its exit code as
+    Python gives it (``sys.exit``'s value: None → 0, an int, or a message → printed, 1; an
+    uncaught exception → its traceback, 1; Ctrl-C → 130)."""
     path = pathlib.Path(script)
     if not path.is_file():
         raise FileNotFoundError(f"no such script: {script}")
@@ -115,6 +117,11 @@ def run_path_as_main(script: str, args: list[str]) -> int:
         if isinstance(e.code, int):
             return e.code
         print(e.code, file=sys.stderr)
+        return 1
+    except KeyboardInterrupt:
+        return 130
+    except Exception:  # the script's own error: its traceback, as python prints it
+        traceback.print_exc()
         return 1
     finally:
         sys.argv = argv
