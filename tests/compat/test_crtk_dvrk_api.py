@@ -228,3 +228,25 @@ def test_ecm_suj_and_teleop(system, ral):
         settle()
     assert teleop.get_scale() == pytest.approx(0.15)
     assert now(system, "MTMR_PSM1", "snapshot").scale == pytest.approx(0.15)
+
+
+def test_a_ros1_server(system):
+    """The same API against a server speaking ROS 1 (stamps in ``secs``/``nsecs``)."""
+    server = RosbridgeServer(
+        BridgeConfig(port=0, ros_version=1), nodes=dvrk_nodes(system[0].handle)
+    )
+    server.start()
+    client = RosbridgeClient(WebSocketConnection(server.url))
+    try:
+        assert client.ros_version() == 1
+        psm = dvrk.psm(make_ral("ros1", node=client), "PSM1")
+        psm.check_connections(10)
+        assert psm.enable(10) and psm.home(30)
+        goal = np.copy(psm.setpoint_jp(wait_timeout=2)[0])
+        goal[3] += 0.1
+        assert psm.move_jp(goal).wait() is True
+        assert now(system, "PSM1", "setpoint_jp")[3] == pytest.approx(goal[3])
+        assert psm.measured_jp()[1] == pytest.approx(time.time(), abs=5.0)  # secs/nsecs read
+    finally:
+        client.close()
+        server.stop()

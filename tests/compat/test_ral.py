@@ -18,9 +18,10 @@ from davinci_sim.compat.transport import RosbridgeClient
 class Pipe:
     """A connection that records what the client sends and lets the test answer."""
 
-    def __init__(self) -> None:
+    def __init__(self, ros_version: int = 2) -> None:
         self.sent: list[dict] = []
         self.on_frame = None
+        self.ros_version = ros_version
 
     def start(self, on_frame, on_close) -> None:
         self.on_frame = on_frame
@@ -29,7 +30,7 @@ class Pipe:
         op = json.loads(text)
         self.sent.append(op)
         if op["op"] == "call_service":  # rosapi: everything is connected
-            values = {"subscribers": ["/x"], "publishers": ["/x"]}
+            values = {"subscribers": ["/x"], "publishers": ["/x"], "version": self.ros_version}
             self.on_frame(json.dumps({"op": "service_response", "id": op["id"],
                                       "values": values, "result": True}))  # fmt: skip
 
@@ -135,3 +136,12 @@ def test_commands_on_the_wire(pipe):
         p.on_frame(json.dumps({"op": "publish", "topic": "/PSM1/operating_state", "msg": msg}))
     assert handle.wait(timeout=1.0) is True and handle.is_busy() is False
     assert device.operating_state() == "ENABLED" and device.is_homed()
+
+
+@pytest.mark.parametrize("ros_version", [1, 2])
+def test_stamps_in_the_servers_dialect(ros_version):
+    p = Pipe(ros_version)
+    r = ral("node", node=RosbridgeClient(p))
+    stamp = r.set_timestamp({})["header"]["stamp"]
+    assert set(stamp) == ({"secs", "nsecs"} if ros_version == 1 else {"sec", "nanosec"})
+    assert stamp_of({"header": {"stamp": stamp}}) == pytest.approx(time.time(), abs=5)

@@ -252,8 +252,14 @@ class ral:  # noqa: N801 (crtk's name)
         return 0.0
 
     def set_timestamp(self, msg: Any) -> Any:
+        """Stamp ``msg``'s header with :meth:`now`, in the server's dialect (ROS 1:
+        ``secs``/``nsecs``, ROS 2: ``sec``/``nanosec``)."""
         t = self.now()
-        stamp = {"sec": int(t), "nanosec": int((t - int(t)) * 1e9)}
+        sec, nsec = int(t), int((t - int(t)) * 1e9)
+        if self._client.ros_version() == 1:
+            stamp = {"secs": sec, "nsecs": nsec}
+        else:
+            stamp = {"sec": sec, "nanosec": nsec}
         if isinstance(msg, Message):
             msg.to_dict()["header"] = {"stamp": stamp, "frame_id": ""}
         elif isinstance(msg, dict):

@@ -110,6 +110,7 @@ class RosbridgeClient:
         self._calls: dict[str, Future] = {}
         self.closed = threading.Event()
         self.close_callbacks: list[Callable[[], None]] = []
+        self._ros_version: int | None = None
         self.status: list[str] = []
         """Status texts (warnings, errors) the server sent, newest last (at most 100)."""
         connection.start(self._on_frame, self._on_close)
@@ -168,6 +169,18 @@ class RosbridgeClient:
         finally:
             with self._lock:
                 self._calls.pop(call_id, None)
+
+    def ros_version(self) -> int:
+        """The server's ROS dialect (1 or 2), asked once from ``/rosapi/get_ros_version``; a
+        server that does not answer it is taken for a ROS 1 one (whose older rosapi lacks
+        it)."""
+        if self._ros_version is None:
+            try:
+                values = self.call_service("/rosapi/get_ros_version", {}, timeout=5.0)
+                self._ros_version = 1 if int(values.get("version", 2)) == 1 else 2
+            except (RuntimeError, TimeoutError, TransportError, ValueError):
+                self._ros_version = 1
+        return self._ros_version
 
     def close(self) -> None:
         if not self.closed.is_set():
