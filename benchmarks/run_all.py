@@ -8,6 +8,7 @@ from pathlib import Path
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 import bench_bridge  # noqa: E402
+import bench_compat  # noqa: E402
 import bench_exercises  # noqa: E402
 import bench_kinematics  # noqa: E402
 import bench_realtime  # noqa: E402
@@ -27,6 +28,7 @@ if __name__ == "__main__":
     bench_exercises.main()
     bench_render.main()
     bench_bridge.main()
+    bench_compat.main()  # dVRK scripts' API over both transports, ~30 s
     bench_teleop.main()
     bench_records.main()
     bench_study.main()  # the 400-trial study, about 2 min

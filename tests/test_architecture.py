@@ -35,6 +35,7 @@ LAYERS: dict[str, int] = {
     "envs": 10,
     "bridge": 10,
     "web": 11,
+    "compat": 11,
     "cli": 12,
 }
 MAX_MODULE_LINES = 500

@@ -617,6 +617,21 @@ _RECORDS_HELP = (
 )
 
 
+def cmd_run(args: argparse.Namespace) -> int:
+    from davinci_sim.compat.run import RunOptions, run_script
+
+    options = RunOptions(
+        connect=args.connect, scene=args.scene, keyframe=args.keyframe, seed=args.seed,
+        console=not args.no_console, home=args.home, rate=args.rate, token=args.token,
+        force_compat=args.force_compat,
+    )  # fmt: skip
+    try:
+        return run_script(args.script, args.args, options)
+    except (FileNotFoundError, ConnectionError, ValueError) as e:
+        print(f"davinci-sim run: {e}", file=sys.stderr)
+        return 2
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(
         prog="davinci-sim", description="Simulator of the da Vinci Research Kit (dVRK)."
@@ -882,6 +897,44 @@ def main(argv: list[str] | None = None) -> int:
         "the trials whose rows it did not keep",
     )
     p.set_defaults(func=cmd_study)
+    p = sub.add_parser(
+        "run",
+        help="run an unmodified dVRK Python script (crtk, dvrk, PyKDL) against the simulator",
+        description="Runs SCRIPT with its ARGS as __main__, with the crtk and dvrk packages "
+        "(crtk_python / dvrk_python API) and a PyKDL subset on its import path, against a "
+        "simulation started in this process (default) or a running rosbridge server "
+        "(--connect). An installed ROS crtk/dvrk/PyKDL is not shadowed.",
+    )
+    p.add_argument(
+        "--connect",
+        default=None,
+        metavar="ws://HOST:PORT",
+        help="use a running rosbridge server (davinci-sim serve, or a real one)",
+    )
+    p.add_argument("--token", default=None, help="--connect: the server's token")
+    p.add_argument("--scene", default="full", choices=_scene_names())
+    p.add_argument("--keyframe", default="home", choices=["home", "surgical"])
+    p.add_argument("--seed", type=int, default=0)
+    p.add_argument(
+        "--no-console",
+        action="store_true",
+        help="in-process: no surgeon console (teleoperations, pedals)",
+    )
+    p.add_argument("--home", action="store_true", help="in-process: enable and home the arms")
+    p.add_argument(
+        "--rate",
+        type=float,
+        default=100.0,
+        help="in-process: publish rate of the arms' states, Hz (default 100)",
+    )
+    p.add_argument(
+        "--force-compat",
+        action="store_true",
+        help="use davinci-sim's crtk and dvrk even if ROS's are installed",
+    )
+    p.add_argument("script", help="the Python script")
+    p.add_argument("args", nargs=argparse.REMAINDER, help="the script's arguments")
+    p.set_defaults(func=cmd_run)
     args = parser.parse_args(argv)
     return args.func(args)
 

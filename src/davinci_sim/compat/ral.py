@@ -1,0 +1,377 @@
+"""``crtk.ral``: the ROS abstraction layer of crtk_python, over a rosbridge client.
+
+A dVRK script makes one ``ral`` (``crtk.ral('node_name')``) and hands it to the arms, which
+make children for their namespaces (``PSM1``, ``PSM1/jaw`` …). Here every ``ral`` of the
+process shares one :class:`~davinci_sim.compat.transport.RosbridgeClient`: the one
+``davinci-sim run`` installs with :func:`set_client` (in-process or ``--connect``), or else
+one connected to ``$DAVINCI_SIM_CONNECT`` (default ``ws://127.0.0.1:9090``, what
+``davinci-sim serve`` listens on) when the first ``ral`` is made.
+
+Messages are rosbridge JSON objects; subscribers' callbacks get them wrapped in
+:class:`Message` so that ``msg.data``, ``msg.position``, ``msg.header.stamp`` read as on a
+ROS message. Times are float seconds of the wall clock (``now``, ``to_sec``), the clock the
+simulator stamps its messages with by default.
+"""
+
+from __future__ import annotations
+
+import logging
+import os
+import threading
+import time
+import weakref
+from collections.abc import Callable
+from typing import Any
+
+from davinci_sim.compat.transport import RosbridgeClient, TransportError
+
+_log = logging.getLogger("davinci_sim.compat")
+
+DEFAULT_URL = "ws://127.0.0.1:9090"
+ENV_URL = "DAVINCI_SIM_CONNECT"
+
+_client: RosbridgeClient | None = None
+_client_lock = threading.Lock()
+
+
+class _Context:
+    """What rclpy's context is to its nodes: shut down once, for every ``ral`` of one client
+    (by ``ral.shutdown()`` or when the connection closes), with its ``on_shutdown``
+    callbacks."""
+
+    def __init__(self) -> None:
+        self.down = threading.Event()
+        self.callbacks: list[Callable[[], None]] = []
+        self._lock = threading.Lock()
+
+    def shutdown(self) -> None:
+        with self._lock:
+            if self.down.is_set():
+                return
+            self.down.set()
+        for callback in list(self.callbacks):
+            try:
+                callback()
+            except Exception:
+                _log.exception("on_shutdown callback failed")
+
+
+_contexts: weakref.WeakKeyDictionary[RosbridgeClient, _Context] = weakref.WeakKeyDictionary()
+
+
+def _context(client_: RosbridgeClient) -> _Context:
+    with _client_lock:
+        context = _contexts.get(client_)
+        if context is None:
+            context = _contexts[client_] = _Context()
+            client_.close_callbacks.append(context.shutdown)
+        return context
+
+
+def set_client(client: RosbridgeClient | None) -> None:
+    """The client every ``ral`` of this process uses from now on (None: forget it)."""
+    global _client
+    with _client_lock:
+        _client = client
+
+
+def client() -> RosbridgeClient:
+    """The process's client; connects to ``$DAVINCI_SIM_CONNECT`` on first use."""
+    global _client
+    with _client_lock:
+        if _client is None:
+            from davinci_sim.compat.transport import WebSocketConnection
+
+            url = os.environ.get(ENV_URL, DEFAULT_URL)
+            _client = RosbridgeClient(WebSocketConnection(url), description=url)
+        return _client
+
+
+class Message:
+    """A rosbridge message (a dict) read with attributes, as a ROS message: nested objects
+    are :class:`Message` too; ``dict(msg)`` or ``msg.to_dict()`` gives the dict back."""
+
+    __slots__ = ("_d",)
+
+    def __init__(self, d: dict | None = None, **fields: Any) -> None:
+        object.__setattr__(self, "_d", dict(d or {}, **fields))
+
+    def __getattr__(self, name: str) -> Any:
+        try:
+            value = self._d[name]
+        except KeyError:
+            raise AttributeError(name) from None
+        return Message(value) if isinstance(value, dict) else value
+
+    def __setattr__(self, name: str, value: Any) -> None:
+        self._d[name] = value.to_dict() if isinstance(value, Message) else value
+
+    def to_dict(self) -> dict:
+        return self._d
+
+    def keys(self):
+        return self._d.keys()
+
+    def __getitem__(self, key: str) -> Any:
+        return self._d[key]
+
+    def __repr__(self) -> str:
+        return f"Message({self._d!r})"
+
+
+def stamp_of(msg: Any) -> float:
+    """The header stamp of ``msg`` (dict or :class:`Message`) in s; 0 without one."""
+    d = msg.to_dict() if isinstance(msg, Message) else msg
+    if not isinstance(d, dict):
+        return float(d) if isinstance(d, int | float) else 0.0
+    stamp = d.get("header", {}).get("stamp", d.get("stamp")) if "header" in d else d.get("stamp", d)
+    if not isinstance(stamp, dict):
+        return 0.0
+    sec = stamp.get("sec", stamp.get("secs", 0))
+    nsec = stamp.get("nanosec", stamp.get("nsecs", 0))
+    return float(sec) + float(nsec) * 1e-9
+
+
+class Rate:
+    """``ral.create_rate(hz).sleep()``: sleeps to keep a loop at ``hz`` (catching up after
+    a late iteration without sleeping, never sleeping a negative time)."""
+
+    def __init__(self, rate_hz: float) -> None:
+        if not rate_hz > 0:
+            raise ValueError(f"rate must be > 0 Hz, got {rate_hz!r}")
+        self.period = 1.0 / float(rate_hz)
+        self._next = time.monotonic() + self.period
+
+    def sleep(self) -> None:
+        now = time.monotonic()
+        if self._next > now:
+            time.sleep(self._next - now)
+            self._next += self.period
+        else:  # late: start again from now
+            self._next = now + self.period
+
+
+class Publisher:
+    def __init__(self, topic: str, type_name: str, client_: RosbridgeClient) -> None:
+        self.topic_name, self.type = topic, type_name
+        self._client = client_
+
+    def publish(self, msg: Any) -> None:
+        d = msg.to_dict() if isinstance(msg, Message) else dict(msg)
+        self._client.publish(self.topic_name, self.type, d)
+
+
+class Subscriber:
+    def __init__(self, topic: str, type_name: str) -> None:
+        self.topic_name, self.type = topic, type_name
+
+
+class ServiceClient:
+    """Called with a request (dict or :class:`Message`), returns the response as a
+    :class:`Message` (as ``client.call(request)`` of rclpy)."""
+
+    def __init__(self, name: str, type_name: str, client_: RosbridgeClient) -> None:
+        self.srv_name, self.type = name, type_name
+        self._client = client_
+
+    def call(self, request: Any, timeout: float = 10.0) -> Message:
+        d = request.to_dict() if isinstance(request, Message) else dict(request)
+        return Message(self._client.call_service(self.srv_name, d, type_name=self.type,
+                                                 timeout=timeout))  # fmt: skip
+
+    __call__ = call
+
+
+class ral:  # noqa: N801 (crtk's name)
+    """The ROS abstraction layer (see the module docstring)."""
+
+    @staticmethod
+    def ros_version() -> int:
+        return 2
+
+    @staticmethod
+    def parse_argv(argv: list[str]) -> list[str]:
+        """``argv`` without ROS arguments (``--ros-args … [--]``, ROS 1 ``name:=value``)."""
+        out: list[str] = []
+        in_ros = False
+        for arg in argv:
+            if arg == "--ros-args":
+                in_ros = True
+            elif in_ros and arg == "--":
+                in_ros = False
+            elif not in_ros and ":=" not in arg:
+                out.append(arg)
+        return out
+
+    def __init__(self, node_name: str, namespace: str = "", node: RosbridgeClient | None = None):
+        self._node_name = node_name
+        self._namespace = namespace.strip("/")
+        self._children: dict[str, ral] = {}
+        self._publishers: list[Publisher] = []
+        self._subscribers: list[Subscriber] = []
+        self._client = node if node is not None else client()
+        self._context = _context(self._client)
+
+    # ------------------------------------------------------------ names
+    def node_name(self) -> str:
+        return self._node_name
+
+    def namespace(self) -> str:
+        return self._namespace
+
+    def _add_namespace_to(self, name: str) -> str:
+        name = name.strip("/")
+        return "/" + "/".join(p for p in (self._namespace, name) if p)
+
+    def create_child(self, child_namespace: str) -> ral:
+        if child_namespace in self._children:
+            raise RuntimeError(f'ral object already has child "{child_namespace}"!')
+        child = ral(self._node_name, self._add_namespace_to(child_namespace), self._client)
+        self._children[child_namespace] = child
+        return child
+
+    # ------------------------------------------------------------ time
+    def now(self) -> float:
+        """Wall-clock time, s."""
+        return time.time()
+
+    def get_timestamp(self, t: Any) -> float:
+        """The stamp of a message (or a time) in s."""
+        return stamp_of(t)
+
+    def to_sec(self, t: Any) -> float:
+        return self.get_timestamp(t)
+
+    def create_duration(self, d: float) -> float:
+        return float(d)
+
+    def create_rate(self, rate_hz: float) -> Rate:
+        return Rate(rate_hz)
+
+    def create_time(self) -> float:
+        return 0.0
+
+    def set_timestamp(self, msg: Any) -> Any:
+        """Stamp ``msg``'s header with :meth:`now`, in the server's dialect (ROS 1:
+        ``secs``/``nsecs``, ROS 2: ``sec``/``nanosec``)."""
+        t = self.now()
+        sec, nsec = int(t), int((t - int(t)) * 1e9)
+        if self._client.ros_version() == 1:
+            stamp = {"secs": sec, "nsecs": nsec}
+        else:
+            stamp = {"sec": sec, "nanosec": nsec}
+        if isinstance(msg, Message):
+            msg.to_dict()["header"] = {"stamp": stamp, "frame_id": ""}
+        elif isinstance(msg, dict):
+            msg["header"] = {"stamp": stamp, "frame_id": ""}
+        return msg
+
+    # ------------------------------------------------------------ life cycle
+    def spin(self) -> None:
+        """Nothing to start: messages arrive on the connection's reader thread."""
+
+    def shutdown(self) -> None:
+        self._context.shutdown()
+
+    def spin_and_execute(self, function: Callable, *arguments: Any) -> None:
+        self.spin()
+        try:
+            function(*arguments)
+        except KeyboardInterrupt:
+            pass
+        self.shutdown()
+
+    def on_shutdown(self, callback: Callable[[], None]) -> None:
+        self._context.callbacks.append(callback)
+
+    def is_shutdown(self) -> bool:
+        return self._context.down.is_set() or self._client.closed.is_set()
+
+    # ------------------------------------------------------------ topics
+    def publisher(self, topic: str, msg_type: str, queue_size: int = 10, latch: bool = False,
+                  *args: Any, **kwargs: Any) -> Publisher:  # fmt: skip
+        pub = Publisher(self._add_namespace_to(topic), _type_name(msg_type), self._client)
+        self._publishers.append(pub)
+        return pub
+
+    def subscriber(self, topic: str, msg_type: str, callback: Callable, queue_size: int = 10,
+                   latch: bool = False, *args: Any, **kwargs: Any) -> Subscriber:  # fmt: skip
+        sub = Subscriber(self._add_namespace_to(topic), _type_name(msg_type))
+        self._client.subscribe(sub.topic_name, sub.type, lambda d: callback(Message(d)),
+                               queue_length=int(queue_size))  # fmt: skip
+        self._subscribers.append(sub)
+        return sub
+
+    def service_client(self, name: str, srv_type: str) -> ServiceClient:
+        return ServiceClient(self._add_namespace_to(name), _type_name(srv_type), self._client)
+
+    def get_topic_name(self, pubsub: Publisher | Subscriber) -> str:
+        return pubsub.topic_name
+
+    # ------------------------------------------------------------ connections
+    def check_connections(self, timeout_seconds: float = 5.0, check_children: bool = True):
+        """Wait up to ``timeout_seconds`` until every publisher of this ``ral`` (and of its
+        children) has a subscriber and every subscriber a publisher, as the server's
+        ``/rosapi`` reports them.
+
+        Topics dvrk_python uses that the simulator does not serve
+        (:data:`~davinci_sim.compat.dvrk_api.NOT_SIMULATED`) are not waited for.
+
+        Raises:
+            TimeoutError: some are still unconnected (named in the message).
+        """
+        if timeout_seconds == 0.0:
+            return
+        from davinci_sim.compat.dvrk_api import NOT_SIMULATED
+
+        end = time.monotonic() + timeout_seconds
+        pubs, subs = self._all(check_children)
+        pubs = [p for p in pubs if p.topic_name.rsplit("/", 1)[-1] not in NOT_SIMULATED]
+        unconnected_pubs, unconnected_subs = pubs, subs
+        while True:
+            unconnected_pubs = [p for p in unconnected_pubs if not self._has(p, "subscribers")]
+            unconnected_subs = [s for s in unconnected_subs if not self._has(s, "publishers")]
+            if not unconnected_pubs and not unconnected_subs:
+                return
+            if time.monotonic() >= end or self.is_shutdown():
+                break
+            time.sleep(0.01)
+        names = ", ".join
+        raise TimeoutError(
+            "Timed out waiting for publisher/subscriber connections to establish\n"
+            f"    Publishers:  {len(pubs) - len(unconnected_pubs)} connected, "
+            f"{len(unconnected_pubs)} not connected\n"
+            f"                 not connected: [{names(p.topic_name for p in unconnected_pubs)}]\n\n"
+            f"    Subscribers: {len(subs) - len(unconnected_subs)} connected, "
+            f"{len(unconnected_subs)} not connected\n"
+            f"                 not connected: [{names(s.topic_name for s in unconnected_subs)}]\n"
+        )
+
+    def _all(self, children: bool) -> tuple[list[Publisher], list[Subscriber]]:
+        pubs, subs = list(self._publishers), list(self._subscribers)
+        if children:
+            for child in self._children.values():
+                p, s = child._all(True)
+                pubs += p
+                subs += s
+        return pubs, subs
+
+    def _has(self, pubsub: Publisher | Subscriber, which: str) -> bool:
+        try:
+            values = self._client.call_service(f"/rosapi/{which}", {"topic": pubsub.topic_name},
+                                               timeout=2.0)  # fmt: skip
+        except (RuntimeError, TimeoutError, TransportError):
+            return True  # a server without rosapi: nothing to check against
+        return bool(values.get(which))
+
+
+def _type_name(msg_type: Any) -> str:
+    """A rosbridge type name from a string, or from a class with ROS's ``_type`` (ROS 1) or
+    module path (ROS 2), for scripts that pass message classes."""
+    if isinstance(msg_type, str):
+        return msg_type
+    t = getattr(msg_type, "_type", None)
+    if isinstance(t, str):
+        return t
+    module = getattr(msg_type, "__module__", "")
+    return f"{module.split('.')[0]}/{getattr(msg_type, '__name__', '')}"

@@ -1,0 +1,30 @@
+"""crtk_python's ``crtk`` API for scripts run against davinci-sim (``davinci-sim run``).
+
+The implementation is :mod:`davinci_sim.compat` (``ral``, ``crtk_utils``); see there.
+"""
+
+from davinci_sim.compat.crtk_utils import (
+    ArrayFromTwistMsg,
+    ArrayFromWrenchMsg,
+    ArrayToTwistMsg,
+    ArrayToWrenchMsg,
+    FrameFromPoseMsg,
+    FrameToPoseMsg,
+    joystick_button,
+    utils,
+    wait_move_handle,
+)
+from davinci_sim.compat.ral import ral
+
+__all__ = [
+    "ArrayFromTwistMsg",
+    "ArrayFromWrenchMsg",
+    "ArrayToTwistMsg",
+    "ArrayToWrenchMsg",
+    "FrameFromPoseMsg",
+    "FrameToPoseMsg",
+    "joystick_button",
+    "ral",
+    "utils",
+    "wait_move_handle",
+]
