@@ -216,3 +216,31 @@ def test_mtm_wrench_commands():
     finally:
         sink.close()
         handle.stop()
+
+
+def test_the_node_example_commands_the_psm(handle):
+    """``examples/udp_psm.js`` (the documented example in another language, plain JSON over
+    UDP): homes the PSM, moves it, and gets a refusal back."""
+    import shutil
+    import subprocess
+    from pathlib import Path
+
+    node = shutil.which("node") or shutil.which("nodejs")
+    if node is None:
+        pytest.skip("Node.js is not installed")
+    probe = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    probe.bind(("127.0.0.1", 0))
+    port = probe.getsockname()[1]
+    probe.close()
+    example = Path(__file__).resolve().parents[2] / "examples" / "udp_psm.js"
+    with UdpStreamer(handle, [StreamConfig("PSM1", port)]):
+        result = subprocess.run([node, str(example), str(port)], capture_output=True, text=True,
+                                timeout=90)  # fmt: skip
+    assert result.returncode == 0, result.stdout + result.stderr
+    lines = result.stdout.splitlines()
+    assert lines[0] == "homed" and lines[1].startswith("move_jp reached")
+    assert lines[2].startswith("refused: PSM1: move_jp:") and "insertion" in lines[2]
+    goal = [0.1, -0.05, 0.12, 0.0, 0.0, 0.0]  # the move went on; the refused one changed nothing
+    assert wait_for(
+        lambda: np.allclose(handle.snapshot().arms["PSM1"].setpoint_js.position, goal), 5
+    )
