@@ -216,3 +216,32 @@ def test_remote_console_and_system_commands(make_server, make_ros):
     finally:
         client.stop()
         handle.stop()
+
+
+def test_a_remote_wrench_on_a_simulated_mtm(make_server, make_ros):
+    """A simulated MTM that does not follow a real one (not in ``mtms``) is an arm like the
+    others: ``{ns}/MTMR/state_command`` and ``{ns}/MTMR/spatial/servo_cf`` command it."""
+    remote_server = make_server()
+    handle = ThreadedSimulation(Simulation("psm1_ecm_mtmr"), real_time=True).start()
+    remote = Remote(make_ros(remote_server))
+    client = RosClientMode(handle, ClientModeConfig(remote_server.url, mtms=()))
+    try:
+        assert "MTMR" in client.arms
+        client.start()
+        remote.listen("/sim/MTMR/operating_state", "crtk_msgs/OperatingState")
+        assert wait_for(lambda: remote.got["/sim/MTMR/operating_state"], 5)  # latched
+        remote.pub("/sim/MTMR/state_command", "crtk_msgs/StringStamped", {"string": "enable"})
+        remote.pub("/sim/MTMR/state_command", "crtk_msgs/StringStamped", {"string": "home"})
+        assert wait_for(lambda: _homed(handle, "MTMR"), 15)
+        wrench = [0.0, 0.0, 1.5, 0.0, 0.0, 0.0]
+        remote.pub("/sim/MTMR/spatial/servo_cf", "geometry_msgs/WrenchStamped",
+                   {"wrench": {"force": {"x": 0, "y": 0, "z": 1.5},
+                               "torque": {"x": 0, "y": 0, "z": 0}}})  # fmt: skip
+
+        def measured_cf():
+            return handle.call("MTMR/spatial", "measured_cf").result(5)
+
+        assert wait_for(lambda: np.allclose(measured_cf(), wrench, atol=1e-3), 5)
+    finally:
+        client.stop()
+        handle.stop()

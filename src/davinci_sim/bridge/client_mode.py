@@ -279,11 +279,27 @@ class RosClientMode:
         self._unsubscribe = self.handle.subscribe(self._on_event)
         for name, (type_name, on_message, on_invalid) in self._plan.items():
             self._sub(name, type_name, on_message, on_invalid)
+        self._await_subscriptions(timeout)
         self._stop.clear()
         self._thread = threading.Thread(target=self._run, name="ros-client-mode", daemon=True)
         self._thread.start()
         _log.info("client mode: connected to %s (namespace %s)", c.url, c.namespace)
         return self
+
+    def _await_subscriptions(self, timeout: float) -> None:
+        """Return once the remote has the subscriptions, so that a command published after
+        :meth:`start` is not lost: a rosbridge server handles one client's operations in
+        order, so the answer to a ``/rosapi/topics`` call sent after them comes after them.
+        A remote without rosapi only costs the timeout (and a warning)."""
+        import roslibpy
+
+        answered = threading.Event()
+        roslibpy.Service(self.ros, "/rosapi/topics", "rosapi/Topics").call(
+            roslibpy.ServiceRequest(), lambda _: answered.set(), lambda _: answered.set()
+        )
+        if not answered.wait(timeout):
+            _log.warning("client mode: no answer from /rosapi/topics on %s in %.0f s; the "
+                         "first commands may be lost", self.config.url, timeout)  # fmt: skip
 
     def stop(self) -> None:
         if self._unsubscribe is not None:
