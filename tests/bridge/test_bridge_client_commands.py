@@ -245,3 +245,32 @@ def test_a_remote_wrench_on_a_simulated_mtm(make_server, make_ros):
     finally:
         client.stop()
         handle.stop()
+
+
+def test_serve_in_client_mode_takes_the_remote_commands(make_server, make_ros):
+    """``davinci-sim serve --ros-connect URL --namespace /``: a script on the remote system
+    homes and moves the simulated PSM1 with the dVRK's own topic names."""
+    from bridge_helpers import serving
+
+    from davinci_sim.bridge.app import ServeOptions
+    from davinci_sim.bridge.rosbridge.config import BridgeConfig
+
+    remote_server = make_server()
+    options = ServeOptions(scene="psm1", images="none", ros_connect=remote_server.url,
+                           namespace="/", bridge=BridgeConfig(port=0))  # fmt: skip
+    with serving(options, timeout=30):
+        remote = Remote(make_ros(remote_server))
+        remote.listen("/PSM1/operating_state", "crtk_msgs/OperatingState")
+        remote.listen("/PSM1/measured_js", "sensor_msgs/JointState")
+        remote.pub("/PSM1/state_command", "crtk_msgs/StringStamped", {"string": "enable"})
+        remote.pub("/PSM1/state_command", "crtk_msgs/StringStamped", {"string": "home"})
+
+        def homed():
+            s = remote.got["/PSM1/operating_state"]
+            return s and s[-1]["is_homed"] and not s[-1]["is_busy"]
+
+        assert wait_for(homed, 15)
+        goal = [0.0, 0.1, 0.1, 0.0, 0.0, 0.0]
+        remote.pub("/PSM1/move_jp", "sensor_msgs/JointState", _js(goal))
+        assert wait_for(lambda: np.allclose(
+            remote.got["/PSM1/measured_js"][-1]["position"], goal, atol=2e-3), 10)  # fmt: skip
