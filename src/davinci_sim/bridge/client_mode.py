@@ -228,7 +228,7 @@ class RosClientMode:
         for button, topic in PEDAL_TOPICS.items():
             plan[topic] = ("sensor_msgs/Joy", lambda msg, b=button: self._on_button(b, msg), log)
         if not self.config.commands:
-            return plan  # fmt: skip
+            return plan
         for name in self.arms:
             a = snap.arms.get(name)
             if a is None:
