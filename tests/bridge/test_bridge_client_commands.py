@@ -57,13 +57,16 @@ def _homed(handle, arm="PSM1"):
     return s.is_homed and not s.is_busy
 
 
-def test_a_remote_script_commands_the_simulated_psm(make_server, make_ros, sim_psm1):
+@pytest.mark.parametrize("ros_version", [1, 2])
+def test_a_remote_script_commands_the_simulated_psm(make_server, make_ros, sim_psm1, ros_version):
     """Namespace ``/``: the simulated PSM1 answers to the dVRK's own topic names, as a real
-    PSM1 would; state_command, move_jp, servo_jp, jaw and move_cp on the remote move it."""
-    remote_server = make_server()
+    PSM1 would; state_command, move_jp, servo_jp, jaw and move_cp on the remote move it (a
+    ROS 1 and a ROS 2 remote)."""
+    remote_server = make_server(ros_version=ros_version)
     handle = sim_psm1()
     remote = Remote(make_ros(remote_server))
-    client = RosClientMode(handle, ClientModeConfig(remote_server.url, namespace="/", mtms=()))
+    config = ClientModeConfig(remote_server.url, namespace="/", mtms=(), ros_version=ros_version)
+    client = RosClientMode(handle, config)
     try:
         client.start()
         remote.listen("/PSM1/operating_state", "crtk_msgs/OperatingState")
