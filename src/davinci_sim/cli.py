@@ -372,6 +372,13 @@ def _serve_option_problem(args: argparse.Namespace) -> str | None:
         value = getattr(args, name)
         if not 0 <= value <= 65535:
             return f"--{name.replace('_', '-')} must be a port in 0..65535, got {value}"
+    if args.ros_connect is not None:
+        from davinci_sim.bridge.client_mode import ClientModeConfig
+
+        try:
+            ClientModeConfig(args.ros_connect, namespace=args.namespace)
+        except ValueError as e:
+            return f"--ros-connect/--namespace: {e}"
     return None
 
 
@@ -724,12 +731,14 @@ def main(argv: list[str] | None = None) -> int:
         "--ros-connect",
         default=None,
         metavar="ws://HOST:9090",
-        help="client mode: connect to an existing rosbridge_server",
+        help="client mode: connect to an existing rosbridge_server (the simulated arms "
+        "publish their state there and take the commands published there)",
     )
     p.add_argument(
         "--namespace",
         default="/sim",
-        help="client mode: prefix of the simulated arms' topics on the remote",
+        help="client mode: prefix of the simulated arms' topics on the remote ('/': none, "
+        "the simulated arms answer to the dVRK's own topic names)",
     )
     p.add_argument("--remote-ros-version", type=int, choices=[1, 2], default=2)
     p.add_argument(

@@ -185,6 +185,7 @@ def test_a_remote_console_teleoperates_the_simulated_psm(remote, make_server, ma
         assert wait_for(lambda: following and following[-1]["data"], 10), following
         time.sleep(0.3)
         p0 = m.pose_matrix(cp[-1]["pose"])[:3, 3]
+        p0_sim = handle.snapshot().arms["PSM1"].measured_cp.T[:3, 3]
         start = fake.T[:3, 3].copy()
         for k in range(1, 51):  # the real MTM moves 2 cm along HRSV x in 0.5 s
             fake.T[:3, 3] = start + [0.02 * k / 50, 0.0, 0.0]
@@ -193,8 +194,17 @@ def test_a_remote_console_teleoperates_the_simulated_psm(remote, make_server, ma
         def moved():
             return m.pose_matrix(cp[-1]["pose"])[:3, 3] - p0
 
+        def state():  # what each part saw, for a failure's message
+            s = handle.snapshot()
+            device, teleop = s.extras["MTMR/device"], s.extras["MTMR_PSM1"]
+            return (f"seen {moved()}, in the simulation "
+                    f"{s.arms['PSM1'].measured_cp.T[:3, 3] - p0_sim}; teleop "
+                    f"{teleop.current_state} following={teleop.following}; device stale="
+                    f"{device.stale} age={device.input_age}; sim t={s.time:.2f}; received "
+                    f"{client.received}")  # fmt: skip
+
         # scale 0.2: 4 mm, along the camera's x (motion in the display = motion in the image)
-        assert wait_for(lambda: abs(np.linalg.norm(moved()) - 0.004) <= 0.001, 10), moved()
+        assert wait_for(lambda: abs(np.linalg.norm(moved()) - 0.004) <= 0.001, 10), state()
         moved = moved()
         assert moved[0] > 0.003
         fake.clutch.publish(roslibpy.Message({"buttons": [1]}))  # the real clutch pedal

@@ -136,3 +136,111 @@ def test_stop_frees_the_command_port(handle, listener):
     again = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
     again.bind(("127.0.0.1", port))  # raises if the streamer still held it
     again.close()
+
+
+def _errors(sock, n, timeout=5.0):
+    """The next ``n`` ``{"error": ...}`` datagrams on ``sock`` (other keys skipped)."""
+    out, end = [], time.monotonic() + timeout
+    while len(out) < n and time.monotonic() < end:
+        try:
+            data, _ = sock.recvfrom(65536)
+        except TimeoutError:
+            break
+        msg = json.loads(data)
+        if "error" in msg:
+            out.append(msg["error"])
+    return out
+
+
+def test_refused_datagrams_are_answered_and_change_nothing(handle, listener):
+    """A bad datagram from a plain UDP socket gets an ``{"error": …}`` datagram back (to the
+    stream's destination and to its sender) and runs none of its commands."""
+    enable_and_home(handle)
+    cfg = StreamConfig("PSM1", listener.getsockname()[1], read_commands=("measured_js",))
+    with UdpStreamer(handle, [cfg]) as streamer:
+        sender = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+        sender.bind(("127.0.0.1", 0))
+        sender.settimeout(2.0)
+        dest = ("127.0.0.1", streamer.local_port("PSM1"))
+        before = handle.snapshot().arms["PSM1"].setpoint_js.position.copy()
+        goal = [0.1, 0.0, 0.12, 0.0, 0.0, 0.0]
+        for bad, why in [
+            (b"{nope", "JSON"),
+            (b'{"fly": 1}', "unknown command 'fly'"),
+            # a good command beside a bad one: the datagram is refused whole
+            (json.dumps({"move_jp": {"Goal": goal}, "servo_jp": {"Goal": [1, 2]}}).encode(),
+             "servo_jp Goal"),
+            (b'{"jaw/servo_jp": {"Goal": [0.1, 0.2]}}', "1 values"),
+        ]:  # fmt: skip
+            sender.sendto(bad, dest)
+            assert why in _errors(sender, 1)[0]
+            assert why in _errors(listener, 1)[0]
+        # a well-formed command the arm refuses: the arm's own error event, to the destination
+        sender.sendto(json.dumps({"move_jp": {"Goal": [0, 0, 5.0, 0, 0, 0]}}).encode(), dest)
+        (text,) = _errors(listener, 1)
+        assert text.startswith("PSM1: move_jp:") and "insertion" in text
+        assert np.array_equal(handle.snapshot().arms["PSM1"].setpoint_js.position, before)
+        assert wait_for(lambda: streamer.stats()["PSM1"]["errors"] == 5, 5)
+        # the stream went on, and a good command still works
+        sender.sendto(json.dumps({"move_jp": {"Goal": goal}}).encode(), dest)
+        assert wait_for(
+            lambda: np.allclose(handle.snapshot().arms["PSM1"].setpoint_js.position, goal), 5
+        )
+        sender.close()
+
+
+def test_mtm_wrench_commands():
+    """``body/servo_cf`` and ``spatial/servo_cf`` (``prmForceCartesianSet``: ``Force``, six
+    values) reach the MTM: refused while it is disabled, applied once it is enabled."""
+    from davinci_sim.sim.handle import ThreadedSimulation
+    from davinci_sim.sim.simulation import Simulation
+
+    handle = ThreadedSimulation(Simulation("psm1_ecm_mtmr"), real_time=True).start()
+    sink = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    sink.bind(("127.0.0.1", 0))
+    sink.settimeout(2.0)
+    cfg = StreamConfig("MTMR", sink.getsockname()[1], read_commands=("measured_js",))
+    try:
+        with UdpStreamer(handle, [cfg]) as streamer:
+            dest = ("127.0.0.1", streamer.local_port("MTMR"))
+            wrench = {"spatial/servo_cf": {"Force": [0, 0, 1.5, 0, 0, 0]}}
+            sink.sendto(json.dumps(wrench).encode(), dest)
+            assert "needs ENABLED" in _errors(sink, 1)[0]
+            sink.sendto(b'{"body/servo_cf": {"Force": [0, 0, 1]}}', dest)
+            assert "6 values" in _errors(sink, 1)[0]
+            enable_and_home(handle, "MTMR")
+            sink.sendto(json.dumps(wrench).encode(), dest)
+            assert wait_for(lambda: np.allclose(
+                handle.call("MTMR/spatial", "measured_cf").result(5), [0, 0, 1.5, 0, 0, 0],
+                atol=1e-3), 5)  # fmt: skip
+    finally:
+        sink.close()
+        handle.stop()
+
+
+def test_the_node_example_commands_the_psm(handle):
+    """``examples/udp_psm.js`` (the documented example in another language, plain JSON over
+    UDP): homes the PSM, moves it, and gets a refusal back."""
+    import shutil
+    import subprocess
+    from pathlib import Path
+
+    node = shutil.which("node") or shutil.which("nodejs")
+    if node is None:
+        pytest.skip("Node.js is not installed")
+    probe = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    probe.bind(("127.0.0.1", 0))
+    port = probe.getsockname()[1]
+    probe.close()
+    example = Path(__file__).resolve().parents[2] / "examples" / "udp_psm.js"
+    with UdpStreamer(handle, [StreamConfig("PSM1", port)]):
+        result = subprocess.run([node, str(example), str(port)], capture_output=True, text=True,
+                                timeout=90)  # fmt: skip
+    assert result.returncode == 0, result.stdout + result.stderr
+    lines = result.stdout.splitlines()
+    assert lines[0] == "homed" and lines[1].startswith("move_jp reached")
+    assert lines[2].startswith("refused: PSM1: move_jp:") and "insertion" in lines[2]
+    goal = [0.1, -0.05, 0.12, 0.0, 0.0, 0.0]  # the move went on; the refused one changed nothing
+    assert wait_for(
+        lambda: np.allclose(handle.snapshot().arms["PSM1"].setpoint_js.position, goal), 5
+    )

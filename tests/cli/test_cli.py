@@ -56,6 +56,8 @@ import pytest  # noqa: E402
         (["serve", "--task", "seed_path", "--condition", "40:x"], "neither"),
         (["serve", "--web-port", "70000"], "--web-port must be a port"),
         (["serve", "--realtime-priority", "100"], "1..99"),
+        (["serve", "--ros-connect", "http://dvrk:9090"], "url must be ws://"),
+        (["serve", "--ros-connect", "ws://dvrk:9090", "--namespace", "sim"], "namespace must"),
         (["study", "--conditions", ""], "B:G_max"),
         (["study", "--conditions", "40:nan"], "finite"),
         (["study", "--conditions", "40:-5"], ">= 0"),

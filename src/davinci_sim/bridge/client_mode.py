@@ -14,13 +14,33 @@ to ``ws://HOST:9090`` and:
   while it is non-zero (plus one zero to release), so an idle simulation never switches a
   real MTM into effort mode;
 * publishes the simulated PSM, ECM and SUJ states (``measured_js``, ``measured_cp``,
-  ``setpoint_cp``, ``jaw/measured_js``, ``operating_state``) under a namespace (``/sim``) so
-  dVRK tools see them next to the real robot's.
+  ``setpoint_cp``, ``jaw/measured_js``, ``operating_state``, and the arms' ``error``,
+  ``warning``, ``status`` events) under a namespace (``/sim``; ``/`` for none, so that the
+  simulated arms take the real arms' names) so dVRK tools see them next to the real robot's;
+* takes the commands published on the remote for the simulated arms: every CRTK command
+  topic the built-in server serves (``{ns}/<ARM>/state_command``, ``servo_*``, ``move_*``,
+  ``jaw/*``, ``body/servo_cf`` …, :data:`~davinci_sim.bridge.dvrk_topics.COMMAND_TOPICS`),
+  the console's and teleoperations' commands (``{ns}/console/teleop/enable``,
+  ``{ns}/MTMR_PSM1/state_command`` …) and the system's (``{ns}/system/home`` …). They go
+  through the built-in server's own code (:func:`~davinci_sim.bridge.dvrk_commands.
+  command_sender`), so they are converted, checked and refused the same way; as client mode
+  cannot send a ``status`` to whoever published, a refusal goes on ``{ns}/<ARM>/error`` with
+  the text the built-in server publishes there (``<ARM>: <why>``).
+
+Echo safety: the simulator never subscribes to a topic it publishes on the remote (it would
+take its own messages as commands). The two sets of names are computed before connecting and
+a configuration where they meet (e.g. namespace ``/`` with a simulated ``MTMR`` that also
+follows the real ``MTMR``) is refused with a :class:`ValueError` naming the topics.
+
+Size: just over 500 lines because it is one connection with its two directions (what the
+remote sends in, what the simulation sends out) and the plan of names that keeps them apart;
+the conversions themselves live in the tables and senders it shares with the built-in server.
 """
 
 from __future__ import annotations
 
 import logging
+import queue
 import threading
 import time
 from collections.abc import Callable
@@ -30,9 +50,19 @@ from typing import TYPE_CHECKING, Any, Literal
 import numpy as np
 
 from davinci_sim.bridge import dvrk_messages as m
+from davinci_sim.bridge.console_node import (
+    CONSOLE_COMMANDS,
+    TELEOP_ECM_COMMANDS,
+    TELEOP_PSM_COMMANDS,
+    component_sender,
+    kind_of,
+)
+from davinci_sim.bridge.dvrk_commands import Refusal, command_sender, error_text
+from davinci_sim.bridge.dvrk_topics import COMMAND_TOPICS, EVENT_TOPICS, ArmInfo
 from davinci_sim.bridge.rosbridge.convert import MessageError, from_wire
 from davinci_sim.bridge.rosbridge.dialect import dialect
 from davinci_sim.bridge.rosbridge.types import TypeRegistry
+from davinci_sim.bridge.system_node import COMMANDS as SYSTEM_COMMANDS
 
 if TYPE_CHECKING:
     from davinci_sim.sim.handle import SimHandle, Snapshot
@@ -61,11 +91,15 @@ class ClientModeConfig:
     url: str
     """The remote rosbridge_server, ``ws://HOST:9090``."""
     namespace: str = "/sim"
-    """Prefix of the simulated arms' topics on the remote system."""
+    """Prefix of the simulated arms' topics on the remote system (``/``: none)."""
     mtms: tuple[str, ...] = ("MTML", "MTMR")
     """Real MTMs to follow (same names as the simulated ones)."""
     arms: tuple[str, ...] | None = None
-    """Simulated arms to publish (default: every PSM, the ECM and the SUJ arms)."""
+    """Simulated arms to publish and command (default: every PSM, the ECM, the SUJ arms and
+    the simulated MTMs not in ``mtms``)."""
+    commands: bool = True
+    """Take the commands published on the remote for the simulated arms, the console and
+    the system (False: publish states only)."""
     rate: float = 50.0
     """Publish rate of the simulated states, Hz."""
     wrench_rate: float = 100.0
@@ -83,8 +117,13 @@ class ClientModeConfig:
             raise ValueError("rate and wrench_rate must be in ]0, 1000] Hz")
         if self.drive not in ("auto", "device", "joints"):
             raise ValueError(f"drive must be auto, device or joints, got {self.drive!r}")
-        if not self.namespace.startswith("/"):
-            raise ValueError(f"namespace must start with '/', got {self.namespace!r}")
+        if not self.namespace.startswith("/") or (
+            self.namespace != "/" and self.namespace.endswith("/")
+        ):
+            raise ValueError(
+                f"namespace must start with '/' (and not end with one, unless it is '/'), "
+                f"got {self.namespace!r}"
+            )
 
 
 def default_wrench_source(snap: Snapshot) -> dict[str, np.ndarray]:
@@ -125,11 +164,16 @@ class RosClientMode:
         self._last_state: dict[str, tuple] = {}
         self._topics: dict[str, Any] = {}
         self._subscribed: list[Any] = []
+        self._outbox: queue.SimpleQueue[tuple[str, str, dict]] = queue.SimpleQueue()
+        self._unsubscribe: Callable[[], None] | None = None
         self.received: dict[str, int] = {}
         self.errors = 0
+        self.prefix = "" if config.namespace == "/" else config.namespace
         snap = handle.snapshot()
         self.arms = config.arms or tuple(
-            n for n, a in snap.arms.items() if a.arm_type in ("PSM", "ECM", "SUJ")
+            n
+            for n, a in snap.arms.items()
+            if a.arm_type in ("PSM", "ECM", "SUJ") or (a.arm_type == "MTM" and n not in config.mtms)
         )
         self.mode: dict[str, str] = {}
         for mtm in config.mtms:
@@ -139,6 +183,87 @@ class RosClientMode:
                 raise ValueError(f"drive='device' needs a network device '{mtm}/device'")
             self.mode[mtm] = "device" if (is_network and config.drive != "joints") else "joints"
         self.has_console = "console" in (snap.extras or {})
+        self._plan = self._plan_subscriptions(snap)
+        self.published_names = self._plan_publications(snap)
+        echo = sorted(set(self._plan) & self.published_names)
+        if echo:
+            raise ValueError(
+                f"client mode would take its own messages as input on {echo}: choose another "
+                "namespace, or leave these arms out of 'arms' or 'mtms'"
+            )
+
+    def _arm_topic(self, arm: str, suffix: str) -> str:
+        return f"{self.prefix}/{arm}/{suffix}"
+
+    def _plan_publications(self, snap: Snapshot) -> set[str]:
+        """Every topic name this client may publish on the remote."""
+        names = {f"/{mtm}/body/servo_cf" for mtm in self.config.mtms}
+        for arm in self.arms:
+            if arm in snap.arms:
+                names |= {self._arm_topic(arm, s) for s in (
+                    "measured_js", "measured_cp", "setpoint_cp", "jaw/measured_js",
+                    "operating_state", *EVENT_TOPICS)}  # fmt: skip
+        return names
+
+    def _plan_subscriptions(self, snap: Snapshot) -> dict[str, tuple[str, Callable, Callable]]:
+        """``{topic: (type, on_message(value), on_invalid(error text))}`` on the remote."""
+        plan: dict[str, tuple[str, Callable, Callable]] = {}
+        log = self._log_refusal
+        for mtm in self.config.mtms:
+            plan[f"/{mtm}/measured_cp"] = (
+                "geometry_msgs/PoseStamped",
+                lambda msg, mtm=mtm: self._on_pose(mtm, msg),
+                log,
+            )
+            plan[f"/{mtm}/measured_js"] = (
+                "sensor_msgs/JointState",
+                lambda msg, mtm=mtm: self._on_joints(mtm, msg),
+                log,
+            )
+            plan[f"/{mtm}/gripper/measured_js"] = (
+                "sensor_msgs/JointState",
+                lambda msg, mtm=mtm: self._on_gripper(mtm, msg),
+                log,
+            )
+        for button, topic in PEDAL_TOPICS.items():
+            plan[topic] = ("sensor_msgs/Joy", lambda msg, b=button: self._on_button(b, msg), log)
+        if not self.config.commands:
+            return plan
+        for name in self.arms:
+            a = snap.arms.get(name)
+            if a is None:
+                continue
+            info = ArmInfo(name, a.arm_type, tuple(a.measured_js.name))
+            for spec in COMMAND_TOPICS:
+                if a.arm_type in spec.arm_types:
+                    send = command_sender(self.handle, info, spec)
+                    refused = lambda r, arm=name: self._refused(arm, r)  # noqa: E731
+                    plan[self._arm_topic(name, spec.suffix)] = (
+                        spec.type,
+                        lambda msg, send=send, refused=refused: send(msg, refused),
+                        lambda text, refused=refused: refused(Refusal(text, True)),
+                    )
+        for component, state in (snap.extras or {}).items():
+            kind = kind_of(state)
+            if kind is None:
+                continue
+            where, commands = {
+                "console": ("console", CONSOLE_COMMANDS),
+                "teleop_psm": (component, TELEOP_PSM_COMMANDS),
+                "teleop_ecm": (component, TELEOP_ECM_COMMANDS),
+            }[kind]
+            for cmd in commands:
+                send = component_sender(self.handle, component, cmd)
+                plan[f"{self.prefix}/{where}/{cmd.suffix}"] = (
+                    cmd.type, lambda msg, send=send: send(msg, log), log)  # fmt: skip
+        for name, commands in SYSTEM_COMMANDS.items():
+            for where in ("system", "console"):
+                plan[f"{self.prefix}/{where}/{name}"] = (
+                    "std_msgs/Empty",
+                    lambda msg, c=commands: self._on_system(c),
+                    log,
+                )
+        return plan
 
     # ------------------------------------------------------------------ lifecycle
     def start(self, timeout: float = 10.0) -> RosClientMode:
@@ -151,21 +276,35 @@ class RosClientMode:
             if self.mode[mtm] == "joints" and mtm in self.handle.snapshot().arms:
                 self.handle.call(mtm, "state_command", "enable")
                 self.handle.call(mtm, "state_command", "home")
-            self._sub(f"/{mtm}/measured_cp", "geometry_msgs/PoseStamped",
-                      lambda msg, mtm=mtm: self._on_pose(mtm, msg))  # fmt: skip
-            self._sub(f"/{mtm}/measured_js", "sensor_msgs/JointState",
-                      lambda msg, mtm=mtm: self._on_joints(mtm, msg))  # fmt: skip
-            self._sub(f"/{mtm}/gripper/measured_js", "sensor_msgs/JointState",
-                      lambda msg, mtm=mtm: self._on_gripper(mtm, msg))  # fmt: skip
-        for button, topic in PEDAL_TOPICS.items():
-            self._sub(topic, "sensor_msgs/Joy", lambda msg, b=button: self._on_button(b, msg))
+        self._unsubscribe = self.handle.subscribe(self._on_event)
+        for name, (type_name, on_message, on_invalid) in self._plan.items():
+            self._sub(name, type_name, on_message, on_invalid)
+        self._await_subscriptions(timeout)
         self._stop.clear()
         self._thread = threading.Thread(target=self._run, name="ros-client-mode", daemon=True)
         self._thread.start()
         _log.info("client mode: connected to %s (namespace %s)", c.url, c.namespace)
         return self
 
+    def _await_subscriptions(self, timeout: float) -> None:
+        """Return once the remote has the subscriptions, so that a command published after
+        :meth:`start` is not lost: a rosbridge server handles one client's operations in
+        order, so the answer to a ``/rosapi/topics`` call sent after them comes after them.
+        A remote without rosapi only costs the timeout (and a warning)."""
+        import roslibpy
+
+        answered = threading.Event()
+        roslibpy.Service(self.ros, "/rosapi/topics", "rosapi/Topics").call(
+            roslibpy.ServiceRequest(), lambda _: answered.set(), lambda _: answered.set()
+        )
+        if not answered.wait(timeout):
+            _log.warning("client mode: no answer from /rosapi/topics on %s in %.0f s; the "
+                         "first commands may be lost", self.config.url, timeout)  # fmt: skip
+
     def stop(self) -> None:
+        if self._unsubscribe is not None:
+            self._unsubscribe()
+            self._unsubscribe = None
         self._stop.set()
         if self._thread is not None:
             self._thread.join(5)
@@ -188,28 +327,77 @@ class RosClientMode:
         self.stop()
 
     # ------------------------------------------------------------------ incoming
-    def _sub(self, name: str, type_name: str, callback: Callable[[dict], None]) -> None:
+    def _sub(
+        self,
+        name: str,
+        type_name: str,
+        callback: Callable[[dict], None],
+        on_invalid: Callable[[str], None],
+    ) -> None:
+        """Subscribe ``name`` on the remote: each message is validated against its type
+        (as the built-in server validates a publish) before ``callback`` sees it."""
         import roslibpy
 
+        if name in self.published_names:  # echo safety (also checked for the whole plan)
+            raise ValueError(f"client mode publishes {name}: it cannot also take it as input")
         spec = self.registry.message(type_name)
 
         def checked(msg: dict) -> None:
             try:
                 value = from_wire(self.registry, spec, msg)
             except MessageError as e:
-                self.errors += 1
-                _log.error("client mode: bad message on %s: %s", name, e)
+                on_invalid(f"publish: {e}")  # the built-in server's status text
                 return
             self.received[name] = self.received.get(name, 0) + 1
             try:
                 callback(value)
             except (m.CommandError, ValueError) as e:
-                self.errors += 1
-                _log.error("client mode: %s: %s", name, e)
+                self._log_refusal(f"{name}: {e}")
 
-        topic = roslibpy.Topic(self.ros, name, type_name, queue_length=1)
+        # Commands keep the server's default queue (a state_command "enable" then "home" must
+        # both arrive); streamed poses only need the latest.
+        queue_length = 1 if name in self._streamed else 0
+        topic = roslibpy.Topic(self.ros, name, type_name, queue_length=queue_length)
         topic.subscribe(checked)
         self._subscribed.append(topic)
+
+    @property
+    def _streamed(self) -> set[str]:
+        return {f"/{mtm}/{s}" for mtm in self.config.mtms
+                for s in ("measured_cp", "measured_js", "gripper/measured_js")}  # fmt: skip
+
+    def _log_refusal(self, text: str) -> None:
+        self.errors += 1
+        _log.error("client mode: %s", text)
+
+    def _refused(self, arm: str, refusal: Refusal) -> None:
+        """A command for a simulated arm that moved nothing (maybe in the simulation's
+        thread): on the remote's ``{ns}/<arm>/error`` unless the arm published it there."""
+        self._log_refusal(refusal.text)
+        if refusal.publish_error:
+            self._outbox.put((self._arm_topic(arm, "error"), "std_msgs/String",
+                              {"data": error_text(arm, refusal)}))  # fmt: skip
+
+    def _on_event(self, source: str, event: str, payload: object) -> None:
+        """The simulation's events (its thread): the arms' messages go to the remote."""
+        if source in self.arms and event in EVENT_TOPICS:
+            text = getattr(payload, "text", str(payload))
+            self._outbox.put((self._arm_topic(source, event), EVENT_TOPICS[event],
+                              {"data": text}))  # fmt: skip
+
+    def _on_system(self, commands: tuple[str, ...]) -> None:
+        """``{ns}/system/home`` …: the state commands on every arm, in order (dvrk.md 2.3)."""
+        for arm in self.handle.snapshot().arms:
+            for command in commands:
+                self.handle.call(arm, "state_command", command).add_done_callback(
+                    lambda f, a=arm, c=command: self._system_done(f"{a} {c}", f)
+                )
+
+    def _system_done(self, what: str, future) -> None:
+        exc = future.exception()
+        result = None if exc is not None else future.result()
+        if exc is not None or not getattr(result, "accepted", True):
+            self._log_refusal(f"system: {what}: {exc if exc is not None else result.message}")
 
     def _on_pose(self, mtm: str, msg: dict) -> None:
         T = m.pose_matrix(msg["pose"])
@@ -251,6 +439,8 @@ class RosClientMode:
     def _publisher(self, name: str, type_name: str, latch: bool = False):
         import roslibpy
 
+        if name not in self.published_names:  # echo safety: only planned names go out
+            raise ValueError(f"client mode did not plan to publish {name}")
         topic = self._topics.get(name)
         if topic is None:
             topic = roslibpy.Topic(self.ros, name, type_name, latch=latch)
@@ -272,6 +462,7 @@ class RosClientMode:
                 if now >= next_state:
                     next_state += 1.0 / c.rate
                     self._publish_states(snap)
+                self._publish_outbox()
             except Exception:
                 self.errors += 1
                 _log.exception("client mode: publishing failed")
@@ -282,12 +473,12 @@ class RosClientMode:
     def _publish_states(self, snap: Snapshot) -> None:
         import roslibpy
 
-        d, ns, stamp = self.dialect, self.config.namespace, time.time()
+        d, stamp = self.dialect, time.time()
         for name in self.arms:
             a = snap.arms.get(name)
             if a is None:
                 continue
-            base = f"{ns}/{name}"
+            base = f"{self.prefix}/{name}"
             msgs = [
                 ("measured_js", "sensor_msgs/JointState", m.joint_state(d, a.measured_js, stamp)),
                 ("measured_cp", "geometry_msgs/PoseStamped",
@@ -309,6 +500,17 @@ class RosClientMode:
                 latch = suffix == "operating_state"
                 topic = self._publisher(f"{base}/{suffix}", type_name, latch)
                 topic.publish(roslibpy.Message(msg))
+
+    def _publish_outbox(self) -> None:
+        """Events and refusals, published from this thread only (one owner of the topics)."""
+        import roslibpy
+
+        while True:
+            try:
+                name, type_name, msg = self._outbox.get_nowait()
+            except queue.Empty:
+                return
+            self._publisher(name, type_name).publish(roslibpy.Message(msg))
 
     def _publish_wrenches(self, snap: Snapshot) -> None:
         import roslibpy

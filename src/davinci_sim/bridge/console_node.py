@@ -337,21 +337,38 @@ class ConsoleNode:
 
     # ------------------------------------------------------------------ commands
     def _command(self, c: _Component, cmd: Command):
+        send = component_sender(self.handle, c.name, cmd)  # the path client mode uses too
+
         def on_message(msg: dict, session: Session | None) -> None:
-            future = self.handle.call(c.name, cmd.method, *cmd.convert(msg))
-            future.add_done_callback(
-                lambda f: self.loop.call_soon_threadsafe(self._done, c, cmd, session, f)
-            )
+            send(msg, lambda text: self._to_loop(self._refused, session, text))
 
         return on_message
 
-    def _done(self, c: _Component, cmd: Command, session: Session | None, future) -> None:
-        exc = future.exception()
-        result = None if exc is not None else future.result()
-        if exc is None and not (hasattr(result, "accepted") and not result.accepted):
-            return
-        text = f"{c.name}/{cmd.suffix}: {exc if exc is not None else result.message}"
+    def _to_loop(self, fn, *args) -> None:
+        try:
+            self.loop.call_soon_threadsafe(fn, *args)
+        except RuntimeError:  # the loop is closed: the server has stopped
+            pass
+
+    def _refused(self, session: Session | None, text: str) -> None:
         if session is not None:
             session.report("error", text)
         else:
             _log.warning("%s", text)
+
+
+def component_sender(handle: SimHandle, name: str, cmd: Command):
+    """``send(msg, refused)``: ``name.method(*cmd.convert(msg))`` through the handle;
+    ``refused(text)`` (maybe from the simulation's thread) if the component refuses it."""
+
+    def send(msg: dict, refused: Callable[[str], None]) -> None:
+        def done(future) -> None:
+            exc = future.exception()
+            result = None if exc is not None else future.result()
+            if exc is None and not (hasattr(result, "accepted") and not result.accepted):
+                return
+            refused(f"{name}/{cmd.suffix}: {exc if exc is not None else result.message}")
+
+        handle.call(name, cmd.method, *cmd.convert(msg)).add_done_callback(done)
+
+    return send

@@ -31,6 +31,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from davinci_sim.bridge import dvrk_messages as m
+from davinci_sim.bridge.dvrk_commands import Refusal, command_sender, error_text
 from davinci_sim.bridge.dvrk_topics import (
     ARMS,
     COMMAND_TOPICS,
@@ -292,43 +293,29 @@ class DvrkNode:
 
     # ------------------------------------------------------------------ commands
     def _command_listener(self, arm: _Arm, spec: CommandTopic):
-        target = arm.info.name + (f"/{spec.target}" if spec.target else "")
-        topic_name = self._topic(arm, spec.suffix)
+        send = command_sender(self.handle, arm.info, spec)  # the path client mode uses too
 
         def on_message(msg: dict, session: Session | None) -> None:
-            try:
-                args = spec.convert(msg, arm.info)
-            except m.CommandError as e:
-                self._refused(arm, session, f"{spec.suffix}: {e}", publish_error=True)
-                return
-            future = self.handle.call(target, spec.method, *args)
-            future.add_done_callback(
-                lambda f: self.loop.call_soon_threadsafe(
-                    self._command_done, arm, session, topic_name, f
-                )  # fmt: skip
-            )
+            send(msg, lambda r: self._to_loop(self._refused, arm, session, r))
 
         return on_message
 
-    def _command_done(self, arm: _Arm, session: Session | None, topic: str, future) -> None:
-        exc = future.exception()
-        if exc is not None:
-            _log.error("%s: %s", topic, exc)
-            self._refused(arm, session, f"{topic}: {exc}", publish_error=True)
-            return
-        result = future.result()
-        if result is not None and hasattr(result, "accepted") and not result.accepted:
-            self._refused(arm, session, result.message, publish_error=False)
+    def _to_loop(self, fn, *args) -> None:
+        """Run ``fn`` on the bridge's loop (from any thread); dropped once it has closed."""
+        try:
+            self.loop.call_soon_threadsafe(fn, *args)
+        except RuntimeError:  # the loop is closed: the server has stopped
+            pass
 
-    def _refused(self, arm: _Arm, session: Session | None, text: str, publish_error: bool):
+    def _refused(self, arm: _Arm, session: Session | None, refusal: Refusal) -> None:
         """A command that moved nothing: tell the client (status) and, when the arm did not
         already say it on its error channel, publish it on ``/<arm>/error``."""
-        if publish_error:
-            self.bridge.publish(arm.events["error"], {"data": f"{arm.info.name}: {text}"})
+        if refusal.publish_error:
+            self.bridge.publish(arm.events["error"], {"data": error_text(arm.info.name, refusal)})
         if session is not None:
-            session.report("error", text)
+            session.report("error", refusal.text)
         else:
-            _log.warning("%s", text)
+            _log.warning("%s", refusal.text)
 
     # ------------------------------------------------------------------ services
     def _advertise_services(self, arm: _Arm) -> None:

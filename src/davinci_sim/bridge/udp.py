@@ -5,9 +5,18 @@ For each configured arm, every ``period`` the streamer sends one datagram per re
 object as JSON: ``prmStateJoint`` (``Name``, ``Position``, ``Velocity``, ``Effort``,
 ``Timestamp``, ``AutomaticTimestamp``, ``Valid``), ``prmPositionCartesianGet`` (``Position``
 {``Rotation`` 3x3, ``Translation``}, ``ReferenceFrame``, ``MovingFrame`` …). Events
-(``operating_state``) are sent when they happen. Datagrams received on the same socket are
-commands: ``{"servo_jp": {"Goal": [q1, …]}}``, ``{"hold": ""}`` …; unknown or malformed ones
-are logged and dropped, and the stream carries on.
+(``operating_state``, and here by default the arm's ``error`` and ``warning`` messages) are
+sent when they happen. Datagrams received on the same socket are commands:
+``{"servo_jp": {"Goal": [q1, …]}}``, ``{"hold": ""}``, ``{"state_command": "enable"}`` …
+(one object, one key per command, as the streamer's ``write-commands`` deserialise them).
+
+Bad input changes nothing and the stream carries on, as on the other transports: a datagram
+that is not one JSON object, names a command the stream does not accept, or whose payload has
+the wrong shape is refused whole (none of its commands run) and answered with an
+``{"error": "<ARM>: <why>"}`` datagram (to the stream's destination, and to the sender if it
+is another address); a command the arm refuses (limits, state, NaN …) gets the arm's own
+``error`` event. The dVRK's streamer only logs such errors; answering them is this project's
+choice, and the ``error`` and ``warning`` events can be left out of ``write_events``.
 
 Default destination ports: the dVRK examples' 48051 (PSM1), 48052 (PSM2), 48053 (ECM),
 48054 (MTML); MTMR 48055 and PSM3 48056 are this project's choice. The JSON rendering of the
@@ -48,7 +57,8 @@ DEFAULT_WRITE = {
     "PSM": ("servo_jp", "move_jp", "servo_jr", "move_jr", "servo_cp", "move_cp", "state_command",
             "jaw/servo_jp", "jaw/move_jp"),
     "ECM": ("servo_jp", "move_jp", "servo_jr", "move_jr", "servo_cp", "move_cp", "state_command"),
-    "MTM": ("servo_jp", "move_jp", "servo_cp", "move_cp", "state_command", "servo_jf"),
+    "MTM": ("servo_jp", "move_jp", "servo_cp", "move_cp", "state_command", "servo_jf",
+            "body/servo_cf", "spatial/servo_cf"),
     "SUJ": ("servo_jp", "move_jp", "state_command"),
 }  # fmt: skip
 
@@ -71,7 +81,9 @@ class StreamConfig:
     """Sent every period; None: the dVRK example's list for the arm type."""
     void_commands: tuple[str, ...] = DEFAULT_VOID
     write_commands: tuple[str, ...] | None = None
-    write_events: tuple[str, ...] = ("operating_state",)
+    write_events: tuple[str, ...] = ("operating_state", "error", "warning")
+    """Events sent as they happen (the dVRK examples stream ``operating_state``; the arm's
+    ``error`` and ``warning`` messages carry the refusals)."""
     bind_ip: str = "127.0.0.1"
     bind_port: int = 0
     """Local port of the socket (commands arrive there); 0: any free port."""
@@ -179,20 +191,27 @@ def _frame(payload: Any) -> np.ndarray:
     return T
 
 
-def command_call(arm: str, name: str, payload: Any) -> tuple[str, str, tuple]:
-    """``(target, method, args)`` of a write command (cisst parameter types, dvrk.md §5).
+def command_call(
+    arm: str, name: str, payload: Any, dof: int | None = None
+) -> tuple[str, str, tuple]:
+    """``(target, method, args)`` of a write command (cisst parameter types, dvrk.md §5);
+    joint vectors must have ``dof`` values when it is given (so a datagram with a bad joint
+    vector is refused before any of its commands runs).
 
     Raises:
         StreamError: for a payload of the wrong shape.
     """
     if name in ("servo_jp", "move_jp", "servo_jr", "move_jr"):
-        return arm, name, (_numbers(_goal(payload), f"{name} Goal"),)
+        return arm, name, (_numbers(_goal(payload), f"{name} Goal", dof),)
     if name == "servo_jf":
-        return arm, name, (_numbers(_goal(payload, "ForceTorque"), "servo_jf ForceTorque"),)
+        return arm, name, (_numbers(_goal(payload, "ForceTorque"), "servo_jf ForceTorque", dof),)
     if name in ("jaw/servo_jp", "jaw/move_jp"):
         return f"{arm}/jaw", name.split("/")[1], (_numbers(_goal(payload), f"{name} Goal", 1)[0],)
     if name in ("servo_cp", "move_cp"):
         return arm, name, (_frame(payload),)
+    if name in ("body/servo_cf", "spatial/servo_cf"):  # prmForceCartesianSet: force, torque
+        target, method = name.split("/")
+        return f"{arm}/{target}", method, (_numbers(_goal(payload, "Force"), f"{name} Force", 6),)
     if name == "state_command":
         if isinstance(payload, dict):
             payload = payload.get("string", payload.get("Data"))
@@ -204,9 +223,12 @@ def command_call(arm: str, name: str, payload: Any) -> tuple[str, str, tuple]:
 
 # =========================================================================== the streamer
 class _Stream(asyncio.DatagramProtocol):
-    def __init__(self, owner: UdpStreamer, config: StreamConfig, arm_type: str) -> None:
+    def __init__(
+        self, owner: UdpStreamer, config: StreamConfig, arm_type: str, dof: int | None = None
+    ) -> None:
         self.owner = owner
         self.config = config
+        self.dof = dof
         self.read = config.read_commands or DEFAULT_READ.get(arm_type, ("measured_js",))
         unknown = [r for r in self.read if r not in READERS]
         if unknown:
@@ -228,11 +250,11 @@ class _Stream(asyncio.DatagramProtocol):
     def connection_made(self, transport) -> None:
         self.transport = transport
 
-    def send(self, key: str, payload: Any) -> None:
+    def send(self, key: str, payload: Any, to: tuple[str, int] | None = None) -> None:
         if self.transport is None:
             return
         try:
-            self.transport.sendto(codec.dumps({key: payload}).encode("ascii"), self.dest)
+            self.transport.sendto(codec.dumps({key: payload}).encode("ascii"), to or self.dest)
             self.sent += 1
         except OSError as e:  # e.g. nobody listening (ICMP) — keep streaming
             _log.debug("%s: send failed: %s", self.config.arm, e)
@@ -258,7 +280,7 @@ class _Stream(asyncio.DatagramProtocol):
                 if name in self.void:
                     calls.append((arm, name, ()))
                 elif name in self.write:
-                    calls.append(command_call(arm, name, payload))
+                    calls.append(command_call(arm, name, payload, self.dof))
                 else:
                     raise StreamError(
                         f"unknown command {name!r}; accepted: {sorted(self.void | self.write)}"
@@ -266,6 +288,10 @@ class _Stream(asyncio.DatagramProtocol):
         except (codec.DecodeError, StreamError) as e:
             self.errors += 1
             _log.error("%s: datagram from %s:%s refused: %s", arm, addr[0], addr[1], e)
+            if "error" in self.config.write_events:
+                self.send("error", f"{arm}: {e}")
+                if tuple(addr[:2]) != self.dest:
+                    self.send("error", f"{arm}: {e}", addr[:2])
             return
         for target, method, args in calls:
             future = self.owner.handle.call(target, method, *args)
@@ -325,7 +351,8 @@ class UdpStreamer(AsyncService):
             for cfg in self.configs:
                 if cfg.arm not in snap.arms:
                     raise ValueError(f"no arm {cfg.arm!r}; arms: {sorted(snap.arms)}")
-                stream = _Stream(self, cfg, snap.arms[cfg.arm].arm_type)
+                a = snap.arms[cfg.arm]
+                stream = _Stream(self, cfg, a.arm_type, len(a.measured_js.name))
                 await loop.create_datagram_endpoint(
                     lambda s=stream: s, local_addr=(cfg.bind_ip, cfg.bind_port)
                 )

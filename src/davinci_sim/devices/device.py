@@ -81,10 +81,16 @@ class MasterDevice(ABC):
         stale = self.is_stale()
         if stale and not self._was_stale:
             self.zero_wrench()
+            # Before the first input this is the normal start, not a lost connection.
+            age = (
+                "no input yet"
+                if self._input is None
+                else f"last input is {1000 * self.input_age():.0f} ms old"
+            )
             self.channels.message(
                 "error",
-                f"watchdog: last input is {1000 * self.input_age():.0f} ms old (limit "
-                f"{1000 * self.watchdog:.0f} ms, dvrk.md 1.7); wrench zeroed",
+                f"watchdog: {age} (limit {1000 * self.watchdog:.0f} ms, dvrk.md 1.7); "
+                "wrench zeroed",
                 t,
             )
         elif self._was_stale and not stale:

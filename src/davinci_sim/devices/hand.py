@@ -183,3 +183,14 @@ def handle_xfrc(
     # lever × f, written out (numpy's cross computes the same products, slower)
     moment = np.concatenate([ly * fz - lz * fy, lz * fx - lx * fz, lx * fy - ly * fx], axis=-1)
     return np.concatenate([f, rotate_rows(R_world_hrsv, wrench_hrsv[..., 3:]) + moment], axis=-1)
+
+
+def _warm_up() -> None:
+    """Compile (or load from numba's cache) at import, as
+    :mod:`~davinci_sim.kinematics.fk_compiled` does: never in the middle of a 1 kHz loop.
+    (The simulated hand's first tick would otherwise compile it in the simulation's thread.)"""
+    one = np.ones(1)
+    hand_wrenches(None, np.eye(4)[None], np.zeros((1, 6)), one, one, HandImpedance())
+
+
+_warm_up()

@@ -142,3 +142,13 @@ class WrenchLimiter:
         """Forget the history: the next wrench ramps up from zero (after a safety stop)."""
         self.previous = np.zeros(6)
         self.active = False
+
+
+def _warm_up() -> None:
+    """Compile (or load from numba's cache) at import, as
+    :mod:`~davinci_sim.kinematics.fk_compiled` does: never in the middle of a 1 kHz loop.
+    (The first wrench of a device would otherwise compile it in the simulation's thread.)"""
+    clamp_wrench(np.zeros(6), np.zeros(6), WrenchLimits(), 0.001)
+
+
+_warm_up()

@@ -24,6 +24,10 @@ except Exception:  # pragma: no cover - depends on the installation
 ENABLED = numba is not None and os.environ.get("DAVINCI_SIM_JIT", "1") != "0"
 """Whether :func:`jit` compiles (numba importable and not switched off)."""
 
+KERNELS: list = []
+"""Every function :func:`jit` compiled or will compile: each module warms its kernels up at
+import (its ``_warm_up``) so that none compiles in a 1 kHz loop; ``ready()`` tells."""
+
 
 def jit(fn):
     """``fn`` compiled by numba on first call (``nopython``, cached), or ``fn`` itself.
@@ -32,6 +36,7 @@ def jit(fn):
     """
     if not ENABLED:
         fn.py_func = fn
+        fn.ready = lambda: True
         return fn
     compiled = numba.njit(cache=True)(fn)
     current = [None]
@@ -56,6 +61,8 @@ def jit(fn):
         return out
 
     call.py_func = fn
+    call.ready = lambda: current[0] is not None
+    KERNELS.append(call)
     return call
 
 

@@ -42,6 +42,7 @@ from typing import NamedTuple
 import numpy as np
 
 from davinci_sim.kinematics import fk
+from davinci_sim.kinematics.arms import load_arm
 from davinci_sim.kinematics.chain import DHChain
 from davinci_sim.kinematics.dls import dls_solve
 from davinci_sim.kinematics.fk import fk_tuple
@@ -469,6 +470,19 @@ def psm_ik_reference(
         position_tolerance,
         rotation_tolerance,
     )
+
+
+def _warm_up() -> None:
+    """Compile (or load from numba's cache) at import, as
+    :mod:`~davinci_sim.kinematics.fk_compiled` does: never in the middle of a 1 kHz loop.
+    (A first Cartesian command compiled it in the simulation's thread: the loop stood still
+    for seconds, half a minute on a busy machine with an empty cache, with no message.)"""
+    chain = load_arm("PSM1").chain
+    q = np.array([0.0, 0.0, 0.12, 0.0, 0.0, 0.0])
+    psm_ik_closed_form(chain, fk.forward_kinematics(chain, q), q)
+
+
+_warm_up()
 
 
 __all__ = [
