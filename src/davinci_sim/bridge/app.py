@@ -73,6 +73,9 @@ class ServeOptions:
     frame_task: bool = False
     """Bring the endoscope closer to the task once the ECM is homed (the web console's
     view: the task fills the image)."""
+    record_inputs: bool = False
+    """Log every call with its tick and publish ``qpos`` (what ``serve --record`` needs:
+    :func:`davinci_sim.records.recording.recording_description`)."""
 
 
 class RealTimeWatch:
@@ -149,7 +152,10 @@ def serve_description(options: ServeOptions):
         # Snapshots cost ~0.2 ms of the loop for the full system with the console: take them
         # at the publish rate, not every tick, so the 1 kHz loop keeps its margin.
         snapshot_period=1.0 / max(options.rate, 1.0),
-        publish_qpos=options.images != "none" or options.render_hz is not None,
+        publish_qpos=options.images != "none"
+        or options.render_hz is not None
+        or options.record_inputs,
+        record_inputs=options.record_inputs,
         render_hz=options.render_hz,
         realtime_priority=options.realtime_priority if options.runner == "process" else None,
     )

@@ -34,6 +34,7 @@ import numpy as np
 
 from davinci_sim.kinematics.chain import DHChain
 from davinci_sim.sim import arm_laws as laws
+from davinci_sim.sim.inputs import log_call
 from davinci_sim.sim.types import CartesianPose, CartesianTwist, JointState, OperatingState
 
 if TYPE_CHECKING:
@@ -186,12 +187,14 @@ def resolve_target(sim: Simulation, target: str) -> object:
 
 
 def execute(sim: Simulation, target: str, method: str, args: tuple, kwargs: dict) -> Any:
-    """Run one call in the loop's thread. Only public methods can be called."""
+    """Run one call in the loop's thread. Only public methods can be called; the call is
+    logged first when the simulation has an input log (:mod:`~davinci_sim.sim.inputs`)."""
     if method.startswith("_"):
         raise AttributeError(f"{method!r} is not a public method")
     fn = getattr(resolve_target(sim, target), method, None)
     if not callable(fn):
         raise AttributeError(f"{target!r} has no method {method!r}")
+    log_call(sim, target, method, args, kwargs)
     return fn(*args, **kwargs)
 
 

@@ -1,0 +1,334 @@
+"""Recording a running session to an MCAP file: ``davinci-sim serve --record FILE.mcap``.
+
+:class:`SessionRecorder` attaches to a running system's handle (the thread or the process
+runner alike) and writes, in its own thread, never in the loop:
+
+* every published snapshot (the ``serve`` publish period, 10 ms by default): each arm's
+  ``measured_js``, ``setpoint_js`` and jaw/gripper (``davinci_sim.JointState``), the
+  Cartesian arms' ``measured_cp`` (``foxglove.PoseInFrame``) and all of them as
+  ``/tf`` (``foxglove.FrameTransforms``), the whole model's joint positions (``/sim/qpos``),
+  the wrench sent to each MTM (``/<MTM>/wrench``), the task session's state (phase,
+  repetition, distance: ``/task/state``), the console's and every other component's state
+  (``/components/<name>``);
+* every event (``/events``: console buttons, teleoperation states, the task's phases;
+  ``/task/results``: each finished repetition's metrics; ``/rosout``: the arms' messages as
+  ``foxglove.Log``);
+* every call the handle ran, with its tick (``/inputs/calls``, from the simulation's input
+  log, :mod:`davinci_sim.sim.inputs`): the commands at the arms' API (``servo_cp``,
+  ``servo_jp``, ``jaw/servo_jp``, ``move_*``, ``state_command``), the MTM inputs (the web
+  console's hand velocity, a client's MTM pose, the pedals), condition changes — what a
+  replay runs again (:mod:`~davinci_sim.records.replay`);
+* at the start, the system's description (attachments ``description.json``, readable, and
+  ``description.pickle``, what a replay rebuilds from), the task file's text
+  (``task.yaml``), and metadata ``davinci_sim`` (software versions, the model's signature,
+  scene, seed, task, condition and its fixture's parameters): the file alone is enough to
+  replay the session.
+
+The system must be built with ``record_inputs=True`` and ``publish_qpos=True``
+(:func:`recording_description` sets both); ``serve --record`` does.
+"""
+
+from __future__ import annotations
+
+import json
+import logging
+import pickle
+import queue
+import threading
+from collections.abc import Callable
+from datetime import UTC, datetime
+from pathlib import Path
+from typing import Any
+
+from davinci_sim.records.jsonvalue import encode, plain
+from davinci_sim.records.mcap_file import McapWriter
+from davinci_sim.records.mcap_schemas import numbers, pose_fields, stamp, time_ns
+
+_log = logging.getLogger("davinci_sim.records")
+
+#: Arm types whose ``measured_cp`` is recorded (the setup joints' are fixed frames).
+CARTESIAN = ("PSM", "ECM", "MTM")
+_LEVELS = {"debug": 1, "info": 2, "status": 2, "warning": 3, "error": 4, "fatal": 5}
+
+
+def recording_description(description):
+    """``description`` with what a recording needs: the input log and ``qpos`` in the
+    snapshots."""
+    return description.replace(record_inputs=True, publish_qpos=True)
+
+
+def software_versions() -> dict[str, str]:
+    """The versions of davinci-sim, MuJoCo, numpy and Python."""
+    import platform
+    from importlib.metadata import PackageNotFoundError, version
+
+    import mujoco
+    import numpy
+
+    try:
+        own = version("davinci-sim")
+    except PackageNotFoundError:
+        own = "unknown"
+    return {"davinci_sim": own, "mujoco": mujoco.__version__, "numpy": numpy.__version__,
+            "python": platform.python_version()}  # fmt: skip
+
+
+def task_text(task: str) -> str | None:
+    """The text of the task file ``task`` names (a shipped task's name or a path)."""
+    from importlib import resources
+
+    path = Path(task)
+    if path.suffix in (".yaml", ".yml", ".json") and path.is_file():
+        return path.read_text()
+    for suffix in (".yaml", ".yml", ".json"):
+        candidate = resources.files("davinci_sim.tasks") / "data" / f"{task}{suffix}"
+        if candidate.is_file():
+            return candidate.read_text()
+    return None
+
+
+def write_header(writer: McapWriter, kind: str, *, description=None, info: dict | None = None,
+                 extra: dict | None = None) -> None:  # fmt: skip
+    """The self-describing start of a recording: metadata ``davinci_sim`` (kind, versions,
+    start time, the model's signature and sizes from ``info``, ``extra``) and, with a
+    ``description``, its attachments and the task's file and fixture."""
+    meta: dict[str, Any] = {
+        "kind": kind,
+        "created": datetime.now(UTC).isoformat(timespec="seconds"),
+        **software_versions(),
+        **(info or {}),
+        **(extra or {}),
+    }
+    if description is not None:
+        meta.update(scene=plain(description.scene), keyframe=description.keyframe,
+                    seed=description.seed, home=description.home)  # fmt: skip
+        writer.attach("description.json", "application/json",
+                      json.dumps(plain(description), indent=1).encode())  # fmt: skip
+        writer.attach("description.pickle", "application/x-python-pickle",
+                      pickle.dumps(description.replace(runner="none", start_paused=False,
+                                                       render_hz=None, realtime_priority=None,
+                                                       loop_cpu=None)))  # fmt: skip
+        if description.task is not None:
+            t = description.task
+            meta.update(task=t.task, condition=plain(t.condition))
+            text = task_text(t.task)
+            if text is not None:
+                writer.attach("task.yaml", "text/yaml", text.encode())
+            try:
+                from davinci_sim.records.console import condition_settings
+                from davinci_sim.tasks import load_task
+
+                meta["fixture"] = plain(condition_settings(load_task(t.task), t.condition))
+            except Exception as e:  # (the file is still worth writing)
+                meta["fixture"] = f"unknown ({e})"
+    writer.metadata("davinci_sim", meta)
+    writer.flush()
+
+
+class SessionRecorder:
+    """Records a running system to ``path``; see the module docstring.
+
+    Args:
+        path: the MCAP file (created; its folder must exist).
+        description: the system's description (attached; what a replay rebuilds).
+        poll: how often, s of wall time, the recorder looks for a new snapshot.
+        on_error: told, once, if writing fails (the simulation goes on; default: logged).
+    """
+
+    def __init__(self, path: str | Path, description, *, poll: float = 0.002,
+                 on_error: Callable[[str], None] | None = None) -> None:  # fmt: skip
+        self.path = Path(path)
+        self.description = description
+        self.poll = poll
+        self.on_error = on_error
+        self._events: queue.SimpleQueue = queue.SimpleQueue()
+        self._stop = threading.Event()
+        self._thread: threading.Thread | None = None
+        self._unsubscribe: Callable[[], None] | None = None
+        self._writer: McapWriter | None = None
+        self._last_tick = -1
+        self._last_time = 0.0
+        self._seen_seq = 0
+        self.snapshots = 0
+        """Snapshots written so far."""
+        self.calls = 0
+        """Calls written so far."""
+        self.error: str | None = None
+
+    def attach(self, handle) -> SessionRecorder:
+        """Subscribe to ``handle``'s events, write the header, start the writer thread.
+
+        Raises:
+            RuntimeError: the system has no input log (built without ``record_inputs``).
+            OSError: the file cannot be created.
+        """
+        self._writer = McapWriter(self.path)
+        self._unsubscribe = handle.subscribe(self._on_event)
+        try:
+            info = handle.call("inputs", "info").result(30)
+            earlier = handle.call("inputs", "drain").result(30)
+        except (KeyError, AttributeError) as e:
+            self._unsubscribe()
+            self._writer.close()
+            raise RuntimeError("the system has no input log: build it with record_inputs=True "
+                               f"(records.recording_description) ({e})") from None  # fmt: skip
+        self._dt = info["dt"]
+        write_header(self._writer, "session", description=self.description, info=info)
+        for entry in earlier:
+            self._events.put(("inputs", "call", entry))
+        self._handle = handle
+        self._thread = threading.Thread(target=self._run, name="recording", daemon=True)
+        self._thread.start()
+        return self
+
+    def _on_event(self, source: str, event: str, payload: object) -> None:
+        self._events.put((source, event, payload))  # (the loop's thread: only hand it over)
+
+    def stop(self, timeout: float | None = 10.0) -> None:
+        """Write what is pending, the last snapshot, the summary; close the file."""
+        if self._unsubscribe is not None:
+            self._unsubscribe()
+            self._unsubscribe = None
+        self._stop.set()
+        if self._thread is not None:
+            self._thread.join(timeout)
+            self._thread = None
+
+    # ------------------------------------------------------------ the writer thread
+    def _run(self) -> None:
+        try:
+            while not self._stop.wait(self.poll):
+                self._step()
+            self._step()
+        except Exception as e:  # a full disk: say so once, stop recording, go on serving
+            self.error = f"recording to {self.path} stopped: {type(e).__name__}: {e}"
+            _log.error("%s", self.error)
+            if self.on_error is not None:
+                self.on_error(self.error)
+        finally:
+            try:
+                self._writer.close()
+            except Exception:
+                _log.exception("closing the recording failed")
+
+    def _step(self) -> None:
+        while True:
+            try:
+                source, event, payload = self._events.get_nowait()
+            except queue.Empty:
+                break
+            self._write_event(source, event, payload)
+        snap = self._handle.snapshot()
+        if snap.tick != self._last_tick:
+            self._last_tick = snap.tick
+            write_snapshot(self._writer, snap)
+            self._last_time = snap.time
+            self.snapshots += 1
+
+    def _write_event(self, source: str, event: str, payload: object) -> None:
+        w = self._writer
+        if source == "inputs" and event == "call":
+            seq, tick, target, method, args, kwargs = payload
+            if seq <= self._seen_seq:  # (drained and received as an event)
+                return
+            self._seen_seq = seq
+            t = tick * self._dt
+            try:
+                message = {"seq": seq, "tick": tick, "target": target, "method": method,
+                           "args": encode(list(args)), "kwargs": encode(dict(kwargs))}  # fmt: skip
+            except TypeError as e:  # kept as text: a replay says it cannot run it
+                message = {"seq": seq, "tick": tick, "target": target, "method": method,
+                           "args": [], "kwargs": {}, "unrecordable": str(e)}  # fmt: skip
+            w.write("/inputs/calls", "davinci_sim.Call", time_ns(t), {"timestamp": stamp(t), **message})
+            self.calls += 1
+            return
+        t = float(getattr(payload, "timestamp", None) or self._last_time)
+        ns, ts = time_ns(t), stamp(t)
+        if source == "task" and event == "results":
+            w.write("/task/results", "davinci_sim.Event", ns,
+                    {"timestamp": ts, "source": source, "event": event, "payload": plain(payload)})  # fmt: skip
+            return
+        if event in _LEVELS and hasattr(payload, "text"):
+            w.write("/rosout", "foxglove.Log", ns, {"timestamp": ts, "level": _LEVELS[event],
+                    "message": str(payload.text), "name": source, "file": "", "line": 0})  # fmt: skip
+        w.write("/events", "davinci_sim.Event", ns,
+                {"timestamp": ts, "source": source, "event": event, "payload": plain(payload)})  # fmt: skip
+
+
+def write_snapshot(w: McapWriter, snap) -> None:
+    """The messages of one :class:`~davinci_sim.sim.handle.Snapshot` (module docstring)."""
+    t = snap.time
+    ns, ts = time_ns(t), stamp(t)
+    transforms = []
+    for name, arm in snap.arms.items():
+        for field, topic in (("measured_js", "measured_js"), ("setpoint_js", "setpoint_js"),
+                             ("jaw_measured_js", "jaw/measured_js"),
+                             ("gripper_measured_js", "gripper/measured_js")):  # fmt: skip
+            js = getattr(arm, field)
+            if js is not None:
+                w.write(f"/{name}/{topic}", "davinci_sim.JointState", ns, joint_message(js, ts, snap.tick))
+        if arm.arm_type in CARTESIAN:
+            cp = arm.measured_cp
+            p, q = pose_fields(cp.T)
+            w.write(f"/{name}/measured_cp", "foxglove.PoseInFrame", ns,
+                    {"timestamp": ts, "frame_id": cp.reference_frame,
+                     "pose": {"position": p, "orientation": q}})  # fmt: skip
+            transforms.append({"timestamp": ts, "parent_frame_id": cp.reference_frame,
+                               "child_frame_id": name, "translation": p, "rotation": q})  # fmt: skip
+    if transforms:
+        w.write("/tf", "foxglove.FrameTransforms", ns, {"transforms": transforms})
+    for name, state in snap.extras.items():
+        if name == "qpos":
+            w.write("/sim/qpos", "davinci_sim.Qpos", ns,
+                    {"timestamp": ts, "tick": snap.tick, "qpos": numbers(state)})  # fmt: skip
+        elif name == "inputs":
+            continue
+        else:
+            topic = "/task/state" if name == "task" else f"/components/{name}"
+            w.write(topic, "davinci_sim.State", ns, {"timestamp": ts, "tick": snap.tick, "state": plain(state)})
+            for mtm, wrench in (getattr(state, "sent", None) or {}).items():
+                f, m = numbers(wrench[:3]), numbers(wrench[3:6])
+                w.write(f"/{mtm}/wrench", "davinci_sim.Wrench", ns,
+                        {"timestamp": ts, "frame_id": f"{mtm}_HRSV",
+                         "force": dict(zip("xyz", f, strict=True)),
+                         "torque": dict(zip("xyz", m, strict=True))})  # fmt: skip
+
+
+def joint_message(js, ts: dict, tick: int) -> dict:
+    """A :class:`~davinci_sim.sim.types.JointState` as a ``davinci_sim.JointState`` message."""
+    return {
+        "timestamp": ts,
+        "tick": int(tick),
+        "name": list(js.name),
+        "position": numbers(js.position),
+        "velocity": [] if js.velocity is None else numbers(js.velocity),
+        "effort": [] if js.effort is None else numbers(js.effort),
+    }
+
+
+class RecordingPart:
+    """``serve --record FILE``: a ``serve`` part that records the served system (built with
+    :func:`recording_description`) to ``path``; adds ``recording`` to the ready info."""
+
+    def __init__(self, path: str | Path) -> None:
+        self.path = Path(path)
+        self.recorder: SessionRecorder | None = None
+
+    def __call__(self, system, info: dict) -> SessionRecorder:
+        handle = system.handle
+
+        def on_error(text: str) -> None:
+            try:
+                handle.call("task", "report", "error", text)
+            except Exception:
+                pass
+
+        self.recorder = SessionRecorder(self.path, system.description, on_error=on_error)
+        info["recording"] = str(self.path)
+        return self.recorder.attach(handle)
+
+
+def recording_part(path: str | Path) -> RecordingPart:
+    """A ``serve`` part recording the session to ``path`` (see :class:`RecordingPart`)."""
+    return RecordingPart(path)
+
