@@ -186,6 +186,7 @@ def serve(
     on_ready: Callable[[dict], None] | None = None,
     parts: Sequence[Callable[[Any, dict], Any]] = (),
     on_warning: Callable[[str], None] | None = None,
+    system: Any = None,
 ) -> dict:
     """Run until ``stop`` is set or ``options.duration`` passes; returns final statistics.
 
@@ -195,6 +196,8 @@ def serve(
     the ``info`` dict (to add its URLs), returns a started object with ``stop()``, and is
     stopped with the rest. ``on_warning(text)`` is told, once, when the simulation cannot
     keep real time (:class:`RealTimeWatch`; also logged and put on ``/rosout``).
+    ``system``: a built, not started :class:`~davinci_sim.system.System` to serve instead
+    of the one ``options`` describe (a replay's: ``davinci-sim replay``).
     """
     from davinci_sim.bridge.client_mode import ClientModeConfig, RosClientMode
     from davinci_sim.bridge.console_node import ConsoleNode
@@ -208,7 +211,8 @@ def serve(
 
     stop = stop or threading.Event()
     process = options.runner == "process"
-    system = build_system(serve_description(options))
+    if system is None:
+        system = build_system(serve_description(options))
     handle = system.handle
     arm_names = set()
     started: list = []

@@ -240,6 +240,8 @@ class ThreadedSimulation:
             after every tick; :meth:`stereo_frame`); None: no renderer.
         render_model: picklable callable returning the model to render (e.g. with a task's
             drawing); None: the simulation's scene.
+        speed: with ``real_time``, simulated seconds per wall second (a replay; 1: real
+            time).
         start_paused: the loop waits for :meth:`resume` before its first tick (schedule
             inputs with :meth:`call_at` first, for a reproducible run).
         clock, sleep: the wall clock (s) and how to wait, for the pacing (tests pass a
@@ -257,6 +259,7 @@ class ThreadedSimulation:
         start_paused: bool = False,
         clock: Callable[[], float] = time.perf_counter,
         sleep: Callable[[float], None] | None = None,
+        speed: float = 1.0,
     ):
         from davinci_sim.sim.runtime.loop import LoopRunner  # (runtime imports this module)
 
@@ -264,7 +267,8 @@ class ThreadedSimulation:
         self.real_time = real_time
         self._snapshot_ticks = max(1, round(snapshot_period / sim.dt))
         self._runner = LoopRunner(
-            sim, real_time=real_time, spin=0.0, max_lag=math.inf, clock=clock, sleep=sleep
+            sim, real_time=real_time, speed=speed, spin=0.0, max_lag=math.inf, clock=clock,
+            sleep=sleep,
         )
         self._calls: queue.SimpleQueue[_Call] = queue.SimpleQueue()
         self._subscribers: list[EventCallback] = []
