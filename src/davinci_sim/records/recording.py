@@ -5,7 +5,8 @@ runner alike) and writes, in its own thread, never in the loop:
 
 * every published snapshot (the ``serve`` publish period, 10 ms by default): each arm's
   ``measured_js``, ``setpoint_js`` and jaw/gripper (``davinci_sim.JointState``), the
-  Cartesian arms' ``measured_cp`` (``foxglove.PoseInFrame``) and all of them as
+  Cartesian arms' ``measured_cp`` and ``setpoint_cp`` (``foxglove.PoseInFrame``) and the
+  measured ones as
   ``/tf`` (``foxglove.FrameTransforms``), the whole model's joint positions (``/sim/qpos``),
   the wrench sent to each MTM (``/<MTM>/wrench``), the task session's state (phase,
   repetition, distance: ``/task/state``), the console's and every other component's state
@@ -263,6 +264,7 @@ def write_snapshot(w: McapWriter, snap) -> None:
     for name, arm in snap.arms.items():
         for field, topic in (("measured_js", "measured_js"), ("setpoint_js", "setpoint_js"),
                              ("jaw_measured_js", "jaw/measured_js"),
+                             ("jaw_setpoint_js", "jaw/setpoint_js"),
                              ("gripper_measured_js", "gripper/measured_js")):  # fmt: skip
             js = getattr(arm, field)
             if js is not None:
@@ -275,6 +277,11 @@ def write_snapshot(w: McapWriter, snap) -> None:
                      "pose": {"position": p, "orientation": q}})  # fmt: skip
             transforms.append({"timestamp": ts, "parent_frame_id": cp.reference_frame,
                                "child_frame_id": name, "translation": p, "rotation": q})  # fmt: skip
+            sp = arm.setpoint_cp
+            p, q = pose_fields(sp.T)
+            w.write(f"/{name}/setpoint_cp", "foxglove.PoseInFrame", ns,
+                    {"timestamp": ts, "frame_id": sp.reference_frame,
+                     "pose": {"position": p, "orientation": q}})  # fmt: skip
     if transforms:
         w.write("/tf", "foxglove.FrameTransforms", ns, {"transforms": transforms})
     for name, state in snap.extras.items():
