@@ -218,4 +218,5 @@ def read_mcap(path: str | Path) -> McapContents:
                     out.metadata[r.name] = dict(r.metadata)
                 elif isinstance(r, Footer):
                     out.complete = True
+    out.complete = out.complete and out.problem is None  # (the closing magic too)
     return out
