@@ -624,8 +624,10 @@ def cmd_replay(args: argparse.Namespace) -> int:
         print(summary.line(), flush=True)
         return 0
     if len(args.files) != 1:
-        print("davinci-sim replay: replay one file at a time (several only with --to-dataset)",
-              file=sys.stderr)  # fmt: skip
+        print(
+            "davinci-sim replay: replay one file at a time (several only with --to-dataset)",
+            file=sys.stderr,
+        )
         return 2
     try:
         recording = load_recording(args.files[0])
@@ -633,8 +635,11 @@ def cmd_replay(args: argparse.Namespace) -> int:
         print(f"davinci-sim replay: {e}", file=sys.stderr)
         return 2
     if not recording.complete:
-        print(f"note: {recording.path} was cut off ({recording.contents.problem}); replaying "
-              "what it holds", flush=True)  # fmt: skip
+        print(
+            f"note: {recording.path} was cut off ({recording.contents.problem}); replaying "
+            "what it holds",
+            flush=True,
+        )
     for why in recording.unreplayable:
         print(f"note: a call could not be recorded, the replay of inputs is not exact: {why}")
     if args.check:
@@ -646,10 +651,12 @@ def cmd_replay(args: argparse.Namespace) -> int:
         except (ReplayError, ValueError) as e:
             print(f"davinci-sim replay: {e}", file=sys.stderr)
             return 2
-        print(f"replay of {args.mode}: {check.ticks} recorded ticks compared, largest joint "
-              f"difference {check.max_abs_diff:.3g} ({'bit-equal' if check.bit_equal else 'differs'}"
-              f"{'' if check.first_diff_tick is None else f' from tick {check.first_diff_tick}'})",
-              flush=True)  # fmt: skip
+        print(
+            f"replay of {args.mode}: {check.ticks} recorded ticks compared, largest joint "
+            f"difference {check.max_abs_diff:.3g} ({'bit-equal' if check.bit_equal else 'differs'}"
+            f"{'' if check.first_diff_tick is None else f' from tick {check.first_diff_tick}'})",
+            flush=True,
+        )
         return 0 if check.bit_equal else 1
     return _serve_replay(args, recording)
 
@@ -665,17 +672,24 @@ def _serve_replay(args: argparse.Namespace, recording) -> int:
     web = not args.no_web
     render_hz = 30.0 if web else None
     try:
-        system = replay_system(recording, args.mode, speed=args.speed, loop=args.loop,
-                               render_hz=render_hz)  # fmt: skip
+        system = replay_system(
+            recording, args.mode, speed=args.speed, loop=args.loop, render_hz=render_hz
+        )
     except (ReplayError, ValueError) as e:
         print(f"davinci-sim replay: {e}", file=sys.stderr)
         return 2
     d = system.description
-    options = ServeOptions(scene=d.scene if isinstance(d.scene, str) else "full", keyframe=d.keyframe,
-                           seed=d.seed, server=not args.no_server,
-                           bridge=BridgeConfig(host="127.0.0.1", port=args.port),
-                           images="none" if args.no_images else "jpeg", runner="thread",
-                           render_hz=render_hz, duration=args.duration)  # fmt: skip
+    options = ServeOptions(
+        scene=d.scene if isinstance(d.scene, str) else "full",
+        keyframe=d.keyframe,
+        seed=d.seed,
+        server=not args.no_server,
+        bridge=BridgeConfig(host="127.0.0.1", port=args.port),
+        images="none" if args.no_images else "jpeg",
+        runner="thread",
+        render_hz=render_hz,
+        duration=args.duration,
+    )
     parts = []
     if web:
         from davinci_sim.web.app import web_part
@@ -691,8 +705,9 @@ def _serve_replay(args: argparse.Namespace, recording) -> int:
             print(f"rosbridge server: {info['url']}", flush=True)
         if "web" in info:
             print(f"web console: {info['web']}  <- open this in a browser", flush=True)
-        print(f"replaying {recording.path} ({args.mode}, {args.speed:g}x; Ctrl-C to stop)",
-              flush=True)  # fmt: skip
+        print(
+            f"replaying {recording.path} ({args.mode}, {args.speed:g}x; Ctrl-C to stop)", flush=True
+        )
 
     try:
         serve(options, stop=stop, on_ready=ready, parts=parts, system=system)
@@ -705,18 +720,33 @@ def _serve_replay(args: argparse.Namespace, recording) -> int:
 def _replay_parser(sub) -> None:
     p = sub.add_parser("replay", help="play a recording (serve --record) back, or make a dataset")
     p.add_argument("files", nargs="+", metavar="FILE.mcap")
-    p.add_argument("--mode", default="inputs", choices=["inputs", "states"],
-                   help="inputs: the recorded commands re-run through the physics; states: the "
-                   "recorded joint positions shown as they were (default: inputs)")  # fmt: skip
-    p.add_argument("--speed", type=float, default=1.0,
-                   help="times real time (inputs: 0 runs as fast as it computes)")  # fmt: skip
+    p.add_argument(
+        "--mode",
+        default="inputs",
+        choices=["inputs", "states"],
+        help="inputs: the recorded commands re-run through the physics; states: the "
+        "recorded joint positions shown as they were (default: inputs)",
+    )
+    p.add_argument(
+        "--speed",
+        type=float,
+        default=1.0,
+        help="times real time (inputs: 0 runs as fast as it computes)",
+    )
     p.add_argument("--loop", action="store_true", help="states: start again at the end")
-    p.add_argument("--check", action="store_true",
-                   help="no viewer: replay as fast as possible and compare with the recorded "
-                   "joint positions (exit 1 if they differ)")  # fmt: skip
-    p.add_argument("--to-dataset", default=None, metavar="OUT.hdf5",
-                   help="convert the recordings to an imitation-learning dataset (robomimic's "
-                   "HDF5 layout) instead")  # fmt: skip
+    p.add_argument(
+        "--check",
+        action="store_true",
+        help="no viewer: replay as fast as possible and compare with the recorded "
+        "joint positions (exit 1 if they differ)",
+    )
+    p.add_argument(
+        "--to-dataset",
+        default=None,
+        metavar="OUT.hdf5",
+        help="convert the recordings to an imitation-learning dataset (robomimic's "
+        "HDF5 layout) instead",
+    )
     p.add_argument("--port", type=int, default=9090, help="rosbridge server port")
     p.add_argument("--no-server", action="store_true", help="no rosbridge server")
     p.add_argument("--no-images", action="store_true", help="no image topics")

@@ -84,7 +84,9 @@ def test_a_cut_off_file_reads_up_to_its_last_whole_chunk(tmp_path):
     full = read_mcap(path)
     assert full.complete and full.problem is None
     assert [m["tick"] for _, m in full.topic("/x")] == list(range(400))
-    assert full.schemas["/x"] == "davinci_sim.Qpos" and full.attachments["task.yaml"] == b"name: t\n"
+    assert (
+        full.schemas["/x"] == "davinci_sim.Qpos" and full.attachments["task.yaml"] == b"name: t\n"
+    )
     assert full.metadata["davinci_sim"] == {"kind": "test", "n": "400"}
     data = path.read_bytes()
     counts = []

@@ -100,8 +100,13 @@ def session_demos(contents: McapContents) -> list[Demo]:
     times = np.array([t for t, _ in q_msgs], dtype=np.int64)
     states = _arr([m["qpos"] for _, m in q_msgs])
     n = len(times)
-    arms = sorted({topic.split("/")[1] for topic in contents.messages if topic.endswith("/measured_js")
-                   and topic.count("/") == 2})  # fmt: skip
+    arms = sorted(
+        {
+            topic.split("/")[1]
+            for topic in contents.messages
+            if topic.endswith("/measured_js") and topic.count("/") == 2
+        }
+    )
     psms = [a for a in arms if a.startswith("PSM")]
     obs: dict[str, np.ndarray] = {}
     act_parts, joint_parts = [], []
@@ -109,13 +114,17 @@ def session_demos(contents: McapContents) -> list[Demo]:
         js = _by_time(contents, f"/{arm}/measured_js")
         cp = _by_time(contents, f"/{arm}/measured_cp")
         width = len(next(iter(js.values()))["position"]) if js else 0
-        obs[f"{arm}_joint_pos"] = _arr([js[t]["position"] if t in js else [None] * width for t in times])
+        obs[f"{arm}_joint_pos"] = _arr(
+            [js[t]["position"] if t in js else [None] * width for t in times]
+        )
         pos = [(_pose(cp[t]) if t in cp else ([None] * 3, [None] * 4)) for t in times]
         obs[f"{arm}_tip_pos"] = _arr([p for p, _ in pos])
         obs[f"{arm}_tip_quat"] = _arr([q for _, q in pos])
         if arm in psms:
             jaw = _by_time(contents, f"/{arm}/jaw/measured_js")
-            obs[f"{arm}_jaw"] = _arr([jaw[t]["position"][:1] if t in jaw else [None] for t in times])
+            obs[f"{arm}_jaw"] = _arr(
+                [jaw[t]["position"][:1] if t in jaw else [None] for t in times]
+            )
             sp = _by_time(contents, f"/{arm}/setpoint_cp")
             sj = _by_time(contents, f"/{arm}/setpoint_js")
             jaw_sp = _by_time(contents, f"/{arm}/jaw/setpoint_js")
@@ -124,10 +133,15 @@ def session_demos(contents: McapContents) -> list[Demo]:
             if not jaw_sp:  # (older files: the measured jaw)
                 jaw_set = obs[f"{arm}_jaw"]
             act_parts.append(np.concatenate([p_sp[1:] - p_sp[:-1], jaw_set[1:]], axis=1))
-            joint_parts.append(_arr([sj[t]["position"] if t in sj else [None] * width for t in times])[1:])
+            joint_parts.append(
+                _arr([sj[t]["position"] if t in sj else [None] * width for t in times])[1:]
+            )
     task = _by_time(contents, "/task/state")
     obs["task_distance"] = np.array(
-        [[float((task.get(t) or {}).get("state", {}).get("distance_to_path") or np.nan)] for t in times]
+        [
+            [float((task.get(t) or {}).get("state", {}).get("distance_to_path") or np.nan)]
+            for t in times
+        ]
     )
     actions = np.concatenate(act_parts, axis=1) if act_parts else np.zeros((n - 1, 0))
     joints = np.concatenate(joint_parts, axis=1) if joint_parts else np.zeros((n - 1, 0))
@@ -148,12 +162,18 @@ def session_demos(contents: McapContents) -> list[Demo]:
         s = slice(a, b)
         dones = np.zeros(b - a, dtype=np.uint8)
         dones[-1] = 1
-        demos.append(Demo(
-            obs={k: v[a:b] for k, v in obs.items()},
-            next_obs={k: v[a + 1:b + 1] for k, v in obs.items()},
-            actions=actions[s], rewards=rewards[s], dones=dones, states=states[s],
-            finished=b in cuts, extra={"actions_joint": joints[s]},
-        ))  # fmt: skip
+        demos.append(
+            Demo(
+                obs={k: v[a:b] for k, v in obs.items()},
+                next_obs={k: v[a + 1 : b + 1] for k, v in obs.items()},
+                actions=actions[s],
+                rewards=rewards[s],
+                dones=dones,
+                states=states[s],
+                finished=b in cuts,
+                extra={"actions_joint": joints[s]},
+            )
+        )
     return demos
 
 
@@ -182,11 +202,18 @@ def episode_demos(contents: McapContents) -> list[Demo]:
         dones = np.zeros(T, dtype=np.uint8)
         last = steps[-1]
         dones[-1] = 1
-        demos.append(Demo(
-            obs={k: v[:-1] for k, v in all_obs.items()}, next_obs={k: v[1:] for k, v in all_obs.items()},
-            actions=acts, rewards=rewards, dones=dones, states=None,
-            finished=bool(last["terminated"]), extra={},
-        ))  # fmt: skip
+        demos.append(
+            Demo(
+                obs={k: v[:-1] for k, v in all_obs.items()},
+                next_obs={k: v[1:] for k, v in all_obs.items()},
+                actions=acts,
+                rewards=rewards,
+                dones=dones,
+                states=None,
+                finished=bool(last["terminated"]),
+                extra={},
+            )
+        )
     return demos
 
 
@@ -215,8 +242,14 @@ def to_dataset(files, out: str | Path) -> DatasetSummary:
     for f in files:
         contents = read_mcap(f)
         kind, demos = recording_demos(contents)
-        env_args.append({"file": Path(f).name, "kind": kind, "complete": contents.complete,
-                         **contents.metadata.get("davinci_sim", {})})  # fmt: skip
+        env_args.append(
+            {
+                "file": Path(f).name,
+                "kind": kind,
+                "complete": contents.complete,
+                **contents.metadata.get("davinci_sim", {}),
+            }
+        )
         all_demos.extend((str(Path(f).name), kind, d) for d in demos)
     if not all_demos:
         raise ValueError(f"no demo in {len(files)} recording(s): too short, or no states")
@@ -228,13 +261,19 @@ def to_dataset(files, out: str | Path) -> DatasetSummary:
         for i, (source, kind, d) in enumerate(all_demos):
             g = data.create_group(f"demo_{i}")
             names.append((f"demo_{i}", d.finished))
-            g.attrs.update(num_samples=len(d.actions), source=source, kind=kind, finished=d.finished)
+            g.attrs.update(
+                num_samples=len(d.actions), source=source, kind=kind, finished=d.finished
+            )
             for group, arrays in (("obs", d.obs), ("next_obs", d.next_obs)):
                 sub = g.create_group(group)
                 for key, value in arrays.items():
                     sub.create_dataset(key, data=value, compression="gzip")
-            for key, value in (("actions", d.actions), ("rewards", d.rewards), ("dones", d.dones),
-                               *d.extra.items()):  # fmt: skip
+            for key, value in (
+                ("actions", d.actions),
+                ("rewards", d.rewards),
+                ("dones", d.dones),
+                *d.extra.items(),
+            ):
                 g.create_dataset(key, data=value, compression="gzip")
             if d.states is not None:
                 g.create_dataset("states", data=d.states, compression="gzip")

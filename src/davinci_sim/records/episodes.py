@@ -47,13 +47,24 @@ class EpisodeRecorder:
         extra: more metadata (JSON-able values).
     """
 
-    def __init__(self, path: str | Path, *, env_id: str = "", dt: float = 0.01,
-                 description=None, extra: Mapping[str, Any] | None = None) -> None:  # fmt: skip
+    def __init__(
+        self,
+        path: str | Path,
+        *,
+        env_id: str = "",
+        dt: float = 0.01,
+        description=None,
+        extra: Mapping[str, Any] | None = None,
+    ) -> None:
         self.path = Path(path)
         self.dt = float(dt)
         self._w = McapWriter(self.path)
-        write_header(self._w, "episodes", description=description,
-                     extra={"env_id": env_id, "dt": self.dt, **dict(extra or {})})  # fmt: skip
+        write_header(
+            self._w,
+            "episodes",
+            description=description,
+            extra={"env_id": env_id, "dt": self.dt, **dict(extra or {})},
+        )
         self.episode = -1
         """The current episode's index (-1 before the first reset)."""
         self.steps = 0
@@ -67,7 +78,9 @@ class EpisodeRecorder:
         self._t = max(self._t, self._t0 + float(t))
         return self._t
 
-    def reset(self, observation: Any, info: Mapping | None = None, *, t: float | None = None) -> int:
+    def reset(
+        self, observation: Any, info: Mapping | None = None, *, t: float | None = None
+    ) -> int:
         """Start an episode with its first observation; returns its index."""
         self.episode += 1
         self._t0 = self._t + (self.dt if self.episode else 0.0)
@@ -76,8 +89,17 @@ class EpisodeRecorder:
         self._write(tt, observation, None, None, False, False, info)
         return self.episode
 
-    def step(self, observation: Any, action: Any, reward: float | None, terminated: bool,
-             truncated: bool, info: Mapping | None = None, *, t: float | None = None) -> None:  # fmt: skip
+    def step(
+        self,
+        observation: Any,
+        action: Any,
+        reward: float | None,
+        terminated: bool,
+        truncated: bool,
+        info: Mapping | None = None,
+        *,
+        t: float | None = None,
+    ) -> None:
         """One step: the observation after ``action``, its reward, whether it ended.
 
         Raises:
@@ -96,13 +118,22 @@ class EpisodeRecorder:
 
     def _write(self, t, observation, action, reward, terminated, truncated, info) -> None:
         r = None if reward is None else float(reward)
-        self._w.write("/episode/step", "davinci_sim.Step", time_ns(t), {
-            "timestamp": stamp(t), "episode": self.episode, "step": self.steps,
-            "observation": plain(observation), "action": plain(action),
-            "reward": r if r is None or r == r else None,
-            "terminated": bool(terminated), "truncated": bool(truncated),
-            "info": plain(dict(info or {})),
-        })  # fmt: skip
+        self._w.write(
+            "/episode/step",
+            "davinci_sim.Step",
+            time_ns(t),
+            {
+                "timestamp": stamp(t),
+                "episode": self.episode,
+                "step": self.steps,
+                "observation": plain(observation),
+                "action": plain(action),
+                "reward": r if r is None or r == r else None,
+                "terminated": bool(terminated),
+                "truncated": bool(truncated),
+                "info": plain(dict(info or {})),
+            },
+        )
 
     def close(self) -> None:
         """Finish the file (summary and footer)."""

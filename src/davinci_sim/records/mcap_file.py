@@ -58,8 +58,7 @@ class McapWriter:
 
         self.path = Path(path)
         self._file = open(self.path, "wb")  # noqa: SIM115 (closed by close())
-        self._writer = Writer(self._file, chunk_size=chunk_size,
-                              compression=CompressionType.ZSTD)  # fmt: skip
+        self._writer = Writer(self._file, chunk_size=chunk_size, compression=CompressionType.ZSTD)
         self._writer.start(profile=PROFILE, library="davinci-sim")
         self._schemas: dict[str, int] = {}
         self._channels: dict[str, int] = {}
@@ -194,11 +193,16 @@ def read_mcap(path: str | Path) -> McapContents:
         while True:
             try:
                 record = next(records)
-                inner = breakup_chunk(record, validate_crc=True) if isinstance(record, Chunk) else [record]
+                inner = (
+                    breakup_chunk(record, validate_crc=True)
+                    if isinstance(record, Chunk)
+                    else [record]
+                )
             except StopIteration:
                 break
             except Exception as e:  # (a cut record, a chunk failing its CRC or zstd)
-                out.problem = f"cut off after {sum(map(len, out.messages.values()))} messages ({type(e).__name__}: {e})"  # fmt: skip
+                read = sum(map(len, out.messages.values()))
+                out.problem = f"cut off after {read} messages ({type(e).__name__}: {e})"
                 break
             for r in inner:
                 if isinstance(r, Schema):

@@ -70,8 +70,12 @@ def software_versions() -> dict[str, str]:
         own = version("davinci-sim")
     except PackageNotFoundError:
         own = "unknown"
-    return {"davinci_sim": own, "mujoco": mujoco.__version__, "numpy": numpy.__version__,
-            "python": platform.python_version()}  # fmt: skip
+    return {
+        "davinci_sim": own,
+        "mujoco": mujoco.__version__,
+        "numpy": numpy.__version__,
+        "python": platform.python_version(),
+    }
 
 
 def task_text(task: str) -> str | None:
@@ -88,8 +92,14 @@ def task_text(task: str) -> str | None:
     return None
 
 
-def write_header(writer: McapWriter, kind: str, *, description=None, info: dict | None = None,
-                 extra: dict | None = None) -> None:  # fmt: skip
+def write_header(
+    writer: McapWriter,
+    kind: str,
+    *,
+    description=None,
+    info: dict | None = None,
+    extra: dict | None = None,
+) -> None:
     """The self-describing start of a recording: metadata ``davinci_sim`` (kind, versions,
     start time, the model's signature and sizes from ``info``, ``extra``) and, with a
     ``description``, its attachments and the task's file and fixture."""
@@ -101,14 +111,30 @@ def write_header(writer: McapWriter, kind: str, *, description=None, info: dict 
         **(extra or {}),
     }
     if description is not None:
-        meta.update(scene=plain(description.scene), keyframe=description.keyframe,
-                    seed=description.seed, home=description.home)  # fmt: skip
-        writer.attach("description.json", "application/json",
-                      json.dumps(plain(description), indent=1).encode())  # fmt: skip
-        writer.attach("description.pickle", "application/x-python-pickle",
-                      pickle.dumps(description.replace(runner="none", start_paused=False,
-                                                       render_hz=None, realtime_priority=None,
-                                                       loop_cpu=None)))  # fmt: skip
+        meta.update(
+            scene=plain(description.scene),
+            keyframe=description.keyframe,
+            seed=description.seed,
+            home=description.home,
+        )
+        writer.attach(
+            "description.json",
+            "application/json",
+            json.dumps(plain(description), indent=1).encode(),
+        )
+        writer.attach(
+            "description.pickle",
+            "application/x-python-pickle",
+            pickle.dumps(
+                description.replace(
+                    runner="none",
+                    start_paused=False,
+                    render_hz=None,
+                    realtime_priority=None,
+                    loop_cpu=None,
+                )
+            ),
+        )
         if description.task is not None:
             t = description.task
             meta.update(task=t.task, condition=plain(t.condition))
@@ -136,8 +162,14 @@ class SessionRecorder:
         on_error: told, once, if writing fails (the simulation goes on; default: logged).
     """
 
-    def __init__(self, path: str | Path, description, *, poll: float = 0.002,
-                 on_error: Callable[[str], None] | None = None) -> None:  # fmt: skip
+    def __init__(
+        self,
+        path: str | Path,
+        description,
+        *,
+        poll: float = 0.002,
+        on_error: Callable[[str], None] | None = None,
+    ) -> None:
         self.path = Path(path)
         self.description = description
         self.poll = poll
@@ -171,8 +203,10 @@ class SessionRecorder:
         except (KeyError, AttributeError) as e:
             self._unsubscribe()
             self._writer.close()
-            raise RuntimeError("the system has no input log: build it with record_inputs=True "
-                               f"(records.recording_description) ({e})") from None  # fmt: skip
+            raise RuntimeError(
+                "the system has no input log: build it with record_inputs=True "
+                f"(records.recording_description) ({e})"
+            ) from None
         self._dt = info["dt"]
         write_header(self._writer, "session", description=self.description, info=info)
         for entry in earlier:
@@ -235,25 +269,59 @@ class SessionRecorder:
             self._seen_seq = seq
             t = tick * self._dt
             try:
-                message = {"seq": seq, "tick": tick, "target": target, "method": method,
-                           "args": encode(list(args)), "kwargs": encode(dict(kwargs))}  # fmt: skip
+                message = {
+                    "seq": seq,
+                    "tick": tick,
+                    "target": target,
+                    "method": method,
+                    "args": encode(list(args)),
+                    "kwargs": encode(dict(kwargs)),
+                }
             except TypeError as e:  # kept as text: a replay says it cannot run it
-                message = {"seq": seq, "tick": tick, "target": target, "method": method,
-                           "args": [], "kwargs": {}, "unrecordable": str(e)}  # fmt: skip
-            w.write("/inputs/calls", "davinci_sim.Call", time_ns(t), {"timestamp": stamp(t), **message})
+                message = {
+                    "seq": seq,
+                    "tick": tick,
+                    "target": target,
+                    "method": method,
+                    "args": [],
+                    "kwargs": {},
+                    "unrecordable": str(e),
+                }
+            w.write(
+                "/inputs/calls", "davinci_sim.Call", time_ns(t), {"timestamp": stamp(t), **message}
+            )
             self.calls += 1
             return
         t = float(getattr(payload, "timestamp", None) or self._last_time)
         ns, ts = time_ns(t), stamp(t)
         if source == "task" and event == "results":
-            w.write("/task/results", "davinci_sim.Event", ns,
-                    {"timestamp": ts, "source": source, "event": event, "payload": plain(payload)})  # fmt: skip
+            w.write(
+                "/task/results",
+                "davinci_sim.Event",
+                ns,
+                {"timestamp": ts, "source": source, "event": event, "payload": plain(payload)},
+            )
             return
         if event in _LEVELS and hasattr(payload, "text"):
-            w.write("/rosout", "foxglove.Log", ns, {"timestamp": ts, "level": _LEVELS[event],
-                    "message": str(payload.text), "name": source, "file": "", "line": 0})  # fmt: skip
-        w.write("/events", "davinci_sim.Event", ns,
-                {"timestamp": ts, "source": source, "event": event, "payload": plain(payload)})  # fmt: skip
+            w.write(
+                "/rosout",
+                "foxglove.Log",
+                ns,
+                {
+                    "timestamp": ts,
+                    "level": _LEVELS[event],
+                    "message": str(payload.text),
+                    "name": source,
+                    "file": "",
+                    "line": 0,
+                },
+            )
+        w.write(
+            "/events",
+            "davinci_sim.Event",
+            ns,
+            {"timestamp": ts, "source": source, "event": event, "payload": plain(payload)},
+        )
 
 
 def write_snapshot(w: McapWriter, snap) -> None:
@@ -262,43 +330,88 @@ def write_snapshot(w: McapWriter, snap) -> None:
     ns, ts = time_ns(t), stamp(t)
     transforms = []
     for name, arm in snap.arms.items():
-        for field, topic in (("measured_js", "measured_js"), ("setpoint_js", "setpoint_js"),
-                             ("jaw_measured_js", "jaw/measured_js"),
-                             ("jaw_setpoint_js", "jaw/setpoint_js"),
-                             ("gripper_measured_js", "gripper/measured_js")):  # fmt: skip
+        for field, topic in (
+            ("measured_js", "measured_js"),
+            ("setpoint_js", "setpoint_js"),
+            ("jaw_measured_js", "jaw/measured_js"),
+            ("jaw_setpoint_js", "jaw/setpoint_js"),
+            ("gripper_measured_js", "gripper/measured_js"),
+        ):
             js = getattr(arm, field)
             if js is not None:
-                w.write(f"/{name}/{topic}", "davinci_sim.JointState", ns, joint_message(js, ts, snap.tick))
+                w.write(
+                    f"/{name}/{topic}",
+                    "davinci_sim.JointState",
+                    ns,
+                    joint_message(js, ts, snap.tick),
+                )
         if arm.arm_type in CARTESIAN:
             cp = arm.measured_cp
             p, q = pose_fields(cp.T)
-            w.write(f"/{name}/measured_cp", "foxglove.PoseInFrame", ns,
-                    {"timestamp": ts, "frame_id": cp.reference_frame,
-                     "pose": {"position": p, "orientation": q}})  # fmt: skip
-            transforms.append({"timestamp": ts, "parent_frame_id": cp.reference_frame,
-                               "child_frame_id": name, "translation": p, "rotation": q})  # fmt: skip
+            w.write(
+                f"/{name}/measured_cp",
+                "foxglove.PoseInFrame",
+                ns,
+                {
+                    "timestamp": ts,
+                    "frame_id": cp.reference_frame,
+                    "pose": {"position": p, "orientation": q},
+                },
+            )
+            transforms.append(
+                {
+                    "timestamp": ts,
+                    "parent_frame_id": cp.reference_frame,
+                    "child_frame_id": name,
+                    "translation": p,
+                    "rotation": q,
+                }
+            )
             sp = arm.setpoint_cp
             p, q = pose_fields(sp.T)
-            w.write(f"/{name}/setpoint_cp", "foxglove.PoseInFrame", ns,
-                    {"timestamp": ts, "frame_id": sp.reference_frame,
-                     "pose": {"position": p, "orientation": q}})  # fmt: skip
+            w.write(
+                f"/{name}/setpoint_cp",
+                "foxglove.PoseInFrame",
+                ns,
+                {
+                    "timestamp": ts,
+                    "frame_id": sp.reference_frame,
+                    "pose": {"position": p, "orientation": q},
+                },
+            )
     if transforms:
         w.write("/tf", "foxglove.FrameTransforms", ns, {"transforms": transforms})
     for name, state in snap.extras.items():
         if name == "qpos":
-            w.write("/sim/qpos", "davinci_sim.Qpos", ns,
-                    {"timestamp": ts, "tick": snap.tick, "qpos": numbers(state)})  # fmt: skip
+            w.write(
+                "/sim/qpos",
+                "davinci_sim.Qpos",
+                ns,
+                {"timestamp": ts, "tick": snap.tick, "qpos": numbers(state)},
+            )
         elif name == "inputs":
             continue
         else:
             topic = "/task/state" if name == "task" else f"/components/{name}"
-            w.write(topic, "davinci_sim.State", ns, {"timestamp": ts, "tick": snap.tick, "state": plain(state)})
+            w.write(
+                topic,
+                "davinci_sim.State",
+                ns,
+                {"timestamp": ts, "tick": snap.tick, "state": plain(state)},
+            )
             for mtm, wrench in (getattr(state, "sent", None) or {}).items():
                 f, m = numbers(wrench[:3]), numbers(wrench[3:6])
-                w.write(f"/{mtm}/wrench", "davinci_sim.Wrench", ns,
-                        {"timestamp": ts, "frame_id": f"{mtm}_HRSV",
-                         "force": dict(zip("xyz", f, strict=True)),
-                         "torque": dict(zip("xyz", m, strict=True))})  # fmt: skip
+                w.write(
+                    f"/{mtm}/wrench",
+                    "davinci_sim.Wrench",
+                    ns,
+                    {
+                        "timestamp": ts,
+                        "frame_id": f"{mtm}_HRSV",
+                        "force": dict(zip("xyz", f, strict=True)),
+                        "torque": dict(zip("xyz", m, strict=True)),
+                    },
+                )
 
 
 def joint_message(js, ts: dict, tick: int) -> dict:
@@ -338,4 +451,3 @@ class RecordingPart:
 def recording_part(path: str | Path) -> RecordingPart:
     """A ``serve`` part recording the session to ``path`` (see :class:`RecordingPart`)."""
     return RecordingPart(path)
-

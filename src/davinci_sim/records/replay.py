@@ -69,7 +69,9 @@ class _Unpickler(pickle.Unpickler):
             return super().find_class(module, name)
         if module == "davinci_sim" or module.startswith("davinci_sim."):
             obj = super().find_class(module, name)
-            if isinstance(obj, type) and (dataclasses.is_dataclass(obj) or issubclass(obj, enum.Enum)):
+            if isinstance(obj, type) and (
+                dataclasses.is_dataclass(obj) or issubclass(obj, enum.Enum)
+            ):
                 return obj
         raise pickle.UnpicklingError(f"a recording may not name {module}.{name}")
 
@@ -136,10 +138,20 @@ def load_recording(path: str | Path) -> Recording:
     calls, unreplayable = [], []
     for _, m in contents.topic("/inputs/calls"):
         if "unrecordable" in m:
-            unreplayable.append(f"{m['target']}.{m['method']} at tick {m['tick']}: {m['unrecordable']}")
+            unreplayable.append(
+                f"{m['target']}.{m['method']} at tick {m['tick']}: {m['unrecordable']}"
+            )
             continue
-        calls.append(Call(m["seq"], m["tick"], m["target"], m["method"],
-                          tuple(decode(m["args"])), decode(m["kwargs"])))  # fmt: skip
+        calls.append(
+            Call(
+                m["seq"],
+                m["tick"],
+                m["target"],
+                m["method"],
+                tuple(decode(m["args"])),
+                decode(m["kwargs"]),
+            )
+        )
     calls.sort(key=lambda c: c.seq)
     q = contents.topic("/sim/qpos")
     ticks = np.array([m["tick"] for _, m in q], dtype=np.int64)
@@ -147,9 +159,17 @@ def load_recording(path: str | Path) -> Recording:
     if len(ticks) and np.any(np.diff(ticks) <= 0):  # (keep the first of a repeated tick)
         keep = np.r_[True, np.diff(ticks) > 0]
         ticks, qpos = ticks[keep], qpos[keep]
-    return Recording(Path(path), contents, description, None if text is None else text.decode(),
-                     calls, ticks, qpos.reshape(len(ticks), -1),
-                     dict(contents.metadata.get("davinci_sim", {})), unreplayable)  # fmt: skip
+    return Recording(
+        Path(path),
+        contents,
+        description,
+        None if text is None else text.decode(),
+        calls,
+        ticks,
+        qpos.reshape(len(ticks), -1),
+        dict(contents.metadata.get("davinci_sim", {})),
+        unreplayable,
+    )
 
 
 def replay_description(recording: Recording, **changes):
@@ -164,7 +184,9 @@ def replay_description(recording: Recording, **changes):
 
         source = task.task
         if recording.task_text is not None:
-            f = tempfile.NamedTemporaryFile("w", suffix=".yaml", prefix="replay-task-", delete=False)
+            f = tempfile.NamedTemporaryFile(
+                "w", suffix=".yaml", prefix="replay-task-", delete=False
+            )
             with f:
                 f.write(recording.task_text)
             source = f.name
@@ -196,7 +218,9 @@ class ReplayCheck:
     """Calls that raised when replayed (as they may have live: a refused command)."""
 
 
-def replay_inputs(recording: Recording, *, on_tick=None, until_tick: int | None = None) -> ReplayCheck:
+def replay_inputs(
+    recording: Recording, *, on_tick=None, until_tick: int | None = None
+) -> ReplayCheck:
     """Mode 1 without a viewer: run the recorded calls through a simulation built from the
     recording and compare its joint positions with the recorded ones at every recorded tick.
     ``on_tick(sim)`` is called after every tick.
@@ -210,8 +234,11 @@ def replay_inputs(recording: Recording, *, on_tick=None, until_tick: int | None 
     sim = build_simulation(replay_description(recording, runner="none", publish_qpos=False))
     try:
         _check_signature(recording, sim)
-        last = until_tick if until_tick is not None else int(max(
-            [*recording.ticks.tolist(), *(c.tick for c in recording.calls), 0]))  # fmt: skip
+        last = (
+            until_tick
+            if until_tick is not None
+            else int(max([*recording.ticks.tolist(), *(c.tick for c in recording.calls), 0]))
+        )
         calls = recording.calls
         ticks = recording.ticks
         k = i = failed = 0
@@ -260,8 +287,9 @@ class StatePlayback:
 
     name = "playback"
 
-    def __init__(self, sim, ticks: np.ndarray, qpos: np.ndarray, *, speed: float = 1.0,
-                 loop: bool = False) -> None:  # fmt: skip
+    def __init__(
+        self, sim, ticks: np.ndarray, qpos: np.ndarray, *, speed: float = 1.0, loop: bool = False
+    ) -> None:
         import mujoco
 
         if not (np.isfinite(speed) and speed > 0):
@@ -309,9 +337,15 @@ class StatePlayback:
         self._start = state["start"]
 
 
-def replay_system(recording: Recording, mode: str = "inputs", *, speed: float = 1.0,
-                  loop: bool = False, render_hz: float | None = None,
-                  snapshot_period: float = 0.01):  # fmt: skip
+def replay_system(
+    recording: Recording,
+    mode: str = "inputs",
+    *,
+    speed: float = 1.0,
+    loop: bool = False,
+    render_hz: float | None = None,
+    snapshot_period: float = 0.01,
+):
     """The recording as a running system to serve (not started): the simulation built here
     behind a thread runner (:class:`~davinci_sim.sim.handle.ThreadedSimulation`).
 
@@ -331,9 +365,14 @@ def replay_system(recording: Recording, mode: str = "inputs", *, speed: float = 
     description, sim = _build(recording, mode, speed, loop)
     try:
         real_time = mode == "states" or speed > 0
-        handle = ThreadedSimulation(sim, real_time=real_time, snapshot_period=snapshot_period,
-                                    render_hz=render_hz, render_model=_model_of(description),
-                                    speed=speed if mode == "inputs" and speed > 0 else 1.0)  # fmt: skip
+        handle = ThreadedSimulation(
+            sim,
+            real_time=real_time,
+            snapshot_period=snapshot_period,
+            render_hz=render_hz,
+            render_model=_model_of(description),
+            speed=speed if mode == "inputs" and speed > 0 else 1.0,
+        )
         if mode == "inputs":
             for c in recording.calls:
                 handle.call_at(c.tick, c.target, c.method, *c.args, **c.kwargs)
@@ -358,7 +397,9 @@ def _build(recording: Recording, mode: str, speed: float, loop: bool = False):
     if mode not in ("inputs", "states"):
         raise ValueError(f"mode must be inputs or states, not {mode!r}")
     if not (np.isfinite(speed) and speed >= 0) or (mode == "states" and speed == 0):
-        raise ValueError(f"speed must be > 0 (or 0 for inputs: as fast as it computes), got {speed!r}")
+        raise ValueError(
+            f"speed must be > 0 (or 0 for inputs: as fast as it computes), got {speed!r}"
+        )
     changes: dict = {"runner": "none", "publish_qpos": True, "render_hz": None}
     if mode == "states":  # nothing drives the arms: no homing
         changes["home"] = False

@@ -267,7 +267,12 @@ class ThreadedSimulation:
         self.real_time = real_time
         self._snapshot_ticks = max(1, round(snapshot_period / sim.dt))
         self._runner = LoopRunner(
-            sim, real_time=real_time, speed=speed, spin=0.0, max_lag=math.inf, clock=clock,
+            sim,
+            real_time=real_time,
+            speed=speed,
+            spin=0.0,
+            max_lag=math.inf,
+            clock=clock,
             sleep=sleep,
         )
         self._calls: queue.SimpleQueue[_Call] = queue.SimpleQueue()
