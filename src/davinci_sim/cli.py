@@ -472,6 +472,9 @@ def cmd_study(args: argparse.Namespace) -> int:
     if out.exists() and not out.is_dir():  # say so before hours of trials, not after
         print(f"davinci-sim study: the output {out} exists and is not a folder", file=sys.stderr)
         return 2
+    if args.record is not None and args.engine != "batch":
+        print("davinci-sim study: --record needs the batch engine", file=sys.stderr)
+        return 2
     from davinci_sim.tasks import TaskError, load_task
     from davinci_sim.tasks.check import task_problem
 
@@ -564,9 +567,8 @@ def _run_study(args: argparse.Namespace, config, store) -> int:
         todo = [s for i, s in enumerate(plan_trials(config)) if i not in store.rows]
         if todo:
             print(estimate_study(config, todo).line(), flush=True)
-        result = run_study(
-            config, progress=not args.no_progress, done=dict(store.rows), on_row=store.append
-        )
+        result = run_study(config, progress=not args.no_progress, done=dict(store.rows),
+                           on_row=store.append, record=args.record)  # fmt: skip
     except (KeyboardInterrupt, _Stopped):
         store.close()
         print(f"davinci-sim study: stopped; {len(store.rows)} of {config.n_trials} trials are "
@@ -1017,6 +1019,13 @@ def main(argv: list[str] | None = None) -> int:
     )
     p.add_argument("--output", "-o", default="study", help="output folder")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
+    p.add_argument(
+        "--record",
+        default=None,
+        metavar="DIR",
+        help="record every trial to DIR, one MCAP file per trial (batch engine): the PSM "
+        "and MTM at 100 Hz, the guidance force, the phase, the row",
+    )
     p.add_argument(
         "--resume",
         action="store_true",

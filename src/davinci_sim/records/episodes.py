@@ -31,7 +31,7 @@ from pathlib import Path
 from typing import Any
 
 from davinci_sim.records.jsonvalue import plain
-from davinci_sim.records.mcap_file import McapWriter
+from davinci_sim.records.mcap_file import CHUNK_SIZE, McapWriter
 from davinci_sim.records.mcap_schemas import stamp, time_ns
 from davinci_sim.records.recording import write_header, write_snapshot
 
@@ -45,6 +45,8 @@ class EpisodeRecorder:
         dt: seconds per step when :meth:`step` is given no time.
         description: a :class:`~davinci_sim.system.SystemDescription` to attach (optional).
         extra: more metadata (JSON-able values).
+        chunk_size: bytes per chunk (a killed process loses at most the chunk in progress,
+            or the last second).
     """
 
     def __init__(
@@ -55,12 +57,14 @@ class EpisodeRecorder:
         dt: float = 0.01,
         description=None,
         extra: Mapping[str, Any] | None = None,
+        chunk_size: int = CHUNK_SIZE,
     ) -> None:
         self.path = Path(path)
         self.dt = float(dt)
-        self._w = McapWriter(self.path)
+        self.writer = McapWriter(self.path, chunk_size=chunk_size)
+        """The file's writer (attachments, more topics)."""
         write_header(
-            self._w,
+            self.writer,
             "episodes",
             description=description,
             extra={"env_id": env_id, "dt": self.dt, **dict(extra or {})},
@@ -69,6 +73,8 @@ class EpisodeRecorder:
         """The current episode's index (-1 before the first reset)."""
         self.steps = 0
         """Steps of the current episode."""
+        self.last_observation: Any = None
+        self.last_action: Any = None
         self._t0 = 0.0  # this episode's start on the file's time line, s
         self._t = 0.0  # the last message's time, s
 
@@ -114,11 +120,22 @@ class EpisodeRecorder:
         """A simulator :class:`~davinci_sim.sim.handle.Snapshot`'s topics at its time in the
         current episode (see :func:`~davinci_sim.records.recording.write_snapshot`)."""
         shifted = type(snap)(self._t0 + snap.time, snap.tick, snap.arms, snap.extras)
-        write_snapshot(self._w, shifted)
+        write_snapshot(self.writer, shifted)
+
+    @property
+    def now(self) -> float:
+        """The last message's time on the file's time line, s."""
+        return self._t
+
+    def message(self, topic: str, schema: str, body: Mapping[str, Any]) -> None:
+        """Another message at :attr:`now` (its ``timestamp`` added), e.g. a pose for
+        Foxglove's 3-D panel."""
+        self.writer.write(topic, schema, time_ns(self._t), {"timestamp": stamp(self._t), **body})
 
     def _write(self, t, observation, action, reward, terminated, truncated, info) -> None:
+        self.last_observation, self.last_action = observation, action
         r = None if reward is None else float(reward)
-        self._w.write(
+        self.writer.write(
             "/episode/step",
             "davinci_sim.Step",
             time_ns(t),
@@ -137,7 +154,7 @@ class EpisodeRecorder:
 
     def close(self) -> None:
         """Finish the file (summary and footer)."""
-        self._w.close()
+        self.writer.close()
 
     def __enter__(self) -> EpisodeRecorder:
         return self
