@@ -268,7 +268,7 @@ def cmd_serve(args: argparse.Namespace) -> int:
             from davinci_sim.records.recording import recording_part
 
             Path(args.record).open("ab").close()
-            parts.insert(0, recording_part(args.record))
+            parts.insert(0, recording_part(args.record, args.record_images))
         if args.task is not None:  # a bad task or condition: say so before starting anything
             from davinci_sim.bridge.app import task_condition
             from davinci_sim.tasks import load_task
@@ -910,6 +910,13 @@ def main(argv: list[str] | None = None) -> int:
     )
     p.add_argument("--no-bedside", action="store_true", help="web console without the 3-D view")
     p.add_argument("--record", default=None, metavar="FILE.mcap", help=_RECORD_HELP)
+    p.add_argument(
+        "--record-images",
+        type=float,
+        default=None,
+        metavar="HZ",
+        help="with --record: the stereo endoscope's images too, as JPEG, at HZ",
+    )
     p.add_argument("-v", "--verbose", action="store_true")
     p.set_defaults(func=cmd_serve)
     _replay_parser(sub)

@@ -162,3 +162,56 @@ def test_to_dataset_refuses_files_without_a_demo(tmp_path):
         pass
     with pytest.raises(ValueError, match="no demo"):
         to_dataset([tmp_path / "e.mcap"], tmp_path / "d.hdf5")
+
+
+def test_the_stereo_images_are_recorded_as_jpeg(tmp_path):
+    """``serve --record-images``: each new stereo pair of the frames source as two
+    foxglove.CompressedImage (a source of two synthetic pairs stands in for the render
+    process, which the web console's tests start)."""
+    import base64
+    import io
+
+    from PIL import Image
+
+    from davinci_sim.sim.runtime.render import StereoFrame
+
+    y, x = np.mgrid[0:480, 0:640]
+    gradient = np.stack([x * 255 // 639, y * 255 // 479, (x + y) * 255 // 1118], axis=-1)
+    pairs = [
+        StereoFrame((gradient // k).astype(np.uint8), np.zeros((480, 640, 3), np.uint8),
+                    tick=10 * k, time=0.01 * k, frame=k, render_time=0.0)
+        for k in (1, 2)
+    ]  # fmt: skip
+
+    class Frames:
+        stopped = False
+        calls = 0
+
+        def latest(self):
+            Frames.calls += 1
+            return pairs[min(Frames.calls - 1, 1)]
+
+        def stop(self):
+            Frames.stopped = True
+
+    path = tmp_path / "images.mcap"
+    description = recording_description(SystemDescription(scene="psm1", runner="thread"))
+    system = build_system(description, start=True)
+    recorder = SessionRecorder(path, description, frames=Frames())
+    recorder.attach(system.handle)
+    try:
+        wait_ticks(system.handle, 50)
+    finally:
+        recorder.stop()
+        system.stop()
+    assert Frames.stopped and recorder.images == 2
+    c = read_mcap(path)
+    left, right = c.topic("/endoscope/left/compressed"), c.topic("/endoscope/right/compressed")
+    assert len(left) == len(right) == 2
+    assert c.schemas["/endoscope/left/compressed"] == "foxglove.CompressedImage"
+    t, m = left[-1]
+    assert m["format"] == "jpeg" and m["frame_id"] == "ECM/left" and t == right[-1][0] == 2e7
+    image = Image.open(io.BytesIO(base64.b64decode(m["data"])))
+    assert image.format == "JPEG" and image.size == (640, 480)
+    decoded = np.asarray(image, dtype=float)
+    assert np.abs(decoded - pairs[1].left).mean() < 2  # (the second pair, JPEG-lossy)

@@ -14,6 +14,8 @@ runner alike) and writes, in its own thread, never in the loop:
 * every event (``/events``: console buttons, teleoperation states, the task's phases;
   ``/task/results``: each finished repetition's metrics; ``/rosout``: the arms' messages as
   ``foxglove.Log``);
+* optionally, the stereo endoscope's images as JPEG (``foxglove.CompressedImage`` on
+  ``/endoscope/left/compressed`` and ``/endoscope/right/compressed``, ``--record-images HZ``);
 * every call the handle ran, with its tick (``/inputs/calls``, from the simulation's input
   log, :mod:`davinci_sim.sim.inputs`): the commands at the arms' API (``servo_cp``,
   ``servo_jp``, ``jaw/servo_jp``, ``move_*``, ``state_command``), the MTM inputs (the web
@@ -160,6 +162,11 @@ class SessionRecorder:
         description: the system's description (attached; what a replay rebuilds).
         poll: how often, s of wall time, the recorder looks for a new snapshot.
         on_error: told, once, if writing fails (the simulation goes on; default: logged).
+        frames: the stereo endoscope's frames to record (``System.frames(rate)``: a
+            :class:`~davinci_sim.sim.runtime.render.StereoFrames`), each new pair as two
+            ``foxglove.CompressedImage`` (JPEG) on ``/endoscope/{left,right}/compressed``;
+            None: no images. The recorder stops it.
+        jpeg_quality: JPEG quality of the images (1-95).
     """
 
     def __init__(
@@ -169,8 +176,15 @@ class SessionRecorder:
         *,
         poll: float = 0.002,
         on_error: Callable[[str], None] | None = None,
+        frames=None,
+        jpeg_quality: int = 80,
     ) -> None:
         self.path = Path(path)
+        self.frames = frames
+        self.jpeg_quality = int(jpeg_quality)
+        self.images = 0
+        """Stereo pairs written so far."""
+        self._frame = 0
         self.description = description
         self.poll = poll
         self.on_error = on_error
@@ -228,6 +242,8 @@ class SessionRecorder:
         if self._thread is not None:
             self._thread.join(timeout)
             self._thread = None
+        if self.frames is not None:
+            self.frames.stop()
 
     # ------------------------------------------------------------ the writer thread
     def _run(self) -> None:
@@ -259,6 +275,12 @@ class SessionRecorder:
             write_snapshot(self._writer, snap)
             self._last_time = snap.time
             self.snapshots += 1
+        if self.frames is not None:
+            frame = self.frames.latest()
+            if frame is not None and frame.frame != self._frame:
+                self._frame = frame.frame
+                write_images(self._writer, frame, self.jpeg_quality)
+                self.images += 1
 
     def _write_event(self, source: str, event: str, payload: object) -> None:
         w = self._writer
@@ -414,6 +436,27 @@ def write_snapshot(w: McapWriter, snap) -> None:
                 )
 
 
+def write_images(w: McapWriter, frame, quality: int = 80) -> None:
+    """A :class:`~davinci_sim.sim.runtime.render.StereoFrame` as two JPEG
+    ``foxglove.CompressedImage`` messages at the time of the joint positions it shows."""
+    import base64
+    import io
+
+    from PIL import Image
+
+    ns, ts = time_ns(frame.time), stamp(frame.time)
+    for side, image in (("left", frame.left), ("right", frame.right)):
+        buffer = io.BytesIO()
+        Image.fromarray(image).save(buffer, format="JPEG", quality=quality)
+        data = base64.b64encode(buffer.getvalue()).decode()
+        w.write(
+            f"/endoscope/{side}/compressed",
+            "foxglove.CompressedImage",
+            ns,
+            {"timestamp": ts, "frame_id": f"ECM/{side}", "data": data, "format": "jpeg"},
+        )
+
+
 def joint_message(js, ts: dict, tick: int) -> dict:
     """A :class:`~davinci_sim.sim.types.JointState` as a ``davinci_sim.JointState`` message."""
     return {
@@ -430,12 +473,14 @@ class RecordingPart:
     """``serve --record FILE``: a ``serve`` part that records the served system (built with
     :func:`recording_description`) to ``path``; adds ``recording`` to the ready info."""
 
-    def __init__(self, path: str | Path) -> None:
+    def __init__(self, path: str | Path, images_hz: float | None = None) -> None:
         self.path = Path(path)
+        self.images_hz = images_hz
         self.recorder: SessionRecorder | None = None
 
     def __call__(self, system, info: dict) -> SessionRecorder:
         handle = system.handle
+        frames = None if self.images_hz is None else system.frames(self.images_hz)
 
         def on_error(text: str) -> None:
             try:
@@ -443,11 +488,15 @@ class RecordingPart:
             except Exception:
                 pass
 
-        self.recorder = SessionRecorder(self.path, system.description, on_error=on_error)
+        self.recorder = SessionRecorder(self.path, system.description, on_error=on_error,
+                                        frames=frames)  # fmt: skip
         info["recording"] = str(self.path)
         return self.recorder.attach(handle)
 
 
-def recording_part(path: str | Path) -> RecordingPart:
-    """A ``serve`` part recording the session to ``path`` (see :class:`RecordingPart`)."""
-    return RecordingPart(path)
+def recording_part(path: str | Path, images_hz: float | None = None) -> RecordingPart:
+    """A ``serve`` part recording the session to ``path`` (see :class:`RecordingPart`),
+    with the stereo endoscope's images at ``images_hz`` (None: none)."""
+    if images_hz is not None and not (images_hz > 0):
+        raise ValueError(f"the image rate must be > 0 Hz, got {images_hz!r}")
+    return RecordingPart(path, images_hz)
