@@ -13,6 +13,7 @@ from davinci_sim.records.mcap_file import read_mcap
 from davinci_sim.study import TrialSpec
 from davinci_sim.study.batch import run_batch
 from davinci_sim.study.recording import trial_file
+from davinci_sim.study.runner import run_chunk
 
 
 @pytest.fixture(scope="module")
@@ -22,7 +23,7 @@ def recorded(short_task, tmp_path_factory):
         TrialSpec(short_task, subject=s, condition=c, B=B, G_max=G, seed=5, timeout=t)
         for s, c, B, G, t in ((0, 0, 0.0, 0.0, 0.4), (1, 1, 40.0, 5.0, 0.25))
     ]
-    rows = run_batch(specs, record=str(folder))
+    rows = run_chunk(specs, "batch", record=str(folder))
     return folder, specs, rows
 
 

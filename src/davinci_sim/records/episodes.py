@@ -33,7 +33,8 @@ from typing import Any
 from davinci_sim.records.jsonvalue import plain
 from davinci_sim.records.mcap_file import CHUNK_SIZE, McapWriter
 from davinci_sim.records.mcap_schemas import stamp, time_ns
-from davinci_sim.records.recording import write_header, write_snapshot
+from davinci_sim.records.messages import write_snapshot
+from davinci_sim.records.recording import write_header
 
 
 class EpisodeRecorder:

@@ -187,9 +187,12 @@ def time_ns(t: float) -> int:
 
 def pose_fields(T) -> tuple[dict, dict]:
     """The position and orientation (unit quaternion x, y, z, w) of a 4x4 pose ``T``."""
-    from scipy.spatial.transform import Rotation
+    import mujoco
+    import numpy as np
 
-    x, y, z, w = Rotation.from_matrix(T[:3, :3]).as_quat()
+    q = np.empty(4)  # (MuJoCo's C conversion: ~1 µs; the recorder converts ~10 per snapshot)
+    mujoco.mju_mat2Quat(q, np.ascontiguousarray(T[:3, :3], dtype=float).reshape(9))
+    w, x, y, z = q
     p = T[:3, 3]
     return (
         {"x": float(p[0]), "y": float(p[1]), "z": float(p[2])},

@@ -432,8 +432,7 @@ class TrialBatch:
         caller can keep it before the batch ends. Row timings: ``sim_time`` is the trial's
         own simulated time (from the handle taken to its end); ``wall_time`` is its share
         of the batch's wall time: the set-up shared equally, each tick's wall time shared
-        among the trials running in it. ``on_tick(batch)`` is called after every tick (a
-        recorder, :mod:`~davinci_sim.study.recording`: it reads the rows, changes nothing).
+        among the trials running in it. ``on_tick(batch)``: after every tick (a recorder).
         """
         n = len(self.specs)
         rows: list[dict | None] = [None] * n
@@ -487,30 +486,14 @@ def run_batch(
     specs: list[TrialSpec],
     on_done: Callable[[int], None] | None = None,
     on_row: Callable[[int, dict], None] | None = None,
-    record: str | None = None,
+    on_tick: Callable[[TrialBatch], None] | None = None,
 ) -> list[dict]:
     """Run ``specs`` (one task and seed) as one :class:`TrialBatch`; rows in ``specs`` order
-    (``on_done``, ``on_row``: see :meth:`TrialBatch.run`); ``record``: a folder each
-    trial is recorded to (:mod:`~davinci_sim.study.recording`)."""
+    (``on_done``, ``on_row``, ``on_tick``: see :meth:`TrialBatch.run`)."""
     wall0 = time.perf_counter()
     batch = TrialBatch(specs)
     batch.setup_wall = time.perf_counter() - wall0
-    recorder = on_tick = None
-    if record is not None:
-        from davinci_sim.study.recording import BatchRecorder
-
-        recorder = BatchRecorder(record, specs)
-        on_tick = recorder.tick
-        given = on_row
-
-        def on_row(i: int, row: dict) -> None:
-            recorder.row(i, row)
-            if given is not None:
-                given(i, row)
-
     try:
         return batch.run(on_done, on_row, on_tick)
     finally:
         batch._setup.sim.close()
-        if recorder is not None:
-            recorder.close()

@@ -71,7 +71,21 @@ def run_chunk(
         return rows
     from davinci_sim.study.batch import run_batch
 
-    return run_batch(specs, on_done=report, on_row=on_row, record=record)
+    if record is None:
+        return run_batch(specs, on_done=report, on_row=on_row)
+    from davinci_sim.study.recording import BatchRecorder
+
+    recorder = BatchRecorder(record, specs)
+
+    def recorded(k: int, row: dict) -> None:
+        recorder.row(k, row)
+        if on_row is not None:
+            on_row(k, row)
+
+    try:
+        return run_batch(specs, on_done=report, on_row=recorded, on_tick=recorder.tick)
+    finally:
+        recorder.close()
 
 
 def chunks(n: int, workers: int) -> list[list[int]]:
