@@ -215,3 +215,28 @@ def test_the_stereo_images_are_recorded_as_jpeg(tmp_path):
     assert image.format == "JPEG" and image.size == (640, 480)
     decoded = np.asarray(image, dtype=float)
     assert np.abs(decoded - pairs[1].left).mean() < 2  # (the second pair, JPEG-lossy)
+
+
+def test_a_session_of_the_process_runner_replays_too(tmp_path):
+    """With the loop in its own process, the input log's calls come back as events."""
+    path = tmp_path / "process.mcap"
+    description = recording_description(
+        SystemDescription(scene="psm1", home=True, runner="process", real_time=False)
+    )
+    system = build_system(description, start=True)
+    handle = system.handle
+    recorder = SessionRecorder(path, description).attach(handle)
+    try:
+        wait_ticks(handle, 200)
+        T = handle.call("PSM1", "measured_cp").result(30).T.copy()
+        for k in (1, 2):
+            T[2, 3] += 0.002 * k
+            handle.call("PSM1", "servo_cp", T.copy()).result(30)
+            wait_ticks(handle, 50)
+    finally:
+        recorder.stop()
+        system.stop()
+    recording = load_recording(path)
+    assert [c.method for c in recording.calls] == ["measured_cp", "servo_cp", "servo_cp"]
+    check = replay_inputs(recording)
+    assert check.bit_equal and check.calls == 3
