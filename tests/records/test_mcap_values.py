@@ -150,3 +150,57 @@ def test_episodes_become_robomimic_demos(tmp_path):
             assert np.array_equal(g["rewards"][()], ep["rew"])
             assert g["dones"][()].tolist() == [0] * (T - 1) + [1]
         assert [n.decode() for n in f["mask/finished"][()]] == ["demo_0", "demo_1"]
+
+
+def test_a_session_splits_into_one_demo_per_repetition(tmp_path):
+    """A session's demos end where the task reports a finished repetition (reward 1 at
+    that step); the rest after the last report is an unfinished demo. Actions: the
+    setpoint tip's displacement (camera frame) and the next jaw setpoint."""
+    from davinci_sim.records.mcap_schemas import stamp
+
+    path = tmp_path / "s.mcap"
+    n, dt = 12, 0.01
+    tips = [[0.001 * k, -0.002 * k, 0.1 + 0.0005 * k * k] for k in range(n)]
+    with McapWriter(path) as w:
+        w.metadata("davinci_sim", {"kind": "session"})
+        for k in range(n):
+            t, ns = stamp(k * dt), int(round(k * dt * 1e9))
+            w.write("/sim/qpos", "davinci_sim.Qpos", ns, {"tick": 10 * k, "qpos": [k, -k]})
+            js = {"timestamp": t, "tick": 10 * k, "name": list("abcdef"), "position": [k] * 6,
+                  "velocity": [], "effort": []}  # fmt: skip
+            w.write("/PSM1/measured_js", "davinci_sim.JointState", ns, js)
+            setpoint = {**js, "position": [2 * k] * 6}
+            w.write("/PSM1/setpoint_js", "davinci_sim.JointState", ns, setpoint)
+            w.write("/PSM1/jaw/setpoint_js", "davinci_sim.JointState", ns,
+                    {**js, "name": ["jaw"], "position": [0.1 * k]})  # fmt: skip
+            for topic, p in (("measured_cp", [0, 0, k]), ("setpoint_cp", tips[k])):
+                pose = {"position": dict(zip("xyz", p, strict=True)),
+                        "orientation": {"x": 0, "y": 0, "z": 0, "w": 1}}  # fmt: skip
+                w.write(f"/PSM1/{topic}", "foxglove.PoseInFrame", ns,
+                        {"timestamp": t, "frame_id": "ECM", "pose": pose})  # fmt: skip
+            state = {"timestamp": t, "tick": 10 * k, "state": {"distance_to_path": 0.01 * k}}
+            w.write("/task/state", "davinci_sim.State", ns, state)
+        for k in (3.5, 7.2):  # two repetitions finish between snapshots 3-4 and 7-8
+            w.write("/task/results", "davinci_sim.Event", int(k * dt * 1e9),
+                    {"timestamp": stamp(k * dt), "source": "task", "event": "results",
+                     "payload": {"repetition": 1}})  # fmt: skip
+    out = tmp_path / "d.hdf5"
+    assert to_dataset([path], out).demos == 3
+    with h5py.File(out) as f:
+        demos = [f[f"data/demo_{i}"] for i in range(3)]
+        assert [g.attrs["num_samples"] for g in demos] == [4, 4, 3]
+        assert [bool(g.attrs["finished"]) for g in demos] == [True, True, False]
+        assert demos[0]["rewards"][()].tolist() == [0, 0, 0, 1]
+        assert demos[1]["rewards"][()].tolist() == [0, 0, 0, 1]
+        assert demos[2]["rewards"][()].tolist() == [0, 0, 0]
+        actions = np.concatenate([g["actions"][()] for g in demos])
+        expected = np.diff(np.array(tips), axis=0)
+        assert np.allclose(actions[:, :3], expected, atol=0, rtol=1e-12)
+        assert np.allclose(actions[:, 3], 0.1 * np.arange(1, n))
+        joint = np.concatenate([g["actions_joint"][()] for g in demos])
+        assert joint[:, 0].tolist() == [2 * k for k in range(1, n)]
+        states = np.concatenate([g["states"][()] for g in demos])
+        assert states[:, 0].tolist() == list(range(n - 1))
+        assert demos[1]["obs/task_distance"][0, 0] == pytest.approx(0.04)
+        assert demos[1]["obs/PSM1_tip_pos"][0].tolist() == [0, 0, 4]
+        assert demos[1]["next_obs/PSM1_tip_pos"][-1].tolist() == [0, 0, 8]
