@@ -268,7 +268,7 @@ def cmd_serve(args: argparse.Namespace) -> int:
             from davinci_sim.records.recording import recording_part
 
             Path(args.record).open("ab").close()
-            parts.insert(0, recording_part(args.record, args.record_images))
+            parts.insert(0, recording_part(args.record, args.record_images, args.record_rate))
         if args.task is not None:  # a bad task or condition: say so before starting anything
             from davinci_sim.bridge.app import task_condition
             from davinci_sim.tasks import load_task
@@ -916,6 +916,13 @@ def main(argv: list[str] | None = None) -> int:
         default=None,
         metavar="HZ",
         help="with --record: the stereo endoscope's images too, as JPEG, at HZ",
+    )
+    p.add_argument(
+        "--record-rate",
+        type=float,
+        default=None,
+        metavar="HZ",
+        help="with --record: the states at HZ at most (default: every published state, --rate)",
     )
     p.add_argument("-v", "--verbose", action="store_true")
     p.set_defaults(func=cmd_serve)

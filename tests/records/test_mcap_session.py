@@ -240,3 +240,27 @@ def test_a_session_of_the_process_runner_replays_too(tmp_path):
     assert [c.method for c in recording.calls] == ["measured_cp", "servo_cp", "servo_cp"]
     check = replay_inputs(recording)
     assert check.bit_equal and check.calls == 3
+
+
+def test_a_slower_state_rate_keeps_snapshots_apart(tmp_path):
+    """``serve --record-rate 20``: states 50 ms apart at least; the calls all the same."""
+    path = tmp_path / "slow.mcap"
+    description = recording_description(
+        SystemDescription(scene="psm1", runner="thread", real_time=False)
+    )
+    system = build_system(description, start=True)
+    recorder = SessionRecorder(path, description, period=0.05).attach(system.handle)
+    try:
+        wait_ticks(system.handle, 400)
+        system.handle.call("PSM1", "state_command", "enable").result(30)
+        wait_ticks(system.handle, 20)
+    finally:
+        recorder.stop()
+        system.stop()
+    recording = load_recording(path)
+    assert len(recording.ticks) >= 3 and np.diff(recording.ticks).min() >= 50
+    assert [c.method for c in recording.calls] == ["state_command"]
+    with pytest.raises(ValueError, match="> 0"):
+        from davinci_sim.records.recording import recording_part
+
+        recording_part(path, rate_hz=0.0)

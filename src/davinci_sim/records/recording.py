@@ -160,6 +160,9 @@ class SessionRecorder:
         path: the MCAP file (created; its folder must exist).
         description: the system's description (attached; what a replay rebuilds).
         poll: how often, s of wall time, the recorder looks for a new snapshot.
+        period: simulated time, s, between two recorded snapshots at least (0: every
+            snapshot the runner publishes, 10 ms by default; the recorder's cost is per
+            snapshot, ~27 messages for the task scene).
         on_error: told, once, if writing fails (the simulation goes on; default: logged).
         frames: the stereo endoscope's frames to record (``System.frames(rate)``: a
             :class:`~davinci_sim.sim.runtime.render.StereoFrames`), each new pair as two
@@ -174,6 +177,7 @@ class SessionRecorder:
         description,
         *,
         poll: float = 0.002,
+        period: float = 0.0,
         on_error: Callable[[str], None] | None = None,
         frames=None,
         jpeg_quality: int = 80,
@@ -186,6 +190,9 @@ class SessionRecorder:
         self._frame = 0
         self.description = description
         self.poll = poll
+        if not (period >= 0):
+            raise ValueError(f"the recording period must be >= 0 s, got {period!r}")
+        self.period = float(period)
         self.on_error = on_error
         self._events: queue.SimpleQueue = queue.SimpleQueue()
         self._stop = threading.Event()
@@ -269,7 +276,9 @@ class SessionRecorder:
                 break
             self._write_event(source, event, payload)
         snap = self._handle.snapshot()
-        if snap.tick != self._last_tick:
+        if snap.tick != self._last_tick and (
+            self._last_tick < 0 or snap.time - self._last_time >= self.period - 1e-9
+        ):
             self._last_tick = snap.tick
             write_snapshot(self._writer, snap)
             self._last_time = snap.time
@@ -349,9 +358,11 @@ class RecordingPart:
     """``serve --record FILE``: a ``serve`` part that records the served system (built with
     :func:`recording_description`) to ``path``; adds ``recording`` to the ready info."""
 
-    def __init__(self, path: str | Path, images_hz: float | None = None) -> None:
+    def __init__(self, path: str | Path, images_hz: float | None = None,
+                 rate_hz: float | None = None) -> None:  # fmt: skip
         self.path = Path(path)
         self.images_hz = images_hz
+        self.period = 0.0 if rate_hz is None else 1.0 / rate_hz
         self.recorder: SessionRecorder | None = None
 
     def __call__(self, system, info: dict) -> SessionRecorder:
@@ -365,14 +376,21 @@ class RecordingPart:
                 pass
 
         self.recorder = SessionRecorder(self.path, system.description, on_error=on_error,
-                                        frames=frames)  # fmt: skip
+                                        frames=frames, period=self.period)  # fmt: skip
         info["recording"] = str(self.path)
         return self.recorder.attach(handle)
 
 
-def recording_part(path: str | Path, images_hz: float | None = None) -> RecordingPart:
+def recording_part(path: str | Path, images_hz: float | None = None,
+                   rate_hz: float | None = None) -> RecordingPart:  # fmt: skip
     """A ``serve`` part recording the session to ``path`` (see :class:`RecordingPart`),
-    with the stereo endoscope's images at ``images_hz`` (None: none)."""
-    if images_hz is not None and not (images_hz > 0):
-        raise ValueError(f"the image rate must be > 0 Hz, got {images_hz!r}")
-    return RecordingPart(path, images_hz)
+    with the stereo endoscope's images at ``images_hz`` (None: none), the states at
+    ``rate_hz`` at most (None: every published snapshot).
+
+    Raises:
+        ValueError: a rate that is not > 0.
+    """
+    for name, rate in (("image", images_hz), ("state", rate_hz)):
+        if rate is not None and not (rate > 0 and rate < float("inf")):
+            raise ValueError(f"the {name} rate must be > 0 Hz, got {rate!r}")
+    return RecordingPart(path, images_hz, rate_hz)
