@@ -174,22 +174,23 @@ def load_recording(path: str | Path) -> Recording:
 
 def replay_description(recording: Recording, **changes):
     """The recorded description made ready to run here: the task from the recorded file's
-    text (a temporary file: the replay needs neither the original file nor the shipped
-    task's current version), no CSV log (the replay appends nothing to the session's
-    log), no input log; ``changes`` on top (runner, real time …)."""
+    text (a file in the temporary folder named by the text's hash: the replay needs neither
+    the original file nor the shipped task's current version), no CSV log (the replay
+    appends nothing to the session's log), no input log; ``changes`` on top (runner …)."""
     d = recording.description
     task = d.task
     if task is not None:
         import dataclasses
 
         source = task.task
-        if recording.task_text is not None:
-            f = tempfile.NamedTemporaryFile(
-                "w", suffix=".yaml", prefix="replay-task-", delete=False
-            )
-            with f:
-                f.write(recording.task_text)
-            source = f.name
+        if recording.task_text is not None:  # (one file per task text, reused)
+            import hashlib
+
+            digest = hashlib.sha1(recording.task_text.encode()).hexdigest()[:16]
+            path = Path(tempfile.gettempdir()) / f"davinci-sim-replay-task-{digest}.yaml"
+            if not path.is_file() or path.read_text() != recording.task_text:
+                path.write_text(recording.task_text)
+            source = str(path)
         task = dataclasses.replace(task, task=source, log=None)
     return d.replace(task=task, record_inputs=False, **changes)
 
