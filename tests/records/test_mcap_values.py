@@ -204,3 +204,24 @@ def test_a_session_splits_into_one_demo_per_repetition(tmp_path):
         assert demos[1]["obs/task_distance"][0, 0] == pytest.approx(0.04)
         assert demos[1]["obs/PSM1_tip_pos"][0].tolist() == [0, 0, 4]
         assert demos[1]["next_obs/PSM1_tip_pos"][-1].tolist() == [0, 0, 8]
+
+
+def test_a_recorded_description_may_name_no_other_code():
+    """``description.pickle`` is read with a restricted unpickler: the simulator's own
+    dataclasses and numpy arrays come back, anything else is refused."""
+    import os
+    import pickle
+
+    from davinci_sim.records.replay import safe_unpickle
+    from davinci_sim.system import SystemDescription, TaskDescription
+
+    d = SystemDescription(scene="psm1", task=TaskDescription("seed_path", condition="B=40"))
+    assert safe_unpickle(pickle.dumps(d)) == d
+    assert np.array_equal(safe_unpickle(pickle.dumps(np.eye(3))), np.eye(3))
+
+    class Evil:
+        def __reduce__(self):
+            return (os.system, ("true",))
+
+    with pytest.raises(pickle.UnpicklingError, match="may not name"):
+        safe_unpickle(pickle.dumps(Evil()))
