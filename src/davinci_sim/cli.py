@@ -712,10 +712,11 @@ def _serve_replay(args: argparse.Namespace, recording) -> int:
         )
 
     try:
-        serve(options, stop=stop, on_ready=ready, parts=parts, system=system)
+        info = serve(options, stop=stop, on_ready=ready, parts=parts, system=system)
     except OSError as e:
         print(f"davinci-sim replay: {e}; choose another port (--port, --web-port)", file=sys.stderr)
         return 2
+    print(f"stopped; replayed at {info.get('sim_over_wall', 0):.3f}x real time", flush=True)
     return 0
 
 

@@ -277,7 +277,9 @@ class StatePlayback:
     """Mode 2: a component that puts the recorded joint positions into the simulation after
     every physics step (velocities zero), so the snapshots, the images and the task session
     show the recording as it was. Add it first (``before=`` the first component) so the
-    other components' ``post_step`` read the recorded state.
+    other components' ``post_step`` read the recorded state: a task session recomputes its
+    phase and deviation from the recorded tool (the recorded ones are the file's
+    ``/task/state``).
 
     Args:
         sim: the simulation (same model as the recording).
