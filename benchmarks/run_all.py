@@ -12,6 +12,7 @@ import bench_compat  # noqa: E402
 import bench_exercises  # noqa: E402
 import bench_kinematics  # noqa: E402
 import bench_realtime  # noqa: E402
+import bench_recording  # noqa: E402
 import bench_records  # noqa: E402
 import bench_render  # noqa: E402
 import bench_state  # noqa: E402
@@ -31,6 +32,7 @@ if __name__ == "__main__":
     bench_compat.main()  # dVRK scripts' API over both transports, ~30 s
     bench_teleop.main()
     bench_records.main()
+    bench_recording.main()  # MCAP recording and replay, ~1 min
     bench_study.main()  # the 400-trial study, about 2 min
     bench_study_small.main()  # 1 and 16 trials of the seed task, ~2 min (cold compile incl.)
     bench_realtime.main()  # 60 s of real time (plus warm-up)

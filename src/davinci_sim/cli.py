@@ -1,5 +1,5 @@
 """The ``davinci-sim`` command line: ``info``, ``urdf``, ``snapshot``, ``demo``, ``serve``,
-``task``, ``trainees`` and ``study``.
+``replay``, ``run``, ``task``, ``trainees`` and ``study``.
 
 Size: over 500 lines because the command line is one parser: each command is a short
 function that checks its options and calls the package, and ``serve`` alone has some forty
@@ -281,7 +281,13 @@ def cmd_serve(args: argparse.Namespace) -> int:
             task=args.task,
             condition=args.condition,
             task_log=args.task_log,
+            record_inputs=args.record is not None,
         )
+        if args.record is not None:  # (a file that cannot be created: say so now)
+            from davinci_sim.records.recording import recording_part
+
+            Path(args.record).open("ab").close()
+            parts.insert(0, recording_part(args.record, args.record_images, args.record_rate))
         if args.task is not None:  # a bad task or condition: say so before starting anything
             from davinci_sim.bridge.app import task_condition
             from davinci_sim.tasks import load_task
@@ -297,7 +303,7 @@ def cmd_serve(args: argparse.Namespace) -> int:
 
                 RecordsDB(records.path).close()
                 parts.insert(0, records)  # (attached before any page can start a repetition)
-    except ValueError as e:  # TaskError and RecordsError are ValueErrors
+    except (ValueError, OSError) as e:  # TaskError and RecordsError are ValueErrors
         print(f"davinci-sim serve: {e}", file=sys.stderr)
         return 2
     stop = threading.Event()
@@ -318,6 +324,8 @@ def cmd_serve(args: argparse.Namespace) -> int:
             else:
                 why = loop.get("realtime_priority_error", "not a process runner")
                 print(f"loop process: normal priority ({why})", flush=True)
+        if "recording" in info:
+            print(f"recording: {info['recording']}", flush=True)
         if "records" in info:
             print(f"trainee records: {info['records']} (trainee {info['trainee']!r})", flush=True)
         if "web" in info:
@@ -490,6 +498,9 @@ def cmd_study(args: argparse.Namespace) -> int:
     if out.exists() and not out.is_dir():  # say so before hours of trials, not after
         print(f"davinci-sim study: the output {out} exists and is not a folder", file=sys.stderr)
         return 2
+    if args.record is not None and args.engine != "batch":
+        print("davinci-sim study: --record needs the batch engine", file=sys.stderr)
+        return 2
     from davinci_sim.tasks import TaskError, load_task
     from davinci_sim.tasks.check import task_problem
 
@@ -582,9 +593,8 @@ def _run_study(args: argparse.Namespace, config, store) -> int:
         todo = [s for i, s in enumerate(plan_trials(config)) if i not in store.rows]
         if todo:
             print(estimate_study(config, todo).line(), flush=True)
-        result = run_study(
-            config, progress=not args.no_progress, done=dict(store.rows), on_row=store.append
-        )
+        result = run_study(config, progress=not args.no_progress, done=dict(store.rows),
+                           on_row=store.append, record=args.record)  # fmt: skip
     except (KeyboardInterrupt, _Stopped):
         store.close()
         print(f"davinci-sim study: stopped; {len(store.rows)} of {config.n_trials} trials are "
@@ -616,6 +626,163 @@ def _drop_if_empty(store) -> None:
     store.close()
     if not store.rows:
         store.finish()
+
+
+_RECORD_HELP = (
+    "record the session to an MCAP file (Foxglove opens it; `davinci-sim replay` plays it): "
+    "joint states, poses, wrenches, events, the task's phases and metrics, every command "
+    "with its tick"
+)
+
+
+def cmd_replay(args: argparse.Namespace) -> int:
+    """Play a recording back: into the web console and the ROS topics, or check it, or
+    convert recordings to a dataset."""
+    from davinci_sim.records.mcap_file import McapReadError
+    from davinci_sim.records.replay import ReplayError, load_recording
+
+    if args.to_dataset is not None:
+        from davinci_sim.records.dataset import to_dataset
+
+        try:
+            summary = to_dataset(args.files, args.to_dataset)
+        except (McapReadError, ReplayError, OSError, ValueError) as e:
+            print(f"davinci-sim replay: {e}", file=sys.stderr)
+            return 2
+        print(summary.line(), flush=True)
+        return 0
+    if len(args.files) != 1:
+        print(
+            "davinci-sim replay: replay one file at a time (several only with --to-dataset)",
+            file=sys.stderr,
+        )
+        return 2
+    try:
+        recording = load_recording(args.files[0])
+    except (McapReadError, ReplayError, OSError) as e:
+        print(f"davinci-sim replay: {e}", file=sys.stderr)
+        return 2
+    if not recording.complete:
+        print(
+            f"note: {recording.path} was cut off ({recording.contents.problem}); replaying "
+            "what it holds",
+            flush=True,
+        )
+    for why in recording.unreplayable:
+        print(f"note: a call could not be recorded, the replay of inputs is not exact: {why}")
+    if args.check:
+        from davinci_sim.records.replay import replay_inputs, replay_states
+
+        run = replay_inputs if args.mode == "inputs" else replay_states
+        try:
+            check = run(recording) if args.mode == "inputs" else run(recording, speed=args.speed)
+        except (ReplayError, ValueError) as e:
+            print(f"davinci-sim replay: {e}", file=sys.stderr)
+            return 2
+        print(
+            f"replay of {args.mode}: {check.ticks} recorded ticks compared, largest joint "
+            f"difference {check.max_abs_diff:.3g} ({'bit-equal' if check.bit_equal else 'differs'}"
+            f"{'' if check.first_diff_tick is None else f' from tick {check.first_diff_tick}'})",
+            flush=True,
+        )
+        return 0 if check.bit_equal else 1
+    return _serve_replay(args, recording)
+
+
+def _serve_replay(args: argparse.Namespace, recording) -> int:
+    import signal
+    import threading
+
+    from davinci_sim.bridge.app import ServeOptions, serve
+    from davinci_sim.bridge.rosbridge.config import BridgeConfig
+    from davinci_sim.records.replay import ReplayError, replay_system
+
+    web = not args.no_web
+    render_hz = 30.0 if web else None
+    try:
+        system = replay_system(
+            recording, args.mode, speed=args.speed, loop=args.loop, render_hz=render_hz
+        )
+    except (ReplayError, ValueError) as e:
+        print(f"davinci-sim replay: {e}", file=sys.stderr)
+        return 2
+    d = system.description
+    options = ServeOptions(
+        scene=d.scene if isinstance(d.scene, str) else "full",
+        keyframe=d.keyframe,
+        seed=d.seed,
+        server=not args.no_server,
+        bridge=BridgeConfig(host="127.0.0.1", port=args.port),
+        images="none" if args.no_images else "jpeg",
+        runner="thread",
+        render_hz=render_hz,
+        duration=args.duration,
+    )
+    parts = []
+    if web:
+        from davinci_sim.web.app import web_part
+        from davinci_sim.web.server import WebOptions
+
+        parts.append(web_part(WebOptions(host="127.0.0.1", port=args.web_port), bedside=False))
+    stop = threading.Event()
+    signal.signal(signal.SIGINT, lambda *_: stop.set())
+    signal.signal(signal.SIGTERM, lambda *_: stop.set())
+
+    def ready(info: dict) -> None:
+        if "url" in info:
+            print(f"rosbridge server: {info['url']}", flush=True)
+        if "web" in info:
+            print(f"web console: {info['web']}  <- open this in a browser", flush=True)
+        print(
+            f"replaying {recording.path} ({args.mode}, {args.speed:g}x; Ctrl-C to stop)", flush=True
+        )
+
+    try:
+        info = serve(options, stop=stop, on_ready=ready, parts=parts, system=system)
+    except OSError as e:
+        print(f"davinci-sim replay: {e}; choose another port (--port, --web-port)", file=sys.stderr)
+        return 2
+    print(f"stopped; replayed at {info.get('sim_over_wall', 0):.3f}x real time", flush=True)
+    return 0
+
+
+def _replay_parser(sub) -> None:
+    p = sub.add_parser("replay", help="play a recording (serve --record) back, or make a dataset")
+    p.add_argument("files", nargs="+", metavar="FILE.mcap")
+    p.add_argument(
+        "--mode",
+        default="inputs",
+        choices=["inputs", "states"],
+        help="inputs: the recorded commands re-run through the physics; states: the "
+        "recorded joint positions shown as they were (default: inputs)",
+    )
+    p.add_argument(
+        "--speed",
+        type=float,
+        default=1.0,
+        help="times real time (inputs: 0 runs as fast as it computes)",
+    )
+    p.add_argument("--loop", action="store_true", help="states: start again at the end")
+    p.add_argument(
+        "--check",
+        action="store_true",
+        help="no viewer: replay as fast as possible and compare with the recorded "
+        "joint positions (exit 1 if they differ)",
+    )
+    p.add_argument(
+        "--to-dataset",
+        default=None,
+        metavar="OUT.hdf5",
+        help="convert the recordings to an imitation-learning dataset (robomimic's "
+        "HDF5 layout) instead",
+    )
+    p.add_argument("--port", type=int, default=9090, help="rosbridge server port")
+    p.add_argument("--no-server", action="store_true", help="no rosbridge server")
+    p.add_argument("--no-images", action="store_true", help="no image topics")
+    p.add_argument("--web-port", type=int, default=8080)
+    p.add_argument("--no-web", action="store_true", help="no web console")
+    p.add_argument("--duration", type=float, default=None, help="stop after this many seconds")
+    p.set_defaults(func=cmd_replay)
 
 
 _RECORDS_HELP = (
@@ -791,8 +958,24 @@ def main(argv: list[str] | None = None) -> int:
         "control loops; needs root or CAP_SYS_NICE, else it runs at normal priority",
     )
     p.add_argument("--no-bedside", action="store_true", help="web console without the 3-D view")
+    p.add_argument("--record", default=None, metavar="FILE.mcap", help=_RECORD_HELP)
+    p.add_argument(
+        "--record-images",
+        type=float,
+        default=None,
+        metavar="HZ",
+        help="with --record: the stereo endoscope's images too, as JPEG, at HZ",
+    )
+    p.add_argument(
+        "--record-rate",
+        type=float,
+        default=None,
+        metavar="HZ",
+        help="with --record: the states at HZ at most (default: every published state, --rate)",
+    )
     p.add_argument("-v", "--verbose", action="store_true")
     p.set_defaults(func=cmd_serve)
+    _replay_parser(sub)
     p = sub.add_parser("task", help="check a training task (reachability, view)")
     task_sub = p.add_subparsers(dest="task_command", required=True)
     p = task_sub.add_parser(
@@ -899,6 +1082,13 @@ def main(argv: list[str] | None = None) -> int:
     )
     p.add_argument("--output", "-o", default="study", help="output folder")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
+    p.add_argument(
+        "--record",
+        default=None,
+        metavar="DIR",
+        help="record every trial to DIR, one MCAP file per trial (batch engine): the PSM "
+        "and MTM at 100 Hz, the guidance force, the phase, the row",
+    )
     p.add_argument(
         "--resume",
         action="store_true",

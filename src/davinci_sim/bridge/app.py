@@ -73,6 +73,9 @@ class ServeOptions:
     frame_task: bool = False
     """Bring the endoscope closer to the task once the ECM is homed (the web console's
     view: the task fills the image)."""
+    record_inputs: bool = False
+    """Log every call with its tick and publish ``qpos`` (what ``serve --record`` needs:
+    :func:`davinci_sim.records.recording.recording_description`)."""
 
 
 class RealTimeWatch:
@@ -149,8 +152,13 @@ def serve_description(options: ServeOptions):
         # Snapshots cost ~0.2 ms of the loop for the full system with the console: take them
         # at the publish rate, not every tick, so the 1 kHz loop keeps its margin.
         snapshot_period=1.0 / max(options.rate, 1.0),
-        # qpos in the snapshots: the images' renderer and the robot's /tf and /joint_states.
-        publish_qpos=options.server or options.images != "none" or options.render_hz is not None,
+        # qpos in the snapshots: the images' renderer, the robot's /tf and /joint_states, and
+        # a recording's states.
+        publish_qpos=options.server
+        or options.images != "none"
+        or options.render_hz is not None
+        or options.record_inputs,
+        record_inputs=options.record_inputs,
         render_hz=options.render_hz,
         realtime_priority=options.realtime_priority if options.runner == "process" else None,
     )
@@ -181,6 +189,7 @@ def serve(
     on_ready: Callable[[dict], None] | None = None,
     parts: Sequence[Callable[[Any, dict], Any]] = (),
     on_warning: Callable[[str], None] | None = None,
+    system: Any = None,
 ) -> dict:
     """Run until ``stop`` is set or ``options.duration`` passes; returns final statistics.
 
@@ -190,6 +199,8 @@ def serve(
     the ``info`` dict (to add its URLs), returns a started object with ``stop()``, and is
     stopped with the rest. ``on_warning(text)`` is told, once, when the simulation cannot
     keep real time (:class:`RealTimeWatch`; also logged and put on ``/rosout``).
+    ``system``: a built, not started :class:`~davinci_sim.system.System` to serve instead
+    of the one ``options`` describe (a replay's: ``davinci-sim replay``).
     """
     from davinci_sim.bridge.client_mode import ClientModeConfig, RosClientMode
     from davinci_sim.bridge.console_node import ConsoleNode
@@ -204,7 +215,8 @@ def serve(
 
     stop = stop or threading.Event()
     process = options.runner == "process"
-    system = build_system(serve_description(options))
+    if system is None:
+        system = build_system(serve_description(options))
     handle = system.handle
     arm_names = set()
     started: list = []

@@ -34,6 +34,7 @@ import numpy as np
 
 from davinci_sim.kinematics.chain import DHChain
 from davinci_sim.sim import arm_laws as laws
+from davinci_sim.sim.inputs import log_call
 from davinci_sim.sim.types import CartesianPose, CartesianTwist, JointState, OperatingState
 
 if TYPE_CHECKING:
@@ -186,12 +187,14 @@ def resolve_target(sim: Simulation, target: str) -> object:
 
 
 def execute(sim: Simulation, target: str, method: str, args: tuple, kwargs: dict) -> Any:
-    """Run one call in the loop's thread. Only public methods can be called."""
+    """Run one call in the loop's thread. Only public methods can be called; the call is
+    logged first when the simulation has an input log (:mod:`~davinci_sim.sim.inputs`)."""
     if method.startswith("_"):
         raise AttributeError(f"{method!r} is not a public method")
     fn = getattr(resolve_target(sim, target), method, None)
     if not callable(fn):
         raise AttributeError(f"{target!r} has no method {method!r}")
+    log_call(sim, target, method, args, kwargs)
     return fn(*args, **kwargs)
 
 
@@ -237,6 +240,8 @@ class ThreadedSimulation:
             after every tick; :meth:`stereo_frame`); None: no renderer.
         render_model: picklable callable returning the model to render (e.g. with a task's
             drawing); None: the simulation's scene.
+        speed: with ``real_time``, simulated seconds per wall second (a replay; 1: real
+            time).
         start_paused: the loop waits for :meth:`resume` before its first tick (schedule
             inputs with :meth:`call_at` first, for a reproducible run).
         clock, sleep: the wall clock (s) and how to wait, for the pacing (tests pass a
@@ -254,6 +259,7 @@ class ThreadedSimulation:
         start_paused: bool = False,
         clock: Callable[[], float] = time.perf_counter,
         sleep: Callable[[float], None] | None = None,
+        speed: float = 1.0,
     ):
         from davinci_sim.sim.runtime.loop import LoopRunner  # (runtime imports this module)
 
@@ -261,7 +267,13 @@ class ThreadedSimulation:
         self.real_time = real_time
         self._snapshot_ticks = max(1, round(snapshot_period / sim.dt))
         self._runner = LoopRunner(
-            sim, real_time=real_time, spin=0.0, max_lag=math.inf, clock=clock, sleep=sleep
+            sim,
+            real_time=real_time,
+            speed=speed,
+            spin=0.0,
+            max_lag=math.inf,
+            clock=clock,
+            sleep=sleep,
         )
         self._calls: queue.SimpleQueue[_Call] = queue.SimpleQueue()
         self._subscribers: list[EventCallback] = []

@@ -422,6 +422,7 @@ class TrialBatch:
         self,
         on_done: Callable[[int], None] | None = None,
         on_row: Callable[[int, dict], None] | None = None,
+        on_tick: Callable[[TrialBatch], None] | None = None,
     ) -> list[dict]:
         """Tick until every trial has ended; returns the rows in ``specs`` order.
 
@@ -431,7 +432,7 @@ class TrialBatch:
         caller can keep it before the batch ends. Row timings: ``sim_time`` is the trial's
         own simulated time (from the handle taken to its end); ``wall_time`` is its share
         of the batch's wall time: the set-up shared equally, each tick's wall time shared
-        among the trials running in it.
+        among the trials running in it. ``on_tick(batch)``: after every tick (a recorder).
         """
         n = len(self.specs)
         rows: list[dict | None] = [None] * n
@@ -442,6 +443,8 @@ class TrialBatch:
         while running:
             ran = self.index[self.active]  # the trials this tick runs
             self.tick()
+            if on_tick is not None:
+                on_tick(self)
             now = clock()
             wall[ran] += (now - t_tick) / running
             t_tick = now
@@ -483,13 +486,14 @@ def run_batch(
     specs: list[TrialSpec],
     on_done: Callable[[int], None] | None = None,
     on_row: Callable[[int, dict], None] | None = None,
+    on_tick: Callable[[TrialBatch], None] | None = None,
 ) -> list[dict]:
     """Run ``specs`` (one task and seed) as one :class:`TrialBatch`; rows in ``specs`` order
-    (``on_done``, ``on_row``: see :meth:`TrialBatch.run`)."""
+    (``on_done``, ``on_row``, ``on_tick``: see :meth:`TrialBatch.run`)."""
     wall0 = time.perf_counter()
     batch = TrialBatch(specs)
     batch.setup_wall = time.perf_counter() - wall0
     try:
-        return batch.run(on_done, on_row)
+        return batch.run(on_done, on_row, on_tick)
     finally:
         batch._setup.sim.close()

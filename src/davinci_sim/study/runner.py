@@ -27,6 +27,7 @@ import signal
 import time
 import traceback
 from collections.abc import Callable, Mapping
+from pathlib import Path
 from typing import NamedTuple
 
 from tqdm import tqdm
@@ -50,11 +51,15 @@ class StudyResult(NamedTuple):
 
 
 def run_chunk(
-    specs: list[TrialSpec], engine: str, progress=None, on_row: RowSink | None = None
+    specs: list[TrialSpec],
+    engine: str,
+    progress=None,
+    on_row: RowSink | None = None,
+    record: str | None = None,
 ) -> list[dict]:
     """Run ``specs`` with ``engine``; ``progress`` (a queue or None) gets the number of
     trials that end, as they end; ``on_row(k, row)`` gets the row of ``specs[k]`` as soon
-    as that trial ends."""
+    as that trial ends; ``record``: a folder the batch engine records each trial to."""
     report = (lambda k: None) if progress is None else progress.put
     if engine == "live":
         rows = []
@@ -66,7 +71,21 @@ def run_chunk(
         return rows
     from davinci_sim.study.batch import run_batch
 
-    return run_batch(specs, on_done=report, on_row=on_row)
+    if record is None:
+        return run_batch(specs, on_done=report, on_row=on_row)
+    from davinci_sim.study.recording import BatchRecorder
+
+    recorder = BatchRecorder(record, specs)
+
+    def recorded(k: int, row: dict) -> None:
+        recorder.row(k, row)
+        if on_row is not None:
+            on_row(k, row)
+
+    try:
+        return run_batch(specs, on_done=report, on_row=recorded, on_tick=recorder.tick)
+    finally:
+        recorder.close()
 
 
 def chunks(n: int, workers: int) -> list[list[int]]:
@@ -89,15 +108,17 @@ def processes(n_trials: int, workers: int) -> int:
     return max(1, min(workers, n_trials, usable_cores()))
 
 
-def _local(specs: list[TrialSpec], workers: int, engine: str, on_row: RowSink) -> None:
+def _local(specs: list[TrialSpec], workers: int, engine: str, on_row: RowSink,
+           record: str | None = None) -> None:  # fmt: skip
     parts = chunks(len(specs), processes(len(specs), workers))
     if len(parts) == 1:
-        run_chunk(specs, engine, on_row=on_row)
+        run_chunk(specs, engine, on_row=on_row, record=record)
         return
-    _pool(specs, parts, engine, on_row)
+    _pool(specs, parts, engine, on_row, record)
 
 
-def _worker(k: int, specs: list[TrialSpec], part: list[int], engine: str, out) -> None:
+def _worker(k: int, specs: list[TrialSpec], part: list[int], engine: str, out,
+            record: str | None = None) -> None:  # fmt: skip
     """A worker process: runs one chunk, sending ``("row", i, row)`` as each trial ends
     (i: the position in the list the parent runs), then ``("done", k)`` or
     ``("error", k, text)``. It stops when its parent is gone (checked at each row)."""
@@ -110,7 +131,7 @@ def _worker(k: int, specs: list[TrialSpec], part: list[int], engine: str, out) -
         out.put(("row", part[j], row))
 
     try:
-        run_chunk(specs, engine, on_row=send)
+        run_chunk(specs, engine, on_row=send, record=record)
     except KeyboardInterrupt:  # Ctrl-C reaches the whole process group: the parent reports
         return
     except Exception as e:
@@ -119,7 +140,8 @@ def _worker(k: int, specs: list[TrialSpec], part: list[int], engine: str, out) -
     out.put(("done", k))
 
 
-def _pool(specs: list[TrialSpec], parts: list[list[int]], engine: str, on_row: RowSink) -> None:
+def _pool(specs: list[TrialSpec], parts: list[list[int]], engine: str, on_row: RowSink,
+          record: str | None = None) -> None:  # fmt: skip
     """One worker process per chunk (forked where possible: they inherit what the parent
     has built, e.g. the compiled laws and the trial set-up); rows reach ``on_row`` in this
     process as trials end. An exception here (Ctrl-C) stops the workers."""
@@ -128,7 +150,7 @@ def _pool(specs: list[TrialSpec], parts: list[list[int]], engine: str, on_row: R
     procs = [
         ctx.Process(
             target=_worker,
-            args=(k, [specs[i] for i in part], part, engine, out),
+            args=(k, [specs[i] for i in part], part, engine, out, record),
             name=f"davinci-sim-study-{k}",
             daemon=True,
         )
@@ -166,7 +188,8 @@ def _pool(specs: list[TrialSpec], parts: list[list[int]], engine: str, on_row: R
         out.cancel_join_thread()
 
 
-def _ray(specs: list[TrialSpec], workers: int, engine: str, on_row: RowSink) -> None:
+def _ray(specs: list[TrialSpec], workers: int, engine: str, on_row: RowSink,
+         record: str | None = None) -> None:  # fmt: skip
     try:
         import ray
     except ImportError as e:
@@ -177,7 +200,8 @@ def _ray(specs: list[TrialSpec], workers: int, engine: str, on_row: RowSink) -> 
     try:
         parts = chunks(len(specs), workers)
         remote = ray.remote(run_chunk)
-        refs = [remote.remote([specs[i] for i in part], engine) for part in parts]
+        # (record: a folder every Ray worker reaches, e.g. on a shared file system)
+        refs = [remote.remote([specs[i] for i in part], engine, record=record) for part in parts]
         pending = list(refs)
         while pending:  # (a chunk's rows arrive when the chunk ends)
             done, pending = ray.wait(pending, num_returns=1)
@@ -190,7 +214,7 @@ def _ray(specs: list[TrialSpec], workers: int, engine: str, on_row: RowSink) -> 
             ray.shutdown()
 
 
-BACKENDS: dict[str, Callable[[list[TrialSpec], int, str, RowSink], None]] = {
+BACKENDS: dict[str, Callable[..., None]] = {
     "local": _local,
     "ray": _ray,
 }
@@ -217,6 +241,7 @@ def run_study(
     progress: bool | Callable[[int, int], None] = True,
     done: Mapping[int, dict] | None = None,
     on_row: Callable[[int, dict], None] | None = None,
+    record: str | Path | None = None,
 ) -> StudyResult:
     """Run every trial of ``config`` (see :func:`~davinci_sim.study.config.plan_trials`).
 
@@ -224,7 +249,12 @@ def run_study(
     with (trials done, trials in all) as trials finish. ``done``: rows already finished,
     by plan index (kept by an interrupted run, :class:`~davinci_sim.study.store.StudyRows`):
     those trials are not run again. ``on_row(index, row)``: called in this process with each
-    trial's row (plan index) as soon as the trial ends, e.g. to keep it on disk."""
+    trial's row (plan index) as soon as the trial ends, e.g. to keep it on disk.
+    ``record``: a folder every trial is recorded to, one MCAP file each (the batch engine
+    only: :mod:`~davinci_sim.study.recording`)."""
+    if record is not None and config.engine != "batch":
+        raise ValueError("recording trials needs the batch engine (--engine batch)")
+    record = None if record is None else str(record)
     specs = plan_trials(config)
     rows: list[dict | None] = [None] * len(specs)
     for i, row in (done or {}).items():
@@ -257,7 +287,7 @@ def run_study(
                     on_row(i, row)
                 bar.update(1)
 
-            BACKENDS[config.backend](run, config.workers, config.engine, got)
+            BACKENDS[config.backend](run, config.workers, config.engine, got, record=record)
             missing = [i for i in now if rows[i] is None]
             if missing:
                 raise RuntimeError(f"trials {missing[:5]} ended without a row")

@@ -210,6 +210,10 @@ def install(sim: Simulation, description: SystemDescription, task: Task | None =
         from davinci_sim.sim.runtime.render import QposProbe
 
         sim.add_component(QposProbe(sim))
+    if description.record_inputs:
+        from davinci_sim.sim.inputs import InputLog
+
+        sim.add_component(InputLog(sim))
     if description.home:
         for arm in sim.arms.values():
             arm.state_command("enable")

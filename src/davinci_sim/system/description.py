@@ -126,6 +126,9 @@ class SystemDescription:
     publish_qpos: bool = False
     """Put a copy of ``qpos`` in each snapshot (``extras["qpos"]``) for renderers fed from
     snapshots (the bridge's image topics)."""
+    record_inputs: bool = False
+    """Log every call the handle runs with its tick (:class:`~davinci_sim.sim.inputs.InputLog`,
+    component ``inputs``): what a recording needs to replay the session through the physics."""
     render_hz: float | None = None
     """The runner renders the stereo endoscope at this rate in a render process
     (``handle.stereo_frame()``); None: it does not."""

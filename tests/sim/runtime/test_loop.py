@@ -44,6 +44,17 @@ def test_paced_loop_statistics_are_consistent():
     assert stats.late_periods == 0 and stats.overruns == 0 and stats.resyncs == 0
 
 
+def test_a_faster_pace_shortens_the_period():
+    """``speed``: simulated seconds per wall second (a replay at 4x: a tick every 0.25 ms)."""
+    sim = Simulation("psm1")
+    v = VirtualClock()
+    runner = LoopRunner(sim, real_time=True, speed=4.0, spin=0.0, clock=v.clock, sleep=v.sleep)
+    stats = runner.run(ticks=100)
+    assert sim.time == pytest.approx(0.1) and stats.elapsed == pytest.approx(99 * sim.dt / 4)
+    with pytest.raises(ValueError, match="speed"):
+        LoopRunner(sim, speed=0.0)
+
+
 def test_fast_loop_and_until():
     sim = Simulation("psm1")
     runner = LoopRunner(sim, real_time=False)

@@ -109,6 +109,8 @@ class LoopRunner:
     Args:
         sim: the simulation.
         real_time: pace at one tick per ``sim.dt`` of wall time; else as fast as possible.
+        speed: with ``real_time``, simulated seconds per wall second (a replay faster or
+            slower than real time; 1: real time).
         recorder: where the period statistics go (default: a private recorder).
         spin, max_lag: see :class:`Pacer`.
         clock, sleep: the wall clock (s) and how to wait (tests pass a virtual clock).
@@ -119,6 +121,7 @@ class LoopRunner:
         sim: Simulation,
         *,
         real_time: bool = True,
+        speed: float = 1.0,
         recorder: PeriodRecorder | None = None,
         spin: float = DEFAULT_SPIN,
         max_lag: float = DEFAULT_MAX_LAG,
@@ -129,8 +132,10 @@ class LoopRunner:
         self.real_time = real_time
         self.clock = clock
         self.recorder = recorder or PeriodRecorder(sim.dt, real_time=real_time)
+        if not (math.isfinite(speed) and speed > 0):
+            raise ValueError(f"speed must be > 0, got {speed!r}")
         self.pacer = (
-            Pacer(sim.dt, spin=spin, max_lag=max_lag, clock=clock, sleep=sleep)
+            Pacer(sim.dt / speed, spin=spin, max_lag=max_lag, clock=clock, sleep=sleep)
             if real_time
             else None
         )
