@@ -271,6 +271,7 @@ def cmd_serve(args: argparse.Namespace) -> int:
             ros_connect=args.ros_connect,
             namespace=args.namespace,
             remote_ros_version=args.remote_ros_version,
+            robot_description=not args.no_robot_description,
             duration=args.duration,
             console=args.console,
             runner=runner,
@@ -741,6 +742,14 @@ def main(argv: list[str] | None = None) -> int:
         "the simulated arms answer to the dVRK's own topic names)",
     )
     p.add_argument("--remote-ros-version", type=int, choices=[1, 2], default=2)
+    p.add_argument(
+        "--no-robot-description",
+        action="store_true",
+        help="client mode: do not publish the robot on the remote (by default NS/"
+        "robot_description, /tf_static, and /tf and NS/joint_states at --tf-rate, frames "
+        "prefixed 'NS/', for RViz; about 25 kB/s for PSM1+ECM at 50 Hz, 70 kB/s for the "
+        "full system)",
+    )
     p.add_argument(
         "--console",
         action="store_true",
