@@ -237,3 +237,25 @@ def test_the_model_is_needed_and_serve_snapshots_carry_qpos(robot_handle):
     off = ServeOptions(scene="psm1", images="none", server=False, ros_connect="ws://h:9",
                        robot_description=False)  # fmt: skip
     assert not serve_description(off).publish_qpos
+
+
+def test_serve_in_client_mode_publishes_the_robot(make_server, make_ros):
+    """``davinci-sim serve --ros-connect URL`` (namespace ``/sim``): the remote gets the
+    description of the system's model, ``sim/``-prefixed frames and the joint states."""
+    from bridge_helpers import serving
+
+    from davinci_sim.bridge.app import ServeOptions
+
+    remote_server = make_server()
+    options = ServeOptions(scene="psm1", images="none", ros_connect=remote_server.url,
+                           bridge=BridgeConfig(port=0))  # fmt: skip
+    with serving(options, timeout=30):
+        viewer = make_ros(remote_server)
+        description = subscribe(viewer, "/sim/robot_description", "std_msgs/String")
+        states = subscribe(viewer, "/sim/joint_states", "sensor_msgs/JointState")
+        tf = subscribe(viewer, "/tf", "tf2_msgs/TFMessage")
+        assert wait_for(lambda: description and states and tf, 15)
+        assert "PSM1_wrist_yaw" in description[0]["data"]
+        assert "PSM1_wrist_yaw" in states[-1]["name"]
+        frames = {t["child_frame_id"] for t in tf[-1]["transforms"]}
+        assert "sim/PSM1_wrist_yaw_link" in frames
