@@ -8,6 +8,7 @@ from pathlib import Path
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 import bench_bridge  # noqa: E402
+import bench_client_robot  # noqa: E402
 import bench_compat  # noqa: E402
 import bench_exercises  # noqa: E402
 import bench_kinematics  # noqa: E402
@@ -29,6 +30,7 @@ if __name__ == "__main__":
     bench_exercises.main()
     bench_render.main()
     bench_bridge.main()
+    bench_client_robot.main()  # client mode's robot on the remote, ~20 s
     bench_compat.main()  # dVRK scripts' API over both transports, ~30 s
     bench_teleop.main()
     bench_records.main()

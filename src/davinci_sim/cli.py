@@ -271,6 +271,7 @@ def cmd_serve(args: argparse.Namespace) -> int:
             ros_connect=args.ros_connect,
             namespace=args.namespace,
             remote_ros_version=args.remote_ros_version,
+            robot_description=not args.no_robot_description,
             duration=args.duration,
             console=args.console,
             runner=runner,
@@ -908,6 +909,14 @@ def main(argv: list[str] | None = None) -> int:
         "the simulated arms answer to the dVRK's own topic names)",
     )
     p.add_argument("--remote-ros-version", type=int, choices=[1, 2], default=2)
+    p.add_argument(
+        "--no-robot-description",
+        action="store_true",
+        help="client mode: do not publish the robot on the remote (by default NS/"
+        "robot_description latched, /tf_static, and /tf and NS/joint_states at --tf-rate, "
+        "frames prefixed 'NS/', for RViz: about 0.5 MB/s to the remote for PSM1+ECM at "
+        "50 Hz, 1.3 MB/s for the full system; a lower --tf-rate costs proportionally less)",
+    )
     p.add_argument(
         "--console",
         action="store_true",

@@ -48,6 +48,9 @@ class ServeOptions:
     ros_connect: str | None = None
     namespace: str = "/sim"
     remote_ros_version: Literal[1, 2] = 2
+    robot_description: bool = True
+    """Client mode: also publish the robot on the remote (``{ns}/robot_description``,
+    ``/tf``, ``/tf_static``, ``{ns}/joint_states`` at ``tf_rate``; off to save bandwidth)."""
     duration: float | None = None
     console: bool = False
     """Install the surgeon console and teleoperations (MTMs as network devices fed by the
@@ -152,11 +155,12 @@ def serve_description(options: ServeOptions):
         # Snapshots cost ~0.2 ms of the loop for the full system with the console: take them
         # at the publish rate, not every tick, so the 1 kHz loop keeps its margin.
         snapshot_period=1.0 / max(options.rate, 1.0),
-        # qpos in the snapshots: the images' renderer, the robot's /tf and /joint_states, and
-        # a recording's states.
+        # qpos in the snapshots: the images' renderer, the robot's /tf and /joint_states (the
+        # built-in server's and the client mode's), and a recording's states.
         publish_qpos=options.server
         or options.images != "none"
         or options.render_hz is not None
+        or (options.ros_connect is not None and options.robot_description)
         or options.record_inputs,
         record_inputs=options.record_inputs,
         render_hz=options.render_hz,
@@ -263,7 +267,10 @@ def serve(
                     namespace=options.namespace,
                     ros_version=options.remote_ros_version,
                     mtms=tuple(n for n in ("MTML", "MTMR") if n in arm_names) or ("MTML", "MTMR"),
+                    robot=options.robot_description,
+                    tf_rate=options.tf_rate,
                 ),
+                model=system.model_source,
             ).start()
             started.append(client)
             info["ros_connect"] = options.ros_connect

@@ -25,16 +25,21 @@ to ``ws://HOST:9090`` and:
   through the built-in server's own code (:func:`~davinci_sim.bridge.dvrk_commands.
   command_sender`), so they are converted, checked and refused the same way; as client mode
   cannot send a ``status`` to whoever published, a refusal goes on ``{ns}/<ARM>/error`` with
-  the text the built-in server publishes there (``<ARM>: <why>``).
+  the text the built-in server publishes there (``<ARM>: <why>``);
+* publishes the robot as ``robot_state_publisher`` would (:mod:`davinci_sim.bridge.
+  client_robot`): ``{ns}/robot_description`` latched (and the ROS 1 parameter),
+  ``/tf_static``, ``/tf`` and ``{ns}/joint_states`` at ``tf_rate``, the frames prefixed
+  ``sim/`` for namespace ``/sim`` (``robot=False``: none of it, to save the bandwidth).
 
 Echo safety: the simulator never subscribes to a topic it publishes on the remote (it would
 take its own messages as commands). The two sets of names are computed before connecting and
 a configuration where they meet (e.g. namespace ``/`` with a simulated ``MTMR`` that also
 follows the real ``MTMR``) is refused with a :class:`ValueError` naming the topics.
 
-Size: just over 500 lines because it is one connection with its two directions (what the
+Size: under 600 lines because it is one connection with its two directions (what the
 remote sends in, what the simulation sends out) and the plan of names that keeps them apart;
-the conversions themselves live in the tables and senders it shares with the built-in server.
+the conversions themselves live in the tables and senders it shares with the built-in server,
+the robot's messages in :mod:`~davinci_sim.bridge.client_robot`.
 """
 
 from __future__ import annotations
@@ -50,6 +55,7 @@ from typing import TYPE_CHECKING, Any, Literal
 import numpy as np
 
 from davinci_sim.bridge import dvrk_messages as m
+from davinci_sim.bridge.client_robot import ClientRobot
 from davinci_sim.bridge.console_node import (
     CONSOLE_COMMANDS,
     TELEOP_ECM_COMMANDS,
@@ -63,8 +69,11 @@ from davinci_sim.bridge.rosbridge.convert import MessageError, from_wire
 from davinci_sim.bridge.rosbridge.dialect import dialect
 from davinci_sim.bridge.rosbridge.types import TypeRegistry
 from davinci_sim.bridge.system_node import COMMANDS as SYSTEM_COMMANDS
+from davinci_sim.model.urdf import robot_from_model
 
 if TYPE_CHECKING:
+    import mujoco
+
     from davinci_sim.sim.handle import SimHandle, Snapshot
 
 _log = logging.getLogger("davinci_sim.bridge.client")
@@ -106,6 +115,11 @@ class ClientModeConfig:
     """Publish rate of the guidance wrench, Hz."""
     ros_version: Literal[1, 2] = 2
     """Dialect of the remote system."""
+    robot: bool = True
+    """Publish the robot's description, ``/tf``, ``/tf_static`` and ``{ns}/joint_states``
+    (:mod:`~davinci_sim.bridge.client_robot`); needs the model and ``qpos`` snapshots."""
+    tf_rate: float = 50.0
+    """Publish rate of ``/tf`` and ``{ns}/joint_states``, Hz (the dVRK's tf rate)."""
     drive: Literal["auto", "device", "joints"] = "auto"
     """How the real MTMs drive the simulation: through the network master devices
     (``device``), by servoing the simulated MTM arms (``joints``), or ``auto``."""
@@ -113,8 +127,8 @@ class ClientModeConfig:
     def __post_init__(self) -> None:
         if not self.url.startswith(("ws://", "wss://")):
             raise ValueError(f"url must be ws://HOST:PORT, got {self.url!r}")
-        if not 0 < self.rate <= 1000 or not 0 < self.wrench_rate <= 1000:
-            raise ValueError("rate and wrench_rate must be in ]0, 1000] Hz")
+        if not all(0 < r <= 1000 for r in (self.rate, self.wrench_rate, self.tf_rate)):
+            raise ValueError("rate, wrench_rate and tf_rate must be in ]0, 1000] Hz")
         if self.drive not in ("auto", "device", "joints"):
             raise ValueError(f"drive must be auto, device or joints, got {self.drive!r}")
         if not self.namespace.startswith("/") or (
@@ -142,6 +156,13 @@ class RosClientMode:
         handle: the running simulation.
         config: where to connect and what to exchange.
         wrench_source: the guidance wrench per MTM (default: the network devices').
+        model: the simulation's compiled model, or a callable returning it (e.g.
+            ``System.model_source``), for the robot's description (``config.robot``;
+            default: the in-process simulation's, ``handle.sim.model``).
+
+    Raises:
+        ValueError: the topics it would publish and those it would take meet (echo), or
+            ``config.robot`` without a model.
     """
 
     def __init__(
@@ -150,6 +171,7 @@ class RosClientMode:
         config: ClientModeConfig,
         *,
         wrench_source: WrenchSource = default_wrench_source,
+        model: mujoco.MjModel | Callable[[], mujoco.MjModel] | None = None,
     ) -> None:
         self.handle = handle
         self.config = config
@@ -183,6 +205,7 @@ class RosClientMode:
                 raise ValueError(f"drive='device' needs a network device '{mtm}/device'")
             self.mode[mtm] = "device" if (is_network and config.drive != "joints") else "joints"
         self.has_console = "console" in (snap.extras or {})
+        self.robot = self._robot(model, snap) if config.robot else None
         self._plan = self._plan_subscriptions(snap)
         self.published_names = self._plan_publications(snap)
         echo = sorted(set(self._plan) & self.published_names)
@@ -191,6 +214,17 @@ class RosClientMode:
                 f"client mode would take its own messages as input on {echo}: choose another "
                 "namespace, or leave these arms out of 'arms' or 'mtms'"
             )
+
+    def _robot(self, model, snap: Snapshot) -> ClientRobot:
+        if model is None:
+            model = getattr(getattr(self.handle, "sim", None), "model", None)
+        if model is None:
+            raise ValueError("client mode publishes the robot from the simulation's model: "
+                             "give model=…, or robot=False")  # fmt: skip
+        m_ = model() if callable(model) else model
+        arms = [a for a in self.arms if a in snap.arms]
+        return ClientRobot(robot_from_model(m_), int(m_.nq), self.config.namespace, arms,
+                           self.dialect)  # fmt: skip
 
     def _arm_topic(self, arm: str, suffix: str) -> str:
         return f"{self.prefix}/{arm}/{suffix}"
@@ -203,6 +237,8 @@ class RosClientMode:
                 names |= {self._arm_topic(arm, s) for s in (
                     "measured_js", "measured_cp", "setpoint_cp", "jaw/measured_js",
                     "operating_state", *EVENT_TOPICS)}  # fmt: skip
+        if self.robot is not None:
+            names |= self.robot.names
         return names
 
     def _plan_subscriptions(self, snap: Snapshot) -> dict[str, tuple[str, Callable, Callable]]:
@@ -280,6 +316,8 @@ class RosClientMode:
         for name, (type_name, on_message, on_invalid) in self._plan.items():
             self._sub(name, type_name, on_message, on_invalid)
         self._await_subscriptions(timeout)
+        if self.robot is not None:  # the latched messages, before the thread owns the topics
+            self.robot.start(self._send, self.ros, c.ros_version, timeout)
         self._stop.clear()
         self._thread = threading.Thread(target=self._run, name="ros-client-mode", daemon=True)
         self._thread.start()
@@ -448,14 +486,26 @@ class RosClientMode:
             self._topics[name] = topic
         return topic
 
+    def _send(self, name: str, type_name: str, msg: dict, latch: bool = False) -> None:
+        import roslibpy
+
+        self._publisher(name, type_name, latch).publish(roslibpy.Message(msg))
+
     def _run(self) -> None:
         c = self.config
-        period = 1.0 / max(c.rate, c.wrench_rate)
-        next_state = next_wrench = time.monotonic()
-        while not self._stop.wait(max(0.0, min(next_state, next_wrench) - time.monotonic())):
+        period = 1.0 / max(c.rate, c.wrench_rate, c.tf_rate)
+        next_state = next_wrench = next_tf = time.monotonic()
+        if self.robot is None:
+            next_tf = float("inf")
+        while not self._stop.wait(
+            max(0.0, min(next_state, next_wrench, next_tf) - time.monotonic())
+        ):
             now = time.monotonic()
             try:
                 snap = self.handle.snapshot()
+                if now >= next_tf:
+                    next_tf = max(next_tf + 1.0 / c.tf_rate, now - period)
+                    self.robot.tick(snap, self._send)
                 if now >= next_wrench:
                     next_wrench += 1.0 / c.wrench_rate
                     self._publish_wrenches(snap)

@@ -32,6 +32,7 @@ import json
 import logging
 import time
 from collections.abc import Callable, Mapping
+from types import SimpleNamespace
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -138,16 +139,16 @@ class RobotNode:
 
 
 # =========================================================================== messages
-def _transforms(d: Dialect, joints, T: np.ndarray, stamp: float) -> list[dict]:
+def _transforms(d: Dialect, joints, T: np.ndarray, stamp: float, prefix: str = "") -> list[dict]:
     """``geometry_msgs/TransformStamped`` of each joint: its child's pose ``T[i]`` (n, 4, 4)
-    in its parent."""
+    in its parent; both frames named with ``prefix`` in front (a tf_prefix, ``""``: none)."""
     xyz = T[:, :3, 3].tolist()
     quat = Rotation.from_matrix(T[:, :3, :3]).as_quat().tolist()  # (x, y, z, w)
     header = d.header(stamp, "", 0)
     return [
         {
-            "header": {**header, "frame_id": j.parent},
-            "child_frame_id": j.child,
+            "header": {**header, "frame_id": prefix + j.parent},
+            "child_frame_id": prefix + j.child,
             "transform": {
                 "translation": {"x": p[0], "y": p[1], "z": p[2]},
                 "rotation": {"x": r[0], "y": r[1], "z": r[2], "w": r[3]},
@@ -157,17 +158,31 @@ def _transforms(d: Dialect, joints, T: np.ndarray, stamp: float) -> list[dict]:
     ]
 
 
-def tf_message(robot: Robot, values: Mapping[str, float], d: Dialect, stamp: float) -> dict:
+def tf_message(
+    robot: Robot, values: Mapping[str, float], d: Dialect, stamp: float, frame_prefix: str = ""
+) -> dict:
     """``tf2_msgs/TFMessage`` of every moving joint of ``robot`` at the joint ``values``
-    (rad, m; see :meth:`~davinci_sim.model.urdf.Robot.moving_transforms`)."""
-    return {"transforms": _transforms(d, robot.moving, robot.moving_transforms(values), stamp)}
+    (rad, m; see :meth:`~davinci_sim.model.urdf.Robot.moving_transforms`); every frame named
+    ``frame_prefix + link`` (as ``robot_state_publisher``'s ``frame_prefix``)."""
+    T = robot.moving_transforms(values)
+    return {"transforms": _transforms(d, robot.moving, T, stamp, frame_prefix)}
 
 
-def static_tf_message(robot: Robot, d: Dialect, stamp: float) -> dict:
-    """``tf2_msgs/TFMessage`` of every fixed joint of ``robot`` (``/tf_static``)."""
+def static_tf_message(robot: Robot, d: Dialect, stamp: float, frame_prefix: str = "") -> dict:
+    """``tf2_msgs/TFMessage`` of every fixed joint of ``robot`` (``/tf_static``), frames
+    named ``frame_prefix + link``. With a prefix it also holds the identity from the plain
+    root to the prefixed one (``world`` → ``sim/world``, what a ``static_transform_publisher``
+    beside a prefixed ``robot_state_publisher`` gives), so the tree hangs in ``world``."""
     fixed = [j for j in robot.joints if j.type == "fixed"]
-    return {"transforms": _transforms(d, fixed, np.stack([j.T_parent_origin for j in fixed]),
-                                      stamp)}  # fmt: skip
+    T = np.stack([j.T_parent_origin for j in fixed])
+    if frame_prefix:
+        root = SimpleNamespace(parent=robot.root, child=robot.root)
+        fixed.insert(0, root)  # (its child, not its parent, gets the prefix below)
+        T = np.concatenate([np.eye(4)[None], T])
+    transforms = _transforms(d, fixed, T, stamp, frame_prefix)
+    if frame_prefix:
+        transforms[0]["header"]["frame_id"] = robot.root
+    return {"transforms": transforms}
 
 
 def joint_state_message(values: Mapping[str, float], d: Dialect, stamp: float, seq: int = 0):
