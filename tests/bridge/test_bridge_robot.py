@@ -150,7 +150,8 @@ def test_tf_tree_is_connected_complete_and_matches_the_urdf(ros, parsed, robot_h
     parsed.update_cfg(values)
     for link in robot_links:
         np.testing.assert_allclose(world_pose(link), parsed.get_transform(link, "world"),
-                                   atol=1e-9, err_msg=link)  # fmt: skip
+                                   atol=1e-8, err_msg=link)  # fmt: skip
+        # (10 nm: a chain of ~12 transforms whose quaternions went through JSON)
     # the joint values are the simulation's: measured_js (encoder noise aside)
     arm = robot_handle.snapshot().arms["PSM1"]
     ours = [values[f"PSM1_{n}"] for n in arm.measured_js.name]
