@@ -19,7 +19,8 @@ if TYPE_CHECKING:
 
 
 def _f(x: float) -> str:
-    return f"{x:.12g}"
+    # The shortest text that reads back as the same double: a parser's FK is then ours exactly.
+    return repr(float(x))
 
 
 def _origin(parent: ET.Element, T: np.ndarray) -> None:
