@@ -25,7 +25,9 @@ displacement in the camera frame in units of ``max_step`` (m), the jaw opening f
 * the task's features (:mod:`davinci_sim.envs.problems`): Reach ``target``,
   ``target_offset`` (m, camera frame); exercises ``phase`` (the task's
   :class:`~davinci_sim.tasks.Phase`), ``distance`` (m), path following ``progress``
-  (0–1) and ``next_point`` (m, camera frame), camera targeting ``target`` (m, camera frame);
+  (0–1) and ``next_point`` (m, camera frame), camera targeting ``target`` (m, camera frame),
+  peg transfer ``objects`` (rings, (k, 3), m, camera frame) and ``grasp`` (k,: 1 where a
+  jaw touches the ring);
 * with ``images=True``: ``left`` and ``right`` (height, width, 3) uint8, the endoscope.
 
 **Reset** restores the start state (:func:`~davinci_sim.envs.setup.build_start`) with
@@ -72,6 +74,10 @@ def observation_space(start: EnvStart, config: EnvConfig, problem) -> spaces.Dic
         "setpoint": spaces.Box(shape=(3 if config.action_space == "cartesian" else dof,), **box),
         **problem.spaces(),
     }
+    k = getattr(start.task, "n_rings", 0)
+    if k:  # peg transfer: the rings (camera frame, m) and whether a jaw touches each
+        out["objects"] = spaces.Box(shape=(k, 3), **box)
+        out["grasp"] = spaces.Box(low=0.0, high=1.0, shape=(k,), dtype=np.float64)
     if config.images:
         w, h = config.image_size
         for side in ("left", "right"):
@@ -157,7 +163,9 @@ class DavinciEnv(gym.Env):
         info["is_success"] = bool(done[0])
         info["fault"] = fault
         if terminated or truncated:
-            info.update({k: float(v[0]) for k, v in self.problem.info().items()})
+            # (the metrics defined so far: nan ones, e.g. a time before the task ran, left out)
+            metrics = {k: float(v[0]) for k, v in self.problem.info().items()}
+            info.update({k: v for k, v in metrics.items() if np.isfinite(v)})
             self._episode_over = True
         return self._observation(), float(reward[0]), terminated, truncated, info
 
@@ -252,7 +260,14 @@ class DavinciEnv(gym.Env):
             "tip_orientation": orientation_features(T[:3, :3]),
             "setpoint": (self._goal if self.config.action_space == "cartesian" else self._q_goal).copy(),
         }
-        feats = self.problem.features(T[None], self._T_task_camera())
+        T_task_camera = self._T_task_camera()
+        feats = self.problem.features(T[None], T_task_camera)
+        if "objects" in self.observation_space.spaces:
+            extra = self._start.task.scene_fields(self.sim.model, self.sim.data, self._scene_cache)
+            T_camera_task = np.linalg.inv(T_task_camera)
+            p = np.asarray(extra["objects"], dtype=float).reshape(-1, 3)
+            obs["objects"] = p @ T_camera_task[:3, :3].T + T_camera_task[:3, 3]
+            obs["grasp"] = (np.asarray(extra["grasp"]).reshape(-1) > 0).astype(float)
         obs.update({k: v[0] for k, v in feats.items()})
         if self.config.images:
             w, h = self.config.image_size

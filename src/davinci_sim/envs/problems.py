@@ -97,6 +97,8 @@ class TaskProblem:
         self.path = getattr(task, "path", None) if task.kind == "path" else None
         self._progress = np.zeros(n)
         self._phase = np.zeros(n, dtype=int)
+        self.time_now = 0.0
+        """Time of the last sample, s."""
 
     # ------------------------------------------------------------ spaces
     def spaces(self) -> dict[str, spaces.Space]:
@@ -130,6 +132,7 @@ class TaskProblem:
 
     def after_tick(self, t, T_camera_tip, active, T_task_camera=None, **extra) -> None:
         """One tick's sample of the rows ``active`` (n,) through the task and its metrics."""
+        self.time_now = t
         sample = self.sample(t, T_camera_tip, T_task_camera, **extra)
         self.state, _ = advance(self.task, self.state, self.metrics, sample, active)
 
@@ -137,9 +140,13 @@ class TaskProblem:
     def features(self, T_camera_tip, T_task_camera=None) -> dict[str, np.ndarray]:
         T = self.T_task_camera if T_task_camera is None else T_task_camera
         tip = _transform(T, T_camera_tip[:, :3, 3])
+        distance = self.task.distance(tip)
+        if self.task.kind == "camera_targeting":  # (about the camera, not the tip)
+            _, seen = self.task.step(self.state, self.sample(self.time_now, T_camera_tip, T))
+            distance = seen["distance"]
         out = {
             "phase": self.state.phase.astype(float)[:, None],
-            "distance": self.task.distance(tip).reshape(-1, 1),
+            "distance": np.reshape(distance, (-1, 1)),
         }
         if self.path is not None:
             length = self.path.length

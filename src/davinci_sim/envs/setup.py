@@ -24,6 +24,8 @@ from davinci_sim.sim.state import SimState
 REACH_START_WORLD = (0.080, 1.185, 0.805)
 
 ACTION_SPACES = ("cartesian", "joint")
+#: The tool comes down to the start from this far above it (world z), m.
+APPROACH_HEIGHT = 0.03
 
 
 @dataclass(frozen=True)
@@ -98,10 +100,14 @@ class EnvStart:
     """(3, 3) the tip's orientation goal in the camera frame (held: actions move the tip)."""
 
 
-def scene_of(config: EnvConfig, psm: str) -> SceneConfig:
+def scene_of(config: EnvConfig, psm: str, task=None) -> SceneConfig:
+    """The reduced scene: ``psm``, the task's other instruments (they hold still: the
+    actions move one arm) and the ECM; no console; the patient if asked."""
+    arms = (psm, *getattr(task, "instruments", ()), "ECM")
     return SceneConfig(
-        arms=(psm, "ECM"), include_console=False, include_patient=config.include_patient
-    )
+        arms=tuple(dict.fromkeys(arms)), include_console=False,
+        include_patient=config.include_patient,
+    )  # fmt: skip
 
 
 def build_start(config: EnvConfig) -> EnvStart:
@@ -118,7 +124,7 @@ def build_start(config: EnvConfig) -> EnvStart:
     task = None if config.task is None else load_task(config.task)
     psm = "PSM1" if task is None else task.teleop.psm
     keyframe = "surgical" if task is None else task.teleop.keyframe
-    scene = scene_of(config, psm)
+    scene = scene_of(config, psm, task)
     if task is None:
         sim = Simulation(scene, seed=config.seed, keyframe=keyframe)
     else:
@@ -130,7 +136,7 @@ def build_start(config: EnvConfig) -> EnvStart:
     arm = "ECM" if task is not None and task.kind == "camera_targeting" else psm
     ecm = sim.arms["ECM"]
     q_ecm = ecm.measured_jp().copy()
-    for name in dict.fromkeys((psm, arm)):
+    for name in dict.fromkeys((psm, arm, *getattr(task, "instruments", ()))):
         a = sim.arms[name]
         a.state_command("enable")
         a.state_command("home")
@@ -150,11 +156,18 @@ def build_start(config: EnvConfig) -> EnvStart:
         p_start = (np.linalg.inv(T_task_camera) @ np.append(task.start, 1.0))[:3]
     tool = sim.arms[psm]
     goal = tool.setpoint_cp().T.copy()
-    goal[:3, 3] = p_start
-    result = tool.move_cp(goal)
-    if not result or not sim.run_until(lambda: not tool.is_busy(), 30.0):
-        raise RuntimeError(f"{psm} cannot reach the start {p_start}: {result.message}")
+    # Through a point above the start (world up), so that the joint-space move does not
+    # sweep the tool through the task's objects (the peg board).
+    up = np.linalg.inv(T_world_camera)[:3, :3] @ np.array([0.0, 0.0, APPROACH_HEIGHT])
+    for p in (p_start + up, p_start):
+        goal[:3, 3] = p
+        result = tool.move_cp(goal)
+        if not result or not sim.run_until(lambda: not tool.is_busy(), 30.0):
+            raise RuntimeError(f"{psm} cannot reach the start {p_start}: {result.message}")
     sim.run_for(0.2)  # settle
+    faulted = [n for n, a in sim.arms.items() if a.operating_state().state == "FAULT"]
+    if faulted:
+        raise RuntimeError(f"the arms {faulted} faulted while going to the start")
     return EnvStart(
         sim=sim, state=sim.get_state(), task=task, psm=psm, arm=arm,
         T_world_camera=T_world_camera, T_task_camera=np.asarray(T_task_camera, dtype=float),
