@@ -126,8 +126,7 @@ class DavinciEnv(gym.Env):
         chain = self.arm.chain
         self._joint_step = joint_steps(chain, config.max_joint_step)
         self._qmin, self._qmax = chain.qmin, chain.qmax
-        w = config.workspace
-        self._lo, self._hi = start.p_start_camera - w, start.p_start_camera + w
+        self._lo, self._hi = start.workspace
         self._steps = 0
         self._goal = start.p_start_camera.copy()
         self._q_goal = self._q_set()

@@ -46,7 +46,8 @@ class EnvConfig:
     max_episode_steps: int = 100
     """Actions before an episode is truncated (Reach: 2 s at 50 Hz)."""
     workspace: float = 0.04
-    """Half-width of the box around the start the tip goal is kept in, m (camera axes)."""
+    """Margin of the box the tip's goal is kept in around the start and the task's points,
+    m (camera axes)."""
     images: bool = False
     """Add the stereo endoscope images (``left``, ``right``) to the observations."""
     image_size: tuple[int, int] = (160, 120)
@@ -98,6 +99,9 @@ class EnvStart:
     """(3,) the tip's goal at the start (where the actions' goal starts), camera frame, m."""
     R_goal: np.ndarray
     """(3, 3) the tip's orientation goal in the camera frame (held: actions move the tip)."""
+    workspace: tuple[np.ndarray, np.ndarray]
+    """(lo, hi) (3,) each: the box the tip's goal is kept in, camera frame, m — the start
+    (Reach) or the task's points (its ``check_points``) and the start, ± ``workspace``."""
 
 
 def scene_of(config: EnvConfig, psm: str, task=None) -> SceneConfig:
@@ -168,8 +172,16 @@ def build_start(config: EnvConfig) -> EnvStart:
     faulted = [n for n, a in sim.arms.items() if a.operating_state().state == "FAULT"]
     if faulted:
         raise RuntimeError(f"the arms {faulted} faulted while going to the start")
+    if task is None:
+        points = p_start[None]
+    else:
+        T_camera_task = np.linalg.inv(T_task_camera)
+        pts = np.vstack([np.asarray(task.check_points, dtype=float).reshape(-1, 3), task.start])
+        points = np.vstack([pts @ T_camera_task[:3, :3].T + T_camera_task[:3, 3], p_start])
+    box = (points.min(axis=0) - config.workspace, points.max(axis=0) + config.workspace)
     return EnvStart(
         sim=sim, state=sim.get_state(), task=task, psm=psm, arm=arm,
         T_world_camera=T_world_camera, T_task_camera=np.asarray(T_task_camera, dtype=float),
         p_start_camera=np.asarray(p_start, dtype=float).copy(), R_goal=goal[:3, :3].copy(),
+        workspace=box,
     )  # fmt: skip

@@ -98,8 +98,7 @@ class DavinciVectorEnv(VectorEnv):
         self.T_camera_rcm = psm.base_frame()[0].copy()
         self.T_rcm_camera = np.linalg.inv(self.T_camera_rcm)
         self._joint_step = joint_steps(self.chain, config.max_joint_step)
-        w = config.workspace
-        self._lo, self._hi = start.p_start_camera - w, start.p_start_camera + w
+        self._lo, self._hi = start.workspace
         d = sim.data
         self.Q, self.V = np.tile(d.qpos, (n, 1)), np.tile(d.qvel, (n, 1))
         self._qfrc = np.tile(d.qfrc_bias, (n, 1)), np.tile(d.qfrc_gravcomp, (n, 1))
