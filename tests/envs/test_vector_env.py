@@ -95,3 +95,28 @@ def test_vector_env_refuses_what_it_does_not_run():
         DavinciVectorEnv(0)
     with pytest.raises(ValueError, match="images"):
         DavinciVectorEnv(2, images=True)
+
+
+def test_same_step_autoreset_returns_the_new_episode_and_keeps_the_last(held_frames):
+    vec = DavinciVectorEnv(2, autoreset_mode="SameStep", max_episode_steps=2)
+    ref = DavinciVectorEnv(2, max_episode_steps=100)  # (NEXT_STEP: the last observation)
+    try:
+        obs0, _ = vec.reset(seed=3)
+        ref.reset(seed=3)
+        a = np.full(vec.action_space.shape, 0.5, dtype=np.float32)
+        vec.step(a)
+        ref.step(a)
+        obs, reward, term, trunc, info = vec.step(a)
+        last, reward_ref, *_ = ref.step(a)
+        assert trunc.all() and info["_final_obs"].all()
+        for i in range(2):  # the last observation in info, the new episode's first returned
+            np.testing.assert_array_equal(info["final_obs"][i]["tip_position"],
+                                          last["tip_position"][i])  # fmt: skip
+        np.testing.assert_array_equal(reward, reward_ref)
+        np.testing.assert_allclose(obs["tip_position"], obs0["tip_position"], atol=1e-12)
+        assert not np.allclose(obs["target"], obs0["target"])
+        with pytest.raises(ValueError, match="autoreset_mode"):
+            DavinciVectorEnv(1, autoreset_mode="Disabled")
+    finally:
+        vec.close()
+        ref.close()

@@ -35,7 +35,9 @@ ENVIRONMENTS: dict[str, dict] = {
     "DavinciSim/PathFollow-v0": {"task": "seed_path", "max_episode_steps": 500},
     "DavinciSim/PegTransfer-v0": {"task": "peg_transfer", "max_episode_steps": 1500},
     "DavinciSim/CameraTargeting-v0": {
-        "task": "camera_targeting", "max_episode_steps": 1000, "action_space": "joint",
+        "task": "camera_targeting",
+        "max_episode_steps": 1000,
+        "action_space": "joint",
     },
     "DavinciSim/RingWalk-v0": {"task": "ring_walk", "max_episode_steps": 1500},
     "DavinciSim/NeedleTargeting-v0": {"task": "needle_targeting", "max_episode_steps": 1000},

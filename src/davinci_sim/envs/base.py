@@ -143,7 +143,9 @@ class DavinciEnv(gym.Env):
         self.problem.reset([0], [self.np_random])
         self._episode_over = False
         obs = self._observation()
-        self.problem.outcome(self._T_tip()[None], self._T_task_camera())  # (the reward's baselines: progress, phase)
+        self.problem.outcome(
+            self._T_tip()[None], self._T_task_camera()
+        )  # (the reward's baselines: progress, phase)
         return obs, {}
 
     def step(self, action):
@@ -257,7 +259,9 @@ class DavinciEnv(gym.Env):
             "jaw": np.array([self.psm.jaw.measured_js().position[0]], dtype=float),
             "tip_position": T[:3, 3].copy(),
             "tip_orientation": orientation_features(T[:3, :3]),
-            "setpoint": (self._goal if self.config.action_space == "cartesian" else self._q_goal).copy(),
+            "setpoint": (
+                self._goal if self.config.action_space == "cartesian" else self._q_goal
+            ).copy(),
         }
         T_task_camera = self._T_task_camera()
         feats = self.problem.features(T[None], T_task_camera)

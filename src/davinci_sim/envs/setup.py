@@ -72,10 +72,14 @@ class EnvConfig:
             if not (isinstance(value, int | float) and math.isfinite(value) and value > 0):
                 raise ValueError(f"{name} must be a positive number, got {value!r}")
         if not (isinstance(self.max_episode_steps, int) and self.max_episode_steps >= 1):
-            raise ValueError(f"max_episode_steps must be an int >= 1, got {self.max_episode_steps!r}")
+            raise ValueError(
+                f"max_episode_steps must be an int >= 1, got {self.max_episode_steps!r}"
+            )
         w, h = self.image_size
         if not (isinstance(w, int) and isinstance(h, int) and 8 <= w <= 1920 and 8 <= h <= 1080):
-            raise ValueError(f"image_size must be (width, height) in pixels, got {self.image_size!r}")
+            raise ValueError(
+                f"image_size must be (width, height) in pixels, got {self.image_size!r}"
+            )
 
 
 @dataclass

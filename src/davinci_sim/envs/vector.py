@@ -24,7 +24,11 @@ environments (PSM tasks whose samples need no scene objects).
 
 **Autoreset** is Gymnasium 1.x's default, ``NEXT_STEP``: the step after a row terminates
 or truncates resets that row (its action is ignored) and returns its first observation
-with reward 0, ``terminated`` and ``truncated`` False. ``reset(seed=s)`` seeds row i with
+with reward 0, ``terminated`` and ``truncated`` False. ``autoreset_mode="SameStep"``
+(``AutoresetMode.SAME_STEP``, what Stable-Baselines3's vector environments expect) resets
+the row within the step that ended it: the returned observation is the new episode's
+first, the last one is in ``info["final_obs"]`` (and the step's info in
+``info["final_info"]``). ``reset(seed=s)`` seeds row i with
 ``s + i`` (as ``SyncVectorEnv`` does), so row i is the single environment reset with seed
 ``s + i``. ``info`` holds arrays with Gymnasium's ``_<key>`` masks.
 """
@@ -57,9 +61,21 @@ class DavinciVectorEnv(VectorEnv):
 
     metadata = {"render_modes": [], "autoreset_mode": AutoresetMode.NEXT_STEP}
 
-    def __init__(self, num_envs: int, **kwargs) -> None:
+    def __init__(
+        self, num_envs: int, autoreset_mode: AutoresetMode | str = AutoresetMode.NEXT_STEP,
+        **kwargs,
+    ) -> None:  # fmt: skip
         if not (isinstance(num_envs, int) and num_envs >= 1):
             raise ValueError(f"num_envs must be an int >= 1, got {num_envs!r}")
+        modes = (AutoresetMode.NEXT_STEP, AutoresetMode.SAME_STEP)
+        try:
+            mode = AutoresetMode(autoreset_mode)
+        except ValueError:
+            mode = None
+        if mode not in modes:
+            raise ValueError(f"autoreset_mode must be one of {[m.value for m in modes]}, "
+                             f"got {autoreset_mode!r}")  # fmt: skip
+        self.metadata = {**self.metadata, "autoreset_mode": mode}
         self.config = config = EnvConfig(**kwargs)
         if config.images:
             raise ValueError("the vector environment has no image observations (images=False)")
@@ -157,8 +173,26 @@ class DavinciVectorEnv(VectorEnv):
         if ended.any():
             for k, v in self.problem.info().items():
                 info[k], info[f"_{k}"] = np.where(ended, v, np.nan), ended.copy()
+        obs = self._observation()
+        if self.metadata["autoreset_mode"] == AutoresetMode.SAME_STEP and ended.any():
+            # The ended rows reset now: their last observation goes to info["final_obs"].
+            rows = np.flatnonzero(ended)
+            final = np.full(self.num_envs, None, dtype=object)
+            for i in rows.tolist():
+                final[i] = {k: v[i].copy() for k, v in obs.items()}
+            info["final_obs"], info["_final_obs"] = final, ended.copy()
+            info["final_info"] = {
+                k: v for k, v in info.items() if k not in ("final_obs", "_final_obs")
+            }
+            info["_final_info"] = ended.copy()
+            self._reset_rows(rows)
+            self.problem.outcome(self.T_psm)  # (the new episodes' baselines)
+            fresh = self._observation()
+            for k in obs:
+                obs[k][rows] = fresh[k][rows]
+            ended = np.zeros_like(ended)
         self._autoreset = ended
-        return self._observation(), reward, terminated, truncated, info
+        return obs, reward, terminated, truncated, info
 
     def close_extras(self, **kwargs) -> None:
         self._start.sim.close()
@@ -171,7 +205,11 @@ class DavinciVectorEnv(VectorEnv):
         self.Q[rows], self.V[rows], self.bias[rows] = r0["Q"], r0["V"], r0["bias"]
         self._qfrc[0][rows], self._qfrc[1][rows] = r0["qfrc_bias"], r0["qfrc_gravcomp"]
         s = self._servo0
-        self.q_ref[rows], self.qd_ref[rows], self.tau_ff[rows] = s["q_ref"], s["qd_ref"], s["tau_ff"]
+        self.q_ref[rows], self.qd_ref[rows], self.tau_ff[rows] = (
+            s["q_ref"],
+            s["qd_ref"],
+            s["tau_ff"],
+        )
         self.time[rows] = r0["time"]
         self._bad_since[rows] = np.nan
         self.goal[rows] = self._start.p_start_camera
