@@ -34,8 +34,8 @@ STEP_S = 0.02
 SURROL_SIM_S_PER_S = 12.0
 
 
-def _vector(env_id: str, n: int, wall: float) -> dict:
-    env = DavinciVectorEnv(n, **ENVIRONMENTS[env_id])
+def _vector(env_id: str, n: int, wall: float, threads: int = 1) -> dict:
+    env = DavinciVectorEnv(n, threads=threads, **ENVIRONMENTS[env_id])
     rng = np.random.default_rng(0)
     env.reset(seed=0)
     for _ in range(3):  # warm-up (compiled laws, caches)
@@ -83,6 +83,9 @@ def main(wall: float = 10.0) -> None:
         r = _vector("DavinciSim/Reach-v0", n, wall)
         figures[f"reach_vector_n{n}_sim_s_per_s"] = r["sim_s_per_s"]
         figures[f"reach_vector_n{n}_env_steps_per_s"] = r["env_steps_per_s"]
+    r = _vector("DavinciSim/Reach-v0", 256, wall, threads=2)
+    figures["reach_vector_n256_threads2_sim_s_per_s"] = r["sim_s_per_s"]
+    figures["reach_vector_n256_threads2_env_steps_per_s"] = r["env_steps_per_s"]
     r = _vector("DavinciSim/PathFollow-v0", 64, wall)
     figures["path_vector_n64_sim_s_per_s"] = r["sim_s_per_s"]
     figures["path_vector_n64_env_steps_per_s"] = r["env_steps_per_s"]
@@ -95,7 +98,9 @@ def main(wall: float = 10.0) -> None:
     figures["stereo_pairs_per_s_160x120"] = _renders((160, 120), wall)
     figures["stereo_pairs_per_s_640x480"] = _renders((640, 480), wall)
     figures["target_sim_s_per_s_n256"] = 400.0
-    figures["target_met"] = figures["reach_vector_n256_sim_s_per_s"] >= 400.0
+    best = max(figures["reach_vector_n256_sim_s_per_s"],
+               figures["reach_vector_n256_threads2_sim_s_per_s"])  # fmt: skip
+    figures["target_met"] = best >= 400.0
     figures["surrol_needle_reach_sim_s_per_s"] = SURROL_SIM_S_PER_S
     figures["load_average_1min_after"] = os.getloadavg()[0]
     write("envs", figures)

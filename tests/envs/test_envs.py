@@ -165,3 +165,17 @@ def test_control_laws():
                                [0.0, 0.6, 1.2])  # fmt: skip
     R = np.eye(3)[[1, 2, 0]]
     np.testing.assert_array_equal(control.orientation_features(R), [0, 0, 1, 1, 0, 0])
+
+
+def test_image_observations_are_the_stereo_endoscope():
+    env = gym.make("DavinciSim/Reach-v0", images=True, image_size=(64, 48),
+                   render_mode="rgb_array").unwrapped  # fmt: skip
+    try:
+        check_env(env)  # (the render check included)
+        obs, _ = env.reset(seed=0)
+        assert obs["left"].shape == obs["right"].shape == (48, 64, 3)
+        assert obs["left"].dtype == np.uint8 and obs["left"].std() > 5  # a scene, not blank
+        assert not np.array_equal(obs["left"], obs["right"])  # two viewpoints
+        np.testing.assert_array_equal(env.render(), obs["left"])
+    finally:
+        env.close()

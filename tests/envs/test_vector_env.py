@@ -120,3 +120,22 @@ def test_same_step_autoreset_returns_the_new_episode_and_keeps_the_last(held_fra
     finally:
         vec.close()
         ref.close()
+
+
+def test_threads_step_the_same_physics():
+    one = DavinciVectorEnv(5, max_episode_steps=4)
+    two = DavinciVectorEnv(5, threads=2, max_episode_steps=4)
+    try:
+        a_obs, _ = one.reset(seed=0)
+        b_obs, _ = two.reset(seed=0)
+        rng = np.random.default_rng(2)
+        for _ in range(6):
+            a = rng.uniform(-1, 1, one.action_space.shape).astype(np.float32)
+            a_obs, a_rew, *_ = one.step(a)
+            b_obs, b_rew, *_ = two.step(a)
+            for k in a_obs:
+                np.testing.assert_array_equal(a_obs[k], b_obs[k], err_msg=k)
+            np.testing.assert_array_equal(a_rew, b_rew)
+    finally:
+        one.close()
+        two.close()

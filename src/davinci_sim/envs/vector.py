@@ -13,7 +13,8 @@ the tracking fault (:mod:`davinci_sim.sim.arm_laws`); the joint servo
 (:func:`~davinci_sim.sim.servo.servo_ctrl`, ``JointServo.bias_of``); the tip's pose and
 Jacobian (``tip_kinematics``); the task's sample, state machine and metrics
 (:mod:`davinci_sim.envs.problems`). Only ``mj_step`` runs per row (MuJoCo's C), and only
-for the rows stepping.
+for the rows stepping; ``threads=k`` steps the rows' physics on k threads (``mj_step``
+releases the GIL; the rows are independent, so the results are the same bits).
 
 Like the study's batch it holds the camera and the PSM's base frame as they are at the
 start (the ECM does not move; the live simulation follows the setup joints' µm-level yield
@@ -36,6 +37,7 @@ first, the last one is in ``info["final_obs"]`` (and the step's info in
 from __future__ import annotations
 
 import copy
+from concurrent.futures import ThreadPoolExecutor
 
 import mujoco
 import numpy as np
@@ -63,10 +65,12 @@ class DavinciVectorEnv(VectorEnv):
 
     def __init__(
         self, num_envs: int, autoreset_mode: AutoresetMode | str = AutoresetMode.NEXT_STEP,
-        **kwargs,
+        threads: int = 1, **kwargs,
     ) -> None:  # fmt: skip
         if not (isinstance(num_envs, int) and num_envs >= 1):
             raise ValueError(f"num_envs must be an int >= 1, got {num_envs!r}")
+        if not (isinstance(threads, int) and threads >= 1):
+            raise ValueError(f"threads must be an int >= 1, got {threads!r}")
         modes = (AutoresetMode.NEXT_STEP, AutoresetMode.SAME_STEP)
         try:
             mode = AutoresetMode(autoreset_mode)
@@ -95,6 +99,9 @@ class DavinciVectorEnv(VectorEnv):
         self.render_mode = None
         psm = sim.arms[start.psm]
         self.model = sim.model
+        self._gravcomp = self.model.ngravcomp > 0  # (else qfrc_gravcomp stays 0: not copied)
+        self.threads = threads
+        self._pool = ThreadPoolExecutor(threads) if threads > 1 else None
         self.dt = sim.dt
         self._data0 = copy.copy(sim.data)
         self.datas = [copy.copy(sim.data) for _ in range(n)]
@@ -195,6 +202,8 @@ class DavinciVectorEnv(VectorEnv):
         return obs, reward, terminated, truncated, info
 
     def close_extras(self, **kwargs) -> None:
+        if getattr(self, "_pool", None) is not None:
+            self._pool.shutdown()
         self._start.sim.close()
 
     # ------------------------------------------------------------ rows
@@ -293,20 +302,30 @@ class DavinciVectorEnv(VectorEnv):
             self.qd_ref, self.tau_ff, self.effort_mode, self.gravity, servo.kp, servo.kv,
         )  # fmt: skip
         rows = np.flatnonzero(running)
-        Q, V = self.Q, self.V
+        if self._pool is None or len(rows) < 2 * self.threads:
+            self._physics(rows.tolist(), ctrl)
+        else:  # (mj_step releases the GIL: the rows' physics on several cores)
+            chunks = np.array_split(rows, self.threads)
+            list(self._pool.map(lambda c: self._physics(c.tolist(), ctrl), chunks))
         qfrc_bias, qfrc_gravcomp = self._qfrc
-        model = self.model
-        for i in rows.tolist():
-            d = self.datas[i]
+        self.bias[rows] = servo.bias_of(qfrc_bias[rows], qfrc_gravcomp[rows])
+        self._kinematics()
+
+    def _physics(self, rows: list[int], ctrl: np.ndarray) -> None:
+        """``mj_step`` of ``rows`` with their actuator controls; their state read back."""
+        Q, V, time = self.Q, self.V, self.time
+        qfrc_bias, qfrc_gravcomp = self._qfrc
+        model, datas, gravcomp = self.model, self.datas, self._gravcomp
+        for i in rows:
+            d = datas[i]
             d.ctrl[:] = ctrl[i]
             mujoco.mj_step(model, d)
             Q[i] = d.qpos
             V[i] = d.qvel
             qfrc_bias[i] = d.qfrc_bias
-            qfrc_gravcomp[i] = d.qfrc_gravcomp
-            self.time[i] = d.time
-        self.bias[rows] = servo.bias_of(qfrc_bias[rows], qfrc_gravcomp[rows])
-        self._kinematics()
+            if gravcomp:
+                qfrc_gravcomp[i] = d.qfrc_gravcomp
+            time[i] = d.time
 
     def _observation(self) -> dict[str, np.ndarray]:
         T = self.T_psm
