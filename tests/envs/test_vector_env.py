@@ -71,8 +71,12 @@ def test_vector_env_equals_single_envs_step_by_step(held_frames, env_id, action_
 
 
 def test_autoreset_is_next_step(held_frames):
-    vec = make_vector("DavinciSim/Reach-v0", 2, max_episode_steps=2)
+    import gymnasium as gym
+
+    vec = gym.make_vec("DavinciSim/Reach-v0", num_envs=2, vectorization_mode="vector_entry_point",
+                       max_episode_steps=2)  # fmt: skip
     try:
+        assert isinstance(vec, DavinciVectorEnv)
         obs0, _ = vec.reset(seed=1)
         zero = np.zeros(vec.action_space.shape, dtype=np.float32)
         vec.step(zero)
