@@ -4,14 +4,14 @@ vectorised on the study's batch laws.
 Importing this package registers the ids (``gymnasium.make("DavinciSim/Reach-v0")``, or
 ``gymnasium.make("davinci_sim.envs:DavinciSim/Reach-v0")`` without importing it first):
 
-==============================  =====================================================
-``DavinciSim/Reach-v0``         bring PSM1's tool tip to a random target (hello world)
-``DavinciSim/PathFollow-v0``    the seed's path-following task (``seed_path``)
-``DavinciSim/PegTransfer-v0``   peg transfer (``peg_transfer``)
-``DavinciSim/CameraTargeting-v0``  centre targets with the endoscope (ECM, joint actions)
-``DavinciSim/RingWalk-v0``      ring walk (``ring_walk``)
-``DavinciSim/NeedleTargeting-v0``  needle targeting (``needle_targeting``)
-==============================  =====================================================
+* ``DavinciSim/Reach-v0`` — bring PSM1's tool tip to a random target (hello world);
+* ``DavinciSim/PathFollow-v0`` — the seed's path-following task (``seed_path``);
+* ``DavinciSim/PegTransfer-v0`` — peg transfer (``peg_transfer``; the actions move PSM1,
+  PSM2 holds still);
+* ``DavinciSim/CameraTargeting-v0`` — centre targets with the endoscope (the ECM, joint
+  actions);
+* ``DavinciSim/RingWalk-v0``, ``DavinciSim/NeedleTargeting-v0`` — the ring walk and needle
+  targeting exercises.
 
 * :class:`DavinciEnv` (base.py) — one environment on a live
   :class:`~davinci_sim.sim.simulation.Simulation`: actions, observations, reset and
