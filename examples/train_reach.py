@@ -13,6 +13,10 @@ steps the deterministic policy runs ``--eval-episodes`` fresh episodes (fixed se
 once on another vector environment): the success rate (tool tip within 3 mm of the target
 before the 2 s limit) and the mean return go to ``<out>/curve.json`` and ``<out>/curve.png``
 with the wall time. ``--timesteps 256`` is the smoke run of the tests.
+
+(Image observations and training in one process: torch loads triton, whose bundled LLVM
+crashes a process where Mesa's llvmpipe, MuJoCo's EGL rendering without a GPU, is loaded;
+render in the environments' processes, e.g. Ray workers, or import torch first.)
 """
 
 from __future__ import annotations
