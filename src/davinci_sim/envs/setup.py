@@ -11,7 +11,7 @@ camera frame), no surgeon console (actions replace the master) and, unless asked
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -60,7 +60,6 @@ class EnvConfig:
     """Reach: the target is drawn uniformly within ± this of the start, per axis, m."""
     reach_tolerance: float = 0.003
     """Reach: within this distance of the target the episode is a success, m."""
-    extra: dict = field(default_factory=dict, compare=False)
 
     def __post_init__(self) -> None:
         if self.action_space not in ACTION_SPACES:

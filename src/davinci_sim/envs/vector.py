@@ -48,7 +48,6 @@ from gymnasium.vector.utils import batch_space
 from davinci_sim.envs import control
 from davinci_sim.envs.base import action_space, joint_steps, make_problem, observation_space
 from davinci_sim.envs.control import orientation_features
-from davinci_sim.envs.problems import TaskProblem
 from davinci_sim.envs.setup import EnvConfig, build_start
 from davinci_sim.geometry.so3 import rotate_pairs
 from davinci_sim.kinematics.psm_ik import psm_ik_closed_form_batch
@@ -340,7 +339,3 @@ class DavinciVectorEnv(VectorEnv):
         }
         obs.update(self.problem.features(T))
         return obs
-
-    @property
-    def is_task(self) -> bool:
-        return isinstance(self.problem, TaskProblem)
