@@ -10,6 +10,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 import bench_bridge  # noqa: E402
 import bench_client_robot  # noqa: E402
 import bench_compat  # noqa: E402
+import bench_envs  # noqa: E402
 import bench_exercises  # noqa: E402
 import bench_kinematics  # noqa: E402
 import bench_realtime  # noqa: E402
@@ -35,6 +36,7 @@ if __name__ == "__main__":
     bench_teleop.main()
     bench_records.main()
     bench_recording.main()  # MCAP recording and replay, ~1 min
+    bench_envs.main()  # the learning environments, N = 1, 64, 256 and images, ~2 min
     bench_study.main()  # the 400-trial study, about 2 min
     bench_study_small.main()  # 1 and 16 trials of the seed task, ~2 min (cold compile incl.)
     bench_realtime.main()  # 60 s of real time (plus warm-up)

@@ -1,0 +1,116 @@
+"""The learning environments' speed: simulated seconds per wall second and environment steps
+per second of the vector environment (:class:`~davinci_sim.envs.vector.DavinciVectorEnv`) for
+N = 1, 64, 256 without images, the single environment on the live simulation for
+comparison, and the rate of image observations separately.
+
+One environment step is one action at 50 Hz: 20 ticks of the 1 kHz physics and servo, so
+20 ms of simulated time. Random actions; rows autoreset as Gymnasium's NEXT_STEP says. The
+issue's target is 400 simulated s per wall second at N = 256; SurRoL's NeedleReach measured
+12 simulated s per wall second (60 steps/s) on this machine. The machine's load average is
+written with the figures (the 2 cores are shared), and the simulated seconds per CPU second
+of this process (``*_sim_s_per_cpu_s``: what the cores it got gave, less sensitive to the
+load than the wall-clock rate).
+
+``python benchmarks/bench_envs.py`` writes ``results/envs.json``.
+"""
+
+from __future__ import annotations
+
+import os
+import sys
+import time
+from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+
+import numpy as np  # noqa: E402
+
+import davinci_sim  # noqa: E402, F401  (sets MUJOCO_GL)
+from common import write  # noqa: E402
+from davinci_sim.envs import ENVIRONMENTS  # noqa: E402
+from davinci_sim.envs.base import DavinciEnv  # noqa: E402
+from davinci_sim.envs.vector import DavinciVectorEnv  # noqa: E402
+
+#: Simulated time of one environment step, s (50 Hz actions).
+STEP_S = 0.02
+SURROL_SIM_S_PER_S = 12.0
+
+
+def _vector(env_id: str, n: int, wall: float, threads: int = 1) -> dict:
+    env = DavinciVectorEnv(n, threads=threads, **ENVIRONMENTS[env_id])
+    rng = np.random.default_rng(0)
+    env.reset(seed=0)
+    for _ in range(3):  # warm-up (compiled laws, caches)
+        env.step(rng.uniform(-1, 1, env.action_space.shape).astype(np.float32))
+    steps, t0, c0 = 0, time.perf_counter(), time.process_time()
+    while time.perf_counter() - t0 < wall or steps < 3:
+        env.step(rng.uniform(-1, 1, env.action_space.shape).astype(np.float32))
+        steps += 1
+    elapsed, cpu = time.perf_counter() - t0, time.process_time() - c0
+    env.close()
+    return {
+        "env_steps_per_s": n * steps / elapsed, "sim_s_per_s": n * steps * STEP_S / elapsed,
+        "sim_s_per_cpu_s": n * steps * STEP_S / cpu,
+    }  # fmt: skip
+
+
+def _single(env_id: str, wall: float, **kwargs) -> dict:
+    env = DavinciEnv(**{**ENVIRONMENTS[env_id], **kwargs})
+    env.reset(seed=0)
+    steps, t0 = 0, time.perf_counter()
+    while time.perf_counter() - t0 < wall or steps < 3:
+        _, _, terminated, truncated, _ = env.step(env.action_space.sample())
+        steps += 1
+        if terminated or truncated:
+            env.reset()
+    elapsed = time.perf_counter() - t0
+    env.close()
+    return {"env_steps_per_s": steps / elapsed, "sim_s_per_s": steps * STEP_S / elapsed}
+
+
+def _renders(size: tuple[int, int], wall: float) -> float:
+    """Stereo pairs per second of the endoscope at ``size`` (the image observation's cost)."""
+    env = DavinciEnv()
+    env.reset(seed=0)
+    env.sim.render_stereo(*size)  # (the renderer's context)
+    frames, t0 = 0, time.perf_counter()
+    while time.perf_counter() - t0 < wall or frames < 3:
+        env.sim.render_stereo(*size)
+        frames += 1
+    elapsed = time.perf_counter() - t0
+    env.close()
+    return frames / elapsed
+
+
+def main(wall: float = 10.0) -> None:
+    figures: dict = {"load_average_1min_before": os.getloadavg()[0]}
+    for n in (1, 64, 256):
+        r = _vector("DavinciSim/Reach-v0", n, wall)
+        figures[f"reach_vector_n{n}_sim_s_per_s"] = r["sim_s_per_s"]
+        figures[f"reach_vector_n{n}_env_steps_per_s"] = r["env_steps_per_s"]
+        figures[f"reach_vector_n{n}_sim_s_per_cpu_s"] = r["sim_s_per_cpu_s"]
+    r = _vector("DavinciSim/Reach-v0", 256, wall, threads=2)
+    figures["reach_vector_n256_threads2_sim_s_per_s"] = r["sim_s_per_s"]
+    figures["reach_vector_n256_threads2_env_steps_per_s"] = r["env_steps_per_s"]
+    r = _vector("DavinciSim/PathFollow-v0", 64, wall)
+    figures["path_vector_n64_sim_s_per_s"] = r["sim_s_per_s"]
+    figures["path_vector_n64_env_steps_per_s"] = r["env_steps_per_s"]
+    for env_id, name in (("DavinciSim/Reach-v0", "reach"), ("DavinciSim/PathFollow-v0", "path")):
+        r = _single(env_id, wall)
+        figures[f"{name}_single_sim_s_per_s"] = r["sim_s_per_s"]
+        figures[f"{name}_single_env_steps_per_s"] = r["env_steps_per_s"]
+    r = _single("DavinciSim/Reach-v0", wall, images=True)
+    figures["reach_single_images_160x120_env_steps_per_s"] = r["env_steps_per_s"]
+    figures["stereo_pairs_per_s_160x120"] = _renders((160, 120), wall)
+    figures["stereo_pairs_per_s_640x480"] = _renders((640, 480), wall)
+    figures["target_sim_s_per_s_n256"] = 400.0
+    best = max(figures["reach_vector_n256_sim_s_per_s"],
+               figures["reach_vector_n256_threads2_sim_s_per_s"])  # fmt: skip
+    figures["target_met"] = best >= 400.0
+    figures["surrol_needle_reach_sim_s_per_s"] = SURROL_SIM_S_PER_S
+    figures["load_average_1min_after"] = os.getloadavg()[0]
+    write("envs", figures)
+
+
+if __name__ == "__main__":
+    main(float(sys.argv[1]) if len(sys.argv) > 1 else 10.0)

@@ -1,0 +1,278 @@
+"""The single environment: one live :class:`~davinci_sim.sim.simulation.Simulation` behind
+Gymnasium's ``reset``/``step``.
+
+**Step.** An action lasts one control period (``control_hz``, 50 Hz by default: 20 ticks
+of the 1 kHz physics and servo). Each tick sends the arm's ``servo_cp`` (the tool tip's
+goal in the camera frame, orientation held, with the twist feed-forward) or ``servo_jp``
+(joint goal with its velocity), moving along the period's ramp as the teleoperation does
+with the master's motion (:mod:`davinci_sim.envs.control`); the jaw's ``servo_jp`` once.
+Then the simulation ticks (:meth:`Simulation.tick`: the arm's laws, the servo, ``mj_step``).
+
+**Action** (``Box(-1, 1)``, float32): ``cartesian``, (dx, dy, dz, jaw): the goal's
+displacement in the camera frame in units of ``max_step`` (m), the jaw opening from closed
+(−1) to open (1); ``joint``, (dq₁…dq₆, jaw) for a PSM (the ECM: dq₁…dq₄, no jaw) in units of
+``max_joint_step`` (rad; prismatic joints a tenth of it, m).
+
+**Observation** (``Dict``, float64; units):
+
+* ``joint_position`` (dof,) rad and m (insertion), ``joint_velocity`` (dof,) rad/s, m/s —
+  the arm the actions move (``measured_js``);
+* ``jaw`` (1,) rad — the PSM's jaw opening (0 for the ECM);
+* ``tip_position`` (3,) m, ``tip_orientation`` (6,) (the first two columns of the rotation)
+  — the PSM's tool tip in the camera frame (``measured_cp``);
+* ``setpoint`` — the goal the actions have moved so far (the tip lags it by the servo's
+  tracking): the tip's goal in the camera frame (3,), m, or the joint goal (dof,);
+* the task's features (:mod:`davinci_sim.envs.problems`): Reach ``target``,
+  ``target_offset`` (m, camera frame); exercises ``phase`` (the task's
+  :class:`~davinci_sim.tasks.Phase`), ``distance`` (m), path following ``progress``
+  (0–1) and ``next_point`` (m, camera frame), camera targeting ``target`` (m, camera frame),
+  peg transfer ``objects`` (rings, (k, 3), m, camera frame) and ``grasp`` (k,: 1 where a
+  jaw touches the ring);
+* with ``images=True``: ``left`` and ``right`` (height, width, 3) uint8, the endoscope.
+
+**Reset** restores the start state (:func:`~davinci_sim.envs.setup.build_start`) with
+:meth:`Simulation.set_state`, then draws the episode's randomness from ``np_random``.
+
+**Info**: the reward's terms (``reward_*``), ``is_success``, ``fault`` (the arm went to
+FAULT: the episode terminates), and at an episode's end the task's metrics
+(``metric_<name>``).
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import gymnasium as gym
+import numpy as np
+from gymnasium import spaces
+
+from davinci_sim.envs import control
+from davinci_sim.envs.control import orientation_features
+from davinci_sim.envs.problems import ReachProblem, TaskProblem
+from davinci_sim.envs.setup import EnvConfig, EnvStart, build_start
+from davinci_sim.sim import operating_state as ops
+
+
+def joint_steps(chain, max_joint_step: float) -> np.ndarray:
+    """Largest joint displacement per action (dof,): ``max_joint_step`` rad, a tenth of it
+    in m for prismatic joints."""
+    prismatic = np.array([j.joint_type == "prismatic" for j in chain.joints])
+    return np.where(prismatic, 0.1 * max_joint_step, max_joint_step)
+
+
+def observation_space(start: EnvStart, config: EnvConfig, problem) -> spaces.Dict:
+    """The observation space of an environment of ``config`` (see the module docstring)."""
+    dof = start.sim.arms[start.arm].dof
+    big = 10.0
+    box = {"low": -big, "high": big, "dtype": np.float64}
+    out = {
+        "joint_position": spaces.Box(shape=(dof,), **box),
+        "joint_velocity": spaces.Box(low=-100.0, high=100.0, shape=(dof,), dtype=np.float64),
+        "jaw": spaces.Box(low=-1.0, high=4.0, shape=(1,), dtype=np.float64),
+        "tip_position": spaces.Box(shape=(3,), **box),
+        "tip_orientation": spaces.Box(low=-1.0, high=1.0, shape=(6,), dtype=np.float64),
+        "setpoint": spaces.Box(shape=(3 if config.action_space == "cartesian" else dof,), **box),
+        **problem.spaces(),
+    }
+    k = getattr(start.task, "n_rings", 0)
+    if k:  # peg transfer: the rings (camera frame, m) and whether a jaw touches each
+        out["objects"] = spaces.Box(shape=(k, 3), **box)
+        out["grasp"] = spaces.Box(low=0.0, high=1.0, shape=(k,), dtype=np.float64)
+    if config.images:
+        w, h = config.image_size
+        for side in ("left", "right"):
+            out[side] = spaces.Box(0, 255, shape=(h, w, 3), dtype=np.uint8)
+    return spaces.Dict(out)
+
+
+def action_space(start: EnvStart, config: EnvConfig) -> spaces.Box:
+    arm = start.sim.arms[start.arm]
+    n = 3 if config.action_space == "cartesian" else arm.dof
+    n += 1 if start.arm.startswith("PSM") else 0
+    return spaces.Box(-1.0, 1.0, shape=(n,), dtype=np.float32)
+
+
+def make_problem(start: EnvStart, config: EnvConfig, n: int):
+    if start.task is None:
+        return ReachProblem(n, start.p_start_camera, config.reach_radius, config.reach_tolerance)
+    return TaskProblem(start.task, n, start.T_task_camera, start.sim.endoscope)
+
+
+class DavinciEnv(gym.Env):
+    """One environment (see the module docstring); ``**kwargs``: :class:`EnvConfig`."""
+
+    metadata = {"render_modes": ["rgb_array"], "render_fps": 50}
+
+    def __init__(self, render_mode: str | None = None, **kwargs: Any) -> None:
+        self.config = config = EnvConfig(**kwargs)
+        if render_mode is not None and render_mode not in self.metadata["render_modes"]:
+            raise ValueError(f"render_mode must be None or 'rgb_array', got {render_mode!r}")
+        self.render_mode = render_mode
+        self.metadata = {**self.metadata, "render_fps": config.control_hz}
+        self.K = control.ticks_per_action(config.control_hz)
+        self._start = start = build_start(config)
+        if start.arm == "ECM" and config.action_space == "cartesian":
+            start.sim.close()
+            raise ValueError(
+                "camera targeting moves the ECM: use action_space='joint' (the ECM's four "
+                "joints); Cartesian actions move a PSM's tool tip"
+            )
+        self.sim = start.sim
+        self.arm = self.sim.arms[start.arm]
+        self.psm = self.sim.arms[start.psm]
+        self.problem = make_problem(start, config, 1)
+        self.observation_space = observation_space(start, config, self.problem)
+        self.action_space = action_space(start, config)
+        chain = self.arm.chain
+        self._joint_step = joint_steps(chain, config.max_joint_step)
+        self._qmin, self._qmax = chain.qmin, chain.qmax
+        self._lo, self._hi = start.workspace
+        self._steps = 0
+        self._goal = start.p_start_camera.copy()
+        self._q_goal = self._q_set()
+        self._scene_cache: dict = {}
+        self._episode_over = True
+
+    # ------------------------------------------------------------ gymnasium
+    def reset(self, *, seed: int | None = None, options: dict | None = None):
+        super().reset(seed=seed)
+        self.sim.set_state(self._start.state)
+        self._goal = self._start.p_start_camera.copy()
+        self._q_goal = self._q_set()
+        self._steps = 0
+        self.problem.reset([0], [self.np_random])
+        self._episode_over = False
+        obs = self._observation()
+        self.problem.outcome(
+            self._T_tip()[None], self._T_task_camera()
+        )  # (the reward's baselines: progress, phase)
+        return obs, {}
+
+    def step(self, action):
+        if self._episode_over:
+            raise RuntimeError("the episode is over: call reset() first")
+        a = np.asarray(action, dtype=float).reshape(self.action_space.shape)
+        if not np.all(np.isfinite(a)):
+            raise ValueError(f"the action must be finite, got {action!r}")
+        self._apply(a)
+        reward, done, terms = self.problem.outcome(self._T_tip()[None], self._T_task_camera())
+        self._steps += 1
+        fault = self.arm.operating_state().state == ops.FAULT
+        terminated = bool(done[0]) or fault
+        truncated = not terminated and self._steps >= self.config.max_episode_steps
+        info = {k: float(v[0]) for k, v in terms.items()}
+        info["is_success"] = bool(done[0])
+        info["fault"] = fault
+        if terminated or truncated:
+            # (the metrics defined so far: nan ones, e.g. a time before the task ran, left out)
+            metrics = {k: float(v[0]) for k, v in self.problem.info().items()}
+            info.update({k: v for k, v in metrics.items() if np.isfinite(v)})
+            self._episode_over = True
+        return self._observation(), float(reward[0]), terminated, truncated, info
+
+    def render(self):
+        if self.render_mode != "rgb_array":
+            return None
+        w, h = self.config.image_size
+        return self.sim.render("ECM/left", w, h, fast=True)
+
+    def close(self) -> None:
+        self.sim.close()
+
+    # ------------------------------------------------------------ internals
+    def _q_set(self) -> np.ndarray:
+        return self.sim.servo.q_ref[self.arm.actuator_indices].copy()
+
+    def _T_task_camera(self) -> np.ndarray | None:
+        """The camera in the task's frame now (it moves with the ECM); None for Reach."""
+        if self._start.task is None:
+            return None
+        return self._start.task.T_task_camera(self.sim.T_cart_camera())
+
+    def _T_tip(self) -> np.ndarray:
+        return np.asarray(self.psm.measured_cp().T)
+
+    def _apply(self, a: np.ndarray) -> None:
+        """One control period (see the module docstring)."""
+        K, cfg = self.K, self.config
+        if cfg.action_space == "cartesian":
+            delta = control.cartesian_delta(a[:3], self._goal, cfg.max_step, self._lo, self._hi)
+            start = self._goal
+        else:
+            dof = self.arm.dof
+            delta = control.joint_delta(
+                a[:dof], self._q_goal, self._joint_step, self._qmin, self._qmax
+            )
+            start = self._q_goal
+        velocity = control.feedforward(delta, K)
+        if self.arm is self.psm:
+            jaw = control.jaw_angle(a[-1], self.psm.jaw.spec.qmin, self.psm.jaw.spec.qmax)
+            self.psm.jaw.servo_jp([float(jaw)])
+        T_goal = np.eye(4)
+        T_goal[:3, :3] = self._start.R_goal
+        twist = np.concatenate([velocity, np.zeros(3)]) if cfg.action_space == "cartesian" else None
+        task = self.problem if isinstance(self.problem, TaskProblem) else None
+        for k in range(1, K + 1):
+            g = control.ramp(start, delta, k, K)
+            if cfg.action_space == "cartesian":
+                T_goal[:3, 3] = g
+                self.arm.servo_cp(T_goal, twist)
+            else:
+                self.arm.servo_jp(g, velocity)
+            self.sim.tick()
+            if task is not None:
+                self._sample_task(task)
+        if cfg.action_space == "cartesian":
+            self._goal = start + delta
+        else:
+            self._q_goal = start + delta
+
+    def _sample_task(self, task: TaskProblem) -> None:
+        sim, t = self.sim, self.sim.time
+        T_task_camera = self._T_task_camera()
+        extra = task.task.scene_fields(sim.model, sim.data, self._scene_cache)
+        contacts = self._contacts.measure(sim.model, sim.data) if sim.data.ncon else (0, 0.0)
+        task.after_tick(
+            t, self._T_tip()[None], np.ones(1, dtype=bool), T_task_camera,
+            contacts=contacts[0], tool_force=contacts[1], **extra,
+        )  # fmt: skip
+
+    @property
+    def _contacts(self):
+        c = getattr(self, "_contacts_probe", None)
+        if c is None:
+            from davinci_sim.tasks import InstrumentContacts
+
+            task = self._start.task
+            c = self._contacts_probe = InstrumentContacts(
+                self.sim.model, task.teleop.psm, task.CONTACT_IGNORE
+            )
+        return c
+
+    def _observation(self) -> dict[str, np.ndarray]:
+        T = self._T_tip()
+        arm = self.arm
+        js = arm.measured_js()
+        obs = {
+            "joint_position": np.asarray(js.position, dtype=float).copy(),
+            "joint_velocity": np.asarray(js.velocity, dtype=float).copy(),
+            "jaw": np.array([self.psm.jaw.measured_js().position[0]], dtype=float),
+            "tip_position": T[:3, 3].copy(),
+            "tip_orientation": orientation_features(T[:3, :3]),
+            "setpoint": (
+                self._goal if self.config.action_space == "cartesian" else self._q_goal
+            ).copy(),
+        }
+        T_task_camera = self._T_task_camera()
+        feats = self.problem.features(T[None], T_task_camera)
+        if "objects" in self.observation_space.spaces:
+            extra = self._start.task.scene_fields(self.sim.model, self.sim.data, self._scene_cache)
+            T_camera_task = np.linalg.inv(T_task_camera)
+            p = np.asarray(extra["objects"], dtype=float).reshape(-1, 3)
+            obs["objects"] = p @ T_camera_task[:3, :3].T + T_camera_task[:3, 3]
+            obs["grasp"] = (np.asarray(extra["grasp"]).reshape(-1) > 0).astype(float)
+        obs.update({k: v[0] for k, v in feats.items()})
+        if self.config.images:
+            w, h = self.config.image_size
+            obs["left"], obs["right"] = self.sim.render_stereo(w, h)
+        return obs
