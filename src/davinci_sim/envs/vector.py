@@ -355,22 +355,28 @@ class DavinciVectorEnv(VectorEnv):
             time[i] = d.time
 
     def _physics_reduced(self, rows: list[int], ctrl: np.ndarray) -> None:
-        """:meth:`_physics` on the reduced model (``physics="arm"``): its entries written
-        into the full model's layout; the welded joints keep their start values."""
-        Q, V, time = self.Q, self.V, self.time
-        qfrc_bias, qfrc_gravcomp = self._qfrc
+        """:meth:`_physics` on the reduced model (``physics="psm"``/``"arm"``): the rows'
+        state gathered in the reduced layout, then written into the full model's at once
+        (the welded joints keep their start values)."""
         qadr, dadr, act = self._map
-        model, datas, gravcomp = self.model, self.datas, self._gravcomp
-        for i in rows:
+        nq, nv = len(qadr), len(dadr)
+        q = np.empty((len(rows), nq))
+        v, fb, fg = np.empty((len(rows), nv)), np.empty((len(rows), nv)), np.zeros((len(rows), nv))
+        c = ctrl[:, act]
+        model, datas, gravcomp, time = self.model, self.datas, self._gravcomp, self.time
+        for j, i in enumerate(rows):
             d = datas[i]
-            d.ctrl[:] = ctrl[i, act]
+            d.ctrl[:] = c[i]
             mujoco.mj_step(model, d)
-            Q[i, qadr] = d.qpos
-            V[i, dadr] = d.qvel
-            qfrc_bias[i, dadr] = d.qfrc_bias
+            q[j], v[j], fb[j] = d.qpos, d.qvel, d.qfrc_bias
             if gravcomp:
-                qfrc_gravcomp[i, dadr] = d.qfrc_gravcomp
+                fg[j] = d.qfrc_gravcomp
             time[i] = d.time
+        r = np.asarray(rows, dtype=int)[:, None]
+        self.Q[r, qadr], self.V[r, dadr] = q, v
+        self._qfrc[0][r, dadr] = fb
+        if gravcomp:
+            self._qfrc[1][r, dadr] = fg
 
     def _observation(self) -> dict[str, np.ndarray]:
         T = self.T_psm
