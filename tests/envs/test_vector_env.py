@@ -15,18 +15,22 @@ from davinci_sim.envs.base import DavinciEnv  # noqa: E402
 from davinci_sim.envs.vector import DavinciVectorEnv  # noqa: E402
 
 
-def _compare(env_id: str, action_space: str, steps: int, n: int = 3) -> int:
-    """Steps ``n`` single environments and a vector of ``n`` with the same random actions;
-    returns how many autoresets happened."""
+def _compare(
+    env_id: str, action_space: str, steps: int, n: int = 3, physics: str = "full",
+    atol: float = 1e-9,
+) -> int:  # fmt: skip
+    """Steps ``n`` single environments and a vector of ``n`` (with ``physics``) with the same
+    random actions, their observations and rewards equal within ``atol``; returns how many
+    autoresets happened."""
     kw = {**ENVIRONMENTS[env_id], "action_space": action_space, "max_episode_steps": 5}
-    vec = DavinciVectorEnv(n, **kw)
+    vec = DavinciVectorEnv(n, physics=physics, **kw)
     singles = [DavinciEnv(**kw) for _ in range(n)]
     try:
         obs_v, _ = vec.reset(seed=20)
         for i, env in enumerate(singles):
             obs, _ = env.reset(seed=20 + i)
             for k in obs:
-                np.testing.assert_allclose(obs_v[k][i], obs[k], rtol=0, atol=1e-9, err_msg=k)
+                np.testing.assert_allclose(obs_v[k][i], obs[k], rtol=0, atol=atol, err_msg=k)
         rng = np.random.default_rng(5)
         pending = [False] * n
         resets = 0
@@ -44,8 +48,8 @@ def _compare(env_id: str, action_space: str, steps: int, n: int = 3) -> int:
                     pending[i] = term or trunc
                     assert info["is_success"] == info_v["is_success"][i]
                 for k in obs:
-                    np.testing.assert_allclose(obs_v[k][i], obs[k], rtol=0, atol=1e-9, err_msg=k)
-                assert reward_v[i] == pytest.approx(reward, rel=1e-9, abs=1e-9)
+                    np.testing.assert_allclose(obs_v[k][i], obs[k], rtol=0, atol=atol, err_msg=k)
+                assert reward_v[i] == pytest.approx(reward, rel=1e-9, abs=atol)
                 assert (term_v[i], trunc_v[i]) == (term, trunc)
         return resets
     finally:

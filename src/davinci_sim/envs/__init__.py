@@ -20,6 +20,8 @@ Importing this package registers the ids (``gymnasium.make("DavinciSim/Reach-v0"
   study's batch laws (Reach and path following), ``gymnasium.make_vec`` or
   :func:`make_vector`.
 * :mod:`davinci_sim.envs.ray_envs` — environments spread over Ray workers.
+* :class:`RecordEpisodes`, :class:`RecordVectorEpisodes` (recording.py) — wrappers writing
+  every episode to MCAP (``replay --to-dataset`` turns the files into a dataset).
 """
 
 from __future__ import annotations
@@ -27,6 +29,7 @@ from __future__ import annotations
 import gymnasium as gym
 
 from davinci_sim.envs.base import DavinciEnv
+from davinci_sim.envs.recording import RecordEpisodes, RecordVectorEpisodes
 from davinci_sim.envs.setup import EnvConfig
 
 #: id → the task file (None: Reach) and its defaults.
@@ -76,4 +79,12 @@ def make_vector(env_id: str, num_envs: int, **kwargs):
     return DavinciVectorEnv(num_envs=num_envs, **{**ENVIRONMENTS[env_id], **kwargs})
 
 
-__all__ = ["DavinciEnv", "ENVIRONMENTS", "EnvConfig", "VECTOR_IDS", "make_vector"]
+__all__ = [
+    "DavinciEnv",
+    "ENVIRONMENTS",
+    "EnvConfig",
+    "RecordEpisodes",
+    "RecordVectorEpisodes",
+    "VECTOR_IDS",
+    "make_vector",
+]

@@ -32,6 +32,11 @@ first, the last one is in ``info["final_obs"]`` (and the step's info in
 ``info["final_info"]``). ``reset(seed=s)`` seeds row i with
 ``s + i`` (as ``SyncVectorEnv`` does), so row i is the single environment reset with seed
 ``s + i``. ``info`` holds arrays with Gymnasium's ``_<key>`` masks.
+
+**Physics** (``physics=``, :data:`PHYSICS`): ``"full"`` steps the scene of the single
+environment; ``"psm"`` a reduced model without the ECM's branch (welded at the start, as the
+rows hold the camera anyway; exact), ``"arm"`` one with only the PSM's own joints (its setup
+joints welded too; close, not exact): :mod:`davinci_sim.envs.reduced`.
 """
 
 from __future__ import annotations
@@ -55,6 +60,12 @@ from davinci_sim.sim import arm_laws as laws
 from davinci_sim.sim.jaw import finger_setpoints
 from davinci_sim.sim.servo import servo_ctrl
 
+#: ``physics=``: ``full`` — every row steps the whole scene (24 joints: PSM, ECM, setup
+#: joints); ``psm`` — the PSM and its setup joints (14; the ECM's branch welded: exact);
+#: ``arm`` — the PSM's own 8 joints (its setup joints welded too: within ~0.3 mm).
+#: See :mod:`davinci_sim.envs.reduced`.
+PHYSICS = ("full", "psm", "arm")
+
 
 class DavinciVectorEnv(VectorEnv):
     """``num_envs`` environments of one :class:`~davinci_sim.envs.setup.EnvConfig`
@@ -64,12 +75,14 @@ class DavinciVectorEnv(VectorEnv):
 
     def __init__(
         self, num_envs: int, autoreset_mode: AutoresetMode | str = AutoresetMode.NEXT_STEP,
-        threads: int = 1, **kwargs,
+        threads: int = 1, physics: str = "full", **kwargs,
     ) -> None:  # fmt: skip
         if not (isinstance(num_envs, int) and num_envs >= 1):
             raise ValueError(f"num_envs must be an int >= 1, got {num_envs!r}")
         if not (isinstance(threads, int) and threads >= 1):
             raise ValueError(f"threads must be an int >= 1, got {threads!r}")
+        if physics not in PHYSICS:
+            raise ValueError(f"physics must be one of {PHYSICS}, got {physics!r}")
         modes = (AutoresetMode.NEXT_STEP, AutoresetMode.SAME_STEP)
         try:
             mode = AutoresetMode(autoreset_mode)
@@ -103,7 +116,19 @@ class DavinciVectorEnv(VectorEnv):
         self._pool = ThreadPoolExecutor(threads) if threads > 1 else None
         self.dt = sim.dt
         self._data0 = copy.copy(sim.data)
-        self.datas = [copy.copy(sim.data) for _ in range(n)]
+        self.physics = physics
+        self._map = None  # (reduced physics: its qpos, dof and actuator addresses in the full)
+        if physics != "full":
+            from davinci_sim.envs.reduced import kept_joints, reduce_to
+
+            try:
+                keep = kept_joints(physics, start.psm)
+                r = reduce_to(sim.config, sim.model, self._data0, keep)
+            except ValueError:
+                sim.close()
+                raise
+            self.model, self._data0, self._map = r.model, r.data, (r.qpos, r.dof, r.actuator)
+        self.datas = [copy.copy(self._data0) for _ in range(n)]
         servo = self._servo = sim.servo
         self._servo0 = servo.get_state()
         self.effort_mode = servo.effort_mode.copy()
@@ -315,6 +340,9 @@ class DavinciVectorEnv(VectorEnv):
         Q, V, time = self.Q, self.V, self.time
         qfrc_bias, qfrc_gravcomp = self._qfrc
         model, datas, gravcomp = self.model, self.datas, self._gravcomp
+        if self._map is not None:
+            self._physics_reduced(rows, ctrl)
+            return
         for i in rows:
             d = datas[i]
             d.ctrl[:] = ctrl[i]
@@ -325,6 +353,30 @@ class DavinciVectorEnv(VectorEnv):
             if gravcomp:
                 qfrc_gravcomp[i] = d.qfrc_gravcomp
             time[i] = d.time
+
+    def _physics_reduced(self, rows: list[int], ctrl: np.ndarray) -> None:
+        """:meth:`_physics` on the reduced model (``physics="psm"``/``"arm"``): the rows'
+        state gathered in the reduced layout, then written into the full model's at once
+        (the welded joints keep their start values)."""
+        qadr, dadr, act = self._map
+        nq, nv = len(qadr), len(dadr)
+        q = np.empty((len(rows), nq))
+        v, fb, fg = np.empty((len(rows), nv)), np.empty((len(rows), nv)), np.zeros((len(rows), nv))
+        c = ctrl[:, act]
+        model, datas, gravcomp, time = self.model, self.datas, self._gravcomp, self.time
+        for j, i in enumerate(rows):
+            d = datas[i]
+            d.ctrl[:] = c[i]
+            mujoco.mj_step(model, d)
+            q[j], v[j], fb[j] = d.qpos, d.qvel, d.qfrc_bias
+            if gravcomp:
+                fg[j] = d.qfrc_gravcomp
+            time[i] = d.time
+        r = np.asarray(rows, dtype=int)[:, None]
+        self.Q[r, qadr], self.V[r, dadr] = q, v
+        self._qfrc[0][r, dadr] = fb
+        if gravcomp:
+            self._qfrc[1][r, dadr] = fg
 
     def _observation(self) -> dict[str, np.ndarray]:
         T = self.T_psm
