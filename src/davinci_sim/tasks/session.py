@@ -222,6 +222,9 @@ class TaskSession:
     def post_step(self, t: float) -> None:
         if self._frame_at is not None:
             self._frame_when_ready()
+            if self._framing():  # no repetition starts while the session moves the arms
+                self.monitor.reset()
+                return
         task = self.task
         T_task_camera = task.T_task_camera(self.sim.T_cart_camera())
         if self._recorded:
@@ -235,6 +238,13 @@ class TaskSession:
         self._distance = self.monitor.distance
         if self.monitor.phase == Phase.FINISHED and self.monitor.results is not None:
             self._record(self.monitor.results, t)
+
+    def _framing(self) -> bool:
+        """The session is framing the view: the ECM moves (homing, then to the task) or the
+        tool has still to be brought to the start. (A camera exercise is ready as soon as
+        the camera is still: its clock must not start with these motions.)"""
+        ecm = self.sim.arms.get("ECM")
+        return self._frame_at is not None and (self._framed or (ecm is not None and ecm.is_busy()))
 
     def _frame_when_ready(self) -> None:
         """The one-shot start of a framed session: once the ECM is homed and idle, frame the

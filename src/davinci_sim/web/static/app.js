@@ -209,7 +209,7 @@ function onState(s) {
     const B = task.guidance_B == null ? "" : ` (B now ${task.guidance_B.toFixed(1)} N·s/m)`;
     $("repetition").textContent = `${task.repetition} (${task.completed} done) — ${task.condition}${B}`;
     $("deviation").textContent = task.distance == null ? "–" : `${(1000 * task.distance).toFixed(1)} mm`;
-    $("progress").textContent = task.progress || (task.phase === "IDLE" ? startHint() : task.phase === "READY" ? "ready: go" : "–");
+    $("progress").textContent = toDo(task);
     showResult(task.last);
   }
   const tip = taskTip(s);
@@ -231,6 +231,15 @@ function onState(s) {
   drawOverlay();
   const gp = firstGamepad();
   if (gp && tip && isOperator()) rumble(gp, rumbleIntensity(f, state.forceMax));
+}
+
+// What the trainee is to do now: the exercise's own words while it runs.
+function toDo(task) {
+  if (task.phase === "FINISHED" || task.phase === "RESULTS") return "done: the attempt is scored below; back to the start for the next";
+  if (task.progress) return task.progress;
+  if (task.phase === "IDLE") return startHint();
+  if (task.phase === "READY") return "ready: go";
+  return "–";
 }
 
 // What starts an attempt, in the exercise's words (the panel says it while IDLE).
