@@ -112,7 +112,9 @@ def task_files(tmp_path_factory):
         corner_radius=0.004,
     )  # fmt: skip
     camera = load_task("camera_targeting")
-    files["camera_targeting"] = dataclasses.replace(camera, targets=camera.targets[:2])
+    # Targets 1 and 4: within the hands' reach without clutching (target 2, at the image's
+    # edge, needs a clutch to re-centre the hands half-way).
+    files["camera_targeting"] = dataclasses.replace(camera, targets=camera.targets[[0, 3]])
     out = {}
     for name, task in files.items():
         out[name] = str(folder / f"{name}_short.yaml")
@@ -318,9 +320,9 @@ def test_a_person_walks_the_ring_along_the_wire(task_files, browser, person):
 
 def test_a_person_centres_the_targets_with_the_camera_pedal(task_files, browser, person):
     """Camera pedal (C) held, the keys move both hands, which steer the endoscope: the
-    image follows the hands, so the target is brought to the crosshair by moving the hands
-    the way it lies, and to the right distance with in/out (hands back bring the camera
-    in). Each target held centred until the panel moves on; the attempt scored."""
+    image follows the hands (as if dragging it), so a target on the right is brought to
+    the crosshair by moving the hands left, and to the right distance with in/out (hands
+    back bring the camera in). Each target held centred until the panel moves on; the attempt scored."""
     with served(task_files["camera_targeting"], CAMERA_SCENE, hands=("MTML", "MTMR")) as url:
         p = person(url)
         p.wait("window.davinci.last.task.phase === 'READY'")
@@ -338,11 +340,31 @@ def test_a_person_centres_the_targets_with_the_camera_pedal(task_files, browser,
             up = math.degrees(math.atan2(y, z))
             along = screen([x, y, 0.0]) / max(1e-9, math.hypot(x, y))
             if math.hypot(right, up) > 0.4 * task.centre_tolerance:
-                keys |= keys_toward(along)
+                keys |= keys_toward(-along)  # drag the image: the target comes the other way
             if abs(z - task.depth) > 0.3 * task.depth_tolerance:
                 keys.add("KeyF" if z > task.depth else "KeyR")
             if math.hypot(right, up) < 3 * task.centre_tolerance:
                 keys.add("ShiftLeft")
+            return clutching(s, keys)
+
+        stall = {"since": None, "target": None, "until": None, "back": set()}
+
+        def clutching(s, keys):
+            """When the hands stop at the edge of their reach (their target no longer
+            moves), a person presses the clutch and brings the hands back towards the
+            middle, the camera held, then lets go and carries on."""
+            t = s["time"]
+            hand = np.array(s["hands"]["MTMR"]["target"])
+            if stall["until"] is not None:
+                if t < stall["until"]:
+                    return {"KeyC", "Space", *stall["back"]}
+                stall.update(until=None, since=None, target=None)
+            moving = keys - {"KeyC", "ShiftLeft"}
+            if stall["target"] is None or np.linalg.norm(hand - stall["target"]) > 0.002:
+                stall.update(since=t, target=hand)
+            elif moving and t - stall["since"] > 0.4:
+                opposite = {a: b for pair in MOVE_KEYS for a, b in (pair, pair[::-1])}
+                stall.update(until=t + 1.5, back={opposite[k] for k in moving})
             return keys
 
         steer(p, _done, step)
@@ -351,3 +373,72 @@ def test_a_person_centres_the_targets_with_the_camera_pedal(task_files, browser,
     assert row["targets_acquired"] == 2
     assert row["path_length"] < 0.005  # the instrument stayed where it was
     assert row["score"] is not None and row["score"] > 0
+
+
+#: Peg transfer: both instruments and both hands, the board and its rings.
+PEG_SCENE = SceneConfig(arms=("PSM1", "PSM2", "ECM", "MTML", "MTMR"))
+
+
+def test_a_person_moves_a_ring_to_a_target_peg(tmp_path, browser, person):
+    """Peg transfer with one ring (on the start peg nearest the middle), the right hand's
+    instrument (PSM1): jaw open, above the ring's wall on the side of the jaws, down, E
+    closes the jaw on it (contact and friction hold it), up 2.5 cm, over a free target
+    peg (green), E opens: the ring drops onto the peg and the attempt is scored."""
+    task = dataclasses.replace(load_task("peg_transfer"), name="peg_transfer_one_ring",
+                               start_pegs=(3,))  # fmt: skip
+    path = str(tmp_path / "peg_one_ring.yaml")
+    save_task(task, path)
+    with served(path, PEG_SCENE, hands=("MTML", "MTMR")) as url:
+        p = person(url)
+        p.wait("window.davinci.last.task.marks && window.davinci.last.task.marks.rings")
+        p.take_control()
+        p.wait("window.davinci.last.teleops.MTMR_PSM1.following")
+        p.shot("peg_transfer_start")
+        s = p.state()
+        marks = s["task"]["marks"]
+        start_top = np.array(marks["pegs"][3]["p_camera"])
+        target_top = np.array(marks["pegs"][2]["p_camera"])
+        ring0 = np.array(marks["rings"][0]["p_camera"])
+        up = (start_top - ring0) / np.linalg.norm(start_top - ring0)  # along the peg
+
+        def ring(s):
+            return np.array(s["task"]["marks"]["rings"][0]["p_camera"])
+
+        def go(goal_of, tolerance=0.001):
+            """Steer the tip to ``goal_of(state)`` (camera frame), fine when near."""
+
+            def step(s):
+                e = goal_of(s) - _tip(s)[0]
+                keys = keys_toward(screen(e), dead=0.0005)
+                return keys | ({"ShiftLeft"} if np.linalg.norm(e) < 0.006 else set())
+
+            return steer(p, lambda s: np.linalg.norm(goal_of(s) - _tip(s)[0]) < tolerance, step)
+
+        def pivot(s):
+            """Where the jaws' pivot goes to close across the ring's wall: on the ring's
+            circle along the jaws' opening direction, 8 mm back along the jaws."""
+            tip, a = _tip(s)
+            y = np.array(s["tips"]["PSM1"]["y_camera"])
+            radial = y - (y @ up) * up
+            radial /= np.linalg.norm(radial)
+            c = ring(s)
+            walls = [c + k * task.ring_radius * radial for k in (1.0, -1.0)]
+            wall = min(walls, key=lambda w: np.linalg.norm(w - tip))
+            return wall - 0.008 * a
+
+        go(lambda s: pivot(s) + 0.02 * up, 0.002)  # above the wall
+        go(pivot)
+        p.tap("KeyE")  # close the jaw on the ring
+        p.wait(f"window.davinci.last.time > {p.state()['time'] + 0.5}")
+        held = p.state()
+        offset = ring(held) - _tip(held)[0]  # the ring in the jaws, camera axes
+        go(lambda s: _tip(held)[0] + 0.025 * up, 0.002)  # lift it off the peg
+        assert np.linalg.norm(ring(p.state()) - _tip(p.state())[0] - offset) < 0.004
+        go(lambda s: target_top + 0.006 * up - offset, 0.0015)  # over the target peg
+        p.shot("peg_transfer_carry")
+        p.tap("KeyE")  # open: the ring drops onto the peg
+        steer(p, _done, lambda s: set(), limit=10.0)
+        p.shot("peg_transfer_scored")
+        row = p.scored()
+    assert row["transferred"] == 1 and row["drops"] == 0
+    assert row["score"] is not None

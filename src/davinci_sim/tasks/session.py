@@ -84,6 +84,9 @@ class TaskSessionState:
     guidance_B: float | None = None
     """The B (N·s/m) the guidance runs with now, in an adaptive condition (None in
     another)."""
+    objects: tuple = ()
+    """A kind with objects (peg transfer's rings): their centres at the last sample, task
+    frame, m, one (x, y, z) each (empty for the other kinds)."""
 
 
 class TaskSession:
@@ -137,6 +140,7 @@ class TaskSession:
         self.results: list[dict] = []
         self.repetition = 1
         self._distance = math.nan
+        self._objects: tuple = ()
         self._recorded = False
         self._frame_at = frame_view
         self._framed = False
@@ -234,7 +238,10 @@ class TaskSession:
                 self.repetition += 1
                 self.reset()
             return
-        self.monitor.observe(live_sample(task, T_task_camera, self.teleop, self.console, t))
+        sample = live_sample(task, T_task_camera, self.teleop, self.console, t)
+        self.monitor.observe(sample)
+        if sample.objects is not None:  # (what the console's page shows of them)
+            self._objects = tuple(tuple(float(x) for x in p) for p in sample.objects[0])
         self._distance = self.monitor.distance
         if self.monitor.phase == Phase.FINISHED and self.monitor.results is not None:
             self._record(self.monitor.results, t)
@@ -344,6 +351,7 @@ class TaskSession:
             last=dict(self.results[-1]) if self.results else {},
             progress=self.task.progress(self.monitor.state),
             guidance_B=None if self._adaptive is None else self._adaptive["B"],
+            objects=self._objects,
         )
 
     # ------------------------------------------------------------ state

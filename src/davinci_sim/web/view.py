@@ -41,13 +41,17 @@ def path_guide(p_camera, T_world_camera, path, camera: CameraConfig) -> dict:
     }
 
 
-def task_marks(task, T_world_camera, camera: CameraConfig, progress: str = "") -> dict | None:
+def task_marks(
+    task, T_world_camera, camera: CameraConfig, progress: str = "", objects=()
+) -> dict | None:
     """What the heads-up display marks of an exercise, in the camera frame (m) and the left
     image (pixels): its numbered ``targets`` (with each one's required tool ``direction``,
     unit, camera frame, when the task has ``directions``), the ``current`` one (0-based,
     from the task's progress text "… target k of K"; None when it names none), and a path
     task's ``wire`` (its path every 2 mm; the seed's path has its own depth cue,
-    :func:`path_guide`). None for a task in the camera frame or with nothing to mark."""
+    :func:`path_guide`), a peg board's ``pegs`` (their tops; ``target``: a peg to put a
+    ring on) and ``rings`` (``objects``: their centres in the task's frame, m). None for a
+    task in the camera frame or with nothing to mark."""
     if task is None or getattr(task, "frame", "world") != "world":
         return None
     T = np.asarray(T_world_camera, dtype=float)
@@ -85,7 +89,21 @@ def task_marks(task, T_world_camera, camera: CameraConfig, progress: str = "") -
             "p_camera": [_vector(p) for p in p_camera],
             "pixels": [None if q is None else list(q) for q in pixels],
         }
+    pegs = getattr(task, "pegs", None)
+    if pegs is not None:
+        targets = set(int(i) for i in task.target_pegs)
+        tops = [[x, y, task.board_top + task.peg_height] for x, y in np.asarray(pegs)]
+        out["pegs"] = [_mark(str(i + 1), p, camera, target=i in targets)
+                       for i, p in enumerate(to_camera(tops))]  # fmt: skip
+    if len(objects):
+        out["rings"] = [_mark(str(i + 1), p, camera) for i, p in enumerate(to_camera(objects))]
     return out or None
+
+
+def _mark(label: str, p_camera, camera: CameraConfig, **extra) -> dict:
+    pixel = project_left(p_camera, camera)
+    return {"label": label, "p_camera": _vector(p_camera),
+            "pixel": None if pixel is None else list(pixel), **extra}  # fmt: skip
 
 
 def _finite(x: float) -> float | None:
@@ -138,6 +156,8 @@ def console_view(snap, camera: CameraConfig, task=None) -> dict[str, Any]:
             "p_camera": _vector(p),
             # The tool's direction (the tip frame's z, where the jaws point), camera frame.
             "z_camera": _vector(np.asarray(psm.measured_cp.T, dtype=float)[:3, 2]),
+            # ... and the way its jaws open (the tip frame's y), camera frame.
+            "y_camera": _vector(np.asarray(psm.measured_cp.T, dtype=float)[:3, 1]),
             "jaw": _finite(float(psm.jaw_measured_js.position[0]))
             if getattr(psm, "jaw_measured_js", None) is not None
             else None,
@@ -154,8 +174,8 @@ def console_view(snap, camera: CameraConfig, task=None) -> dict[str, Any]:
     session = extras.get("task")
     marks = None
     if ecm is not None:
-        marks = task_marks(task, ecm.measured_cp.T, camera,
-                           getattr(session, "progress", ""))  # fmt: skip
+        marks = task_marks(task, ecm.measured_cp.T, camera, getattr(session, "progress", ""),
+                           getattr(session, "objects", ()))  # fmt: skip
     hands = {n.split("/")[0]: dict(s) for n, s in extras.items() if n.endswith("/hand")}
     synthetic = extras.get("synthetic")
     sources = {}

@@ -451,6 +451,15 @@ function drawMarks(ctx, marks, w) {
     ctx.moveTo(w / 2, h / 2 - 14); ctx.lineTo(w / 2, h / 2 + 14);
     ctx.stroke();
   }
+  for (const peg of marks.pegs || []) {  // the target pegs ringed in green
+    if (!peg.pixel || !peg.target) continue;
+    ctx.strokeStyle = "#3ecf8e"; ctx.lineWidth = 1.5;
+    ctx.beginPath(); ctx.arc(peg.pixel[0], peg.pixel[1], 9, 0, 2 * Math.PI); ctx.stroke();
+  }
+  ctx.fillStyle = "#ffe14d";
+  for (const ring of marks.rings || []) {
+    if (ring.pixel) ctx.fillText(`ring ${ring.label}`, ring.pixel[0] + 12, ring.pixel[1] - 8);
+  }
   (marks.targets || []).forEach((m, k) => {
     if (!m.pixel) return;
     const [u, v] = m.pixel;
