@@ -35,7 +35,6 @@ from davinci_sim.tasks import load_task, save_task  # noqa: E402
 from davinci_sim.web.app import web_part  # noqa: E402
 from davinci_sim.web.server import WebOptions  # noqa: E402
 
-
 CHROMIUM = shutil.which("chromium") or shutil.which("chromium-browser")
 #: Chromium's flags for a closed network and no display (as test_web_browser.py's).
 CHROMIUM_ARGS = ["--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run",
@@ -72,8 +71,9 @@ def served(task_file: str, scene, hands=("MTMR",)):
     info: dict = {}
     stop = threading.Event()
     thread = threading.Thread(
-        target=lambda: info.update(done=serve(options, stop=stop, on_ready=info.update,
-                                              parts=parts))  # fmt: skip
+        target=lambda: info.update(
+            done=serve(options, stop=stop, on_ready=info.update, parts=parts)
+        )  # fmt: skip
     )
     thread.start()
     end = time.monotonic() + 120
@@ -232,8 +232,10 @@ def steer(person: Person, until, step, limit: float = SIM_LIMIT) -> dict:
         if s["time"] - shown > 0.5:  # (pytest -s shows how the person gets on)
             shown = s["time"]
             teleops = {k: v["state"] for k, v in s["teleops"].items()}
-            print(f"t={s['time']:.1f} {s['task']['phase']} {s['task']['progress']!r} "
-                  f"{teleops} keys={sorted(person.held)}")
+            print(
+                f"t={s['time']:.1f} {s['task']['phase']} {s['task']['progress']!r} "
+                f"{teleops} keys={sorted(person.held)}"
+            )
         time.sleep(0.03)  # about a frame of the page's state stream
         s = person.state()
     return s
@@ -322,7 +324,9 @@ def test_a_person_centres_the_targets_with_the_camera_pedal(task_files, browser,
     """Camera pedal (C) held, the keys move both hands, which steer the endoscope: the
     image follows the hands (as if dragging it), so a target on the right is brought to
     the crosshair by moving the hands left, and to the right distance with in/out (hands
-    back bring the camera in). Each target held centred until the panel moves on; the attempt scored."""
+    back bring the camera in); when the hands reach the end of their range, the clutch
+    (Space) brings them back with the camera held. Each target held centred until the
+    panel moves on; the attempt scored."""
     with served(task_files["camera_targeting"], CAMERA_SCENE, hands=("MTML", "MTMR")) as url:
         p = person(url)
         p.wait("window.davinci.last.task.phase === 'READY'")

@@ -229,9 +229,9 @@ class HandInput:
         first turn, when the wrist starts holding), unless it already leads the handle by
         ``max_turn_lead``."""
         read = self.device.input()
-        R_handle = (
-            read.T_hrsv_tip if read is not None else self.device.arm.measured_cp().T
-        )[:3, :3]
+        R_handle = (read.T_hrsv_tip if read is not None else self.device.arm.measured_cp().T)[
+            :3, :3
+        ]
         if self._R_target is None:
             self._R_target = R_handle.copy()
             T = np.eye(4)

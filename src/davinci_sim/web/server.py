@@ -387,8 +387,13 @@ class WebConsole(AsyncService):
                 "fixture": dict(task.fixture_spec),
                 "fixture_types": sorted(task.FIXTURE_TYPES),
                 "metrics": [
-                    {"name": m.name, "unit": m.unit, "better": m.better, "label": m.label,
-                     "display": None if m.display is None else list(m.display)}
+                    {
+                        "name": m.name,
+                        "unit": m.unit,
+                        "better": m.better,
+                        "label": m.label,
+                        "display": None if m.display is None else list(m.display),
+                    }
                     for m in task.METRICS  # fmt: skip
                 ],
             }
