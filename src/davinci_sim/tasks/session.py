@@ -141,6 +141,8 @@ class TaskSession:
         self.repetition = 1
         self._distance = math.nan
         self._objects: tuple = ()
+        self._bringing = False
+        """The session's move of the tool to the start is under way."""
         self._recorded = False
         self._frame_at = frame_view
         self._framed = False
@@ -224,8 +226,9 @@ class TaskSession:
         """Nothing before the physics step: the session samples in :meth:`post_step`."""
 
     def post_step(self, t: float) -> None:
-        if self._frame_at is not None:
-            self._frame_when_ready()
+        if self._frame_at is not None or self._bringing:
+            if self._frame_at is not None:
+                self._frame_when_ready()
             if self._framing():  # no repetition starts while the session moves the arms
                 self.monitor.reset()
                 return
@@ -250,6 +253,9 @@ class TaskSession:
         """The session is framing the view: the ECM moves (homing, then to the task) or the
         tool has still to be brought to the start. (A camera exercise is ready as soon as
         the camera is still: its clock must not start with these motions.)"""
+        if self._bringing:  # the tool on its way to the start (the session's move_cp)
+            self._bringing = self.teleop.psm.is_busy()
+            return self._bringing
         ecm = self.sim.arms.get("ECM")
         return self._frame_at is not None and (self._framed or (ecm is not None and ecm.is_busy()))
 
@@ -278,6 +284,7 @@ class TaskSession:
         goal = psm.setpoint_cp().T.copy()
         goal[:3, 3] = (np.linalg.inv(T_task_camera) @ np.append(self.task.start, 1.0))[:3]
         result = psm.move_cp(goal)
+        self._bringing = bool(result)
         if not result:
             self.channels.message("warning", result.message, self.sim.time)
 
@@ -356,7 +363,7 @@ class TaskSession:
 
     # ------------------------------------------------------------ state
     _STATE = ("results", "repetition", "_distance", "_recorded", "condition", "_frame_at",
-              "_framed", "_adaptive")  # fmt: skip
+              "_framed", "_bringing", "_adaptive")  # fmt: skip
 
     def get_state(self) -> dict:
         """The monitor's state, the rows so far, the repetition number, the last distance,

@@ -237,17 +237,12 @@ function onState(s) {
 function toDo(task) {
   if (task.phase === "FINISHED" || task.phase === "RESULTS") return "done: the attempt is scored below; back to the start for the next";
   if (task.progress) return task.progress;
-  if (task.phase === "IDLE") return startHint();
+  const name = state.hello?.task?.name || "";
+  if (/peg/.test(name) && (task.phase === "IDLE" || task.phase === "READY")) return "pick up a ring to start";
+  if (/camera/.test(name)) return task.phase === "READY" ? "ready: move the camera to start" : "hold the camera still to start";
+  if (task.phase === "IDLE") return "bring the tool to the start to begin";
   if (task.phase === "READY") return "ready: go";
   return "–";
-}
-
-// What starts an attempt, in the exercise's words (the panel says it while IDLE).
-function startHint() {
-  const name = state.hello?.task?.name || "";
-  if (/camera/.test(name)) return "hold the camera still to start";
-  if (/peg/.test(name)) return "pick up a ring to start";
-  return "bring the tool to the start to begin";
 }
 
 // The last attempt's score and verdict, and its metrics with their units.
@@ -275,9 +270,9 @@ function showResult(last) {
 }
 
 function displayValue(m, v) {
-  const [unit, factor] = m.display || [m.unit, 1];
+  const [unit, factor] = m.display || (m.unit === "m" ? ["mm", 1000] : [m.unit, 1]);
   const x = v * factor;
-  const text = Number.isInteger(x) ? String(x) : x.toPrecision(3);
+  const text = Number.isInteger(x) ? String(x) : Math.abs(x) < 0.005 ? "0" : x.toPrecision(3);
   return unit && unit !== "1" ? `${text} ${unit}` : text;
 }
 
@@ -450,6 +445,16 @@ function drawMarks(ctx, marks, w) {
     ctx.moveTo(w / 2 - 14, h / 2); ctx.lineTo(w / 2 + 14, h / 2);
     ctx.moveTo(w / 2, h / 2 - 14); ctx.lineTo(w / 2, h / 2 + 14);
     ctx.stroke();
+  }
+  if (marks.wire) {  // the wire, thin and dashed over the scene's (it can hide behind the tool)
+    ctx.strokeStyle = "rgba(255,225,77,0.75)"; ctx.lineWidth = 1.5; ctx.setLineDash([4, 4]);
+    ctx.beginPath();
+    let on = false;
+    for (const q of marks.wire.pixels) {
+      if (!q) { on = false; continue; }
+      if (on) ctx.lineTo(q[0], q[1]); else { ctx.moveTo(q[0], q[1]); on = true; }
+    }
+    ctx.stroke(); ctx.setLineDash([]);
   }
   for (const peg of marks.pegs || []) {  // the target pegs ringed in green
     if (!peg.pixel || !peg.target) continue;
