@@ -236,10 +236,13 @@ function onState(s) {
 // What the trainee is to do now: the exercise's own words while it runs.
 function toDo(task) {
   if (task.phase === "FINISHED" || task.phase === "RESULTS") return "done: the attempt is scored below; back to the start for the next";
-  if (task.progress) return task.progress;
   const name = state.hello?.task?.name || "";
+  // (the keys each exercise needs beyond moving the tool, in its words)
+  if (task.progress && /camera/.test(name)) return `${task.progress}: hold C (camera pedal) and drag the view with the keys`;
+  if (task.progress && /needle/.test(name)) return `${task.progress}, the tool along its stem (turn it with I/K, J/L, U/O)`;
+  if (task.progress) return task.progress;
   if (/peg/.test(name) && (task.phase === "IDLE" || task.phase === "READY")) return "pick up a ring to start";
-  if (/camera/.test(name)) return task.phase === "READY" ? "ready: move the camera to start" : "hold the camera still to start";
+  if (/camera/.test(name)) return task.phase === "READY" ? "ready: hold C (camera pedal) and move the view to start" : "hold the camera still to start";
   if (task.phase === "IDLE") return "bring the tool to the start to begin";
   if (task.phase === "READY") return "ready: go";
   return "–";
@@ -410,7 +413,7 @@ function drawHud(ctx, s, w) {
   if (s.task) {
     const d = s.task.distance == null ? "" : ` · deviation ${(1000 * s.task.distance).toFixed(1)} mm`;
     lines.push(`${s.task.name} · ${s.task.phase} · rep ${s.task.repetition}${d}`);
-    if (s.task.progress) lines.push(s.task.progress);
+    if (s.task.progress && s.task.phase === "RUNNING") lines.push(s.task.progress);
   }
   lines.push(`t = ${s.time.toFixed(1)} s${isOperator() ? " · you operate" : ""}`);
   ctx.fillStyle = "rgba(0,0,0,0.55)";
