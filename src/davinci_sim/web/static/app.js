@@ -168,15 +168,13 @@ function handLabel(mtm) {
 
 // The keys drive `mtm` from now on: the other hand stops where it is, with its jaw as it was.
 function setHand(mtm) {
-  const old = state.hand;
   state.hand = mtm;
   if (mtm == null) return;
   if (!(mtm in state.grippers)) state.grippers[mtm] = GRIPPER_OPEN;
   state.gripper = state.grippers[mtm];
   state.jawOpen = state.gripper > 0;
   $("hand").value = mtm;
-  if (old && old !== mtm && isOperator()) send({ op: "input", mtm: old, axes: [0, 0, 0], turn: [0, 0, 0] });
-  sendInput(true);
+  sendInput(false);  // (the other hand, if it was moving, is told to stop)
 }
 
 function setSlider(id, value) { $(id).value = value; $(`${id}-out`).textContent = value; }
@@ -688,8 +686,14 @@ function sendInput(force) {
   const targets = camera ? [...state.hello.hands] : [handMtm()];
   const moving = axes.some((v) => v !== 0) || turn.some((v) => v !== 0);
   const now = performance.now();
-  const same = sameAxes(axes, state.axes) && sameAxes(turn, state.turn) && targets.join() === state.inputTargets.join();
-  if (!force && same && !(moving && now - state.lastInputAt > 100)) return;
+  const wasMoving = state.axes.some((v) => v !== 0) || state.turn.some((v) => v !== 0);
+  // (other hands with nothing moving: nothing to send; a hand takes its handle when moved)
+  const sameTargets = targets.join() === state.inputTargets.join() || (!moving && !wasMoving);
+  const same = sameAxes(axes, state.axes) && sameAxes(turn, state.turn) && sameTargets;
+  if (!force && same && !(moving && now - state.lastInputAt > 100)) {
+    state.inputTargets = targets;
+    return;
+  }
   for (const old of state.inputTargets) {  // a hand no longer driven stops now
     if (!targets.includes(old)) send({ op: "input", mtm: old, axes: [0, 0, 0], turn: [0, 0, 0] });
   }
