@@ -164,3 +164,43 @@ def test_the_teleoperation_of_a_rate_input_keeps_the_tool_orientation(system):
     R1 = sim.arms["PSM1"].measured_cp().T[:3, :3]
     angle = np.arccos(np.clip((np.trace(R0.T @ R1) - 1) / 2, -1, 1))
     assert angle < np.radians(2)
+
+
+def test_an_angular_velocity_turns_the_tool_the_same_way_once_rotation_is_unlocked(system):
+    """The wrist keys' path: rotation unlocked (the web console does it on the first turn;
+    the teleoperation re-aligns with the wrist relaxed), then 0.4 rad/s about HRSV y for
+    0.5 s: the MTM and the tool turn by 0.2 rad about the same axis (camera and HRSV axes
+    are aligned, the alignment offset multiplies on the right)."""
+    from davinci_sim.geometry import so3
+
+    sim, teleop, hand = system
+    psm = sim.arms["PSM1"]
+    assert teleop.rotation_locked()  # a rate input's teleoperation starts locked
+    teleop.lock_rotation(False)
+    assert sim.run_until(teleop.is_following, 10.0)
+    R0 = psm.measured_cp().T[:3, :3].copy()
+    p0 = tip(sim)
+    for _ in range(5):
+        assert hand.command([0.0, 0.0, 0.0], None, [0.0, 0.4, 0.0])
+        sim.run_for(0.1)
+    assert hand.snapshot()["wrist_held"]
+    sim.run_for(0.5)  # the input times out; the handle settles
+    turned = so3.rotation_vector(psm.measured_cp().T[:3, :3] @ R0.T)
+    # 0.4 rad/s for 0.4 s of commands plus the last one's timeout (0.3 s).
+    assert turned == pytest.approx([0.0, 0.4 * (0.4 + hand.timeout), 0.0], abs=0.02)
+    assert np.linalg.norm(tip(sim) - p0) < 0.002  # turned about the tip, not moved
+    assert hand.relax_wrist() and not hand.snapshot()["wrist_held"]
+
+
+@pytest.mark.parametrize(
+    "angular, words",
+    [([0.0, 0.0], "3 finite"), ([0.0, math.nan, 0.0], "3 finite"), ([3.0, 0.0, 0.0], "over")],
+)
+def test_a_bad_angular_velocity_is_refused_and_changes_nothing(system, angular, words):
+    sim, _, hand = system
+    before = hand.get_state()
+    result = hand.command([0.01, 0.0, 0.0], None, angular)
+    assert not result and words in result.message
+    after = hand.get_state()
+    assert all(np.array_equal(np.asarray(before[k]), np.asarray(after[k]))
+               for k in ("_v", "_w", "_target"))  # fmt: skip

@@ -103,6 +103,28 @@ def test_a_ring_carried_to_a_target_peg_is_transferred_without_a_wall(plain):
     assert run.totals["transferred"] == 1
 
 
+def test_the_panel_says_which_ring_is_next_and_asks_for_the_hand_off(icra):
+    """The console's progress words: none before the start; ``ring k of K`` with k the
+    next ring not yet transferred; over the wall, while the carried ring has not changed
+    hands, the hand-off is asked for."""
+    run = Run(icra)
+    run.tick(15)
+    assert icra.progress(run.monitor.state) == ""
+    run.lift(0, PSM2_JAWS)
+    assert (
+        icra.progress(run.monitor.state)
+        == "ring 1 of 3 to a target peg (hand it off over the wall)"
+    )
+    run.grasp[0] = PSM1_JAWS | PSM2_JAWS
+    run.tick(15)
+    run.grasp[0] = PSM1_JAWS
+    run.tick(15)
+    assert icra.progress(run.monitor.state) == "ring 1 of 3 to a target peg"
+    run.move_over(0, icra.target_pegs[0])
+    run.release_onto(0, _on_peg(icra, icra.target_pegs[0]))
+    assert icra.progress(run.monitor.state) == "ring 2 of 3 to a target peg"
+
+
 def test_with_the_wall_only_a_handed_off_ring_counts(icra):
     run = Run(icra)
     run.tick(15)

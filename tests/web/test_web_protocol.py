@@ -21,6 +21,8 @@ def test_good_messages_parse_to_their_checked_fields():
     assert parse_message(msg(op="control", take=True)).args == {"take": True}
     assert parse_message(msg(op="teleop", scale=0.5)).args == {"scale": 0.5}
     assert parse_message(msg(op="trainee", name="  Ada ")).args == {"name": "Ada"}
+    c = parse_message(msg(op="input", mtm="MTML", axes=[0, 0, 0], turn=[0, 1, -0.25]))
+    assert c.args["turn"] == [0.0, 1.0, -0.25]
 
 
 @pytest.mark.parametrize(
@@ -40,6 +42,8 @@ def test_good_messages_parse_to_their_checked_fields():
         ('{"op": "input", "mtm": "MTMR", "axes": [NaN, 0, 0]}', "not a number"),
         ('{"op": "input", "mtm": "MTMR", "axes": [Infinity, 0, 0]}', "not a number"),
         (msg(op="input", mtm="MTMR", axes=[0, 0, 0], gripper=3), "gripper must be in"),
+        (msg(op="input", mtm="MTMR", axes=[0, 0, 0], turn=[0, 2, 0]), "turn[1] must be in"),
+        (msg(op="input", mtm="MTMR", axes=[0, 0, 0], turn=[0, 0]), "turn must be a list"),
         (msg(op="button", name="self_destruct", pressed=True), "name must be one of"),
         (msg(op="button", name="clutch", pressed=1), "true or false"),
         (msg(op="teleop", scale=0), "scale must be in (0, 1]"),

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import io
 import json
+import math
 import struct
 import time
 import urllib.error
@@ -300,3 +301,42 @@ def test_a_token_is_required_off_loopback():
     with pytest.raises(ValueError, match="needs a token"):
         WebOptions(host="0.0.0.0")
     assert WebOptions(host="0.0.0.0", token="x").token == "x"
+
+
+def test_the_wrist_input_unlocks_the_rotation_turns_the_tool_and_release_locks_it(console):
+    """A rate input's teleoperation starts with the rotation locked; the page's first turn
+    unlocks it (the teleoperation re-aligns, then follows), the turn about the screen's
+    "up" axis swings the tool's direction towards the image's left (camera +x), and
+    releasing control locks the rotation again."""
+    web, system = console
+    page = Page(web)
+
+    def locked() -> bool:
+        return bool(system.handle.snapshot().extras["MTMR_PSM1"].rotation_locked)
+
+    try:
+        page.take_control()
+        before = wait_following(page)
+        assert locked()
+        z0 = np.array(before["tips"]["PSM1"]["z_camera"])
+        turned_for = 0.0
+        last = before["time"]
+        while turned_for < 0.5:  # s of simulated time following while turning
+            page.send(op="input", mtm="MTMR", axes=[0, 0, 0], turn=[0, 1, 0])
+            time.sleep(0.05)
+            s = page.latest_state()
+            if s["teleops"]["MTMR_PSM1"]["following"] and not locked():
+                turned_for += s["time"] - last
+            last = s["time"]
+        time.sleep(0.5)
+        z1 = np.array(page.latest_state()["tips"]["PSM1"]["z_camera"])
+        swing = np.cross(z0, z1)  # rotation axis x sin(angle), camera frame
+        assert swing[1] > math.sin(math.radians(5))  # about camera +y ("up"): turned ~0.5 rad
+        page.send(op="control", take=False)
+        page.next("control", where=lambda m: m["operator"] is None)
+        end = time.monotonic() + 10
+        while not locked() and time.monotonic() < end:
+            time.sleep(0.05)
+        assert locked()
+    finally:
+        page.close()

@@ -37,3 +37,50 @@ def test_project_left_is_the_pinhole_of_the_left_camera():
     u, v = project_left([cam.baseline_m / 2 + 0.01, 0.02, 0.2], cam)
     assert u == pytest.approx(320 - f * 0.05) and v == pytest.approx(240 - f * 0.1)
     assert project_left([0, 0, -0.1], cam) is None
+
+
+def test_task_marks_put_an_exercises_targets_and_directions_in_the_camera_frame():
+    """Needle targets (world) seen from a camera at (0, 0, 1) looking down: each target's
+    camera-frame position and its stem's direction (unit) by the inverse transform, its
+    pixel by the pinhole; the current target read from the panel's words."""
+    import numpy as np
+
+    from davinci_sim.model.cameras import CameraConfig, project_left
+    from davinci_sim.tasks.needle_targeting import NeedleTargetingTask
+    from davinci_sim.web.view import task_marks
+
+    T_world_camera = np.array([[-1.0, 0, 0, 0], [0, 1, 0, 0], [0, 0, -1, 1.0], [0, 0, 0, 1]])
+    task = NeedleTargetingTask(
+        "n", start=[0.0, 0.0, 0.8], targets=[[0.01, 0.02, 0.75], [0.0, -0.01, 0.78]],
+        directions=[[0.0, 0.0, -2.0], [1.0, 0.0, -1.0]],
+    )  # fmt: skip
+    cam = CameraConfig()
+    marks = task_marks(task, T_world_camera, cam, "touch target 2 of 2")
+    assert marks["current"] == 1
+    first, second = marks["targets"]
+    assert first["label"] == "1"
+    # World (x, y, z) -> camera (-x, y, 1 - z): the camera's x is the world's -x.
+    assert first["p_camera"] == pytest.approx([-0.01, 0.02, 0.25])
+    assert first["pixel"] == pytest.approx(list(project_left([-0.01, 0.02, 0.25], cam)))
+    assert first["direction"] == pytest.approx([0.0, 0.0, 1.0])  # down = into the image
+    assert second["direction"] == pytest.approx([-math.sqrt(0.5), 0.0, math.sqrt(0.5)])
+    tail = np.array(second["p_camera"]) - 0.012 * np.array(second["direction"])
+    assert second["shaft_pixel"] == pytest.approx(list(project_left(tail, cam)))
+    assert task_marks(task, T_world_camera, cam, "")["current"] is None
+
+
+def test_task_marks_of_a_wire_sample_it_every_2_mm_and_skip_the_seeds_path():
+    import numpy as np
+
+    from davinci_sim.model.cameras import CameraConfig
+    from davinci_sim.tasks import load_task
+    from davinci_sim.tasks.ring_walk import RingWalkTask
+    from davinci_sim.web.view import task_marks
+
+    T_world_camera = np.array([[-1.0, 0, 0, 0], [0, 1, 0, 0], [0, 0, -1, 1.0], [0, 0, 0, 1]])
+    wire = RingWalkTask("r", [[0.0, 0.0, 0.7], [0.02, 0.0, 0.7]], corner_radius=0.0)
+    marks = task_marks(wire, T_world_camera, CameraConfig())
+    p = np.array(marks["wire"]["p_camera"])
+    assert len(p) == 11 and "targets" not in marks
+    assert p[0] == pytest.approx([0.0, 0.0, 0.3]) and p[-1] == pytest.approx([-0.02, 0.0, 0.3])
+    assert task_marks(load_task("seed_path"), T_world_camera, CameraConfig()) is None

@@ -10,11 +10,18 @@ loop's forces push back on the handle, so the tool follows the person's input th
 same device → console → teleoperation path as a real MTM, and a guidance force is felt as
 the handle lagging the hand.
 
+The wrist: an angular velocity (``command(..., angular=...)``, rad/s in HRSV) turns the
+hand's target orientation; from the first turn on, the hand holds the handle's orientation
+(a person who has turned the wrist keeps it there) and the teleoperation turns the tool the
+same way in the camera frame (the alignment offset multiplies on the right). Before any turn
+the wrist stays relaxed, as the teleoperation's alignment needs.
+
 Safety, as a dead-man switch: a velocity holds for ``timeout`` seconds of simulated time
 (a page that stops sending stops the hand); the target never leads the handle by more than
 ``max_lead`` (a hand pushing against a fixture or a joint limit does not wind up a spring
 that would snap the tool away when released); the target stays within ``workspace`` of where
-the hand took the handle.
+the hand took the handle; the target orientation never leads the handle's by more than
+``max_turn_lead``.
 
 HRSV axes (dvrk.md 4.2: the teleoperation maps HRSV motion to camera-frame motion of the
 tool, scaled): x to the left of the image, y up, z into the scene.
@@ -27,6 +34,7 @@ import math
 import numpy as np
 
 from davinci_sim.devices.simulated import SimulatedMTM
+from davinci_sim.geometry import so3
 from davinci_sim.sim.state import capture, restore
 from davinci_sim.sim.types import ACCEPTED, CommandResult
 
@@ -43,6 +51,8 @@ class HandInput:
         timeout: a velocity command holds this long, s of simulated time.
         max_lead: largest distance of the hand's target ahead of the handle, m.
         workspace: largest distance of the target from where the hand took the handle, m.
+        max_turn: largest angular speed of the wrist accepted, rad/s.
+        max_turn_lead: largest angle of the target orientation ahead of the handle's, rad.
         name: component name (default ``"<MTM>/hand"``).
     """
 
@@ -54,6 +64,8 @@ class HandInput:
         timeout: float = 0.3,
         max_lead: float = 0.01,
         workspace: float = 0.15,
+        max_turn: float = 2.0,
+        max_turn_lead: float = 0.3,
         name: str | None = None,
     ) -> None:
         for label, value in (
@@ -61,6 +73,8 @@ class HandInput:
             ("timeout", timeout),
             ("max_lead", max_lead),
             ("workspace", workspace),
+            ("max_turn", max_turn),
+            ("max_turn_lead", max_turn_lead),
         ):
             if not (math.isfinite(value) and value > 0):
                 raise ValueError(f"{label} must be > 0, got {value!r}")
@@ -69,11 +83,16 @@ class HandInput:
         self.timeout = float(timeout)
         self.max_lead = float(max_lead)
         self.workspace = float(workspace)
+        self.max_turn = float(max_turn)
+        self.max_turn_lead = float(max_turn_lead)
         self.name = name or f"{device.mtm}/hand"
         self._holding = False
         self._origin = np.zeros(3)
         self._target = np.zeros(3)
         self._v = np.zeros(3)
+        self._w = np.zeros(3)
+        self._R_target: np.ndarray | None = None
+        """The wrist's target orientation (HRSV); None: the wrist is relaxed."""
         self._v_until = -math.inf
         self._gripper: float | None = None
         self._time = 0.0
@@ -85,6 +104,8 @@ class HandInput:
         p = self._handle_position()
         self._origin, self._target = p.copy(), p.copy()
         self._v = np.zeros(3)
+        self._w = np.zeros(3)
+        self._R_target = None
         self._holding = True
         # The wrist stays relaxed: the rate input moves the handle, and the teleoperation
         # aligns the MTM's orientation with the tool's (a held wrist would fight it).
@@ -97,16 +118,42 @@ class HandInput:
             self.device.release()
         self._holding = False
         self._v = np.zeros(3)
+        self._w = np.zeros(3)
+        self._R_target = None
         return ACCEPTED
 
-    def command(self, velocity, gripper: float | None = None) -> CommandResult:
-        """Move the hand at ``velocity`` (3 floats, HRSV, m/s) for the next ``timeout``
+    def relax_wrist(self) -> CommandResult:
+        """Let the wrist go (the hand keeps the handle's position): e.g. while the
+        teleoperation aligns the MTM's orientation with the tool's; the next turn takes the
+        wrist again where it is."""
+        if self._holding and self._R_target is not None:
+            self._R_target = None
+            self.device.grasp(self._target.copy(), hold_orientation=False)
+        return ACCEPTED
+
+    def command(self, velocity, gripper: float | None = None, angular=None) -> CommandResult:
+        """Move the hand at ``velocity`` (3 floats, HRSV, m/s) and turn the wrist at
+        ``angular`` (3 floats, HRSV, rad/s; None: no turn) for the next ``timeout``
         seconds, and set the gripper to ``gripper`` rad if given.
 
         The hand takes the handle first if it does not hold it. Refused, with nothing
         changed, for a velocity that is not 3 finite numbers or is faster than
-        ``max_speed``, or for a gripper angle outside ``GRIPPER_RANGE``.
+        ``max_speed``, an angular velocity that is not 3 finite numbers or is faster than
+        ``max_turn``, or a gripper angle outside ``GRIPPER_RANGE``.
         """
+        w = np.zeros(3)
+        if angular is not None:
+            try:
+                w = np.asarray(angular, dtype=float)
+            except (TypeError, ValueError):
+                return _refused(self.name, f"angular must be 3 numbers (rad/s), got {angular!r}")
+            if w.shape != (3,) or not np.isfinite(w).all():
+                return _refused(
+                    self.name, f"angular must be 3 finite numbers (rad/s), got {angular!r}"
+                )
+            turn = float(np.linalg.norm(w))
+            if turn > self.max_turn:
+                return _refused(self.name, f"turn {turn:.3f} rad/s is over {self.max_turn} rad/s")
         try:
             v = np.asarray(velocity, dtype=float)
         except (TypeError, ValueError):
@@ -130,6 +177,7 @@ class HandInput:
         if not self._holding:
             self.grasp()  # moving the input takes the handle
         self._v = v
+        self._w = w
         self._v_until = self._time + self.timeout
         if gripper is not None:
             self._gripper = float(gripper)
@@ -164,20 +212,49 @@ class HandInput:
             if r > self.workspace:
                 target = self._origin + reach * (self.workspace / r)
             self._target = target
-            self.device.move_hand(target)
+            if self._w.any():
+                self._turn(dt)
+            if self._R_target is None:
+                self.device.move_hand(target)
+            else:
+                T = np.eye(4)
+                T[:3, :3], T[:3, 3] = self._R_target, target
+                self.device.move_hand(T)
         if self._gripper is not None:
             self.device.squeeze(self._gripper)
             self._gripper = None
+
+    def _turn(self, dt: float) -> None:
+        """Turn the wrist's target by ``angular·dt`` (from the handle's orientation at the
+        first turn, when the wrist starts holding), unless it already leads the handle by
+        ``max_turn_lead``."""
+        read = self.device.input()
+        R_handle = (read.T_hrsv_tip if read is not None else self.device.arm.measured_cp().T)[
+            :3, :3
+        ]
+        if self._R_target is None:
+            self._R_target = R_handle.copy()
+            T = np.eye(4)
+            T[:3, :3], T[:3, 3] = self._R_target, self._target
+            self.device.grasp(T, hold_orientation=True)
+        R = so3.rotation_from_vector(self._w * dt) @ self._R_target
+        if so3.angle_between(R, R_handle) <= max(
+            self.max_turn_lead, so3.angle_between(self._R_target, R_handle)
+        ):  # (the handle lagging further stops the target, as max_lead does)
+            self._R_target = R
 
     def snapshot(self) -> dict:
         moving = self._time < self._v_until
         return {
             "holding": self._holding,
             "velocity": tuple(float(x) for x in (self._v if moving else np.zeros(3))),
+            "angular": tuple(float(x) for x in (self._w if moving else np.zeros(3))),
+            "wrist_held": self._R_target is not None,
             "target": tuple(float(x) for x in self._target),
         }
 
-    _STATE = ("_holding", "_origin", "_target", "_v", "_v_until", "_gripper", "_time")
+    _STATE = ("_holding", "_origin", "_target", "_v", "_w", "_R_target", "_v_until",
+              "_gripper", "_time")  # fmt: skip
 
     def get_state(self) -> dict:
         return capture(self, self._STATE)

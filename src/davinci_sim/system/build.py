@@ -306,6 +306,7 @@ def build_system(description: SystemDescription, *, start: bool = False) -> Syst
             snapshot_period=description.snapshot_period,
             render_hz=description.render_hz,
             render_model=functools.partial(scene_model, description),
+            mirror_edit=_edit_spec(description, load_description_task(description)),
             start_paused=description.start_paused,
             realtime_priority=description.realtime_priority,
             loop_cpu=description.loop_cpu,

@@ -450,6 +450,18 @@ class PegTransferTask(Task, kind="peg_transfer"):
         """Tips (n, 3) to the transfer route, m (the ring positions are the sample's)."""
         return self.route.closest_point(np.asarray(tip, dtype=float).reshape(-1, 3)).distance
 
+    def progress(self, state) -> str:
+        """``ring k of K to a target peg`` (the next not yet transferred) while running,
+        with the hand-off the wall asks for while the ring is carried."""
+        if int(state.phase[0]) not in (Phase.RUNNING, Phase.FINISHED):
+            return ""
+        done = int(np.count_nonzero(state.done[0]))
+        text = f"ring {min(done + 1, self.n_rings)} of {self.n_rings} to a target peg"
+        carried = state.carried[0] & ~state.done[0]
+        if self.wall and carried.any() and not state.handed[0][carried].all():
+            text += " (hand it off over the wall)"
+        return text
+
     def summary(self, row: dict) -> str:
         return (f"{row['transferred']} of {self.n_rings} rings transferred, "
                 f"{row['handoffs']} hand-offs, {row['drops']} drops, "

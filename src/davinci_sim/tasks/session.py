@@ -84,6 +84,9 @@ class TaskSessionState:
     guidance_B: float | None = None
     """The B (N·s/m) the guidance runs with now, in an adaptive condition (None in
     another)."""
+    objects: tuple = ()
+    """A kind with objects (peg transfer's rings): their centres at the last sample, task
+    frame, m, one (x, y, z) each (empty for the other kinds)."""
 
 
 class TaskSession:
@@ -137,6 +140,9 @@ class TaskSession:
         self.results: list[dict] = []
         self.repetition = 1
         self._distance = math.nan
+        self._objects: tuple = ()
+        self._bringing = False
+        """The session's move of the tool to the start is under way."""
         self._recorded = False
         self._frame_at = frame_view
         self._framed = False
@@ -220,8 +226,12 @@ class TaskSession:
         """Nothing before the physics step: the session samples in :meth:`post_step`."""
 
     def post_step(self, t: float) -> None:
-        if self._frame_at is not None:
-            self._frame_when_ready()
+        if self._frame_at is not None or self._bringing:
+            if self._frame_at is not None:
+                self._frame_when_ready()
+            if self._framing():  # no repetition starts while the session moves the arms
+                self.monitor.reset()
+                return
         task = self.task
         T_task_camera = task.T_task_camera(self.sim.T_cart_camera())
         if self._recorded:
@@ -231,10 +241,23 @@ class TaskSession:
                 self.repetition += 1
                 self.reset()
             return
-        self.monitor.observe(live_sample(task, T_task_camera, self.teleop, self.console, t))
+        sample = live_sample(task, T_task_camera, self.teleop, self.console, t)
+        self.monitor.observe(sample)
+        if sample.objects is not None:  # (what the console's page shows of them)
+            self._objects = tuple(tuple(float(x) for x in p) for p in sample.objects[0])
         self._distance = self.monitor.distance
         if self.monitor.phase == Phase.FINISHED and self.monitor.results is not None:
             self._record(self.monitor.results, t)
+
+    def _framing(self) -> bool:
+        """The session is framing the view: the ECM moves (homing, then to the task) or the
+        tool has still to be brought to the start. (A camera exercise is ready as soon as
+        the camera is still: its clock must not start with these motions.)"""
+        if self._bringing:  # the tool on its way to the start (the session's move_cp)
+            self._bringing = self.teleop.psm.is_busy()
+            return self._bringing
+        ecm = self.sim.arms.get("ECM")
+        return self._frame_at is not None and (self._framed or (ecm is not None and ecm.is_busy()))
 
     def _frame_when_ready(self) -> None:
         """The one-shot start of a framed session: once the ECM is homed and idle, frame the
@@ -261,6 +284,7 @@ class TaskSession:
         goal = psm.setpoint_cp().T.copy()
         goal[:3, 3] = (np.linalg.inv(T_task_camera) @ np.append(self.task.start, 1.0))[:3]
         result = psm.move_cp(goal)
+        self._bringing = bool(result)
         if not result:
             self.channels.message("warning", result.message, self.sim.time)
 
@@ -334,11 +358,12 @@ class TaskSession:
             last=dict(self.results[-1]) if self.results else {},
             progress=self.task.progress(self.monitor.state),
             guidance_B=None if self._adaptive is None else self._adaptive["B"],
+            objects=self._objects,
         )
 
     # ------------------------------------------------------------ state
     _STATE = ("results", "repetition", "_distance", "_recorded", "condition", "_frame_at",
-              "_framed", "_adaptive")  # fmt: skip
+              "_framed", "_bringing", "_adaptive")  # fmt: skip
 
     def get_state(self) -> dict:
         """The monitor's state, the rows so far, the repetition number, the last distance,

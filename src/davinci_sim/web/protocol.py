@@ -12,7 +12,10 @@ Ops (fields; units):
   asks for one (not on loopback).
 - ``control`` (``take``: bool): take or release operating the console (one operator).
 - ``input`` (``mtm``: MTML/MTMR; ``axes``: 3 numbers in [-1, 1], the hand's rate along the
-  screen's right, up and into-the-screen directions; ``gripper``: rad in [0, 60°], optional).
+  screen's right, up and into-the-screen directions; ``gripper``: rad in [0, 60°], optional;
+  ``turn``: 3 numbers in [-1, 1], optional, the wrist's rate about the same three axes
+  (right-hand rule: + about "right" turns a tool pointing into the scene up, + about "up"
+  turns it to the left, + about "in" rolls it clockwise as seen on the screen)).
 - ``button`` (``name``: clutch, camera, operator_present; ``pressed``: bool).
 - ``condition`` (``condition``: a condition name of the task, or a fixture entry
   ``{"type": "viscous", "B": N·s/m, "G_max": N}``, ``{"type": "spring", ...}``,
@@ -115,10 +118,16 @@ def _text(name: str, max_length: int):
     return check
 
 
-def _axes(value):
-    if not isinstance(value, list) or len(value) != 3:
-        raise ProtocolError(f"axes must be a list of 3 numbers in [-1, 1], got {value!r}")
-    return [_number(f"axes[{i}]", -1.0, 1.0)(v) for i, v in enumerate(value)]
+def _three(name: str):
+    def check(value):
+        if not isinstance(value, list) or len(value) != 3:
+            raise ProtocolError(f"{name} must be a list of 3 numbers in [-1, 1], got {value!r}")
+        return [_number(f"{name}[{i}]", -1.0, 1.0)(v) for i, v in enumerate(value)]
+
+    return check
+
+
+_axes = _three("axes")
 
 
 _FIXTURE_PARAMETER = _number("a fixture parameter", 0.0, 1e4)
@@ -153,6 +162,7 @@ OPS: dict[str, dict[str, tuple[Any, bool]]] = {
         "mtm": (_choice("mtm", MTMS), True),
         "axes": (_axes, True),
         "gripper": (_number("gripper", 0.0, GRIPPER_MAX), False),
+        "turn": (_three("turn"), False),
     },
     "button": {"name": (_choice("name", BUTTONS), True), "pressed": (_boolean("pressed"), True)},
     "condition": {"condition": (_condition, True)},

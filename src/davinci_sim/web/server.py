@@ -80,11 +80,13 @@ class WebOptions:
     jpeg_quality: int = 80
     hand_speed: float = 0.05
     """Hand speed at full input (an axis at ±1), m/s in HRSV."""
+    turn_speed: float = 0.6
+    """The wrist's angular speed at full input (a turn axis at ±1), rad/s in HRSV."""
     bedside_port: int | None = None
     """Port of the 3-D bedside view (viser) the page embeds; None: no 3-D view."""
 
     def __post_init__(self) -> None:
-        for name in ("state_rate", "frame_rate", "hand_speed"):
+        for name in ("state_rate", "frame_rate", "hand_speed", "turn_speed"):
             v = getattr(self, name)
             if not (math.isfinite(v) and v > 0):
                 raise ValueError(f"{name} must be > 0, got {v!r}")
@@ -174,6 +176,8 @@ class WebConsole(AsyncService):
         """The trainee records (``set_trainee(name) -> name``; None: not recorded)."""
         self.trainee = "" if records is None else records.trainee
         self.operator: int | None = None
+        self._wrist_free: set[str] = set()
+        """MTMs whose teleoperations the page unlocked the rotation of (the wrist keys)."""
         self._clients: dict[int, _Client] = {}
         self._ids = itertools.count(1)
         self._port: int | None = None
@@ -365,6 +369,7 @@ class WebConsole(AsyncService):
             "camera": {"width": self.camera.width, "height": self.camera.height},
             "hands": list(self.hand_mtms),
             "hand_speed": self.options.hand_speed,
+            "turn_speed": self.options.turn_speed,
             "bedside_port": self.options.bedside_port,
             "operator": self.operator,
             "trainee": self.trainee,
@@ -382,8 +387,14 @@ class WebConsole(AsyncService):
                 "fixture": dict(task.fixture_spec),
                 "fixture_types": sorted(task.FIXTURE_TYPES),
                 "metrics": [
-                    {"name": m.name, "unit": m.unit, "better": m.better, "label": m.label}
-                    for m in task.METRICS
+                    {
+                        "name": m.name,
+                        "unit": m.unit,
+                        "better": m.better,
+                        "label": m.label,
+                        "display": None if m.display is None else list(m.display),
+                    }
+                    for m in task.METRICS  # fmt: skip
                 ],
             }
         return info
@@ -497,7 +508,25 @@ class WebConsole(AsyncService):
             speed = float(np.linalg.norm(v))
             if speed > self.options.hand_speed:  # diagonal input: the speed stays the max
                 v *= self.options.hand_speed / speed
-            await self._call(f"{mtm}/hand", "command", v.tolist(), a.get("gripper"))
+            w = None
+            if "turn" in a:  # the same screen -> HRSV map, for rates about those axes
+                turn = np.asarray(a["turn"], dtype=float)
+                w = self.options.turn_speed * np.array([-turn[0], turn[1], turn[2]])
+                rate = float(np.linalg.norm(w))
+                if rate > self.options.turn_speed:
+                    w *= self.options.turn_speed / rate
+                w = w.tolist()
+                if any(w) and mtm not in self._wrist_free:
+                    await self._free_wrist(mtm)
+                    w = None
+            if mtm in self._wrist_free:  # the wrist turns only while the tool follows
+                extras = self.handle.snapshot().extras or {}
+                following = any(extras[n].following for n in self._teleops_of(mtm))
+                if not following:
+                    w = None
+                    if (extras.get(f"{mtm}/hand") or {}).get("wrist_held"):
+                        await self._call(f"{mtm}/hand", "relax_wrist")
+            await self._call(f"{mtm}/hand", "command", v.tolist(), a.get("gripper"), w)
         elif op == "button":
             await self._call("console", "press" if a["pressed"] else "release", a["name"])
         elif op == "condition":
@@ -527,6 +556,22 @@ class WebConsole(AsyncService):
             else:
                 await self._call("synthetic", "stop")
                 await self._grasp()
+
+    async def _free_wrist(self, mtm: str) -> None:
+        """The first turn of ``mtm``'s wrist keys: its teleoperations' rotation, locked for a
+        rate input (``system.build``: a relaxed wrist must not drift the tool), is unlocked,
+        so the tool turns with the hand, which from then on holds its wrist
+        (:class:`~davinci_sim.devices.hand_input.HandInput`). The teleoperation re-aligns
+        first, as the dVRK's does on unlocking (dvrk.md 4.2); releasing control locks it
+        again."""
+        for name in self._teleops_of(mtm):
+            await self._call(name, "lock_rotation", False)
+        self._wrist_free.add(mtm)
+
+    def _teleops_of(self, mtm: str) -> list[str]:
+        extras = self.handle.snapshot().extras or {}
+        return [n for n, s in extras.items()
+                if hasattr(s, "following") and getattr(s, "mtm", None) == mtm]  # fmt: skip
 
     async def _grasp(self) -> None:
         for mtm in self.hand_mtms:
@@ -563,8 +608,12 @@ class WebConsole(AsyncService):
         if self.operator is None:
             return
         self.operator = None
+        relock = [(n, "lock_rotation", (True,)) for m in sorted(self._wrist_free)
+                  for n in self._teleops_of(m)]  # fmt: skip
+        self._wrist_free.clear()
         for target, method, args in [
             *((f"{m}/hand", "release", ()) for m in self.hand_mtms),
+            *relock,
             ("console", "release", ("operator_present",)),
         ]:
             try:

@@ -12,6 +12,7 @@ frame's (dvrk.md 4.2), so the arrow is drawn from the tip along that force.
 from __future__ import annotations
 
 import math
+import re
 from typing import Any
 
 import numpy as np
@@ -38,6 +39,71 @@ def path_guide(p_camera, T_world_camera, path, camera: CameraConfig) -> dict:
         "depth_mm": 1000.0 * float(c_camera[2] - float(np.asarray(p_camera)[2])),
         "distance_mm": 1000.0 * float(np.linalg.norm(c_camera - np.asarray(p_camera))),
     }
+
+
+def task_marks(
+    task, T_world_camera, camera: CameraConfig, progress: str = "", objects=()
+) -> dict | None:
+    """What the heads-up display marks of an exercise, in the camera frame (m) and the left
+    image (pixels): its numbered ``targets`` (with each one's required tool ``direction``,
+    unit, camera frame, when the task has ``directions``), the ``current`` one (0-based,
+    from the task's progress text "… target k of K"; None when it names none), and a path
+    task's ``wire`` (its path every 2 mm; the seed's path has its own depth cue,
+    :func:`path_guide`), a peg board's ``pegs`` (their tops; ``target``: a peg to put a
+    ring on) and ``rings`` (``objects``: their centres in the task's frame, m). None for a
+    task in the camera frame or with nothing to mark."""
+    if task is None or getattr(task, "frame", "world") != "world":
+        return None
+    T = np.asarray(T_world_camera, dtype=float)
+    R, t = T[:3, :3], T[:3, 3]
+
+    def to_camera(p_world) -> np.ndarray:
+        return (np.asarray(p_world, dtype=float).reshape(-1, 3) - t) @ R
+
+    out: dict[str, Any] = {}
+    targets = getattr(task, "targets", None)
+    if targets is not None:
+        directions = getattr(task, "directions", None)
+        marks = []
+        for k, p in enumerate(to_camera(targets)):
+            pixel = project_left(p, camera)
+            mark = {"label": str(k + 1), "p_camera": _vector(p),
+                    "pixel": None if pixel is None else list(pixel)}  # fmt: skip
+            if directions is not None:
+                d = R.T @ np.asarray(directions[k], dtype=float)
+                d /= np.linalg.norm(d)
+                mark["direction"] = _vector(d)
+                # Where the shaft of a tool pointing that way is, 12 mm back from the target.
+                tail = project_left(p - 0.012 * d, camera)
+                mark["shaft_pixel"] = None if tail is None else list(tail)
+            marks.append(mark)
+        out["targets"] = marks
+        found = re.search(r"target (\d+) of (\d+)", progress or "")
+        out["current"] = None if found is None else int(found.group(1)) - 1
+    path = getattr(task, "path", None)
+    if path is not None and task.kind != "path":
+        s = np.linspace(0.0, path.length, max(2, int(path.length / 0.002) + 1))
+        p_camera = to_camera(np.array([path.point_at(x) for x in s]))
+        pixels = [project_left(p, camera) for p in p_camera]
+        out["wire"] = {
+            "p_camera": [_vector(p) for p in p_camera],
+            "pixels": [None if q is None else list(q) for q in pixels],
+        }
+    pegs = getattr(task, "pegs", None)
+    if pegs is not None:
+        targets = set(int(i) for i in task.target_pegs)
+        tops = [[x, y, task.board_top + task.peg_height] for x, y in np.asarray(pegs)]
+        out["pegs"] = [_mark(str(i + 1), p, camera, target=i in targets)
+                       for i, p in enumerate(to_camera(tops))]  # fmt: skip
+    if len(objects):
+        out["rings"] = [_mark(str(i + 1), p, camera) for i, p in enumerate(to_camera(objects))]
+    return out or None
+
+
+def _mark(label: str, p_camera, camera: CameraConfig, **extra) -> dict:
+    pixel = project_left(p_camera, camera)
+    return {"label": label, "p_camera": _vector(p_camera),
+            "pixel": None if pixel is None else list(pixel), **extra}  # fmt: skip
 
 
 def _finite(x: float) -> float | None:
@@ -88,6 +154,13 @@ def console_view(snap, camera: CameraConfig, task=None) -> dict[str, Any]:
         tips[t["psm"]] = {
             "mtm": t["mtm"],
             "p_camera": _vector(p),
+            # The tool's direction (the tip frame's z, where the jaws point), camera frame.
+            "z_camera": _vector(np.asarray(psm.measured_cp.T, dtype=float)[:3, 2]),
+            # ... and the way its jaws open (the tip frame's y), camera frame.
+            "y_camera": _vector(np.asarray(psm.measured_cp.T, dtype=float)[:3, 1]),
+            "jaw": _finite(float(psm.jaw_measured_js.position[0]))
+            if getattr(psm, "jaw_measured_js", None) is not None
+            else None,
             "pixel": None if tip is None else list(tip),
             "force": _vector(force),
             "force_pixel": None if head is None else list(head),
@@ -98,6 +171,11 @@ def console_view(snap, camera: CameraConfig, task=None) -> dict[str, Any]:
         tip = tips.get(task.teleop.psm)
         if tip is not None:  # the ECM's measured_cp is the camera in the cart (dvrk.md 1.6)
             tip["guide"] = path_guide(tip["p_camera"], ecm.measured_cp.T, path, camera)
+    session = extras.get("task")
+    marks = None
+    if ecm is not None:
+        marks = task_marks(task, ecm.measured_cp.T, camera, getattr(session, "progress", ""),
+                           getattr(session, "objects", ()))  # fmt: skip
     hands = {n.split("/")[0]: dict(s) for n, s in extras.items() if n.endswith("/hand")}
     synthetic = extras.get("synthetic")
     sources = {}
@@ -105,7 +183,7 @@ def console_view(snap, camera: CameraConfig, task=None) -> dict[str, Any]:
         if name.endswith("/device") and hasattr(s, "kind"):
             mtm = name.split("/")[0]
             sources[mtm] = _source(s.kind, mtm in hands, bool(synthetic and synthetic["running"]))
-    task = extras.get("task")
+    task = session
     guidance_B = getattr(task, "guidance_B", None)  # (an adaptive condition's B now)
     view = {
         "time": float(snap.time),
@@ -132,11 +210,27 @@ def console_view(snap, camera: CameraConfig, task=None) -> dict[str, Any]:
             "distance": _finite(task.distance_to_path),
             "progress": getattr(task, "progress", ""),
             "guidance_B": None if guidance_B is None else _finite(guidance_B),
+            "marks": marks,
+            "last": _last_attempt(task.last),
         },
         "synthetic": _synthetic(synthetic),
         "sources": sources,
     }
     return view
+
+
+def _last_attempt(row: dict) -> dict | None:
+    """The last finished attempt's score, verdict and metrics (JSON numbers; None before
+    the first)."""
+    if not row:
+        return None
+    out = {}
+    for k, v in row.items():
+        if isinstance(v, (bool, int, str)) or v is None:
+            out[k] = v
+        elif isinstance(v, (float, np.floating, np.integer)):
+            out[k] = _finite(float(v))
+    return out
 
 
 #: What drives an MTM, by its device's kind (the page says it next to each arm).

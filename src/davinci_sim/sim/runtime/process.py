@@ -110,6 +110,9 @@ class ProcessSimulation:
             the loop writes every tick).
         render_model: picklable callable returning the model the renderer draws (e.g. with a
             task's path, :func:`davinci_sim.system.build.scene_model`); None: the scene's.
+        mirror_edit: the ``edit_spec`` the loop's simulation was built with (a task's
+            drawing and objects): the mirror here, which computes snapshots from the
+            published state, must have the same joints (a peg board's free rings).
         stop_at_tick: the loop stops by itself before this tick.
         start_paused: the loop waits for :meth:`resume` before its first tick (schedule
             inputs with :meth:`call_at` first, for a reproducible run).
@@ -134,6 +137,7 @@ class ProcessSimulation:
         snapshot_period: float = 0.01,
         render_hz: float | None = None,
         render_model: Callable[[], Any] | None = None,
+        mirror_edit: Callable[[Any], None] | None = None,
         stop_at_tick: int | None = None,
         start_paused: bool = False,
         loop_cpu: int | None = None,
@@ -162,6 +166,7 @@ class ProcessSimulation:
         )
         self._render_hz = render_hz
         self._render_model = render_model
+        self._mirror_edit = mirror_edit
         self._render_cpu = render_cpu
         self._render_threads = render_threads
         self._state_capacity = state_capacity
@@ -219,7 +224,7 @@ class ProcessSimulation:
         self._state = LatestSlot(self._buffers["state"])
         from davinci_sim.sim.simulation import Simulation
 
-        self._mirror = Simulation(payload["scene"])
+        self._mirror = Simulation(payload["scene"], edit_spec=self._mirror_edit)
         if self._mirror.model.nq != payload["nq"] or self._mirror.model.nu != payload["nu"]:
             self.stop()
             raise LoopProcessError(

@@ -3,7 +3,7 @@
 // Everything the simulation does goes through the server's checked commands (protocol.py).
 
 import {
-  KEYMAP, GRIPPER_OPEN, keyAxes, isMappedKey, buttonOfKey, toggleOfKey,
+  KEYMAP, GRIPPER_OPEN, keyAxes, keyTurn, isMappedKey, buttonOfKey, toggleOfKey,
   gamepadInput, rumble, rumbleIntensity, sameAxes,
 } from "./input.js";
 
@@ -13,7 +13,8 @@ const state = {
   ws: null, client: null, operator: null, hello: null, last: null,
   frames: 0, framesAt: performance.now(), fps: 0,
   left: null, right: null, frameTime: 0,
-  pressed: new Set(), axes: [0, 0, 0], gripper: GRIPPER_OPEN, jawOpen: true,
+  pressed: new Set(), axes: [0, 0, 0], turn: [0, 0, 0], gripper: GRIPPER_OPEN, jawOpen: true,
+  hand: null, grippers: {}, inputTargets: [],
   buttons: { clutch: false, camera: false }, gamepadButtons: { clutch: false, camera: false },
   history: [], forceMax: 5, inputSent: 0, lastInputAt: 0,
 };
@@ -141,7 +142,39 @@ function onHello(m) {
     state.forceMax = Math.max(1, ...task.conditions.map((c) => c.G_max || 0), task.fixture.G_max || 0);
     buildRowsHeader(task.metrics);
   }
+  const hands = $("hand");
+  hands.innerHTML = "";
+  for (const mtm of handChoices()) {
+    const o = document.createElement("option");
+    o.value = mtm; o.textContent = handLabel(mtm); hands.appendChild(o);
+  }
+  setHand(state.hand && handChoices().includes(state.hand) ? state.hand : handChoices()[0] || null);
   updateControl();
+}
+
+// The hands the keys can drive: the task's first, then the others the server steers.
+function handChoices() {
+  const hands = state.hello?.hands || [];
+  const first = state.hello?.task?.mtm;
+  return first && hands.includes(first) ? [first, ...hands.filter((h) => h !== first)] : [...hands];
+}
+
+function handLabel(mtm) {
+  const side = mtm === "MTML" ? "left hand" : mtm === "MTMR" ? "right hand" : mtm;
+  const teleop = Object.values(state.last?.teleops || {}).find((t) => t.mtm === mtm && t.selected);
+  const psm = teleop ? teleop.psm : mtm === "MTML" ? "PSM2" : "PSM1";
+  return `${side}: ${mtm} → ${psm}`;
+}
+
+// The keys drive `mtm` from now on: the other hand stops where it is, with its jaw as it was.
+function setHand(mtm) {
+  state.hand = mtm;
+  if (mtm == null) return;
+  if (!(mtm in state.grippers)) state.grippers[mtm] = GRIPPER_OPEN;
+  state.gripper = state.grippers[mtm];
+  state.jawOpen = state.gripper > 0;
+  $("hand").value = mtm;
+  sendInput(false);  // (the other hand, if it was moving, is told to stop)
 }
 
 function setSlider(id, value) { $(id).value = value; $(`${id}-out`).textContent = value; }
@@ -174,6 +207,8 @@ function onState(s) {
     const B = task.guidance_B == null ? "" : ` (B now ${task.guidance_B.toFixed(1)} N·s/m)`;
     $("repetition").textContent = `${task.repetition} (${task.completed} done) — ${task.condition}${B}`;
     $("deviation").textContent = task.distance == null ? "–" : `${(1000 * task.distance).toFixed(1)} mm`;
+    $("progress").textContent = toDo(task);
+    showResult(task.last);
   }
   const tip = taskTip(s);
   const f = tip ? Math.hypot(...tip.force) : 0;
@@ -196,7 +231,55 @@ function onState(s) {
   if (gp && tip && isOperator()) rumble(gp, rumbleIntensity(f, state.forceMax));
 }
 
+// What the trainee is to do now: the exercise's own words while it runs.
+function toDo(task) {
+  if (task.phase === "FINISHED" || task.phase === "RESULTS") return "done: the attempt is scored below; back to the start for the next";
+  const name = state.hello?.task?.name || "";
+  // (the keys each exercise needs beyond moving the tool, in its words)
+  if (task.progress && /camera/.test(name)) return `${task.progress}: hold C (camera pedal) and drag the view with the keys`;
+  if (task.progress && /needle/.test(name)) return `${task.progress}, the tool along its stem (turn it with I/K, J/L, U/O)`;
+  if (task.progress) return task.progress;
+  if (/peg/.test(name) && (task.phase === "IDLE" || task.phase === "READY")) return "pick up a ring to start";
+  if (/camera/.test(name)) return task.phase === "READY" ? "ready: hold C (camera pedal) and move the view to start" : "hold the camera still to start";
+  if (task.phase === "IDLE") return "bring the tool to the start to begin";
+  if (task.phase === "READY") return "ready: go";
+  return "–";
+}
+
+// The last attempt's score and verdict, and its metrics with their units.
+function showResult(last) {
+  const box = $("result");
+  if (!last || last.repetition == null) { box.hidden = true; return; }
+  const key = `${last.repetition}:${last.completion_time}`;
+  if (state.resultKey === key) return;
+  state.resultKey = key;
+  box.hidden = false;
+  const verdict = last.passed === true ? "passed" : last.passed === false ? "not passed" : "no pass mark set";
+  $("result-score").textContent = last.score == null ? `attempt ${last.repetition}: no score` : `attempt ${last.repetition}: score ${last.score.toFixed(0)} % — ${verdict}`;
+  $("result").className = `result ${last.passed === true ? "ok" : last.passed === false ? "bad" : ""}`;
+  const body = $("result-metrics");
+  body.innerHTML = "";
+  for (const m of state.hello?.task?.metrics || []) {
+    const v = last[m.name];
+    const tr = document.createElement("tr");
+    const shown = typeof v === "number" ? displayValue(m, v) : v ?? "–";
+    tr.innerHTML = "<td></td><td></td>";
+    tr.children[0].textContent = m.label || m.name;
+    tr.children[1].textContent = shown;
+    body.appendChild(tr);
+  }
+}
+
+function displayValue(m, v) {
+  const [unit, factor] = m.display || (m.unit === "m" ? ["mm", 1000] : [m.unit, 1]);
+  const x = v * factor;
+  const text = Number.isInteger(x) ? String(x) : Math.abs(x) < 0.005 ? "0" : x.toPrecision(3);
+  return unit && unit !== "1" ? `${text} ${unit}` : text;
+}
+
 function taskTip(s) {
+  const mine = Object.values(s.tips).find((t) => t.mtm === state.hand);
+  if (mine) return mine;
   const psm = state.hello?.task?.psm;
   if (psm && s.tips[psm]) return s.tips[psm];
   return Object.values(s.tips)[0] || null;
@@ -214,8 +297,8 @@ function fillTable(id, rows) {
 
 // ------------------------------------------------------------------ results table
 function buildRowsHeader(metrics) {
-  state.columns = ["trainee", "condition", "repetition", ...metrics.map((m) => m.name)];
-  state.units = Object.fromEntries(metrics.map((m) => [m.name, m.unit]));
+  state.columns = ["trainee", "condition", "repetition", ...metrics.map((m) => m.name), "score", "passed"];
+  state.units = Object.fromEntries([...metrics.map((m) => [m.name, m.unit]), ["score", "%"]]);
   const tr = document.createElement("tr");
   for (const c of state.columns) {
     const th = document.createElement("th");
@@ -236,7 +319,8 @@ function addRow(row) {
     tr.appendChild(td);
   }
   $("rows").querySelector("tbody").appendChild(tr);
-  showMessage(`repetition ${row.repetition} finished`, "info");
+  const score = row.score == null ? "" : `: score ${row.score.toFixed(0)} %${row.passed === true ? ", passed" : row.passed === false ? ", not passed" : ""}`;
+  showMessage(`repetition ${row.repetition} finished${score}`, "info");
 }
 
 // ------------------------------------------------------------------ the endoscope
@@ -323,15 +407,18 @@ function drawHud(ctx, s, w) {
   }
   const b = s.console ? s.console.buttons : {};
   lines.push(`head ${b.operator_present ? "present" : "away"} · clutch ${b.clutch ? "down" : "up"} · camera ${b.camera ? "down" : "up"}`);
+  if (state.hand && isOperator()) lines.push(`keys → ${handLabel(state.hand)}${b.camera ? " · camera: both hands" : ""}`);
   if (s.task) {
-    const d = s.task.distance == null ? "–" : `${(1000 * s.task.distance).toFixed(1)} mm`;
-    lines.push(`${s.task.name} · ${s.task.phase} · rep ${s.task.repetition} · deviation ${d}`);
+    const d = s.task.distance == null ? "" : ` · deviation ${(1000 * s.task.distance).toFixed(1)} mm`;
+    lines.push(`${s.task.name} · ${s.task.phase} · rep ${s.task.repetition}${d}`);
+    if (s.task.progress && s.task.phase === "RUNNING") lines.push(s.task.progress);
   }
   lines.push(`t = ${s.time.toFixed(1)} s${isOperator() ? " · you operate" : ""}`);
   ctx.fillStyle = "rgba(0,0,0,0.55)";
   ctx.fillRect(6, 6, 12 + Math.max(...lines.map((l) => ctx.measureText(l).width)), 18 * lines.length + 8);
   ctx.fillStyle = "#e8f1ff";
   lines.forEach((l, i) => ctx.fillText(l, 12, 22 + 18 * i));
+  if (s.task && s.task.marks) drawMarks(ctx, s.task.marks, w);
   for (const [psm, tip] of Object.entries(s.tips)) {
     if (!tip.pixel) continue;
     const [u, v] = tip.pixel;
@@ -344,6 +431,56 @@ function drawHud(ctx, s, w) {
     const f = Math.hypot(...tip.force);
     if (tip.force_pixel && f > 0.05) drawArrow(ctx, u, v, tip.force_pixel[0], tip.force_pixel[1], f);
   }
+}
+
+// An exercise's targets, numbered, the current one ringed with its required tool direction
+// (a line from it, the way the tool must point); a camera exercise's crosshair.
+function drawMarks(ctx, marks, w) {
+  const name = state.hello?.task?.name || "";
+  ctx.save();
+  if (/camera/.test(name)) {
+    const h = $("overlay").height;
+    ctx.strokeStyle = "rgba(255,255,255,0.7)";
+    ctx.lineWidth = 1;
+    ctx.beginPath();
+    ctx.moveTo(w / 2 - 14, h / 2); ctx.lineTo(w / 2 + 14, h / 2);
+    ctx.moveTo(w / 2, h / 2 - 14); ctx.lineTo(w / 2, h / 2 + 14);
+    ctx.stroke();
+  }
+  if (marks.wire) {  // the wire, thin and dashed over the scene's (it can hide behind the tool)
+    ctx.strokeStyle = "rgba(255,225,77,0.75)"; ctx.lineWidth = 1.5; ctx.setLineDash([4, 4]);
+    ctx.beginPath();
+    let on = false;
+    for (const q of marks.wire.pixels) {
+      if (!q) { on = false; continue; }
+      if (on) ctx.lineTo(q[0], q[1]); else { ctx.moveTo(q[0], q[1]); on = true; }
+    }
+    ctx.stroke(); ctx.setLineDash([]);
+  }
+  for (const peg of marks.pegs || []) {  // the target pegs ringed in green
+    if (!peg.pixel || !peg.target) continue;
+    ctx.strokeStyle = "#3ecf8e"; ctx.lineWidth = 1.5;
+    ctx.beginPath(); ctx.arc(peg.pixel[0], peg.pixel[1], 9, 0, 2 * Math.PI); ctx.stroke();
+  }
+  ctx.fillStyle = "#ffe14d";
+  for (const ring of marks.rings || []) {
+    if (ring.pixel) ctx.fillText(`ring ${ring.label}`, ring.pixel[0] + 12, ring.pixel[1] - 8);
+  }
+  (marks.targets || []).forEach((m, k) => {
+    if (!m.pixel) return;
+    const [u, v] = m.pixel;
+    const current = marks.current === k;
+    ctx.strokeStyle = ctx.fillStyle = current ? "#ffe14d" : "rgba(255,160,60,0.8)";
+    ctx.lineWidth = current ? 2.5 : 1;
+    ctx.beginPath(); ctx.arc(u, v, current ? 12 : 8, 0, 2 * Math.PI); ctx.stroke();
+    ctx.fillText(m.label, u + 12, v + 14);
+    if (current && m.shaft_pixel) {  // the tool must point this way: its shaft's side
+      ctx.setLineDash([5, 3]);
+      ctx.beginPath(); ctx.moveTo(u, v); ctx.lineTo(m.shaft_pixel[0], m.shaft_pixel[1]); ctx.stroke();
+      ctx.setLineDash([]);
+    }
+  });
+  ctx.restore();
 }
 
 // Depth cue for a 2-D screen: a dashed line to the path's closest point, coloured by how
@@ -489,12 +626,15 @@ function setupPanels() {
     body.appendChild(tr);
   }
   $("screen").tabIndex = 0;
+  $("hand").onchange = () => setHand($("hand").value);
 }
 
 // ------------------------------------------------------------------ operator input
 function handMtm() {
-  return state.hello?.task?.mtm || state.hello?.hands?.[0] || "MTMR";
+  return state.hand || state.hello?.task?.mtm || state.hello?.hands?.[0] || "MTMR";
 }
+
+function cameraPedal() { return state.buttons.camera || state.gamepadButtons.camera; }
 
 function onKey(event, down) {
   if (event.target instanceof HTMLInputElement || event.target instanceof HTMLSelectElement) return;
@@ -505,7 +645,16 @@ function onKey(event, down) {
   const button = buttonOfKey(event.code);
   if (button) setButton(button, down, "keys");
   const toggle = toggleOfKey(event.code);
-  if (toggle === "jaw" && down) { state.jawOpen = !state.jawOpen; state.gripper = state.jawOpen ? GRIPPER_OPEN : 0; sendInput(true); }
+  if (toggle === "jaw" && down) {
+    state.jawOpen = !state.jawOpen;
+    state.gripper = state.jawOpen ? GRIPPER_OPEN : 0;
+    if (state.hand) state.grippers[state.hand] = state.gripper;
+    sendInput(true);
+  }
+  if (toggle === "hand" && down) {
+    const hands = handChoices();
+    if (hands.length > 1) setHand(hands[(hands.indexOf(state.hand) + 1) % hands.length]);
+  }
   if (toggle === "present" && down) send({ op: "button", name: "operator_present", pressed: !$("present").checked });
   sendInput(false);
 }
@@ -527,16 +676,36 @@ function currentAxes() {
 
 // Send the rate input when it changes, and again every 100 ms while non-zero (the server's
 // hand stops by itself 0.3 s after the last input: a lost page stops the tool).
+// With the camera pedal down the keys move both hands together (the ECM teleoperation
+// follows the hands' midpoint: the image follows the hands); the wrist keys then do nothing.
 function sendInput(force) {
   if (!isOperator()) return;
   const axes = currentAxes();
-  const moving = axes.some((v) => v !== 0);
+  const camera = cameraPedal() && (state.hello?.hands || []).length > 1;
+  const turn = camera ? [0, 0, 0] : keyTurn(state.pressed);
+  const targets = camera ? [...state.hello.hands] : [handMtm()];
+  const moving = axes.some((v) => v !== 0) || turn.some((v) => v !== 0);
   const now = performance.now();
-  if (!force && sameAxes(axes, state.axes) && !(moving && now - state.lastInputAt > 100)) return;
+  const wasMoving = state.axes.some((v) => v !== 0) || state.turn.some((v) => v !== 0);
+  // (other hands with nothing moving: nothing to send; a hand takes its handle when moved)
+  const sameTargets = targets.join() === state.inputTargets.join() || (!moving && !wasMoving);
+  const same = sameAxes(axes, state.axes) && sameAxes(turn, state.turn) && sameTargets;
+  if (!force && same && !(moving && now - state.lastInputAt > 100)) {
+    state.inputTargets = targets;
+    return;
+  }
+  for (const old of state.inputTargets) {  // a hand no longer driven stops now
+    if (!targets.includes(old)) send({ op: "input", mtm: old, axes: [0, 0, 0], turn: [0, 0, 0] });
+  }
   state.axes = axes;
+  state.turn = turn;
+  state.inputTargets = targets;
   state.lastInputAt = now;
   state.inputSent += 1;
-  send({ op: "input", mtm: handMtm(), axes, gripper: state.gripper });
+  for (const mtm of targets) {
+    const gripper = mtm === handMtm() ? state.gripper : state.grippers[mtm];
+    send({ op: "input", mtm, axes, turn, ...(gripper == null ? {} : { gripper }) });
+  }
 }
 
 function firstGamepad() {

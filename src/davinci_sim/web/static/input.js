@@ -3,14 +3,16 @@
 //
 // Pure functions of the input state, so they are testable without a simulation:
 //   keyAxes(pressed)        -> [right, up, in] in [-1, 1] from the keys held down
+//   keyTurn(pressed)        -> the wrist's rate about [right, up, in] in [-1, 1]
 //   gamepadInput(gamepad)   -> {axes, gripper, buttons} from one Gamepad API object
 // The server turns the axes into the hand's velocity (HRSV, m/s): the tool moves the same
 // way in the endoscope image (right, up, into the scene), scaled by the teleoperation.
 
 export const GRIPPER_OPEN = (60 * Math.PI) / 180; // rad, the MTM gripper's range (dvrk.md 1.5)
 
-// The key map shown in the page. `axis`: [index, sign] of the hand's rate; `button`: a
-// console button held while the key is down; `toggle`: an action on key down.
+// The key map shown in the page. `axis`: [index, sign] of the hand's rate; `turn`: [index,
+// sign] of the wrist's rate about the screen's right, up and in axes (right-hand rule);
+// `button`: a console button held while the key is down; `toggle`: an action on key down.
 export const KEYMAP = [
   { keys: ["KeyD", "ArrowRight"], label: "D / →", what: "tool right", axis: [0, +1] },
   { keys: ["KeyA", "ArrowLeft"], label: "A / ←", what: "tool left", axis: [0, -1] },
@@ -18,26 +20,35 @@ export const KEYMAP = [
   { keys: ["KeyS", "ArrowDown"], label: "S / ↓", what: "tool down", axis: [1, -1] },
   { keys: ["KeyR", "PageUp"], label: "R / PgUp", what: "tool deeper (into the scene)", axis: [2, +1] },
   { keys: ["KeyF", "PageDown"], label: "F / PgDn", what: "tool back (out of the scene)", axis: [2, -1] },
+  { keys: ["KeyI"], label: "I", what: "turn the tool: tip up", turn: [0, +1] },
+  { keys: ["KeyK"], label: "K", what: "turn the tool: tip down", turn: [0, -1] },
+  { keys: ["KeyJ"], label: "J", what: "turn the tool: tip left", turn: [1, +1] },
+  { keys: ["KeyL"], label: "L", what: "turn the tool: tip right", turn: [1, -1] },
+  { keys: ["KeyO"], label: "O", what: "roll the tool clockwise", turn: [2, +1] },
+  { keys: ["KeyU"], label: "U", what: "roll the tool counter-clockwise", turn: [2, -1] },
   { keys: ["Space"], label: "Space (hold)", what: "clutch pedal", button: "clutch" },
-  { keys: ["KeyC"], label: "C (hold)", what: "camera pedal", button: "camera" },
+  { keys: ["KeyC"], label: "C (hold)", what: "camera pedal: the keys move both hands, which steer the endoscope (the image follows the hands)", button: "camera" },
   { keys: ["KeyE"], label: "E", what: "open / close the jaw", toggle: "jaw" },
+  { keys: ["KeyH"], label: "H", what: "switch hand: right (MTMR → PSM1) / left (MTML → PSM2)", toggle: "hand" },
   { keys: ["KeyP"], label: "P", what: "head sensor: operator present on / off", toggle: "present" },
   { keys: ["ShiftLeft", "ShiftRight"], label: "Shift (hold)", what: "fine motion (¼ speed)", toggle: "fine" },
 ];
 
 const AXIS_KEYS = new Map();
+const TURN_KEYS = new Map();
 const BUTTON_KEYS = new Map();
 const TOGGLE_KEYS = new Map();
 for (const entry of KEYMAP) {
   for (const k of entry.keys) {
     if (entry.axis) AXIS_KEYS.set(k, entry.axis);
+    if (entry.turn) TURN_KEYS.set(k, entry.turn);
     if (entry.button) BUTTON_KEYS.set(k, entry.button);
     if (entry.toggle) TOGGLE_KEYS.set(k, entry.toggle);
   }
 }
 
 export function isMappedKey(code) {
-  return AXIS_KEYS.has(code) || BUTTON_KEYS.has(code) || TOGGLE_KEYS.has(code);
+  return AXIS_KEYS.has(code) || TURN_KEYS.has(code) || BUTTON_KEYS.has(code) || TOGGLE_KEYS.has(code);
 }
 
 export function buttonOfKey(code) {
@@ -57,6 +68,17 @@ export function keyAxes(pressed) {
   }
   const fine = pressed.has("ShiftLeft") || pressed.has("ShiftRight") ? 0.25 : 1;
   return axes.map((v) => Math.max(-1, Math.min(1, v)) * fine);
+}
+
+// The wrist's rate from the keys held down: opposite keys cancel; Shift gives 1/4.
+export function keyTurn(pressed) {
+  const turn = [0, 0, 0];
+  for (const code of pressed) {
+    const a = TURN_KEYS.get(code);
+    if (a) turn[a[0]] += a[1];
+  }
+  const fine = pressed.has("ShiftLeft") || pressed.has("ShiftRight") ? 0.25 : 1;
+  return turn.map((v) => Math.max(-1, Math.min(1, v)) * fine);
 }
 
 // Dead zone of the sticks: below it an axis reads 0 (sticks do not rest exactly at 0).
