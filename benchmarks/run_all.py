@@ -8,6 +8,7 @@ from pathlib import Path
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 import bench_bridge  # noqa: E402
+import bench_collisions  # noqa: E402
 import bench_exercises  # noqa: E402
 import bench_kinematics  # noqa: E402
 import bench_realtime  # noqa: E402
@@ -23,6 +24,7 @@ import bench_web  # noqa: E402
 if __name__ == "__main__":
     bench_kinematics.main()
     bench_tick.main()
+    bench_collisions.main()  # instruments colliding vs apart, ~1 min
     bench_state.main()
     bench_exercises.main()
     bench_render.main()

@@ -293,7 +293,7 @@ class Task(ABC):
         default: a kind without objects reads nothing."""
         return {}
 
-    def reset_scene(self, model, data) -> None:
+    def reset_scene(self, model, data) -> None:  # noqa: B027 (an optional hook)
         """Put the task's objects in the simulation (``data``) back at their start poses,
         at rest, without a rebuild: what a session's reset does before the next
         repetition (:meth:`~davinci_sim.tasks.session.TaskSession.reset`). Nothing by

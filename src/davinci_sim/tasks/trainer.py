@@ -34,8 +34,9 @@ diameter and √3 times it, and equals it for motion along one line.
 Collisions are MuJoCo's contacts (:class:`InstrumentContacts`): of the instrument with
 the table, the patient, the objects of other tasks, and another arm's instrument or the
 endoscope (the model makes instruments of different arms collide,
-:mod:`davinci_sim.model.contact`; a clash of instruments is counted). Metrics read optional sample fields (``Metric.needs``): an engine that
-does not sample one gives nan for the metric (unavailable), never a made-up 0.
+:mod:`davinci_sim.model.contact`; a clash of instruments is counted). Metrics read
+optional sample fields (``Metric.needs``): an engine that does not sample one gives nan
+for the metric (unavailable), never a made-up 0.
 """
 
 from __future__ import annotations
