@@ -12,7 +12,7 @@ and how the file was made.
 
 does a skill exercise (needle_targeting, camera_targeting, ring_walk, peg_transfer,
 peg_transfer_icra) with the scripted expert operators at the simulated console
-(davinci_sim.study.experts; default 5 experts x 3 repetitions). Re-run it when the
+(davinci_sim.study.experts; default 3 experts x 2 repetitions). Re-run it when the
 task's geometry, the metrics or the trainee model change (a reference made on another
 version of the task is not used).
 """

@@ -41,6 +41,9 @@ expert value for these exercises; they put an expert's reaches at ~5 cm/s, of th
 the tool speeds reported for robotic training tasks). The masters do not move (the arms
 are scripted), so the master workspace is not measured (:data:`NOT_MEASURED`): its pass
 mark stays the task's ``expert``/``fail`` scale, not a reference.
+
+Size: the motion model, the four scripts and the attempt driver are one unit (~500 lines):
+the scripts share the motion model's primitives and nothing else uses them.
 """
 
 from __future__ import annotations
@@ -419,9 +422,9 @@ def build_stage(task) -> Stage:
             raise RuntimeError(f"{task.name}: the arms did not home")
         session.teleop.clutch(True)
     else:
-        from davinci_sim.study.trial import setup_trial
+        from davinci_sim.study.trial import build_setup
 
-        setup = setup_trial(task)
+        setup = build_setup(task)  # (its own: not the trials' cached set-up, it is closed)
         sim = setup.sim
         setup.teleop.clutch(True)
         session = install_task(sim, task)

@@ -40,6 +40,10 @@ any), to above the target pegs' centroid (the same laws as the path kind's,
 :mod:`davinci_sim.haptics.spring`, :mod:`davinci_sim.haptics.viscous`): a fixture is a
 field of the tool's position only, so it guides along the route, not to the ring of the
 moment.
+
+Size: one kind, its file fields, geometry, pure state machine and metric declarations
+together (a little over 500 lines since its economy of motion counts every instrument);
+the scene's side is :mod:`davinci_sim.tasks.peg_scene`.
 """
 
 from __future__ import annotations
