@@ -12,13 +12,14 @@ import math
 import numpy as np
 import pytest
 
-from davinci_sim.study.experts import NOT_MEASURED, Motor
+from davinci_sim.study.experts import Motor, not_measured
 from davinci_sim.study.reference import exercise_reference
 from davinci_sim.tasks import load_task, save_task
 from davinci_sim.tasks.scoring import reference_dir
 
-EXERCISES = ("camera_targeting", "ring_walk", "needle_targeting", "peg_transfer",
-             "peg_transfer_icra")  # fmt: skip
+#: The exercises with a shipped expert reference (peg transfer's scripted expert does not
+#: yet finish its attempts reliably: no reference is shipped for it).
+EXERCISES = ("camera_targeting", "ring_walk", "needle_targeting")
 
 
 @pytest.mark.parametrize("name", EXERCISES)
@@ -33,7 +34,7 @@ def test_each_exercise_scores_against_its_expert_reference(name):
     assert judged  # the default pass marks now apply
     for item in scoring.items:
         r = ref.metrics[item.metric]
-        if item.metric in NOT_MEASURED:
+        if item.metric in not_measured(task.kind):
             assert marks[item.metric] is None  # no reference value, no mark
         elif item.pass_mark is None and math.isfinite(r.mean):
             sign = 1.0 if item.better == "lower" else -1.0
@@ -62,7 +63,7 @@ def test_a_tiny_reference_has_the_shipped_format(tmp_path):
     assert data["produced_by"].startswith("scripts/expert_reference.py --exercise needle_one")
     for name, entry in data["metrics"].items():
         assert set(entry) == {"mean", "sd", "n", "unit"}
-        if name in NOT_MEASURED:
+        if name in not_measured("needle_targeting"):
             assert entry["n"] == 0 and entry["mean"] is None
         else:
             assert entry["n"] == 2

@@ -9,7 +9,8 @@ state machine and metrics as a person's attempt), with the arms driven through t
 (``servo_cp`` streamed at 1 kHz, jaws by ``servo_jp``, the ECM by ``move_cp``) and the
 task's teleoperation clutched:
 
-* ``needle_targeting``: reach each target pointing along its direction, hold for the dwell;
+* ``needle_targeting``: reach each target pointing along its direction (undershooting, so
+  as not to pass through it: leaving a target unhit is a miss), hold for the dwell;
 * ``ring_walk``: carry the ring along the wire from its start to its end;
 * ``camera_targeting``: bring the endoscope, on the line from its RCM through each target, to
   the task's depth (ECM ``move_cp``), hold for the dwell;
@@ -39,8 +40,10 @@ noise k·f):
 :data:`REACH_SPEED_FACTOR` and :data:`ANGULAR_SPEED` are **assumptions** (no published
 expert value for these exercises; they put an expert's reaches at ~5 cm/s, of the order of
 the tool speeds reported for robotic training tasks). The masters do not move (the arms
-are scripted), so the master workspace is not measured (:data:`NOT_MEASURED`): its pass
-mark stays the task's ``expert``/``fail`` scale, not a reference.
+are scripted), so the master workspace is not measured (:func:`not_measured`; nor the
+instrument's economy and out-of-view distance in camera targeting, where the scripted
+expert leaves the instrument alone): no reference value, so no default pass mark for them
+(their score still uses the task's ``expert``/``fail`` scale).
 
 Size: the motion model, the four scripts and the attempt driver are one unit (~500 lines):
 the scripts share the motion model's primitives and nothing else uses them.
@@ -70,6 +73,21 @@ NOT_MEASURED = {
     "master_workspace": "the scripted experts drive the arms (teleoperation clutched): the "
     "masters do not move",
 }
+#: ... and those of one kind only.
+NOT_MEASURED_OF_KIND = {
+    "camera_targeting": {
+        "path_length": "the scripted camera expert leaves the instrument alone (its "
+        "teleoperation clutched): it does not move",
+        "out_of_view": "the instrument does not move (see path_length)",
+    },
+}
+
+
+def not_measured(kind: str) -> dict[str, str]:
+    """The metrics the scripted expert of a ``kind`` does not exercise, and why."""
+    return {**NOT_MEASURED, **NOT_MEASURED_OF_KIND.get(kind, {})}
+
+
 _SPREAD = 2.0 * MUSCLE_TIME_CONSTANT * 10.0 / 7.0
 
 
@@ -201,16 +219,27 @@ class Streamer:
             if s >= 1.0:
                 return False
 
-    def reach(self, arm: str, goal, tolerance: float, R_goal=None, until=None) -> bool:
+    def reach(self, arm: str, goal, tolerance: float, R_goal=None, until=None,
+              undershoot: bool = False) -> bool:  # fmt: skip
         """A reach of ``arm`` towards ``goal`` (3,) (and orientation ``R_goal``), corrected
-        until its aim is within ``tolerance`` m (see :class:`Motor`)."""
+        until its aim is within ``tolerance`` m (see :class:`Motor`). ``undershoot``: each
+        sub-movement aims short of the goal by twice its endpoint SD (at most half the way),
+        as primary movements to a target do (Elliott, Helsen & Chua 2001, Psychol. Bull.
+        127:342): the tip does not pass through a target it must not leave."""
         m = self.motor
         goal = np.asarray(goal, float)
         for _ in range(1 + MAX_CORRECTIONS):
             if self.wait(m.reaction, until):
                 return True
             G0 = self.goal[arm]
-            p = m.aim(G0[:3, 3], goal)
+            aim_at = goal
+            if undershoot:
+                delta = goal - G0[:3, 3]
+                dist = float(np.linalg.norm(delta))
+                if dist > tolerance:
+                    short = min(2.0 * m.endpoint_sd(dist, m.reach_speed), 0.5 * dist)
+                    aim_at = goal - short * delta / dist
+            p = m.aim(G0[:3, 3], aim_at)
             H = G0.copy()
             H[:3, 3] = p
             angle = 0.0
@@ -237,10 +266,10 @@ def pointing(R: np.ndarray, direction) -> np.ndarray:
 
 def do_needle(stream: Streamer, session, task, done) -> None:
     arm = task.teleop.psm
-    tol = 0.5 * task.target_radius
+    tol = 0.6 * task.target_radius  # (inside, with a margin for the tremor)
     for p, d in zip(task.targets, task.directions, strict=True):
         R_goal = pointing(stream.goal[arm][:3, :3], d)
-        if stream.reach(arm, p, tol, R_goal, until=done):
+        if stream.reach(arm, p, tol, R_goal, until=done, undershoot=True):
             return
         if stream.wait(task.dwell + 0.05, until=done):
             return

@@ -14,7 +14,7 @@ The skill exercises (needle and camera targeting, ring walk, peg transfer), whic
 path-following trainees cannot do, get theirs from :func:`exercise_reference`: the same
 experts as scripted operators at the simulated console
 (:mod:`davinci_sim.study.experts`), each attempt recorded by the task's session; the
-metrics those operators do not exercise (:data:`~davinci_sim.study.experts.NOT_MEASURED`)
+metrics those operators do not exercise (:func:`~davinci_sim.study.experts.not_measured`)
 are left out (null), so they take no pass mark from the reference.
 """
 
@@ -104,9 +104,9 @@ def exercise_reference(
     from davinci_sim.study.experts import (
         ANGULAR_SPEED,
         MAX_CORRECTIONS,
-        NOT_MEASURED,
         REACH_SPEED_FACTOR,
         expert_attempts,
+        not_measured,
     )
     from davinci_sim.tasks import load_task
     from davinci_sim.tasks.scoring import reference_from_rows
@@ -134,14 +134,14 @@ def exercise_reference(
             f"endpoint SD k*sqrt(A*v*2tau*10/7) with up to {MAX_CORRECTIONS} corrective "
             f"reaches after the visuomotor delay, tremor scaled by the motion scale"
         ),
-        not_measured=dict(NOT_MEASURED),
+        not_measured=not_measured(loaded.kind),
         produced_by=(
             f"scripts/expert_reference.py --exercise {Path(task).name} --subjects "
             f"{subjects} --repetitions {repetitions} --seed {seed}"
         ),
         version=__version__,
     )
-    for name in NOT_MEASURED:
+    for name in not_measured(loaded.kind):
         if name in data["metrics"]:
             data["metrics"][name].update(mean=None, sd=None, n=0)
     return data
