@@ -396,16 +396,26 @@ def do_peg(stream: Streamer, session, task, done) -> None:
                 "PSM2", tip("PSM2") + hand_off - ring(i)[0], 0.002, until=done
             ),  # fmt: skip
             lambda i=i: not grasp("PSM1", i, far_from=tip("PSM2")),
+            lambda: stream.wait(0.3, until=done),
             lambda: jaw("PSM2", JAW_OPEN),
             lambda: stream.reach("PSM2", tip("PSM2") + [0.015, 0, 0.01], 0.003, until=done),
         ]
         for step in steps:
             if step():
                 return
+        if not held("PSM1", i):  # it fell at the hand-off: PSM1 picks it up where it lies
+            if stream.wait(0.5, until=done) or not grasp("PSM1", i):
+                return
+            if stream.reach("PSM1", tip("PSM1") + [0, 0, 0.02], 0.003, until=done):
+                return
         x, y = task.pegs[peg]
-        above = np.array([x, y, task.board_top + task.peg_height + 0.006])
-        if stream.reach("PSM1", tip("PSM1") + above - ring(i)[0], 0.0015, until=done):
-            return
+        top = task.board_top + task.peg_height
+        # Across at the hand-off's height (clear of the wall), down over the peg, down until
+        # the peg is 4 mm into the ring's hole, then let go.
+        for z in (hand_off[2] + 0.005, top + 0.006, top - 0.004):
+            goal = tip("PSM1") + np.array([x, y, z]) - ring(i)[0]
+            if stream.reach("PSM1", goal, 0.0015, until=done):
+                return
         if jaw("PSM1", JAW_OPEN) or stream.wait(0.3, until=done):
             return
         if stream.reach("PSM1", tip("PSM1") + [0, 0, 0.02], 0.003, until=done):
