@@ -15,7 +15,11 @@ task's teleoperation clutched:
 * ``camera_targeting``: bring the endoscope, on the line from its RCM through each target, to
   the task's depth (ECM ``move_cp``), hold for the dwell;
 * ``peg_transfer`` (and its ICRA variant): PSM2 lifts each ring off its start peg, carries it
-  to the middle (over the wall), hands it to PSM1, which drops it on a target peg.
+  to the middle (over the wall), hands it to PSM1, which threads it on a target peg. **Not
+  yet reliable**: in a checked attempt it transferred two rings and lost the third at the
+  hand-off (PSM1's jaws touching but not holding it when PSM2 let go); the attempts made
+  for a reference (2 per variant) did not finish within :func:`_time_budget`, so no peg
+  reference is shipped.
 
 **The expert's variability** (:class:`Motor`): each attempt draws from the expert's
 parameters (:func:`~davinci_sim.operators.params.sample_experts`; repetition j scales them
