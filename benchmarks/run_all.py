@@ -9,6 +9,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 import bench_bridge  # noqa: E402
 import bench_client_robot  # noqa: E402
+import bench_collisions  # noqa: E402
 import bench_compat  # noqa: E402
 import bench_envs  # noqa: E402
 import bench_exercises  # noqa: E402
@@ -27,6 +28,7 @@ import bench_web  # noqa: E402
 if __name__ == "__main__":
     bench_kinematics.main()
     bench_tick.main()
+    bench_collisions.main()  # instruments colliding vs apart, ~1 min
     bench_state.main()
     bench_exercises.main()
     bench_render.main()

@@ -36,7 +36,9 @@ class Painter:
         if name:
             geom.name = f"{self.prefix}{name}"
         geom.material = material
-        contact.apply(geom, kind)
+        # (a tool geom's collision bits are its arm's: the prefix "PSM1/" names it)
+        arm = self.prefix.rstrip("/") if kind == "tool" else None
+        contact.apply(geom, kind, arm)
         return geom
 
     def capsule(self, p0, p1, radius, material, *, kind="visual", name=""):

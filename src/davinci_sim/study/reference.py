@@ -9,6 +9,13 @@ metric of the finished attempts as mean, SD (n − 1) and n
 reference group: 9 experts x 5 repetitions (training.md §1). ``scripts/expert_reference.py``
 writes the result to ``davinci_sim/tasks/data/reference/<task>.json``, which the task's
 scoring then uses (:func:`~davinci_sim.tasks.scoring.task_scoring`).
+
+The skill exercises (needle and camera targeting, ring walk, peg transfer), which the
+path-following trainees cannot do, get theirs from :func:`exercise_reference`: the same
+experts as scripted operators at the simulated console
+(:mod:`davinci_sim.study.experts`), each attempt recorded by the task's session; the
+metrics those operators do not exercise (:func:`~davinci_sim.study.experts.not_measured`)
+are left out (null), so they take no pass mark from the reference.
 """
 
 from __future__ import annotations
@@ -77,3 +84,65 @@ def write_reference(data: dict, path: str | Path) -> Path:
     p = Path(path)
     p.write_text(json.dumps(data, indent=2) + "\n")
     return p
+
+
+#: The exercises' reference group: fewer attempts than the path task's (a scripted attempt
+#: at the console costs a minute or more of computing, the batch engine's milliseconds):
+#: 3 experts x 2 repetitions (the shipped needle, ring-walk and camera references). Peg
+#: transfer has none shipped yet: its scripted expert does not finish reliably (see
+#: :mod:`davinci_sim.study.experts`).
+EXERCISE_SUBJECTS, EXERCISE_REPETITIONS = 3, 2
+
+
+def exercise_reference(
+    task: str, *, subjects: int = EXERCISE_SUBJECTS, repetitions: int = EXERCISE_REPETITIONS,
+    seed: int = REFERENCE_SEED, progress=None,
+) -> dict:  # fmt: skip
+    """The reference mapping of the exercise ``task`` (a shipped name or a task file),
+    JSON-ready, from its scripted expert operators' attempts
+    (:func:`~davinci_sim.study.experts.expert_attempts`), with how it was made."""
+    from davinci_sim import __version__
+    from davinci_sim.study.experts import (
+        ANGULAR_SPEED,
+        MAX_CORRECTIONS,
+        REACH_SPEED_FACTOR,
+        expert_attempts,
+        not_measured,
+    )
+    from davinci_sim.tasks import load_task
+    from davinci_sim.tasks.scoring import reference_from_rows
+
+    if subjects < 2 or repetitions < 1:
+        raise ValueError("a reference needs at least 2 experts and 1 repetition (an SD)")
+    loaded = load_task(task)
+    rows = expert_attempts(loaded, subjects=subjects, repetitions=repetitions, seed=seed,
+                           progress=progress)  # fmt: skip
+    data = reference_from_rows(
+        loaded,
+        rows,
+        population="expert",
+        subjects=subjects,
+        repetitions=repetitions,
+        seed=seed,
+        condition={"type": "none"},
+        engine="scripted",
+        operator=(
+            f"davinci_sim.study.experts ({loaded.kind}): arms scripted at the simulated "
+            f"console (servo_cp streamed, jaws servo_jp, ECM move_cp), teleoperation "
+            f"clutched; expert parameters (operators.params.sample_experts) at repetition "
+            f"j: speed/f, noise k*f, f = 1 + E*j^-alpha; reach speed {REACH_SPEED_FACTOR:g}x "
+            f"the practised speed, reorientation {ANGULAR_SPEED:g} rad/s, open-loop "
+            f"endpoint SD k*sqrt(A*v*2tau*10/7) with up to {MAX_CORRECTIONS} corrective "
+            f"reaches after the visuomotor delay, tremor scaled by the motion scale"
+        ),
+        not_measured=not_measured(loaded.kind),
+        produced_by=(
+            f"scripts/expert_reference.py --exercise {Path(task).name} --subjects "
+            f"{subjects} --repetitions {repetitions} --seed {seed}"
+        ),
+        version=__version__,
+    )
+    for name in not_measured(loaded.kind):
+        if name in data["metrics"]:
+            data["metrics"][name].update(mean=None, sd=None, n=0)
+    return data

@@ -111,16 +111,22 @@ class Sample:
     R_task_tip: np.ndarray | None = None
     """(n, 3, 3) the tool tip frame's orientation in the task's frame (column 2, z: the
     direction the jaws point; the needle targeting exercise's input)."""
+    tools: np.ndarray | None = None
+    """(n, A, 3) tool tips of every instrument the task uses, task frame, m (a kind with
+    several instruments fills it, :meth:`Task.scene_fields`: peg transfer's economy of
+    motion sums their paths)."""
 
     @classmethod
     def of(
         cls, time, tip, force=None, clutch=None, *, visible=None, master=None, contacts=None,
         tool_force=None, objects=None, grasp=None, T_task_camera=None, R_task_tip=None,
+        tools=None,
     ) -> Sample:  # fmt: skip
         """A sample of n trials: ``tip`` (n, 3) or (3,) for one; ``time`` scalar or (n,);
         ``force`` (n, 3) (None: 0); ``clutch`` (n,) or scalar (None: released); the
         optional fields (n,) or scalar, ``master`` (n, 3) or (3,), ``T_task_camera``
-        (n, 4, 4) or (4, 4), ``R_task_tip`` (n, 3, 3) or (3, 3) (None: not sampled)."""
+        (n, 4, 4) or (4, 4), ``R_task_tip`` (n, 3, 3) or (3, 3), ``tools`` (n, A, 3) or
+        (A, 3) (None: not sampled)."""
         p = np.asarray(tip, dtype=float).reshape(-1, 3)
         n = len(p)
         f = np.zeros((n, 3)) if force is None else np.asarray(force, dtype=float).reshape(n, 3)
@@ -133,7 +139,7 @@ class Sample:
             c = np.asarray(clutch, dtype=bool)
             c = np.full(n, bool(c)) if c.ndim == 0 else c.reshape(n)
         optional = (visible, master, contacts, tool_force, objects, grasp, T_task_camera,
-                    R_task_tip)  # fmt: skip
+                    R_task_tip, tools)  # fmt: skip
         if all(o is None for o in optional):
             return cls(t, p, f, c)
         x = None if master is None else np.asarray(master, dtype=float).reshape(n, 3)
@@ -142,8 +148,9 @@ class Sample:
         j = None if grasp is None else np.asarray(grasp, dtype=np.int64).reshape(n, -1)
         cam = None if T_task_camera is None else _matrices(T_task_camera, n, 4)
         rot = None if R_task_tip is None else _matrices(R_task_tip, n, 3)
+        a = None if tools is None else np.asarray(tools, dtype=float).reshape(n, -1, 3)
         return cls(t, p, f, c, visible=v, master=x, contacts=k, tool_force=g, objects=o,
-                   grasp=j, T_task_camera=cam, R_task_tip=rot)  # fmt: skip
+                   grasp=j, T_task_camera=cam, R_task_tip=rot, tools=a)  # fmt: skip
 
     @cached_property
     def force_magnitude(self) -> np.ndarray:
@@ -171,7 +178,7 @@ class Sample:
 
 
 _FIELDS = ("time", "tip", "force", "clutch", "visible", "master", "contacts", "tool_force",
-           "objects", "grasp", "T_task_camera", "R_task_tip")  # fmt: skip
+           "objects", "grasp", "T_task_camera", "R_task_tip", "tools")  # fmt: skip
 
 
 def _matrices(value, n: int, k: int) -> np.ndarray:
@@ -285,6 +292,12 @@ class Task(ABC):
         caller's dict, kept between ticks, for lookups built once per model. Nothing by
         default: a kind without objects reads nothing."""
         return {}
+
+    def reset_scene(self, model, data) -> None:  # noqa: B027 (an optional hook)
+        """Put the task's objects in the simulation (``data``) back at their start poses,
+        at rest, without a rebuild: what a session's reset does before the next
+        repetition (:meth:`~davinci_sim.tasks.session.TaskSession.reset`). Nothing by
+        default: a kind without objects has nothing to put back."""
 
     # ------------------------------------------------------------ state machine
     @abstractmethod

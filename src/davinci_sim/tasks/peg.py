@@ -28,8 +28,9 @@ ring centres (n, k, 3), m, and ``grasp``, the bit mask of the jaws touching each
 first held (the clock starts); RUNNING → FINISHED when every ring is transferred or the
 ``time_limit`` (s; 0: none) has run out; then RESULTS.
 
-**Metrics**: time, economy of motion (of the task's ``teleop.psm``; the sample carries one
-tool tip), transferred rings and hand-offs (the kind's own), and the trainer metrics
+**Metrics**: time, economy of motion (:data:`ECONOMY_ALL`: the sum of the tip path lengths
+of every instrument in ``instruments``, from the sample's ``tools``; a hand-off needs both),
+transferred rings and hand-offs (the kind's own), and the trainer metrics
 (collisions, excessive force, out of view, master workspace, drops, missed targets = rings
 not transferred at the end).
 
@@ -39,6 +40,10 @@ any), to above the target pegs' centroid (the same laws as the path kind's,
 :mod:`davinci_sim.haptics.spring`, :mod:`davinci_sim.haptics.viscous`): a fixture is a
 field of the tool's position only, so it guides along the route, not to the ring of the
 moment.
+
+Size: one kind, its file fields, geometry, pure state machine and metric declarations
+together (a little over 500 lines since its economy of motion counts every instrument);
+the scene's side is :mod:`davinci_sim.tasks.peg_scene`.
 """
 
 from __future__ import annotations
@@ -58,7 +63,7 @@ from davinci_sim.tasks.base import (
     common_fields,
     common_to_dict,
 )
-from davinci_sim.tasks.metrics import Metric
+from davinci_sim.tasks.metrics import Metric, PairSum
 from davinci_sim.tasks.schema import (
     NONNEGATIVE,
     Flag,
@@ -70,7 +75,7 @@ from davinci_sim.tasks.schema import (
     Vector,
 )
 from davinci_sim.tasks.state import Phase
-from davinci_sim.tasks.trainer import ECONOMY, TIME, Sum, trainer_metrics
+from davinci_sim.tasks.trainer import TIME, Sum, trainer_metrics
 
 _IDLE, _READY, _RUNNING, _FINISHED, _RESULTS = (int(p) for p in Phase)
 
@@ -90,6 +95,20 @@ TRANSFERRED = Metric(
 HANDOFFS = Metric(
     "handoffs", "1", "neither", "hand-offs of a carried ring between the instruments",
     Sum(_observed("handoffs"), True), integer=True, label="hand-offs",
+)  # fmt: skip
+
+
+def _tools_step(task, prev, s, obs):
+    # Σ over the instruments of each tip's step, (n, A, 3) → (n,).
+    return np.linalg.norm(s.tools - prev.tools, axis=2).sum(axis=1)
+
+
+#: Economy of motion of a task with several instruments: Σ_a Σ_{i≥2} ‖p_a,i − p_a,i−1‖ over
+#: the instruments a (the sample's ``tools``), m (shown in cm).
+ECONOMY_ALL = Metric(
+    "path_length", "m", "lower",
+    "length of the tool tips' trajectories, every instrument summed (economy of motion)",
+    PairSum(_tools_step), report=("mm", 1e3), display=("cm", 100.0), needs=("tools",),
 )  # fmt: skip
 
 
@@ -130,7 +149,7 @@ class PegState(NamedTuple):
 class PegTransferTask(Task, kind="peg_transfer"):
     """Peg transfer (see the module docstring for the rules); lengths in m, world frame."""
 
-    METRICS = (TIME, ECONOMY, TRANSFERRED, HANDOFFS, *trainer_metrics())
+    METRICS = (TIME, ECONOMY_ALL, TRANSFERRED, HANDOFFS, *trainer_metrics())
     FILE_FIELDS: ClassVar[dict] = {
         "board_center": Vector(2, "x, y"),
         "board_top": Number(),
@@ -305,9 +324,16 @@ class PegTransferTask(Task, kind="peg_transfer"):
 
         return PegProbe(model, self, prefix)
 
+    def reset_scene(self, model, data) -> None:
+        """The rings back on their start pegs, at rest
+        (:func:`~davinci_sim.tasks.peg_scene.reset_rings`)."""
+        from davinci_sim.tasks.peg_scene import reset_rings
+
+        reset_rings(model, data, self)
+
     def scene_fields(self, model, data, cache: dict) -> dict:
-        """The sample's ``objects`` and ``grasp`` at ``data``'s state (the probe kept in
-        ``cache`` per model)."""
+        """The sample's ``objects``, ``grasp`` and ``tools`` (the instruments' tips) at
+        ``data``'s state (the probe kept in ``cache`` per model)."""
         key = ("peg_probe", id(model), id(self))
         probe = cache.get(key)
         if probe is None or probe[0] is not model or probe[1] is not self:
@@ -316,7 +342,7 @@ class PegTransferTask(Task, kind="peg_transfer"):
             while len(cache) > 4:
                 del cache[next(iter(cache))]
         objects, grasp = probe[2].measure(data)
-        return {"objects": objects, "grasp": grasp}
+        return {"objects": objects, "grasp": grasp, "tools": probe[2].tool_tips(data)}
 
     def initial_state(self, n: int) -> PegState:
         k = self.n_rings

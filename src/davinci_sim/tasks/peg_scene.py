@@ -16,7 +16,8 @@ keyframe gets the rings' resting poses appended (their joints come last in ``qpo
 :class:`PegProbe` is the task's view of the simulation at a tick: each ring's centre (task
 frame) and which jaws touch it, read from MuJoCo's contacts (``data.contact``) — what the
 task's pure state machine (:mod:`davinci_sim.tasks.peg`) turns into grasps, hand-offs,
-drops and transfers.
+drops and transfers — and the tips of every instrument the task uses (its economy of
+motion).
 """
 
 from __future__ import annotations
@@ -94,10 +95,9 @@ def add_peg_board(spec: mujoco.MjSpec, task: PegTransferTask, prefix: str = "tas
               size=[task.wall_thickness / 2, hy, task.wall_height / 2])  # fmt: skip
     mass = ring_mass(task.ring_radius, task.ring_tube_radius)
     r = task.ring_tube_radius
-    added = []
-    for k, peg in enumerate(task.start_pegs):
-        x, y = task.pegs[peg]
-        body = world.add_body(name=f"{prefix}ring{k + 1}", pos=[x, y, top + r])
+    start = ring_start_qpos(task)
+    for k in range(len(task.start_pegs)):
+        body = world.add_body(name=f"{prefix}ring{k + 1}", pos=start[k, :3])
         body.add_freejoint(name=f"{prefix}ring{k + 1}")
         rgba = RING_RGBA[k % len(RING_RGBA)]
         for j, (a, b) in enumerate(ring_segments(task.ring_radius, task.ring_segments)):
@@ -106,8 +106,7 @@ def add_peg_board(spec: mujoco.MjSpec, task: PegTransferTask, prefix: str = "tas
         # A thin torus: I_zz = m R² (about its axis), I_xx = I_yy = m R² / 2.
         R2 = task.ring_radius**2
         set_inertial(body, mass, [0, 0, 0], [mass * R2 / 2, mass * R2 / 2, mass * R2])
-        added.append([x, y, top + r, 1.0, 0.0, 0.0, 0.0])
-    _extend_keyframes(spec, np.asarray(added, dtype=float).ravel())
+    _extend_keyframes(spec, start.ravel())
     # A ring squeezed between the two angled jaws (each ≈ 10° off the closing plane on a
     # 3 mm tube) is pushed towards the jaw tips; MuJoCo's soft friction lets it creep out
     # within a second (measured: lifted rings fell during a 1 s hold). The noslip solver
@@ -115,6 +114,31 @@ def add_peg_board(spec: mujoco.MjSpec, task: PegTransferTask, prefix: str = "tas
     # a 1 s hold and 5 cm and 3 cm moves. Only scenes with a board get it.
     spec.option.noslip_iterations = max(spec.option.noslip_iterations, NOSLIP_ITERATIONS)
     return board
+
+
+def ring_start_qpos(task: PegTransferTask) -> np.ndarray:
+    """(k, 7) each ring's free-joint pose at the start (world frame): lying flat on its
+    start peg's foot, position (m) then the identity quaternion (w, x, y, z)."""
+    z = task.board_top + task.ring_tube_radius
+    return np.array([[x, y, z, 1.0, 0.0, 0.0, 0.0]
+                     for x, y in (task.pegs[p] for p in task.start_pegs)], dtype=float)  # fmt: skip
+
+
+def reset_rings(model: mujoco.MjModel, data: mujoco.MjData, task: PegTransferTask,
+                prefix: str = "task/") -> None:  # fmt: skip
+    """Put ``task``'s rings back on their start pegs (:func:`ring_start_qpos`) at rest in
+    ``data``, and recompute the derived quantities (``mj_forward``); ValueError if the
+    scene has no rings."""
+    start = ring_start_qpos(task)
+    for k in range(len(start)):
+        j = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, f"{prefix}ring{k + 1}")
+        if j < 0:
+            raise ValueError(f"task {task.name!r}: the scene has no ring {k + 1} (draw the task)")
+        q, v = model.jnt_qposadr[j], model.jnt_dofadr[j]
+        data.qpos[q : q + 7] = start[k]
+        data.qvel[v : v + 6] = 0.0
+        data.qacc_warmstart[v : v + 6] = 0.0
+    mujoco.mj_forward(model, data)
 
 
 def _extend_keyframes(spec: mujoco.MjSpec, qpos_rings: np.ndarray) -> None:
@@ -159,6 +183,14 @@ class PegProbe:
                 if gid < 0:
                     raise ValueError(f"task {task.name!r}: the scene has no {psm} jaws")
                 self.jaw_bit[gid] = 1 << (2 * a + j)
+        self.tips = np.array(
+            [mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_SITE, f"{psm}/tip")
+             for psm in task.instruments], dtype=np.int64)  # fmt: skip
+        """(A,) the tip sites of the task's instruments (economy of motion)."""
+
+    def tool_tips(self, data: mujoco.MjData) -> np.ndarray:
+        """(A, 3) the tips of the task's instruments now, world frame, m."""
+        return data.site_xpos[self.tips].copy()
 
     def measure(self, data: mujoco.MjData) -> tuple[np.ndarray, np.ndarray]:
         """``(objects (k, 3) ring centres, m; grasp (k,) jaw bit masks)`` now."""

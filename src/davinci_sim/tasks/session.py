@@ -22,8 +22,8 @@ the state's :attr:`TaskSessionState.guidance_B`.
 
 Repetitions follow one another by themselves: once a repetition's results are in, bringing
 the tool back to point 1 starts the next one; :meth:`TaskSession.reset` abandons the
-current repetition at any time (dvrk-style command, callable over the bridge as
-``/task/reset``).
+current repetition at any time and puts the task's objects (peg rings) back at their start
+(dvrk-style command, callable over the bridge as ``/task/reset``).
 """
 
 from __future__ import annotations
@@ -206,11 +206,23 @@ class TaskSession:
         return ACCEPTED
 
     def reset(self) -> CommandResult:
-        """Abandon the current repetition: back to IDLE (the tool at point 1 starts it)."""
+        """Abandon the current repetition and set the task's objects up for the next: the
+        task's scene back at its start (:meth:`~davinci_sim.tasks.base.Task.reset_scene`:
+        peg rings on their start pegs, at rest; nothing rebuilt), then back to IDLE (the
+        tool at point 1 starts it). The command behind the console's and the web
+        console's Reset and ``/task/reset``."""
+        try:
+            self.task.reset_scene(self.sim.model, self.sim.data)
+        except ValueError as e:  # (a scene drawn without the task's objects)
+            self.channels.message("warning", f"{self.name}: {e}", self.sim.time)
+        self._restart()
+        return ACCEPTED
+
+    def _restart(self) -> None:
+        """Back to IDLE for the next repetition (the objects left where they are)."""
         self.monitor.reset()
         self._recorded = False
         self.channels.message("status", f"repetition {self.repetition}: reset", self.sim.time)
-        return ACCEPTED
 
     def report(self, level: str, text: str) -> CommandResult:
         """Put ``text`` on the session's message channel at ``level`` (``error``,
@@ -239,7 +251,7 @@ class TaskSession:
             self._distance = float(task.distance(tip)[0])
             if task.at_start(tip)[0]:
                 self.repetition += 1
-                self.reset()
+                self._restart()  # (the objects stay: a Reset puts them back)
             return
         sample = live_sample(task, T_task_camera, self.teleop, self.console, t)
         self.monitor.observe(sample)
@@ -408,7 +420,7 @@ def live_sample(task: Task, T_task_camera, teleop: TeleopPSM, console: Console, 
     extra = task.scene_fields(sim.model, sim.data, _SCENE_CACHE)  # (a kind's objects)
     # One trial: the arrays built directly (Sample.of's conversions cost more, every tick).
     f = np.zeros((1, 3)) if force is None else np.asarray(force, dtype=float).reshape(1, 3)
-    objects, grasp = extra.get("objects"), extra.get("grasp")
+    objects, grasp, tools = extra.get("objects"), extra.get("grasp"), extra.get("tools")
     return Sample(
         np.array([float(t)]), tip.reshape(1, 3), f, np.array([bool(teleop.is_clutched())]),
         visible=np.array([visible]), master=master, contacts=np.array([count], dtype=np.int64),
@@ -417,6 +429,7 @@ def live_sample(task: Task, T_task_camera, teleop: TeleopPSM, console: Console, 
         grasp=None if grasp is None else np.asarray(grasp, dtype=np.int64).reshape(1, -1),
         T_task_camera=np.asarray(T_task_camera, dtype=float).reshape(1, 4, 4),
         R_task_tip=T_task_tip[:3, :3].reshape(1, 3, 3),
+        tools=None if tools is None else np.asarray(tools, dtype=float).reshape(1, -1, 3),
     )  # fmt: skip
 
 

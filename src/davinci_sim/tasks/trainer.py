@@ -31,11 +31,12 @@ The master workspace range is a box diagonal, not the diameter of the set of pos
 box is kept from sample to sample (the diameter needs every pair), lies between the
 diameter and √3 times it, and equals it for motion along one line.
 
-Collisions are MuJoCo's contacts (:class:`InstrumentContacts`): the model generates none
-between the two instruments (their geoms' contype/conaffinity exclude each other), so a
-clash of instruments is not counted; contacts with the table, the patient, the objects of
-other tasks are. Metrics read optional sample fields (``Metric.needs``): an engine that
-does not sample one gives nan for the metric (unavailable), never a made-up 0.
+Collisions are MuJoCo's contacts (:class:`InstrumentContacts`): of the instrument with
+the table, the patient, the objects of other tasks, and another arm's instrument or the
+endoscope (the model makes instruments of different arms collide,
+:mod:`davinci_sim.model.contact`; a clash of instruments is counted). Metrics read
+optional sample fields (``Metric.needs``): an engine that does not sample one gives nan
+for the metric (unavailable), never a made-up 0.
 """
 
 from __future__ import annotations
@@ -210,7 +211,8 @@ def trainer_metrics(*, replace: tuple[Metric, ...] = (), leave_out=()) -> tuple[
 # ---------------------------------------------------------------- contacts
 class InstrumentContacts:
     """The contacts of one PSM's instrument (the bodies from ``<psm>/roll`` down: shaft,
-    wrist, jaws) with anything but its own arm and the bodies named with one of
+    wrist, jaws) with anything but its own arm (other arms' instruments and the endoscope
+    included) and the bodies named with one of
     ``ignore`` (prefixes, e.g. the objects a task grasps): their number and total normal
     force, N, at the current state of ``data``.
 

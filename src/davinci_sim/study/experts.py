@@ -1,0 +1,546 @@
+"""Expert-parameter scripted operators of the skill exercises: the attempts behind their pass marks.
+
+The study's synthetic trainees follow paths through the MTM (:mod:`davinci_sim.operators`);
+the exercises need grasping, orienting and camera moves they do not make. The expert
+reference of an exercise (:mod:`davinci_sim.study.reference`) is therefore made by scripted
+operators at the simulated console, one per kind, each repetition an attempt recorded by the
+task's own session (:class:`~davinci_sim.tasks.session.TaskSession`: the same samples,
+state machine and metrics as a person's attempt), with the arms driven through their API
+(``servo_cp`` streamed at 1 kHz, jaws by ``servo_jp``, the ECM by ``move_cp``) and the
+task's teleoperation clutched:
+
+* ``needle_targeting``: reach each target pointing along its direction (undershooting, so
+  as not to pass through it: leaving a target unhit is a miss), hold for the dwell;
+* ``ring_walk``: carry the ring along the wire from its start to its end;
+* ``camera_targeting``: bring the endoscope, on the line from its RCM through each target, to
+  the task's depth (ECM ``move_cp``), hold for the dwell;
+* ``peg_transfer`` (and its ICRA variant): PSM2 lifts each ring off its start peg, carries it
+  to the middle (over the wall), hands it to PSM1, which threads it on a target peg. **Not
+  yet reliable**: in a checked attempt it transferred two rings and lost the third at the
+  hand-off (PSM1's jaws touching but not holding it when PSM2 let go); the attempts made
+  for a reference (2 per variant) did not finish within :func:`_time_budget`, so no peg
+  reference is shipped.
+
+**The expert's variability** (:class:`Motor`): each attempt draws from the expert's
+parameters (:func:`~davinci_sim.operators.params.sample_experts`; repetition j scales them
+by the power law's practice factor f = 1 + E·j^(−α), as the trainees' are: speed / f,
+noise k·f):
+
+* a reach of amplitude A at mean speed v ends off its aim by a normal error of SD
+  k·√(A·v·2τ·10/7) per axis — the open-loop endpoint SD of signal-dependent noise for a
+  minimum-jerk reach of duration A/v (:mod:`davinci_sim.operators.noise`, τ its 40 ms
+  muscle filter); the operator then looks (the visuomotor delay) and corrects with a new,
+  shorter reach, until it is within the task's tolerance (at most :data:`MAX_CORRECTIONS`);
+  an orientation error is drawn alike from the rotation's angle at :data:`ANGULAR_SPEED`;
+* the reaches' mean speed is the expert's practised tool speed times
+  :data:`REACH_SPEED_FACTOR`; a wire is followed at the practised speed itself, the ring
+  off the wire by a lateral wander (an Ornstein-Uhlenbeck process with the visuomotor
+  delay as correlation time and the endpoint SD of a reach of one delay's travel as SD);
+* every streamed setpoint carries the expert's physiological tremor, scaled by the task's
+  motion scale (the hand's tremor reaches the tool scaled), one sinusoid per axis at the
+  expert's tremor frequency with random phases; each sub-movement starts after the
+  expert's reaction time.
+
+:data:`REACH_SPEED_FACTOR` and :data:`ANGULAR_SPEED` are **assumptions** (no published
+expert value for these exercises; they put an expert's reaches at ~5 cm/s, of the order of
+the tool speeds reported for robotic training tasks). The masters do not move (the arms
+are scripted), so the master workspace is not measured (:func:`not_measured`; nor the
+instrument's economy and out-of-view distance in camera targeting, where the scripted
+expert leaves the instrument alone): no reference value, so no default pass mark for them
+(their score still uses the task's ``expert``/``fail`` scale).
+
+Size: the motion model, the four scripts and the attempt driver are one unit (~500 lines):
+the scripts share the motion model's primitives and nothing else uses them.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from davinci_sim.geometry.so3 import rotation_from_vector, rotation_vector
+from davinci_sim.operators.noise import MUSCLE_TIME_CONSTANT
+from davinci_sim.operators.params import SubjectParams
+
+#: Mean speed of a reach over the practised path-following speed (assumption, see above).
+REACH_SPEED_FACTOR = 3.0
+#: Mean angular speed of a reorientation, rad/s (assumption).
+ANGULAR_SPEED = 1.0
+#: Corrective reaches after the first, at most.
+MAX_CORRECTIONS = 4
+#: The kinds these operators do.
+EXERCISES = ("needle_targeting", "ring_walk", "camera_targeting", "peg_transfer")
+#: Metrics a scripted expert does not exercise, and why (left out of its reference).
+NOT_MEASURED = {
+    "master_workspace": "the scripted experts drive the arms (teleoperation clutched): the "
+    "masters do not move",
+}
+#: ... and those of one kind only.
+NOT_MEASURED_OF_KIND = {
+    "camera_targeting": {
+        "path_length": "the scripted camera expert leaves the instrument alone (its "
+        "teleoperation clutched): it does not move",
+        "out_of_view": "the instrument does not move (see path_length)",
+    },
+}
+
+
+def not_measured(kind: str) -> dict[str, str]:
+    """The metrics the scripted expert of a ``kind`` does not exercise, and why."""
+    return {**NOT_MEASURED, **NOT_MEASURED_OF_KIND.get(kind, {})}
+
+
+_SPREAD = 2.0 * MUSCLE_TIME_CONSTANT * 10.0 / 7.0
+
+
+@dataclass
+class Motor:
+    """One attempt's motion style of one expert (see the module docstring)."""
+
+    speed: float
+    """Path-following tool speed, m/s."""
+    noise: float
+    """Signal-dependent noise coefficient k."""
+    tremor: float
+    """Tool tremor, 3-D rms, m."""
+    tremor_hz: float
+    delay: float
+    """Visuomotor delay, s."""
+    reaction: float
+    """Reaction time before a sub-movement, s."""
+    rng: np.random.Generator
+    phase: np.ndarray = field(default_factory=lambda: np.zeros(3))
+
+    @classmethod
+    def of(cls, params: SubjectParams, index: int, repetition: int, scale: float,
+           rng: np.random.Generator) -> Motor:  # fmt: skip
+        """Expert ``index`` of ``params`` at repetition ``repetition`` (≥ 1), the task's
+        motion ``scale``, drawing from ``rng``."""
+        f = float(params.practice_factor(repetition)[index])
+        return cls(
+            speed=float(params.speed[index]) / f,
+            noise=float(params.noise[index]) * f,
+            tremor=float(params.tremor_amplitude[index]) * scale,
+            tremor_hz=float(params.tremor_frequency[index]),
+            delay=float(params.delay[index]),
+            reaction=float(params.reaction_time[index]),
+            rng=rng,
+            phase=rng.uniform(0.0, 2.0 * math.pi, 3),
+        )
+
+    @property
+    def reach_speed(self) -> float:
+        return REACH_SPEED_FACTOR * self.speed
+
+    def endpoint_sd(self, amplitude: float, speed: float) -> float:
+        """SD per axis of the end of an open-loop reach of ``amplitude`` at mean ``speed``."""
+        return self.noise * math.sqrt(max(amplitude, 0.0) * speed * _SPREAD)
+
+    def aim(self, start, goal) -> np.ndarray:
+        """Where a reach from ``start`` towards ``goal`` (3,) ends, m."""
+        a, g = np.asarray(start, float), np.asarray(goal, float)
+        sd = self.endpoint_sd(float(np.linalg.norm(g - a)), self.reach_speed)
+        return g + self.rng.normal(0.0, sd, 3)
+
+    def aim_rotation(self, R_start, R_goal) -> np.ndarray:
+        """Where a reorientation from ``R_start`` towards ``R_goal`` ends."""
+        angle = float(np.linalg.norm(rotation_vector(R_start.T @ R_goal)))
+        sd = self.endpoint_sd(angle, ANGULAR_SPEED)
+        return R_goal @ rotation_from_vector(self.rng.normal(0.0, sd, 3))
+
+    def duration(self, distance: float, angle: float = 0.0, speed: float | None = None) -> float:
+        """Duration of a reach, s (at least 0.15 s)."""
+        v = self.reach_speed if speed is None else speed
+        return max(0.15, distance / v, angle / ANGULAR_SPEED)
+
+    def tremor_at(self, t: float) -> np.ndarray:
+        """The tool's tremor displacement at time ``t`` s, (3,) m."""
+        amp = self.tremor * math.sqrt(2.0 / 3.0)  # per axis: rms tremor/√3
+        return amp * np.sin(2.0 * math.pi * self.tremor_hz * t + self.phase)
+
+
+def min_jerk(x: float) -> float:
+    x = min(max(x, 0.0), 1.0)
+    return x**3 * (10.0 - 15.0 * x + 6.0 * x * x)
+
+
+def slerp(R0: np.ndarray, R1: np.ndarray, s: float) -> np.ndarray:
+    return R0 @ rotation_from_vector(s * rotation_vector(R0.T @ R1))
+
+
+class Streamer:
+    """Streams ``servo_cp`` setpoints of PSMs, given in the task's frame, tick by tick."""
+
+    def __init__(self, sim, motor: Motor, T_camera_task: np.ndarray, arms) -> None:
+        self.sim, self.motor, self.T = sim, motor, np.asarray(T_camera_task, float)
+        self.goal: dict[str, np.ndarray] = {}
+        for n in arms:  # the current setpoint, task frame
+            self.goal[n] = np.linalg.inv(self.T) @ sim.arms[n].setpoint_cp().T
+
+    def _send(self) -> None:
+        t = self.sim.time
+        for n, G in self.goal.items():
+            H = G.copy()
+            H[:3, 3] += self.motor.tremor_at(t)
+            self.sim.arms[n].servo_cp(self.T @ H)
+
+    def wait(self, seconds: float, until=None) -> bool:
+        """Hold the setpoints (with tremor) for ``seconds`` or until ``until()``."""
+        end = self.sim.time + seconds
+        while self.sim.time < end:
+            if until is not None and until():
+                return True
+            self._send()
+            self.sim.tick()
+        return until is not None and until()
+
+    def glide(self, goals: dict, duration: float, until=None) -> bool:
+        """Minimum-jerk moves of the arms in ``goals`` (name → 4x4 or (3,) position, task
+        frame) over ``duration`` s; stops early (True) when ``until()``."""
+        start = {n: self.goal[n].copy() for n in goals}
+        ends = {}
+        for n, g in goals.items():
+            g = np.asarray(g, float)
+            if g.shape == (3,):
+                e = start[n].copy()
+                e[:3, 3] = g
+                g = e
+            ends[n] = g
+        t0 = self.sim.time
+        while True:
+            s = min_jerk((self.sim.time - t0 + self.sim.dt) / duration)
+            for n in goals:
+                G = ends[n].copy()
+                G[:3, 3] = start[n][:3, 3] + s * (ends[n][:3, 3] - start[n][:3, 3])
+                G[:3, :3] = slerp(start[n][:3, :3], ends[n][:3, :3], s)
+                self.goal[n] = G
+            self._send()
+            self.sim.tick()
+            if until is not None and until():
+                return True
+            if s >= 1.0:
+                return False
+
+    def reach(self, arm: str, goal, tolerance: float, R_goal=None, until=None,
+              undershoot: bool = False) -> bool:  # fmt: skip
+        """A reach of ``arm`` towards ``goal`` (3,) (and orientation ``R_goal``), corrected
+        until its aim is within ``tolerance`` m (see :class:`Motor`). ``undershoot``: each
+        sub-movement aims short of the goal by twice its endpoint SD (at most half the way),
+        as primary movements to a target do (Elliott, Helsen & Chua 2001, Psychol. Bull.
+        127:342): the tip does not pass through a target it must not leave."""
+        m = self.motor
+        goal = np.asarray(goal, float)
+        for _ in range(1 + MAX_CORRECTIONS):
+            if self.wait(m.reaction, until):
+                return True
+            G0 = self.goal[arm]
+            aim_at = goal
+            if undershoot:
+                delta = goal - G0[:3, 3]
+                dist = float(np.linalg.norm(delta))
+                if dist > tolerance:
+                    short = min(2.0 * m.endpoint_sd(dist, m.reach_speed), 0.5 * dist)
+                    aim_at = goal - short * delta / dist
+            p = m.aim(G0[:3, 3], aim_at)
+            H = G0.copy()
+            H[:3, 3] = p
+            angle = 0.0
+            if R_goal is not None:
+                H[:3, :3] = m.aim_rotation(G0[:3, :3], R_goal)
+                angle = float(np.linalg.norm(rotation_vector(G0[:3, :3].T @ R_goal)))
+            if self.glide({arm: H}, m.duration(float(np.linalg.norm(p - G0[:3, 3])), angle),
+                          until):  # fmt: skip
+                return True
+            if np.linalg.norm(p - goal) <= tolerance:
+                return False
+            if self.wait(m.delay, until):  # looks, then corrects
+                return True
+        return False
+
+
+# ---------------------------------------------------------------- the exercises
+def pointing(R: np.ndarray, direction) -> np.ndarray:
+    """``R`` turned the least so that its z axis points along ``direction``."""
+    from davinci_sim.tasks.check import _pointing
+
+    return _pointing(R, direction)
+
+
+def do_needle(stream: Streamer, session, task, done) -> None:
+    arm = task.teleop.psm
+    tol = 0.6 * task.target_radius  # (inside, with a margin for the tremor)
+    for p, d in zip(task.targets, task.directions, strict=True):
+        R_goal = pointing(stream.goal[arm][:3, :3], d)
+        if stream.reach(arm, p, tol, R_goal, until=done, undershoot=True):
+            return
+        if stream.wait(task.dwell + 0.05, until=done):
+            return
+
+
+def do_ring_walk(stream: Streamer, session, task, done) -> None:
+    arm, m = task.teleop.psm, stream.motor
+    path = task.path
+    stream.wait(m.reaction)
+    sd = m.endpoint_sd(m.speed * m.delay, m.speed)
+    offset = np.zeros(3)
+    a = math.exp(-stream.sim.dt / m.delay)
+    s = 0.0
+    while not done() and s < path.length + 0.01:
+        offset = a * offset + math.sqrt(1 - a * a) * m.rng.normal(0.0, sd, 3)
+        G = stream.goal[arm].copy()
+        G[:3, 3] = path.point_at(min(s, path.length)) + offset
+        stream.goal[arm] = G
+        stream._send()
+        stream.sim.tick()
+        s += m.speed * stream.sim.dt
+
+
+def do_camera(sim, motor: Motor, session, task, done) -> None:
+    ecm = sim.arms["ECM"]
+    T_task_camera0 = task.T_task_camera(sim.T_cart_camera())
+    T_world_task = sim.T_cart_camera() @ np.linalg.inv(T_task_camera0)
+    rcm = ecm.base_frame()[0][:3, 3]
+    for i, p_task in enumerate(task.targets):
+        p = (T_world_task @ np.append(p_task, 1.0))[:3]
+        axis = (p - rcm) / np.linalg.norm(p - rcm)
+        view = p - task.depth * axis
+        for _ in range(1 + MAX_CORRECTIONS):
+            sim.run_for(motor.reaction)
+            here = ecm.measured_cp().T[:3, 3]
+            goal = ecm.measured_cp().T.copy()
+            goal[:3, 3] = motor.aim(here, view)
+            if not ecm.move_cp(goal):
+                break
+            sim.run_until(lambda: not ecm.is_busy(), 10.0)
+            if _acquired(session, i) or done():
+                break
+            sim.run_for(task.dwell + 0.05)
+            if _acquired(session, i) or done():
+                break
+            sim.run_for(motor.delay)
+        if done():
+            return
+        sim.run_until(lambda i=i: _acquired(session, i) or done(), task.dwell + 0.1)
+
+
+def _acquired(session, i: int) -> bool:
+    return int(session.monitor.state.target[0]) > i
+
+
+#: Jaw angles of the peg script, rad: open (46°, in the dVRK's −40°…80° range) and the
+#: dVRK's close (−20°: the jaw effort saturates on the ring).
+JAW_OPEN, JAW_CLOSED = 0.8, -0.35
+
+
+def do_peg(stream: Streamer, session, task, done) -> None:
+    """Every ring: PSM2 picks it off its start peg, PSM1 takes it over the board's middle
+    (a hand-off, over the wall if any), PSM1 drops it on its target peg."""
+    sim = stream.sim
+    m, d = sim.model, sim.data
+    bodies = [m.body(f"task/ring{i + 1}").id for i in range(task.n_rings)]
+
+    def ring(i):
+        return d.xpos[bodies[i]].copy(), d.xmat[bodies[i]].reshape(3, 3).copy()
+
+    def tip(n):
+        return stream.goal[n][:3, 3].copy()
+
+    def pivot(n, i, far_from=None, depth=0.008):
+        # On the ring's circle where the jaws close radially, the tube `depth` along them.
+        c, Rr = ring(i)
+        R = stream.goal[n][:3, :3]
+        a, y, normal = R[:, 2], R[:, 1], Rr[:, 2]
+        radial = y - normal * np.dot(y, normal)
+        radial /= np.linalg.norm(radial)
+        pts = [c + s * task.ring_radius * radial - depth * a for s in (1.0, -1.0)]
+        return pts[0] if far_from is None else max(pts, key=lambda p: np.linalg.norm(p - far_from))
+
+    def jaw(n, angle):
+        sim.arms[n].jaw.servo_jp(angle)
+        return stream.wait(0.1, until=done)
+
+    probe = task.probe(m)
+
+    def held(n, i) -> bool:  # both of n's jaws touch ring i (the expert looks)
+        a = task.instruments.index(n)
+        return (int(probe.measure(d)[1][i]) >> (2 * a)) & 3 == 3
+
+    def grasp(n, i, far_from=None) -> bool | None:
+        """Reach ring i's wall with n's open jaws and close them, again (from the
+        ring's pose now) while the jaws do not both hold it: True if held, None if the
+        attempt ended."""
+        for _ in range(3):
+            p = pivot(n, i, far_from)
+            a = stream.goal[n][:3, 2]
+            if jaw(n, JAW_OPEN) or stream.reach(n, p - 0.006 * a, 0.002, until=done):
+                return None
+            if stream.reach(n, p, 0.0007, until=done) or jaw(n, JAW_CLOSED):
+                return None
+            if held(n, i):
+                return True
+            if stream.reach(n, tip(n) - 0.006 * a, 0.002, until=done):
+                return None
+        return False
+
+    cx, cy = task.board_center
+    lift = task.board_top + max(task.peg_height, task.wall_height if task.wall else 0.0)
+    hand_off = np.array([cx + 0.007, cy, lift + 0.01])
+    for i, peg in enumerate(task.target_pegs[: task.n_rings]):
+        if jaw("PSM1", JAW_OPEN):
+            return
+        if stream.reach("PSM1", hand_off + [-0.01, 0, 0.02], 0.003, until=done):
+            return
+        if not grasp("PSM2", i):
+            return
+        steps = [
+            lambda: stream.reach("PSM2", tip("PSM2") + [0, 0, 0.02], 0.003, until=done),
+            lambda i=i: stream.reach(
+                "PSM2", tip("PSM2") + hand_off - ring(i)[0], 0.002, until=done
+            ),  # fmt: skip
+            lambda i=i: not grasp("PSM1", i, far_from=tip("PSM2")),
+            lambda: stream.wait(0.3, until=done),
+            lambda: jaw("PSM2", JAW_OPEN),
+            lambda: stream.reach("PSM2", tip("PSM2") + [0.015, 0, 0.01], 0.003, until=done),
+        ]
+        for step in steps:
+            if step():
+                return
+        if not held("PSM1", i):  # it fell at the hand-off: PSM1 picks it up where it lies
+            if stream.wait(0.5, until=done) or not grasp("PSM1", i):
+                return
+            if stream.reach("PSM1", tip("PSM1") + [0, 0, 0.02], 0.003, until=done):
+                return
+        x, y = task.pegs[peg]
+        top = task.board_top + task.peg_height
+        # Across at the hand-off's height (clear of the wall), down over the peg, down until
+        # the peg is 4 mm into the ring's hole, then let go.
+        for z in (hand_off[2] + 0.005, top + 0.006, top - 0.004):
+            goal = tip("PSM1") + np.array([x, y, z]) - ring(i)[0]
+            if stream.reach("PSM1", goal, 0.0015, until=done):
+                return
+        if jaw("PSM1", JAW_OPEN) or stream.wait(0.3, until=done):
+            return
+        if stream.reach("PSM1", tip("PSM1") + [0, 0, 0.02], 0.003, until=done):
+            return
+    stream.wait(0.5, until=done)
+
+
+# ---------------------------------------------------------------- attempts
+@dataclass
+class Stage:
+    """A simulation at the start of an exercise's attempt, its session and the state to
+    restore before each attempt (built once per exercise)."""
+
+    sim: object
+    session: object
+    state: object
+    arms: tuple[str, ...]
+
+
+def build_stage(task) -> Stage:
+    """The stage of ``task``: the study's set-up (the task's PSM at the start, its
+    teleoperation clutched) and a session, the ECM homed for camera targeting; for peg
+    transfer the console's system with both PSMs homed and the board drawn."""
+    from davinci_sim.tasks import install_task
+
+    if task.kind == "peg_transfer":
+        from davinci_sim.model import SceneConfig
+        from davinci_sim.system import ConsoleDescription, SystemDescription, build_simulation
+        from davinci_sim.system.description import TaskDescription
+
+        scene = SceneConfig(arms=("PSM1", "PSM2", "ECM", task.teleop.mtm), include_patient=False)
+        console = ConsoleDescription(operator_present=True, teleop_enabled=True)
+        sim = build_simulation(SystemDescription(scene, console=console, runner="none",
+                                                 task=TaskDescription(task.name)))  # fmt: skip
+        session = sim.components["task"]
+        arms = ("PSM1", "PSM2")
+        for n in (*arms, "ECM"):
+            sim.arms[n].state_command("enable")
+            sim.arms[n].state_command("home")
+        ready = lambda: all(sim.arms[n].is_homed() and not sim.arms[n].is_busy()  # noqa: E731
+                            for n in (*arms, "ECM"))  # fmt: skip
+        if not sim.run_until(ready, 20.0):
+            raise RuntimeError(f"{task.name}: the arms did not home")
+        session.teleop.clutch(True)
+    else:
+        from davinci_sim.study.trial import build_setup
+
+        setup = build_setup(task)  # (its own: not the trials' cached set-up, it is closed)
+        sim = setup.sim
+        setup.teleop.clutch(True)
+        session = install_task(sim, task)
+        arms = (task.teleop.psm,)
+        if task.kind == "camera_targeting":
+            ecm = sim.arms["ECM"]
+            ecm.state_command("enable")
+            ecm.state_command("home")
+            if not sim.run_until(lambda: ecm.is_homed() and not ecm.is_busy(), 10.0):
+                raise RuntimeError(f"{task.name}: the ECM did not home")
+    sim.run_for(0.3)  # (objects at rest: READY)
+    return Stage(sim, session, sim.get_state(), arms)
+
+
+def _time_budget(task, motor: Motor) -> float:
+    """Simulated time an attempt may take before it counts as unfinished, s."""
+    if task.kind == "ring_walk":
+        return 3.0 * task.path.length / motor.speed + 10.0
+    if task.kind == "peg_transfer":
+        return 40.0 * task.n_rings
+    return 15.0 * len(task.targets) + 5.0
+
+
+def attempt(stage: Stage, task, motor: Motor) -> dict:
+    """One attempt of ``task`` by ``motor``'s expert from the stage's start: the session's
+    row with ``finished`` True, or ``{"finished": False}`` if it did not finish in time."""
+    sim, session = stage.sim, stage.session
+    sim.set_state(stage.state)
+    before = len(session.results)
+    end = sim.time + _time_budget(task, motor)
+
+    def done():
+        # (an arm in FAULT, e.g. a tracking error pressing on the board, ends it too)
+        return (
+            len(session.results) > before
+            or sim.time > end
+            or any(sim.arms[n].operating_state().state == "FAULT" for n in stage.arms)
+        )
+
+    T_camera_task = np.linalg.inv(task.T_task_camera(sim.T_cart_camera()))
+    if task.kind == "camera_targeting":
+        do_camera(sim, motor, session, task, done)
+    else:
+        stream = Streamer(sim, motor, T_camera_task, stage.arms)
+        script = {"needle_targeting": do_needle, "ring_walk": do_ring_walk,
+                  "peg_transfer": do_peg}[task.kind]  # fmt: skip
+        script(stream, session, task, done)
+    sim.run_until(done, 2.0)
+    if len(session.results) > before:
+        return {**session.results[-1], "finished": True}
+    return {"finished": False}
+
+
+def expert_attempts(task, *, subjects: int, repetitions: int, seed: int, progress=None):
+    """The attempts of ``subjects`` experts (:func:`sample_experts` of ``seed``) x
+    ``repetitions`` at ``task`` (rows, subject-major); each attempt's randomness is keyed
+    by (seed, subject, repetition)."""
+    from davinci_sim.operators.params import sample_experts
+
+    if task.kind not in EXERCISES:
+        raise ValueError(f"no scripted expert for a {task.kind} task; kinds: {list(EXERCISES)}")
+    params = sample_experts(subjects, seed=seed)
+    stage = build_stage(task)
+    rows = []
+    try:
+        for s in range(subjects):
+            for r in range(1, repetitions + 1):
+                rng = np.random.default_rng([int(seed), s, r, 0xE8])
+                motor = Motor.of(params, s, r, task.teleop.scale, rng)
+                row = attempt(stage, task, motor)
+                rows.append({**row, "subject": s, "repetition": r})
+                if progress is not None:
+                    progress(s, r, row)
+    finally:
+        stage.sim.close()
+    return rows
