@@ -30,8 +30,9 @@ def test_home_power_off_and_power_on_act_on_every_arm(handle, make_server, make_
     assert wait_for(lambda: psm[-1]["state"] == "DISABLED" and ecm[-1]["state"] == "DISABLED", 10)
     _empty(ros, "/system/power_on")
     assert wait_for(lambda: psm[-1]["state"] == "ENABLED", 10)
-    snap = handle.snapshot()
-    assert all(a.operating_state.state == "ENABLED" for a in snap.arms.values())
+    # every arm, not only the two watched (they need not all turn in the same snapshot)
+    assert wait_for(lambda: all(a.operating_state.state == "ENABLED"
+                                for a in handle.snapshot().arms.values()), 10)  # fmt: skip
 
 
 def test_volume_is_kept_and_bad_values_refused(handle, make_server, make_ros):

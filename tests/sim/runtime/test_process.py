@@ -2,6 +2,7 @@
 deterministic scheduled inputs, statistics and the stereo render process."""
 
 import functools
+import time
 
 import numpy as np
 import pytest
@@ -102,7 +103,8 @@ def test_a_failing_factory_reports_its_traceback():
 def test_stereo_rendering_in_its_own_process():
     with ProcessSimulation(FACTORY, real_time=True, render_hz=30) as handle:
         frame = None
-        for _ in range(400):
+        deadline = time.monotonic() + 120.0  # (the render process's EGL start on a busy machine)
+        while time.monotonic() < deadline:
             handle.wait_for_tick(handle.snapshot().tick + 10, 5)
             frame = handle.stereo_frame()
             if frame is not None and frame.frame >= 2:
