@@ -3,7 +3,7 @@
 // Everything the simulation does goes through the server's checked commands (protocol.py).
 
 import {
-  KEYMAP, GRIPPER_OPEN, keyAxes, keyTurn, isMappedKey, buttonOfKey, toggleOfKey,
+  KEYMAP, GRIPPER_OPEN, GRIPPER_CLOSED, keyAxes, keyTurn, isMappedKey, buttonOfKey, toggleOfKey,
   gamepadInput, rumble, rumbleIntensity, sameAxes,
 } from "./input.js";
 
@@ -647,7 +647,7 @@ function onKey(event, down) {
   const toggle = toggleOfKey(event.code);
   if (toggle === "jaw" && down) {
     state.jawOpen = !state.jawOpen;
-    state.gripper = state.jawOpen ? GRIPPER_OPEN : 0;
+    state.gripper = state.jawOpen ? GRIPPER_OPEN : GRIPPER_CLOSED;
     if (state.hand) state.grippers[state.hand] = state.gripper;
     sendInput(true);
   }
