@@ -13,6 +13,9 @@ export const GRIPPER_OPEN = (60 * Math.PI) / 180; // rad, the MTM gripper's rang
 // -20° jaw goal (jaw = 80°/60° x gripper, dvrk.md 4.2), the dVRK's close, so the jaws grip
 // what they hold with their full effort (a goal of 0 stops pressing once nearly closed).
 export const GRIPPER_CLOSED = (-15 * Math.PI) / 180;
+// The jaw key's "open": the gripper at 45°, the jaw at 60°, the dVRK's jaw.open() (dvrk.md
+// 3.2). Wide open (80°), the jaws reach over a ring's peg when they go down on its wall.
+export const GRIPPER_KEY_OPEN = (45 * Math.PI) / 180;
 
 // The key map shown in the page. `axis`: [index, sign] of the hand's rate; `turn`: [index,
 // sign] of the wrist's rate about the screen's right, up and in axes (right-hand rule);
