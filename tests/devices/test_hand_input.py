@@ -142,6 +142,19 @@ def test_the_gripper_input_sets_the_mtm_gripper(system):
     assert gripper == pytest.approx(0.5, abs=0.05)
 
 
+def test_a_squeezed_gripper_closes_the_jaw_to_the_dvrk_close(system):
+    """Squeezed past "just closed" (0) to −15°, the MTM gripper reads −15° and the
+    teleoperation's jaw = 80°/60° · gripper (dvrk.md 4.2) goes to −20°, the dVRK's close
+    (dvrk.md 3.2): with nothing between the jaws they stop at the jaw's model limit."""
+    sim, _, hand = system
+    assert hand.command([0, 0, 0], gripper=math.radians(-15))
+    sim.run_for(0.5)
+    assert math.degrees(sim.arms["MTMR"].gripper.measured_jp()) == pytest.approx(-15, abs=1)
+    jaw_goal = float(sim.arms["PSM1"].jaw.setpoint_js().position[0])
+    assert math.degrees(jaw_goal) == pytest.approx(-20, abs=0.5)
+    assert math.degrees(sim.arms["PSM1"].jaw.measured_jp()) == pytest.approx(-20, abs=2)
+
+
 def test_state_round_trip_resumes_identically(system):
     sim, teleop, hand = system
     hand.command([0.03, 0.0, 0.01])

@@ -351,16 +351,21 @@ def test_the_input_module_maps_keys_sticks_spacemouse_and_rumble(console):
           rumble: [m.rumbleIntensity(2.5, 5), m.rumbleIntensity(-9, 5),
                    m.rumbleIntensity(NaN, 5), m.rumbleIntensity(1, 0)],
           gripperOpen: m.GRIPPER_OPEN,
+          gripperClosed: m.GRIPPER_CLOSED,
         }; }"""
     )
     assert r["right"] == [1, 0, 0] and r["arrows"] == [0, 1, 0] and r["deeper"] == [0, 0, 1]
     assert r["cancel"] == [0, 0, 0] and r["fine"] == [0, 0.25, 0]
     # Standard mapping: left stick right/up (y is down on a gamepad), right stick forward =
-    # deeper, A = clutch, right trigger fully pulled = jaw closed.
+    # deeper, A = clutch, right trigger fully pulled = gripper squeezed (-15°: jaw -20°).
     assert r["pad"]["axes"] == [1, 1, 1]
-    assert r["pad"]["buttons"] == {"clutch": True, "camera": False} and r["pad"]["gripper"] == 0
+    assert r["pad"]["buttons"] == {"clutch": True, "camera": False}
+    assert r["pad"]["gripper"] == pytest.approx(np.radians(-15))
     assert r["rest"]["axes"] == [0, 0, 0]  # inside the dead zone
     # A SpaceMouse: x right, z down (so up is -z), y towards the user (so deeper is -y).
-    assert r["mouse"]["axes"] == [1, 1, 0] and r["mouse"]["gripper"] == 0
+    assert r["mouse"]["axes"] == [1, 1, 0] and r["mouse"]["gripper"] == pytest.approx(
+        np.radians(-15)
+    )
     assert r["rumble"] == [0.5, 1, 0, 0]
     assert r["gripperOpen"] == pytest.approx(np.radians(60))
+    assert r["gripperClosed"] == pytest.approx(np.radians(-15))

@@ -13,10 +13,12 @@ driver's steps wait on simulated time, so a slower machine takes longer, not dif
 Screenshots of each exercise, while it runs and scored, go to the test's temporary folder
 (``--basetemp`` to keep them).
 
-Peg transfer is served and shown (rings, target pegs, what to do, both hands to choose
-from) but not done by the driver: closing the page's jaw (E: the MTM gripper to 0°, the
-jaw to 0 rad) on a ring's wall holds it while still, and the ring slips out when lifted;
-the scripted operators of tests/tasks close the jaw to -20° for a firm grasp.
+Peg transfer: the person picks the one ring of a short board (one ring, one target peg
+3 cm away) off its peg with the jaws (E closes: the gripper squeezed to −15°, the jaw's goal
+the dVRK's close, −20°, so the jaws grip with their full effort; E opens: the gripper at 45°,
+the jaw at 60°, the dVRK's open, narrow enough not to reach over the peg), lifts it, carries
+it over the target peg and opens the jaws over it; the full board is also checked as served
+(rings, target pegs, both hands to choose from).
 """
 
 from __future__ import annotations
@@ -120,6 +122,14 @@ def task_files(tmp_path_factory):
     # Targets 1 and 4: within the hands' reach without clutching (target 2, at the image's
     # edge, needs a clutch to re-centre the hands half-way).
     files["camera_targeting"] = dataclasses.replace(camera, targets=camera.targets[[0, 3]])
+    peg = load_task("peg_transfer")
+    # One ring, its start peg 3 cm from the target peg, both near PSM1's tip (the
+    # right hand's), on a board that reaches no further (davinci-sim task check passes).
+    files["peg_transfer"] = dataclasses.replace(
+        peg, pegs=np.array([[0.005, 1.190], [0.035, 1.190]]), start_pegs=(1,),
+        target_pegs=(0,), instruments=("PSM1",), board_center=(0.02, 1.19),
+        board_half_size=(0.035, 0.03),
+    )  # fmt: skip
     out = {}
     for name, task in files.items():
         out[name] = str(folder / f"{name}_short.yaml")
@@ -384,11 +394,95 @@ def test_a_person_centres_the_targets_with_the_camera_pedal(task_files, browser,
     assert row["score"] is not None and row["score"] > 0
 
 
+def _unit(v) -> np.ndarray:
+    v = np.asarray(v, dtype=float)
+    return v / np.linalg.norm(v)
+
+
+def test_a_person_picks_a_ring_off_its_peg_and_drops_it_on_the_target_peg(
+    task_files, browser, person
+):
+    """Looking at the ring on its peg (the peg stands up from the board: "up" in the
+    image), the person brings the open jaws over the ring's wall, the way they open (the
+    tip's y) across the wall, goes in along the jaws until the wall is between them, and
+    closes them (E); lifts the ring 3 cm clear of the peg, carries it until its hole is
+    over the target peg's top, and opens the jaws (E). The ring drops onto the target peg:
+    the panel counts it transferred, and the attempt (its one ring) is scored."""
+    with served(task_files["peg_transfer"], ONE_HAND) as url:
+        p = person(url)
+        p.wait("window.davinci.last.task.phase === 'READY'")
+        p.take_control()
+        p.shot("peg_transfer_one_start")
+        s = p.state()
+        marks = s["task"]["marks"]
+        start_top, target_top = (np.array(m["p_camera"]) for m in marks["pegs"][::-1])
+        ring0 = np.array(marks["rings"][0]["p_camera"])
+        up = _unit(start_top - ring0)  # the ring lies flat around its upright peg
+
+        def ring(s):
+            return np.array(s["task"]["marks"]["rings"][0]["p_camera"])
+
+        def tip(s):
+            t = s["tips"]["PSM1"]
+            return np.array(t["p_camera"]), np.array(t["z_camera"]), np.array(t["y_camera"])
+
+        def go(goal_of, tolerance: float = 0.001):
+            """Steer the tip to ``goal_of(state)`` (camera frame, m), fine motion near it."""
+
+            def error(s):
+                return goal_of(s) - tip(s)[0]
+
+            def step(s):
+                e = error(s)
+                keys = keys_toward(screen(e), dead=0.5 * tolerance)
+                if np.linalg.norm(e) < 0.006:
+                    keys.add("ShiftLeft")
+                return keys
+
+            return steer(p, lambda s: np.linalg.norm(error(s)) < tolerance, step)
+
+        def wait(seconds: float):
+            p.hold(())
+            t0 = p.state()["time"]
+            return steer(p, lambda s: s["time"] - t0 > seconds, lambda s: set())
+
+        # Where the jaws' pivot goes: on the ring's circle where the jaws close across its
+        # wall, the wall 8 mm along the open jaws (the side nearer the tool).
+        p_tip, z, y = tip(s)
+        radial = _unit(y - (y @ up) * up)
+        ring_r = 0.009
+        sides = [ring0 + k * ring_r * radial - 0.008 * z for k in (1.0, -1.0)]
+        pivot = min(sides, key=lambda q: np.linalg.norm(q - p_tip))
+        go(lambda s: pivot - 0.02 * tip(s)[1])  # over the wall, back along the jaws
+        go(lambda s: pivot, tolerance=0.0015)  # in, the wall between the open jaws
+        p.tap("KeyE")  # close: the gripper squeezed, the jaw's goal -20°
+        s = wait(0.5)
+        assert s["tips"]["PSM1"]["jaw"] > 0.05  # stopped on the ring's wall, not shut
+        held = ring(s) - tip(s)[0]
+        lift_from = tip(s)[0]
+        s = go(lambda s: lift_from + 0.03 * up, tolerance=0.002)
+        p.shot("peg_transfer_one_lifted")
+        assert (ring(s) - ring0) @ up > 0.02  # it came up with the jaws ...
+        assert np.linalg.norm(ring(s) - tip(s)[0] - held) < 0.004  # ... held where grasped
+        assert s["task"]["phase"] == "RUNNING"
+
+        # Carry: the ring's centre 6 mm over the target peg's top (the peg in its hole).
+        drop_at = target_top + 0.006 * up
+        s = go(lambda s: tip(s)[0] + drop_at - ring(s), tolerance=0.0015)
+        p.tap("KeyE")  # open: the ring falls onto the target peg
+        s = steer(p, _done, lambda s: set())
+        p.shot("peg_transfer_one_scored")
+        row = p.scored()
+    assert row["transferred"] == 1 and row["drops"] == 0
+    assert row["score"] is not None and row["score"] > 0
+    assert p.panel("result-score").startswith("attempt 1: score")
+
+
 def test_the_peg_board_is_served_with_its_rings_and_target_pegs_marked(browser, person):
     """``serve --task peg_transfer`` with the web console (the loop in its own process,
     whose state mirror must have the board's free rings): the page shows the three rings
     on the start pegs and rings the three target pegs; the panel says what starts an
-    attempt. (Doing the transfer by keyboard is not tested: see the module docstring.)"""
+    attempt."""
     scene = SceneConfig(arms=("PSM1", "PSM2", "ECM", "MTML", "MTMR"))
     with served("peg_transfer", scene, hands=("MTML", "MTMR")) as url:
         p = person(url)

@@ -15,6 +15,8 @@ def msg(**fields) -> str:
 def test_good_messages_parse_to_their_checked_fields():
     c = parse_message(msg(op="input", mtm="MTMR", axes=[1, -0.5, 0], gripper=0.3))
     assert c.op == "input" and c.args == {"mtm": "MTMR", "axes": [1.0, -0.5, 0.0], "gripper": 0.3}
+    squeezed = parse_message(msg(op="input", mtm="MTMR", axes=[0, 0, 0], gripper=-0.2617))
+    assert squeezed.args["gripper"] == -0.2617  # the page's "closed", -15°
     c = parse_message(msg(op="condition", condition={"type": "viscous", "B": 40, "G_max": 5}))
     assert c.args["condition"] == {"type": "viscous", "B": 40.0, "G_max": 5.0}
     assert parse_message(msg(op="condition", condition="B=40")).args == {"condition": "B=40"}
@@ -42,6 +44,8 @@ def test_good_messages_parse_to_their_checked_fields():
         ('{"op": "input", "mtm": "MTMR", "axes": [NaN, 0, 0]}', "not a number"),
         ('{"op": "input", "mtm": "MTMR", "axes": [Infinity, 0, 0]}', "not a number"),
         (msg(op="input", mtm="MTMR", axes=[0, 0, 0], gripper=3), "gripper must be in"),
+        # Squeezed past -15° (the page's "closed": the jaw's goal -20°) is beyond the range.
+        (msg(op="input", mtm="MTMR", axes=[0, 0, 0], gripper=-0.3), "gripper must be in"),
         (msg(op="input", mtm="MTMR", axes=[0, 0, 0], turn=[0, 2, 0]), "turn[1] must be in"),
         (msg(op="input", mtm="MTMR", axes=[0, 0, 0], turn=[0, 0]), "turn must be a list"),
         (msg(op="button", name="self_destruct", pressed=True), "name must be one of"),

@@ -38,8 +38,12 @@ from davinci_sim.geometry import so3
 from davinci_sim.sim.state import capture, restore
 from davinci_sim.sim.types import ACCEPTED, CommandResult
 
-#: The gripper's range, rad: closed … 60° open (dvrk.md 1.5).
-GRIPPER_RANGE = (0.0, math.radians(60.0))
+#: The gripper's range, rad: squeezed (−15°) … just closed (0) … 60° open (dvrk.md 1.5,
+#: 4.1 ``gripper_scaling``). Squeezing past "just closed" gives negative angles, which the
+#: teleoperation maps to a jaw goal below 0 (−15° → −20°, the dVRK's close, dvrk.md 3.2):
+#: the jaw's effort then saturates on what it holds instead of stopping at a goal of 0.
+GRIPPER_SQUEEZED = math.radians(-15.0)
+GRIPPER_RANGE = (GRIPPER_SQUEEZED, math.radians(60.0))
 
 
 class HandInput:

@@ -149,7 +149,8 @@ class SimulatedMTM(MasterDevice):
         self._push = w
 
     def squeeze(self, angle: float) -> CommandResult:
-        """The fingers set the gripper opening, rad (0 closed … 60°, dvrk.md 1.5)."""
+        """The fingers set the gripper opening, rad (−15° squeezed, 0 just closed … 60°;
+        dvrk.md 1.5, 4.1)."""
         return self.arm.gripper.servo_jp(angle)
 
     def hand_target(self) -> np.ndarray | None:

@@ -91,7 +91,11 @@ def _add_gimbal(bodies: dict, name: str) -> None:
             name=f"{name}/gripper_{i}",
             type=mujoco.mjtJoint.mjJNT_HINGE,
             axis=[0, side, 0],
-            range=[0.0, 0.5236],  # half of the 0…60° gripper range each
+            # Half of the −15°…60° gripper range each: 0 is "just closed" (dvrk.md 4.1
+            # gripper_scaling.zero); the fingers squeeze on past it to −15°, which the
+            # teleoperation's jaw = s·gripper + o (s = 80°/60°, dvrk.md 4.2) makes −20°, the
+            # dVRK's close (dvrk.md 3.2 p.jaw.close), for a full grip on what the jaws hold.
+            range=[-0.1309, 0.5236],
             limited=mujoco.mjtLimited.mjLIMITED_TRUE,
         )
         p = Painter(lever, prefix=f"{name}/")

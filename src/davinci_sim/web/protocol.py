@@ -12,7 +12,7 @@ Ops (fields; units):
   asks for one (not on loopback).
 - ``control`` (``take``: bool): take or release operating the console (one operator).
 - ``input`` (``mtm``: MTML/MTMR; ``axes``: 3 numbers in [-1, 1], the hand's rate along the
-  screen's right, up and into-the-screen directions; ``gripper``: rad in [0, 60°], optional;
+  screen's right, up and into-the-screen directions; ``gripper``: rad in [−15°, 60°], optional;
   ``turn``: 3 numbers in [-1, 1], optional, the wrist's rate about the same three axes
   (right-hand rule: + about "right" turns a tool pointing into the scene up, + about "up"
   turns it to the left, + about "in" rolls it clockwise as seen on the screen)).
@@ -42,7 +42,9 @@ from typing import Any
 
 #: The largest message the page may send, bytes.
 MAX_MESSAGE = 16 * 1024
-#: The gripper's range, rad (dvrk.md 1.5: 0 … 60°).
+#: The gripper's range, rad: squeezed past "just closed" (0) to −15° … 60° open (dvrk.md
+#: 1.5, 4.1; devices.hand_input.GRIPPER_RANGE: −15° makes the jaw's goal −20°).
+GRIPPER_MIN = math.radians(-15.0)
 GRIPPER_MAX = math.radians(60.0)
 #: Buttons the page may press.
 BUTTONS = ("clutch", "camera", "operator_present")
@@ -161,7 +163,7 @@ OPS: dict[str, dict[str, tuple[Any, bool]]] = {
     "input": {
         "mtm": (_choice("mtm", MTMS), True),
         "axes": (_axes, True),
-        "gripper": (_number("gripper", 0.0, GRIPPER_MAX), False),
+        "gripper": (_number("gripper", GRIPPER_MIN, GRIPPER_MAX), False),
         "turn": (_three("turn"), False),
     },
     "button": {"name": (_choice("name", BUTTONS), True), "pressed": (_boolean("pressed"), True)},

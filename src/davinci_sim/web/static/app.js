@@ -3,7 +3,7 @@
 // Everything the simulation does goes through the server's checked commands (protocol.py).
 
 import {
-  KEYMAP, GRIPPER_OPEN, keyAxes, keyTurn, isMappedKey, buttonOfKey, toggleOfKey,
+  KEYMAP, GRIPPER_KEY_OPEN, GRIPPER_CLOSED, keyAxes, keyTurn, isMappedKey, buttonOfKey, toggleOfKey,
   gamepadInput, rumble, rumbleIntensity, sameAxes,
 } from "./input.js";
 
@@ -13,7 +13,7 @@ const state = {
   ws: null, client: null, operator: null, hello: null, last: null,
   frames: 0, framesAt: performance.now(), fps: 0,
   left: null, right: null, frameTime: 0,
-  pressed: new Set(), axes: [0, 0, 0], turn: [0, 0, 0], gripper: GRIPPER_OPEN, jawOpen: true,
+  pressed: new Set(), axes: [0, 0, 0], turn: [0, 0, 0], gripper: GRIPPER_KEY_OPEN, jawOpen: true,
   hand: null, grippers: {}, inputTargets: [],
   buttons: { clutch: false, camera: false }, gamepadButtons: { clutch: false, camera: false },
   history: [], forceMax: 5, inputSent: 0, lastInputAt: 0,
@@ -170,7 +170,7 @@ function handLabel(mtm) {
 function setHand(mtm) {
   state.hand = mtm;
   if (mtm == null) return;
-  if (!(mtm in state.grippers)) state.grippers[mtm] = GRIPPER_OPEN;
+  if (!(mtm in state.grippers)) state.grippers[mtm] = GRIPPER_KEY_OPEN;
   state.gripper = state.grippers[mtm];
   state.jawOpen = state.gripper > 0;
   $("hand").value = mtm;
@@ -647,7 +647,7 @@ function onKey(event, down) {
   const toggle = toggleOfKey(event.code);
   if (toggle === "jaw" && down) {
     state.jawOpen = !state.jawOpen;
-    state.gripper = state.jawOpen ? GRIPPER_OPEN : 0;
+    state.gripper = state.jawOpen ? GRIPPER_KEY_OPEN : GRIPPER_CLOSED;
     if (state.hand) state.grippers[state.hand] = state.gripper;
     sendInput(true);
   }

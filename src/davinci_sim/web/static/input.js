@@ -9,6 +9,13 @@
 // way in the endoscope image (right, up, into the scene), scaled by the teleoperation.
 
 export const GRIPPER_OPEN = (60 * Math.PI) / 180; // rad, the MTM gripper's range (dvrk.md 1.5)
+// "Closed" squeezes the gripper past just closed (0) to -15°: the teleoperation makes that a
+// -20° jaw goal (jaw = 80°/60° x gripper, dvrk.md 4.2), the dVRK's close, so the jaws grip
+// what they hold with their full effort (a goal of 0 stops pressing once nearly closed).
+export const GRIPPER_CLOSED = (-15 * Math.PI) / 180;
+// The jaw key's "open": the gripper at 45°, the jaw at 60°, the dVRK's jaw.open() (dvrk.md
+// 3.2). Wide open (80°), the jaws reach over a ring's peg when they go down on its wall.
+export const GRIPPER_KEY_OPEN = (45 * Math.PI) / 180;
 
 // The key map shown in the page. `axis`: [index, sign] of the hand's rate; `turn`: [index,
 // sign] of the wrist's rate about the screen's right, up and in axes (right-hand rule);
@@ -113,13 +120,13 @@ export function gamepadInput(gamepad) {
   if (isSpaceMouse(gamepad)) {
     return {
       axes: [dead(ax[0] ?? 0), -dead(ax[2] ?? 0), -dead(ax[1] ?? 0)],
-      gripper: pressed(gamepad, 1) ? 0 : GRIPPER_OPEN,
+      gripper: pressed(gamepad, 1) ? GRIPPER_CLOSED : GRIPPER_OPEN,
       buttons: { clutch: pressed(gamepad, 0), camera: false },
     };
   }
   return {
     axes: [dead(ax[0] ?? 0), -dead(ax[1] ?? 0), -dead(ax[3] ?? 0)],
-    gripper: (1 - Math.max(0, Math.min(1, value(gamepad, 7)))) * GRIPPER_OPEN,
+    gripper: GRIPPER_OPEN - Math.max(0, Math.min(1, value(gamepad, 7))) * (GRIPPER_OPEN - GRIPPER_CLOSED),
     buttons: { clutch: pressed(gamepad, 0), camera: pressed(gamepad, 1) },
   };
 }
