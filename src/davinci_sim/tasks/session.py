@@ -24,6 +24,10 @@ Repetitions follow one another by themselves: once a repetition's results are in
 the tool back to point 1 starts the next one; :meth:`TaskSession.reset` abandons the
 current repetition at any time and puts the task's objects (peg rings) back at their start
 (dvrk-style command, callable over the bridge as ``/task/reset``).
+
+Size: just over 500 lines because the session is one component whose parts share its state
+(the repetition cycle, the adaptive B, framing the view before an attempt's clock starts, the
+objects published for the page); splitting them would pass that state between modules.
 """
 
 from __future__ import annotations
