@@ -83,12 +83,33 @@ def test_type_names_from_strings_and_message_classes():
     assert _type_name(Joy) == "sensor_msgs/Joy" and _type_name(Bool) == "std_msgs/Bool"
 
 
-def test_rate_keeps_its_period_and_catches_up():
+def test_rate_keeps_its_period_and_catches_up(monkeypatch):
+    """On a virtual clock (a test asserts no wall-clock duration): sleeps fill each period
+    up to its end; a late iteration starts the schedule again from now, without sleeping."""
+    from davinci_sim.compat import ral as ral_module
+
+    clock = {"t": 10.0}
+    slept = []
+
+    def sleep(dt):
+        slept.append(dt)
+        clock["t"] += dt
+
+    monkeypatch.setattr(ral_module.time, "monotonic", lambda: clock["t"])
+    monkeypatch.setattr(ral_module.time, "sleep", sleep)
     rate = Rate(100.0)
-    t0 = time.monotonic()
-    for _ in range(5):
+    clock["t"] += 0.004  # the loop's own work
+    rate.sleep()
+    assert clock["t"] == pytest.approx(10.01)  # the end of the first period
+    for _ in range(4):
         rate.sleep()
-    assert time.monotonic() - t0 >= 0.04  # never faster than asked
+    assert clock["t"] == pytest.approx(10.05)  # never faster than asked
+    clock["t"] += 0.05  # a late iteration
+    rate.sleep()
+    assert slept[-1] == pytest.approx(0.01)  # (the previous sleep); none now
+    assert len(slept) == 5 and clock["t"] == pytest.approx(10.10)
+    rate.sleep()
+    assert clock["t"] == pytest.approx(10.11)  # a new schedule from the late one
     with pytest.raises(ValueError):
         Rate(0.0)
 
