@@ -8,7 +8,7 @@ from __future__ import annotations
 import math
 
 import pytest
-from script_runs import SCRIPTS, check, run
+from script_runs import SCRIPTS, check, check_psm_moves, run
 
 from davinci_sim.bridge.rosbridge.config import BridgeConfig
 from davinci_sim.bridge.rosbridge.server import RosbridgeServer
@@ -35,17 +35,7 @@ def now(system, target, method):
 def test_psm_homing_moves_and_jaw_over_rosbridge(server):
     system, rosbridge = server
     v = check(run(["--connect", rosbridge.url, str(SCRIPTS / "psm_moves.py"), "-a", "PSM1"]))
-    assert v["operating_state"] == "ENABLED" and v["is_homed"] == "True"
-    assert v["busy_after_move_jp"] == "True"
-    for name in ("move_jp_wait", "move_cp_wait", "jaw_open_wait", "jaw_close_wait"):
-        assert v[name] == "True", name
-    assert float(v["move_jp_error_deg"]) < 0.5 and float(v["move_jp_insertion_error_mm"]) < 0.5
-    assert float(v["move_jr_yaw_deg"]) == pytest.approx(5.0, abs=0.5)
-    assert float(v["insert_jp_mm"]) == pytest.approx(130.0, abs=0.5)
-    assert float(v["move_cp_error_mm"]) < 1.0 and float(v["move_cp_back_error_mm"]) < 1.0
-    assert float(v["move_cp_rotation_error_deg"]) < 1.0
-    assert float(v["jaw_open_deg"]) == pytest.approx(50.0, abs=1.5)
-    assert float(v["jaw_closed_deg"]) < 0.0  # squeezing, toward -20°
+    check_psm_moves(v)
     # the simulator is where the script left it
     assert now(system, "PSM1/jaw", "setpoint_js").position[0] == pytest.approx(
         math.radians(-20.0), abs=1e-6
