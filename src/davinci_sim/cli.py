@@ -10,6 +10,7 @@ parser would scatter the one place a user's options are declared and checked.
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 import time
 from pathlib import Path
@@ -204,20 +205,81 @@ def cmd_demo(args: argparse.Namespace) -> int:
     return 0 if report["homed"] and report.get("refused_ok", True) else 1
 
 
-def cmd_serve(args: argparse.Namespace) -> int:
-    """The simulation with its ROS interfaces (rosbridge server, UDP, client mode)."""
-    import logging
-    import os
-    import signal
-    import threading
-
-    from davinci_sim.bridge.app import ServeOptions, serve
+def serve_options(args: argparse.Namespace, web: bool):
+    """The :class:`~davinci_sim.bridge.app.ServeOptions` of ``serve``'s parsed ``args``
+    (``web``: with the web console), as ``cmd_serve`` runs them; the browser test of
+    ``make run`` serves exactly these."""
+    from davinci_sim.bridge.app import ServeOptions
     from davinci_sim.bridge.rosbridge.config import BridgeConfig
     from davinci_sim.bridge.udp import parse_ports
 
+    runner = args.runner or ("process" if web else "thread")
+    console = args.console or args.task is not None
+    hands = ("MTML", "MTMR") if web and console and args.ros_connect is None else ()
+    return ServeOptions(
+        scene=args.scene,
+        keyframe=args.keyframe,
+        seed=args.seed,
+        real_time=not args.fast,
+        home=args.home,
+        server=not args.no_server,
+        bridge=BridgeConfig(
+            host=args.host,
+            port=args.port,
+            ros_version=args.ros_version,
+            max_message_size=args.max_message_size,
+            auth_token=_serve_token(args),
+            stamp_clock=args.stamps,
+        ),
+        rate=args.rate,
+        tf_rate=args.tf_rate,
+        images=args.images,
+        image_rate=args.image_rate,
+        rig=args.rig,
+        udp=args.udp,
+        udp_ports=parse_ports(args.udp_ports),
+        udp_ip=args.udp_ip,
+        ros_connect=args.ros_connect,
+        namespace=args.namespace,
+        remote_ros_version=args.remote_ros_version,
+        robot_description=not args.no_robot_description,
+        duration=args.duration,
+        console=args.console,
+        runner=runner,
+        hand_inputs=hands,
+        render_hz=args.image_rate if web else None,
+        frame_task=web,
+        realtime_priority=args.realtime_priority,
+        task=args.task,
+        condition=args.condition,
+        task_log=args.task_log,
+        record_inputs=args.record is not None,
+    )
+
+
+def web_options(args: argparse.Namespace):
+    """The web console's :class:`~davinci_sim.web.server.WebOptions` of ``serve``'s ``args``."""
+    from davinci_sim.web.server import WebOptions
+
+    return WebOptions(host=args.host, port=args.web_port, token=_serve_token(args),
+                      frame_rate=args.image_rate)  # fmt: skip
+
+
+def _serve_token(args: argparse.Namespace) -> str | None:
+    """``serve``'s token: ``--token`` or ``$DAVINCI_SIM_TOKEN`` (None: none)."""
+    return args.token or os.environ.get("DAVINCI_SIM_TOKEN") or None
+
+
+def cmd_serve(args: argparse.Namespace) -> int:
+    """The simulation with its ROS interfaces (rosbridge server, UDP, client mode)."""
+    import logging
+    import signal
+    import threading
+
+    from davinci_sim.bridge.app import serve
+
     logging.basicConfig(level=logging.INFO if args.verbose else logging.WARNING,
                         format="%(asctime)s %(levelname)s %(name)s: %(message)s")  # fmt: skip
-    token = args.token or os.environ.get("DAVINCI_SIM_TOKEN") or None
     problem = _serve_option_problem(args)
     if problem is not None:
         print(f"davinci-sim serve: {problem}", file=sys.stderr)
@@ -227,9 +289,6 @@ def cmd_serve(args: argparse.Namespace) -> int:
     if problem is not None:  # before the scene is built
         print(f"davinci-sim serve: {problem}", file=sys.stderr)
         return 2
-    runner = args.runner or ("process" if web else "thread")
-    console = args.console or args.task is not None
-    hands = ("MTML", "MTMR") if web and console and args.ros_connect is None else ()
     parts = []
     try:
         records = None
@@ -240,50 +299,10 @@ def cmd_serve(args: argparse.Namespace) -> int:
                                    task=args.task, condition=args.condition)  # fmt: skip
         if web:
             from davinci_sim.web.app import web_part
-            from davinci_sim.web.server import WebOptions
 
-            web_options = WebOptions(host=args.host, port=args.web_port, token=token,
-                                     frame_rate=args.image_rate)  # fmt: skip
-            parts.append(web_part(web_options, bedside=not args.no_bedside, records=records))
-        options = ServeOptions(
-            scene=args.scene,
-            keyframe=args.keyframe,
-            seed=args.seed,
-            real_time=not args.fast,
-            home=args.home,
-            server=not args.no_server,
-            bridge=BridgeConfig(
-                host=args.host,
-                port=args.port,
-                ros_version=args.ros_version,
-                max_message_size=args.max_message_size,
-                auth_token=token,
-                stamp_clock=args.stamps,
-            ),
-            rate=args.rate,
-            tf_rate=args.tf_rate,
-            images=args.images,
-            image_rate=args.image_rate,
-            rig=args.rig,
-            udp=args.udp,
-            udp_ports=parse_ports(args.udp_ports),
-            udp_ip=args.udp_ip,
-            ros_connect=args.ros_connect,
-            namespace=args.namespace,
-            remote_ros_version=args.remote_ros_version,
-            robot_description=not args.no_robot_description,
-            duration=args.duration,
-            console=args.console,
-            runner=runner,
-            hand_inputs=hands,
-            render_hz=args.image_rate if web else None,
-            frame_task=web,
-            realtime_priority=args.realtime_priority,
-            task=args.task,
-            condition=args.condition,
-            task_log=args.task_log,
-            record_inputs=args.record is not None,
-        )
+            parts.append(web_part(web_options(args), bedside=not args.no_bedside,
+                                  records=records))  # fmt: skip
+        options = serve_options(args, web)
         if args.record is not None:  # (a file that cannot be created: say so now)
             from davinci_sim.records.recording import recording_part
 
@@ -808,6 +827,12 @@ def cmd_run(args: argparse.Namespace) -> int:
 
 
 def main(argv: list[str] | None = None) -> int:
+    args = build_parser().parse_args(argv)
+    return args.func(args)
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """The ``davinci-sim`` command's parser (each sub-command's ``func`` in its defaults)."""
     parser = argparse.ArgumentParser(
         prog="davinci-sim", description="Simulator of the da Vinci Research Kit (dVRK)."
     )
@@ -1143,8 +1168,7 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("script", help="the Python script")
     p.add_argument("args", nargs=argparse.REMAINDER, help="the script's arguments")
     p.set_defaults(func=cmd_run)
-    args = parser.parse_args(argv)
-    return args.func(args)
+    return parser
 
 
 if __name__ == "__main__":

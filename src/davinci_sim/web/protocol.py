@@ -175,6 +175,9 @@ OPS: dict[str, dict[str, tuple[Any, bool]]] = {
         "scale": (_number("scale", 0.0, 1.0, lo_open=True), False),
     },
     "arms": {"action": (_choice("action", ("enable", "home", "disable")), True)},
+    # The one-click remedy of a problem the page shows (an arm in FAULT, a teleoperation
+    # stopped or stuck aligning): see ``WebConsole._recover``.
+    "recover": {},
     "synthetic": {
         "action": (_choice("action", ("start", "stop")), True),
         "subject": (_integer("subject"), False),
@@ -191,7 +194,7 @@ OPS: dict[str, dict[str, tuple[Any, bool]]] = {
 
 #: Ops that act on the simulation: only the operator may send them.
 OPERATOR_OPS = frozenset(
-    {"input", "button", "condition", "task", "teleop", "arms", "synthetic", "study"}
+    {"input", "button", "condition", "task", "teleop", "arms", "recover", "synthetic", "study"}
 )
 
 

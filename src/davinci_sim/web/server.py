@@ -45,7 +45,7 @@ import numpy as np
 from davinci_sim.model.cameras import CameraConfig
 from davinci_sim.sim.runtime.service import AsyncService
 from davinci_sim.web.protocol import OPERATOR_OPS, Command, ProtocolError, parse_message
-from davinci_sim.web.view import console_view
+from davinci_sim.web.view import console_view, problems
 
 _log = logging.getLogger("davinci_sim.web")
 
@@ -177,6 +177,10 @@ class WebConsole(AsyncService):
         self.trainee = "" if records is None else records.trainee
         self.operator: int | None = None
         self._wrist_free: set[str] = set()
+        self._messages: dict[str, tuple[str, str, float]] = {}
+        """Each arm's and teleoperation's last error or warning: (level, text, sim time s)."""
+        self._forwarded: dict[tuple[str, str], float] = {}
+        """When (monotonic s) each (source, text) error was last sent to the pages."""
         """MTMs whose teleoperations the page unlocked the rotation of (the wrist keys)."""
         self._clients: dict[int, _Client] = {}
         self._ids = itertools.count(1)
@@ -259,16 +263,57 @@ class WebConsole(AsyncService):
             tasks = [asyncio.create_task(self._state_loop())]
             if self.frames is not None:
                 tasks.append(asyncio.create_task(self._frame_loop()))
+            loop = asyncio.get_running_loop()
+            unsubscribe = self.handle.subscribe(
+                lambda source, event, payload: self._on_sim_event(loop, source, event, payload)
+            )
             self.ready()
             try:
                 await self.stopping.wait()
             finally:
+                unsubscribe()
                 for t in tasks:
                     t.cancel()
                 await asyncio.gather(*tasks, return_exceptions=True)
                 await self._release_operator()
                 server.close(close_connections=True)
                 await server.wait_closed()
+
+    # ------------------------------------------------------------ the simulation's messages
+    #: The same error text from the same source reaches the pages at most this often, s.
+    ERROR_REPEAT = 2.0
+
+    def _on_sim_event(self, loop, source: str, event: str, payload) -> None:
+        """From the simulation's thread: keep each source's last error or warning for the
+        page's problems (:func:`~davinci_sim.web.view.problems`) and send errors to the
+        pages, so a fault is shown with its reason."""
+        if event not in ("error", "warning") or not hasattr(payload, "text"):
+            return
+        self._messages[source] = (event, str(payload.text), float(payload.timestamp))
+        if event == "error" and not loop.is_closed():
+            loop.call_soon_threadsafe(self._forward_error, source, str(payload.text))
+
+    def _forward_error(self, source: str, text: str) -> None:
+        now = time.monotonic()
+        if now - self._forwarded.get((source, text), -math.inf) < self.ERROR_REPEAT:
+            return
+        self._forwarded[(source, text)] = now
+        self._broadcast({"op": "error", "message": text})
+
+    async def _recover(self) -> None:
+        """The remedy the page offers for its problems: every arm in FAULT is enabled and
+        homed again (dvrk.md 2.4: FAULT accepts ``enable``), and the console's
+        teleoperation is restarted, so each teleoperation sets its arms up and aligns its
+        MTM again (SETTING_ARMS_STATE, dvrk.md 4.2)."""
+        snap = self.handle.snapshot()
+        for name, arm in snap.arms.items():
+            if arm.operating_state.state == "FAULT":
+                await self._call(name, "state_command", "enable")
+                await self._call(name, "state_command", "home")
+        self._messages.clear()
+        if "console" in (snap.extras or {}):
+            await self._call("console", "teleop_enable", False)
+            await self._call("console", "teleop_enable", True)
 
     # ------------------------------------------------------------ HTTP
     async def _process_request(self, connection, request):
@@ -538,6 +583,8 @@ class WebConsole(AsyncService):
                 await self._call("console", "teleop_enable", a["enable"])
             if "scale" in a:
                 await self._call("console", "set_scale", a["scale"])
+        elif op == "recover":
+            await self._recover()
         elif op == "arms":
             for name in self.handle.snapshot().arms:
                 await self._call(name, "state_command", a["action"])
@@ -591,7 +638,14 @@ class WebConsole(AsyncService):
                 return
             if self.operator is None:
                 self.operator = client.id
-                try:  # (the hand takes the handle when the operator first moves it)
+                try:
+                    # Taking control is a person sitting at the console: head in, hands on
+                    # both handles. A handle nobody holds floats in gravity compensation, and
+                    # the guidance force on the following tool is not a damper on the
+                    # handle's own motion: through the teleoperation's lag it pumps an
+                    # unheld MTM into a growing oscillation that faults the PSM within
+                    # seconds. The hand holds the handle where it is until a key moves it.
+                    await self._grasp()
                     await self._call("console", "press", "operator_present")
                     await self._call("console", "teleop_enable", True)
                 except CommandRefused as e:
@@ -643,6 +697,7 @@ class WebConsole(AsyncService):
             except Exception:  # a bug in the view must not end the stream
                 _log.exception("cannot make the page's state")
                 continue
+            view["problems"] = problems(view, dict(self._messages))
             view["op"] = "state"
             view["operator"] = self.operator
             view["pages"] = len(self._clients)

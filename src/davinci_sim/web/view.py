@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import math
 import re
+from collections.abc import Mapping
 from typing import Any
 
 import numpy as np
@@ -217,6 +218,39 @@ def console_view(snap, camera: CameraConfig, task=None) -> dict[str, Any]:
         "sources": sources,
     }
     return view
+
+
+#: A teleoperation whose last "unable to align" warning is at most this old (s of simulated
+#: time) while it is still aligning is shown as stuck: the teleoperation warns every 2 s
+#: while it cannot start (``TeleopPSMConfig.warning_interval``).
+ALIGN_WARNING_AGE = 2.5
+
+
+def problems(view: dict, messages: Mapping[str, tuple[str, str, float]]) -> list[dict]:
+    """What stops the operator and needs an action, from the page's state ``view``
+    (:func:`console_view`) and each source's last error or warning (``messages``: name ->
+    (level, text, sim time s), as the arms and teleoperations send them).
+
+    One entry per problem, ``{"source", "kind", "reason"}``: an arm in FAULT (``fault``, the
+    reason its last error); a selected teleoperation stopped while the console's
+    teleoperation is on and the operator present (``stopped``, e.g. its PSM faulted); a
+    teleoperation that still cannot align its MTM (``aligning``, its warning). The page
+    shows them with one remedy, the ``recover`` op."""
+    out = []
+    for name, arm in view["arms"].items():
+        if arm["state"] == "FAULT":
+            level, text, _ = messages.get(name, ("error", f"{name} is in FAULT", 0.0))
+            out.append({"source": name, "kind": "fault", "reason": text})
+    console = view.get("console") or {}
+    on = console.get("teleop_enabled") and (console.get("buttons") or {}).get("operator_present")
+    now = view["time"]
+    for name, t in view["teleops"].items():
+        level, text, at = messages.get(name, ("", "", -math.inf))
+        if on and t["selected"] and t["state"] == "DISABLED" and level == "error":
+            out.append({"source": name, "kind": "stopped", "reason": text})
+        elif t["state"] == "ALIGNING_MTM" and level == "warning" and now - at <= ALIGN_WARNING_AGE:
+            out.append({"source": name, "kind": "aligning", "reason": text})
+    return out
 
 
 def _last_attempt(row: dict) -> dict | None:

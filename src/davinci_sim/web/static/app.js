@@ -197,6 +197,25 @@ function showFixtureType(type) {
 }
 
 // ------------------------------------------------------------------ state
+// What stops the operator (an arm in FAULT, a teleoperation stopped or stuck aligning), with
+// its reason and one remedy; only the operator's page can apply it.
+const PROBLEM_WORDS = { fault: "in FAULT", stopped: "stopped", aligning: "cannot align" };
+function showProblems(problems) {
+  $("problems").hidden = problems.length === 0;
+  $("recover").disabled = !isOperator();
+  $("recover").title = isOperator() ? "" : "take control first";
+  const key = JSON.stringify(problems);
+  if (key === state.problemsKey) return;
+  state.problemsKey = key;
+  const list = $("problem-list");
+  list.innerHTML = "";
+  for (const p of problems) {
+    const li = document.createElement("li");
+    li.textContent = `${p.source} ${PROBLEM_WORDS[p.kind] || p.kind}: ${p.reason}`;
+    list.appendChild(li);
+  }
+}
+
 function onState(s) {
   state.last = s;
   state.operator = s.operator;
@@ -223,6 +242,7 @@ function onState(s) {
   }
   fillTable("teleops", Object.values(s.teleops).map((t) => [t.mtm, t.psm, t.following ? "following" : t.state, t.clutched ? "clutched" : "", s.sources[t.mtm] || ""]));
   fillTable("arms", Object.entries(s.arms).map(([n, a]) => [n, a.state, a.homed ? "yes" : "no"]));
+  showProblems(s.problems || []);
   $("synthetic").classList.toggle("on", !!(s.synthetic && s.synthetic.running));
   $("synthetic").textContent = s.synthetic && s.synthetic.running ? "Stop the synthetic trainee" : "Watch a synthetic trainee";
   updateControl();
@@ -612,6 +632,7 @@ function setupPanels() {
   $("teleop").onchange = () => send({ op: "teleop", enable: $("teleop").checked });
   $("scale-apply").onclick = () => send({ op: "teleop", scale: Number($("scale").value) });
   $("present").onchange = () => send({ op: "button", name: "operator_present", pressed: $("present").checked });
+  $("recover").onclick = () => send({ op: "recover" });
   for (const b of document.querySelectorAll("[data-arms]")) b.onclick = () => send({ op: "arms", action: b.dataset.arms });
   $("mode").onchange = () => {
     send({ op: "view", stereo: $("mode").value !== "left" });
