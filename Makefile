@@ -28,6 +28,7 @@ run: install
 lint: install
 	$(BIN)/ruff check src tests benchmarks examples
 	$(BIN)/ruff format --check src tests benchmarks examples
+	$(BIN)/mypy
 
 test: install lint
 	$(BIN)/python -m pytest -q

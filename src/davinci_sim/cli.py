@@ -693,9 +693,11 @@ def cmd_replay(args: argparse.Namespace) -> int:
     if args.check:
         from davinci_sim.records.replay import replay_inputs, replay_states
 
-        run = replay_inputs if args.mode == "inputs" else replay_states
         try:
-            check = run(recording) if args.mode == "inputs" else run(recording, speed=args.speed)
+            if args.mode == "inputs":
+                check = replay_inputs(recording)
+            else:
+                check = replay_states(recording, speed=args.speed)
         except (ReplayError, ValueError) as e:
             print(f"davinci-sim replay: {e}", file=sys.stderr)
             return 2

@@ -79,7 +79,8 @@ def test_every_op_accepts_its_required_fields_only_message():
         "hello": {}, "control": {"take": False}, "input": {"mtm": "MTML", "axes": [0, 0, 0]},
         "button": {"name": "camera", "pressed": False}, "condition": {"condition": "x"},
         "task": {"action": "reset"}, "trainee": {"name": ""}, "teleop": {},
-        "arms": {"action": "home"}, "synthetic": {"action": "stop"}, "ping": {"t": 1.5},
+        "arms": {"action": "home"}, "recover": {}, "synthetic": {"action": "stop"},
+        "ping": {"t": 1.5},
         "study": {"action": "start", "subjects": 1, "repetitions": 1}, "view": {"stereo": True},
     }  # fmt: skip
     assert set(samples) == set(OPS)

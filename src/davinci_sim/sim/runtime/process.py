@@ -444,8 +444,8 @@ class ProcessSimulation:
         an arm computed on the mirror when first read (a bridge at 1 kHz reads a few)."""
         tick, t, _, states, _, extras = published
         arms = {
-            name: _MirroredArmSnapshot(self, published, name, OperatingState(*states[name], t))
-            for name in states
+            name: _MirroredArmSnapshot(self, published, name, OperatingState(state, homed, busy, t))
+            for name, (state, homed, busy) in states.items()
         }
         return Snapshot(t, tick, arms, extras)
 

@@ -1,0 +1,100 @@
+"""The newcomer's path in Chromium: ``make run`` serves the console (``serve --task seed_path
+--home --realtime-priority 50``: the full system, both hands on keys, stereo images, real
+time, the loop in its own process), a person takes control, reads the keys for several
+seconds, then drives the tool with a key. The options are the CLI's own
+(:func:`davinci_sim.cli.serve_options`); only the ports (any free one) and the trainee
+records (not written to the user's records file) differ. Waits are on simulated time."""
+
+from __future__ import annotations
+
+import threading
+import time
+
+import numpy as np
+import pytest
+
+pytest.importorskip("playwright.sync_api")
+
+from playwright.sync_api import sync_playwright  # noqa: E402
+from test_web_browser import CHROMIUM, CHROMIUM_ARGS, Console  # noqa: E402
+
+from davinci_sim.bridge.app import serve  # noqa: E402
+from davinci_sim.cli import build_parser, serve_options, web_options  # noqa: E402
+from davinci_sim.web.app import web_part  # noqa: E402
+
+pytestmark = pytest.mark.skipif(CHROMIUM is None, reason="Chromium is not installed")
+
+#: The Makefile's ``run`` target's arguments, then free ports and no records file.
+MAKE_RUN = ["serve", "--task", "seed_path", "--home", "--realtime-priority", "50"]
+HERE = ["--port", "0", "--web-port", "0", "--no-records"]
+
+
+@pytest.fixture(scope="module")
+def make_run():
+    args = build_parser().parse_args(MAKE_RUN + HERE)
+    options = serve_options(args, web=True)
+    parts = [web_part(web_options(args), bedside=not args.no_bedside)]
+    info: dict = {}
+    stop = threading.Event()
+    thread = threading.Thread(
+        target=lambda: info.update(
+            done=serve(options, stop=stop, on_ready=info.update, parts=parts)
+        )  # fmt: skip
+    )
+    thread.start()
+    end = time.monotonic() + 180
+    while "web" not in info and thread.is_alive() and time.monotonic() < end:
+        time.sleep(0.1)
+    assert "web" in info, "serve did not start the web console"
+    yield info
+    stop.set()
+    thread.join(60)
+    assert "done" in info
+
+
+@pytest.fixture(scope="module")
+def chromium():
+    with sync_playwright() as p:
+        b = p.chromium.launch(executable_path=CHROMIUM, args=CHROMIUM_ARGS)
+        yield b
+        b.close()
+
+
+def test_the_makefile_serves_what_this_test_serves():
+    from pathlib import Path
+
+    makefile = (Path(__file__).resolve().parents[2] / "Makefile").read_text()
+    assert "davinci-sim " + " ".join(MAKE_RUN) in makefile
+
+
+def test_take_control_wait_then_the_tool_follows_the_keys_without_a_fault(
+    make_run, chromium, tmp_path
+):
+    page = Console(chromium, make_run["web"])
+    try:
+        # The session frames the view and brings the tool to point 1 first.
+        page.wait("window.davinci.last.task && window.davinci.last.arms.PSM1.homed", 180)
+        page.take_control()
+        page.page.click("#screen")
+        following = (
+            "window.davinci.last.teleops.MTMR_PSM1.following && "
+            "window.davinci.last.teleops.MTML_PSM2.following"
+        )
+        page.wait(following, 180)
+        before = page.wait_sim(5.0)  # a person reads the keys before pressing one
+        assert before["arms"]["PSM1"]["state"] == "ENABLED", before["arms"]
+        assert before["problems"] == [] and page.js(following)
+        page.page.keyboard.down("KeyD")
+        page.wait_sim(1.5)
+        page.page.keyboard.up("KeyD")
+        after = page.wait_sim(1.0)
+        assert after["arms"]["PSM1"]["state"] == "ENABLED" and after["problems"] == []
+        tool = np.subtract(after["tips"]["PSM1"]["p_camera"], before["tips"]["PSM1"]["p_camera"])
+        # Right in the image is the camera's -x (dvrk.md 1.6).
+        assert tool[0] < -0.01, tool
+        assert page.js("document.getElementById('problems').hidden")
+        page.page.screenshot(path=str(tmp_path / "make_run_after_D.png"))
+        assert page.errors == []
+    finally:
+        page.release()
+        page.close()
