@@ -7,12 +7,12 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from test_web_server import Page  # (the page's websocket, as the server tests use it)
 
 from davinci_sim.system import ConsoleDescription, SystemDescription, TaskDescription, build_system
 from davinci_sim.system.build import load_description_task
 from davinci_sim.tasks.session import VIEW_DISTANCE
 from davinci_sim.web.server import WebConsole, WebOptions
-from test_web_server import Page  # (the page's websocket, as the server tests use it)
 
 HANDS = ("MTML", "MTMR")
 
