@@ -83,12 +83,21 @@ def cmd_snapshot(args: argparse.Namespace) -> int:
     task = None if args.task is None else TaskDescription(args.task)
     description = SystemDescription(scene=args.scene, keyframe=args.keyframe, task=task)
     out = Path(args.output)
+    if out.exists() and not out.is_dir():  # (said before the scene is built)
+        print(f"davinci-sim snapshot: {out} exists and is not a folder; -o names the folder "
+              "the PNG files go to", file=sys.stderr)  # fmt: skip
+        return 2
     try:
         sim = new_simulation(description)  # the scene with the task's path drawn
     except TaskError as e:
         print(f"davinci-sim snapshot: {e}", file=sys.stderr)
         return 2
-    out.mkdir(parents=True, exist_ok=True)
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+    except OSError as e:  # (a parent that is a file, no permission …)
+        print(f"davinci-sim snapshot: cannot create the folder {out}: {e.strerror}",
+              file=sys.stderr)  # fmt: skip
+        return 2
     if not args.no_home:
         _home_all(sim)
     sim.run_for(0.2)

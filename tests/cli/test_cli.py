@@ -20,6 +20,17 @@ def test_snapshot_writes_three_images(tmp_path):
         assert img.ndim == 3 and img.std() > 5
 
 
+def test_snapshot_into_an_existing_file_is_refused_in_one_line(tmp_path, capsys):
+    taken = tmp_path / "notes.txt"
+    taken.write_text("mine")
+    assert main(["snapshot", "--scene", "psm1", "-o", str(taken)]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "exists and is not a folder" in err
+    assert "Traceback" not in err and taken.read_text() == "mine"
+    assert main(["snapshot", "--scene", "psm1", "-o", str(taken / "below")]) == 2
+    assert "cannot create the folder" in capsys.readouterr().err
+
+
 def test_demo_runs_and_reports(capsys):
     assert main(["demo", "--scene", "psm1"]) == 0
     out = capsys.readouterr().out
