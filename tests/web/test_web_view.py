@@ -84,3 +84,42 @@ def test_task_marks_of_a_wire_sample_it_every_2_mm_and_skip_the_seeds_path():
     assert len(p) == 11 and "targets" not in marks
     assert p[0] == pytest.approx([0.0, 0.0, 0.3]) and p[-1] == pytest.approx([-0.02, 0.0, 0.3])
     assert task_marks(load_task("seed_path"), T_world_camera, CameraConfig()) is None
+
+
+def _view(arms=None, teleop_state="ENABLED", on=True, t=10.0) -> dict:
+    return {
+        "time": t,
+        "arms": {n: {"state": s, "homed": True} for n, s in (arms or {"PSM1": "ENABLED"}).items()},
+        "console": {"teleop_enabled": on, "buttons": {"operator_present": on}},
+        "teleops": {"MTMR_PSM1": {"state": teleop_state, "selected": True}},
+    }
+
+
+def test_problems_name_faults_stopped_and_stuck_teleoperations_with_their_reasons():
+    from davinci_sim.web.view import problems
+
+    reason = "PSM1: tracking error on joint 'yaw': 0.65 exceeds 0.35; arm in FAULT"
+    stopped = "MTMR_PSM1: PSM1 is not ready anymore (FAULT); disabling"
+    messages = {"PSM1": ("error", reason, 9.0, 1), "MTMR_PSM1": ("error", stopped, 9.0, 1)}
+    out = problems(_view({"PSM1": "FAULT", "PSM2": "FAULT"}, "DISABLED"), messages)
+    assert out == [
+        {"source": "PSM1", "kind": "fault", "reason": reason},
+        {"source": "PSM2", "kind": "fault", "reason": "PSM2 is in FAULT"},
+        {"source": "MTMR_PSM1", "kind": "stopped", "reason": stopped},
+    ]
+    # The teleoperation switched off, or nobody at the console: it is not stopped by a fault.
+    assert problems(_view(teleop_state="DISABLED", on=False), messages) == []
+    assert problems(_view(), {}) == []
+
+
+def test_an_aligning_teleoperation_is_a_problem_from_its_second_fresh_warning():
+    from davinci_sim.web.view import problems
+
+    text = "MTMR_PSM1: unable to align MTM, angle error is 23.1 (deg)"
+    view = _view(teleop_state="ALIGNING_MTM", t=10.0)
+    assert problems(view, {"MTMR_PSM1": ("warning", text, 9.5, 1)}) == []  # an ordinary start
+    assert problems(view, {"MTMR_PSM1": ("warning", text, 9.5, 2)}) == [
+        {"source": "MTMR_PSM1", "kind": "aligning", "reason": text}
+    ]
+    assert problems(view, {"MTMR_PSM1": ("warning", text, 6.0, 3)}) == []  # stale
+    assert problems(_view(t=10.0), {"MTMR_PSM1": ("warning", text, 9.5, 2)}) == []  # aligned

@@ -177,8 +177,9 @@ class WebConsole(AsyncService):
         self.trainee = "" if records is None else records.trainee
         self.operator: int | None = None
         self._wrist_free: set[str] = set()
-        self._messages: dict[str, tuple[str, str, float]] = {}
-        """Each arm's and teleoperation's last error or warning: (level, text, sim time s)."""
+        self._messages: dict[str, tuple[str, str, float, int]] = {}
+        """Each arm's and teleoperation's last error or warning: (level, text, sim time s,
+        how many in a row); a teleoperation's warning is dropped when its state changes."""
         self._forwarded: dict[tuple[str, str], float] = {}
         """When (monotonic s) each (source, text) error was last sent to the pages."""
         """MTMs whose teleoperations the page unlocked the rotation of (the wrist keys)."""
@@ -287,9 +288,17 @@ class WebConsole(AsyncService):
         """From the simulation's thread: keep each source's last error or warning for the
         page's problems (:func:`~davinci_sim.web.view.problems`) and send errors to the
         pages, so a fault is shown with its reason."""
-        if event not in ("error", "warning") or not hasattr(payload, "text"):
+        if not hasattr(payload, "text"):
             return
-        self._messages[source] = (event, str(payload.text), float(payload.timestamp))
+        kept = self._messages.get(source)
+        if event == "status":  # (a teleoperation's new state: its warning is over)
+            if kept is not None and kept[0] == "warning":
+                del self._messages[source]
+            return
+        if event not in ("error", "warning"):
+            return
+        repeats = kept[3] + 1 if kept is not None and kept[0] == event else 1
+        self._messages[source] = (event, str(payload.text), float(payload.timestamp), repeats)
         if event == "error" and not loop.is_closed():
             loop.call_soon_threadsafe(self._forward_error, source, str(payload.text))
 

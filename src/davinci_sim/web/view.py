@@ -220,16 +220,19 @@ def console_view(snap, camera: CameraConfig, task=None) -> dict[str, Any]:
     return view
 
 
-#: A teleoperation whose last "unable to align" warning is at most this old (s of simulated
-#: time) while it is still aligning is shown as stuck: the teleoperation warns every 2 s
-#: while it cannot start (``TeleopPSMConfig.warning_interval``).
+#: A teleoperation still aligning whose last warning is at most this old (s of simulated
+#: time) and not its first in this state is shown as stuck: the teleoperation warns every
+#: 2 s while it cannot start (``TeleopPSMConfig.warning_interval``), and the first warning
+#: of an ordinary start (the MTM turning to the tool's orientation takes 2-3 s) is no
+#: problem.
 ALIGN_WARNING_AGE = 2.5
 
 
-def problems(view: dict, messages: Mapping[str, tuple[str, str, float]]) -> list[dict]:
+def problems(view: dict, messages: Mapping[str, tuple[str, str, float, int]]) -> list[dict]:
     """What stops the operator and needs an action, from the page's state ``view``
     (:func:`console_view`) and each source's last error or warning (``messages``: name ->
-    (level, text, sim time s), as the arms and teleoperations send them).
+    (level, text, sim time s, how many in a row), as the arms and teleoperations send
+    them).
 
     One entry per problem, ``{"source", "kind", "reason"}``: an arm in FAULT (``fault``, the
     reason its last error); a selected teleoperation stopped while the console's
@@ -239,16 +242,17 @@ def problems(view: dict, messages: Mapping[str, tuple[str, str, float]]) -> list
     out = []
     for name, arm in view["arms"].items():
         if arm["state"] == "FAULT":
-            level, text, _ = messages.get(name, ("error", f"{name} is in FAULT", 0.0))
+            level, text, _, _ = messages.get(name, ("error", f"{name} is in FAULT", 0.0, 1))
             out.append({"source": name, "kind": "fault", "reason": text})
     console = view.get("console") or {}
     on = console.get("teleop_enabled") and (console.get("buttons") or {}).get("operator_present")
     now = view["time"]
     for name, t in view["teleops"].items():
-        level, text, at = messages.get(name, ("", "", -math.inf))
+        level, text, at, repeats = messages.get(name, ("", "", -math.inf, 0))
         if on and t["selected"] and t["state"] == "DISABLED" and level == "error":
             out.append({"source": name, "kind": "stopped", "reason": text})
-        elif t["state"] == "ALIGNING_MTM" and level == "warning" and now - at <= ALIGN_WARNING_AGE:
+        elif (t["state"] == "ALIGNING_MTM" and level == "warning" and repeats >= 2
+              and now - at <= ALIGN_WARNING_AGE):  # fmt: skip
             out.append({"source": name, "kind": "aligning", "reason": text})
     return out
 
