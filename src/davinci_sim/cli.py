@@ -217,7 +217,7 @@ def cmd_demo(args: argparse.Namespace) -> int:
 def serve_options(args: argparse.Namespace, web: bool):
     """The :class:`~davinci_sim.bridge.app.ServeOptions` of ``serve``'s parsed ``args``
     (``web``: with the web console), as ``cmd_serve`` runs them; the browser test of
-    ``make run`` serves exactly these."""
+    ``make run`` serves these through :func:`serve_setup`."""
     from davinci_sim.bridge.app import ServeOptions
     from davinci_sim.bridge.rosbridge.config import BridgeConfig
     from davinci_sim.bridge.udp import parse_ports
@@ -279,6 +279,50 @@ def _serve_token(args: argparse.Namespace) -> str | None:
     return args.token or os.environ.get("DAVINCI_SIM_TOKEN") or None
 
 
+def serve_setup(args: argparse.Namespace, web: bool) -> tuple:
+    """``serve``'s options (:func:`serve_options`) and its parts (trainee records, the web
+    console, a recording) from its parsed ``args``, every input checked before anything
+    starts; the browser test of ``make run`` serves exactly these.
+
+    Raises:
+        ValueError: a bad task, condition or records file (TaskError and RecordsError).
+        OSError: a recording or records file that cannot be created.
+    """
+    parts: list = []
+    records = None
+    if args.task is not None and not args.no_records:  # every attempt recorded
+        from davinci_sim.records import records_part
+
+        records = records_part(args.trainee or DEFAULT_TRAINEE, path=args.records,
+                               task=args.task, condition=args.condition)  # fmt: skip
+    if web:
+        from davinci_sim.web.app import web_part
+
+        parts.append(web_part(web_options(args), bedside=not args.no_bedside, records=records))
+    options = serve_options(args, web)
+    if args.record is not None:  # (a file that cannot be created: say so now)
+        from davinci_sim.records.recording import recording_part
+
+        Path(args.record).open("ab").close()
+        parts.insert(0, recording_part(args.record, args.record_images, args.record_rate))
+    if args.task is not None:  # a bad task or condition: say so before starting anything
+        from davinci_sim.bridge.app import task_condition
+        from davinci_sim.tasks import load_task
+        from davinci_sim.tasks.check import task_problem
+
+        task = load_task(args.task)
+        task.fixture(task_condition(task, args.condition))  # checks the values too
+        problem = task_problem(task)
+        if problem is not None:
+            raise ValueError(problem)
+        if records is not None:  # (an unusable records file: say so now)
+            from davinci_sim.records import RecordsDB
+
+            RecordsDB(records.path).close()
+            parts.insert(0, records)  # (attached before any page can start a repetition)
+    return options, parts
+
+
 def cmd_serve(args: argparse.Namespace) -> int:
     """The simulation with its ROS interfaces (rosbridge server, UDP, client mode)."""
     import logging
@@ -298,40 +342,8 @@ def cmd_serve(args: argparse.Namespace) -> int:
     if problem is not None:  # before the scene is built
         print(f"davinci-sim serve: {problem}", file=sys.stderr)
         return 2
-    parts = []
     try:
-        records = None
-        if args.task is not None and not args.no_records:  # every attempt recorded
-            from davinci_sim.records import records_part
-
-            records = records_part(args.trainee or DEFAULT_TRAINEE, path=args.records,
-                                   task=args.task, condition=args.condition)  # fmt: skip
-        if web:
-            from davinci_sim.web.app import web_part
-
-            parts.append(web_part(web_options(args), bedside=not args.no_bedside,
-                                  records=records))  # fmt: skip
-        options = serve_options(args, web)
-        if args.record is not None:  # (a file that cannot be created: say so now)
-            from davinci_sim.records.recording import recording_part
-
-            Path(args.record).open("ab").close()
-            parts.insert(0, recording_part(args.record, args.record_images, args.record_rate))
-        if args.task is not None:  # a bad task or condition: say so before starting anything
-            from davinci_sim.bridge.app import task_condition
-            from davinci_sim.tasks import load_task
-            from davinci_sim.tasks.check import task_problem
-
-            task = load_task(args.task)
-            task.fixture(task_condition(task, args.condition))  # checks the values too
-            problem = task_problem(task)
-            if problem is not None:
-                raise ValueError(problem)
-            if records is not None:  # (an unusable records file: say so now)
-                from davinci_sim.records import RecordsDB
-
-                RecordsDB(records.path).close()
-                parts.insert(0, records)  # (attached before any page can start a repetition)
+        options, parts = serve_setup(args, web)
     except (ValueError, OSError) as e:  # TaskError and RecordsError are ValueErrors
         print(f"davinci-sim serve: {e}", file=sys.stderr)
         return 2

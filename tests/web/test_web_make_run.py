@@ -2,8 +2,9 @@
 --home --realtime-priority 50``: the full system, both hands on keys, stereo images, real
 time, the loop in its own process), a person takes control, reads the keys for several
 seconds, then drives the tool with a key. The options are the CLI's own
-(:func:`davinci_sim.cli.serve_options`); only the ports (any free one) and the trainee
-records (not written to the user's records file) differ. Waits are on simulated time."""
+(:func:`davinci_sim.cli.serve_setup`); only the ports differ (any free one; the trainee
+records go to the test session's temporary file, ``tests/conftest.py``). Waits are on
+simulated time."""
 
 from __future__ import annotations
 
@@ -19,21 +20,18 @@ from playwright.sync_api import sync_playwright  # noqa: E402
 from test_web_browser import CHROMIUM, CHROMIUM_ARGS, Console  # noqa: E402
 
 from davinci_sim.bridge.app import serve  # noqa: E402
-from davinci_sim.cli import build_parser, serve_options, web_options  # noqa: E402
-from davinci_sim.web.app import web_part  # noqa: E402
+from davinci_sim.cli import build_parser, serve_setup  # noqa: E402
 
 pytestmark = pytest.mark.skipif(CHROMIUM is None, reason="Chromium is not installed")
 
-#: The Makefile's ``run`` target's arguments, then free ports and no records file.
+#: The Makefile's ``run`` target's arguments, then free ports.
 MAKE_RUN = ["serve", "--task", "seed_path", "--home", "--realtime-priority", "50"]
-HERE = ["--port", "0", "--web-port", "0", "--no-records"]
+HERE = ["--port", "0", "--web-port", "0"]
 
 
 @pytest.fixture(scope="module")
 def make_run():
-    args = build_parser().parse_args(MAKE_RUN + HERE)
-    options = serve_options(args, web=True)
-    parts = [web_part(web_options(args), bedside=not args.no_bedside)]
+    options, parts = serve_setup(build_parser().parse_args(MAKE_RUN + HERE), web=True)
     info: dict = {}
     stop = threading.Event()
     thread = threading.Thread(

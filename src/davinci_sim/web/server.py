@@ -259,9 +259,14 @@ class WebConsole(AsyncService):
             max_size=64 * 1024,
             ping_interval=20,
             close_timeout=2,
+            # (an HTTP answer drawn in a thread, the learning curves, can take longer than
+            # websockets' default 10 s on a loaded machine: the page then got no answer)
+            open_timeout=60,
         ) as server:
             self._port = server.sockets[0].getsockname()[1]
             tasks = [asyncio.create_task(self._state_loop())]
+            if self.records is not None:  # (matplotlib's first figure: before a page asks)
+                tasks.append(asyncio.create_task(asyncio.to_thread(self._warm_curve)))
             if self.frames is not None:
                 tasks.append(asyncio.create_task(self._frame_loop()))
             loop = asyncio.get_running_loop()
@@ -325,6 +330,13 @@ class WebConsole(AsyncService):
             await self._call("console", "teleop_enable", True)
 
     # ------------------------------------------------------------ HTTP
+    def _warm_curve(self) -> None:
+        """Draw the learning curves once (imports matplotlib, caches the PNG)."""
+        try:
+            self.records.curve_png()
+        except Exception:  # (the request itself says what is wrong)
+            _log.debug("learning curves not drawn ahead", exc_info=True)
+
     async def _process_request(self, connection, request):
         path = request.path.split("?", 1)[0]
         if path == "/records/curve.png":  # drawn in a worker thread: the pages stream on
