@@ -206,6 +206,8 @@ function showProblems(problems) {
   $("recover").title = isOperator() ? "" : "take control first";
   const key = JSON.stringify(problems);
   if (key === state.problemsKey) return;
+  // (recovered: the error that announced the problem is over too)
+  if (problems.length === 0 && state.problemsKey && state.problemsKey !== "[]") $("messages").innerHTML = "";
   state.problemsKey = key;
   const list = $("problem-list");
   list.innerHTML = "";
