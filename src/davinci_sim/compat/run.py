@@ -8,7 +8,9 @@ serve`` or a real one) — installs it as the client of every ``crtk.ral``, puts
 
 A real ROS installation is not shadowed: if the real ``crtk`` and ``dvrk`` packages import
 (a sourced ROS workspace), they are used — the script then talks ROS, not this simulator's
-rosbridge, unless ``force_compat``; ``PyKDL`` is ours only when the real one is missing.
+rosbridge, unless ``force_compat``. ``PyKDL`` is the real one when this interpreter can load
+one, from its import path or the system's packages (Debian's ``python3-pykdl``, ROS: see
+:mod:`~davinci_sim.compat.pykdl`), and our subset only when there is none.
 :func:`module_choice` says which is which; the run prints it.
 """
 
@@ -74,8 +76,12 @@ class ModuleChoice:
 
 
 def module_choice(force_compat: bool = False) -> ModuleChoice:
-    return ModuleChoice(_real_module("crtk"), _real_module("dvrk"), _real_module("PyKDL"),
-                        force_compat)  # fmt: skip
+    from davinci_sim.compat import pykdl
+
+    real_kdl = _real_module("PyKDL")
+    if real_kdl is None and (system_kdl := pykdl.find()) is not None:
+        real_kdl = f"{system_kdl}, through davinci-sim's PyKDL module"
+    return ModuleChoice(_real_module("crtk"), _real_module("dvrk"), real_kdl, force_compat)
 
 
 def install_modules(choice: ModuleChoice) -> None:
