@@ -63,9 +63,17 @@ def normalized(v: np.ndarray, eps: float = EPSILON) -> tuple[np.ndarray, float]:
     return _f(v) / n, float(n)
 
 
-def skew(v: np.ndarray) -> np.ndarray:
-    """The matrix of ``v ×``."""
-    return np.array([[0.0, -v[2], v[1]], [v[2], 0.0, -v[0]], [-v[1], v[0], 0.0]])
+def matmul(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """3x3 times 3x3 (or 3), each term summed left to right as KDL's C++ does: the same
+    rounding, so that ties later (the branches of ``GetQuaternion``, ``GetRotAngle``) fall
+    the same way (a BLAS product may round differently)."""
+    if b.ndim == 1:
+        return (a[:, 0] * b[0] + a[:, 1] * b[1]) + a[:, 2] * b[2]
+    return (a[:, 0:1] * b[0:1, :] + a[:, 1:2] * b[1:2, :]) + a[:, 2:3] * b[2:3, :]
+
+
+def dot(a: np.ndarray, b: np.ndarray) -> float:
+    return float((a[0] * b[0] + a[1] * b[1]) + a[2] * b[2])
 
 
 # =========================================================================== rotations
@@ -86,11 +94,11 @@ def rot_z(a: float) -> np.ndarray:
 
 def rpy(roll: float, pitch: float, yaw: float) -> np.ndarray:
     """About the fixed x by ``roll``, then fixed y by ``pitch``, then fixed z by ``yaw``."""
-    return rot_z(yaw) @ rot_y(pitch) @ rot_x(roll)
+    return matmul(matmul(rot_z(yaw), rot_y(pitch)), rot_x(roll))
 
 
 def euler_zyz(alpha: float, beta: float, gamma: float) -> np.ndarray:
-    return rot_z(alpha) @ rot_y(beta) @ rot_z(gamma)
+    return matmul(matmul(rot_z(alpha), rot_y(beta)), rot_z(gamma))
 
 
 def quaternion(x: float, y: float, z: float, w: float) -> np.ndarray:
@@ -108,7 +116,13 @@ def rot2(axis: np.ndarray, angle: float) -> np.ndarray:
     """KDL's ``Rot2``: cos·I + (1 - cos)·a·aᵀ + sin·[a×], ``axis`` taken as given (unit for a
     rotation)."""
     c, s = math.cos(angle), math.sin(angle)
-    return c * np.eye(3) + (1.0 - c) * np.outer(axis, axis) + s * skew(axis)
+    vt = (1.0 - c) * np.asarray(axis, dtype=float)  # (1 - cos)·a, then times a: KDL's order
+    x, y, z = axis
+    return np.array([
+        [c + vt[0] * x, -(z * s) + vt[0] * y, y * s + vt[0] * z],
+        [z * s + vt[0] * y, c + vt[1] * y, -(x * s) + vt[1] * z],
+        [-(y * s) + vt[0] * z, x * s + vt[1] * z, c + vt[2] * z],
+    ])  # fmt: skip
 
 
 def rotation_vector_matrix(v: np.ndarray) -> np.ndarray:
@@ -192,12 +206,16 @@ def get_rot_angle(R: np.ndarray, eps: float = EPSILON) -> tuple[float, np.ndarra
 # =========================================================================== frames
 def dh(a: float, alpha: float, d: float, theta: float) -> tuple[np.ndarray, np.ndarray]:
     """Standard Denavit–Hartenberg: RotZ(θ)·TransZ(d)·TransX(a)·RotX(α) as (R, p)."""
-    return rot_z(theta) @ rot_x(alpha), np.array([a * math.cos(theta), a * math.sin(theta), d])
+    return matmul(rot_z(theta), rot_x(alpha)), np.array(
+        [a * math.cos(theta), a * math.sin(theta), d]
+    )
 
 
 def dh_craig1989(a: float, alpha: float, d: float, theta: float):
     """Modified (Craig) Denavit–Hartenberg: RotX(α)·TransX(a)·RotZ(θ)·TransZ(d) as (R, p)."""
-    return rot_x(alpha) @ rot_z(theta), np.array([a, -math.sin(alpha) * d, math.cos(alpha) * d])
+    return matmul(rot_x(alpha), rot_z(theta)), np.array(
+        [a, -math.sin(alpha) * d, math.cos(alpha) * d]
+    )
 
 
 # =========================================================================== text

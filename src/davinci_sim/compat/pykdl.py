@@ -77,7 +77,14 @@ def load(path: pathlib.Path | None = None) -> ModuleType | None:
         spec = importlib.util.spec_from_file_location("PyKDL", path)
         if spec is None or spec.loader is None:
             raise ImportError(f"{path} is not a Python module")
-        module = importlib.util.module_from_spec(spec)
-        spec.loader.exec_module(module)
+        before = sys.modules.get("PyKDL")
+        try:
+            module = importlib.util.module_from_spec(spec)
+            spec.loader.exec_module(module)
+        finally:  # loading a compiled module registers it: undo that
+            if before is None:
+                sys.modules.pop("PyKDL", None)
+            else:
+                sys.modules["PyKDL"] = before
         _cache[key] = module
     return _cache[key]
