@@ -12,7 +12,7 @@ import pytest
 from davinci_sim import cli
 from davinci_sim.compat import pykdl
 from davinci_sim.compat import run as run_module
-from davinci_sim.compat.run import KDL_SHIM, ROS_SHIM, install_modules, module_choice
+from davinci_sim.compat.run import KDL_SHIM, MSG_SHIM, ROS_SHIM, install_modules, module_choice
 
 
 @pytest.fixture
@@ -62,7 +62,7 @@ def test_half_a_ros_installation_gets_ours_for_both(clean_path, tmp_path):
     choice = module_choice()
     assert choice.real_crtk and not choice.real_dvrk and choice.ours_for_ros
     install_modules(choice)
-    assert sys.path[0] == str(ROS_SHIM) and sys.path[-1] == str(KDL_SHIM)
+    assert sys.path[0] == str(ROS_SHIM) and sys.path[-2:] == [str(KDL_SHIM), str(MSG_SHIM)]
     import crtk
     import dvrk
 

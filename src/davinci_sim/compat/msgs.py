@@ -183,7 +183,25 @@ def _field_names(msg: Any) -> tuple[str, ...] | None:
 
 
 def is_message(value: Any) -> bool:
-    return _field_names(value) is not None
+    return value is not None and _field_names(value) is not None
+
+
+def is_message_class(cls: type) -> bool:
+    """A message class: ours, rclpy's (``get_fields_and_field_types``) or genpy's."""
+    rclpy = callable(getattr(cls, "get_fields_and_field_types", None))
+    return issubclass(cls, MessageBase) or rclpy or hasattr(cls, "_slot_types")
+
+
+def fill(msg: Any, value: dict) -> Any:
+    """Set ``msg``'s fields (a message object of any kind) from rosbridge JSON, nested
+    messages in place; returns ``msg``."""
+    for name, v in value.items():
+        current = getattr(msg, name, None)
+        if is_message(current) and isinstance(v, dict):
+            fill(current, v)
+        else:
+            setattr(msg, name, v)
+    return msg
 
 
 def to_wire(msg: Any) -> Any:

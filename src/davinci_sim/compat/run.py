@@ -4,7 +4,8 @@
 simulator's bridge reached in memory (:class:`~davinci_sim.compat.inprocess.InProcessBridge`),
 or a connection to a running rosbridge server (``connect="ws://host:port"``: ``davinci-sim
 serve`` or a real one) — installs it as the client of every ``crtk.ral``, puts the ``crtk``,
-``dvrk`` and ``PyKDL`` modules on the import path and runs the script as ``__main__``.
+``dvrk`` and ``PyKDL`` modules and the ROS message packages (``std_msgs.msg`` …,
+:mod:`~davinci_sim.compat.msgs`) on the import path and runs the script as ``__main__``.
 
 A real ROS installation is not shadowed: if the real ``crtk`` and ``dvrk`` packages import
 (a sourced ROS workspace), they are used — the script then talks ROS, not this simulator's
@@ -29,6 +30,7 @@ from dataclasses import dataclass
 SHIM = pathlib.Path(__file__).parent / "shim"
 ROS_SHIM = SHIM / "ros"  # crtk/, dvrk/
 KDL_SHIM = SHIM / "kdl"  # PyKDL.py
+MSG_SHIM = SHIM / "msgs"  # std_msgs/, geometry_msgs/, sensor_msgs/, crtk_msgs/ …
 
 
 def _real_module(name: str) -> str | None:
@@ -86,13 +88,14 @@ def module_choice(force_compat: bool = False) -> ModuleChoice:
 
 def install_modules(choice: ModuleChoice) -> None:
     """Put our modules on ``sys.path`` as ``choice`` says: ``crtk``/``dvrk`` first (or not
-    at all), ``PyKDL`` last (found only if no other is)."""
+    at all), ``PyKDL`` and the message packages last (found only if no other is)."""
     if choice.ours_for_ros and str(ROS_SHIM) not in sys.path:
         sys.path.insert(0, str(ROS_SHIM))
         for name in ("crtk", "dvrk"):  # a real one imported before us would win
             sys.modules.pop(name, None)
-    if str(KDL_SHIM) not in sys.path:
-        sys.path.append(str(KDL_SHIM))
+    for folder in (KDL_SHIM, MSG_SHIM):
+        if str(folder) not in sys.path:
+            sys.path.append(str(folder))
 
 
 def _python_path(choice: ModuleChoice) -> str:
@@ -100,7 +103,7 @@ def _python_path(choice: ModuleChoice) -> str:
     parts = [os.environ.get("PYTHONPATH", "")]
     if choice.ours_for_ros:
         parts.insert(0, str(ROS_SHIM))
-    parts.append(str(KDL_SHIM))
+    parts += [str(KDL_SHIM), str(MSG_SHIM)]
     return os.pathsep.join(p for p in parts if p)
 
 
