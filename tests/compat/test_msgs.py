@@ -16,7 +16,7 @@ from davinci_sim.bridge.rosbridge.types import UnknownTypeError
 from davinci_sim.compat import msgs
 from davinci_sim.compat.inprocess import InProcessBridge
 from davinci_sim.compat.ral import Message, ral, stamp_of
-from davinci_sim.compat.run import MSG_SHIM, install_modules, module_choice
+from davinci_sim.compat.run import MSG_SHIM, ROS_SHIM, install_modules, module_choice
 from davinci_sim.compat.transport import RosbridgeClient
 
 PoseStamped = msgs.message_class("geometry_msgs/PoseStamped")
@@ -124,7 +124,9 @@ def test_bool_and_empty_objects_are_published(clients):
 
 def test_run_puts_the_packages_on_the_path_after_the_real_ones(monkeypatch):
     monkeypatch.setattr(sys, "path", list(sys.path))
-    names = [n for n in sys.modules if n.split(".")[0] in msgs.PACKAGES]
+    monkeypatch.setenv("DAVINCI_SIM_PYKDL", "subset")  # the frames below are the subset's
+    packages = (*msgs.PACKAGES, "crtk", "dvrk", "PyKDL")
+    names = [n for n in sys.modules if n.split(".")[0] in packages]
     saved = {n: sys.modules.pop(n) for n in names}
     try:
         install_modules(module_choice())
@@ -139,7 +141,22 @@ def test_run_puts_the_packages_on_the_path_after_the_real_ones(monkeypatch):
         from sensor_msgs.msg import JointState
 
         assert JointState._type == "sensor_msgs/JointState"
+        sys.path.insert(0, str(ROS_SHIM))
+        from crtk import msg_conversions as conversions
+
+        from davinci_sim.compat import kdl as K
+
+        frame = K.Frame(K.Rotation.RotZ(0.5), K.Vector(0.01, 0.02, 0.03))
+        pose = conversions.FrameToPoseMsg(frame)  # a message, as crtk_python's
+        assert type(pose) is geometry_msgs.msg.Pose and pose.position.y == 0.02
+        assert conversions.FrameFromPoseMsg(pose) == frame
+        transform = conversions.FrameToTransformMsg(frame)
+        assert conversions.FrameFromTransformMsg(transform) == frame
+        twist = conversions.ArrayToTwistMsg(np.arange(6.0))
+        assert twist.angular.z == 5.0 and list(conversions.ArrayFromTwistMsg(twist)) == list(
+            np.arange(6.0)
+        )
     finally:
-        for n in [n for n in sys.modules if n.split(".")[0] in msgs.PACKAGES]:
+        for n in [n for n in sys.modules if n.split(".")[0] in packages]:
             del sys.modules[n]
         sys.modules.update(saved)
