@@ -88,7 +88,7 @@ def test_a_system_pykdl_is_used_when_the_interpreter_can_load_it(clean_path):
     assert found.name.endswith(pykdl.suffix())
     sys.modules.pop("PyKDL", None)
     choice = module_choice()
-    assert str(found) in choice.real_kdl and str(found) in choice.describe()
+    assert choice.real_kdl == str(found) and f"PyKDL: the system's ({found})" in choice.describe()
     install_modules(choice)
     importlib.invalidate_caches()
     import PyKDL

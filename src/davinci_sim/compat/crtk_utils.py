@@ -27,8 +27,8 @@ from typing import Any
 
 import numpy as np
 
-from davinci_sim.compat import msgs
 from davinci_sim.compat.ral import Message, stamp_of
+from davinci_sim.compat.ral import to_dict as _as_dict
 
 
 def kdl():
@@ -44,13 +44,6 @@ def kdl():
 
 
 # =========================================================================== conversions
-def _as_dict(msg) -> dict:
-    """A message (dict, :class:`Message` or message object) as its JSON object."""
-    if isinstance(msg, Message):
-        return msg.to_dict()
-    return msgs.to_wire(msg) if msgs.is_message(msg) else msg
-
-
 def FrameFromPoseMsg(pose) -> Any:
     """A ``PyKDL.Frame`` from a ``geometry_msgs/Pose`` (dict, Message or message object)."""
     d = _as_dict(pose)

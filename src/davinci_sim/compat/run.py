@@ -55,6 +55,8 @@ class ModuleChoice:
     real_dvrk: str | None
     real_kdl: str | None
     force_compat: bool = False
+    kdl_from_system: bool = False
+    """``real_kdl`` is not on the import path: the system's, loaded by our ``PyKDL`` module."""
 
     @property
     def ours_for_ros(self) -> bool:
@@ -69,21 +71,22 @@ class ModuleChoice:
                 )
         else:
             ros = f"crtk, dvrk: the installed ones ({self.real_crtk}, {self.real_dvrk})"
-        kdl = (
-            f"PyKDL: the installed one ({self.real_kdl})"
-            if self.real_kdl
-            else ("PyKDL: davinci-sim's subset (davinci_sim.compat.kdl)")
-        )
+        if self.real_kdl:
+            which = "the system's" if self.kdl_from_system else "the installed one"
+            kdl = f"PyKDL: {which} ({self.real_kdl})"
+        else:
+            kdl = "PyKDL: davinci-sim's subset (davinci_sim.compat.kdl)"
         return f"{ros}; {kdl}"
 
 
 def module_choice(force_compat: bool = False) -> ModuleChoice:
     from davinci_sim.compat import pykdl
 
-    real_kdl = _real_module("PyKDL")
+    real_kdl, from_system = _real_module("PyKDL"), False
     if real_kdl is None and (system_kdl := pykdl.find()) is not None:
-        real_kdl = f"{system_kdl}, through davinci-sim's PyKDL module"
-    return ModuleChoice(_real_module("crtk"), _real_module("dvrk"), real_kdl, force_compat)
+        real_kdl, from_system = str(system_kdl), True
+    return ModuleChoice(_real_module("crtk"), _real_module("dvrk"), real_kdl, force_compat,
+                        from_system)  # fmt: skip
 
 
 def install_modules(choice: ModuleChoice) -> None:

@@ -8,6 +8,7 @@ a :class:`~davinci_sim.compat.ral.Message`; the ``…To…Msg`` ones return mess
 from davinci_sim.compat import crtk_utils as _utils
 from davinci_sim.compat import msgs as _msgs
 from davinci_sim.compat.crtk_utils import ArrayFromTwistMsg, ArrayFromWrenchMsg, FrameFromPoseMsg
+from davinci_sim.compat.ral import to_dict as _to_dict
 
 __all__ = [
     "ArrayFromTwistMsg",
@@ -28,7 +29,7 @@ def FrameToPoseMsg(frame):
 
 def FrameFromTransformMsg(transform):
     """A ``PyKDL.Frame`` of a ``geometry_msgs/Transform`` (object or dict)."""
-    d = _utils._as_dict(transform)
+    d = _to_dict(transform)
     return FrameFromPoseMsg({"position": d["translation"], "orientation": d["rotation"]})
 
 
