@@ -181,3 +181,52 @@ def test_dvrk_psm_test_moves_right_then_left_then_back(system, PyKDL):
     start = np.array([initial.p[0], initial.p[1], initial.p[2]])
     right, left = start - [amplitude, 0.0, 0.0], start + [amplitude, 0.0, 0.0]
     observer.visited_in_order(start, right, left, start)
+
+
+def test_dvrk_arm_test_servo_cp_draws_its_diagonal(system, PyKDL):
+    """``dvrk_arm_test.py -a PSM1``'s ``servo_cp`` loop: 5 s of goals 0 … 4 … 0 cm along the
+    diagonal of x and y at 100 Hz, from a goal copied from ``setpoint_cp`` and edited in
+    place (an aliasing PyKDL moves the start with it: the goal ran to 14 m, PSM1 faulted)."""
+
+    class Device:  # the example's arm: its own crtk.utils, connection time-out 5 s
+        def __init__(self, ral):
+            self.crtk_utils = crtk_utils.utils(self, ral.create_child("PSM1"), 5.0)
+            for add in ("operating_state", "setpoint_js", "measured_js", "setpoint_cp",
+                        "servo_jp", "move_jp", "servo_cp", "move_cp"):  # fmt: skip
+                getattr(self.crtk_utils, f"add_{add}")()
+
+    r = ral_module.ral("dvrk_arm_test")
+    arm = Device(r)
+    r.check_connections()
+    period, amplitude, duration = 0.01, 0.02, 5
+    with Observer(system) as observer:
+        ts = 0.0
+        while ts == 0.0:
+            jp, ts = arm.setpoint_jp()
+        goal_jp = np.copy(jp)
+        goal_jp[0], goal_jp[1], goal_jp[2], goal_jp[3] = 0.0, 0.0, 0.12, 0.0
+        arm.move_jp(goal_jp).wait()
+        initial = PyKDL.Frame()
+        cp, _ = arm.setpoint_cp()
+        initial.p = cp.p
+        initial.M = cp.M
+        goal = PyKDL.Frame()
+        goal.p = cp.p
+        goal.M = cp.M
+        samples = duration / period
+        rate = r.create_rate(1.0 / period)
+        for i in range(int(samples)):
+            goal.p[0] = initial.p[0] + amplitude * (1.0 - np.cos(i * np.radians(360.0) / samples))
+            goal.p[1] = initial.p[1] + amplitude * (1.0 - np.cos(i * np.radians(360.0) / samples))
+            arm.servo_cp(goal)
+            arm.setpoint_cp()
+            rate.sleep()
+        time.sleep(0.2)
+    start = np.array([initial.p[0], initial.p[1], initial.p[2]])
+    far = start + [2 * amplitude, 2 * amplitude, 0.0]
+    observer.visited_in_order(start, far, start)
+    reach = max(
+        np.linalg.norm(p - start) for p in observer.positions[observer.visited_in_order(start)[0] :]
+    )
+    assert reach < 2 * amplitude * np.sqrt(2) + TOLERANCE  # never past the diagonal's end
+    assert arm.operating_state() == "ENABLED"
