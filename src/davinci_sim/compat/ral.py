@@ -32,6 +32,9 @@ from davinci_sim.compat.transport import RosbridgeClient, TransportError
 _log = logging.getLogger("davinci_sim.compat")
 
 DEFAULT_URL = "ws://127.0.0.1:9090"
+FIRST_DATA_WAIT = 0.2
+"""s: how long ``check_connections`` waits for subscribers' first messages once connected
+(the dVRK's state topics are 100 Hz: their first message comes within 10 ms)."""
 ENV_URL = "DAVINCI_SIM_CONNECT"
 
 _client: RosbridgeClient | None = None
@@ -186,6 +189,8 @@ class Publisher:
 class Subscriber:
     def __init__(self, topic: str, type_name: str) -> None:
         self.topic_name, self.type = topic, type_name
+        self.received = threading.Event()
+        """Set by the first message."""
 
 
 class ServiceClient:
@@ -321,7 +326,13 @@ class ral:  # noqa: N801 (crtk's name)
     def subscriber(self, topic: str, msg_type: str, callback: Callable, queue_size: int = 10,
                    latch: bool = False, *args: Any, **kwargs: Any) -> Subscriber:  # fmt: skip
         sub = Subscriber(self._add_namespace_to(topic), _type_name(msg_type))
-        self._client.subscribe(sub.topic_name, sub.type, _receiver(msg_type, callback),
+        receive = _receiver(msg_type, callback)
+
+        def on_message(d: dict) -> None:
+            sub.received.set()
+            receive(d)
+
+        self._client.subscribe(sub.topic_name, sub.type, on_message,
                                queue_length=int(queue_size))  # fmt: skip
         self._subscribers.append(sub)
         return sub
@@ -336,7 +347,9 @@ class ral:  # noqa: N801 (crtk's name)
     def check_connections(self, timeout_seconds: float = 5.0, check_children: bool = True):
         """Wait up to ``timeout_seconds`` until every publisher of this ``ral`` (and of its
         children) has a subscriber and every subscriber a publisher, as the server's
-        ``/rosapi`` reports them.
+        ``/rosapi`` reports them; then up to :data:`FIRST_DATA_WAIT` more for every
+        subscriber's first message (on ROS, discovery outlasts a 100 Hz topic's first
+        message: scripts read ``measured_js()`` right after this, even before a move).
 
         Topics dvrk_python uses that the simulator does not serve
         (:data:`~davinci_sim.compat.dvrk_api.NOT_SIMULATED`) are not waited for.
@@ -356,6 +369,9 @@ class ral:  # noqa: N801 (crtk's name)
             unconnected_pubs = [p for p in unconnected_pubs if not self._has(p, "subscribers")]
             unconnected_subs = [s for s in unconnected_subs if not self._has(s, "publishers")]
             if not unconnected_pubs and not unconnected_subs:
+                first_data = min(end, time.monotonic() + FIRST_DATA_WAIT)
+                for sub in subs:  # event topics (pedals) may send nothing: not an error
+                    sub.received.wait(max(0.0, first_data - time.monotonic()))
                 return
             if time.monotonic() >= end or self.is_shutdown():
                 break
