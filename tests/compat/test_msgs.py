@@ -56,6 +56,7 @@ def test_json_both_ways():
     assert stamp_of(back) == pytest.approx(12.0 + 500e-9)
     ros1 = msgs.from_wire("std_msgs/Header", {"seq": 3, "stamp": {"secs": 4, "nsecs": 5}})
     assert (ros1.stamp.sec, ros1.stamp.nanosec) == (4, 5)  # a ROS 1 server's spelling
+    assert msgs.to_wire(ros1, ros_version=1)["stamp"] == {"secs": 4, "nsecs": 5}
     impedance = msgs.message_class("crtk_msgs/CartesianImpedance")()
     impedance.position_negative.p.z = -200.0
     assert msgs.to_wire(impedance)["position_negative"]["p"] == {"x": 0.0, "y": 0.0, "z": -200.0}

@@ -194,3 +194,15 @@ def test_check_connections_waits_for_first_messages_of_connected_topics(monkeypa
     r.check_connections(5.0)  # no error for the silent pedal
     assert js.received.is_set() and got[0].position == [1.0]  # readable right after
     assert not clutch.received.is_set()
+
+
+def test_published_objects_spell_times_as_the_server_does():
+    from davinci_sim.compat import msgs
+
+    for version, keys in ((1, {"secs", "nsecs"}), (2, {"sec", "nanosec"})):
+        p = Pipe(ros_version=version)
+        r = ral("node", node=RosbridgeClient(p))
+        msg = r.set_timestamp(msgs.message_class("geometry_msgs/PoseStamped")())
+        r.publisher("/goal", "geometry_msgs/PoseStamped").publish(msg)
+        sent = [op for op in p.sent if op["op"] == "publish"][0]["msg"]
+        assert set(sent["header"]["stamp"]) == keys and sent["pose"]["orientation"]["w"] == 1.0

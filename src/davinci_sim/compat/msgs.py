@@ -204,22 +204,26 @@ def fill(msg: Any, value: dict) -> Any:
     return msg
 
 
-def to_wire(msg: Any) -> Any:
+def to_wire(msg: Any, ros_version: int = 2) -> Any:
     """A message object (or value) as rosbridge JSON: objects → dicts, sequences → lists,
-    bytes → lists of ints, numpy numbers → Python numbers; a time keeps its field names."""
+    bytes → lists of ints, numpy numbers → Python numbers; times ``sec``/``nanosec``, or
+    ``secs``/``nsecs`` for a ROS 1 server (``ros_version`` 1)."""
+    if ros_version == 1 and type(msg) in (_class("builtin_interfaces/Time"),
+                                          _class("builtin_interfaces/Duration")):  # fmt: skip
+        return {"secs": to_wire(msg.sec), "nsecs": to_wire(msg.nanosec)}
     names = _field_names(msg)
     if names is not None:
-        return {n: to_wire(getattr(msg, n)) for n in names}
+        return {n: to_wire(getattr(msg, n), ros_version) for n in names}
     if isinstance(msg, dict):
-        return {k: to_wire(v) for k, v in msg.items()}
+        return {k: to_wire(v, ros_version) for k, v in msg.items()}
     if isinstance(msg, bytes | bytearray):
         return list(msg)
     if isinstance(msg, str | bool | int | float) or msg is None:
         return msg
     if hasattr(msg, "tolist"):  # numpy arrays and numbers, array.array
-        return to_wire(msg.tolist())
+        return to_wire(msg.tolist(), ros_version)
     if isinstance(msg, list | tuple):
-        return [to_wire(v) for v in msg]
+        return [to_wire(v, ros_version) for v in msg]
     raise TypeError(f"cannot send {type(msg).__name__} {msg!r} in a ROS message")
 
 

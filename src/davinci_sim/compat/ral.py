@@ -126,8 +126,9 @@ class Message:
         return f"Message({self._d!r})"
 
 
-def to_dict(msg: Any, what: str = "a message") -> dict:
-    """``msg`` (dict, :class:`Message` or message object) as a rosbridge JSON object.
+def to_dict(msg: Any, what: str = "a message", ros_version: int = 2) -> dict:
+    """``msg`` (dict, :class:`Message` or message object) as a rosbridge JSON object, its
+    times in ``ros_version``'s spelling.
 
     Raises:
         TypeError: ``msg`` is none of those.
@@ -135,7 +136,7 @@ def to_dict(msg: Any, what: str = "a message") -> dict:
     if isinstance(msg, Message):
         return msg.to_dict()
     if isinstance(msg, dict) or msgs.is_message(msg):
-        return msgs.to_wire(msg)
+        return msgs.to_wire(msg, ros_version)
     raise TypeError(f"{what} must be a ROS message object or a dict, got {type(msg).__name__}")
 
 
@@ -182,8 +183,9 @@ class Publisher:
     def publish(self, msg: Any) -> None:
         """Send ``msg``: a message object (``std_msgs.msg.Bool(data=True)``), a dict or a
         :class:`Message`."""
-        self._client.publish(self.topic_name, self.type,
-                             to_dict(msg, f"what is published on {self.topic_name}"))  # fmt: skip
+        version = self._client.ros_version() if msgs.is_message(msg) else 2  # times' spelling
+        d = to_dict(msg, f"what is published on {self.topic_name}", version)
+        self._client.publish(self.topic_name, self.type, d)
 
 
 class Subscriber:
