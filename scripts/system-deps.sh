@@ -2,9 +2,11 @@
 # Install the Debian packages the project needs, only when they are missing: headless MuJoCo
 # rendering (EGL + Mesa's llvmpipe), and Chromium with a font for the web console's browser
 # tests (Playwright drives the system's Chromium: its own browser download is not reachable
-# everywhere). Needs root (or sudo) the first time only.
+# everywhere), and the real PyKDL (python3-pykdl: `davinci-sim run` gives it to dVRK scripts,
+# and the PyKDL subset is tested against it). Needs root (or sudo) the first time only.
 set -euo pipefail
-pkgs=(libegl1 libgl1 libegl-mesa0 libgl1-mesa-dri libglx-mesa0 chromium fonts-dejavu-core)
+pkgs=(libegl1 libgl1 libegl-mesa0 libgl1-mesa-dri libglx-mesa0 chromium fonts-dejavu-core
+      python3-pykdl)
 missing=()
 for p in "${pkgs[@]}"; do
   dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")

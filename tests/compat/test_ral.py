@@ -4,6 +4,7 @@ messages read as ROS messages, rates, and the rosbridge ops a client sends."""
 from __future__ import annotations
 
 import json
+import threading
 import time
 
 import numpy as np
@@ -11,6 +12,7 @@ import pytest
 
 from davinci_sim.compat import crtk_utils
 from davinci_sim.compat import kdl as K
+from davinci_sim.compat import ral as ral_module
 from davinci_sim.compat.ral import Message, Rate, _type_name, ral, stamp_of
 from davinci_sim.compat.transport import RosbridgeClient
 
@@ -166,3 +168,41 @@ def test_stamps_in_the_servers_dialect(ros_version):
     stamp = r.set_timestamp({})["header"]["stamp"]
     assert set(stamp) == ({"secs", "nsecs"} if ros_version == 1 else {"sec", "nanosec"})
     assert stamp_of({"header": {"stamp": stamp}}) == pytest.approx(time.time(), abs=5)
+
+
+class PublishingPipe(Pipe):
+    """A server whose ``/PSM1/measured_js`` sends its first message a little after rosapi
+    was asked about it (as a ROS topic's data follows its discovery); ``/footpedals/clutch``
+    never publishes."""
+
+    def send(self, text: str) -> None:
+        super().send(text)
+        op = json.loads(text)
+        if op["op"] == "call_service" and op["args"].get("topic") == "/PSM1/measured_js":
+            frame = json.dumps({"op": "publish", "topic": "/PSM1/measured_js",
+                                "msg": {"position": [1.0]}})  # fmt: skip
+            threading.Timer(0.05, self.on_frame, [frame]).start()
+
+
+def test_check_connections_waits_for_first_messages_of_connected_topics(monkeypatch):
+    monkeypatch.setattr(ral_module, "FIRST_DATA_WAIT", 1.0)  # ample for a message 50 ms later
+    pipe = PublishingPipe()
+    r = ral("node", node=RosbridgeClient(pipe))
+    got = []
+    js = r.subscriber("/PSM1/measured_js", "sensor_msgs/JointState", got.append)
+    clutch = r.subscriber("/footpedals/clutch", "sensor_msgs/Joy", got.append)
+    r.check_connections(5.0)  # no error for the silent pedal
+    assert js.received.is_set() and got[0].position == [1.0]  # readable right after
+    assert not clutch.received.is_set()
+
+
+def test_published_objects_spell_times_as_the_server_does():
+    from davinci_sim.compat import msgs
+
+    for version, keys in ((1, {"secs", "nsecs"}), (2, {"sec", "nanosec"})):
+        p = Pipe(ros_version=version)
+        r = ral("node", node=RosbridgeClient(p))
+        msg = r.set_timestamp(msgs.message_class("geometry_msgs/PoseStamped")())
+        r.publisher("/goal", "geometry_msgs/PoseStamped").publish(msg)
+        sent = [op for op in p.sent if op["op"] == "publish"][0]["msg"]
+        assert set(sent["header"]["stamp"]) == keys and sent["pose"]["orientation"]["w"] == 1.0

@@ -10,8 +10,9 @@ import sys
 import pytest
 
 from davinci_sim import cli
+from davinci_sim.compat import pykdl
 from davinci_sim.compat import run as run_module
-from davinci_sim.compat.run import KDL_SHIM, ROS_SHIM, install_modules, module_choice
+from davinci_sim.compat.run import KDL_SHIM, MSG_SHIM, ROS_SHIM, install_modules, module_choice
 
 
 @pytest.fixture
@@ -19,6 +20,7 @@ def clean_path(monkeypatch):
     """Restore ``sys.path``, ``sys.modules`` entries and ``PYTHONPATH`` after the test."""
     monkeypatch.setattr(sys, "path", list(sys.path))
     monkeypatch.setenv("PYTHONPATH", os.environ.get("PYTHONPATH", ""))
+    monkeypatch.setenv(pykdl.ENV, "subset")  # as a machine without a system PyKDL
     saved = {n: sys.modules.get(n) for n in ("crtk", "dvrk", "PyKDL")}
     yield monkeypatch
     for name, module in saved.items():
@@ -60,7 +62,7 @@ def test_half_a_ros_installation_gets_ours_for_both(clean_path, tmp_path):
     choice = module_choice()
     assert choice.real_crtk and not choice.real_dvrk and choice.ours_for_ros
     install_modules(choice)
-    assert sys.path[0] == str(ROS_SHIM) and sys.path[-1] == str(KDL_SHIM)
+    assert sys.path[0] == str(ROS_SHIM) and sys.path[-2:] == [str(KDL_SHIM), str(MSG_SHIM)]
     import crtk
     import dvrk
 
@@ -76,6 +78,26 @@ def test_ours_are_not_found_as_real(clean_path):
     import PyKDL
 
     assert PyKDL.Frame is importlib.import_module("davinci_sim.compat.kdl").Frame
+
+
+def test_a_system_pykdl_is_used_when_the_interpreter_can_load_it(clean_path):
+    clean_path.delenv(pykdl.ENV)
+    found = pykdl.find()
+    if found is None:
+        pytest.skip("no system PyKDL for this interpreter (Debian: apt-get install python3-pykdl)")
+    assert found.name.endswith(pykdl.suffix())
+    sys.modules.pop("PyKDL", None)
+    choice = module_choice()
+    assert choice.real_kdl == str(found) and f"PyKDL: the system's ({found})" in choice.describe()
+    install_modules(choice)
+    importlib.invalidate_caches()
+    import PyKDL
+
+    assert PyKDL is pykdl.load(found) and PyKDL.__file__ == str(found)
+    goal, start = PyKDL.Frame(), PyKDL.Frame(PyKDL.Vector(1.0, 2.0, 3.0))
+    goal.p = start.p
+    goal.p[0] = 9.0
+    assert start.p[0] == 1.0  # the real one copies on assignment
 
 
 def test_exit_codes_as_python(tmp_path):

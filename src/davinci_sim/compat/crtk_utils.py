@@ -28,6 +28,7 @@ from typing import Any
 import numpy as np
 
 from davinci_sim.compat.ral import Message, stamp_of
+from davinci_sim.compat.ral import to_dict as _as_dict
 
 
 def kdl():
@@ -44,8 +45,8 @@ def kdl():
 
 # =========================================================================== conversions
 def FrameFromPoseMsg(pose) -> Any:
-    """A ``PyKDL.Frame`` from a ``geometry_msgs/Pose`` (dict or Message)."""
-    d = pose.to_dict() if isinstance(pose, Message) else pose
+    """A ``PyKDL.Frame`` from a ``geometry_msgs/Pose`` (dict, Message or message object)."""
+    d = _as_dict(pose)
     K = kdl()
     p, q = d["position"], d["orientation"]
     return K.Frame(K.Rotation.Quaternion(q["x"], q["y"], q["z"], q["w"]),
@@ -64,12 +65,12 @@ def _xyz(v) -> list[float]:
 
 
 def ArrayFromTwistMsg(twist) -> np.ndarray:
-    d = twist.to_dict() if isinstance(twist, Message) else twist
+    d = _as_dict(twist)
     return np.array(_xyz(d["linear"]) + _xyz(d["angular"]))
 
 
 def ArrayFromWrenchMsg(wrench) -> np.ndarray:
-    d = wrench.to_dict() if isinstance(wrench, Message) else wrench
+    d = _as_dict(wrench)
     return np.array(_xyz(d["force"]) + _xyz(d["torque"]))
 
 

@@ -7,10 +7,13 @@ process shares one :class:`~davinci_sim.compat.transport.RosbridgeClient`: the o
 one connected to ``$DAVINCI_SIM_CONNECT`` (default ``ws://127.0.0.1:9090``, what
 ``davinci-sim serve`` listens on) when the first ``ral`` is made.
 
-Messages are rosbridge JSON objects; subscribers' callbacks get them wrapped in
-:class:`Message` so that ``msg.data``, ``msg.position``, ``msg.header.stamp`` read as on a
-ROS message. Times are float seconds of the wall clock (``now``, ``to_sec``), the clock the
-simulator stamps its messages with by default.
+Messages are rosbridge JSON objects. Publishers take a dict, a :class:`Message` or a message
+object (``std_msgs.msg.Bool(data=True)``: ours, :mod:`davinci_sim.compat.msgs`, or a ROS
+installation's). A subscriber made with a message class (``std_msgs.msg.Bool``, as the dVRK
+scripts do) gives its callback objects of that class; one made with a type name gives
+:class:`Message` wrappers, so that ``msg.data``, ``msg.position``, ``msg.header.stamp`` read
+as on a ROS message either way. Times are float seconds of the wall clock (``now``,
+``to_sec``), the clock the simulator stamps its messages with by default.
 """
 
 from __future__ import annotations
@@ -23,11 +26,15 @@ import weakref
 from collections.abc import Callable
 from typing import Any
 
+from davinci_sim.compat import msgs
 from davinci_sim.compat.transport import RosbridgeClient, TransportError
 
 _log = logging.getLogger("davinci_sim.compat")
 
 DEFAULT_URL = "ws://127.0.0.1:9090"
+FIRST_DATA_WAIT = 0.2
+"""s: how long ``check_connections`` waits for subscribers' first messages once connected
+(the dVRK's state topics are 100 Hz: their first message comes within 10 ms)."""
 ENV_URL = "DAVINCI_SIM_CONNECT"
 
 _client: RosbridgeClient | None = None
@@ -119,9 +126,26 @@ class Message:
         return f"Message({self._d!r})"
 
 
+def to_dict(msg: Any, what: str = "a message", ros_version: int = 2) -> dict:
+    """``msg`` (dict, :class:`Message` or message object) as a rosbridge JSON object, its
+    times in ``ros_version``'s spelling.
+
+    Raises:
+        TypeError: ``msg`` is none of those.
+    """
+    if isinstance(msg, Message):
+        return msg.to_dict()
+    if isinstance(msg, dict) or msgs.is_message(msg):
+        return msgs.to_wire(msg, ros_version)
+    raise TypeError(f"{what} must be a ROS message object or a dict, got {type(msg).__name__}")
+
+
 def stamp_of(msg: Any) -> float:
-    """The header stamp of ``msg`` (dict or :class:`Message`) in s; 0 without one."""
+    """The header stamp of ``msg`` (dict, :class:`Message` or message object) in s; 0
+    without one."""
     d = msg.to_dict() if isinstance(msg, Message) else msg
+    if msgs.is_message(d):
+        d = msgs.to_wire(d)
     if not isinstance(d, dict):
         return float(d) if isinstance(d, int | float) else 0.0
     stamp = d.get("header", {}).get("stamp", d.get("stamp")) if "header" in d else d.get("stamp", d)
@@ -157,13 +181,18 @@ class Publisher:
         self._client = client_
 
     def publish(self, msg: Any) -> None:
-        d = msg.to_dict() if isinstance(msg, Message) else dict(msg)
+        """Send ``msg``: a message object (``std_msgs.msg.Bool(data=True)``), a dict or a
+        :class:`Message`."""
+        version = self._client.ros_version() if msgs.is_message(msg) else 2  # times' spelling
+        d = to_dict(msg, f"what is published on {self.topic_name}", version)
         self._client.publish(self.topic_name, self.type, d)
 
 
 class Subscriber:
     def __init__(self, topic: str, type_name: str) -> None:
         self.topic_name, self.type = topic, type_name
+        self.received = threading.Event()
+        """Set by the first message."""
 
 
 class ServiceClient:
@@ -175,7 +204,7 @@ class ServiceClient:
         self._client = client_
 
     def call(self, request: Any, timeout: float = 10.0) -> Message:
-        d = request.to_dict() if isinstance(request, Message) else dict(request)
+        d = to_dict(request, f"a request of {self.srv_name}")
         return Message(self._client.call_service(self.srv_name, d, type_name=self.type,
                                                  timeout=timeout))  # fmt: skip
 
@@ -264,6 +293,8 @@ class ral:  # noqa: N801 (crtk's name)
             msg.to_dict()["header"] = {"stamp": stamp, "frame_id": ""}
         elif isinstance(msg, dict):
             msg["header"] = {"stamp": stamp, "frame_id": ""}
+        elif msgs.is_message(getattr(msg, "header", None)):
+            msg.header.stamp.sec, msg.header.stamp.nanosec = sec, nsec
         return msg
 
     # ------------------------------------------------------------ life cycle
@@ -297,7 +328,13 @@ class ral:  # noqa: N801 (crtk's name)
     def subscriber(self, topic: str, msg_type: str, callback: Callable, queue_size: int = 10,
                    latch: bool = False, *args: Any, **kwargs: Any) -> Subscriber:  # fmt: skip
         sub = Subscriber(self._add_namespace_to(topic), _type_name(msg_type))
-        self._client.subscribe(sub.topic_name, sub.type, lambda d: callback(Message(d)),
+        receive = _receiver(msg_type, callback)
+
+        def on_message(d: dict) -> None:
+            sub.received.set()
+            receive(d)
+
+        self._client.subscribe(sub.topic_name, sub.type, on_message,
                                queue_length=int(queue_size))  # fmt: skip
         self._subscribers.append(sub)
         return sub
@@ -312,7 +349,9 @@ class ral:  # noqa: N801 (crtk's name)
     def check_connections(self, timeout_seconds: float = 5.0, check_children: bool = True):
         """Wait up to ``timeout_seconds`` until every publisher of this ``ral`` (and of its
         children) has a subscriber and every subscriber a publisher, as the server's
-        ``/rosapi`` reports them.
+        ``/rosapi`` reports them; then up to :data:`FIRST_DATA_WAIT` more for every
+        subscriber's first message (on ROS, discovery outlasts a 100 Hz topic's first
+        message: scripts read ``measured_js()`` right after this, even before a move).
 
         Topics dvrk_python uses that the simulator does not serve
         (:data:`~davinci_sim.compat.dvrk_api.NOT_SIMULATED`) are not waited for.
@@ -332,6 +371,9 @@ class ral:  # noqa: N801 (crtk's name)
             unconnected_pubs = [p for p in unconnected_pubs if not self._has(p, "subscribers")]
             unconnected_subs = [s for s in unconnected_subs if not self._has(s, "publishers")]
             if not unconnected_pubs and not unconnected_subs:
+                first_data = min(end, time.monotonic() + FIRST_DATA_WAIT)
+                for sub in subs:  # event topics (pedals) may send nothing: not an error
+                    sub.received.wait(max(0.0, first_data - time.monotonic()))
                 return
             if time.monotonic() >= end or self.is_shutdown():
                 break
@@ -363,6 +405,16 @@ class ral:  # noqa: N801 (crtk's name)
         except (RuntimeError, TimeoutError, TransportError):
             return True  # a server without rosapi: nothing to check against
         return bool(values.get(which))
+
+
+def _receiver(msg_type: Any, callback: Callable) -> Callable[[dict], None]:
+    """What a subscriber calls with each rosbridge message: ``callback`` with an object of
+    ``msg_type`` if it is a message class, else with a :class:`Message`."""
+    if isinstance(msg_type, type) and issubclass(msg_type, msgs.MessageBase):
+        return lambda d: callback(msgs.from_wire(msg_type._type, d))
+    if isinstance(msg_type, type) and msgs.is_message_class(msg_type):  # a ROS installation's
+        return lambda d: callback(msgs.fill(msg_type(), d))
+    return lambda d: callback(Message(d))
 
 
 def _type_name(msg_type: Any) -> str:

@@ -4,11 +4,14 @@
 simulator's bridge reached in memory (:class:`~davinci_sim.compat.inprocess.InProcessBridge`),
 or a connection to a running rosbridge server (``connect="ws://host:port"``: ``davinci-sim
 serve`` or a real one) — installs it as the client of every ``crtk.ral``, puts the ``crtk``,
-``dvrk`` and ``PyKDL`` modules on the import path and runs the script as ``__main__``.
+``dvrk`` and ``PyKDL`` modules and the ROS message packages (``std_msgs.msg`` …,
+:mod:`~davinci_sim.compat.msgs`) on the import path and runs the script as ``__main__``.
 
 A real ROS installation is not shadowed: if the real ``crtk`` and ``dvrk`` packages import
 (a sourced ROS workspace), they are used — the script then talks ROS, not this simulator's
-rosbridge, unless ``force_compat``; ``PyKDL`` is ours only when the real one is missing.
+rosbridge, unless ``force_compat``. ``PyKDL`` is the real one when this interpreter can load
+one, from its import path or the system's packages (Debian's ``python3-pykdl``, ROS: see
+:mod:`~davinci_sim.compat.pykdl`), and our subset only when there is none.
 :func:`module_choice` says which is which; the run prints it.
 """
 
@@ -27,6 +30,7 @@ from dataclasses import dataclass
 SHIM = pathlib.Path(__file__).parent / "shim"
 ROS_SHIM = SHIM / "ros"  # crtk/, dvrk/
 KDL_SHIM = SHIM / "kdl"  # PyKDL.py
+MSG_SHIM = SHIM / "msgs"  # std_msgs/, geometry_msgs/, sensor_msgs/, crtk_msgs/ …
 
 
 def _real_module(name: str) -> str | None:
@@ -51,6 +55,8 @@ class ModuleChoice:
     real_dvrk: str | None
     real_kdl: str | None
     force_compat: bool = False
+    kdl_from_system: bool = False
+    """``real_kdl`` is not on the import path: the system's, loaded by our ``PyKDL`` module."""
 
     @property
     def ours_for_ros(self) -> bool:
@@ -65,28 +71,34 @@ class ModuleChoice:
                 )
         else:
             ros = f"crtk, dvrk: the installed ones ({self.real_crtk}, {self.real_dvrk})"
-        kdl = (
-            f"PyKDL: the installed one ({self.real_kdl})"
-            if self.real_kdl
-            else ("PyKDL: davinci-sim's subset (davinci_sim.compat.kdl)")
-        )
+        if self.real_kdl:
+            which = "the system's" if self.kdl_from_system else "the installed one"
+            kdl = f"PyKDL: {which} ({self.real_kdl})"
+        else:
+            kdl = "PyKDL: davinci-sim's subset (davinci_sim.compat.kdl)"
         return f"{ros}; {kdl}"
 
 
 def module_choice(force_compat: bool = False) -> ModuleChoice:
-    return ModuleChoice(_real_module("crtk"), _real_module("dvrk"), _real_module("PyKDL"),
-                        force_compat)  # fmt: skip
+    from davinci_sim.compat import pykdl
+
+    real_kdl, from_system = _real_module("PyKDL"), False
+    if real_kdl is None and (system_kdl := pykdl.find()) is not None:
+        real_kdl, from_system = str(system_kdl), True
+    return ModuleChoice(_real_module("crtk"), _real_module("dvrk"), real_kdl, force_compat,
+                        from_system)  # fmt: skip
 
 
 def install_modules(choice: ModuleChoice) -> None:
     """Put our modules on ``sys.path`` as ``choice`` says: ``crtk``/``dvrk`` first (or not
-    at all), ``PyKDL`` last (found only if no other is)."""
+    at all), ``PyKDL`` and the message packages last (found only if no other is)."""
     if choice.ours_for_ros and str(ROS_SHIM) not in sys.path:
         sys.path.insert(0, str(ROS_SHIM))
         for name in ("crtk", "dvrk"):  # a real one imported before us would win
             sys.modules.pop(name, None)
-    if str(KDL_SHIM) not in sys.path:
-        sys.path.append(str(KDL_SHIM))
+    for folder in (KDL_SHIM, MSG_SHIM):
+        if str(folder) not in sys.path:
+            sys.path.append(str(folder))
 
 
 def _python_path(choice: ModuleChoice) -> str:
@@ -94,7 +106,7 @@ def _python_path(choice: ModuleChoice) -> str:
     parts = [os.environ.get("PYTHONPATH", "")]
     if choice.ours_for_ros:
         parts.insert(0, str(ROS_SHIM))
-    parts.append(str(KDL_SHIM))
+    parts += [str(KDL_SHIM), str(MSG_SHIM)]
     return os.pathsep.join(p for p in parts if p)
 
 

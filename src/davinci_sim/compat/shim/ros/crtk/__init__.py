@@ -3,18 +3,19 @@
 The implementation is :mod:`davinci_sim.compat` (``ral``, ``crtk_utils``); see there.
 """
 
-from davinci_sim.compat.crtk_utils import (
+from davinci_sim.compat.crtk_utils import joystick_button, utils, wait_move_handle
+from davinci_sim.compat.ral import ral
+
+from .msg_conversions import (
     ArrayFromTwistMsg,
     ArrayFromWrenchMsg,
     ArrayToTwistMsg,
     ArrayToWrenchMsg,
     FrameFromPoseMsg,
+    FrameFromTransformMsg,
     FrameToPoseMsg,
-    joystick_button,
-    utils,
-    wait_move_handle,
+    FrameToTransformMsg,
 )
-from davinci_sim.compat.ral import ral
 
 __all__ = [
     "ArrayFromTwistMsg",
@@ -22,7 +23,9 @@ __all__ = [
     "ArrayToTwistMsg",
     "ArrayToWrenchMsg",
     "FrameFromPoseMsg",
+    "FrameFromTransformMsg",
     "FrameToPoseMsg",
+    "FrameToTransformMsg",
     "joystick_button",
     "ral",
     "utils",

@@ -1,0 +1,1 @@
+"""``builtin_interfaces`` for davinci-sim scripts when ROS's is not installed (see ``msg``)."""

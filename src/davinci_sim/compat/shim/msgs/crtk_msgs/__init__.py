@@ -1,0 +1,1 @@
+"""``crtk_msgs`` for davinci-sim scripts when ROS's is not installed (see ``msg``)."""

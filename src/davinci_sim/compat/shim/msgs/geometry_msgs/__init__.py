@@ -1,0 +1,1 @@
+"""``geometry_msgs`` for davinci-sim scripts when ROS's is not installed (see ``msg``)."""

@@ -1,0 +1,1 @@
+"""``std_msgs`` for davinci-sim scripts when ROS's is not installed (see ``msg``)."""
