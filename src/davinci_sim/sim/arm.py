@@ -53,7 +53,7 @@ from davinci_sim.sim.validation import (
     as_vector,
     as_wrench,
     check_bound,
-    check_limits,
+    clip_goal,
     short_repr,
 )
 
@@ -97,6 +97,7 @@ class Arm(ServoJoints):
         self._wrench: tuple[str, np.ndarray] | None = None
         self._body_cf_absolute = False
         self._T_user_base: tuple[np.ndarray, str] | None = None
+        self._qmin, self._qmax = self.chain.qmin, self.chain.qmax
         self._tol = np.array([TRACKING_FAULT_TOLERANCE[j.joint_type] for j in self.chain.joints])
         self._feedforward_bound = (FEEDFORWARD_FACTOR * kin.v_max).tolist()
         self._tracking_bad_since = math.nan
@@ -353,8 +354,10 @@ class Arm(ServoJoints):
         if v is None:
             return None, msg
         goal = self._q_set() + v if relative else v
-        msg = check_limits(goal, self.chain.qmin, self.chain.qmax, self.chain.joint_names, "goal")
-        return (None, msg) if msg else (goal, "")
+        # Clipped to the joint limits, not refused: the dVRK clips every joint goal of a
+        # homed arm (clip_jp, dvrk.md 1.2-1.5 limits), so an arm resting a hair past a limit
+        # still takes goals made from its setpoint.
+        return clip_goal(goal, self._qmin, self._qmax, self.chain.joint_names, "goal")
 
     def servo_jp(self, position, velocity=None) -> CommandResult:
         """Joint position setpoint for the next tick (optional velocity feed-forward)."""
@@ -373,6 +376,7 @@ class Arm(ServoJoints):
             if msg:
                 return self._refuse("servo_jp", msg)
         self._servo_position(goal, qd)
+        return ACCEPTED
 
     def _feedforward_over(self, qd: np.ndarray, what: str) -> str:
         """Message if a joint velocity feed-forward is over FEEDFORWARD_FACTOR x the dVRK's
@@ -380,7 +384,6 @@ class Arm(ServoJoints):
         return check_bound(qd, self._feedforward_bound, self.chain.joint_names,
                            what, f"(rad/s or m/s; {FEEDFORWARD_FACTOR:g} x the dVRK trajectory "
                            "limit)")  # fmt: skip
-        return ACCEPTED
 
     def servo_jr(self, increment) -> CommandResult:
         """Add ``increment`` to the current joint setpoint."""
@@ -546,8 +549,8 @@ class Arm(ServoJoints):
         result = inverse_kinematics(self.kin, T_base_goal, seed)
         if not result.success:
             return None, f"inverse kinematics failed: {result.message}"
-        msg = check_limits(result.q, self.chain.qmin, self.chain.qmax, self.chain.joint_names, "IK")
-        return (None, msg) if msg else (result.q, "")
+        # The dVRK clips the IK solution to the joint limits too (clip_jp after IK).
+        return clip_goal(result.q, self._qmin, self._qmax, self.chain.joint_names, "IK")
 
     def servo_cp(self, T_goal, twist=None) -> CommandResult:
         """Cartesian setpoint in the base frame's reference; IK seeded with measured joints."""

@@ -16,7 +16,7 @@ from davinci_sim.sim.servo import ServoJoints
 from davinci_sim.sim.state import capture, restore
 from davinci_sim.sim.trajectory import JointTrajectory, plan_trajectory
 from davinci_sim.sim.types import ACCEPTED, CommandResult, JointState
-from davinci_sim.sim.validation import ABSURD_FACTOR, as_vector, check_bound, check_limits
+from davinci_sim.sim.validation import ABSURD_FACTOR, as_vector, check_bound, clip_goal
 
 if TYPE_CHECKING:
     from davinci_sim.sim.arm import Arm
@@ -101,12 +101,13 @@ class Jaw(ServoJoints):
             v, msg = as_vector(np.atleast_1d(value) if np.ndim(value) == 0 else value, 1, "angle")
         if v is None:
             return None, self._arm._refuse(f"{self._command_prefix}/{command}", msg)
-        angle = float(v if np.ndim(v) == 0 else v[0])
-        lo, hi = self.spec.qmin, self.spec.qmax
-        msg = check_limits([angle], [lo], [hi], (self.spec.name,), "goal")
-        if msg:
+        # Clipped to the jaw's limits as the dVRK's clip_jaw_jp does (dvrk.md 1.2); only a
+        # value beyond any joint's reach is refused.
+        goal, msg = clip_goal([float(v if np.ndim(v) == 0 else v[0])], self.spec.qmin,
+                              self.spec.qmax, (self.spec.name,), "goal")  # fmt: skip
+        if goal is None:
             return None, self._arm._refuse(f"{self._command_prefix}/{command}", msg)
-        return angle, ACCEPTED
+        return float(goal[0]), ACCEPTED
 
     def servo_jp(self, angle) -> CommandResult:
         """Opening angle setpoint (rad) for the next tick."""

@@ -1,0 +1,88 @@
+"""Where scripts rely on the dVRK's own behaviour (issue 21, 3): joint goals clipped to the
+limits, setpoints following the measured joints in effort mode, the MTM's orientation lock
+moving along a trajectory, the jaw inside the cannula, throttled "arm not ready" errors."""
+
+import math
+
+import numpy as np
+import pytest
+from sim_helpers import home
+
+from davinci_sim.sim.simulation import Simulation
+from davinci_sim.sim.types import ACCEPTED
+
+
+@pytest.fixture(scope="module")
+def mtm_sim():
+    """PSM1, ECM and MTMR, all homed (shared by the MTM tests: each leaves MTMR holding)."""
+    sim = Simulation("psm1_ecm_mtmr")
+    home(sim)
+    yield sim
+    sim.close()
+
+
+# ------------------------------------------------------------------ a. clip_jp
+def test_servo_jp_returns_accepted(psm_sim):
+    psm = psm_sim.arms["PSM1"]
+    assert psm.servo_jp(psm.setpoint_jp()) == ACCEPTED
+    assert psm.servo_jp(psm.setpoint_jp(), np.zeros(6)) == ACCEPTED
+
+
+def test_joint_goals_outside_the_limits_are_clipped_as_the_dvrk_clips_them(psm_sim):
+    psm = psm_sim.arms["PSM1"]
+    qmin, qmax = psm.chain.qmin, psm.chain.qmax
+    goal = psm.setpoint_jp()
+    goal[0] = qmin[0] - 0.2  # yaw past its lower limit
+    assert psm.move_jp(goal)
+    psm_sim.run_until(lambda: not psm.is_busy(), 10)
+    assert psm.setpoint_jp()[0] == qmin[0]
+    assert abs(psm.measured_jp()[0] - qmin[0]) < 2e-3
+    goal = psm.setpoint_jp()
+    goal[0] = qmin[0] - 0.001  # streaming a goal a hair past the limit
+    goal[1] += 0.001
+    assert psm.servo_jp(goal)
+    assert psm.setpoint_jp()[0] == qmin[0]
+    assert psm.setpoint_jp()[1] == goal[1]
+    # relative goals: the sum is clipped
+    assert psm.move_jr([-0.5, 0, 0, 0, 0, 0])
+    psm_sim.run_until(lambda: not psm.is_busy(), 10)
+    assert psm.setpoint_jp()[0] == qmin[0]
+    assert psm.servo_jr([0, 0, 0, 0, 10.0, 0])
+    assert psm.setpoint_jp()[4] == qmax[4]
+
+
+def test_absurd_and_malformed_joint_goals_are_still_refused(psm_sim):
+    psm = psm_sim.arms["PSM1"]
+    before = psm.setpoint_jp()
+    for goal in ([1e300, 0, 0.12, 0, 0, 0], [np.nan, 0, 0.12, 0, 0, 0], [0, 0, 0.12]):
+        assert not psm.servo_jp(goal)
+        assert not psm.move_jp(goal)
+    assert not psm.jaw.move_jp(float("inf"))
+    assert np.array_equal(psm.setpoint_jp(), before)
+
+
+def test_the_jaw_takes_exactly_80_degrees_and_clips_beyond(psm_sim):
+    psm = psm_sim.arms["PSM1"]
+    assert psm.jaw.spec.qmax == math.radians(80)  # dvrk.md 1.2: the jaw opens to 80°
+    assert psm.jaw.move_jp(math.radians(80))
+    psm_sim.run_until(lambda: not psm.is_busy(), 5)
+    assert psm.jaw.setpoint_js().position[0] == pytest.approx(math.radians(80), abs=1e-12)
+    assert psm.jaw.servo_jp(math.radians(95))
+    assert psm.jaw.setpoint_js().position[0] == pytest.approx(math.radians(80), abs=1e-12)
+    assert psm.jaw.servo_jp(-1.0)
+    assert psm.jaw.setpoint_js().position[0] == pytest.approx(psm.jaw.spec.qmin, abs=1e-12)
+
+
+def test_an_mtm_resting_past_a_limit_still_moves(mtm_sim):
+    """dvrk_move_wait_test.py: the goals are the current setpoint with one joint changed;
+    an MTM 1 mrad past shoulder_pitch's limit must not make every move_jp fail."""
+    mtm = mtm_sim.arms["MTMR"]
+    start = mtm.setpoint_jp()
+    start[1] = mtm.chain.qmin[1] - 1e-3
+    goal = start.copy()
+    goal[0] += 0.1
+    assert mtm.move_jp(goal)
+    assert mtm.is_busy()
+    assert mtm_sim.run_until(lambda: not mtm.is_busy(), 10)
+    assert mtm.setpoint_jp()[1] == mtm.chain.qmin[1]
+    assert abs(mtm.setpoint_jp()[0] - goal[0]) < 1e-12
