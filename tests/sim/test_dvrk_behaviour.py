@@ -86,3 +86,15 @@ def test_an_mtm_resting_past_a_limit_still_moves(mtm_sim):
     assert mtm_sim.run_until(lambda: not mtm.is_busy(), 10)
     assert mtm.setpoint_jp()[1] == mtm.chain.qmin[1]
     assert abs(mtm.setpoint_jp()[0] - goal[0]) < 1e-12
+
+
+def test_an_ik_solution_past_a_limit_is_clipped(psm_sim):
+    """The dVRK clips move_cp's IK solution to the joint limits (clip_jp after IK)."""
+    psm = psm_sim.arms["PSM1"]
+    q = psm.setpoint_jp()
+    q[4] = psm.chain.qmax[4] + 0.05  # wrist_pitch 3° past its limit
+    pose, ok = psm.forward_kinematics(q)
+    assert ok
+    assert psm.move_cp(pose.T)
+    assert psm_sim.run_until(lambda: not psm.is_busy(), 10)
+    assert psm.setpoint_jp()[4] == psm.chain.qmax[4]

@@ -547,7 +547,7 @@ class Arm(ServoJoints):
             return None, msg
         T_base_goal = self._T_base_reference() @ T  # IK works in the chain base (dvrk.md 1.8)
         result = inverse_kinematics(self.kin, T_base_goal, seed)
-        if not result.success:
+        if not (result.success or result.reached):  # reached: only past a joint limit
             return None, f"inverse kinematics failed: {result.message}"
         # The dVRK clips the IK solution to the joint limits too (clip_jp after IK).
         return clip_goal(result.q, self._qmin, self._qmax, self.chain.joint_names, "IK")
