@@ -98,3 +98,45 @@ def test_an_ik_solution_past_a_limit_is_clipped(psm_sim):
     assert psm.move_cp(pose.T)
     assert psm_sim.run_until(lambda: not psm.is_busy(), 10)
     assert psm.setpoint_jp()[4] == psm.chain.qmax[4]
+
+
+# ------------------------------------------------------- b. effort-mode setpoints
+def test_in_effort_mode_the_setpoint_follows_the_measured_joints(psm_sim):
+    """dVRK PID: a joint in effort mode has setpoint = measured, so setpoint_js/setpoint_cp
+    (and what a later position command starts from) are where the arm is."""
+    psm = psm_sim.arms["PSM1"]
+    q_before = psm.setpoint_jp()
+    assert psm.servo_jf([0.3, 0, 0, 0, 0, 0])  # push yaw
+    psm_sim.run_for(0.3)
+    q = psm.measured_jp()
+    assert abs(q[0] - q_before[0]) > 0.01  # it moved
+    assert np.array_equal(psm.setpoint_jp(), q)
+    assert np.array_equal(psm.setpoint_js().position, q)
+    assert np.allclose(psm.setpoint_cp().T, psm.measured_cp().T, atol=1e-12)
+    # A relative move starts from where the arm is, not from the stale position setpoint.
+    assert psm.move_jr([0.05, 0, 0, 0, 0, 0])
+    assert np.allclose(psm.setpoint_jp(), q, atol=1e-6)
+    assert psm_sim.run_until(lambda: not psm.is_busy(), 10)
+    assert psm.setpoint_jp()[0] == pytest.approx(q[0] + 0.05, abs=1e-9)
+    assert psm.operating_state().state == "ENABLED"
+
+
+def test_after_free_hold_keeps_the_arm_where_it_is(psm_sim):
+    psm = psm_sim.arms["PSM1"]
+    assert psm.servo_jf([0, -0.3, 0, 0, 0, 0])
+    psm_sim.run_for(0.3)
+    assert psm.free()
+    q = psm.measured_jp()
+    assert np.array_equal(psm.setpoint_jp(), q)
+    assert psm.hold()
+    psm_sim.run_for(0.2)
+    assert np.allclose(psm.measured_jp(), q, atol=2e-3)
+
+
+def test_mtm_setpoint_cp_follows_the_handle_in_effort_mode(mtm_sim):
+    mtm = mtm_sim.arms["MTMR"]
+    assert mtm.spatial.servo_cf([0.0, 0.0, 2.0, 0.0, 0.0, 0.0])
+    mtm_sim.run_for(0.2)
+    assert np.allclose(mtm.setpoint_cp().T, mtm.measured_cp().T, atol=1e-12)
+    assert mtm.hold()
+    mtm_sim.run_for(0.1)

@@ -156,7 +156,13 @@ class Arm(ServoJoints):
         return self._sim.data.actuator_force[self._idx]
 
     def _q_set(self) -> np.ndarray:
-        return self._sim.servo.q_ref[self._idx]
+        """The joint position setpoint: the servo's reference, and for joints in effort mode
+        the measured position, as the dVRK's PID sets it (dvrk.md 2.2 ``setpoint_js``), so a
+        position command after ``free``/``servo_jf``/``servo_cf`` starts where the arm is."""
+        servo = self._sim.servo
+        q_ref = servo.q_ref[self._idx]  # fancy indexing: a new array
+        effort = servo.effort_mode[self._idx]
+        return np.where(effort, self._q(), q_ref) if effort.any() else q_ref
 
     def _refuse(self, command: str, message: str) -> CommandResult:
         text = f"{command}: {message}"
@@ -271,11 +277,13 @@ class Arm(ServoJoints):
 
     def _start_trajectory(self, goal: np.ndarray, homing: bool = False) -> None:
         servo = self._sim.servo
+        start = self._q_set()  # before leaving effort mode: where the arm is, then
+        servo.q_ref[self._idx] = start
         servo.effort_mode[self._idx] = False
         servo.tau_ff[self._idx] = 0.0
         self._wrench = None
         r = self._trajectory_ratio
-        self._traj = plan_trajectory(self._q_set(), goal, self.kin.v_max * r, self.kin.a_max * r)
+        self._traj = plan_trajectory(start, goal, self.kin.v_max * r, self.kin.a_max * r)
         self._traj_t0 = self._now()
         self._traj_homing = homing
         self._publish_state()
@@ -331,11 +339,17 @@ class Arm(ServoJoints):
         )
 
     def setpoint_js(self) -> JointState:
+        """The servo's setpoint; in effort mode the measured position and velocity (the
+        dVRK's PID setpoint there, dvrk.md 2.2) and the commanded efforts."""
         servo = self._sim.servo
+        qd_ref = servo.qd_ref[self._idx]
+        effort = servo.effort_mode[self._idx]
+        if effort.any():
+            qd_ref = np.where(effort, self._qd(), qd_ref)
         return JointState(
             self.chain.joint_names,
-            servo.q_ref[self._idx],
-            servo.qd_ref[self._idx],
+            self._q_set(),
+            qd_ref,
             servo.tau_ff[self._idx],
             self._now(),
         )

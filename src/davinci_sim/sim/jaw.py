@@ -72,7 +72,16 @@ class Jaw(ServoJoints):
         )
 
     def setpoint_js(self) -> JointState:
+        """The opening setpoint; in effort mode the measured opening (the dVRK PID's)."""
         servo = self._arm._sim.servo
+        if servo.effort_mode[self._idx].any():
+            return JointState(
+                (self.spec.name,),
+                [self._angle()],
+                [float(self._arm._sim.data.qvel[self._dofadr].sum())],
+                [float(servo.tau_ff[self._idx].mean())],
+                self._arm._now(),
+            )
         return JointState(
             (self.spec.name,),
             [float(servo.q_ref[self._idx].sum())],
