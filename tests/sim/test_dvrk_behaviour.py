@@ -140,3 +140,46 @@ def test_mtm_setpoint_cp_follows_the_handle_in_effort_mode(mtm_sim):
     assert np.allclose(mtm.setpoint_cp().T, mtm.measured_cp().T, atol=1e-12)
     assert mtm.hold()
     mtm_sim.run_for(0.1)
+
+
+# ------------------------------------------------- c. lock_orientation trajectory
+def _rotation_angle(R):
+    return math.acos(max(-1.0, min(1.0, (np.trace(R) - 1.0) / 2.0)))
+
+
+def test_lock_orientation_moves_the_wrist_along_a_trajectory(mtm_sim):
+    """dVRK MTM: the locked orientation is reached by a trajectory within the MTM's joint
+    velocity and acceleration limits (dvrk.md 1.9), from where the wrist is."""
+    mtm = mtm_sim.arms["MTMR"]
+    dt = mtm_sim.dt
+    assert mtm.body.servo_cf(np.zeros(6))  # effort mode, the handle free
+    mtm_sim.run_for(0.1)
+    q = mtm.measured_jp()
+    q_target = q.copy()
+    q_target[4] += 0.8  # wrist_pitch
+    q_target[5] -= 0.4  # wrist_yaw
+    pose, ok = mtm.forward_kinematics(q_target)
+    assert ok
+    R_goal = pose.T[:3, :3]
+    assert mtm.lock_orientation(R_goal)
+    v_max, a_max = mtm.kin.v_max[3:], mtm.kin.a_max[3:]
+    wrist_prev = mtm.measured_jp()[3:]
+    qd_prev = mtm.measured_js().velocity[3:]  # the trajectory starts from the wrist's motion
+    worst_v, worst_a = 0.0, 0.0
+    for _ in range(4000):
+        mtm_sim.tick()
+        wrist = mtm.setpoint_jp()[3:]
+        qd = (wrist - wrist_prev) / dt
+        worst_v = max(worst_v, float(np.max(np.abs(qd) / v_max)))
+        worst_a = max(worst_a, float(np.max(np.abs(qd - qd_prev) / dt / a_max)))
+        wrist_prev, qd_prev = wrist, qd
+    assert mtm.operating_state().state == "ENABLED"  # no tracking fault
+    assert worst_v <= 1.0 + 1e-6
+    assert worst_a <= 1.0 + 1e-3
+    R = mtm.measured_cp().T[:3, :3]
+    assert _rotation_angle(R.T @ R_goal) < 0.01
+    # Unlocked: the wrist is in effort mode again (its setpoint is where it is).
+    assert mtm.unlock_orientation()
+    mtm_sim.run_for(0.01)
+    assert np.array_equal(mtm.setpoint_jp(), mtm.measured_jp())
+    assert mtm.hold()

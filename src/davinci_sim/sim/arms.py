@@ -14,6 +14,7 @@ from davinci_sim.kinematics.arms import ArmKinematics, SUJArmKinematics
 from davinci_sim.kinematics.chain import DHChain
 from davinci_sim.sim.arm import Arm
 from davinci_sim.sim.jaw import Jaw
+from davinci_sim.sim.trajectory import step_towards
 from davinci_sim.sim.types import ACCEPTED, CommandResult
 from davinci_sim.sim.validation import as_number
 
@@ -143,9 +144,11 @@ class MTM(Arm):
 
     ``lock_orientation(R)`` (dvrk.md 2.2, MTM-specific) holds the handle's orientation while the
     arm is in effort mode (``free``, ``body/servo_cf``, ``spatial/servo_cf``): the four wrist
-    joints are then position-servoed to an orientation IK solution at every tick and the
-    three positioning joints stay in effort mode, so the hand still moves the handle freely.
-    In position modes the lock is kept but has no effect, as on the dVRK.
+    joints are then position-servoed and the three positioning joints stay in effort mode, so
+    the hand still moves the handle freely. As on the dVRK, the wrist goes to the locked
+    orientation along a trajectory within the MTM's joint limits (dvrk.md 1.9), starting from
+    where the wrist is and following the orientation's IK solution as it changes (the handle
+    moves, the lock is updated). In position modes the lock is kept but has no effect.
     """
 
     def __init__(self, name: str, kin: ArmKinematics, sim: Simulation) -> None:
@@ -155,6 +158,11 @@ class MTM(Arm):
         self.gripper = Jaw(self, kin.gripper, "gripper", 4 * np.pi, 8 * np.pi, requires_ready=False)
         self._R_lock: np.ndarray | None = None
         self._wrist_idx = self._idx[MTM_WRIST_JOINTS]
+        self._lock_traj: tuple[np.ndarray, np.ndarray] | None = None
+        """The wrist's setpoint position and velocity on the way to the locked orientation
+        (rad, rad/s); None while the lock does not drive the wrist."""
+        self._lock_goal: np.ndarray | None = None
+        """The last IK solution of the wrist (rad): the next tick's seed."""
 
     def lock_orientation(self, R_reference_tip) -> CommandResult:
         """Hold the handle at orientation ``R_reference_tip`` (3x3, in the ``measured_cp``
@@ -170,6 +178,10 @@ class MTM(Arm):
     def unlock_orientation(self) -> CommandResult:
         """Let the handle turn freely again in effort mode."""
         self._R_lock = None
+        servo = self._sim.servo
+        if self._lock_traj is not None and servo.effort_mode[self._idx[0]]:
+            servo.effort_mode[self._wrist_idx] = True  # the wrist back in effort mode
+        self._lock_traj = self._lock_goal = None
         return ACCEPTED
 
     def orientation_locked(self) -> bool:
@@ -177,37 +189,62 @@ class MTM(Arm):
 
     def get_state(self) -> dict:
         """The arm's state (:meth:`Arm.get_state`), the gripper's and the orientation lock."""
-        R_lock = None if self._R_lock is None else self._R_lock.copy()
-        return {**super().get_state(), "gripper": self.gripper.get_state(), "R_lock": R_lock}
+        return {
+            **super().get_state(),
+            "gripper": self.gripper.get_state(),
+            "R_lock": _copy(self._R_lock),
+            "lock_traj": None if self._lock_traj is None else tuple(map(_copy, self._lock_traj)),
+            "lock_goal": _copy(self._lock_goal),
+        }
 
     def set_state(self, state: dict) -> None:
         state = dict(state)
         self.gripper.set_state(state.pop("gripper"))
-        R_lock = state.pop("R_lock")
-        self._R_lock = None if R_lock is None else R_lock.copy()
+        self._R_lock = _copy(state.pop("R_lock"))
+        lock_traj = state.pop("lock_traj", None)
+        self._lock_traj = None if lock_traj is None else tuple(map(_copy, lock_traj))
+        self._lock_goal = _copy(state.pop("lock_goal", None))
         super().set_state(state)
 
     def _pre_step(self, t: float) -> None:
         super()._pre_step(t)
         self.gripper._pre_step(t)
         servo = self._sim.servo
-        if self._R_lock is not None and servo.effort_mode[self._idx[0]]:
-            servo.effort_mode[self._wrist_idx] = False
-            servo.q_ref[self._wrist_idx] = self._locked_wrist_goal()
-            servo.qd_ref[self._wrist_idx] = 0.0
+        if self._R_lock is None or not servo.effort_mode[self._idx[0]]:
+            self._lock_traj = self._lock_goal = None
+            return
+        if self._lock_traj is None:  # the lock starts driving the wrist: from where it is
+            self._lock_traj = (self._q()[MTM_WRIST_JOINTS], self._qd()[MTM_WRIST_JOINTS].copy())
+        r = self._trajectory_ratio
+        q, qd = step_towards(*self._lock_traj, self._locked_wrist_goal(),
+                             self.kin.v_max[MTM_WRIST_JOINTS] * r,
+                             self.kin.a_max[MTM_WRIST_JOINTS] * r, self._sim.dt)  # fmt: skip
+        self._lock_traj = (q, qd)
+        servo.effort_mode[self._wrist_idx] = False
+        servo.q_ref[self._wrist_idx] = q
+        servo.qd_ref[self._wrist_idx] = qd
 
     def _locked_wrist_goal(self) -> np.ndarray:
-        """Wrist joints giving the locked orientation with the current arm joints (DLS)."""
+        """Wrist joints giving the locked orientation with the current arm joints (DLS seeded
+        with the last solution, so it converges over the ticks as the dVRK's seeded IK)."""
         assert self._R_lock is not None
         R_base_goal = self.base_frame()[0][:3, :3].T @ self._R_lock
         q = self._q()
+        if self._lock_goal is not None:
+            q[MTM_WRIST_JOINTS] = self._lock_goal
         for _ in range(_LOCK_STEPS):
             R = fk.forward_kinematics(self.chain, q)[:3, :3]
             err = so3.rotation_vector(R_base_goal @ R.T)  # spatial error, base frame
             J = fk.jacobian_spatial(self.chain, q)[3:, MTM_WRIST_JOINTS]
             q[MTM_WRIST_JOINTS] += J.T @ dgesv(J @ J.T + _LOCK_DAMPING * np.eye(3), err)[2]
         wrist = q[MTM_WRIST_JOINTS]
-        return np.clip(wrist, self.chain.qmin[MTM_WRIST_JOINTS], self.chain.qmax[MTM_WRIST_JOINTS])
+        goal = np.clip(wrist, self.chain.qmin[MTM_WRIST_JOINTS], self.chain.qmax[MTM_WRIST_JOINTS])
+        self._lock_goal = goal
+        return goal
+
+
+def _copy(a: np.ndarray | None) -> np.ndarray | None:
+    return None if a is None else a.copy()
 
 
 def _is_array_like(value) -> bool:
