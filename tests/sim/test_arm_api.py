@@ -151,7 +151,8 @@ def test_cartesian_control_needs_the_tool_past_the_cannula(psm_sim):
     psm_sim.run_for(0.2)
     result = psm.servo_cp(psm.measured_cp().T)
     assert not result and "inserted past the cannula" in result.message
-    assert not psm.jaw.move_jp(0.5)
+    assert psm.jaw.move_jp(0.5)  # in joint space, as the dVRK does
+    assert not psm.jaw.servo_jf(0.05)  # Cartesian effort control: not inside the cannula
 
 
 def test_commands_need_an_enabled_homed_arm():

@@ -183,3 +183,21 @@ def test_lock_orientation_moves_the_wrist_along_a_trajectory(mtm_sim):
     mtm_sim.run_for(0.01)
     assert np.array_equal(mtm.setpoint_jp(), mtm.measured_jp())
     assert mtm.hold()
+
+
+# ------------------------------------------------------ d. the jaw in the cannula
+def test_the_jaw_moves_while_the_tool_is_inside_the_cannula(psm_sim):
+    """The dVRK moves the jaw in joint space when Cartesian control is not allowed yet."""
+    psm = psm_sim.arms["PSM1"]
+    goal = psm.setpoint_jp()
+    goal[2] = 0.02  # shaft end well inside the 43 mm of the cannula (dvrk.md 1.7)
+    assert psm.move_jp(goal)
+    assert psm_sim.run_until(lambda: not psm.is_busy(), 10)
+    assert not psm.servo_cp(psm.setpoint_cp().T)  # Cartesian control: not here
+    assert psm.jaw.move_jp(0.6)
+    assert psm.is_busy()
+    assert psm_sim.run_until(lambda: not psm.is_busy(), 5)
+    psm_sim.run_for(0.2)
+    assert psm.jaw.measured_js().position[0] == pytest.approx(0.6, abs=5e-3)
+    assert psm.jaw.servo_jp(0.3)
+    assert psm.jaw.setpoint_js().position[0] == pytest.approx(0.3, abs=1e-12)

@@ -49,7 +49,7 @@ class Jaw(ServoJoints):
         self._a_max = a_max
         self._traj: JointTrajectory | None = None
         self._traj_t0 = 0.0
-        # PSM jaw commands need a Cartesian-ready arm (dvrk.md 2.2); MTM fingers need nothing.
+        # PSM jaw commands need a ready arm (dvrk.md 2.2); MTM fingers need nothing.
         self._requires_ready = requires_ready
         self._command_prefix = spec.name
 
@@ -94,7 +94,9 @@ class Jaw(ServoJoints):
         return self._angle()
 
     def _goal(self, command: str, value) -> tuple[float | None, CommandResult]:
-        why = self._arm._not_ready(cartesian=True) if self._requires_ready else ""
+        # Joint readiness only: inside the cannula, where Cartesian control is not allowed,
+        # the dVRK moves the jaw in joint space (jaw_servo_jp/jaw_move_jp, dvrk.md 2.2).
+        why = self._arm._not_ready() if self._requires_ready else ""
         if why:
             return None, self._arm._refuse(f"{self._command_prefix}/{command}", why)
         if isinstance(value, float | int | np.floating | np.integer) and not isinstance(
