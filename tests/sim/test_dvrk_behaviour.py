@@ -3,6 +3,7 @@ limits, setpoints following the measured joints in effort mode, the MTM's orient
 moving along a trajectory, the jaw inside the cannula, throttled "arm not ready" errors."""
 
 import math
+import re
 
 import numpy as np
 import pytest
@@ -201,3 +202,49 @@ def test_the_jaw_moves_while_the_tool_is_inside_the_cannula(psm_sim):
     assert psm.jaw.measured_js().position[0] == pytest.approx(0.6, abs=5e-3)
     assert psm.jaw.servo_jp(0.3)
     assert psm.jaw.setpoint_js().position[0] == pytest.approx(0.3, abs=1e-12)
+
+
+# --------------------------------------------------- e. throttled "arm not ready"
+def _errors(arm):
+    seen = []
+    arm.channels.subscribe(lambda event, msg: seen.append(msg.text) if event == "error" else None)
+    return seen
+
+
+def test_arm_not_ready_errors_are_throttled_every_2_s_as_the_dvrk_does():
+    """dVRK ArmIsReady (dvrk.md 2.4): one "arm not ready" message per arm every 2 s whatever
+    the command, with the count of the refusals since; the count restarts once ready."""
+    sim = Simulation("psm1")
+    psm = sim.arms["PSM1"]
+    errors = _errors(psm)
+    for i in range(5000):  # 5 s of a script polling every command at 1 kHz
+        assert not [psm.move_jp, psm.servo_jp, psm.move_jr][i % 3]([0, 0, 0.12, 0, 0, 0])
+        assert not psm.jaw.move_jp(0.3)
+        sim.tick()
+    assert len(errors) == 3  # at 0, 2 and 4 s
+    assert all("arm not ready" in e for e in errors)
+    # 2 s x 1 kHz x 2 commands, less the first (± a tick of the clock's rounding)
+    count = int(re.search(r"\((\d+) more refusals", errors[1]).group(1))
+    assert abs(count - 3999) <= 2
+    home(sim, ["PSM1"])
+    assert psm.move_jp(psm.setpoint_jp())  # ready: the count restarts
+    assert psm.state_command("disable")
+    n = len(errors)
+    assert not psm.move_jp([0, 0, 0.12, 0, 0, 0])
+    assert len(errors) == n + 1 and "more refusals" not in errors[-1]
+    sim.close()
+
+
+def test_cartesian_refusals_inside_the_cannula_are_said_once_per_1000(psm_sim):
+    """dVRK SetControlSpaceAndMode: the warning once, then every 1000th consecutive attempt."""
+    psm = psm_sim.arms["PSM1"]
+    goal = psm.setpoint_jp()
+    goal[2] = 0.02
+    assert psm.move_jp(goal)
+    assert psm_sim.run_until(lambda: not psm.is_busy(), 10)
+    errors = _errors(psm)
+    T = psm.setpoint_cp().T
+    for _ in range(1001):
+        assert not psm.move_cp(T)
+    assert len(errors) == 2 and "past the cannula" in errors[0]
+    assert "999 more refusals" in errors[1]

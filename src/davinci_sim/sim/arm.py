@@ -62,10 +62,20 @@ if TYPE_CHECKING:
 
 __all__ = ["TRACKING_FAULT_TIME", "TRACKING_FAULT_TOLERANCE", "Arm"]
 #: Streaming commands (``servo_*``) arrive every tick: after one of them is refused on the
-#: error channel, further refusals of the same command within this time (s) are counted
-#: and reported with the next message instead of flooding the channel (the dVRK throttles
-#: its repeated "arm not ready" warnings the same way, every 2 s, dvrk.md 2.4).
+#: error channel for another reason than the two below, further refusals of the same command
+#: within this time (s) are counted and reported with the next message instead of flooding
+#: the channel (our choice, after the dVRK's throttle of "arm not ready").
 STREAMING_REFUSAL_INTERVAL = 1.0
+#: Why every command is refused while the arm is not ready starts with this; the dVRK says it
+#: at most every 2 s per arm, whatever the command, with the count of refusals since, and
+#: starts counting again once a command finds the arm ready (``ArmIsReady``, dvrk.md 2.4).
+NOT_READY = "arm not ready"
+NOT_READY_INTERVAL = 2.0
+#: Why Cartesian commands are refused while the tool or endoscope is inside the cannula
+#: contains this; the dVRK says it on the first of a run of such refusals and then once every
+#: 1000 (``SetControlSpaceAndMode``, dvrk.md 2.4), the run ending when control is allowed.
+IN_CANNULA = "past the cannula"
+CANNULA_REFUSAL_PERIOD = 1000
 
 
 #: servo_jp's velocity feed-forward may be this many times the dVRK's trajectory velocity
@@ -165,9 +175,30 @@ class Arm(ServoJoints):
         return np.where(effort, self._q(), q_ref) if effort.any() else q_ref
 
     def _refuse(self, command: str, message: str) -> CommandResult:
+        """Refuse ``command``, saying why on the error channel, throttled: "arm not ready" and
+        "inside the cannula" as the dVRK throttles them, other refusals of a streaming
+        command (``servo_*``) once per STREAMING_REFUSAL_INTERVAL."""
         text = f"{command}: {message}"
         now = self._now()
-        if command.rpartition("/")[2].startswith("servo"):
+        if message.startswith(NOT_READY):
+            last, suppressed = self._refusals.get(NOT_READY, (-np.inf, 0))
+            if now - last < NOT_READY_INTERVAL:
+                self._refusals[NOT_READY] = (last, suppressed + 1)
+                return CommandResult(False, f"{self.name}: {text}")
+            if suppressed:
+                text += (
+                    f" ({suppressed} more refusals because the arm was not ready in the last "
+                    f"{now - last:.3g} s)"
+                )
+            self._refusals[NOT_READY] = (now, 0)
+        elif IN_CANNULA in message:
+            run = self._refusals.get(IN_CANNULA, (now, 0))[1]
+            self._refusals[IN_CANNULA] = (now, run + 1)
+            if run % CANNULA_REFUSAL_PERIOD:
+                return CommandResult(False, f"{self.name}: {text}")
+            if run:
+                text += f" ({CANNULA_REFUSAL_PERIOD - 1} more refusals inside the cannula since)"
+        elif command.rpartition("/")[2].startswith("servo"):
             last, suppressed = self._refusals.get(command, (-np.inf, 0))
             if now - last < STREAMING_REFUSAL_INTERVAL:
                 self._refusals[command] = (last, suppressed + 1)
@@ -187,13 +218,19 @@ class Arm(ServoJoints):
     def _not_ready(self, cartesian: bool = False) -> str:
         """Why joint (or Cartesian) commands are refused now, or ``""`` (dvrk.md 2.4)."""
         if self._state != ops.ENABLED:
-            return f"arm not ready: operating state is {self._state}, needs ENABLED"
+            return f"{NOT_READY}: operating state is {self._state}, needs ENABLED"
         if not self._homed:
-            return "arm not ready: not homed (send state_command 'home' first)"
+            return f"{NOT_READY}: not homed (send state_command 'home' first)"
         if self._traj_homing:
-            return "arm not ready: homing in progress"
+            return f"{NOT_READY}: homing in progress"
+        refusals = self._refusals
+        if refusals:  # ready: the runs of throttled refusals end
+            refusals.pop(NOT_READY, None)
         if cartesian:
-            return self._cartesian_unsafe()
+            why = self._cartesian_unsafe()
+            if not why and refusals:
+                refusals.pop(IN_CANNULA, None)
+            return why
         return ""
 
     def _cartesian_unsafe(self) -> str:
@@ -460,14 +497,14 @@ class Arm(ServoJoints):
     def hold(self) -> CommandResult:
         """Stop moving and keep the current position."""
         if self._state != ops.ENABLED:
-            return self._refuse("hold", f"arm not ready: operating state is {self._state}")
+            return self._refuse("hold", f"{NOT_READY}: operating state is {self._state}")
         self._hold_here()
         return ACCEPTED
 
     def free(self) -> CommandResult:
         """Zero effort plus gravity compensation: the arm can be moved by hand."""
         if self._state != ops.ENABLED:
-            return self._refuse("free", f"arm not ready: operating state is {self._state}")
+            return self._refuse("free", f"{NOT_READY}: operating state is {self._state}")
         self._set_effort(np.zeros(self.dof))
         return ACCEPTED
 
