@@ -248,3 +248,54 @@ def test_cartesian_refusals_inside_the_cannula_are_said_once_per_1000(psm_sim):
         assert not psm.move_cp(T)
     assert len(errors) == 2 and "past the cannula" in errors[0]
     assert "999 more refusals" in errors[1]
+
+
+# ------------------------------------------------------------- g. servo_ci (MTM)
+def _z_spring(z_goal_ref, p_pos=-200.0, p_neg=-200.0, T=None):
+    from davinci_sim.sim.impedance import CartesianImpedance, HalfPlaneGains
+
+    position = T[:3, 3].copy()
+    position[2] = z_goal_ref
+    return CartesianImpedance(
+        force_position=position,
+        position_positive=HalfPlaneGains(p=np.array([0.0, 0.0, p_pos]),
+                                         d=np.array([0.0, 0.0, -5.0])),
+        position_negative=HalfPlaneGains(p=np.array([0.0, 0.0, p_neg]),
+                                         d=np.array([0.0, 0.0, -5.0])),
+    )  # fmt: skip
+
+
+def test_servo_ci_pulls_the_handle_to_the_spring_and_one_side_only(mtm_sim):
+    """dvrk_mtm_cartesian_impedance.py: a z spring (dVRK signs: p < 0 pulls back) at a
+    position of the reference frame (HRSV); a half-plane has gains on one side only."""
+    mtm = mtm_sim.arms["MTMR"]
+    assert mtm.hold()
+    mtm_sim.run_for(0.1)
+    T = mtm.measured_cp().T
+    goal_z = T[2, 3] + 0.02  # 2 cm along HRSV z
+    assert mtm.servo_ci(_z_spring(goal_z, T=T))
+    assert mtm.impedance() is not None
+    mtm_sim.run_for(1.5)
+    assert abs(mtm.measured_cp().T[2, 3] - goal_z) < 0.005
+    # half plane: the handle is below the plane (e < 0) where the gains are zero: no pull
+    T = mtm.measured_cp().T
+    assert mtm.servo_ci(_z_spring(T[2, 3] - 0.02, p_pos=0.0, p_neg=-500.0, T=T))
+    z0 = T[2, 3]
+    mtm_sim.run_for(0.5)
+    assert abs(mtm.measured_cp().T[2, 3] - z0) < 0.005
+    # another command ends the impedance
+    assert mtm.spatial.servo_cf(np.zeros(6))
+    mtm_sim.run_for(0.01)
+    assert mtm.impedance() is None
+    assert mtm.hold()
+
+
+def test_servo_ci_refuses_bad_gains(mtm_sim):
+    from davinci_sim.sim.impedance import CartesianImpedance, HalfPlaneGains
+
+    mtm = mtm_sim.arms["MTMR"]
+    bad = CartesianImpedance(position_positive=HalfPlaneGains(p=np.array([np.nan, 0, 0])))
+    result = mtm.servo_ci(bad)
+    assert not result and "position_positive.p" in result.message
+    assert not mtm.servo_ci({"p": 1})
+    assert mtm.impedance() is None

@@ -12,11 +12,13 @@ from davinci_sim.geometry import so3
 from davinci_sim.kinematics import fk
 from davinci_sim.kinematics.arms import ArmKinematics, SUJArmKinematics
 from davinci_sim.kinematics.chain import DHChain
+from davinci_sim.sim import arm_laws as laws
 from davinci_sim.sim.arm import Arm
+from davinci_sim.sim.impedance import CartesianImpedance, impedance_problem, impedance_wrench
 from davinci_sim.sim.jaw import Jaw
 from davinci_sim.sim.trajectory import step_towards
 from davinci_sim.sim.types import ACCEPTED, CommandResult
-from davinci_sim.sim.validation import as_number
+from davinci_sim.sim.validation import MAX_FORCE, MAX_TORQUE, as_number
 
 if TYPE_CHECKING:
     from davinci_sim.sim.simulation import Simulation
@@ -130,6 +132,8 @@ def _insert_jp(arm: Arm, depth) -> CommandResult:
 #: MTM joints that orient the handle: wrist platform, pitch, yaw, roll (dvrk.md 1.5). Their
 #: axes cross at the tip, so they turn the handle without moving it.
 MTM_WRIST_JOINTS = slice(3, 7)
+#: The bounds of a servo_cf wrench (sim.validation), for servo_ci's wrench.
+_WRENCH_BOUND = np.array([MAX_FORCE] * 3 + [MAX_TORQUE] * 3)
 #: Damped-least-squares steps per tick of the orientation lock, and their damping (rad²).
 _LOCK_STEPS = 2
 _LOCK_DAMPING = 1e-4
@@ -163,6 +167,9 @@ class MTM(Arm):
         (rad, rad/s); None while the lock does not drive the wrist."""
         self._lock_goal: np.ndarray | None = None
         """The last IK solution of the wrist (rad): the next tick's seed."""
+        self._impedance: CartesianImpedance | None = None
+        """The ``servo_ci`` gains in force (None: none)."""
+        self._impedance_w: np.ndarray | None = None
 
     def lock_orientation(self, R_reference_tip) -> CommandResult:
         """Hold the handle at orientation ``R_reference_tip`` (3x3, in the ``measured_cp``
@@ -174,6 +181,44 @@ class MTM(Arm):
             )
         self._R_lock = R.copy()
         return ACCEPTED
+
+    def servo_ci(self, gains: CartesianImpedance) -> CommandResult:
+        """Cartesian impedance (dvrk.md 2.2 ``servo_ci``; :mod:`davinci_sim.sim.impedance`):
+        from now on, every tick, the wrench ``gains`` give for the handle's measured pose and
+        twist (reference frame, HRSV by default) is applied at the handle, as a
+        ``spatial/servo_cf`` would (clamped to its bounds, each joint to its ``ftmax``). Any
+        other motion or effort command ends it; the orientation lock works with it. As on the
+        dVRK, body wrenches are expressed in the reference orientation from now on
+        (``body/set_cf_orientation_absolute(True)``)."""
+        why = self._not_ready(cartesian=True)
+        if why:
+            return self._refuse("servo_ci", why)
+        msg = impedance_problem(gains)
+        if msg:
+            return self._refuse("servo_ci", msg)
+        if self._wrench is None or self._wrench[0] != "spatial":  # entering effort mode
+            self._set_effort(np.zeros(self.dof))
+        self._impedance = gains
+        self._body_cf_absolute = True
+        self._apply_impedance()
+        return ACCEPTED
+
+    def impedance(self) -> CartesianImpedance | None:
+        """The ``servo_ci`` gains in force, or None."""
+        return self._impedance
+
+    def _apply_impedance(self) -> None:
+        """The impedance's wrench at the measured pose and twist, as the spatial wrench."""
+        assert self._impedance is not None
+        _, T_base_tip, J = self._measured_kinematics(jacobian=True)
+        T_ref_base = self.base_frame()[0]
+        T_ref_tip = laws.pose_in_reference(T_ref_base, T_base_tip)
+        twist = laws.twist_in_reference(T_ref_base[:3, :3], J, self._qd())
+        w = np.clip(impedance_wrench(self._impedance, T_ref_tip, twist), -_WRENCH_BOUND,
+                    _WRENCH_BOUND)  # fmt: skip
+        self._wrench = ("spatial", w)
+        self._impedance_w = w  # (another servo_cf replaces it: the impedance ends)
+        self._sim.servo.tau_ff[self._idx] = self._wrench_to_effort("spatial", w)
 
     def unlock_orientation(self) -> CommandResult:
         """Let the handle turn freely again in effort mode."""
@@ -195,6 +240,7 @@ class MTM(Arm):
             "R_lock": _copy(self._R_lock),
             "lock_traj": None if self._lock_traj is None else tuple(map(_copy, self._lock_traj)),
             "lock_goal": _copy(self._lock_goal),
+            "impedance": self._impedance,  # frozen: shared, not copied
         }
 
     def set_state(self, state: dict) -> None:
@@ -204,9 +250,22 @@ class MTM(Arm):
         lock_traj = state.pop("lock_traj", None)
         self._lock_traj = None if lock_traj is None else tuple(map(_copy, lock_traj))
         self._lock_goal = _copy(state.pop("lock_goal", None))
+        self._impedance = state.pop("impedance", None)
         super().set_state(state)
+        self._impedance_w = None
+        if self._impedance is not None and self._wrench is not None:
+            self._impedance_w = self._wrench[1]  # the restored wrench is the impedance's
 
     def _pre_step(self, t: float) -> None:
+        if self._impedance is not None:
+            if (
+                self._wrench is None
+                or self._wrench[1] is not self._impedance_w
+                or (self._state != "ENABLED")
+            ):  # another command (or a fault, a disable) ended the impedance
+                self._impedance = self._impedance_w = None
+            else:
+                self._apply_impedance()
         super()._pre_step(t)
         self.gripper._pre_step(t)
         servo = self._sim.servo

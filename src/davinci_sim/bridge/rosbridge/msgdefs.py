@@ -79,6 +79,18 @@ MESSAGES: Final[dict[str, str]] = {
         "geometry_msgs/Twist twist\nstd_msgs/Bool twist_is_valid\n"
         "geometry_msgs/Wrench wrench\nstd_msgs/Bool wrench_is_valid"
     ),
+    "crtk_msgs/CartesianImpedanceHalfPlaneGains": (
+        "geometry_msgs/Vector3 p\ngeometry_msgs/Vector3 d\ngeometry_msgs/Vector3 bias\n"
+        "geometry_msgs/Vector3 deadband"
+    ),
+    "crtk_msgs/CartesianImpedance": (
+        "std_msgs/Header header\ngeometry_msgs/Quaternion force_orientation\n"
+        "geometry_msgs/Vector3 force_position\ngeometry_msgs/Quaternion torque_orientation\n"
+        "crtk_msgs/CartesianImpedanceHalfPlaneGains position_positive\n"
+        "crtk_msgs/CartesianImpedanceHalfPlaneGains position_negative\n"
+        "crtk_msgs/CartesianImpedanceHalfPlaneGains orientation_positive\n"
+        "crtk_msgs/CartesianImpedanceHalfPlaneGains orientation_negative"
+    ),
     # ------------------------------------------------------------------ tf, diagnostics, logs
     "tf2_msgs/TFMessage": "geometry_msgs/TransformStamped[] transforms",
     "diagnostic_msgs/KeyValue": "string key\nstring value",
