@@ -43,7 +43,8 @@ sock.on("message", (data, from) => {
   if (step === "move" && js && js.Position.every((q, i) => Math.abs(q - goal[i]) < 2e-3)) {
     console.log("move_jp reached " + JSON.stringify(js.Position.map((q) => +q.toFixed(3))));
     step = "bad";
-    send({ move_jp: { Goal: [0, 0, 5.0, 0, 0, 0] } }); // beyond the insertion limit
+    // far beyond the insertion limit: refused (a goal nearer a limit is clipped to it)
+    send({ move_jp: { Goal: [0, 0, 5000.0, 0, 0, 0] } });
   }
   if (step === "bad" && msg.error) {
     done(0, "refused: " + msg.error);

@@ -223,8 +223,15 @@ def serve_options(args: argparse.Namespace, web: bool):
     from davinci_sim.bridge.udp import parse_ports
 
     runner = args.runner or ("process" if web else "thread")
-    console = args.console or args.task is not None
-    hands = ("MTML", "MTMR") if web and console and args.ros_connect is None else ()
+    # The console and pedals (/console/*, /footpedals/*) by default, as the dVRK's system
+    # serves them, whenever the scene has an MTM and a PSM to teleoperate.
+    console = args.task is not None or (
+        not args.no_console and (args.console or _scene_has_teleop(args.scene))
+    )
+    # The web console's keyboard hands only when the console is asked for: a simulated hand
+    # holds the MTM handle, which scripts commanding the MTM would fight.
+    asked = args.console or args.task is not None
+    hands = ("MTML", "MTMR") if web and asked and args.ros_connect is None else ()
     return ServeOptions(
         scene=args.scene,
         keyframe=args.keyframe,
@@ -253,7 +260,7 @@ def serve_options(args: argparse.Namespace, web: bool):
         remote_ros_version=args.remote_ros_version,
         robot_description=not args.no_robot_description,
         duration=args.duration,
-        console=args.console,
+        console=console,
         runner=runner,
         hand_inputs=hands,
         render_hz=args.image_rate if web else None,
@@ -394,6 +401,15 @@ def cmd_serve(args: argparse.Namespace) -> int:
     return 0
 
 
+def _scene_has_teleop(scene: str) -> bool:
+    """Whether ``scene`` has an MTM and the PSM it teleoperates (the console's condition)."""
+    from davinci_sim.console.setup import PSM_TELEOPS
+    from davinci_sim.model.config import scene_arms
+
+    arms = set(scene_arms(scene))
+    return any(m in arms and p in arms for m, p in PSM_TELEOPS)
+
+
 def _serve_option_problem(args: argparse.Namespace) -> str | None:
     """What is wrong with ``serve``'s options that the parser cannot see (None: nothing)."""
     import math
@@ -406,6 +422,8 @@ def _serve_option_problem(args: argparse.Namespace) -> str | None:
         return f"--duration must be a time >= 0 s, got {args.duration:g}"
     if args.condition is not None and args.task is None:
         return "--condition needs --task (the condition of which task?)"
+    if args.no_console and (args.console or args.task is not None):
+        return "--no-console contradicts " + ("--console" if args.console else "--task")
     if args.trainee is not None and args.task is None:
         return "--trainee needs --task (the attempts at which task?)"
     if args.trainee is not None:
@@ -968,8 +986,15 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument(
         "--console",
         action="store_true",
-        help="install the surgeon console and teleoperations (MTMs fed by the "
-        "client mode with --ros-connect)",
+        help="the surgeon console and teleoperations (MTMs fed by the client mode with "
+        "--ros-connect), and the web console's keyboard hands on the simulated MTMs; without "
+        "it the console, its teleoperations and the /console/* and /footpedals/* topics are "
+        "still there when the scene has an MTM and a PSM",
+    )
+    p.add_argument(
+        "--no-console",
+        action="store_true",
+        help="no surgeon console: no teleoperations, no /console/* or /footpedals/* topics",
     )
     p.add_argument(
         "--task",

@@ -140,8 +140,10 @@ def test_invalid_commands_move_nothing(setup, handle, make_raw):
     bad.send({"op": "publish", "topic": "/PSM1/servo_cp", "msg": {"pose": {"orientation":
               {"x": 0, "y": 0, "z": 0, "w": 0}}}})  # fmt: skip
     assert "must be a unit quaternion" in bad.status()["msg"]
-    # out of joint limits: refused by the arm on its error channel
-    bad.send({"op": "publish", "topic": "/PSM1/move_jp", "msg": {"position": [9, 0, 0.1, 0, 0, 0]}})
+    # far out of joint limits (a goal near them is clipped): refused by the arm on its error
+    # channel
+    bad.send({"op": "publish", "topic": "/PSM1/move_jp",
+              "msg": {"position": [9e3, 0, 0.1, 0, 0, 0]}})  # fmt: skip
     assert "outside its limits" in bad.status()["msg"]
     # the wrong number of joints, and joint names that are not the arm's
     bad.send({"op": "publish", "topic": "/PSM1/servo_jp", "msg": {"position": [0.1]}})

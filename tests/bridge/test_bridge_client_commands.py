@@ -116,9 +116,10 @@ def test_a_remote_script_commands_the_simulated_psm(make_server, make_ros, sim_p
 BAD_COMMANDS = [
     # (topic suffix, type, message): refused by the conversion (wrong joint names) ...
     ("servo_jp", "sensor_msgs/JointState", _js([0.0] * 6, ["a", "b", "c", "d", "e", "f"])),
-    # ... and by the arm or its conversion: a joint beyond its limit, a non-unit quaternion,
-    # two jaw values, an unknown state (a warning, as on the dVRK)
-    ("move_jp", "sensor_msgs/JointState", _js([0.0, 0.0, 5.0, 0.0, 0.0, 0.0])),
+    # ... and by the arm or its conversion: a joint far beyond its limit (nearer, it would be
+    # clipped), a non-unit quaternion, two jaw values, an unknown state (a warning, as on the
+    # dVRK)
+    ("move_jp", "sensor_msgs/JointState", _js([0.0, 0.0, 5e3, 0.0, 0.0, 0.0])),
     ("servo_cp", "geometry_msgs/PoseStamped",
      {"pose": {"position": {"x": 0, "y": 0, "z": 0.1},
                "orientation": {"x": 0, "y": 0, "z": 0, "w": 2.0}}}),

@@ -305,3 +305,34 @@ def test_setup_joints_carry_the_dvrk_names(handle, make_server, make_ros):
         lambda: abs(handle.snapshot().arms["SUJ/PSM1"].setpoint_js.position[0] - goal[0]) < 1e-12,
         5,
     )
+
+
+def test_mtm_servo_ci_topic(make_server, make_ros):
+    """``/MTMR/servo_ci`` (``crtk_msgs/CartesianImpedance``) sets the MTM's impedance: the
+    quaternions as rotations, the half-plane gains per axis (dvrk_mtm_cartesian_impedance)."""
+    from davinci_sim.sim.handle import ThreadedSimulation
+
+    handle = ThreadedSimulation(Simulation("psm1_ecm_mtmr"), real_time=False).start()
+    try:
+        enable_and_home(handle, "MTMR", timeout=30)
+        server = make_server(handle)
+        ros = make_ros(server)
+        zero = {"x": 0.0, "y": 0.0, "z": 0.0}
+        half = {"p": zero, "d": zero, "bias": zero, "deadband": zero}
+        spring = {**half, "p": {**zero, "z": -200.0}, "d": {**zero, "z": -5.0}}
+        msg = {
+            "force_orientation": {"x": 0.0, "y": 0.0, "z": 0.0, "w": 1.0},
+            "torque_orientation": {"x": 0.0, "y": 0.0, "z": 1.0, "w": 0.0},  # 180° about z
+            "force_position": {"x": 0.01, "y": 0.02, "z": 0.03},
+            "position_positive": spring, "position_negative": spring,
+            "orientation_positive": half, "orientation_negative": half,
+        }  # fmt: skip
+        topic = roslibpy.Topic(ros, "/MTMR/servo_ci", "crtk_msgs/CartesianImpedance")
+        topic.publish(roslibpy.Message(msg))
+        assert wait_for(lambda: handle.call("MTMR", "impedance").result(5) is not None, 5)
+        g = handle.call("MTMR", "impedance").result(5)
+        assert np.allclose(g.force_position, [0.01, 0.02, 0.03])
+        assert np.allclose(g.position_negative.p, [0, 0, -200.0])
+        assert np.allclose(g.torque_orientation, np.diag([-1.0, -1.0, 1.0]))
+    finally:
+        handle.stop()

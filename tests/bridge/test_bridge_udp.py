@@ -176,7 +176,7 @@ def test_refused_datagrams_are_answered_and_change_nothing(handle, listener):
             assert why in _errors(sender, 1)[0]
             assert why in _errors(listener, 1)[0]
         # a well-formed command the arm refuses: the arm's own error event, to the destination
-        sender.sendto(json.dumps({"move_jp": {"Goal": [0, 0, 5.0, 0, 0, 0]}}).encode(), dest)
+        sender.sendto(json.dumps({"move_jp": {"Goal": [0, 0, 5e3, 0, 0, 0]}}).encode(), dest)
         (text,) = _errors(listener, 1)
         assert text.startswith("PSM1: move_jp:") and "insertion" in text
         assert np.array_equal(handle.snapshot().arms["PSM1"].setpoint_js.position, before)

@@ -3,6 +3,7 @@
 import numpy as np
 from PIL import Image
 
+from davinci_sim import cli
 from davinci_sim.cli import main
 
 
@@ -150,3 +151,41 @@ def test_bad_records_options_fail_in_one_line_before_any_work(argv, words, capsy
     assert main(argv) == 2
     err = capsys.readouterr().err
     assert words in err and "Traceback" not in err and len(err.strip().splitlines()) == 1
+
+
+@pytest.mark.parametrize(
+    ("argv", "console", "hands"),
+    [
+        # the console and pedals by default (issue 21): the scene has MTMs and PSMs
+        ([], True, ()),
+        (["--scene", "psm1_ecm_mtmr"], True, ()),
+        (["--no-console"], False, ()),
+        (["--scene", "psm1"], False, ()),  # nothing to teleoperate
+        (["--console"], True, ("MTML", "MTMR")),  # asked for: the web console's hands too
+        (["--console", "--no-web"], True, ()),
+    ],
+)
+def test_serve_serves_the_console_and_pedals_by_default(monkeypatch, argv, console, hands):
+    import davinci_sim.bridge.app as app
+
+    seen = {}
+
+    def fake_serve(options, **kwargs):
+        seen["options"] = options
+        return {}
+
+    monkeypatch.setattr(app, "serve", fake_serve)
+    monkeypatch.setattr(cli, "_taken_port_problem", lambda args, web: None)
+    if "--no-web" not in argv:  # no web server is built: serve() is not run
+        monkeypatch.setattr("davinci_sim.web.app.web_part", lambda *a, **k: None)
+    assert cli.main(["serve", "--duration", "0", *argv]) == 0
+    options = seen["options"]
+    assert options.console is console
+    assert options.hand_inputs == hands
+
+
+def test_serve_no_console_contradicts_console_and_task(capsys):
+    assert cli.main(["serve", "--no-console", "--console", "--duration", "0"]) == 2
+    assert "--no-console contradicts --console" in capsys.readouterr().err
+    assert cli.main(["serve", "--no-console", "--task", "seed_path", "--duration", "0"]) == 2
+    assert "--no-console contradicts --task" in capsys.readouterr().err

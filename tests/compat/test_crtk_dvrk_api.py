@@ -192,6 +192,26 @@ def test_mtm_wrench_moves_the_handle(system, ral):
     mtm.body.servo_cf(np.zeros(6))
     mtm.hold()
     assert mtm.gripper.measured_js()[0].shape == (1,)
+    # dvrk_mtm_cartesian_impedance.py's call (a z spring at the handle's position)
+    zero = {"x": 0.0, "y": 0.0, "z": 0.0}
+    half = {"p": zero, "d": zero, "bias": zero, "deadband": zero}
+    spring = {**half, "p": {**zero, "z": -200.0}, "d": {**zero, "z": -5.0}}
+    cp, _ = mtm.measured_cp()
+    gains = {
+        "header": {"stamp": {"sec": 0, "nanosec": 0}, "frame_id": ""},
+        "force_orientation": {"x": 0.0, "y": 0.0, "z": 0.0, "w": 1.0},
+        "torque_orientation": {"x": 0.0, "y": 0.0, "z": 0.0, "w": 1.0},
+        "force_position": {"x": cp.p[0], "y": cp.p[1], "z": cp.p[2]},
+        "position_positive": spring, "position_negative": spring,
+        "orientation_positive": half, "orientation_negative": half,
+    }  # fmt: skip
+    mtm.servo_ci(gains)
+    deadline = time.time() + 5
+    while now(system, "MTMR", "impedance") is None and time.time() < deadline:
+        settle()
+    g = now(system, "MTMR", "impedance")
+    assert g is not None and np.allclose(g.position_positive.p, [0, 0, -200.0])
+    mtm.hold()
 
 
 def test_console_scale_and_pedal_events(system, ral):

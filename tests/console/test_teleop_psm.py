@@ -234,7 +234,8 @@ def test_unreachable_goals_do_not_flood_the_psm_error_channel():
     _, _, psm = parts(sim, console)
     errors = events_of(psm.channels, "error")
     far = psm.setpoint_cp().T.copy()
-    far[:3, 3] += [0.0, 0.0, 1.0]  # 1 m deeper: out of the workspace
+    # At the RCM: no IK solution (a goal past a joint limit would be clipped, as on the dVRK)
+    far[:3, 3] = psm.base_frame()[0][:3, 3]
     for _ in range(500):  # 0.5 s of refused streaming commands
         assert not psm.servo_cp(far)
         sim.tick()

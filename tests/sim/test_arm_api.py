@@ -114,7 +114,7 @@ def test_moving_the_ecm_changes_psm_poses_in_the_camera_frame(psm_sim):
     [
         ("servo_jp", ([np.nan, 0, 0.12, 0, 0, 0],), "NaN"),
         ("servo_jp", ([0, 0, 0.12],), "6 values"),
-        ("servo_jp", ([0, 0, 0.3, 0, 0, 0],), "outside its limits"),
+        ("servo_jp", ([0, 0, 3e3, 0, 0, 0],), "outside its limits by far"),
         ("move_jp", ([np.inf, 0, 0.12, 0, 0, 0],), "NaN or inf"),
         ("servo_jr", ("abc",), "numbers"),
         ("servo_cp", (np.full((4, 4), np.nan),), "NaN"),
@@ -151,7 +151,8 @@ def test_cartesian_control_needs_the_tool_past_the_cannula(psm_sim):
     psm_sim.run_for(0.2)
     result = psm.servo_cp(psm.measured_cp().T)
     assert not result and "inserted past the cannula" in result.message
-    assert not psm.jaw.move_jp(0.5)
+    assert psm.jaw.move_jp(0.5)  # in joint space, as the dVRK does
+    assert not psm.jaw.servo_jf(0.05)  # Cartesian effort control: not inside the cannula
 
 
 def test_commands_need_an_enabled_homed_arm():
@@ -182,7 +183,9 @@ def test_jaw_follows_commands(psm_sim):
     psm_sim.run_until(lambda: not psm.is_busy(), 5)
     psm_sim.run_for(0.3)
     assert psm.jaw.measured_js().position[0] == pytest.approx(np.radians(60), abs=2e-3)
-    assert not psm.jaw.servo_jp(np.radians(100))  # beyond the 80 deg jaw limit
+    # beyond the 80 deg jaw limit: clipped to it, as the dVRK's clip_jaw_jp does
+    assert psm.jaw.servo_jp(np.radians(100))
+    assert psm.jaw.setpoint_js().position[0] == pytest.approx(np.radians(80), abs=1e-12)
 
 
 def test_hold_and_free_keep_the_arm_up(psm_sim):

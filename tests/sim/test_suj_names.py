@@ -25,7 +25,7 @@ def test_a_refusal_names_the_setup_joint():
     suj = sim.arms["SUJ/PSM1"]
     before = suj.setpoint_jp().copy()
     q = before.copy()
-    q[0] = 5.0  # J0 (lift) is limited to +-2 m
+    q[0] = 5e3  # J0 (lift) is limited to +-2 m: clipped up to 1000 m, refused beyond
     result = suj.servo_jp(q)
     assert not result and "SUJ_PSM1_J0" in result.message
     assert np.array_equal(suj.setpoint_jp(), before)

@@ -5,7 +5,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from davinci_sim.sim.trajectory import plan_trajectory
+from davinci_sim.sim.trajectory import plan_trajectory, step_towards
 
 vec = st.lists(st.floats(-2.0, 2.0), min_size=3, max_size=3)
 lim = st.lists(st.floats(0.05, 5.0), min_size=3, max_size=3)
@@ -54,3 +54,17 @@ def test_zero_motion_and_bad_limits():
         plan_trajectory([0.0], [1.0], [0.0], [1.0])
     with pytest.raises(ValueError, match="a_max"):
         plan_trajectory([0.0], [1.0], [1.0], [np.inf])
+
+
+def test_step_towards_reaches_the_goal_within_the_limits_from_a_moving_start():
+    dt, v_max, a_max = 1e-3, np.array([1.5, 6.0]), np.array([0.8, 6.0])
+    q, qd = np.array([0.0, 1.0]), np.array([0.5, -2.0])  # moving, one joint away
+    goal = np.array([1.0, -1.0])
+    for i in range(6000):
+        if i == 2000:
+            goal = np.array([0.5, 0.0])  # the goal moves mid-way
+        q_next, qd_next = step_towards(q, qd, goal, v_max, a_max, dt)
+        assert np.all(np.abs(qd_next) <= v_max + 1e-12)
+        assert np.all(np.abs(qd_next - qd) <= a_max * dt + 1e-12)
+        q, qd = q_next, qd_next
+    assert np.allclose(q, goal, atol=1e-6) and np.allclose(qd, 0.0, atol=1e-3)

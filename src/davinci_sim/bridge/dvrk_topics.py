@@ -11,7 +11,10 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
+import numpy as np
+
 from davinci_sim.bridge import dvrk_messages as m
+from davinci_sim.sim.impedance import CartesianImpedance, HalfPlaneGains
 
 if TYPE_CHECKING:
     from davinci_sim.sim.handle import ArmSnapshot
@@ -157,6 +160,31 @@ def _quaternion(msg: dict, arm: ArmInfo) -> tuple:
     return (m.matrix_from_quaternion(msg["x"], msg["y"], msg["z"], msg["w"]),)
 
 
+def _vector3(v: dict) -> np.ndarray:
+    return np.array([v["x"], v["y"], v["z"]], dtype=float)
+
+
+def _half_plane(g: dict) -> HalfPlaneGains:
+    return HalfPlaneGains(_vector3(g["p"]), _vector3(g["d"]), _vector3(g["bias"]),
+                          _vector3(g["deadband"]))  # fmt: skip
+
+
+def _impedance(msg: dict, arm: ArmInfo) -> tuple:
+    """``crtk_msgs/CartesianImpedance`` -> :class:`CartesianImpedance` (reference frame)."""
+    fo, to = msg["force_orientation"], msg["torque_orientation"]
+    return (
+        CartesianImpedance(
+            force_position=_vector3(msg["force_position"]),
+            force_orientation=m.matrix_from_quaternion(fo["x"], fo["y"], fo["z"], fo["w"]),
+            torque_orientation=m.matrix_from_quaternion(to["x"], to["y"], to["z"], to["w"]),
+            position_positive=_half_plane(msg["position_positive"]),
+            position_negative=_half_plane(msg["position_negative"]),
+            orientation_positive=_half_plane(msg["orientation_positive"]),
+            orientation_negative=_half_plane(msg["orientation_negative"]),
+        ),
+    )
+
+
 COMMAND_TOPICS: tuple[CommandTopic, ...] = (
     CommandTopic("state_command", "crtk_msgs/StringStamped", "", "state_command",
                  lambda msg, a: (msg["string"],), ALL),
@@ -195,6 +223,7 @@ COMMAND_TOPICS: tuple[CommandTopic, ...] = (
                  _quaternion, MTM),
     CommandTopic("unlock_orientation", "std_msgs/Empty", "", "unlock_orientation",
                  lambda msg, a: (), MTM),
+    CommandTopic("servo_ci", "crtk_msgs/CartesianImpedance", "", "servo_ci", _impedance, MTM),
 )  # fmt: skip
 
 #: Latched constants (dvrk.md 1.2, 1.4: the simulated tool and endoscope).

@@ -32,10 +32,10 @@ from davinci_sim.compat.crtk_utils import utils
 
 _log = logging.getLogger("davinci_sim.compat")
 
-#: Topics of dvrk_python the simulator does not serve: the simulated tool is always present
-#: and the MTM has no Cartesian impedance controller. ``check_connections`` does not wait
-#: for them; publishing to them says once that nothing listens.
-NOT_SIMULATED = frozenset({"emulate_tool_present", "servo_ci"})
+#: Topics of dvrk_python the simulator does not serve: the simulated tool is always present.
+#: ``check_connections`` does not wait for them; publishing to them says once that nothing
+#: listens.
+NOT_SIMULATED = frozenset({"emulate_tool_present"})
 _said: set[str] = set()
 
 
@@ -190,7 +190,8 @@ class mtm(arm):  # noqa: N801
         self._unlock_pub.publish({})
 
     def servo_ci(self, gains) -> None:
-        _not_simulated(self._servo_ci_pub.topic_name)
+        """Cartesian impedance: ``gains`` a ``crtk_msgs/CartesianImpedance`` message."""
+        self._servo_ci_pub.publish(gains)
 
 
 class suj:  # noqa: N801

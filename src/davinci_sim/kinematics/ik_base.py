@@ -52,6 +52,10 @@ class IKResult(NamedTuple):
     adjusted: bool = False
     """A dVRK rule moved ``q`` off the exact solution on purpose: PSM 45 mm insertion rule,
     ECM 40 mm insertion clamp, ECM orientation projection. The errors above then measure it."""
+    reached: bool = False
+    """``q`` reaches the goal (within the tolerances, or as ``adjusted``) and the solver did
+    not fail: only joint limits can make such a result unsuccessful. The dVRK's generic IK
+    does not test limits; its arm clips the solution to them (``clip_jp``, dvrk.md 1.8)."""
 
 
 # --- input checks ---------------------------------------------------------------------------
@@ -236,6 +240,7 @@ def make_result(
     reasons = [failure] if failure else []
     if adjusted is None and (dp > position_tolerance or dr > rotation_tolerance):
         reasons.append(f"pose not reached: position error {dp:.3g} m, rotation error {dr:.3g} rad")
+    reached = not reasons
     bad = limit_violations(chain, q)
     if bad:
         reasons.append("joint limits: " + ", ".join(bad))
@@ -252,6 +257,7 @@ def make_result(
         position_error=dp,
         rotation_error=dr,
         adjusted=adjusted is not None,
+        reached=reached,
     )
 
 

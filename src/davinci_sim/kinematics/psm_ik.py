@@ -355,6 +355,7 @@ def psm_ik_closed_form(
             iterations=int(info[0, 0]),
             position_error=float(info[0, 1]),
             rotation_error=float(info[0, 2]),
+            reached=True,
         )
     return _row_result(
         chain, g, goal_tuple(T), S.tolist(), q[0], int(status[0]), info[0],

@@ -53,7 +53,7 @@ from davinci_sim.sim.validation import (
     as_vector,
     as_wrench,
     check_bound,
-    check_limits,
+    clip_goal,
     short_repr,
 )
 
@@ -62,10 +62,20 @@ if TYPE_CHECKING:
 
 __all__ = ["TRACKING_FAULT_TIME", "TRACKING_FAULT_TOLERANCE", "Arm"]
 #: Streaming commands (``servo_*``) arrive every tick: after one of them is refused on the
-#: error channel, further refusals of the same command within this time (s) are counted
-#: and reported with the next message instead of flooding the channel (the dVRK throttles
-#: its repeated "arm not ready" warnings the same way, every 2 s, dvrk.md 2.4).
+#: error channel for another reason than the two below, further refusals of the same command
+#: within this time (s) are counted and reported with the next message instead of flooding
+#: the channel (our choice, after the dVRK's throttle of "arm not ready").
 STREAMING_REFUSAL_INTERVAL = 1.0
+#: Why every command is refused while the arm is not ready starts with this; the dVRK says it
+#: at most every 2 s per arm, whatever the command, with the count of refusals since, and
+#: starts counting again once a command finds the arm ready (``ArmIsReady``, dvrk.md 2.4).
+NOT_READY = "arm not ready"
+NOT_READY_INTERVAL = 2.0
+#: Why Cartesian commands are refused while the tool or endoscope is inside the cannula
+#: contains this; the dVRK says it on the first of a run of such refusals and then once every
+#: 1000 (``SetControlSpaceAndMode``, dvrk.md 2.4), the run ending when control is allowed.
+IN_CANNULA = "past the cannula"
+CANNULA_REFUSAL_PERIOD = 1000
 
 
 #: servo_jp's velocity feed-forward may be this many times the dVRK's trajectory velocity
@@ -97,6 +107,7 @@ class Arm(ServoJoints):
         self._wrench: tuple[str, np.ndarray] | None = None
         self._body_cf_absolute = False
         self._T_user_base: tuple[np.ndarray, str] | None = None
+        self._qmin, self._qmax = self.chain.qmin, self.chain.qmax
         self._tol = np.array([TRACKING_FAULT_TOLERANCE[j.joint_type] for j in self.chain.joints])
         self._feedforward_bound = (FEEDFORWARD_FACTOR * kin.v_max).tolist()
         self._tracking_bad_since = math.nan
@@ -155,12 +166,39 @@ class Arm(ServoJoints):
         return self._sim.data.actuator_force[self._idx]
 
     def _q_set(self) -> np.ndarray:
-        return self._sim.servo.q_ref[self._idx]
+        """The joint position setpoint: the servo's reference, and for joints in effort mode
+        the measured position, as the dVRK's PID sets it (dvrk.md 2.2 ``setpoint_js``), so a
+        position command after ``free``/``servo_jf``/``servo_cf`` starts where the arm is."""
+        servo = self._sim.servo
+        q_ref = servo.q_ref[self._idx]  # fancy indexing: a new array
+        effort = servo.effort_mode[self._idx]
+        return np.where(effort, self._q(), q_ref) if effort.any() else q_ref
 
     def _refuse(self, command: str, message: str) -> CommandResult:
+        """Refuse ``command``, saying why on the error channel, throttled: "arm not ready" and
+        "inside the cannula" as the dVRK throttles them, other refusals of a streaming
+        command (``servo_*``) once per STREAMING_REFUSAL_INTERVAL."""
         text = f"{command}: {message}"
         now = self._now()
-        if command.rpartition("/")[2].startswith("servo"):
+        if message.startswith(NOT_READY):
+            last, suppressed = self._refusals.get(NOT_READY, (-np.inf, 0))
+            if now - last < NOT_READY_INTERVAL:
+                self._refusals[NOT_READY] = (last, suppressed + 1)
+                return CommandResult(False, f"{self.name}: {text}")
+            if suppressed:
+                text += (
+                    f" ({suppressed} more refusals because the arm was not ready in the last "
+                    f"{now - last:.3g} s)"
+                )
+            self._refusals[NOT_READY] = (now, 0)
+        elif IN_CANNULA in message:
+            run = self._refusals.get(IN_CANNULA, (now, 0))[1]
+            self._refusals[IN_CANNULA] = (now, run + 1)
+            if run % CANNULA_REFUSAL_PERIOD:
+                return CommandResult(False, f"{self.name}: {text}")
+            if run:
+                text += f" ({CANNULA_REFUSAL_PERIOD - 1} more refusals inside the cannula since)"
+        elif command.rpartition("/")[2].startswith("servo"):
             last, suppressed = self._refusals.get(command, (-np.inf, 0))
             if now - last < STREAMING_REFUSAL_INTERVAL:
                 self._refusals[command] = (last, suppressed + 1)
@@ -180,13 +218,19 @@ class Arm(ServoJoints):
     def _not_ready(self, cartesian: bool = False) -> str:
         """Why joint (or Cartesian) commands are refused now, or ``""`` (dvrk.md 2.4)."""
         if self._state != ops.ENABLED:
-            return f"arm not ready: operating state is {self._state}, needs ENABLED"
+            return f"{NOT_READY}: operating state is {self._state}, needs ENABLED"
         if not self._homed:
-            return "arm not ready: not homed (send state_command 'home' first)"
+            return f"{NOT_READY}: not homed (send state_command 'home' first)"
         if self._traj_homing:
-            return "arm not ready: homing in progress"
+            return f"{NOT_READY}: homing in progress"
+        refusals = self._refusals
+        if refusals:  # ready: the runs of throttled refusals end
+            refusals.pop(NOT_READY, None)
         if cartesian:
-            return self._cartesian_unsafe()
+            why = self._cartesian_unsafe()
+            if not why and refusals:
+                refusals.pop(IN_CANNULA, None)
+            return why
         return ""
 
     def _cartesian_unsafe(self) -> str:
@@ -270,11 +314,13 @@ class Arm(ServoJoints):
 
     def _start_trajectory(self, goal: np.ndarray, homing: bool = False) -> None:
         servo = self._sim.servo
+        start = self._q_set()  # before leaving effort mode: where the arm is, then
+        servo.q_ref[self._idx] = start
         servo.effort_mode[self._idx] = False
         servo.tau_ff[self._idx] = 0.0
         self._wrench = None
         r = self._trajectory_ratio
-        self._traj = plan_trajectory(self._q_set(), goal, self.kin.v_max * r, self.kin.a_max * r)
+        self._traj = plan_trajectory(start, goal, self.kin.v_max * r, self.kin.a_max * r)
         self._traj_t0 = self._now()
         self._traj_homing = homing
         self._publish_state()
@@ -330,11 +376,17 @@ class Arm(ServoJoints):
         )
 
     def setpoint_js(self) -> JointState:
+        """The servo's setpoint; in effort mode the measured position and velocity (the
+        dVRK's PID setpoint there, dvrk.md 2.2) and the commanded efforts."""
         servo = self._sim.servo
+        qd_ref = servo.qd_ref[self._idx]
+        effort = servo.effort_mode[self._idx]
+        if effort.any():
+            qd_ref = np.where(effort, self._qd(), qd_ref)
         return JointState(
             self.chain.joint_names,
-            servo.q_ref[self._idx],
-            servo.qd_ref[self._idx],
+            self._q_set(),
+            qd_ref,
             servo.tau_ff[self._idx],
             self._now(),
         )
@@ -353,8 +405,10 @@ class Arm(ServoJoints):
         if v is None:
             return None, msg
         goal = self._q_set() + v if relative else v
-        msg = check_limits(goal, self.chain.qmin, self.chain.qmax, self.chain.joint_names, "goal")
-        return (None, msg) if msg else (goal, "")
+        # Clipped to the joint limits, not refused: the dVRK clips every joint goal of a
+        # homed arm (clip_jp, dvrk.md 1.2-1.5 limits), so an arm resting a hair past a limit
+        # still takes goals made from its setpoint.
+        return clip_goal(goal, self._qmin, self._qmax, self.chain.joint_names, "goal")
 
     def servo_jp(self, position, velocity=None) -> CommandResult:
         """Joint position setpoint for the next tick (optional velocity feed-forward)."""
@@ -373,6 +427,7 @@ class Arm(ServoJoints):
             if msg:
                 return self._refuse("servo_jp", msg)
         self._servo_position(goal, qd)
+        return ACCEPTED
 
     def _feedforward_over(self, qd: np.ndarray, what: str) -> str:
         """Message if a joint velocity feed-forward is over FEEDFORWARD_FACTOR x the dVRK's
@@ -380,7 +435,6 @@ class Arm(ServoJoints):
         return check_bound(qd, self._feedforward_bound, self.chain.joint_names,
                            what, f"(rad/s or m/s; {FEEDFORWARD_FACTOR:g} x the dVRK trajectory "
                            "limit)")  # fmt: skip
-        return ACCEPTED
 
     def servo_jr(self, increment) -> CommandResult:
         """Add ``increment`` to the current joint setpoint."""
@@ -443,14 +497,14 @@ class Arm(ServoJoints):
     def hold(self) -> CommandResult:
         """Stop moving and keep the current position."""
         if self._state != ops.ENABLED:
-            return self._refuse("hold", f"arm not ready: operating state is {self._state}")
+            return self._refuse("hold", f"{NOT_READY}: operating state is {self._state}")
         self._hold_here()
         return ACCEPTED
 
     def free(self) -> CommandResult:
         """Zero effort plus gravity compensation: the arm can be moved by hand."""
         if self._state != ops.ENABLED:
-            return self._refuse("free", f"arm not ready: operating state is {self._state}")
+            return self._refuse("free", f"{NOT_READY}: operating state is {self._state}")
         self._set_effort(np.zeros(self.dof))
         return ACCEPTED
 
@@ -544,10 +598,10 @@ class Arm(ServoJoints):
             return None, msg
         T_base_goal = self._T_base_reference() @ T  # IK works in the chain base (dvrk.md 1.8)
         result = inverse_kinematics(self.kin, T_base_goal, seed)
-        if not result.success:
+        if not (result.success or result.reached):  # reached: only past a joint limit
             return None, f"inverse kinematics failed: {result.message}"
-        msg = check_limits(result.q, self.chain.qmin, self.chain.qmax, self.chain.joint_names, "IK")
-        return (None, msg) if msg else (result.q, "")
+        # The dVRK clips the IK solution to the joint limits too (clip_jp after IK).
+        return clip_goal(result.q, self._qmin, self._qmax, self.chain.joint_names, "IK")
 
     def servo_cp(self, T_goal, twist=None) -> CommandResult:
         """Cartesian setpoint in the base frame's reference; IK seeded with measured joints."""

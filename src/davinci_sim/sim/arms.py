@@ -12,10 +12,13 @@ from davinci_sim.geometry import so3
 from davinci_sim.kinematics import fk
 from davinci_sim.kinematics.arms import ArmKinematics, SUJArmKinematics
 from davinci_sim.kinematics.chain import DHChain
+from davinci_sim.sim import arm_laws as laws
 from davinci_sim.sim.arm import Arm
+from davinci_sim.sim.impedance import CartesianImpedance, impedance_problem, impedance_wrench
 from davinci_sim.sim.jaw import Jaw
+from davinci_sim.sim.trajectory import step_towards
 from davinci_sim.sim.types import ACCEPTED, CommandResult
-from davinci_sim.sim.validation import as_number
+from davinci_sim.sim.validation import MAX_FORCE, MAX_TORQUE, as_number
 
 if TYPE_CHECKING:
     from davinci_sim.sim.simulation import Simulation
@@ -129,6 +132,8 @@ def _insert_jp(arm: Arm, depth) -> CommandResult:
 #: MTM joints that orient the handle: wrist platform, pitch, yaw, roll (dvrk.md 1.5). Their
 #: axes cross at the tip, so they turn the handle without moving it.
 MTM_WRIST_JOINTS = slice(3, 7)
+#: The bounds of a servo_cf wrench (sim.validation), for servo_ci's wrench.
+_WRENCH_BOUND = np.array([MAX_FORCE] * 3 + [MAX_TORQUE] * 3)
 #: Damped-least-squares steps per tick of the orientation lock, and their damping (rad²).
 _LOCK_STEPS = 2
 _LOCK_DAMPING = 1e-4
@@ -143,9 +148,11 @@ class MTM(Arm):
 
     ``lock_orientation(R)`` (dvrk.md 2.2, MTM-specific) holds the handle's orientation while the
     arm is in effort mode (``free``, ``body/servo_cf``, ``spatial/servo_cf``): the four wrist
-    joints are then position-servoed to an orientation IK solution at every tick and the
-    three positioning joints stay in effort mode, so the hand still moves the handle freely.
-    In position modes the lock is kept but has no effect, as on the dVRK.
+    joints are then position-servoed and the three positioning joints stay in effort mode, so
+    the hand still moves the handle freely. As on the dVRK, the wrist goes to the locked
+    orientation along a trajectory within the MTM's joint limits (dvrk.md 1.9), starting from
+    where the wrist is and following the orientation's IK solution as it changes (the handle
+    moves, the lock is updated). In position modes the lock is kept but has no effect.
     """
 
     def __init__(self, name: str, kin: ArmKinematics, sim: Simulation) -> None:
@@ -155,6 +162,14 @@ class MTM(Arm):
         self.gripper = Jaw(self, kin.gripper, "gripper", 4 * np.pi, 8 * np.pi, requires_ready=False)
         self._R_lock: np.ndarray | None = None
         self._wrist_idx = self._idx[MTM_WRIST_JOINTS]
+        self._lock_traj: tuple[np.ndarray, np.ndarray] | None = None
+        """The wrist's setpoint position and velocity on the way to the locked orientation
+        (rad, rad/s); None while the lock does not drive the wrist."""
+        self._lock_goal: np.ndarray | None = None
+        """The last IK solution of the wrist (rad): the next tick's seed."""
+        self._impedance: CartesianImpedance | None = None
+        """The ``servo_ci`` gains in force (None: none)."""
+        self._impedance_w: np.ndarray | None = None
 
     def lock_orientation(self, R_reference_tip) -> CommandResult:
         """Hold the handle at orientation ``R_reference_tip`` (3x3, in the ``measured_cp``
@@ -167,9 +182,51 @@ class MTM(Arm):
         self._R_lock = R.copy()
         return ACCEPTED
 
+    def servo_ci(self, gains: CartesianImpedance) -> CommandResult:
+        """Cartesian impedance (dvrk.md 2.2 ``servo_ci``; :mod:`davinci_sim.sim.impedance`):
+        from now on, every tick, the wrench ``gains`` give for the handle's measured pose and
+        twist (reference frame, HRSV by default) is applied at the handle, as a
+        ``spatial/servo_cf`` would (clamped to its bounds, each joint to its ``ftmax``). Any
+        other motion or effort command ends it; the orientation lock works with it. As on the
+        dVRK, body wrenches are expressed in the reference orientation from now on
+        (``body/set_cf_orientation_absolute(True)``)."""
+        why = self._not_ready(cartesian=True)
+        if why:
+            return self._refuse("servo_ci", why)
+        msg = impedance_problem(gains)
+        if msg:
+            return self._refuse("servo_ci", msg)
+        if self._wrench is None or self._wrench[0] != "spatial":  # entering effort mode
+            self._set_effort(np.zeros(self.dof))
+        self._impedance = gains
+        self._body_cf_absolute = True
+        self._apply_impedance()
+        return ACCEPTED
+
+    def impedance(self) -> CartesianImpedance | None:
+        """The ``servo_ci`` gains in force, or None."""
+        return self._impedance
+
+    def _apply_impedance(self) -> None:
+        """The impedance's wrench at the measured pose and twist, as the spatial wrench."""
+        assert self._impedance is not None
+        _, T_base_tip, J = self._measured_kinematics(jacobian=True)
+        T_ref_base = self.base_frame()[0]
+        T_ref_tip = laws.pose_in_reference(T_ref_base, T_base_tip)
+        twist = laws.twist_in_reference(T_ref_base[:3, :3], J, self._qd())
+        w = np.clip(impedance_wrench(self._impedance, T_ref_tip, twist), -_WRENCH_BOUND,
+                    _WRENCH_BOUND)  # fmt: skip
+        self._wrench = ("spatial", w)
+        self._impedance_w = w  # (another servo_cf replaces it: the impedance ends)
+        self._sim.servo.tau_ff[self._idx] = self._wrench_to_effort("spatial", w)
+
     def unlock_orientation(self) -> CommandResult:
         """Let the handle turn freely again in effort mode."""
         self._R_lock = None
+        servo = self._sim.servo
+        if self._lock_traj is not None and servo.effort_mode[self._idx[0]]:
+            servo.effort_mode[self._wrist_idx] = True  # the wrist back in effort mode
+        self._lock_traj = self._lock_goal = None
         return ACCEPTED
 
     def orientation_locked(self) -> bool:
@@ -177,37 +234,76 @@ class MTM(Arm):
 
     def get_state(self) -> dict:
         """The arm's state (:meth:`Arm.get_state`), the gripper's and the orientation lock."""
-        R_lock = None if self._R_lock is None else self._R_lock.copy()
-        return {**super().get_state(), "gripper": self.gripper.get_state(), "R_lock": R_lock}
+        return {
+            **super().get_state(),
+            "gripper": self.gripper.get_state(),
+            "R_lock": _copy(self._R_lock),
+            "lock_traj": None if self._lock_traj is None else tuple(map(_copy, self._lock_traj)),
+            "lock_goal": _copy(self._lock_goal),
+            "impedance": self._impedance,  # frozen: shared, not copied
+        }
 
     def set_state(self, state: dict) -> None:
         state = dict(state)
         self.gripper.set_state(state.pop("gripper"))
-        R_lock = state.pop("R_lock")
-        self._R_lock = None if R_lock is None else R_lock.copy()
+        self._R_lock = _copy(state.pop("R_lock"))
+        lock_traj = state.pop("lock_traj", None)
+        self._lock_traj = None if lock_traj is None else tuple(map(_copy, lock_traj))
+        self._lock_goal = _copy(state.pop("lock_goal", None))
+        self._impedance = state.pop("impedance", None)
         super().set_state(state)
+        self._impedance_w = None
+        if self._impedance is not None and self._wrench is not None:
+            self._impedance_w = self._wrench[1]  # the restored wrench is the impedance's
 
     def _pre_step(self, t: float) -> None:
+        if self._impedance is not None:
+            if (
+                self._wrench is None
+                or self._wrench[1] is not self._impedance_w
+                or (self._state != "ENABLED")
+            ):  # another command (or a fault, a disable) ended the impedance
+                self._impedance = self._impedance_w = None
+            else:
+                self._apply_impedance()
         super()._pre_step(t)
         self.gripper._pre_step(t)
         servo = self._sim.servo
-        if self._R_lock is not None and servo.effort_mode[self._idx[0]]:
-            servo.effort_mode[self._wrist_idx] = False
-            servo.q_ref[self._wrist_idx] = self._locked_wrist_goal()
-            servo.qd_ref[self._wrist_idx] = 0.0
+        if self._R_lock is None or not servo.effort_mode[self._idx[0]]:
+            self._lock_traj = self._lock_goal = None
+            return
+        if self._lock_traj is None:  # the lock starts driving the wrist: from where it is
+            self._lock_traj = (self._q()[MTM_WRIST_JOINTS], self._qd()[MTM_WRIST_JOINTS].copy())
+        r = self._trajectory_ratio
+        q, qd = step_towards(*self._lock_traj, self._locked_wrist_goal(),
+                             self.kin.v_max[MTM_WRIST_JOINTS] * r,
+                             self.kin.a_max[MTM_WRIST_JOINTS] * r, self._sim.dt)  # fmt: skip
+        self._lock_traj = (q, qd)
+        servo.effort_mode[self._wrist_idx] = False
+        servo.q_ref[self._wrist_idx] = q
+        servo.qd_ref[self._wrist_idx] = qd
 
     def _locked_wrist_goal(self) -> np.ndarray:
-        """Wrist joints giving the locked orientation with the current arm joints (DLS)."""
+        """Wrist joints giving the locked orientation with the current arm joints (DLS seeded
+        with the last solution, so it converges over the ticks as the dVRK's seeded IK)."""
         assert self._R_lock is not None
         R_base_goal = self.base_frame()[0][:3, :3].T @ self._R_lock
         q = self._q()
+        if self._lock_goal is not None:
+            q[MTM_WRIST_JOINTS] = self._lock_goal
         for _ in range(_LOCK_STEPS):
             R = fk.forward_kinematics(self.chain, q)[:3, :3]
             err = so3.rotation_vector(R_base_goal @ R.T)  # spatial error, base frame
             J = fk.jacobian_spatial(self.chain, q)[3:, MTM_WRIST_JOINTS]
             q[MTM_WRIST_JOINTS] += J.T @ dgesv(J @ J.T + _LOCK_DAMPING * np.eye(3), err)[2]
         wrist = q[MTM_WRIST_JOINTS]
-        return np.clip(wrist, self.chain.qmin[MTM_WRIST_JOINTS], self.chain.qmax[MTM_WRIST_JOINTS])
+        goal = np.clip(wrist, self.chain.qmin[MTM_WRIST_JOINTS], self.chain.qmax[MTM_WRIST_JOINTS])
+        self._lock_goal = goal
+        return goal
+
+
+def _copy(a: np.ndarray | None) -> np.ndarray | None:
+    return None if a is None else a.copy()
 
 
 def _is_array_like(value) -> bool:

@@ -16,7 +16,7 @@ from davinci_sim.sim.servo import ServoJoints
 from davinci_sim.sim.state import capture, restore
 from davinci_sim.sim.trajectory import JointTrajectory, plan_trajectory
 from davinci_sim.sim.types import ACCEPTED, CommandResult, JointState
-from davinci_sim.sim.validation import ABSURD_FACTOR, as_vector, check_bound, check_limits
+from davinci_sim.sim.validation import ABSURD_FACTOR, as_vector, check_bound, clip_goal
 
 if TYPE_CHECKING:
     from davinci_sim.sim.arm import Arm
@@ -49,7 +49,7 @@ class Jaw(ServoJoints):
         self._a_max = a_max
         self._traj: JointTrajectory | None = None
         self._traj_t0 = 0.0
-        # PSM jaw commands need a Cartesian-ready arm (dvrk.md 2.2); MTM fingers need nothing.
+        # PSM jaw commands need a ready arm (dvrk.md 2.2); MTM fingers need nothing.
         self._requires_ready = requires_ready
         self._command_prefix = spec.name
 
@@ -72,7 +72,16 @@ class Jaw(ServoJoints):
         )
 
     def setpoint_js(self) -> JointState:
+        """The opening setpoint; in effort mode the measured opening (the dVRK PID's)."""
         servo = self._arm._sim.servo
+        if servo.effort_mode[self._idx].any():
+            return JointState(
+                (self.spec.name,),
+                [self._angle()],
+                [float(self._arm._sim.data.qvel[self._dofadr].sum())],
+                [float(servo.tau_ff[self._idx].mean())],
+                self._arm._now(),
+            )
         return JointState(
             (self.spec.name,),
             [float(servo.q_ref[self._idx].sum())],
@@ -85,7 +94,9 @@ class Jaw(ServoJoints):
         return self._angle()
 
     def _goal(self, command: str, value) -> tuple[float | None, CommandResult]:
-        why = self._arm._not_ready(cartesian=True) if self._requires_ready else ""
+        # Joint readiness only: inside the cannula, where Cartesian control is not allowed,
+        # the dVRK moves the jaw in joint space (jaw_servo_jp/jaw_move_jp, dvrk.md 2.2).
+        why = self._arm._not_ready() if self._requires_ready else ""
         if why:
             return None, self._arm._refuse(f"{self._command_prefix}/{command}", why)
         if isinstance(value, float | int | np.floating | np.integer) and not isinstance(
@@ -101,12 +112,13 @@ class Jaw(ServoJoints):
             v, msg = as_vector(np.atleast_1d(value) if np.ndim(value) == 0 else value, 1, "angle")
         if v is None:
             return None, self._arm._refuse(f"{self._command_prefix}/{command}", msg)
-        angle = float(v if np.ndim(v) == 0 else v[0])
-        lo, hi = self.spec.qmin, self.spec.qmax
-        msg = check_limits([angle], [lo], [hi], (self.spec.name,), "goal")
-        if msg:
+        # Clipped to the jaw's limits as the dVRK's clip_jaw_jp does (dvrk.md 1.2); only a
+        # value beyond any joint's reach is refused.
+        goal, msg = clip_goal([float(v if np.ndim(v) == 0 else v[0])], self.spec.qmin,
+                              self.spec.qmax, (self.spec.name,), "goal")  # fmt: skip
+        if goal is None:
             return None, self._arm._refuse(f"{self._command_prefix}/{command}", msg)
-        return angle, ACCEPTED
+        return float(goal[0]), ACCEPTED
 
     def servo_jp(self, angle) -> CommandResult:
         """Opening angle setpoint (rad) for the next tick."""

@@ -80,3 +80,26 @@ def plan_trajectory(
     v_peak = np.minimum((a_max * duration - np.sqrt(disc)) / 2.0, v_max)
     v_peak = np.where(dist > 0, v_peak, 0.0)
     return JointTrajectory(q_start, q_goal, v_peak, a_max, duration)
+
+
+def step_towards(
+    q: np.ndarray,
+    qd: np.ndarray,
+    goal: np.ndarray,
+    v_max: np.ndarray,
+    a_max: np.ndarray,
+    dt: float,
+) -> tuple[np.ndarray, np.ndarray]:
+    """One step of ``dt`` s of an online trajectory from ``(q, qd)`` towards ``goal`` (which
+    may change at every step), each joint within ``v_max`` and ``a_max``: the position and
+    velocity setpoints after the step. As the dVRK's online Reflexxes evaluation (dvrk.md
+    1.9), the velocity changes continuously; each joint speeds up, cruises and brakes so as to
+    stop at the goal (joints are not synchronised)."""
+    e = goal - q
+    dist = np.abs(e)
+    # The fastest speed that can still stop at the goal, no faster than v_max, and no more
+    # than what reaches it within this step.
+    v_goal = np.sign(e) * np.minimum(np.minimum(v_max, np.sqrt(2.0 * a_max * dist)), dist / dt)
+    dv = a_max * dt
+    qd_next = qd + np.clip(v_goal - qd, -dv, dv)
+    return q + qd_next * dt, qd_next

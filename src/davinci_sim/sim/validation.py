@@ -25,22 +25,19 @@ def as_vector(value, n: int, what: str) -> tuple[np.ndarray | None, str]:
     return v, ""
 
 
-def check_limits(q: np.ndarray, qmin: np.ndarray, qmax: np.ndarray, names, what: str) -> str:
-    """Message naming the first joint outside [qmin, qmax], or ``""``."""
-    # Floats: this runs on every streaming command, at 1 kHz.
-    values, lo, hi = np.asarray(q).tolist(), np.asarray(qmin).tolist(), np.asarray(qmax).tolist()
-    bad = [
-        i
-        for i, (x, a, b) in enumerate(zip(values, lo, hi, strict=True))
-        if x < a - 1e-9 or x > b + 1e-9
-    ]
-    if not bad:
-        return ""
-    i = bad[0]
-    return (
-        f"{what}: joint {names[i]!r} = {q[i]:.6g} is outside its limits "
-        f"[{qmin[i]:.6g}, {qmax[i]:.6g}]"
-    )
+def clip_goal(q, qmin, qmax, names, what: str) -> tuple[np.ndarray | None, str]:
+    """Joint goal ``q`` (rad or m) clipped to [``qmin``, ``qmax``] as the dVRK's ``clip_jp``
+    clips every goal of a homed arm (``move_jp``, ``servo_jp``, the IK results of
+    ``move_cp``/``servo_cp``), or ``(None, message)`` for a goal beyond
+    ±:data:`MAX_JOINT_VALUE`: that is a wrong value, not a place past a limit."""
+    q = np.asarray(q, dtype=float)
+    if not (np.abs(q) <= MAX_JOINT_VALUE).all():  # NaN too
+        i = int(np.flatnonzero(~(np.abs(q) <= MAX_JOINT_VALUE))[0])
+        return None, (
+            f"{what}: joint {names[i]!r} = {q[i]:.6g} is outside its limits by far (beyond "
+            f"±{MAX_JOINT_VALUE:g} rad or m; goals nearer are clipped to the limits)"
+        )
+    return np.minimum(np.maximum(q, qmin), qmax), ""
 
 
 #: Largest coordinate of a pose's position, m: every frame of the system (cart, camera,

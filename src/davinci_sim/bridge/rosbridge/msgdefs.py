@@ -88,10 +88,10 @@ MESSAGES: Final[dict[str, str]] = {
     "crtk_msgs/CartesianImpedance": (
         "std_msgs/Header header\ngeometry_msgs/Quaternion force_orientation\n"
         "geometry_msgs/Vector3 force_position\ngeometry_msgs/Quaternion torque_orientation\n"
-        "CartesianImpedanceHalfPlaneGains position_positive\n"
-        "CartesianImpedanceHalfPlaneGains position_negative\n"
-        "CartesianImpedanceHalfPlaneGains orientation_positive\n"
-        "CartesianImpedanceHalfPlaneGains orientation_negative"
+        "crtk_msgs/CartesianImpedanceHalfPlaneGains position_positive\n"
+        "crtk_msgs/CartesianImpedanceHalfPlaneGains position_negative\n"
+        "crtk_msgs/CartesianImpedanceHalfPlaneGains orientation_positive\n"
+        "crtk_msgs/CartesianImpedanceHalfPlaneGains orientation_negative"
     ),
     # ------------------------------------------------------------------ tf, diagnostics, logs
     "tf2_msgs/TFMessage": "geometry_msgs/TransformStamped[] transforms",
