@@ -187,6 +187,20 @@ def _project(
     return u, np.einsum("mcj,mcj->mc", d, d)
 
 
+def brute_force_constants(path: Polyline) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """What :func:`closest_point_brute` compares a query against, for a compiled row form of
+    it (``haptics.path_query``): the basis (3, 2S) (edges E then centred starts A, as
+    columns), A·E (S,), A·A (S,) and ‖E‖² (S,); coordinates centred on :attr:`Polyline.centre`."""
+    return path._brute_constants
+
+
+def closest_point_result(path: Polyline, points, segment, u) -> ClosestPoint:
+    """The :class:`ClosestPoint` of ``points`` (..., 3) whose closest points are at parameter
+    ``u`` (...) of segments ``segment`` (..., int): the arithmetic every query method ends
+    with."""
+    return _result(path, np.asarray(points, dtype=float), segment, u)
+
+
 def _result(path: Polyline, q: np.ndarray, seg: np.ndarray, u: np.ndarray) -> ClosestPoint:
     point = path.starts[seg] + u[..., None] * path.edges[seg]
     phi = point - q

@@ -61,6 +61,7 @@ from typing import NamedTuple
 import numpy as np
 
 from davinci_sim.geometry.path import Polyline
+from davinci_sim.haptics.path_query import closest_point
 
 #: Default width of the ramp that makes the force vanish on the path, m: 0, the seed's law
 #: as printed, in the study and on the live console alike (a ramp is an explicit option:
@@ -189,7 +190,7 @@ class ViscousGuidance:
 
     def terms(self, position, velocity) -> ViscousTerms:
         """(1)-(7) for tool tips at ``position`` (..., 3) moving at ``velocity`` (..., 3)."""
-        deviation = self.path.closest_point(position).deviation
+        deviation = closest_point(self.path, position).deviation  # (one tip: compiled)
         return viscous_guidance_terms(
             velocity, deviation, B=self.B, G_max=self.G_max, transition=self.transition
         )

@@ -98,6 +98,8 @@ class Arm(ServoJoints):
         self._body_cf_absolute = False
         self._T_user_base: tuple[np.ndarray, str] | None = None
         self._tol = np.array([TRACKING_FAULT_TOLERANCE[j.joint_type] for j in self.chain.joints])
+        self._tracking_adr = self._qposadr.astype(np.int64)  # the kernel's argument types
+        self._tracking_idx = self._idx.astype(np.int64)
         self._feedforward_bound = (FEEDFORWARD_FACTOR * kin.v_max).tolist()
         self._tracking_bad_since = math.nan
         """When a joint went out of tracking tolerance, s (nan: none is)."""
@@ -302,14 +304,12 @@ class Arm(ServoJoints):
 
     def _check_tracking(self, t: float) -> None:
         servo = self._sim.servo
-        q, q_ref = self._q(), servo.q_ref[self._idx]
-        bad = laws.tracking_bad(q, q_ref, self._tol, servo.effort_mode[self._idx])
-        self._tracking_bad_since, fault = laws.tracking_fault(
-            bad.any(), self._tracking_bad_since, t
-        )
+        # laws.tracking_bad as one compiled row kernel: every arm, every tick.
+        i = laws.tracking_first_bad(self._sim.measured_qpos(), self._tracking_adr, servo.q_ref,
+                                    self._tracking_idx, self._tol, servo.effort_mode)  # fmt: skip
+        self._tracking_bad_since, fault = laws.tracking_fault(i >= 0, self._tracking_bad_since, t)
         if fault:
-            i = int(np.flatnonzero(bad)[0])
-            err = np.abs(q - q_ref)
+            err = np.abs(self._q() - servo.q_ref[self._idx])
             self._fault(
                 f"tracking error on joint {self.chain.joint_names[i]!r}: {err[i]:.4g} exceeds "
                 f"{self._tol[i]:.4g}"

@@ -22,6 +22,7 @@ import numpy as np
 from davinci_sim.geometry.so3 import rotate_pairs
 from davinci_sim.kinematics import fk
 from davinci_sim.kinematics.chain import DHChain
+from davinci_sim.kinematics.jit import jit
 
 try:  # the gufunc behind np.linalg.solve (see _solve)
     from numpy.linalg import _umath_linalg
@@ -113,6 +114,19 @@ def tracking_bad(
     return (np.abs(q - q_ref) > tolerance) & ~effort_mode
 
 
+@jit
+def tracking_first_bad(qpos, qposadr, q_ref, idx, tolerance, effort_mode) -> int:
+    """:func:`tracking_bad` of one arm as one compiled row kernel (the live arm's check, on
+    every arm at 1 kHz): the first of its joints (``qposadr`` into ``qpos``, ``idx`` into
+    the servo's ``q_ref``/``effort_mode``; both int64) that is position-servoed and further
+    from its setpoint than ``tolerance``, or -1. The same comparisons as the batch law."""
+    for k in range(idx.shape[0]):
+        j = idx[k]
+        if abs(qpos[qposadr[k]] - q_ref[j]) > tolerance[k] and not effort_mode[j]:
+            return k
+    return -1
+
+
 def tracking_fault(bad, bad_since, t: float):
     """One tick of the tracking watch: ``bad`` (...) any joint of the arm is bad now;
     ``bad_since`` (...) when it became bad, s (nan: it is not). Returns the new
@@ -129,3 +143,13 @@ def tracking_fault(bad, bad_since, t: float):
 def within_limits(q: np.ndarray, qmin: np.ndarray, qmax: np.ndarray) -> np.ndarray:
     """(...) all joints of ``q`` (..., dof) within [qmin, qmax] (with ``LIMIT_SLACK``)."""
     return np.all((q >= qmin - LIMIT_SLACK) & (q <= qmax + LIMIT_SLACK), axis=-1)
+
+
+def _warm_up() -> None:
+    """Compile (or load from numba's cache) at import, with the live arm's argument types,
+    never in the 1 kHz loop (:mod:`davinci_sim.kinematics.jit`)."""
+    i = np.zeros(1, dtype=np.int64)
+    tracking_first_bad(np.zeros(1), i, np.zeros(1), i, np.ones(1), np.zeros(1, dtype=bool))
+
+
+_warm_up()

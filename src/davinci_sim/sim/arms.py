@@ -132,6 +132,7 @@ MTM_WRIST_JOINTS = slice(3, 7)
 #: Damped-least-squares steps per tick of the orientation lock, and their damping (rad²).
 _LOCK_STEPS = 2
 _LOCK_DAMPING = 1e-4
+_LOCK_DAMPING_EYE = _LOCK_DAMPING * np.eye(3)
 
 
 class MTM(Arm):
@@ -155,6 +156,10 @@ class MTM(Arm):
         self.gripper = Jaw(self, kin.gripper, "gripper", 4 * np.pi, 8 * np.pi, requires_ready=False)
         self._R_lock: np.ndarray | None = None
         self._wrist_idx = self._idx[MTM_WRIST_JOINTS]
+        self._wrist_limits = (
+            self.chain.qmin[MTM_WRIST_JOINTS].copy(),
+            self.chain.qmax[MTM_WRIST_JOINTS].copy(),
+        )
 
     def lock_orientation(self, R_reference_tip) -> CommandResult:
         """Hold the handle at orientation ``R_reference_tip`` (3x3, in the ``measured_cp``
@@ -201,13 +206,15 @@ class MTM(Arm):
         assert self._R_lock is not None
         R_base_goal = self.base_frame()[0][:3, :3].T @ self._R_lock
         q = self._q()
+        chain, wrist = self.chain, MTM_WRIST_JOINTS
         for _ in range(_LOCK_STEPS):
-            R = fk.forward_kinematics(self.chain, q)[:3, :3]
-            err = so3.rotation_vector(R_base_goal @ R.T)  # spatial error, base frame
-            J = fk.jacobian_spatial(self.chain, q)[3:, MTM_WRIST_JOINTS]
-            q[MTM_WRIST_JOINTS] += J.T @ dgesv(J @ J.T + _LOCK_DAMPING * np.eye(3), err)[2]
-        wrist = q[MTM_WRIST_JOINTS]
-        return np.clip(wrist, self.chain.qmin[MTM_WRIST_JOINTS], self.chain.qmax[MTM_WRIST_JOINTS])
+            # Pose and Jacobian in one kernel pass (the pose is the same bits as FK alone).
+            T, J_spatial = fk.forward_kinematics_and_jacobian(chain, q)
+            err = so3.rotation_vector(R_base_goal @ T[:3, :3].T)  # spatial error, base frame
+            J = J_spatial[3:, wrist]
+            q[wrist] += J.T @ dgesv(J @ J.T + _LOCK_DAMPING_EYE, err)[2]
+        lo, hi = self._wrist_limits
+        return np.minimum(np.maximum(q[wrist], lo), hi)  # np.clip's arithmetic, less overhead
 
 
 def _is_array_like(value) -> bool:

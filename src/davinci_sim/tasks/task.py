@@ -37,6 +37,7 @@ from davinci_sim.haptics.adaptive import PARAMS as ADAPTIVE_PARAMS
 from davinci_sim.haptics.combine import combine
 from davinci_sim.haptics.fixture import Fixture
 from davinci_sim.haptics.kinds import build_fixture, fixture_kind
+from davinci_sim.haptics.path_query import closest_point
 from davinci_sim.tasks.base import (
     FRAMES,
     Sample,
@@ -265,7 +266,7 @@ class PathTask(Task, kind="path"):
         ``distance`` and ``arc_length`` of the tips' closest path points, m."""
         path = self.path
         tip = sample.tip
-        cp = path.closest_point(tip)
+        cp = closest_point(path, tip)  # (one trial, the live session: a compiled kernel)
         new = task_step(
             state,
             sample.time,
