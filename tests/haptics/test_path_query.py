@@ -26,7 +26,10 @@ def test_one_tip_equals_the_brute_force_query_bit_for_bit(shape):
         tips = path.vertices.mean(axis=0) + rng.normal(0, 0.03, (40, 3))
         tips[:5] = path.vertices[rng.integers(0, n, 5)]  # on vertices: u at 0 or 1 exactly
         for tip in tips:
-            _same(closest_point(path, tip.reshape(shape)), closest_point_brute(path, tip.reshape(shape)))
+            _same(
+                closest_point(path, tip.reshape(shape)),
+                closest_point_brute(path, tip.reshape(shape)),
+            )
 
 
 def test_ties_and_nan_follow_argmin():
