@@ -175,9 +175,7 @@ class HapticLoop:
             return psm.measured_cp().T, psm.measured_cv().twist
 
         def pose() -> np.ndarray:
-            T = psm.measured_cp().T  # a new array: read-only without a copy
-            T.setflags(write=False)
-            return T
+            return psm._measured_T()  # (measured_cp().T, read-only)
 
         def contact() -> np.ndarray:
             return T_world_camera[:3, :3].T @ sim.contact_force(psm.name)

@@ -528,6 +528,22 @@ class Arm(ServoJoints):
     def setpoint_cp(self) -> CartesianPose:
         return self._pose(self._q_set(), f"{self.name}_setpoint", local=False)
 
+    def _measured_T(self) -> np.ndarray:
+        """``measured_cp().T`` without building the message: a new read-only 4x4 (m), the
+        same bits (for the simulator's own per-tick readers: devices, haptics, tasks)."""
+        _, T_base_tip, _ = self._measured_kinematics()
+        T = laws.pose_in_reference(self.base_frame()[0], T_base_tip)
+        T.setflags(write=False)
+        return T
+
+    def _measured_twist(self) -> np.ndarray:
+        """``measured_cv().twist`` without building the message: a new read-only (6,)
+        (m/s, rad/s), the same bits."""
+        J = self._measured_kinematics(jacobian=True)[2]
+        twist = laws.twist_in_reference(self.base_frame()[0][:3, :3], J, self._qd())
+        twist.setflags(write=False)
+        return twist
+
     def measured_cv(self) -> CartesianTwist:
         """Tip twist (linear m/s, angular rad/s) in the base frame's orientation (dvrk.md 2.2)."""
         J = self._measured_kinematics(jacobian=True)[2]
@@ -535,11 +551,11 @@ class Arm(ServoJoints):
         twist = laws.twist_in_reference(T_ref_base[:3, :3], J, self._qd())
         return CartesianTwist(twist, ref, self.name, self._now())
 
-    def _cartesian_goal(self, command: str, T_goal, seed: np.ndarray):
+    def _cartesian_goal(self, command: str, T_goal, seed: np.ndarray, checked: bool = False):
         why = self._not_ready(cartesian=True)
         if why:
             return None, why
-        T, msg = as_transform(T_goal, "goal")
+        T, msg = (T_goal, "") if checked else as_transform(T_goal, "goal")
         if T is None:
             return None, msg
         T_base_goal = self._T_base_reference() @ T  # IK works in the chain base (dvrk.md 1.8)
@@ -551,7 +567,17 @@ class Arm(ServoJoints):
 
     def servo_cp(self, T_goal, twist=None) -> CommandResult:
         """Cartesian setpoint in the base frame's reference; IK seeded with measured joints."""
-        q, msg = self._cartesian_goal("servo_cp", T_goal, self._q())
+        return self._servo_cp(T_goal, twist, checked=False)
+
+    def _servo_cp_checked(self, T_goal: np.ndarray, twist=None) -> CommandResult:
+        """:meth:`servo_cp` of a goal known to be a proper 4x4 transform within reach (the
+        teleoperation's, composed of measured poses and rotations at 1 kHz): the goal is not
+        checked again; everything else is as :meth:`servo_cp` (readiness, IK, limits, the
+        twist and its feed-forward bound)."""
+        return self._servo_cp(T_goal, twist, checked=True)
+
+    def _servo_cp(self, T_goal, twist, checked: bool) -> CommandResult:
+        q, msg = self._cartesian_goal("servo_cp", T_goal, self._q(), checked)
         if q is None:
             return self._refuse("servo_cp", msg)
         qd = np.zeros(self.dof)

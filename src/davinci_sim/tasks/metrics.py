@@ -187,6 +187,10 @@ class Mean:
 
     value: Value
 
+    def unchanged_unmeasured(self, acc) -> bool:
+        """``add`` with no trial measured leaves ``acc`` as it is (see ``update``)."""
+        return _always(acc)
+
     def init(self, n: int, task=None):
         return np.zeros(n)
 
@@ -202,6 +206,10 @@ class Peak:
     """max value_i over the repetition's samples (0 without samples)."""
 
     value: Value
+
+    def unchanged_unmeasured(self, acc) -> bool:
+        """``add`` with no trial measured leaves ``acc`` as it is (see ``update``)."""
+        return _always(acc)
 
     def init(self, n: int, task=None):
         return np.zeros(n)
@@ -221,6 +229,10 @@ class PairSum:
     value: PairValue
     integer: bool = False
 
+    def unchanged_unmeasured(self, acc) -> bool:
+        """``add`` with no trial measured leaves ``acc`` as it is (see ``update``)."""
+        return _float_acc(acc)
+
     def init(self, n: int, task=None):
         return np.zeros(n, dtype=np.int64 if self.integer else float)
 
@@ -234,6 +246,10 @@ class PairSum:
 @dataclass(frozen=True)
 class Elapsed:
     """t_K − t_1, s (nan without samples)."""
+
+    def unchanged_unmeasured(self, acc) -> bool:
+        """``add`` with no trial measured leaves ``acc`` as it is (see ``update``)."""
+        return _always(acc)
 
     def init(self, n: int, task=None):
         return (np.full(n, np.nan), np.full(n, np.nan))
@@ -249,6 +265,10 @@ class Elapsed:
 @dataclass(frozen=True)
 class Count:
     """K, the number of samples of the repetition."""
+
+    def unchanged_unmeasured(self, acc) -> bool:
+        """``add`` with no trial measured leaves ``acc`` as it is (see ``update``)."""
+        return _always(acc)
 
     def init(self, n: int, task=None):
         return None
@@ -267,6 +287,10 @@ class Ratio:
 
     numerator: str
     denominator: str
+
+    def unchanged_unmeasured(self, acc) -> bool:
+        """``add`` with no trial measured leaves ``acc`` as it is (see ``update``)."""
+        return _always(acc)
 
     def init(self, n: int, task=None):
         return None
@@ -406,17 +430,27 @@ class MetricsAccumulator:
         m = np.asarray(mask, dtype=bool)
         pair = m & self._prev_in
         prev = sample if self._prev is None else self._prev
+        # No trial measures this sample (the live session between repetitions, most of its
+        # ticks): a reducer that declares it leaves its running value as it is skips the
+        # arithmetic that would give back the same bits (x + 0.0, where(False, ...)).
+        idle = not m.any()
         acc_new = []
         for metric, acc in zip(self.metrics, self._acc, strict=True):
             if metric.needs and any(getattr(sample, f) is None for f in metric.needs):
                 self._missing.add(metric.name)  # the sample cannot tell: unavailable
                 acc_new.append(acc)
                 continue
+            if idle and _unchanged_unmeasured(metric.reduce, acc):
+                acc_new.append(acc)
+                continue
             acc_new.append(metric.reduce.add(acc, m, pair, self.task, prev, sample, obs))
         self._acc = acc_new
         self._k = self._k + m
         self._prev_in = m.copy()
-        self._prev = sample if self._prev is None else self._prev.where(m, sample)
+        if self._prev is None:
+            self._prev = sample
+        else:
+            self._prev = self._prev.kept(sample) if idle else self._prev.where(m, sample)
 
     def result(self) -> MetricValues:
         done: dict[str, np.ndarray] = {}
@@ -435,6 +469,23 @@ class MetricsAccumulator:
     def set_state(self, state: dict) -> None:
         for k, v in copy.deepcopy(state).items():
             setattr(self, k, v)
+
+
+def _unchanged_unmeasured(reducer, acc) -> bool:
+    """Whether ``reducer.add`` with an all-false mask gives ``acc`` back bit for bit (its
+    ``unchanged_unmeasured(acc)``; a reducer without it is always run)."""
+    check = getattr(reducer, "unchanged_unmeasured", None)
+    return check is not None and check(acc)
+
+
+def _float_acc(acc) -> bool:
+    """``acc + where(False, value, 0)`` is ``acc`` whatever the value's type: float64 (an
+    integer running sum would turn float with a float value)."""
+    return isinstance(acc, np.ndarray) and acc.dtype == np.float64
+
+
+def _always(acc) -> bool:
+    return True
 
 
 def _where(m, fresh, acc):

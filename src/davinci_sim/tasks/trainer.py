@@ -46,7 +46,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from davinci_sim.tasks.metrics import PATH_METRICS, Metric, PairSum
+from davinci_sim.tasks.metrics import PATH_METRICS, Metric, PairSum, _always, _float_acc
 
 if TYPE_CHECKING:
     import mujoco
@@ -72,6 +72,10 @@ class Extent:
     value: object
     """``value(task, sample, obs) -> (n, 3)``."""
 
+    def unchanged_unmeasured(self, acc) -> bool:
+        """``add`` with no trial measured leaves ``acc`` as it is (see ``update``)."""
+        return _always(acc)
+
     def init(self, n: int, task=None):
         return (np.full((n, 3), np.inf), np.full((n, 3), -np.inf))
 
@@ -96,6 +100,10 @@ class Sum:
     """``value(task, sample, obs) -> (n,)``."""
     integer: bool = False
 
+    def unchanged_unmeasured(self, acc) -> bool:
+        """``add`` with no trial measured leaves ``acc`` as it is (see ``update``)."""
+        return _float_acc(acc)
+
     def init(self, n: int, task=None):
         return np.zeros(n, dtype=np.int64 if self.integer else float)
 
@@ -113,6 +121,10 @@ class Unreached:
 
     targets: object
     tolerance: object
+
+    def unchanged_unmeasured(self, acc) -> bool:
+        """``add`` with no trial measured leaves ``acc`` as it is (see ``update``)."""
+        return _always(acc)
 
     def init(self, n: int, task=None):
         k = 0 if task is None else len(self.targets(task))
