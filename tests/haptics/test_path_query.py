@@ -5,8 +5,7 @@ import numpy as np
 import pytest
 
 from davinci_sim.geometry.path import Polyline, closest_point_brute
-from davinci_sim.haptics.path_query import closest_point, closest_segment_row
-from davinci_sim.kinematics import jit
+from davinci_sim.haptics.path_query import closest_point, closest_point_row
 
 
 def _same(a, b) -> None:
@@ -44,10 +43,11 @@ def test_python_and_compiled_kernel_agree():
     path = Polyline([[0.0, 0, 0], [0.02, 0.01, 0], [0.03, -0.01, 0.005]])
     from davinci_sim.geometry.path import brute_force_constants
 
-    q = np.array([0.011, 0.002, -0.001]) - path.centre
-    args = (q, *brute_force_constants(path))
-    assert closest_segment_row(*args) == closest_segment_row.py_func(*args)
-    assert jit.ENABLED or closest_segment_row is closest_segment_row.py_func
+    args = (np.array([0.011, 0.002, -0.001]), path.centre, *brute_force_constants(path),
+            path.starts, path.edges, path.cumulative_length, path.segment_lengths)  # fmt: skip
+    out, out_py = np.empty(8), np.empty(8)
+    assert closest_point_row(*args, out) == closest_point_row.py_func(*args, out_py)
+    np.testing.assert_array_equal(out, out_py, strict=True)
 
 
 def test_batches_go_to_the_path():

@@ -194,13 +194,6 @@ def brute_force_constants(path: Polyline) -> tuple[np.ndarray, np.ndarray, np.nd
     return path._brute_constants
 
 
-def closest_point_result(path: Polyline, points, segment, u) -> ClosestPoint:
-    """The :class:`ClosestPoint` of ``points`` (..., 3) whose closest points are at parameter
-    ``u`` (...) of segments ``segment`` (..., int): the arithmetic every query method ends
-    with."""
-    return _result(path, np.asarray(points, dtype=float), segment, u)
-
-
 def _result(path: Polyline, q: np.ndarray, seg: np.ndarray, u: np.ndarray) -> ClosestPoint:
     point = path.starts[seg] + u[..., None] * path.edges[seg]
     phi = point - q
