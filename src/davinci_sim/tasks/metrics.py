@@ -395,6 +395,10 @@ class MetricsAccumulator:
         self.metrics = tuple(metrics)
         self.n = n
         self.task = task
+        self.unchanged_checks = tuple(
+            getattr(m.reduce, "unchanged_unmeasured", None) for m in self.metrics
+        )
+        """Each metric's reducer's ``unchanged_unmeasured`` (None: always run its ``add``)."""
         self.reset()
 
     def reset(self, mask=None) -> None:
@@ -435,12 +439,14 @@ class MetricsAccumulator:
         # arithmetic that would give back the same bits (x + 0.0, where(False, ...)).
         idle = not m.any()
         acc_new = []
-        for metric, acc in zip(self.metrics, self._acc, strict=True):
+        for metric, acc, unchanged in zip(
+            self.metrics, self._acc, self.unchanged_checks, strict=True
+        ):
             if metric.needs and any(getattr(sample, f) is None for f in metric.needs):
                 self._missing.add(metric.name)  # the sample cannot tell: unavailable
                 acc_new.append(acc)
                 continue
-            if idle and _unchanged_unmeasured(metric.reduce, acc):
+            if idle and unchanged is not None and unchanged(acc):
                 acc_new.append(acc)
                 continue
             acc_new.append(metric.reduce.add(acc, m, pair, self.task, prev, sample, obs))
@@ -469,13 +475,6 @@ class MetricsAccumulator:
     def set_state(self, state: dict) -> None:
         for k, v in copy.deepcopy(state).items():
             setattr(self, k, v)
-
-
-def _unchanged_unmeasured(reducer, acc) -> bool:
-    """Whether ``reducer.add`` with an all-false mask gives ``acc`` back bit for bit (its
-    ``unchanged_unmeasured(acc)``; a reducer without it is always run)."""
-    check = getattr(reducer, "unchanged_unmeasured", None)
-    return check is not None and check(acc)
 
 
 def _float_acc(acc) -> bool:
