@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 
 from davinci_sim.tasks import Phase, TaskMonitor, initial_state, load_task, reset_state, task_step
+from davinci_sim.tasks.state import TaskState
 
 
 @pytest.fixture(scope="module")
@@ -69,3 +70,28 @@ def test_batch_step_and_partial_reset():
     st = reset_state(st, np.array([True, False, False]))
     assert st.phase.tolist() == [Phase.IDLE, Phase.READY, Phase.READY]
     assert np.isnan(st.t_start[0])
+
+
+def test_one_trial_steps_as_a_row_of_a_batch():
+    """One trial (the live session) takes the float path of task_step: the same phases,
+    times and progress, bit for bit and type for type, as the same trial in a batch."""
+    rng = np.random.default_rng(5)
+    phases = np.array(list(Phase), dtype=np.int8)
+    for _ in range(3000):
+        ph = rng.choice(phases)
+        t_start, t_finish = rng.choice([np.nan, 1.5]), rng.choice([np.nan, 2.5])
+        progress = rng.choice([0.0, 0.01, 0.05, np.nan])
+        args = (rng.uniform(0, 3), rng.uniform(0, 0.01), rng.uniform(0, 0.01),
+                rng.choice([0.0, 0.02, 0.06, np.nan]))  # fmt: skip
+        kw = dict(path_length=0.1, start_tolerance=0.005, finish_tolerance=0.005,
+                  min_progress=0.5)  # fmt: skip
+        one = TaskState(np.array([ph], np.int8), np.array([t_start]), np.array([t_finish]),
+                        np.array([progress]))  # fmt: skip
+        two = TaskState(*(np.concatenate([a, a]) for a in one))
+        t, ds, df, arc = args
+        a = task_step(one, np.array([t]), np.array([ds]), np.array([df]), np.array([arc]), **kw)
+        b = task_step(two, np.array([t, t]), np.array([ds, ds]), np.array([df, df]),
+                      np.array([arc, arc]), **kw)  # fmt: skip
+        for x, y in zip(a, b, strict=True):
+            assert x.dtype == y.dtype and x.shape == (1,)
+            np.testing.assert_array_equal(x, y[:1], strict=True)

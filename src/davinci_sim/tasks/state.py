@@ -102,6 +102,11 @@ def task_step(
         path_length, start_tolerance, finish_tolerance, min_progress: the task's.
     """
     phase = state.phase
+    if phase.shape == (1,):  # one trial (the live session, every tick): on floats
+        return _task_step_one(
+            state, time, dist_start, dist_finish, arc_length,
+            path_length * min_progress, start_tolerance, finish_tolerance,
+        )  # fmt: skip
     t = np.broadcast_to(np.asarray(time, dtype=float), phase.shape)
     at_start = np.asarray(dist_start) <= start_tolerance
     at_finish = np.asarray(dist_finish) <= finish_tolerance
@@ -119,6 +124,41 @@ def task_step(
         np.where(begin, t, state.t_start),
         np.where(done, t, state.t_finish),
         np.where(begin, arc_length, progress),
+    )
+
+
+def _task_step_one(state, time, dist_start, dist_finish, arc_length, min_arc, start_tol,
+                   finish_tol) -> TaskState:  # fmt: skip
+    """:func:`task_step` of one trial on Python floats: the same comparisons and the same
+    results (arrays of the same types, ``np.maximum``'s NaN rule), without the array
+    arithmetic (``min_arc``: ``min_progress · path_length``, as the batch form computes it)."""
+    t = float(np.asarray(time, dtype=float).reshape(-1)[0])
+    at_start = bool(np.asarray(dist_start).reshape(-1)[0] <= start_tol)
+    at_finish = bool(np.asarray(dist_finish).reshape(-1)[0] <= finish_tol)
+    arc = np.asarray(arc_length, dtype=float).reshape(-1)[0]
+    phase = int(state.phase[0])
+    old = state.progress[0]
+    running = phase == Phase.RUNNING
+    if running:  # np.maximum: NaN if either is
+        progress = old if old != old else arc if arc != arc else old if old >= arc else arc
+    else:
+        progress = old
+    new = phase
+    begin = phase == Phase.READY and not at_start
+    done = running and at_finish and bool(progress >= min_arc)
+    if phase == Phase.IDLE and at_start:
+        new = Phase.READY
+    elif begin:
+        new = Phase.RUNNING
+    elif done:
+        new = Phase.FINISHED
+    elif phase == Phase.FINISHED:
+        new = Phase.RESULTS
+    return TaskState(
+        np.array([new], dtype=state.phase.dtype),
+        np.array([t]) if begin else state.t_start.astype(float),
+        np.array([t]) if done else state.t_finish.astype(float),
+        np.array([arc if begin else progress], dtype=float),
     )
 
 
