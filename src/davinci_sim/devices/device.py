@@ -208,7 +208,7 @@ class MasterDevice(ABC):
         loop's sum of checked fields): validated once, at the edge it came in by."""
         if self.is_stale():
             return CommandResult(False, f"{self.name}: servo_cf: device is stale (watchdog)")
-        out = self._limiter.limit(w)
+        out = self._limiter.limit_checked(w)
         self._wrench = out
         self._apply_wrench(out)
         return ACCEPTED
