@@ -172,7 +172,7 @@ class HapticLoop:
             T_world_camera = self._T_world_camera()
 
         def tip() -> tuple[np.ndarray, np.ndarray]:
-            return psm.measured_cp().T, psm.measured_cv().twist
+            return psm._measured_T(), psm._measured_twist()  # (measured_cp/cv, read-only)
 
         def pose() -> np.ndarray:
             return psm._measured_T()  # (measured_cp().T, read-only)

@@ -72,9 +72,7 @@ class Extent:
     value: object
     """``value(task, sample, obs) -> (n, 3)``."""
 
-    def unchanged_unmeasured(self, acc) -> bool:
-        """``add`` with no trial measured leaves ``acc`` as it is (see ``update``)."""
-        return _always(acc)
+    unchanged_unmeasured = staticmethod(_always)  # (MetricsAccumulator.update)
 
     def init(self, n: int, task=None):
         return (np.full((n, 3), np.inf), np.full((n, 3), -np.inf))
@@ -100,9 +98,7 @@ class Sum:
     """``value(task, sample, obs) -> (n,)``."""
     integer: bool = False
 
-    def unchanged_unmeasured(self, acc) -> bool:
-        """``add`` with no trial measured leaves ``acc`` as it is (see ``update``)."""
-        return _float_acc(acc)
+    unchanged_unmeasured = staticmethod(_float_acc)  # (MetricsAccumulator.update)
 
     def init(self, n: int, task=None):
         return np.zeros(n, dtype=np.int64 if self.integer else float)
@@ -122,9 +118,7 @@ class Unreached:
     targets: object
     tolerance: object
 
-    def unchanged_unmeasured(self, acc) -> bool:
-        """``add`` with no trial measured leaves ``acc`` as it is (see ``update``)."""
-        return _always(acc)
+    unchanged_unmeasured = staticmethod(_always)  # (MetricsAccumulator.update)
 
     def init(self, n: int, task=None):
         k = 0 if task is None else len(self.targets(task))
