@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 
 from davinci_sim.tasks import Phase, TaskMonitor, initial_state, load_task, reset_state, task_step
+from davinci_sim.tasks.base import Sample
 from davinci_sim.tasks.state import TaskState
 
 
@@ -95,3 +96,23 @@ def test_one_trial_steps_as_a_row_of_a_batch():
         for x, y in zip(a, b, strict=True):
             assert x.dtype == y.dtype and x.shape == (1,)
             np.testing.assert_array_equal(x, y[:1], strict=True)
+
+
+def test_path_task_step_of_one_trial_is_a_batch_row(task):
+    """The live session's step (one trial: compiled closest point, distances and the state
+    machine on floats) gives the bits of the same trial in a batch, observations included."""
+    rng = np.random.default_rng(8)
+    state1, state2 = task.initial_state(1), task.initial_state(2)
+    s = np.linspace(0, task.path.length, 300)
+    points = np.concatenate([task.path.point_at(s), task.path.point_at(s[::-1])])
+    for i, p in enumerate(points):
+        tip = p + rng.normal(0, 0.002, 3)
+        one = Sample.of(0.001 * i, tip.reshape(1, 3))
+        two = Sample.of(0.001 * i, np.stack([tip, tip]))
+        state1, obs1 = task.step(state1, one)
+        state2, obs2 = task.step(state2, two)
+        for a, b in zip(state1, state2, strict=True):
+            np.testing.assert_array_equal(a, b[:1], strict=True)
+        for k in obs1:
+            np.testing.assert_array_equal(obs1[k], obs2[k][:1], strict=True)
+    assert Phase(int(state1.phase[0])) >= Phase.RUNNING  # the walk went through the phases
