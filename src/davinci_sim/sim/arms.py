@@ -207,9 +207,13 @@ class MTM(Arm):
         R_base_goal = self.base_frame()[0][:3, :3].T @ self._R_lock
         q = self._q()
         chain, wrist = self.chain, MTM_WRIST_JOINTS
-        for _ in range(_LOCK_STEPS):
-            # Pose and Jacobian in one kernel pass (the pose is the same bits as FK alone).
-            T, J_spatial = fk.forward_kinematics_and_jacobian(chain, q)
+        for step in range(_LOCK_STEPS):
+            # Pose and Jacobian in one kernel pass (the pose is the same bits as FK alone);
+            # at the measured joints (the first step) the arm has them already this tick.
+            if step == 0:
+                T, J_spatial = self._measured_kinematics(jacobian=True)[1:]
+            else:
+                T, J_spatial = fk.forward_kinematics_and_jacobian(chain, q)
             err = so3.rotation_vector(R_base_goal @ T[:3, :3].T)  # spatial error, base frame
             J = J_spatial[3:, wrist]
             q[wrist] += J.T @ dgesv(J @ J.T + _LOCK_DAMPING_EYE, err)[2]
