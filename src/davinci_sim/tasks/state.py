@@ -47,6 +47,11 @@ class Phase(IntEnum):
     RESULTS = 4
 
 
+#: The phases as plain ints for array comparisons (an IntEnum against an array costs five
+#: times an int, at every tick of the live session and the study's batches).
+_IDLE, _READY, _RUNNING, _FINISHED, _RESULTS = (int(p) for p in Phase)
+
+
 class TaskState(NamedTuple):
     """State of a batch of trials, each array of shape (n,)."""
 
@@ -110,15 +115,15 @@ def task_step(
     t = np.broadcast_to(np.asarray(time, dtype=float), phase.shape)
     at_start = np.asarray(dist_start) <= start_tolerance
     at_finish = np.asarray(dist_finish) <= finish_tolerance
-    running = phase == Phase.RUNNING
+    running = phase == _RUNNING
     progress = np.where(running, np.maximum(state.progress, arc_length), state.progress)
     new = phase.copy()
-    new[(phase == Phase.IDLE) & at_start] = Phase.READY
-    begin = (phase == Phase.READY) & ~at_start
-    new[begin] = Phase.RUNNING
+    new[(phase == _IDLE) & at_start] = _READY
+    begin = (phase == _READY) & ~at_start
+    new[begin] = _RUNNING
     done = running & at_finish & (progress >= min_progress * path_length)
-    new[done] = Phase.FINISHED
-    new[phase == Phase.FINISHED] = Phase.RESULTS
+    new[done] = _FINISHED
+    new[phase == _FINISHED] = _RESULTS
     return TaskState(
         new,
         np.where(begin, t, state.t_start),
@@ -165,7 +170,7 @@ def _task_step_one(state, time, dist_start, dist_finish, arc_length, min_arc, st
 def measuring(phase) -> np.ndarray:
     """(n,) bool: the trials whose current sample belongs to the repetition (RUNNING, or
     FINISHED at this sample)."""
-    return (phase == Phase.RUNNING) | (phase == Phase.FINISHED)
+    return (phase == _RUNNING) | (phase == _FINISHED)
 
 
 def advance(task: Task, state, metrics: MetricsAccumulator, sample: Sample, active=None):
@@ -228,7 +233,7 @@ class TaskMonitor:
     def observe(self, sample: Sample, active=None) -> np.ndarray:
         """One sample of the n trials (:func:`advance`); returns their phases (n,)."""
         self.state, self.observations = advance(self.task, self.state, self.metrics, sample, active)
-        if np.all(self.state.phase >= Phase.FINISHED) and self.results is None:
+        if self.results is None and np.all(self.state.phase >= _FINISHED):
             self.results = self.metrics.result()
         return self.state.phase
 
