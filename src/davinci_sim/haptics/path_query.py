@@ -91,7 +91,8 @@ def closest_point(path: Polyline, points) -> ClosestPoint:
         return path.closest_point(p)
     out = np.empty(8)
     seg = closest_point_row(
-        p.reshape(3), path.centre, *brute_force_constants(path),
+        np.array(p.reshape(3)),  # (a new C-contiguous row: the one compiled signature)
+        path.centre, *brute_force_constants(path),
         path.starts, path.edges, path.cumulative_length, path.segment_lengths, out,
     )  # fmt: skip
     if p.ndim == 1:  # the batch shape (): scalars as numpy's reductions give them

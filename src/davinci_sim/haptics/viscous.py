@@ -266,8 +266,14 @@ class ViscousGuidance:
         ):  # one tool tip (the live haptic tick): the compiled row, the same bits
             out = np.empty(p.shape)
             phi = closest_point(self.path, p).deviation.reshape(3)
-            viscous_force_row(v.reshape(3), phi, self.B, self.G_max, self.transition,
-                              out.reshape(3))  # fmt: skip
+            viscous_force_row(
+                np.array(v.reshape(3)),
+                np.array(phi),
+                self.B,
+                self.G_max,
+                self.transition,
+                out.reshape(3),
+            )  # fmt: skip (C rows: one signature)
             return out
         return self.terms(position, velocity).force
 

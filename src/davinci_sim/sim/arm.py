@@ -142,9 +142,11 @@ class Arm(ServoJoints):
         key = q.tobytes()
         c = self._kin_cache
         if c is None or c[0] != key:
-            q.setflags(write=False)
             # Both in one pass: whoever asks for the pose this tick asks for the twist too.
+            # (q read-only after the call: the kernel's compiled signature is the writable
+            # one its warm-up compiled, not a second one compiled inside the loop.)
             T, J = laws.tip_kinematics(self.chain, q)
+            q.setflags(write=False)
             T.setflags(write=False)
             J.setflags(write=False)
             c = self._kin_cache = [key, q, T, J]
