@@ -22,6 +22,7 @@ import numpy as np
 from davinci_sim.geometry.so3 import rotate_pairs
 from davinci_sim.kinematics import fk
 from davinci_sim.kinematics.chain import DHChain
+from davinci_sim.kinematics.jit import ENABLED as _COMPILED
 from davinci_sim.kinematics.jit import jit
 
 try:  # the gufunc behind np.linalg.solve (see _solve)
@@ -100,7 +101,18 @@ def wrench_effort(
     """Joint efforts (..., dof) (N·m, N) rendering ``wrench`` (..., 6: force N then torque
     N·m at the tip, in axes ``R_base_wrench`` (3, 3) gives in the chain base): ``Jᵀ·w``
     with the spatial Jacobian, clamped to the joints' ``ftmax`` (``body``/``spatial``
-    ``servo_cf``)."""
+    ``servo_cf``). One arm (the live MTM's haptic wrench, every tick): the compiled
+    :func:`wrench_effort_row`, the same bits."""
+    if J.ndim == 2 and np.ndim(wrench) == 1 and _COMPILED:
+        out = np.empty(J.shape[1])
+        wrench_effort_row(
+            np.array(J),
+            np.array(R_base_wrench),
+            np.array(wrench, dtype=float),
+            np.array(ftmax, dtype=float),
+            out,
+        )  # fmt: skip (C rows: one signature)
+        return out
     w_base = rotate_pairs(R_base_wrench, wrench)
     tau = np.sum(np.swapaxes(J, -1, -2) * w_base[..., None, :], axis=-1)
     return np.minimum(np.maximum(tau, -ftmax), ftmax)
@@ -112,6 +124,37 @@ def tracking_bad(
     """Per joint (..., dof): position-servoed and further from its setpoint than the
     tracking tolerance."""
     return (np.abs(q - q_ref) > tolerance) & ~effort_mode
+
+
+@jit
+def wrench_effort_row(J, R, w, ftmax, out):
+    """:func:`wrench_effort` of one arm into ``out`` (dof,): the wrench's halves rotated as
+    :func:`~davinci_sim.geometry.so3.rotate_pairs` rotates one 6-vector, ``Jᵀ·w`` summed
+    over the six rows left to right from 0 (as numpy sums one arm's), then ``np.maximum``/
+    ``np.minimum`` against ``∓ftmax`` (NaN kept)."""
+    x, y, z, u, v, s = w[0], w[1], w[2], w[3], w[4], w[5]
+    wb = (
+        x * R[0, 0] + y * R[0, 1] + z * R[0, 2],
+        x * R[1, 0] + y * R[1, 1] + z * R[1, 2],
+        x * R[2, 0] + y * R[2, 1] + z * R[2, 2],
+        u * R[0, 0] + v * R[0, 1] + s * R[0, 2],
+        u * R[1, 0] + v * R[1, 1] + s * R[1, 2],
+        u * R[2, 0] + v * R[2, 1] + s * R[2, 2],
+    )
+    for j in range(J.shape[1]):
+        t = 0.0  # numpy's sum over the (strided) row starts from 0: the same signed zeros
+        for k in range(6):
+            t = t + J[k, j] * wb[k]
+        lo, hi = -ftmax[j], ftmax[j]
+        if t == t and lo == lo:  # np.maximum(t, lo)
+            t = t if t >= lo else lo
+        elif lo != lo:
+            t = lo
+        if t == t and hi == hi:  # np.minimum(t, hi)
+            t = t if t <= hi else hi
+        elif hi != hi:
+            t = hi
+        out[j] = t
 
 
 @jit
@@ -150,6 +193,7 @@ def _warm_up() -> None:
     never in the 1 kHz loop (:mod:`davinci_sim.kinematics.jit`)."""
     i = np.zeros(1, dtype=np.int64)
     tracking_first_bad(np.zeros(1), i, np.zeros(1), i, np.ones(1), np.zeros(1, dtype=bool))
+    wrench_effort_row(np.zeros((6, 2)), np.eye(3), np.zeros(6), np.ones(2), np.empty(2))
 
 
 _warm_up()
