@@ -191,3 +191,22 @@ def test_one_arms_wrench_effort_row_is_the_numpy_law():
         assert (np.signbit(one) == np.signbit(numpy_law)).all()
         two = wrench_effort(np.stack([J, J]), R, np.stack([w, w]), ftmax)
         np.testing.assert_array_equal(one, two[0], strict=True)
+
+
+def test_one_arms_twist_row_is_the_numpy_law():
+    """measured_cv of one arm runs the compiled row: the numpy law's bits, signed zeros
+    (joints at rest) included."""
+    from scipy.spatial.transform import Rotation
+
+    from davinci_sim.sim.arm_laws import twist_in_reference
+
+    rng = np.random.default_rng(6)
+    for i in range(3000):
+        n = int(rng.integers(3, 8))
+        J = rng.normal(0, 0.3, (6, n))
+        R = Rotation.random(random_state=int(rng.integers(1_000_000))).as_matrix()
+        qd = rng.normal(0, 1, n) * (rng.random(n) < 0.6) * (i % 4 != 0)
+        one = twist_in_reference(R, J, qd)
+        numpy_law = so3.rotate_pairs(R, np.sum(J * qd[None, :], axis=-1))
+        np.testing.assert_array_equal(one, numpy_law, strict=True)
+        assert (np.signbit(one) == np.signbit(numpy_law)).all()

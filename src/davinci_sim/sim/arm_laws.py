@@ -60,7 +60,12 @@ def pose_in_reference(T_ref_base: np.ndarray, T_base_tip: np.ndarray) -> np.ndar
 
 def twist_in_reference(R_ref_base: np.ndarray, J: np.ndarray, qd: np.ndarray) -> np.ndarray:
     """``measured_cv``: ``J·q̇`` (linear m/s, angular rad/s) rotated into the reference's
-    orientation; ``J`` (..., 6, dof) spatial in the chain base, ``qd`` (..., dof)."""
+    orientation; ``J`` (..., 6, dof) spatial in the chain base, ``qd`` (..., dof). One arm
+    (devices and haptics read it every tick): the compiled :func:`twist_row`, the same bits."""
+    if J.ndim == 2 and np.ndim(qd) == 1 and _COMPILED:
+        out = np.empty(6)
+        twist_row(np.array(R_ref_base), np.array(J), np.array(qd, dtype=float), out)
+        return out
     v = np.sum(J * qd[..., None, :], axis=-1)
     return rotate_pairs(R_ref_base, v)
 
@@ -124,6 +129,24 @@ def tracking_bad(
     """Per joint (..., dof): position-servoed and further from its setpoint than the
     tracking tolerance."""
     return (np.abs(q - q_ref) > tolerance) & ~effort_mode
+
+
+@jit
+def twist_row(R, J, qd, out):
+    """:func:`twist_in_reference` of one arm into ``out`` (6,): ``J·q̇`` row by row summed
+    left to right from 0 (as numpy sums a row of six or seven), both halves rotated by
+    ``R`` as :func:`~davinci_sim.geometry.so3.rotate_pairs` rotates one 6-vector."""
+    v = np.empty(6)
+    for k in range(6):
+        t = 0.0
+        for j in range(J.shape[1]):
+            t = t + J[k, j] * qd[j]
+        v[k] = t
+    for h in range(2):
+        x, y, z = v[3 * h], v[3 * h + 1], v[3 * h + 2]
+        out[3 * h] = x * R[0, 0] + y * R[0, 1] + z * R[0, 2]
+        out[3 * h + 1] = x * R[1, 0] + y * R[1, 1] + z * R[1, 2]
+        out[3 * h + 2] = x * R[2, 0] + y * R[2, 1] + z * R[2, 2]
 
 
 @jit
@@ -194,6 +217,7 @@ def _warm_up() -> None:
     i = np.zeros(1, dtype=np.int64)
     tracking_first_bad(np.zeros(1), i, np.zeros(1), i, np.ones(1), np.zeros(1, dtype=bool))
     wrench_effort_row(np.zeros((6, 2)), np.eye(3), np.zeros(6), np.ones(2), np.empty(2))
+    twist_row(np.eye(3), np.zeros((6, 2)), np.zeros(2), np.empty(6))
 
 
 _warm_up()
