@@ -91,7 +91,7 @@ def closest_point(path: Polyline, points) -> ClosestPoint:
         return path.closest_point(p)
     out = np.empty(8)
     seg = closest_point_row(
-        np.array(p.reshape(3)),  # (a new C-contiguous row: the one compiled signature)
+        np.array(p.reshape(3), dtype=float, order="C"),  # (a new C row: the one compiled signature)
         path.centre, *brute_force_constants(path),
         path.starts, path.edges, path.cumulative_length, path.segment_lengths, out,
     )  # fmt: skip

@@ -267,13 +267,13 @@ class ViscousGuidance:
             out = np.empty(p.shape)
             phi = closest_point(self.path, p).deviation.reshape(3)
             viscous_force_row(
-                np.array(v.reshape(3)),
-                np.array(phi),
+                np.array(v.reshape(3), dtype=float, order="C"),  # (the warm-up signature)
+                np.array(phi, dtype=float, order="C"),
                 self.B,
                 self.G_max,
                 self.transition,
                 out.reshape(3),
-            )  # fmt: skip (C rows: one signature)
+            )
             return out
         return self.terms(position, velocity).force
 

@@ -64,7 +64,7 @@ def twist_in_reference(R_ref_base: np.ndarray, J: np.ndarray, qd: np.ndarray) ->
     (devices and haptics read it every tick): the compiled :func:`twist_row`, the same bits."""
     if J.ndim == 2 and np.ndim(qd) == 1 and _COMPILED:
         out = np.empty(6)
-        twist_row(np.array(R_ref_base), np.array(J), np.array(qd, dtype=float), out)
+        twist_row(_row(R_ref_base), _row(J), _row(qd), out)
         return out
     v = np.sum(J * qd[..., None, :], axis=-1)
     return rotate_pairs(R_ref_base, v)
@@ -111,12 +111,12 @@ def wrench_effort(
     if J.ndim == 2 and np.ndim(wrench) == 1 and _COMPILED:
         out = np.empty(J.shape[1])
         wrench_effort_row(
-            np.array(J),
-            np.array(R_base_wrench),
-            np.array(wrench, dtype=float),
-            np.array(ftmax, dtype=float),
+            _row(J),
+            _row(R_base_wrench),
+            _row(wrench),
+            _row(ftmax),
             out,
-        )  # fmt: skip (C rows: one signature)
+        )
         return out
     w_base = rotate_pairs(R_base_wrench, wrench)
     tau = np.sum(np.swapaxes(J, -1, -2) * w_base[..., None, :], axis=-1)
@@ -129,6 +129,13 @@ def tracking_bad(
     """Per joint (..., dof): position-servoed and further from its setpoint than the
     tracking tolerance."""
     return (np.abs(q - q_ref) > tolerance) & ~effort_mode
+
+
+def _row(a) -> np.ndarray:
+    """``a`` as a new C-ordered, writable float array: the argument types a compiled row's
+    warm-up compiled (a transposed or read-only view would compile a second signature inside
+    the 1 kHz loop)."""
+    return np.array(a, dtype=float, order="C")
 
 
 @jit
