@@ -7,8 +7,19 @@ feedback and a viscous field on the tool velocity (the kind of field issue 4 add
 tick of the same scene (arms idle, no console) is measured for reference, and the ratio
 teleop tick / bare tick reported (issue 9's figures: one pair ≤ 100 µs, both pairs ≤ 150 µs).
 
+A third set-up is what ``make run`` ticks (``serve_seed_path``): the full scene homed, the
+web console's rate inputs on both MTMs (held still: the operator reading the keys), the
+``seed_path`` task session with its viscous fixture and the endoscope framed on the task,
+both teleoperations following.
+
+Beside each tick, ``<label>_mj_step_median_us`` is MuJoCo's own ``mj_step`` on the same
+model at the same state (the set-up's state restored before each step, not timed), and
+``<label>_teleop_over_mj_step_ratio`` the tick over it: what the Python of the tick costs
+on top of the physics (issue 20's bar: ≤ 1.5 both pairs, ≤ 1.3 one pair).
+
 Each set-up is also profiled (cProfile, 1000 ticks): the JSON keeps the top entries by own
-time, as shares of the profiled tick (proportions survive a busy machine better than times).
+time, as shares of the profiled tick (proportions survive a busy machine better than times),
+and the Python function calls per tick.
 """
 
 from __future__ import annotations
@@ -17,10 +28,20 @@ import cProfile
 import logging
 import os
 import pstats
+import time
+
+import mujoco
+import numpy as np
 
 from common import summary, time_each, write
 from davinci_sim.sim.simulation import Simulation
-from davinci_sim.system import ConsoleDescription, SystemDescription, build_simulation
+from davinci_sim.system import (
+    ConsoleDescription,
+    SystemDescription,
+    TaskDescription,
+    build_simulation,
+)
+from davinci_sim.tasks.session import VIEW_DISTANCE
 
 
 def viscous(state):
@@ -42,6 +63,53 @@ def teleop_sim(scene: str) -> Simulation:
     return sim
 
 
+def serve_sim() -> Simulation:
+    """What ``make run`` (``serve --task seed_path --home``) ticks, with the person at the
+    web console holding both handles still after taking control."""
+    sim = build_simulation(
+        SystemDescription(
+            scene="full",
+            keyframe="surgical",
+            console=ConsoleDescription(hand_inputs=("MTML", "MTMR")),
+            task=TaskDescription("seed_path", frame_view=VIEW_DISTANCE),
+            home=True,
+            runner="none",
+            real_time=False,
+        )
+    )
+    sim.run_for(8.0)  # homing, then the endoscope framed on the task
+    console = sim.components["console"]
+    console.press("operator_present")
+    console.teleop_enable(True)
+    sim.components["MTMR/hand"].grasp()
+    sim.components["MTML/hand"].grasp()
+    teleops = [t for t in console.psm_teleops.values() if t.selected]
+    if not sim.run_until(lambda: all(t.is_following() for t in teleops), 30):
+        raise RuntimeError("the teleoperations did not start following")
+    sim.run_for(0.5)
+    return sim
+
+
+def mj_step_each(sim: Simulation, n: int, warmup: int = 50) -> list[float]:
+    """Wall time (µs) of ``n`` bare ``mj_step`` calls on ``sim``'s model, each from ``sim``'s
+    current integration state (restored before the step, untimed): the physics of the same
+    scene in the same configuration, without any of the tick's Python."""
+    model = sim.model
+    data = mujoco.MjData(model)
+    what = mujoco.mjtState.mjSTATE_INTEGRATION
+    state = np.empty(mujoco.mj_stateSize(model, what))
+    mujoco.mj_getState(model, sim.data, state, what)
+    clock = time.perf_counter_ns
+    out = []
+    for i in range(n + warmup):
+        mujoco.mj_setState(model, data, state, what)
+        t0 = clock()
+        mujoco.mj_step(model, data)
+        if i >= warmup:
+            out.append((clock() - t0) / 1000.0)
+    return out
+
+
 def profile_top(tick, ticks: int = 1000, top: int = 12) -> list[dict]:
     """The ``top`` functions by own time over ``ticks`` calls of ``tick``: name, calls per
     tick, own and cumulative share of the (profiled) tick."""
@@ -53,7 +121,7 @@ def profile_top(tick, ticks: int = 1000, top: int = 12) -> list[dict]:
     stats = pstats.Stats(profiler).stats  # type: ignore[attr-defined]
     total = sum(entry[2] for entry in stats.values())
     rows = sorted(stats.items(), key=lambda kv: kv[1][2], reverse=True)[:top]
-    out = []
+    out: list[dict] = [{"python_calls_per_tick": sum(e[1] for e in stats.values()) / ticks}]
     for (filename, line, name), (_, calls, own, cumulative, _) in rows:
         where = filename.split("davinci_sim/")[-1] if "davinci_sim/" in filename else filename
         out.append(
@@ -70,14 +138,19 @@ def profile_top(tick, ticks: int = 1000, top: int = 12) -> list[dict]:
 def main(n: int = 5000) -> None:
     logging.getLogger("davinci_sim").setLevel(logging.ERROR)
     figures: dict = {"load_average_before": os.getloadavg()[0]}
-    for label, scene in (("one_pair", "psm1_ecm_mtmr"), ("full_two_pairs", "full")):
+    for label, scene in (
+        ("one_pair", "psm1_ecm_mtmr"),
+        ("full_two_pairs", "full"),
+        ("serve_seed_path", "full"),
+    ):
         bare = Simulation(scene, keyframe="surgical")
         figures.update(summary(time_each(bare.tick, n), f"{label}_bare_tick"))
-        sim = teleop_sim(scene)
+        sim = serve_sim() if label == "serve_seed_path" else teleop_sim(scene)
         figures.update(summary(time_each(sim.tick, n), f"{label}_teleop_tick"))
-        figures[f"{label}_teleop_over_bare_ratio"] = (
-            figures[f"{label}_teleop_tick_median_us"] / figures[f"{label}_bare_tick_median_us"]
-        )
+        figures.update(summary(mj_step_each(sim, n), f"{label}_mj_step"))
+        tick = figures[f"{label}_teleop_tick_median_us"]
+        figures[f"{label}_teleop_over_bare_ratio"] = tick / figures[f"{label}_bare_tick_median_us"]
+        figures[f"{label}_teleop_over_mj_step_ratio"] = tick / figures[f"{label}_mj_step_median_us"]
         teleops = sim.components["console"].psm_teleops.values()
         following = [t.name for t in teleops if t.is_following()]
         figures[f"{label}_following"] = ",".join(following)

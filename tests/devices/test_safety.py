@@ -87,3 +87,18 @@ def test_the_compiled_clamp_is_the_python_law_bit_for_bit():
     for i in (0, 17, 63):
         alone, _ = clamp_wrench(w[i], prev[i], LIMITS, 1e-3)
         np.testing.assert_array_equal(alone, compiled[i])
+
+
+def test_limit_checked_is_limit_without_the_check():
+    """The device's 1 kHz path (a wrench its servo_cf already checked) gives the same
+    wrenches, the same ``active`` flags and the same memory as the checked ``limit``."""
+    rng = np.random.default_rng(11)
+    a, b = WrenchLimiter(WrenchLimits()), WrenchLimiter(WrenchLimits())
+    for _ in range(500):
+        w = rng.normal(0, 3, 6) * rng.choice([0.0, 0.1, 1.0, 10.0])
+        out_a, out_b = a.limit(w), b.limit_checked(w)
+        np.testing.assert_array_equal(out_a, out_b, strict=True)
+        assert a.active == b.active
+        np.testing.assert_array_equal(a.previous, b.previous, strict=True)
+    with pytest.raises(ValueError):
+        a.limit(np.full(6, np.nan))  # the public limit still refuses

@@ -222,3 +222,27 @@ def test_fig4_qualitative_shape():
     crossing = cp.distance < 1e-5
     assert crossing.any()
     assert np.all(np.linalg.norm(terms.force[crossing], axis=1) < 5.0 * 1e-5 / 0.0005 + 1e-9)
+
+
+@pytest.mark.parametrize("transition", [0.0, 0.002])
+def test_one_tip_compiled_row_gives_the_batch_laws_bits(transition):
+    """The live haptic tick's one tool tip runs the compiled row (``viscous_force_row``);
+    it gives exactly the bits of the batch law the study runs, degenerate cases included."""
+    rng = np.random.default_rng(3)
+    path = Polyline(np.cumsum(rng.normal(0, 0.01, (30, 3)), axis=0))
+    fixture = ViscousGuidance(path, B=40.0, G_max=5.0, transition=transition)
+    tips = path.vertices.mean(axis=0) + rng.normal(0, 0.02, (400, 3))
+    velocities = rng.normal(0, 0.05, (400, 3)) * rng.uniform(0, 1, (400, 1)) ** 4
+    velocities[:20] = 0.0  # static tool
+    tips[20:40] = path.vertices[rng.integers(0, 30, 20)]  # on the path: φ = 0
+    phi = path.closest_point(tips[40:60]).deviation
+    velocities[40:50] = phi[:10] * 3.0  # straight away from the path
+    velocities[50:60] = -phi[10:] * 3.0  # straight at it
+    velocities[60:100] *= 100.0  # fast: the force at its cap G_max
+    for shape in [(3,), (1, 3)]:
+        for p, v in zip(tips, velocities, strict=True):
+            fast = fixture.force(p.reshape(shape), v.reshape(shape))
+            batch = fixture.terms(p.reshape(shape), v.reshape(shape)).force
+            assert fast.shape == batch.shape
+            np.testing.assert_array_equal(fast, batch, strict=True)
+            assert (np.signbit(fast) == np.signbit(batch)).all()

@@ -166,3 +166,47 @@ def test_fixture_force_camera_changes_frames_both_ways():
     np.testing.assert_array_equal(fixture_force_camera(fixture, None, p, v), fixture.force(p, v))
     one = _rows_alone(lambda a, b: fixture_force_camera(fixture, T_frame_camera, a, b), p, v)
     np.testing.assert_allclose(one, f, atol=0)
+
+
+def test_one_arms_wrench_effort_row_is_the_numpy_law():
+    """Jᵀw of one arm (the live MTM's haptic wrench) runs the compiled row; it gives the
+    numpy law's bits, signed zeros (a zero wrench) and clamped joints included, and the
+    same values as a row of a batch."""
+    from scipy.spatial.transform import Rotation
+
+    from davinci_sim.sim.arm_laws import wrench_effort
+
+    rng = np.random.default_rng(4)
+    for i in range(3000):
+        n = int(rng.integers(3, 8))
+        J = rng.normal(0, 0.3, (6, n))
+        R = Rotation.random(random_state=int(rng.integers(1_000_000))).as_matrix()
+        w = rng.normal(0, 2, 6) * rng.choice([1e-12, 1.0, 10.0]) * (i % 5 != 0)
+        ftmax = rng.uniform(0.05, 2.0, n)
+        one = wrench_effort(J, R, w, ftmax)
+        w_base = so3.rotate_pairs(R, w)
+        tau = np.sum(np.swapaxes(J, -1, -2) * w_base[None, :], axis=-1)
+        numpy_law = np.minimum(np.maximum(tau, -ftmax), ftmax)
+        np.testing.assert_array_equal(one, numpy_law, strict=True)
+        assert (np.signbit(one) == np.signbit(numpy_law)).all()
+        two = wrench_effort(np.stack([J, J]), R, np.stack([w, w]), ftmax)
+        np.testing.assert_array_equal(one, two[0], strict=True)
+
+
+def test_one_arms_twist_row_is_the_numpy_law():
+    """measured_cv of one arm runs the compiled row: the numpy law's bits, signed zeros
+    (joints at rest) included."""
+    from scipy.spatial.transform import Rotation
+
+    from davinci_sim.sim.arm_laws import twist_in_reference
+
+    rng = np.random.default_rng(6)
+    for i in range(3000):
+        n = int(rng.integers(3, 8))
+        J = rng.normal(0, 0.3, (6, n))
+        R = Rotation.random(random_state=int(rng.integers(1_000_000))).as_matrix()
+        qd = rng.normal(0, 1, n) * (rng.random(n) < 0.6) * (i % 4 != 0)
+        one = twist_in_reference(R, J, qd)
+        numpy_law = so3.rotate_pairs(R, np.sum(J * qd[None, :], axis=-1))
+        np.testing.assert_array_equal(one, numpy_law, strict=True)
+        assert (np.signbit(one) == np.signbit(numpy_law)).all()

@@ -229,6 +229,10 @@ def test_a_refused_state_leaves_the_simulation_as_it_was():
 
 def test_state_and_reset_through_the_handle():
     sim, _ = teleop_sim(teleop_config=NO_ALIGN)
+    # 500 ticks before the runner starts: ``before`` is past them whatever the runner does
+    # between two calls, so reset taking the count back shows whatever the tick's speed (it
+    # ticks freely between calls: a fast tick fits tens of ticks into one thread switch).
+    sim.run_for(0.5)
     with ThreadedSimulation(sim, real_time=False) as handle:
         saved = handle.call("sim", "get_state").result(timeout=30)
         handle.call("sim", "set_state", saved).result(timeout=30)

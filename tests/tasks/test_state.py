@@ -6,6 +6,8 @@ import numpy as np
 import pytest
 
 from davinci_sim.tasks import Phase, TaskMonitor, initial_state, load_task, reset_state, task_step
+from davinci_sim.tasks.base import Sample
+from davinci_sim.tasks.state import TaskState
 
 
 @pytest.fixture(scope="module")
@@ -69,3 +71,48 @@ def test_batch_step_and_partial_reset():
     st = reset_state(st, np.array([True, False, False]))
     assert st.phase.tolist() == [Phase.IDLE, Phase.READY, Phase.READY]
     assert np.isnan(st.t_start[0])
+
+
+def test_one_trial_steps_as_a_row_of_a_batch():
+    """One trial (the live session) takes the float path of task_step: the same phases,
+    times and progress, bit for bit and type for type, as the same trial in a batch."""
+    rng = np.random.default_rng(5)
+    phases = np.array(list(Phase), dtype=np.int8)
+    for _ in range(3000):
+        ph = rng.choice(phases)
+        t_start, t_finish = rng.choice([np.nan, 1.5]), rng.choice([np.nan, 2.5])
+        progress = rng.choice([0.0, 0.01, 0.05, np.nan])
+        args = (rng.uniform(0, 3), rng.uniform(0, 0.01), rng.uniform(0, 0.01),
+                rng.choice([0.0, 0.02, 0.06, np.nan]))  # fmt: skip
+        kw = dict(path_length=0.1, start_tolerance=0.005, finish_tolerance=0.005,
+                  min_progress=0.5)  # fmt: skip
+        one = TaskState(np.array([ph], np.int8), np.array([t_start]), np.array([t_finish]),
+                        np.array([progress]))  # fmt: skip
+        two = TaskState(*(np.concatenate([a, a]) for a in one))
+        t, ds, df, arc = args
+        a = task_step(one, np.array([t]), np.array([ds]), np.array([df]), np.array([arc]), **kw)
+        b = task_step(two, np.array([t, t]), np.array([ds, ds]), np.array([df, df]),
+                      np.array([arc, arc]), **kw)  # fmt: skip
+        for x, y in zip(a, b, strict=True):
+            assert x.dtype == y.dtype and x.shape == (1,)
+            np.testing.assert_array_equal(x, y[:1], strict=True)
+
+
+def test_path_task_step_of_one_trial_is_a_batch_row(task):
+    """The live session's step (one trial: compiled closest point, distances and the state
+    machine on floats) gives the bits of the same trial in a batch, observations included."""
+    rng = np.random.default_rng(8)
+    state1, state2 = task.initial_state(1), task.initial_state(2)
+    s = np.linspace(0, task.path.length, 300)
+    points = np.concatenate([task.path.point_at(s), task.path.point_at(s[::-1])])
+    for i, p in enumerate(points):
+        tip = p + rng.normal(0, 0.002, 3)
+        one = Sample.of(0.001 * i, tip.reshape(1, 3))
+        two = Sample.of(0.001 * i, np.stack([tip, tip]))
+        state1, obs1 = task.step(state1, one)
+        state2, obs2 = task.step(state2, two)
+        for a, b in zip(state1, state2, strict=True):
+            np.testing.assert_array_equal(a, b[:1], strict=True)
+        for k in obs1:
+            np.testing.assert_array_equal(obs1[k], obs2[k][:1], strict=True)
+    assert Phase(int(state1.phase[0])) >= Phase.RUNNING  # the walk went through the phases

@@ -250,3 +250,37 @@ def test_the_live_sample_sees_the_instruments_contacts_at_the_console():
         assert probe.measure(sim.model, sim.data) == (0, 0.0)  # the bead is an object/
     finally:
         sim.close()
+
+
+def test_unmeasured_samples_skip_only_what_they_leave_unchanged():
+    """Between repetitions (no trial measured) the accumulator skips the reducers that
+    declare an unmeasured sample leaves them unchanged: the same state and results, bit for
+    bit, as running every reducer on every sample (optional fields coming and going)."""
+    from davinci_sim.tasks import load_task
+
+    task = load_task("seed_path")
+    rng = np.random.default_rng(2)
+    fast = task.metrics_accumulator(1)
+    slow = task.metrics_accumulator(1)
+    slow.unchanged_checks = (None,) * len(slow.metrics)  # every add runs
+    for i in range(400):
+        measured = (i // 37) % 2 == 1  # runs of measured and unmeasured samples
+        sample = Sample.of(
+            0.001 * i, rng.normal(0, 0.01, 3), rng.normal(0, 1, 3), bool(rng.random() < 0.1),
+            visible=bool(rng.random() < 0.8), contacts=int(rng.integers(0, 3)),
+            tool_force=float(rng.uniform(0, 6)),
+            master=None if i % 50 < 5 else rng.normal(0, 0.05, 3),
+        )  # fmt: skip
+        obs = {"distance": np.array([rng.uniform(0, 0.01)]), "arc_length": np.array([0.01])}
+        for acc in (fast, slow):
+            acc.update(np.array([measured]), sample, obs)
+    a, b = fast.result(), slow.result()
+    for m in task.METRICS:
+        np.testing.assert_array_equal(a[m.name], b[m.name], strict=True)
+    sa, sb = fast.get_state(), slow.get_state()
+    assert sa["_missing"] == sb["_missing"]
+    for x, y in zip(sa["_acc"], sb["_acc"], strict=True):
+        for u, v in zip(x if isinstance(x, tuple) else (x,), y if isinstance(y, tuple) else (y,),
+                        strict=True):  # fmt: skip
+            if u is not None or v is not None:
+                np.testing.assert_array_equal(u, v, strict=True)

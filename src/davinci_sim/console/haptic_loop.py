@@ -132,7 +132,17 @@ class HapticLoop:
                 except Exception as e:  # a faulty field must not stop the loop
                     self._field_error(entry, e, t)
             self._requested[teleop.mtm_name] = total
-            teleop.device.servo_cf(total)
+            if math.isfinite(total.sum()):  # each term is finite (as_wrench); the sum too
+                teleop.device._render_wrench(total)  # validated here: once, not three times
+            else:
+                teleop.device.servo_cf(total)  # (refused with the device's message)
+
+    def requested(self, mtm: str) -> np.ndarray | None:
+        """The fields' summed wrench for ``mtm`` at the last tick it was computed (6,), HRSV
+        axes, N and N·m (a copy), or None: what :meth:`snapshot` publishes, without building
+        it (the task session reads it every tick)."""
+        w = self._requested.get(mtm)
+        return None if w is None else w.copy()
 
     def snapshot(self) -> HapticsState:
         sent = {}
@@ -162,7 +172,10 @@ class HapticLoop:
             T_world_camera = self._T_world_camera()
 
         def tip() -> tuple[np.ndarray, np.ndarray]:
-            return psm.measured_cp().T, psm.measured_cv().twist
+            return psm._measured_T(), psm._measured_twist()  # (measured_cp/cv, read-only)
+
+        def pose() -> np.ndarray:
+            return psm._measured_T()  # (measured_cp().T, read-only)
 
         def contact() -> np.ndarray:
             return T_world_camera[:3, :3].T @ sim.contact_force(psm.name)
@@ -180,6 +193,7 @@ class HapticLoop:
             tip=tip,
             jaw_provider=psm.jaw.measured_jp,
             contact_provider=contact,
+            pose_provider=pose,
         )
 
     def _field_error(self, entry: _Entry, error: Exception, t: float) -> None:

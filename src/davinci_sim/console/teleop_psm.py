@@ -520,7 +520,9 @@ class TeleopPSM(TeleopBase):
             translation_locked=self._translation_locked,
             rotation_locked=self._rotation_locked,
         )
-        self.psm.servo_cp(goal, twist=twist)
+        # The goal is a proper pose by construction (measured MTM rotation · offset): the
+        # arm does not check it again at 1 kHz; its own checks (IK, limits, twist) stay.
+        self.psm._servo_cp_checked(goal, twist=twist)
         if not self._ignore_jaw:
             self._follow_jaw(inp.gripper)
 

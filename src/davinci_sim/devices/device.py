@@ -201,9 +201,14 @@ class MasterDevice(ABC):
             text = f"servo_cf: wrench must be 6 finite numbers (N, N·m), got {wrench!r}"
             self.channels.message("error", text, self._now)
             return CommandResult(False, f"{self.name}: {text}")
+        return self._render_wrench(w)
+
+    def _render_wrench(self, w: np.ndarray) -> CommandResult:
+        """:meth:`servo_cf` of a wrench already checked (6 finite floats, e.g. the haptic
+        loop's sum of checked fields): validated once, at the edge it came in by."""
         if self.is_stale():
             return CommandResult(False, f"{self.name}: servo_cf: device is stale (watchdog)")
-        out = self._limiter.limit(w)
+        out = self._limiter.limit_checked(w)
         self._wrench = out
         self._apply_wrench(out)
         return ACCEPTED

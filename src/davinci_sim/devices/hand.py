@@ -89,18 +89,20 @@ def hand_wrenches(
         impedance: the rotational values and the limits.
         hold_orientation: False: no torque towards the target orientation.
     """
-    tip = np.ascontiguousarray(T_tip, dtype=float)
+    # New C-ordered writable arrays: the kernel's one compiled signature, its warm-up's (a
+    # read-only input, such as the arm's read-only pose, would compile another in the loop).
+    tip = np.array(T_tip, dtype=float, order="C")
     n = tip.shape[0]
-    target = tip if T_target is None else np.ascontiguousarray(T_target, dtype=float)
+    target = tip if T_target is None else np.array(T_target, dtype=float, order="C")
     out = np.empty((n, 6))
     _hand_rows(
         target,
         T_target is not None,
         bool(hold_orientation),
         tip,
-        np.ascontiguousarray(twist_tip, dtype=float),
-        np.ascontiguousarray(stiffness, dtype=float),
-        np.ascontiguousarray(damping, dtype=float),
+        np.array(twist_tip, dtype=float, order="C"),
+        np.array(stiffness, dtype=float, order="C"),
+        np.array(damping, dtype=float, order="C"),
         float(impedance.rotational_stiffness),
         float(impedance.rotational_damping),
         float(impedance.max_force),

@@ -138,6 +138,18 @@ class WrenchLimiter:
         self.previous = out
         return out.copy()
 
+    def limit_checked(self, wrench: np.ndarray) -> np.ndarray:
+        """:meth:`limit` of a wrench already checked as 6 finite floats (a device's
+        ``servo_cf`` checks it at its edge): the same clamp and the same ``active``, the
+        wrench not checked again (this runs at 1 kHz)."""
+        out = clamp_wrenches(wrench.reshape(1, 6), self.previous.reshape(1, 6), self.limits,
+                             self.dt)[0]  # fmt: skip
+        # clamp_wrench's test, max |out − w| > 1e-12, on floats (all finite here).
+        pairs = zip(out.tolist(), wrench.tolist(), strict=True)
+        self.active = any(abs(a - b) > 1e-12 for a, b in pairs)
+        self.previous = out
+        return out.copy()
+
     def reset(self) -> None:
         """Forget the history: the next wrench ramps up from zero (after a safety stop)."""
         self.previous = np.zeros(6)

@@ -182,8 +182,8 @@ class SimulatedMTM(MasterDevice):
     # ------------------------------------------------------------ MasterDevice
     def _read(self, t: float) -> DeviceInput:
         arm = self.arm
-        T = arm.measured_cp().T
-        twist = arm.measured_cv().twist
+        T = arm._measured_T()  # (measured_cp().T and measured_cv().twist, read-only)
+        twist = arm._measured_twist()
         if self._hand_on or self._pushing or self._hand_applied:
             w = self._push.copy()
             if self._hand_on:

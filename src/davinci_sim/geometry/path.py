@@ -187,6 +187,13 @@ def _project(
     return u, np.einsum("mcj,mcj->mc", d, d)
 
 
+def brute_force_constants(path: Polyline) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """What :func:`closest_point_brute` compares a query against, for a compiled row form of
+    it (``haptics.path_query``): the basis (3, 2S) (edges E then centred starts A, as
+    columns), A·E (S,), A·A (S,) and ‖E‖² (S,); coordinates centred on :attr:`Polyline.centre`."""
+    return path._brute_constants
+
+
 def _result(path: Polyline, q: np.ndarray, seg: np.ndarray, u: np.ndarray) -> ClosestPoint:
     point = path.starts[seg] + u[..., None] * path.edges[seg]
     phi = point - q

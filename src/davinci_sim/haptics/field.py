@@ -71,6 +71,9 @@ class HapticState:
     """Provider of ``(T_camera_tip, twist_camera_tip)``."""
     jaw_provider: Callable[[], float] = field(repr=False)
     contact_provider: Callable[[], np.ndarray] = field(repr=False)
+    pose_provider: Callable[[], np.ndarray] | None = field(default=None, repr=False)
+    """Provider of ``T_camera_tip`` alone (the same pose as ``tip``'s), so that a field
+    reading only the pose does not pay for the twist; None: ``tip`` provides it."""
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "T_world_camera", _readonly(self.T_world_camera))
@@ -117,10 +120,16 @@ class HapticState:
         T, twist = self.tip()
         return _readonly(T), _readonly(twist)
 
+    @cached_property
+    def _pose(self) -> np.ndarray:
+        if self.pose_provider is None or "_tip_state" in self.__dict__:
+            return self._tip_state[0]
+        return _readonly(self.pose_provider())
+
     @property
     def T_camera_tip(self) -> np.ndarray:
         """PSM tool tip in the camera (ECM tip) frame, 4x4, m (``PSMx/measured_cp``)."""
-        return self._tip_state[0]
+        return self._pose
 
     @property
     def twist_camera_tip(self) -> np.ndarray:

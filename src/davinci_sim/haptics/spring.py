@@ -23,6 +23,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from davinci_sim.geometry.path import Polyline
+from davinci_sim.haptics.path_query import closest_point
 
 _EPS = 1e-12
 
@@ -92,7 +93,7 @@ class SpringGuidance:
             raise ValueError("SpringGuidance.max_force and transition must be > 0")
 
     def force(self, position, velocity) -> np.ndarray:
-        deviation = self.path.closest_point(position).deviation
+        deviation = closest_point(self.path, position).deviation  # (one tip: compiled)
         return spring_guidance(
             velocity,
             deviation,

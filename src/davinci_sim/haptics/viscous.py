@@ -61,6 +61,9 @@ from typing import NamedTuple
 import numpy as np
 
 from davinci_sim.geometry.path import Polyline
+from davinci_sim.haptics.path_query import closest_point
+from davinci_sim.kinematics.jit import ENABLED as _COMPILED
+from davinci_sim.kinematics.jit import helper, jit
 
 #: Default width of the ramp that makes the force vanish on the path, m: 0, the seed's law
 #: as printed, in the study and on the live console alike (a ramp is an explicit option:
@@ -138,6 +141,63 @@ def viscous_guidance_terms(
     return ViscousTerms(G[..., None] * direction, G, b, direction, c)  # (7)
 
 
+@helper
+def _minimum(a: float, b: float) -> float:
+    """``np.minimum`` of two floats: NaN if either is, else the smaller (``a`` on a tie)."""
+    if a != a:
+        return a
+    if b != b:
+        return b
+    return a if a <= b else b
+
+
+@helper
+def _clip(x: float, lo: float, hi: float) -> float:
+    """``np.clip`` of a float: NaN stays NaN, -0.0 stays -0.0 against a bound of 0.0."""
+    if x < lo:
+        x = lo
+    if x > hi:
+        x = hi
+    return x
+
+
+@jit
+def viscous_force_row(v, phi, B, G_max, transition, out):
+    """:func:`viscous_guidance_terms`'s force for one tool tip, into ``out`` (3,): velocity
+    ``v`` (3,), m/s, deviation ``phi`` (3,), m, ``B``, ``G_max``, ``transition`` floats.
+    The same operations in the same order as the batch law (norms summed left to right, the
+    dot product as numpy's ``einsum`` sums three terms, ``(x + z) + y``), so the same bits
+    (``tests/haptics/test_viscous.py``): the live haptic tick's one row, compiled."""
+    speed = math.sqrt((v[0] * v[0] + v[1] * v[1]) + v[2] * v[2])
+    dist = math.sqrt((phi[0] * phi[0] + phi[1] * phi[1]) + phi[2] * phi[2])
+    s_v = speed if speed > _EPS else 1.0
+    s_p = dist if dist > _EPS else 1.0
+    vx, vy, vz = v[0] / s_v, v[1] / s_v, v[2] / s_v
+    if not speed > _EPS:
+        vx, vy, vz = 0.0, 0.0, 0.0
+    px, py, pz = phi[0] / s_p, phi[1] / s_p, phi[2] / s_p
+    if not dist > _EPS:
+        px, py, pz = 0.0, 0.0, 0.0
+    c = _clip((vx * px + vz * pz) + vy * py, -1.0, 1.0)
+    b = B * math.sqrt((1.0 - c) / 2.0)
+    G = _minimum(G_max, b * speed)
+    if transition > 0:
+        G = G * _minimum(1.0, dist / transition)
+    elif not dist > _EPS:
+        G = 0.0
+    sin_alpha = math.sqrt(_clip((1.0 - c) * (1.0 + c), 0.0, math.inf))
+    ratio = 0.0
+    if sin_alpha > 1e-9:
+        ratio = math.sin((1.0 - c) * math.pi / 2) / sin_alpha
+    if c < 0.0 or speed <= _EPS:
+        out[0], out[1], out[2] = G * px, G * py, G * pz
+    else:
+        k = -math.sin(c * math.pi / 2)
+        out[0] = G * (k * vx + ratio * (px - c * vx))
+        out[1] = G * (k * vy + ratio * (py - c * vy))
+        out[2] = G * (k * vz + ratio * (pz - c * vz))
+
+
 def viscous_guidance(
     velocity, deviation, *, B, G_max, transition: float = DEFAULT_TRANSITION
 ) -> np.ndarray:
@@ -189,11 +249,38 @@ class ViscousGuidance:
 
     def terms(self, position, velocity) -> ViscousTerms:
         """(1)-(7) for tool tips at ``position`` (..., 3) moving at ``velocity`` (..., 3)."""
-        deviation = self.path.closest_point(position).deviation
+        deviation = closest_point(self.path, position).deviation  # (one tip: compiled)
         return viscous_guidance_terms(
             velocity, deviation, B=self.B, G_max=self.G_max, transition=self.transition
         )
 
     def force(self, position, velocity) -> np.ndarray:
         """Force on the hand (..., 3), N, in the path's frame."""
+        p, v = np.asarray(position, dtype=float), np.asarray(velocity, dtype=float)
+        if (
+            _COMPILED
+            and p.shape in ((3,), (1, 3))
+            and v.shape == p.shape
+            and isinstance(self.B, float)
+            and isinstance(self.G_max, float)
+        ):  # one tool tip (the live haptic tick): the compiled row, the same bits
+            out = np.empty(p.shape)
+            phi = closest_point(self.path, p).deviation.reshape(3)
+            viscous_force_row(
+                np.array(v.reshape(3), dtype=float, order="C"),  # (the warm-up signature)
+                np.array(phi, dtype=float, order="C"),
+                self.B,
+                self.G_max,
+                self.transition,
+                out.reshape(3),
+            )
+            return out
         return self.terms(position, velocity).force
+
+
+def _warm_up() -> None:
+    """Compile (or load from numba's cache) at import, never in the 1 kHz loop."""
+    viscous_force_row(np.ones(3), np.ones(3), 1.0, 1.0, 0.0, np.empty(3))
+
+
+_warm_up()

@@ -144,6 +144,8 @@ def _run(
     batch = q.shape[:-1]
     m = math.prod(batch) if batch else 1
     Q = np.ascontiguousarray(q).reshape(m, n)
+    if not Q.flags.writeable:  # (a read-only view would compile a second kernel signature)
+        Q = Q.copy()
     T = np.empty((m, 4, 4))
     J = np.empty((m, 6, n if jacobian else 0))
     F = np.empty((m if frames else 1, n, 12))

@@ -62,6 +62,7 @@ def jit(fn):
 
     call.py_func = fn
     call.ready = lambda: current[0] is not None
+    call.dispatcher = compiled  # (its ``signatures``: what has been compiled or loaded)
     KERNELS.append(call)
     return call
 

@@ -136,8 +136,10 @@ def frames_into(plan: FramePlan, q_suj: np.ndarray, q_reference: np.ndarray, out
     k = len(plan.arms)
     if out is None:
         out = np.empty((2 * k + 2, 4, 4))
-    Q = np.ascontiguousarray(q_suj, dtype=float).reshape(k, -1)
-    q_ref = np.ascontiguousarray(q_reference, dtype=float).reshape(plan.dof)
+    # New writable C arrays: the kernel's one compiled signature (its warm-up's), whether
+    # the joints come read-only or not.
+    Q = np.array(q_suj, dtype=float, order="C").reshape(k, -1)
+    q_ref = np.array(q_reference, dtype=float, order="C").reshape(plan.dof)
     _frames_rows(*plan.args, Q, plan.reference, *plan.ref_args, q_ref, out, *_scratch(Q.shape[1]))
     return out
 

@@ -109,6 +109,8 @@ class Arm(ServoJoints):
         self._T_user_base: tuple[np.ndarray, str] | None = None
         self._qmin, self._qmax = self.chain.qmin, self.chain.qmax
         self._tol = np.array([TRACKING_FAULT_TOLERANCE[j.joint_type] for j in self.chain.joints])
+        self._tracking_adr = self._qposadr.astype(np.int64)  # the kernel's argument types
+        self._tracking_idx = self._idx.astype(np.int64)
         self._feedforward_bound = (FEEDFORWARD_FACTOR * kin.v_max).tolist()
         self._tracking_bad_since = math.nan
         """When a joint went out of tracking tolerance, s (nan: none is)."""
@@ -151,9 +153,11 @@ class Arm(ServoJoints):
         key = q.tobytes()
         c = self._kin_cache
         if c is None or c[0] != key:
-            q.setflags(write=False)
             # Both in one pass: whoever asks for the pose this tick asks for the twist too.
+            # (q read-only after the call: the kernel's compiled signature is the writable
+            # one its warm-up compiled, not a second one compiled inside the loop.)
             T, J = laws.tip_kinematics(self.chain, q)
+            q.setflags(write=False)
             T.setflags(write=False)
             J.setflags(write=False)
             c = self._kin_cache = [key, q, T, J]
@@ -348,14 +352,12 @@ class Arm(ServoJoints):
 
     def _check_tracking(self, t: float) -> None:
         servo = self._sim.servo
-        q, q_ref = self._q(), servo.q_ref[self._idx]
-        bad = laws.tracking_bad(q, q_ref, self._tol, servo.effort_mode[self._idx])
-        self._tracking_bad_since, fault = laws.tracking_fault(
-            bad.any(), self._tracking_bad_since, t
-        )
+        # laws.tracking_bad as one compiled row kernel: every arm, every tick.
+        i = laws.tracking_first_bad(self._sim.measured_qpos(), self._tracking_adr, servo.q_ref,
+                                    self._tracking_idx, self._tol, servo.effort_mode)  # fmt: skip
+        self._tracking_bad_since, fault = laws.tracking_fault(i >= 0, self._tracking_bad_since, t)
         if fault:
-            i = int(np.flatnonzero(bad)[0])
-            err = np.abs(q - q_ref)
+            err = np.abs(self._q() - servo.q_ref[self._idx])
             self._fault(
                 f"tracking error on joint {self.chain.joint_names[i]!r}: {err[i]:.4g} exceeds "
                 f"{self._tol[i]:.4g}"
@@ -582,6 +584,22 @@ class Arm(ServoJoints):
     def setpoint_cp(self) -> CartesianPose:
         return self._pose(self._q_set(), f"{self.name}_setpoint", local=False)
 
+    def _measured_T(self) -> np.ndarray:
+        """``measured_cp().T`` without building the message: a new read-only 4x4 (m), the
+        same bits (for the simulator's own per-tick readers: devices, haptics, tasks)."""
+        _, T_base_tip, _ = self._measured_kinematics()
+        T = laws.pose_in_reference(self.base_frame()[0], T_base_tip)
+        T.setflags(write=False)
+        return T
+
+    def _measured_twist(self) -> np.ndarray:
+        """``measured_cv().twist`` without building the message: a new read-only (6,)
+        (m/s, rad/s), the same bits."""
+        J = self._measured_kinematics(jacobian=True)[2]
+        twist = laws.twist_in_reference(self.base_frame()[0][:3, :3], J, self._qd())
+        twist.setflags(write=False)
+        return twist
+
     def measured_cv(self) -> CartesianTwist:
         """Tip twist (linear m/s, angular rad/s) in the base frame's orientation (dvrk.md 2.2)."""
         J = self._measured_kinematics(jacobian=True)[2]
@@ -589,11 +607,11 @@ class Arm(ServoJoints):
         twist = laws.twist_in_reference(T_ref_base[:3, :3], J, self._qd())
         return CartesianTwist(twist, ref, self.name, self._now())
 
-    def _cartesian_goal(self, command: str, T_goal, seed: np.ndarray):
+    def _cartesian_goal(self, command: str, T_goal, seed: np.ndarray, checked: bool = False):
         why = self._not_ready(cartesian=True)
         if why:
             return None, why
-        T, msg = as_transform(T_goal, "goal")
+        T, msg = (T_goal, "") if checked else as_transform(T_goal, "goal")
         if T is None:
             return None, msg
         T_base_goal = self._T_base_reference() @ T  # IK works in the chain base (dvrk.md 1.8)
@@ -605,7 +623,17 @@ class Arm(ServoJoints):
 
     def servo_cp(self, T_goal, twist=None) -> CommandResult:
         """Cartesian setpoint in the base frame's reference; IK seeded with measured joints."""
-        q, msg = self._cartesian_goal("servo_cp", T_goal, self._q())
+        return self._servo_cp(T_goal, twist, checked=False)
+
+    def _servo_cp_checked(self, T_goal: np.ndarray, twist=None) -> CommandResult:
+        """:meth:`servo_cp` of a goal known to be a proper 4x4 transform within reach (the
+        teleoperation's, composed of measured poses and rotations at 1 kHz): the goal is not
+        checked again; everything else is as :meth:`servo_cp` (readiness, IK, limits, the
+        twist and its feed-forward bound)."""
+        return self._servo_cp(T_goal, twist, checked=True)
+
+    def _servo_cp(self, T_goal, twist, checked: bool) -> CommandResult:
+        q, msg = self._cartesian_goal("servo_cp", T_goal, self._q(), checked)
         if q is None:
             return self._refuse("servo_cp", msg)
         qd = np.zeros(self.dof)

@@ -22,6 +22,8 @@ import numpy as np
 from davinci_sim.geometry.so3 import rotate_pairs
 from davinci_sim.kinematics import fk
 from davinci_sim.kinematics.chain import DHChain
+from davinci_sim.kinematics.jit import ENABLED as _COMPILED
+from davinci_sim.kinematics.jit import jit
 
 try:  # the gufunc behind np.linalg.solve (see _solve)
     from numpy.linalg import _umath_linalg
@@ -58,7 +60,12 @@ def pose_in_reference(T_ref_base: np.ndarray, T_base_tip: np.ndarray) -> np.ndar
 
 def twist_in_reference(R_ref_base: np.ndarray, J: np.ndarray, qd: np.ndarray) -> np.ndarray:
     """``measured_cv``: ``J·q̇`` (linear m/s, angular rad/s) rotated into the reference's
-    orientation; ``J`` (..., 6, dof) spatial in the chain base, ``qd`` (..., dof)."""
+    orientation; ``J`` (..., 6, dof) spatial in the chain base, ``qd`` (..., dof). One arm
+    (devices and haptics read it every tick): the compiled :func:`twist_row`, the same bits."""
+    if J.ndim == 2 and np.ndim(qd) == 1 and _COMPILED:
+        out = np.empty(6)
+        twist_row(_row(R_ref_base), _row(J), _row(qd), out)
+        return out
     v = np.sum(J * qd[..., None, :], axis=-1)
     return rotate_pairs(R_ref_base, v)
 
@@ -99,7 +106,18 @@ def wrench_effort(
     """Joint efforts (..., dof) (N·m, N) rendering ``wrench`` (..., 6: force N then torque
     N·m at the tip, in axes ``R_base_wrench`` (3, 3) gives in the chain base): ``Jᵀ·w``
     with the spatial Jacobian, clamped to the joints' ``ftmax`` (``body``/``spatial``
-    ``servo_cf``)."""
+    ``servo_cf``). One arm (the live MTM's haptic wrench, every tick): the compiled
+    :func:`wrench_effort_row`, the same bits."""
+    if J.ndim == 2 and np.ndim(wrench) == 1 and _COMPILED:
+        out = np.empty(J.shape[1])
+        wrench_effort_row(
+            _row(J),
+            _row(R_base_wrench),
+            _row(wrench),
+            _row(ftmax),
+            out,
+        )
+        return out
     w_base = rotate_pairs(R_base_wrench, wrench)
     tau = np.sum(np.swapaxes(J, -1, -2) * w_base[..., None, :], axis=-1)
     return np.minimum(np.maximum(tau, -ftmax), ftmax)
@@ -111,6 +129,75 @@ def tracking_bad(
     """Per joint (..., dof): position-servoed and further from its setpoint than the
     tracking tolerance."""
     return (np.abs(q - q_ref) > tolerance) & ~effort_mode
+
+
+def _row(a) -> np.ndarray:
+    """``a`` as a new C-ordered, writable float array: the argument types a compiled row's
+    warm-up compiled (a transposed or read-only view would compile a second signature inside
+    the 1 kHz loop)."""
+    return np.array(a, dtype=float, order="C")
+
+
+@jit
+def twist_row(R, J, qd, out):
+    """:func:`twist_in_reference` of one arm into ``out`` (6,): ``J·q̇`` row by row summed
+    left to right from 0 (as numpy sums a row of six or seven), both halves rotated by
+    ``R`` as :func:`~davinci_sim.geometry.so3.rotate_pairs` rotates one 6-vector."""
+    v = np.empty(6)
+    for k in range(6):
+        t = 0.0
+        for j in range(J.shape[1]):
+            t = t + J[k, j] * qd[j]
+        v[k] = t
+    for h in range(2):
+        x, y, z = v[3 * h], v[3 * h + 1], v[3 * h + 2]
+        out[3 * h] = x * R[0, 0] + y * R[0, 1] + z * R[0, 2]
+        out[3 * h + 1] = x * R[1, 0] + y * R[1, 1] + z * R[1, 2]
+        out[3 * h + 2] = x * R[2, 0] + y * R[2, 1] + z * R[2, 2]
+
+
+@jit
+def wrench_effort_row(J, R, w, ftmax, out):
+    """:func:`wrench_effort` of one arm into ``out`` (dof,): the wrench's halves rotated as
+    :func:`~davinci_sim.geometry.so3.rotate_pairs` rotates one 6-vector, ``Jᵀ·w`` summed
+    over the six rows left to right from 0 (as numpy sums one arm's), then ``np.maximum``/
+    ``np.minimum`` against ``∓ftmax`` (NaN kept)."""
+    x, y, z, u, v, s = w[0], w[1], w[2], w[3], w[4], w[5]
+    wb = (
+        x * R[0, 0] + y * R[0, 1] + z * R[0, 2],
+        x * R[1, 0] + y * R[1, 1] + z * R[1, 2],
+        x * R[2, 0] + y * R[2, 1] + z * R[2, 2],
+        u * R[0, 0] + v * R[0, 1] + s * R[0, 2],
+        u * R[1, 0] + v * R[1, 1] + s * R[1, 2],
+        u * R[2, 0] + v * R[2, 1] + s * R[2, 2],
+    )
+    for j in range(J.shape[1]):
+        t = 0.0  # numpy's sum over the (strided) row starts from 0: the same signed zeros
+        for k in range(6):
+            t = t + J[k, j] * wb[k]
+        lo, hi = -ftmax[j], ftmax[j]
+        if t == t and lo == lo:  # np.maximum(t, lo)
+            t = t if t >= lo else lo
+        elif lo != lo:
+            t = lo
+        if t == t and hi == hi:  # np.minimum(t, hi)
+            t = t if t <= hi else hi
+        elif hi != hi:
+            t = hi
+        out[j] = t
+
+
+@jit
+def tracking_first_bad(qpos, qposadr, q_ref, idx, tolerance, effort_mode) -> int:
+    """:func:`tracking_bad` of one arm as one compiled row kernel (the live arm's check, on
+    every arm at 1 kHz): the first of its joints (``qposadr`` into ``qpos``, ``idx`` into
+    the servo's ``q_ref``/``effort_mode``; both int64) that is position-servoed and further
+    from its setpoint than ``tolerance``, or -1. The same comparisons as the batch law."""
+    for k in range(idx.shape[0]):
+        j = idx[k]
+        if abs(qpos[qposadr[k]] - q_ref[j]) > tolerance[k] and not effort_mode[j]:
+            return k
+    return -1
 
 
 def tracking_fault(bad, bad_since, t: float):
@@ -129,3 +216,15 @@ def tracking_fault(bad, bad_since, t: float):
 def within_limits(q: np.ndarray, qmin: np.ndarray, qmax: np.ndarray) -> np.ndarray:
     """(...) all joints of ``q`` (..., dof) within [qmin, qmax] (with ``LIMIT_SLACK``)."""
     return np.all((q >= qmin - LIMIT_SLACK) & (q <= qmax + LIMIT_SLACK), axis=-1)
+
+
+def _warm_up() -> None:
+    """Compile (or load from numba's cache) at import, with the live arm's argument types,
+    never in the 1 kHz loop (:mod:`davinci_sim.kinematics.jit`)."""
+    i = np.zeros(1, dtype=np.int64)
+    tracking_first_bad(np.zeros(1), i, np.zeros(1), i, np.ones(1), np.zeros(1, dtype=bool))
+    wrench_effort_row(np.zeros((6, 2)), np.eye(3), np.zeros(6), np.ones(2), np.empty(2))
+    twist_row(np.eye(3), np.zeros((6, 2)), np.zeros(2), np.empty(6))
+
+
+_warm_up()

@@ -137,6 +137,7 @@ _WRENCH_BOUND = np.array([MAX_FORCE] * 3 + [MAX_TORQUE] * 3)
 #: Damped-least-squares steps per tick of the orientation lock, and their damping (rad²).
 _LOCK_STEPS = 2
 _LOCK_DAMPING = 1e-4
+_LOCK_DAMPING_EYE = _LOCK_DAMPING * np.eye(3)
 
 
 class MTM(Arm):
@@ -170,6 +171,10 @@ class MTM(Arm):
         self._impedance: CartesianImpedance | None = None
         """The ``servo_ci`` gains in force (None: none)."""
         self._impedance_w: np.ndarray | None = None
+        self._wrist_limits = (
+            self.chain.qmin[MTM_WRIST_JOINTS].copy(),
+            self.chain.qmax[MTM_WRIST_JOINTS].copy(),
+        )
 
     def lock_orientation(self, R_reference_tip) -> CommandResult:
         """Hold the handle at orientation ``R_reference_tip`` (3x3, in the ``measured_cp``
@@ -289,15 +294,22 @@ class MTM(Arm):
         assert self._R_lock is not None
         R_base_goal = self.base_frame()[0][:3, :3].T @ self._R_lock
         q = self._q()
-        if self._lock_goal is not None:
-            q[MTM_WRIST_JOINTS] = self._lock_goal
-        for _ in range(_LOCK_STEPS):
-            R = fk.forward_kinematics(self.chain, q)[:3, :3]
-            err = so3.rotation_vector(R_base_goal @ R.T)  # spatial error, base frame
-            J = fk.jacobian_spatial(self.chain, q)[3:, MTM_WRIST_JOINTS]
-            q[MTM_WRIST_JOINTS] += J.T @ dgesv(J @ J.T + _LOCK_DAMPING * np.eye(3), err)[2]
-        wrist = q[MTM_WRIST_JOINTS]
-        goal = np.clip(wrist, self.chain.qmin[MTM_WRIST_JOINTS], self.chain.qmax[MTM_WRIST_JOINTS])
+        chain, wrist = self.chain, MTM_WRIST_JOINTS
+        seeded = self._lock_goal is not None
+        if seeded:  # (the last solution: the lock's trajectory leads the measured wrist)
+            q[wrist] = self._lock_goal
+        for step in range(_LOCK_STEPS):
+            # Pose and Jacobian in one kernel pass (the pose is the same bits as FK alone);
+            # at the measured joints (an unseeded first step) the arm has them this tick.
+            if step == 0 and not seeded:
+                T, J_spatial = self._measured_kinematics(jacobian=True)[1:]
+            else:
+                T, J_spatial = fk.forward_kinematics_and_jacobian(chain, q)
+            err = so3.rotation_vector(R_base_goal @ T[:3, :3].T)  # spatial error, base frame
+            J = J_spatial[3:, wrist]
+            q[wrist] += J.T @ dgesv(J @ J.T + _LOCK_DAMPING_EYE, err)[2]
+        lo, hi = self._wrist_limits
+        goal = np.minimum(np.maximum(q[wrist], lo), hi)  # np.clip's arithmetic, less overhead
         self._lock_goal = goal
         return goal
 

@@ -165,6 +165,25 @@ class Sample:
         """The trials ``rows`` (indices)."""
         return Sample(*(None if (a := getattr(self, k)) is None else a[rows] for k in _FIELDS))
 
+    def kept(self, other: Sample) -> Sample:
+        """:meth:`where` with a mask false everywhere: this sample's rows (the same arrays
+        where ``other``'s field has the same type and shape, as ``np.where`` would give
+        them), an optional field None unless both have it; this sample itself when that is
+        every field of it (samples are values: nothing changes their arrays)."""
+        out, same = [], True
+        for k in _FIELDS:
+            a, b = getattr(self, k), getattr(other, k)
+            if a is None or b is None:
+                out.append(None)
+                same = same and a is None
+            elif a.dtype == b.dtype and a.shape == b.shape:
+                out.append(a)
+            else:
+                m = np.zeros(len(a), dtype=bool).reshape(-1, *([1] * (a.ndim - 1)))
+                out.append(np.where(m, b, a))
+                same = False
+        return self if same else Sample(*out)
+
     def where(self, mask, other: Sample) -> Sample:
         """``other``'s rows where ``mask`` (n,) is true, this sample's elsewhere (an optional
         field is None unless both have it)."""

@@ -43,6 +43,11 @@ numbers from recorded arrays with a leading trial axis, (n, K[, 3]), and a mask 
 samples of each repetition (one contiguous run per trial; a 1-D (K,) input is one trial);
 sums over pairs use the pairs of consecutive samples that are both in the mask. They are
 the independent reference the accumulator is tested against.
+
+Size: just over 500 lines because the declaration, the reducers and the accumulator that
+runs them are one contract (each reducer also says whether a sample no trial measures
+leaves it unchanged, which the live session's every tick relies on); the path task's
+reference functions are the tests' oracle for the same metrics.
 """
 
 from __future__ import annotations
@@ -181,11 +186,25 @@ Value = Callable[[Any, "Sample", dict], np.ndarray]
 PairValue = Callable[[Any, "Sample", "Sample", dict], np.ndarray]
 
 
+def _float_acc(acc) -> bool:
+    """``acc + where(False, value, 0)`` is ``acc`` whatever the value's type: float64 (an
+    integer running sum would turn float with a float value)."""
+    return isinstance(acc, np.ndarray) and acc.dtype == np.float64
+
+
+def _always(acc) -> bool:
+    """A reducer whose ``add`` with an all-false mask gives its running value back as it is
+    (``unchanged_unmeasured``: :meth:`MetricsAccumulator.update` then skips it)."""
+    return True
+
+
 @dataclass(frozen=True)
 class Mean:
     """(1/K)·Σ value_i over the repetition's samples (nan without samples)."""
 
     value: Value
+
+    unchanged_unmeasured = staticmethod(_always)  # (MetricsAccumulator.update)
 
     def init(self, n: int, task=None):
         return np.zeros(n)
@@ -202,6 +221,8 @@ class Peak:
     """max value_i over the repetition's samples (0 without samples)."""
 
     value: Value
+
+    unchanged_unmeasured = staticmethod(_always)  # (MetricsAccumulator.update)
 
     def init(self, n: int, task=None):
         return np.zeros(n)
@@ -221,6 +242,8 @@ class PairSum:
     value: PairValue
     integer: bool = False
 
+    unchanged_unmeasured = staticmethod(_float_acc)  # (MetricsAccumulator.update)
+
     def init(self, n: int, task=None):
         return np.zeros(n, dtype=np.int64 if self.integer else float)
 
@@ -234,6 +257,8 @@ class PairSum:
 @dataclass(frozen=True)
 class Elapsed:
     """t_K − t_1, s (nan without samples)."""
+
+    unchanged_unmeasured = staticmethod(_always)  # (MetricsAccumulator.update)
 
     def init(self, n: int, task=None):
         return (np.full(n, np.nan), np.full(n, np.nan))
@@ -249,6 +274,8 @@ class Elapsed:
 @dataclass(frozen=True)
 class Count:
     """K, the number of samples of the repetition."""
+
+    unchanged_unmeasured = staticmethod(_always)  # (MetricsAccumulator.update)
 
     def init(self, n: int, task=None):
         return None
@@ -267,6 +294,8 @@ class Ratio:
 
     numerator: str
     denominator: str
+
+    unchanged_unmeasured = staticmethod(_always)  # (MetricsAccumulator.update)
 
     def init(self, n: int, task=None):
         return None
@@ -371,6 +400,10 @@ class MetricsAccumulator:
         self.metrics = tuple(metrics)
         self.n = n
         self.task = task
+        self.unchanged_checks = tuple(
+            getattr(m.reduce, "unchanged_unmeasured", None) for m in self.metrics
+        )
+        """Each metric's reducer's ``unchanged_unmeasured`` (None: always run its ``add``)."""
         self.reset()
 
     def reset(self, mask=None) -> None:
@@ -406,17 +439,29 @@ class MetricsAccumulator:
         m = np.asarray(mask, dtype=bool)
         pair = m & self._prev_in
         prev = sample if self._prev is None else self._prev
+        # No trial measures this sample (the live session between repetitions, most of its
+        # ticks): a reducer that declares it leaves its running value as it is skips the
+        # arithmetic that would give back the same bits (x + 0.0, where(False, ...)).
+        idle = not m.any()
         acc_new = []
-        for metric, acc in zip(self.metrics, self._acc, strict=True):
+        for metric, acc, unchanged in zip(
+            self.metrics, self._acc, self.unchanged_checks, strict=True
+        ):
             if metric.needs and any(getattr(sample, f) is None for f in metric.needs):
                 self._missing.add(metric.name)  # the sample cannot tell: unavailable
+                acc_new.append(acc)
+                continue
+            if idle and unchanged is not None and unchanged(acc):
                 acc_new.append(acc)
                 continue
             acc_new.append(metric.reduce.add(acc, m, pair, self.task, prev, sample, obs))
         self._acc = acc_new
         self._k = self._k + m
         self._prev_in = m.copy()
-        self._prev = sample if self._prev is None else self._prev.where(m, sample)
+        if self._prev is None:
+            self._prev = sample
+        else:
+            self._prev = self._prev.kept(sample) if idle else self._prev.where(m, sample)
 
     def result(self) -> MetricValues:
         done: dict[str, np.ndarray] = {}

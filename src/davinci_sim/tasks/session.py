@@ -409,10 +409,10 @@ def live_sample(task: Task, T_task_camera, teleop: TeleopPSM, console: Console, 
     orientation in the task's frame (for the exercises that score them)."""
     from davinci_sim.model.cameras import project_left
 
-    p_camera = teleop.psm.measured_cp().T
+    p_camera = teleop.psm._measured_T()  # (measured_cp().T)
     T_task_tip = np.asarray(T_task_camera) @ p_camera
     tip = T_task_tip[:3, 3]
-    requested = console.haptics.snapshot().requested.get(task.teleop.mtm)
+    requested = console.haptics.requested(task.teleop.mtm)
     force = None if requested is None else requested[:3]
     sim = console.sim
     camera = sim.endoscope

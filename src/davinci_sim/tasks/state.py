@@ -47,6 +47,11 @@ class Phase(IntEnum):
     RESULTS = 4
 
 
+#: The phases as plain ints for array comparisons (an IntEnum against an array costs five
+#: times an int, at every tick of the live session and the study's batches).
+_IDLE, _READY, _RUNNING, _FINISHED, _RESULTS = (int(p) for p in Phase)
+
+
 class TaskState(NamedTuple):
     """State of a batch of trials, each array of shape (n,)."""
 
@@ -102,18 +107,23 @@ def task_step(
         path_length, start_tolerance, finish_tolerance, min_progress: the task's.
     """
     phase = state.phase
+    if phase.shape == (1,):  # one trial (the live session, every tick): on floats
+        return _task_step_one(
+            state, time, dist_start, dist_finish, arc_length,
+            path_length * min_progress, start_tolerance, finish_tolerance,
+        )  # fmt: skip
     t = np.broadcast_to(np.asarray(time, dtype=float), phase.shape)
     at_start = np.asarray(dist_start) <= start_tolerance
     at_finish = np.asarray(dist_finish) <= finish_tolerance
-    running = phase == Phase.RUNNING
+    running = phase == _RUNNING
     progress = np.where(running, np.maximum(state.progress, arc_length), state.progress)
     new = phase.copy()
-    new[(phase == Phase.IDLE) & at_start] = Phase.READY
-    begin = (phase == Phase.READY) & ~at_start
-    new[begin] = Phase.RUNNING
+    new[(phase == _IDLE) & at_start] = _READY
+    begin = (phase == _READY) & ~at_start
+    new[begin] = _RUNNING
     done = running & at_finish & (progress >= min_progress * path_length)
-    new[done] = Phase.FINISHED
-    new[phase == Phase.FINISHED] = Phase.RESULTS
+    new[done] = _FINISHED
+    new[phase == _FINISHED] = _RESULTS
     return TaskState(
         new,
         np.where(begin, t, state.t_start),
@@ -122,10 +132,45 @@ def task_step(
     )
 
 
+def _task_step_one(state, time, dist_start, dist_finish, arc_length, min_arc, start_tol,
+                   finish_tol) -> TaskState:  # fmt: skip
+    """:func:`task_step` of one trial on Python floats: the same comparisons and the same
+    results (arrays of the same types, ``np.maximum``'s NaN rule), without the array
+    arithmetic (``min_arc``: ``min_progress · path_length``, as the batch form computes it)."""
+    t = float(np.asarray(time, dtype=float).reshape(-1)[0])
+    at_start = bool(np.asarray(dist_start).reshape(-1)[0] <= start_tol)
+    at_finish = bool(np.asarray(dist_finish).reshape(-1)[0] <= finish_tol)
+    arc = np.asarray(arc_length, dtype=float).reshape(-1)[0]
+    phase = int(state.phase[0])
+    old = state.progress[0]
+    running = phase == Phase.RUNNING
+    if running:  # np.maximum: NaN if either is
+        progress = old if old != old else arc if arc != arc else old if old >= arc else arc
+    else:
+        progress = old
+    new = phase
+    begin = phase == Phase.READY and not at_start
+    done = running and at_finish and bool(progress >= min_arc)
+    if phase == Phase.IDLE and at_start:
+        new = Phase.READY
+    elif begin:
+        new = Phase.RUNNING
+    elif done:
+        new = Phase.FINISHED
+    elif phase == Phase.FINISHED:
+        new = Phase.RESULTS
+    return TaskState(
+        np.array([new], dtype=state.phase.dtype),
+        np.array([t]) if begin else state.t_start.astype(float),
+        np.array([t]) if done else state.t_finish.astype(float),
+        np.array([arc if begin else progress], dtype=float),
+    )
+
+
 def measuring(phase) -> np.ndarray:
     """(n,) bool: the trials whose current sample belongs to the repetition (RUNNING, or
     FINISHED at this sample)."""
-    return (phase == Phase.RUNNING) | (phase == Phase.FINISHED)
+    return (phase == _RUNNING) | (phase == _FINISHED)
 
 
 def advance(task: Task, state, metrics: MetricsAccumulator, sample: Sample, active=None):
@@ -188,7 +233,7 @@ class TaskMonitor:
     def observe(self, sample: Sample, active=None) -> np.ndarray:
         """One sample of the n trials (:func:`advance`); returns their phases (n,)."""
         self.state, self.observations = advance(self.task, self.state, self.metrics, sample, active)
-        if np.all(self.state.phase >= Phase.FINISHED) and self.results is None:
+        if self.results is None and np.all(self.state.phase >= _FINISHED):
             self.results = self.metrics.result()
         return self.state.phase
 

@@ -25,6 +25,7 @@ the task's frame.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 from functools import cached_property
 from typing import Any, ClassVar
@@ -37,6 +38,7 @@ from davinci_sim.haptics.adaptive import PARAMS as ADAPTIVE_PARAMS
 from davinci_sim.haptics.combine import combine
 from davinci_sim.haptics.fixture import Fixture
 from davinci_sim.haptics.kinds import build_fixture, fixture_kind
+from davinci_sim.haptics.path_query import closest_point
 from davinci_sim.tasks.base import (
     FRAMES,
     Sample,
@@ -265,12 +267,17 @@ class PathTask(Task, kind="path"):
         ``distance`` and ``arc_length`` of the tips' closest path points, m."""
         path = self.path
         tip = sample.tip
-        cp = path.closest_point(tip)
+        cp = closest_point(path, tip)  # (one trial, the live session: a compiled kernel)
+        if tip.shape == (1, 3):  # one trial: the two distances on floats, numpy's sums
+            d_start, d_finish = _distance(tip[0], self.start), _distance(tip[0], self.finish)
+        else:
+            d_start = np.linalg.norm(tip - self.start, axis=1)
+            d_finish = np.linalg.norm(tip - self.finish, axis=1)
         new = task_step(
             state,
             sample.time,
-            np.linalg.norm(tip - self.start, axis=1),
-            np.linalg.norm(tip - self.finish, axis=1),
+            d_start,
+            d_finish,
             cp.arc_length,
             path_length=path.length,
             start_tolerance=self.start_tolerance,
@@ -379,3 +386,10 @@ _COMMON = ("name", "description", "frame", "teleop", "fixture", "conditions", "w
 def _guidance(spec: dict, path: Polyline):
     # One registry builds every kind (haptics.kinds): the live loop and the study alike.
     return build_fixture(spec, path)
+
+
+def _distance(p: np.ndarray, q: np.ndarray) -> float:
+    """‖p − q‖ of two points (3,), m, summed as ``np.linalg.norm`` sums a row,
+    ``(x² + y²) + z²``: the same float as the batch form's row."""
+    x, y, z = (p - q).tolist()
+    return math.sqrt((x * x + y * y) + z * z)

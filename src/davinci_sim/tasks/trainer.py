@@ -46,7 +46,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from davinci_sim.tasks.metrics import PATH_METRICS, Metric, PairSum
+from davinci_sim.tasks.metrics import PATH_METRICS, Metric, PairSum, _always, _float_acc
 
 if TYPE_CHECKING:
     import mujoco
@@ -72,6 +72,8 @@ class Extent:
     value: object
     """``value(task, sample, obs) -> (n, 3)``."""
 
+    unchanged_unmeasured = staticmethod(_always)  # (MetricsAccumulator.update)
+
     def init(self, n: int, task=None):
         return (np.full((n, 3), np.inf), np.full((n, 3), -np.inf))
 
@@ -96,6 +98,8 @@ class Sum:
     """``value(task, sample, obs) -> (n,)``."""
     integer: bool = False
 
+    unchanged_unmeasured = staticmethod(_float_acc)  # (MetricsAccumulator.update)
+
     def init(self, n: int, task=None):
         return np.zeros(n, dtype=np.int64 if self.integer else float)
 
@@ -113,6 +117,8 @@ class Unreached:
 
     targets: object
     tolerance: object
+
+    unchanged_unmeasured = staticmethod(_always)  # (MetricsAccumulator.update)
 
     def init(self, n: int, task=None):
         k = 0 if task is None else len(self.targets(task))

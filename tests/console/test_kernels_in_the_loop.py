@@ -1,0 +1,41 @@
+"""The 1 kHz tick calls every compiled kernel with the argument types its module's warm-up
+compiled at import: no kernel gets a second signature inside the loop (with a cold numba
+cache that is a compile of seconds in the simulation thread, the stall the warm-up exists
+to prevent; a read-only or transposed array is enough to cause one)."""
+
+from __future__ import annotations
+
+import importlib
+import pkgutil
+
+import pytest
+
+import davinci_sim
+from davinci_sim.kinematics import jit
+from davinci_sim.system import (
+    ConsoleDescription,
+    SystemDescription,
+    TaskDescription,
+    build_simulation,
+)
+
+
+@pytest.mark.skipif(not jit.ENABLED, reason="numba is off: nothing is compiled")
+def test_the_live_tick_compiles_no_new_kernel_signature():
+    for module in pkgutil.walk_packages(davinci_sim.__path__, "davinci_sim."):
+        importlib.import_module(module.name)
+    # Every kernel compiled at import: from here the build, the homing and the following
+    # must call each with a signature it has.
+    before = {k.__qualname__: len(k.dispatcher.signatures) for k in jit.KERNELS}
+    console = ConsoleDescription(
+        operator_present=True, teleop_enabled=True, contact_feedback=True, scripted_hands=True
+    )
+    sim = build_simulation(
+        SystemDescription("psm1_ecm_mtmr", console=console, task=TaskDescription("seed_path"))
+    )
+    teleop = sim.components["console"].psm_teleops["MTMR_PSM1"]
+    assert sim.run_until(teleop.is_following, 30)
+    sim.run_for(0.3)  # following: teleoperation, hand, haptics, fixture, task session
+    assert sim.components["console"].haptics.requested("MTMR") is not None
+    after = {k.__qualname__: len(k.dispatcher.signatures) for k in jit.KERNELS}
+    assert after == before
