@@ -42,6 +42,10 @@ _log = logging.getLogger("davinci_sim.bridge")
 NODE = "/davinci_sim/console"
 PEDALS = ("clutch", "camera", "cam_minus", "cam_plus", "bicoag", "coag")
 CONSOLE_BUTTONS = ("clutch", "camera", "operator_present")
+#: What ``/console/teleop/scale`` says before any ``set_scale``: the dVRK's console emits the
+#: default PSM teleoperation scale when it starts (dvrk.md 4.1: 0.2; sawIntuitiveResearchKit's
+#: console ``Startup``), so ``dvrk.console.teleop_get_scale()`` reads it, not 0.
+STARTUP_SCALE = 0.2
 
 
 def kind_of(state: Any) -> str | None:
@@ -262,6 +266,8 @@ class ConsoleNode:
             c.last["teleop_enabled"] = s.teleop_enabled
             b.publish(c.topics["/console/teleop/enabled"], {"data": bool(s.teleop_enabled)})
         scale = s.scale
+        if (scale is None or math.isnan(scale)) and "scale" not in c.last:
+            scale = STARTUP_SCALE  # never set: the value the dVRK's console starts with
         if scale is not None and not math.isnan(scale) and c.last.get("scale") != scale:
             c.last["scale"] = scale
             b.publish(c.topics["/console/teleop/scale"], {"data": float(scale)})
