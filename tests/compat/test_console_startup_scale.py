@@ -8,14 +8,10 @@ from __future__ import annotations
 import time
 
 import pytest
+from transports import connected
 
-from davinci_sim.bridge.rosbridge.config import BridgeConfig
-from davinci_sim.bridge.rosbridge.server import RosbridgeServer
 from davinci_sim.compat import dvrk_api as dvrk
-from davinci_sim.compat import ral as ral_module
-from davinci_sim.compat.inprocess import InProcessBridge, dvrk_nodes
 from davinci_sim.compat.ral import ral as make_ral
-from davinci_sim.compat.transport import RosbridgeClient, WebSocketConnection
 from davinci_sim.system import ConsoleDescription, SystemDescription, build_system
 
 
@@ -26,17 +22,8 @@ def console_ral(request):
                                     console=ConsoleDescription(), runner="thread",
                                     snapshot_period=0.01)  # fmt: skip
     system = build_system(description, start=True)
-    if request.param == "in-process":
-        server = InProcessBridge(system.handle).start()
-        client = RosbridgeClient(server.connect())
-    else:
-        server = RosbridgeServer(BridgeConfig(port=0), nodes=dvrk_nodes(system.handle)).start()
-        client = RosbridgeClient(WebSocketConnection(server.url))
-    ral_module.set_client(client)
-    yield system, make_ral(f"test_scale_{request.param}")
-    ral_module.set_client(None)
-    client.close()
-    server.stop()
+    with connected(system.handle, request.param):
+        yield system, make_ral(f"test_scale_{request.param}")
     system.stop()
 
 

@@ -23,15 +23,12 @@ import time
 
 import numpy as np
 import pytest
+from transports import connected
 
-from davinci_sim.bridge.rosbridge.config import BridgeConfig
-from davinci_sim.bridge.rosbridge.server import RosbridgeServer
 from davinci_sim.compat import crtk_utils, pykdl
 from davinci_sim.compat import dvrk_api as dvrk
 from davinci_sim.compat import kdl as subset
 from davinci_sim.compat import ral as ral_module
-from davinci_sim.compat.inprocess import InProcessBridge, dvrk_nodes
-from davinci_sim.compat.transport import RosbridgeClient, WebSocketConnection
 from davinci_sim.system import SystemDescription, build_system
 
 REAL = pykdl.load()
@@ -45,21 +42,12 @@ def system(request):
     description = SystemDescription(scene="psm1", keyframe="home", runner="thread",
                                     snapshot_period=0.005)  # fmt: skip
     system = build_system(description, start=True)
-    if request.param == "in-process":
-        server = InProcessBridge(system.handle).start()
-        client = RosbridgeClient(server.connect())
-    else:
-        server = RosbridgeServer(BridgeConfig(port=0), nodes=dvrk_nodes(system.handle)).start()
-        client = RosbridgeClient(WebSocketConnection(server.url))
-    ral_module.set_client(client)
-    psm = dvrk.psm(ral_module.ral("test_upstream_setup"), "PSM1")
-    psm.check_connections(10)
-    assert psm.enable(10) is True and psm.home(30) is True
-    system.transport = request.param
-    yield system
-    ral_module.set_client(None)
-    client.close()
-    server.stop()
+    with connected(system.handle, request.param):
+        psm = dvrk.psm(ral_module.ral("test_upstream_setup"), "PSM1")
+        psm.check_connections(10)
+        assert psm.enable(10) is True and psm.home(30) is True
+        system.transport = request.param
+        yield system
     system.stop()
 
 

@@ -7,7 +7,6 @@ Screenshots of each view go to the test's temporary folder (``--basetemp`` to ke
 from __future__ import annotations
 
 import shutil
-import threading
 import time
 from pathlib import Path
 
@@ -16,7 +15,9 @@ import pytest
 
 playwright = pytest.importorskip("playwright.sync_api")
 
-from davinci_sim.bridge.app import ServeOptions, serve  # noqa: E402
+from serving import serving  # noqa: E402
+
+from davinci_sim.bridge.app import ServeOptions  # noqa: E402
 from davinci_sim.bridge.rosbridge.config import BridgeConfig  # noqa: E402
 from davinci_sim.web.app import web_part  # noqa: E402
 from davinci_sim.web.server import WebOptions  # noqa: E402
@@ -57,22 +58,8 @@ def server():
         frame_task=True,
     )
     parts = [web_part(WebOptions(port=0, frame_rate=10.0), bedside=True)]
-    info: dict = {}
-    stop = threading.Event()
-    thread = threading.Thread(
-        target=lambda: info.update(
-            done=serve(options, stop=stop, on_ready=info.update, parts=parts)
-        )  # fmt: skip
-    )
-    thread.start()
-    end = time.monotonic() + 60
-    while "web" not in info and thread.is_alive() and time.monotonic() < end:
-        time.sleep(0.1)
-    assert "web" in info, "serve did not start the web console"
-    yield info
-    stop.set()
-    thread.join(60)
-    assert "done" in info
+    with serving(options, parts, start_timeout=60) as info:
+        yield info
 
 
 @pytest.fixture(scope="module")

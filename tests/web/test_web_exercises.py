@@ -26,7 +26,6 @@ from __future__ import annotations
 import dataclasses
 import math
 import shutil
-import threading
 import time
 from contextlib import contextmanager
 
@@ -35,7 +34,9 @@ import pytest
 
 playwright = pytest.importorskip("playwright.sync_api")
 
-from davinci_sim.bridge.app import ServeOptions, serve  # noqa: E402
+from serving import serving  # noqa: E402
+
+from davinci_sim.bridge.app import ServeOptions  # noqa: E402
 from davinci_sim.bridge.rosbridge.config import BridgeConfig  # noqa: E402
 from davinci_sim.model.config import SceneConfig  # noqa: E402
 from davinci_sim.tasks import load_task, save_task  # noqa: E402
@@ -75,23 +76,8 @@ def served(task_file: str, scene, hands=("MTMR",)):
         frame_task=True,
     )
     parts = [web_part(WebOptions(port=0, frame_rate=10.0), bedside=False)]
-    info: dict = {}
-    stop = threading.Event()
-    thread = threading.Thread(
-        target=lambda: info.update(
-            done=serve(options, stop=stop, on_ready=info.update, parts=parts)
-        )  # fmt: skip
-    )
-    thread.start()
-    end = time.monotonic() + 120
-    while "web" not in info and thread.is_alive() and time.monotonic() < end:
-        time.sleep(0.1)
-    try:
-        assert "web" in info, "serve did not start the web console"
+    with serving(options, parts) as info:
         yield info["web"]
-    finally:
-        stop.set()
-        thread.join(60)
 
 
 @pytest.fixture(scope="module")

@@ -8,18 +8,15 @@ simulated time."""
 
 from __future__ import annotations
 
-import threading
-import time
-
 import numpy as np
 import pytest
 
 pytest.importorskip("playwright.sync_api")
 
 from playwright.sync_api import sync_playwright  # noqa: E402
+from serving import serving  # noqa: E402
 from test_web_browser import CHROMIUM, CHROMIUM_ARGS, Console  # noqa: E402
 
-from davinci_sim.bridge.app import serve  # noqa: E402
 from davinci_sim.cli import build_parser, serve_setup  # noqa: E402
 
 pytestmark = pytest.mark.skipif(CHROMIUM is None, reason="Chromium is not installed")
@@ -32,22 +29,8 @@ HERE = ["--port", "0", "--web-port", "0"]
 @pytest.fixture(scope="module")
 def make_run():
     options, parts = serve_setup(build_parser().parse_args(MAKE_RUN + HERE), web=True)
-    info: dict = {}
-    stop = threading.Event()
-    thread = threading.Thread(
-        target=lambda: info.update(
-            done=serve(options, stop=stop, on_ready=info.update, parts=parts)
-        )  # fmt: skip
-    )
-    thread.start()
-    end = time.monotonic() + 180
-    while "web" not in info and thread.is_alive() and time.monotonic() < end:
-        time.sleep(0.1)
-    assert "web" in info, "serve did not start the web console"
-    yield info
-    stop.set()
-    thread.join(60)
-    assert "done" in info
+    with serving(options, parts, start_timeout=180) as info:
+        yield info
 
 
 @pytest.fixture(scope="module")
