@@ -272,6 +272,7 @@ def test_a_fixture_set_in_the_page_reaches_the_running_task(console):
 def test_bad_input_from_the_page_is_refused_with_a_message(console):
     page = console()
     page.take_control()
+    page.wait("window.davinci.last.hands.MTMR.holding")  # (taking control takes the handle)
     before = page.state()["hands"]
     page.js("window.davinciSend({op: 'input', mtm: 'MTMR', axes: [NaN, 0, 0]})")
     page.wait("(window.davinci.lastMessage || {}).cls === 'error'")
