@@ -245,8 +245,12 @@ def test_bad_input_is_refused_in_the_page_and_nothing_moves(console, text, words
     page = Page(web)
     try:
         page.take_control()
-        # (an earlier test's last input still moves the hand until its timeout)
-        still = page.next("state", 30.0, lambda m: m["hands"]["MTMR"]["velocity"] == [0, 0, 0])
+        # (an earlier test's last input still moves the hand until its timeout; taking
+        # control takes the handle)
+        hand = lambda m: m["hands"]["MTMR"]  # noqa: E731
+        still = page.next(
+            "state", 30.0, lambda m: hand(m)["velocity"] == [0, 0, 0] and hand(m)["holding"]
+        )
         hand_before = still["hands"]["MTMR"]
         condition = system.handle.snapshot().extras["task"].condition
         page.send_text(text)
