@@ -177,12 +177,12 @@ class WebConsole(AsyncService):
         self.trainee = "" if records is None else records.trainee
         self.operator: int | None = None
         self._wrist_free: set[str] = set()
+        """MTMs whose teleoperations the page unlocked the rotation of (the wrist keys)."""
         self._messages: dict[str, tuple[str, str, float, int]] = {}
         """Each arm's and teleoperation's last error or warning: (level, text, sim time s,
         how many in a row); a teleoperation's warning is dropped when its state changes."""
         self._forwarded: dict[tuple[str, str], float] = {}
         """When (monotonic s) each (source, text) error was last sent to the pages."""
-        """MTMs whose teleoperations the page unlocked the rotation of (the wrist keys)."""
         self._clients: dict[int, _Client] = {}
         self._ids = itertools.count(1)
         self._port: int | None = None
@@ -317,15 +317,16 @@ class WebConsole(AsyncService):
     async def _recover(self) -> None:
         """The remedy the page offers for its problems: every arm in FAULT is enabled and
         homed again (dvrk.md 2.4: FAULT accepts ``enable``), and the console's
-        teleoperation is restarted, so each teleoperation sets its arms up and aligns its
-        MTM again (SETTING_ARMS_STATE, dvrk.md 4.2)."""
+        teleoperation, if on, is restarted, so each teleoperation sets its arms up and aligns
+        its MTM again (SETTING_ARMS_STATE, dvrk.md 4.2)."""
         snap = self.handle.snapshot()
         for name, arm in snap.arms.items():
             if arm.operating_state.state == "FAULT":
                 await self._call(name, "state_command", "enable")
                 await self._call(name, "state_command", "home")
         self._messages.clear()
-        if "console" in (snap.extras or {}):
+        console = (snap.extras or {}).get("console")
+        if console is not None and console.teleop_enabled:
             await self._call("console", "teleop_enable", False)
             await self._call("console", "teleop_enable", True)
 
