@@ -206,8 +206,8 @@ def test_mtm_wrench_moves_the_handle(system, ral):
         "orientation_positive": half, "orientation_negative": half,
     }  # fmt: skip
     mtm.servo_ci(gains)
-    deadline = time.time() + 5
-    while now(system, "MTMR", "impedance") is None and time.time() < deadline:
+    deadline = time.monotonic() + 5
+    while now(system, "MTMR", "impedance") is None and time.monotonic() < deadline:
         settle()
     g = now(system, "MTMR", "impedance")
     assert g is not None and np.allclose(g.position_positive.p, [0, 0, -200.0])
