@@ -242,8 +242,9 @@ def problems(view: dict, messages: Mapping[str, tuple[str, str, float, int]]) ->
     out = []
     for name, arm in view["arms"].items():
         if arm["state"] == "FAULT":
-            level, text, _, _ = messages.get(name, ("error", f"{name} is in FAULT", 0.0, 1))
-            out.append({"source": name, "kind": "fault", "reason": text})
+            level, text, _, _ = messages.get(name, ("", "", 0.0, 0))
+            reason = text if level == "error" else f"{name} is in FAULT"
+            out.append({"source": name, "kind": "fault", "reason": reason})
     console = view.get("console") or {}
     on = console.get("teleop_enabled") and (console.get("buttons") or {}).get("operator_present")
     now = view["time"]
