@@ -50,7 +50,23 @@ def test_python_and_compiled_kernel_agree():
     np.testing.assert_array_equal(out, out_py, strict=True)
 
 
-def test_batches_go_to_the_path():
+def test_a_batch_equals_the_brute_force_query_bit_for_bit():
+    # The study's trials: n tips at once through the compiled rows, each row the bits of the
+    # path's own batch query (ties, vertices and a NaN tip included).
+    rng = np.random.default_rng(11)
+    for _ in range(30):
+        n = int(rng.integers(2, 60))
+        path = Polyline(np.cumsum(rng.normal(0, 0.01, (n, 3)), axis=0))
+        tips = path.vertices.mean(axis=0) + rng.normal(0, 0.03, (int(rng.integers(2, 90)), 3))
+        tips[0] = path.vertices[int(rng.integers(0, n))]
+        tips[1, 0] = np.nan
+        _same(closest_point(path, tips), closest_point_brute(path, tips))
+    square = Polyline([[0.0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0], [0, 0, 0]])
+    tips = np.array([[0.5, 0.5, 0.0], [0.2, 0.3, 0.0], [0.9, 0.8, 0.1]])
+    _same(closest_point(square, tips), closest_point_brute(square, tips))
+
+
+def test_other_shapes_go_to_the_path():
     path = Polyline([[0.0, 0, 0], [1, 0, 0], [1, 1, 0]])
-    tips = np.array([[0.2, 0.3, 0.0], [0.9, 0.8, 0.1]])
+    tips = np.array([[[0.2, 0.3, 0.0], [0.9, 0.8, 0.1]]])
     _same(closest_point(path, tips), closest_point_brute(path, tips))

@@ -6,7 +6,8 @@ point of the path to one tip every tick. :func:`closest_point` answers one query
 :func:`closest_point_row`, the per-row form of
 :func:`~davinci_sim.geometry.path.closest_point_brute` (the same products, sums, clip and
 first-minimum rule, operation by operation, so the same bits: tested against it), and
-leaves batches (the study's trials), long paths (the k-d tree) and a run without numba to
+:func:`closest_point_rows` a batch (the study's trials) row by row with the same kernel; it
+leaves long paths (the k-d tree), other shapes and a run without numba to
 :meth:`Polyline.closest_point <davinci_sim.geometry.path.Polyline.closest_point>`.
 
 (Here rather than in ``geometry``: that layer is numpy only, and the compiled kernels live
@@ -60,13 +61,9 @@ def _closest_segment(q0, q1, q2, basis, AE, AA, EE):
     return best, best_u
 
 
-@jit.jit
-def closest_point_row(p, centre, basis, AE, AA, EE, starts, edges, cumulative, lengths, out):
-    """The closest point of the path to one query ``p`` (3,), m: its segment (returned) and,
-    into ``out`` (8,), the point (3), the deviation φ = point − p (3), ‖φ‖ (summed left to
-    right, as ``np.linalg.norm``) and the arc length, with the arithmetic every query of
-    :mod:`davinci_sim.geometry.path` ends with (``starts``, ``edges``, ``cumulative``,
-    ``lengths``: the path's)."""
+@jit.helper
+def _closest_point_into(p, centre, basis, AE, AA, EE, starts, edges, cumulative, lengths, out):
+    """:func:`closest_point_row`'s body, callable from other kernels (see it)."""
     seg, u = _closest_segment(p[0] - centre[0], p[1] - centre[1], p[2] - centre[2],
                               basis, AE, AA, EE)  # fmt: skip
     for i in range(3):
@@ -78,23 +75,51 @@ def closest_point_row(p, centre, basis, AE, AA, EE, starts, edges, cumulative, l
     return seg
 
 
+@jit.jit
+def closest_point_row(p, centre, basis, AE, AA, EE, starts, edges, cumulative, lengths, out):
+    """The closest point of the path to one query ``p`` (3,), m: its segment (returned) and,
+    into ``out`` (8,), the point (3), the deviation φ = point − p (3), ‖φ‖ (summed left to
+    right, as ``np.linalg.norm``) and the arc length, with the arithmetic every query of
+    :mod:`davinci_sim.geometry.path` ends with (``starts``, ``edges``, ``cumulative``,
+    ``lengths``: the path's)."""
+    return _closest_point_into(p, centre, basis, AE, AA, EE, starts, edges, cumulative,
+                               lengths, out)  # fmt: skip
+
+
+@jit.jit
+def closest_point_rows(P, centre, basis, AE, AA, EE, starts, edges, cumulative, lengths, out,
+                       segments):  # fmt: skip
+    """:func:`closest_point_row` of every row of ``P`` (n, 3), into ``out`` (n, 8) and
+    ``segments`` (n,): a batch of trials' tips in one call, each row the bits of one query."""
+    for r in range(P.shape[0]):
+        segments[r] = _closest_point_into(P[r], centre, basis, AE, AA, EE, starts, edges,
+                                          cumulative, lengths, out[r])  # fmt: skip
+
+
 def closest_point(path: Polyline, points) -> ClosestPoint:
-    """``path.closest_point(points)``, one query (shape (3,) or (1, 3)) by the compiled
-    :func:`closest_point_row`; any other query by the path itself. The same result, bit for
-    bit and type for type, either way."""
+    """``path.closest_point(points)``: one query (shape (3,) or (1, 3)) by the compiled
+    :func:`closest_point_row`, a batch (n, 3) by :func:`closest_point_rows`; any other
+    query, a long path (the k-d tree) or a run without numba by the path itself. The same
+    result, bit for bit and type for type, either way."""
     p = np.asarray(points, dtype=float)
     if (
-        p.shape not in ((3,), (1, 3))
+        p.ndim not in (1, 2)
+        or p.shape[-1] != 3
+        or len(p) == 0
         or not jit.ENABLED
         or len(path.segment_lengths) > BRUTE_FORCE_MAX_SEGMENTS
     ):
         return path.closest_point(p)
+    constants = (path.centre, *brute_force_constants(path), path.starts, path.edges,
+                 path.cumulative_length, path.segment_lengths)  # fmt: skip
+    if p.ndim == 2 and len(p) > 1:  # a batch (the study's trials)
+        out = np.empty((len(p), 8))
+        seg = np.empty(len(p), dtype=int)
+        closest_point_rows(np.ascontiguousarray(p), *constants, out, seg)
+        return ClosestPoint(out[:, 0:3], out[:, 3:6], out[:, 6], out[:, 7], seg)
     out = np.empty(8)
-    seg = closest_point_row(
-        np.array(p.reshape(3), dtype=float, order="C"),  # (a new C row: the one compiled signature)
-        path.centre, *brute_force_constants(path),
-        path.starts, path.edges, path.cumulative_length, path.segment_lengths, out,
-    )  # fmt: skip
+    # (a new C row: the one compiled signature)
+    seg = closest_point_row(np.array(p.reshape(3), dtype=float, order="C"), *constants, out)
     if p.ndim == 1:  # the batch shape (): scalars as numpy's reductions give them
         return ClosestPoint(out[0:3], out[3:6], out[6], out[7], np.array(seg, dtype=int))
     return ClosestPoint(out[0:3].reshape(1, 3), out[3:6].reshape(1, 3), out[6:7], out[7:8],
@@ -105,6 +130,7 @@ def _warm_up() -> None:
     """Compile (or load from numba's cache) at import, never in the 1 kHz loop."""
     path = Polyline(np.array([[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [1.0, 1.0, 0.0]]))
     closest_point(path, np.zeros(3))
+    closest_point(path, np.zeros((2, 3)))
 
 
 _warm_up()

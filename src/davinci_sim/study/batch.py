@@ -30,7 +30,8 @@ runs n trials as arrays instead:
   ``module:Name`` law): each condition's fixture is built as the live trial builds it
   (``task.fixture`` of the trial's entry) and called with the rows of that condition
   (:meth:`TrialBatch.fixture_forces`). Only ``mj_step`` runs per trial (MuJoCo's C),
-  and only for trials still running.
+  and only for trials still running: every running trial's step in one compiled call
+  (:class:`~davinci_sim.sim.rows_step.RowStepper`), the same bits as Python's calls.
 * The order within a tick is the live simulation's: trainee, hand, teleoperation, arms,
   servo, physics, then the haptic loop and the task on the new state.
 
@@ -69,6 +70,7 @@ from davinci_sim.kinematics.psm_ik import psm_ik_closed_form_batch
 from davinci_sim.model.cameras import in_left_image
 from davinci_sim.sim import arm_laws as laws
 from davinci_sim.sim.jaw import finger_setpoints
+from davinci_sim.sim.rows_step import RowStepper
 from davinci_sim.sim.servo import servo_ctrl
 from davinci_sim.study.adaptive import fixture_keys
 from davinci_sim.study.trial import (
@@ -188,6 +190,7 @@ class TrialBatch:
                 # diverged step itself): a diverged trial resets, faults and ends unfinished.
                 by_mass[mass].opt.disableflags &= ~int(mujoco.mjtDisableBit.mjDSBL_AUTORESET)
         self.models = [by_mass[m] for m in self.params.mass.tolist()]
+        self._stepper = RowStepper(self.models, self.datas, self._body)
         # Each trial's fixture as the live trial builds it (task.fixture of its entry: its
         # guidance plus the task's walls), one per key (a practice trial's condition index;
         # negative for an adaptive trial's (condition, B) and a retention trial's fixture-off
@@ -248,6 +251,7 @@ class TrialBatch:
         self._qfrc = self._qfrc[0][keep], self._qfrc[1][keep]
         self.datas = [self.datas[i] for i in keep]
         self.models = [self.models[i] for i in keep]
+        self._stepper = self._stepper.take(keep)
         self.trainee = self.trainee.take(keep)
         self.velocity = self.velocity.take(keep)
         self.metrics = self.metrics.take(keep)
@@ -390,27 +394,21 @@ class TrialBatch:
             self._servo.kp,
             self._servo.kv,
         )
-        body = self._body
         Q, V, xipos = self.Q, self.V, self.xipos
         # MuJoCo's bias forces, whole rows (one copy each per trial, the servo's law below
         # once for the batch)
         qfrc_bias, qfrc_gravcomp = self._qfrc
         active = np.flatnonzero(self.active)
         contacts, n_contacts, contact_force = self._contacts, self.n_contacts, self.contact_force
+        # mj_step of every running trial in one compiled call (sim.rows_step)
+        self._stepper.step(active, ctrl, xfrc, Q, V, qfrc_bias, qfrc_gravcomp, xipos)
+        datas = self.datas
         for i in active.tolist():
-            d = self.datas[i]
-            d.ctrl[:] = ctrl[i]
-            d.xfrc_applied[body] = xfrc[i]
-            mujoco.mj_step(self.models[i], d)
+            d = datas[i]
             if d.ncon:  # (the study scene has no patient: usually none)
                 n_contacts[i], contact_force[i] = contacts.measure(self.models[i], d)
             elif n_contacts[i]:
                 n_contacts[i], contact_force[i] = 0, 0.0
-            Q[i] = d.qpos
-            V[i] = d.qvel
-            qfrc_bias[i] = d.qfrc_bias
-            qfrc_gravcomp[i] = d.qfrc_gravcomp
-            xipos[i] = d.xipos[body]
         self.bias[active] = self._servo.bias_of(qfrc_bias[active], qfrc_gravcomp[active])
         self.ticks += self.active
         self.time += self.dt

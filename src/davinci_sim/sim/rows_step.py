@@ -1,0 +1,169 @@
+"""Many simulations stepped in one compiled call: MuJoCo's ``mj_step`` from numba, per row.
+
+A batch of simulations (the study's trials) keeps its state as arrays with one row per
+simulation (``Q`` = every row's ``qpos``, ...). Stepping them from Python costs a call and
+five array copies per simulation per tick, as much as a third of MuJoCo's own step for the
+study's scene. :class:`RowStepper` does the same in one call: for every given row it writes
+the row's ``ctrl`` and one body's ``xfrc_applied`` into that simulation's ``MjData``, calls
+``mj_step`` (the MuJoCo library of the installed ``mujoco`` wheel, called from compiled
+code), and reads ``qpos``, ``qvel``, ``qfrc_bias``, ``qfrc_gravcomp`` and the body's
+``xipos`` back into the rows. The same C function on the same ``MjData``: the same bits
+as :func:`mujoco.mj_step` called from Python (tested), so callers change speed, not results.
+
+How: ``MjModel._address`` / ``MjData._address`` are the C pointers MuJoCo's bindings hold;
+numba calls ``mj_step`` as an external C function once the wheel's library is loaded into
+LLVM's symbol table (``llvmlite.binding.load_library_permanently``), which keeps numba's
+on-disk cache valid (a ctypes function pointer would not). Each simulation's arrays are
+reached through their buffer addresses (``d.qpos.ctypes.data``), fixed for the ``MjData``'s
+life; a :class:`RowStepper` holds its ``MjData`` so that they stay alive. Without numba
+(``DAVINCI_SIM_JIT=0``) or without the library file, the same loop runs in Python.
+"""
+
+from __future__ import annotations
+
+import glob
+import os
+import warnings
+
+import mujoco
+import numpy as np
+
+from davinci_sim.kinematics import jit
+
+
+def _library() -> str | None:
+    """The MuJoCo shared library of the installed wheel (the one the bindings use)."""
+    folder = os.path.dirname(mujoco.__file__)
+    found = sorted(glob.glob(os.path.join(folder, "libmujoco.so*")))
+    return found[-1] if found else None
+
+
+def _compiled_kernel():
+    """The compiled row loop, or None (no numba, switched off, or no library to bind)."""
+    if not jit.ENABLED:
+        return None
+    path = _library()
+    if path is None:  # pragma: no cover - a wheel without its library beside the bindings
+        return None
+    try:
+        import numba
+        from llvmlite import binding
+        from numba import types
+        from numba.extending import intrinsic
+
+        binding.load_library_permanently(path)
+        # (pointers as 64-bit integers: the same registers in the x86-64 and AArch64 ABIs)
+        mj_step = types.ExternalFunction("mj_step", types.void(types.intp, types.intp))
+
+        @intrinsic
+        def f64_at(typingctx, address):
+            """A ``float64*`` at the integer ``address``."""
+            sig = types.CPointer(types.float64)(types.intp)
+
+            def codegen(context, builder, signature, args):
+                return builder.inttoptr(
+                    args[0], context.get_value_type(types.CPointer(types.float64))
+                )
+
+            return sig, codegen
+
+        @numba.njit(cache=True)
+        def step_rows(model, data, address, body, rows, ctrl, xfrc, Q, V, QB, QG, XI):
+            nu, nq, nv = ctrl.shape[1], Q.shape[1], V.shape[1]
+            for r in rows:
+                a = address[r]
+                c = numba.carray(f64_at(a[0]), (nu,))
+                for k in range(nu):
+                    c[k] = ctrl[r, k]
+                x = numba.carray(f64_at(a[1]), (6 * (body + 1),))
+                for k in range(6):
+                    x[6 * body + k] = xfrc[r, k]
+                mj_step(model[r], data[r])
+                q = numba.carray(f64_at(a[2]), (nq,))
+                for k in range(nq):
+                    Q[r, k] = q[k]
+                v = numba.carray(f64_at(a[3]), (nv,))
+                b = numba.carray(f64_at(a[4]), (nv,))
+                g = numba.carray(f64_at(a[5]), (nv,))
+                for k in range(nv):
+                    V[r, k] = v[k]
+                    QB[r, k] = b[k]
+                    QG[r, k] = g[k]
+                xi = numba.carray(f64_at(a[6]), (3 * (body + 1),))
+                for k in range(3):
+                    XI[r, k] = xi[3 * body + k]
+
+        return step_rows
+    except Exception as e:  # pragma: no cover - a numba or llvmlite that cannot do it
+        warnings.warn(
+            f"MuJoCo's step cannot be called from compiled code ({type(e).__name__}: {e}); "
+            "stepping rows from Python",
+            RuntimeWarning,
+            stacklevel=2,
+        )
+        return None
+
+
+_KERNEL = _compiled_kernel()
+
+COMPILED = _KERNEL is not None
+"""Whether :class:`RowStepper` steps in compiled code (else its Python loop, same results)."""
+
+
+class RowStepper:
+    """Steps the simulations ``(models[i], datas[i])`` row by row (see the module docstring).
+
+    Args:
+        models, datas: one ``MjModel`` and ``MjData`` per row (models may be shared).
+        body: the body whose ``xfrc_applied`` each step sets and whose ``xipos`` it reads.
+    """
+
+    def __init__(self, models: list, datas: list, body: int) -> None:
+        if len(models) != len(datas):
+            raise ValueError(f"{len(models)} models for {len(datas)} datas")
+        self.models, self.datas, self.body = list(models), list(datas), int(body)
+        self._model = np.array([m._address for m in self.models], dtype=np.intp)
+        self._data = np.array([d._address for d in self.datas], dtype=np.intp)
+        self._address = np.array(
+            [
+                [
+                    x.ctypes.data
+                    for x in (
+                        d.ctrl,
+                        d.xfrc_applied,
+                        d.qpos,
+                        d.qvel,
+                        d.qfrc_bias,
+                        d.qfrc_gravcomp,
+                        d.xipos,
+                    )
+                ]  # fmt: skip
+                for d in self.datas
+            ],
+            dtype=np.intp,
+        ).reshape(len(self.datas), 7)
+
+    def take(self, keep: np.ndarray) -> RowStepper:
+        """The stepper of rows ``keep`` only (the batch dropping ended trials)."""
+        return RowStepper([self.models[i] for i in keep], [self.datas[i] for i in keep], self.body)
+
+    def step(self, rows, ctrl, xfrc, Q, V, qfrc_bias, qfrc_gravcomp, xipos) -> None:
+        """One ``mj_step`` of each of ``rows`` (row indices): ``ctrl`` (n, nu) and ``xfrc``
+        (n, 6, the body's ``xfrc_applied``) in; ``Q`` (n, nq), ``V``, ``qfrc_bias``,
+        ``qfrc_gravcomp`` (n, nv) and ``xipos`` (n, 3, the body's) out, in place."""
+        rows = np.asarray(rows, dtype=np.intp)
+        if _KERNEL is not None:
+            _KERNEL(self._model, self._data, self._address, self.body, rows, ctrl, xfrc,
+                    Q, V, qfrc_bias, qfrc_gravcomp, xipos)  # fmt: skip
+            return
+        body = self.body
+        for i in rows.tolist():
+            d = self.datas[i]
+            d.ctrl[:] = ctrl[i]
+            d.xfrc_applied[body] = xfrc[i]
+            mujoco.mj_step(self.models[i], d)
+            Q[i] = d.qpos
+            V[i] = d.qvel
+            qfrc_bias[i] = d.qfrc_bias
+            qfrc_gravcomp[i] = d.qfrc_gravcomp
+            xipos[i] = d.xipos[body]
