@@ -226,8 +226,9 @@ def test_fig4_qualitative_shape():
 
 @pytest.mark.parametrize("transition", [0.0, 0.002])
 def test_one_tip_compiled_row_gives_the_batch_laws_bits(transition):
-    """The live haptic tick's one tool tip runs the compiled row (``viscous_force_row``);
-    it gives exactly the bits of the batch law the study runs, degenerate cases included."""
+    """The live haptic tick's one tool tip runs the compiled row (``viscous_force_row``), a
+    batch the compiled rows (``viscous_force_rows``); both give exactly the bits of the
+    batch law (``viscous_guidance_terms``), degenerate cases included."""
     rng = np.random.default_rng(3)
     path = Polyline(np.cumsum(rng.normal(0, 0.01, (30, 3)), axis=0))
     fixture = ViscousGuidance(path, B=40.0, G_max=5.0, transition=transition)
@@ -246,3 +247,9 @@ def test_one_tip_compiled_row_gives_the_batch_laws_bits(transition):
             assert fast.shape == batch.shape
             np.testing.assert_array_equal(fast, batch, strict=True)
             assert (np.signbit(fast) == np.signbit(batch)).all()
+    # A batch of tips (the study's trials under one condition): the compiled rows, the same
+    # bits as the batch law.
+    fast = fixture.force(tips, velocities)
+    batch = fixture.terms(tips, velocities).force
+    np.testing.assert_array_equal(fast, batch, strict=True)
+    assert (np.signbit(fast) == np.signbit(batch)).all()

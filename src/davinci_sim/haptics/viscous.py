@@ -161,13 +161,9 @@ def _clip(x: float, lo: float, hi: float) -> float:
     return x
 
 
-@jit
-def viscous_force_row(v, phi, B, G_max, transition, out):
-    """:func:`viscous_guidance_terms`'s force for one tool tip, into ``out`` (3,): velocity
-    ``v`` (3,), m/s, deviation ``phi`` (3,), m, ``B``, ``G_max``, ``transition`` floats.
-    The same operations in the same order as the batch law (norms summed left to right, the
-    dot product as numpy's ``einsum`` sums three terms, ``(x + z) + y``), so the same bits
-    (``tests/haptics/test_viscous.py``): the live haptic tick's one row, compiled."""
+@helper
+def _viscous_into(v, phi, B, G_max, transition, out):
+    """:func:`viscous_force_row`'s body, callable from other kernels (see it)."""
     speed = math.sqrt((v[0] * v[0] + v[1] * v[1]) + v[2] * v[2])
     dist = math.sqrt((phi[0] * phi[0] + phi[1] * phi[1]) + phi[2] * phi[2])
     s_v = speed if speed > _EPS else 1.0
@@ -275,12 +271,45 @@ class ViscousGuidance:
                 out.reshape(3),
             )
             return out
+        if (
+            _COMPILED
+            and p.ndim == 2
+            and p.shape[1] == 3
+            and v.shape == p.shape
+            and isinstance(self.B, float)
+            and isinstance(self.G_max, float)
+        ):  # a batch of tips under one condition (the study's trials): compiled rows
+            out = np.empty(p.shape)
+            phi = closest_point(self.path, p).deviation
+            viscous_force_rows(np.ascontiguousarray(v), np.ascontiguousarray(phi), self.B,
+                               self.G_max, self.transition, out)  # fmt: skip
+            return out
         return self.terms(position, velocity).force
+
+
+@jit
+def viscous_force_row(v, phi, B, G_max, transition, out):
+    """:func:`viscous_guidance_terms`'s force for one tool tip, into ``out`` (3,): velocity
+    ``v`` (3,), m/s, deviation ``phi`` (3,), m, ``B``, ``G_max``, ``transition`` floats.
+    The same operations in the same order as the batch law (norms summed left to right, the
+    dot product as numpy's ``einsum`` sums three terms, ``(x + z) + y``), so the same bits
+    (``tests/haptics/test_viscous.py``): the live haptic tick's one row, compiled."""
+    _viscous_into(v, phi, B, G_max, transition, out)
+
+
+@jit
+def viscous_force_rows(V, PHI, B, G_max, transition, out):
+    """:func:`viscous_force_row` of every row of ``V`` and ``PHI`` (n, 3), into ``out``
+    (n, 3), with one ``B``, ``G_max`` and ``transition``: a batch of trials under one
+    condition (the study's), each row the bits of one tip."""
+    for r in range(V.shape[0]):
+        _viscous_into(V[r], PHI[r], B, G_max, transition, out[r])
 
 
 def _warm_up() -> None:
     """Compile (or load from numba's cache) at import, never in the 1 kHz loop."""
     viscous_force_row(np.ones(3), np.ones(3), 1.0, 1.0, 0.0, np.empty(3))
+    viscous_force_rows(np.ones((2, 3)), np.ones((2, 3)), 1.0, 1.0, 0.0, np.empty((2, 3)))
 
 
 _warm_up()
