@@ -12,6 +12,8 @@ of this process (``*_sim_s_per_cpu_s``: what the cores it got gave, less sensiti
 load than the wall-clock rate).
 
 ``reach_vector_n256_{psm,arm}_*``: the reduced physics (``physics=``, envs/reduced.py).
+``reach_batch_n256_sim_s_per_s``: ``mujoco.batch.Batch`` stepping the same model from the
+same states, measured in the same run; ``reach_vector_n256_over_batch`` the ratio.
 
 ``python benchmarks/bench_envs.py`` writes ``results/envs.json``.
 """
@@ -25,6 +27,8 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
+import mujoco  # noqa: E402
+import mujoco.batch  # noqa: E402
 import numpy as np  # noqa: E402
 
 import davinci_sim  # noqa: E402, F401  (sets MUJOCO_GL)
@@ -54,6 +58,29 @@ def _vector(env_id: str, n: int, wall: float, threads: int = 1, physics: str = "
         "env_steps_per_s": n * steps / elapsed, "sim_s_per_s": n * steps * STEP_S / elapsed,
         "sim_s_per_cpu_s": n * steps * STEP_S / cpu,
     }  # fmt: skip
+
+
+def _batch_reference(env_id: str, n: int, wall: float) -> float:
+    """Simulated s per wall s of ``mujoco.batch.Batch`` (one thread) stepping the vector
+    environment's own model from its rows' states after a few random actions, 20 steps
+    (one environment step) a call: the physics alone, the bar the vector environment's
+    rate is compared with (issue 20: ≥ 0.7×)."""
+    env = DavinciVectorEnv(n, **ENVIRONMENTS[env_id])
+    rng = np.random.default_rng(0)
+    env.reset(seed=0)
+    for _ in range(3):
+        env.step(rng.uniform(-1, 1, env.action_space.shape).astype(np.float32))
+    batch = mujoco.batch.Batch(env.model, n, nthread=1)
+    for field in ("qpos", "qvel", "act", "ctrl", "qacc_warmstart"):
+        batch.bind(field)[:] = [getattr(d, field) for d in env.datas]
+    batch.bind("time")[:] = [d.time for d in env.datas]
+    env.close()
+    batch.step(nstep=20)
+    calls, t0 = 0, time.perf_counter()
+    while time.perf_counter() - t0 < wall or calls < 3:
+        batch.step(nstep=20)
+        calls += 1
+    return n * calls * STEP_S / (time.perf_counter() - t0)
 
 
 def _single(env_id: str, wall: float, **kwargs) -> dict:
@@ -91,6 +118,10 @@ def main(wall: float = 10.0) -> None:
         figures[f"reach_vector_n{n}_sim_s_per_s"] = r["sim_s_per_s"]
         figures[f"reach_vector_n{n}_env_steps_per_s"] = r["env_steps_per_s"]
         figures[f"reach_vector_n{n}_sim_s_per_cpu_s"] = r["sim_s_per_cpu_s"]
+    batch = _batch_reference("DavinciSim/Reach-v0", 256, wall)
+    figures["reach_batch_n256_sim_s_per_s"] = batch
+    figures["reach_vector_n256_over_batch"] = figures["reach_vector_n256_sim_s_per_s"] / batch
+    figures["target_vector_over_batch"] = 0.7
     r = _vector("DavinciSim/Reach-v0", 256, wall, threads=2)
     figures["reach_vector_n256_threads2_sim_s_per_s"] = r["sim_s_per_s"]
     figures["reach_vector_n256_threads2_env_steps_per_s"] = r["env_steps_per_s"]

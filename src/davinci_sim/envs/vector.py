@@ -13,7 +13,8 @@ the tracking fault (:mod:`davinci_sim.sim.arm_laws`); the joint servo
 (:func:`~davinci_sim.sim.servo.servo_ctrl`, ``JointServo.bias_of``); the tip's pose and
 Jacobian (``tip_kinematics``); the task's sample, state machine and metrics
 (:mod:`davinci_sim.envs.problems`). Only ``mj_step`` runs per row (MuJoCo's C), and only
-for the rows stepping; ``threads=k`` steps the rows' physics on k threads (``mj_step``
+for the rows stepping, all in one compiled call (:class:`~davinci_sim.sim.rows_step.RowStepper`,
+the same bits as Python's calls); ``threads=k`` steps the rows' physics on k threads (``mj_step``
 releases the GIL; the rows are independent, so the results are the same bits).
 
 Like the study's batch it holds the camera and the PSM's base frame as they are at the
@@ -58,6 +59,7 @@ from davinci_sim.geometry.so3 import rotate_pairs
 from davinci_sim.kinematics.psm_ik import psm_ik_closed_form_batch
 from davinci_sim.sim import arm_laws as laws
 from davinci_sim.sim.jaw import finger_setpoints
+from davinci_sim.sim.rows_step import RowStepper
 from davinci_sim.sim.servo import servo_ctrl
 
 #: ``physics=``: ``full`` — every row steps the whole scene (24 joints: PSM, ECM, setup
@@ -129,6 +131,7 @@ class DavinciVectorEnv(VectorEnv):
                 raise
             self.model, self._data0, self._map = r.model, r.data, (r.qpos, r.dof, r.actuator)
         self.datas = [copy.copy(self._data0) for _ in range(n)]
+        self._stepper = RowStepper([self.model] * n, self.datas)
         servo = self._servo = sim.servo
         self._servo0 = servo.get_state()
         self.effort_mode = servo.effort_mode.copy()
@@ -336,23 +339,19 @@ class DavinciVectorEnv(VectorEnv):
         self._kinematics()
 
     def _physics(self, rows: list[int], ctrl: np.ndarray) -> None:
-        """``mj_step`` of ``rows`` with their actuator controls; their state read back."""
-        Q, V, time = self.Q, self.V, self.time
-        qfrc_bias, qfrc_gravcomp = self._qfrc
-        model, datas, gravcomp = self.model, self.datas, self._gravcomp
+        """``mj_step`` of ``rows`` with their actuator controls (one compiled call,
+        :class:`~davinci_sim.sim.rows_step.RowStepper`); their state read back."""
         if self._map is not None:
             self._physics_reduced(rows, ctrl)
             return
+        qfrc_bias, qfrc_gravcomp = self._qfrc
+        gravcomp = self._gravcomp
+        grav = qfrc_gravcomp if gravcomp else None
+        self._stepper.step(rows, ctrl, None, self.Q, self.V, qfrc_bias, grav, None,
+                           gravcomp=gravcomp)  # fmt: skip
+        datas, time = self.datas, self.time
         for i in rows:
-            d = datas[i]
-            d.ctrl[:] = ctrl[i]
-            mujoco.mj_step(model, d)
-            Q[i] = d.qpos
-            V[i] = d.qvel
-            qfrc_bias[i] = d.qfrc_bias
-            if gravcomp:
-                qfrc_gravcomp[i] = d.qfrc_gravcomp
-            time[i] = d.time
+            time[i] = datas[i].time
 
     def _physics_reduced(self, rows: list[int], ctrl: np.ndarray) -> None:
         """:meth:`_physics` on the reduced model (``physics="psm"``/``"arm"``): the rows'
@@ -362,16 +361,12 @@ class DavinciVectorEnv(VectorEnv):
         nq, nv = len(qadr), len(dadr)
         q = np.empty((len(rows), nq))
         v, fb, fg = np.empty((len(rows), nv)), np.empty((len(rows), nv)), np.zeros((len(rows), nv))
-        c = ctrl[:, act]
-        model, datas, gravcomp, time = self.model, self.datas, self._gravcomp, self.time
-        for j, i in enumerate(rows):
-            d = datas[i]
-            d.ctrl[:] = c[i]
-            mujoco.mj_step(model, d)
-            q[j], v[j], fb[j] = d.qpos, d.qvel, d.qfrc_bias
-            if gravcomp:
-                fg[j] = d.qfrc_gravcomp
-            time[i] = d.time
+        gravcomp = self._gravcomp
+        self._stepper.step(rows, np.ascontiguousarray(ctrl[:, act]), None, q, v, fb, fg, None,
+                           out=np.arange(len(rows)), gravcomp=gravcomp)  # fmt: skip
+        datas, time = self.datas, self.time
+        for i in rows:
+            time[i] = datas[i].time
         r = np.asarray(rows, dtype=int)[:, None]
         self.Q[r, qadr], self.V[r, dadr] = q, v
         self._qfrc[0][r, dadr] = fb

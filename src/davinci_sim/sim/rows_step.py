@@ -67,31 +67,37 @@ def _compiled_kernel():
 
             return sig, codegen
 
-        @numba.njit(cache=True)
-        def step_rows(model, data, address, body, rows, ctrl, xfrc, Q, V, QB, QG, XI):
+        @numba.njit(cache=True, nogil=True)
+        def step_rows(model, data, address, body, rows, out, ctrl, xfrc, Q, V, QB, QG, XI,
+                      gravcomp):  # fmt: skip
             nu, nq, nv = ctrl.shape[1], Q.shape[1], V.shape[1]
-            for r in rows:
+            for j in range(rows.shape[0]):
+                r, o = rows[j], out[j]
                 a = address[r]
                 c = numba.carray(f64_at(a[0]), (nu,))
                 for k in range(nu):
                     c[k] = ctrl[r, k]
-                x = numba.carray(f64_at(a[1]), (6 * (body + 1),))
-                for k in range(6):
-                    x[6 * body + k] = xfrc[r, k]
+                if body >= 0:
+                    x = numba.carray(f64_at(a[1]), (6 * (body + 1),))
+                    for k in range(6):
+                        x[6 * body + k] = xfrc[r, k]
                 mj_step(model[r], data[r])
                 q = numba.carray(f64_at(a[2]), (nq,))
                 for k in range(nq):
-                    Q[r, k] = q[k]
+                    Q[o, k] = q[k]
                 v = numba.carray(f64_at(a[3]), (nv,))
                 b = numba.carray(f64_at(a[4]), (nv,))
-                g = numba.carray(f64_at(a[5]), (nv,))
                 for k in range(nv):
-                    V[r, k] = v[k]
-                    QB[r, k] = b[k]
-                    QG[r, k] = g[k]
-                xi = numba.carray(f64_at(a[6]), (3 * (body + 1),))
-                for k in range(3):
-                    XI[r, k] = xi[3 * body + k]
+                    V[o, k] = v[k]
+                    QB[o, k] = b[k]
+                if gravcomp:
+                    g = numba.carray(f64_at(a[5]), (nv,))
+                    for k in range(nv):
+                        QG[o, k] = g[k]
+                if body >= 0:
+                    xi = numba.carray(f64_at(a[6]), (3 * (body + 1),))
+                    for k in range(3):
+                        XI[o, k] = xi[3 * body + k]
 
         return step_rows
     except Exception as e:  # pragma: no cover - a numba or llvmlite that cannot do it
@@ -115,13 +121,14 @@ class RowStepper:
 
     Args:
         models, datas: one ``MjModel`` and ``MjData`` per row (models may be shared).
-        body: the body whose ``xfrc_applied`` each step sets and whose ``xipos`` it reads.
+        body: the body whose ``xfrc_applied`` each step sets and whose ``xipos`` it reads,
+            or None (no applied force).
     """
 
-    def __init__(self, models: list, datas: list, body: int) -> None:
+    def __init__(self, models: list, datas: list, body: int | None = None) -> None:
         if len(models) != len(datas):
             raise ValueError(f"{len(models)} models for {len(datas)} datas")
-        self.models, self.datas, self.body = list(models), list(datas), int(body)
+        self.models, self.datas, self.body = list(models), list(datas), body
         self._model = np.array([m._address for m in self.models], dtype=np.intp)
         self._data = np.array([d._address for d in self.datas], dtype=np.intp)
         self._address = np.array(
@@ -147,23 +154,39 @@ class RowStepper:
         """The stepper of rows ``keep`` only (the batch dropping ended trials)."""
         return RowStepper([self.models[i] for i in keep], [self.datas[i] for i in keep], self.body)
 
-    def step(self, rows, ctrl, xfrc, Q, V, qfrc_bias, qfrc_gravcomp, xipos) -> None:
-        """One ``mj_step`` of each of ``rows`` (row indices): ``ctrl`` (n, nu) and ``xfrc``
-        (n, 6, the body's ``xfrc_applied``) in; ``Q`` (n, nq), ``V``, ``qfrc_bias``,
-        ``qfrc_gravcomp`` (n, nv) and ``xipos`` (n, 3, the body's) out, in place."""
+    def step(self, rows, ctrl, xfrc, Q, V, qfrc_bias, qfrc_gravcomp, xipos, *, out=None,
+             gravcomp: bool = True) -> None:  # fmt: skip
+        """One ``mj_step`` of each simulation of ``rows`` (row indices), with ``ctrl``
+        (rows, nu) and ``xfrc`` (rows, 6: the body's ``xfrc_applied``; None without a body)
+        read at those rows; ``Q`` (nq), ``V``, ``qfrc_bias``, ``qfrc_gravcomp`` (nv; only
+        with ``gravcomp``) and ``xipos`` (3, the body's; None without a body) written in
+        place at the rows ``out`` (default ``rows``: a batch's own rows; a caller gathering
+        a subset passes its positions). Safe to call from several threads on disjoint rows
+        (the compiled loop releases the GIL, as ``mujoco.mj_step`` does)."""
         rows = np.asarray(rows, dtype=np.intp)
+        out = rows if out is None else np.asarray(out, dtype=np.intp)
+        body = -1 if self.body is None else self.body
         if _KERNEL is not None:
-            _KERNEL(self._model, self._data, self._address, self.body, rows, ctrl, xfrc,
-                    Q, V, qfrc_bias, qfrc_gravcomp, xipos)  # fmt: skip
+            none = _NONE
+            _KERNEL(self._model, self._data, self._address, body, rows, out, ctrl,
+                    none if xfrc is None else xfrc, Q, V, qfrc_bias,
+                    none if qfrc_gravcomp is None else qfrc_gravcomp,
+                    none if xipos is None else xipos, gravcomp)  # fmt: skip
             return
-        body = self.body
-        for i in rows.tolist():
+        for i, o in zip(rows.tolist(), out.tolist(), strict=True):
             d = self.datas[i]
             d.ctrl[:] = ctrl[i]
-            d.xfrc_applied[body] = xfrc[i]
+            if body >= 0:
+                d.xfrc_applied[body] = xfrc[i]
             mujoco.mj_step(self.models[i], d)
-            Q[i] = d.qpos
-            V[i] = d.qvel
-            qfrc_bias[i] = d.qfrc_bias
-            qfrc_gravcomp[i] = d.qfrc_gravcomp
-            xipos[i] = d.xipos[body]
+            Q[o] = d.qpos
+            V[o] = d.qvel
+            qfrc_bias[o] = d.qfrc_bias
+            if gravcomp:
+                qfrc_gravcomp[o] = d.qfrc_gravcomp
+            if body >= 0:
+                xipos[o] = d.xipos[body]
+
+
+_NONE = np.zeros((0, 0))
+"""Stands for an array a step does not use (one compiled signature)."""
