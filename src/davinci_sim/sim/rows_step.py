@@ -39,65 +39,19 @@ def _library() -> str | None:
 
 
 def _compiled_kernel():
-    """The compiled row loop, or None (no numba, switched off, or no library to bind)."""
+    """The compiled row loop (:mod:`davinci_sim.sim.rows_kernel`), or None (no numba,
+    switched off, or no library to bind)."""
     if not jit.ENABLED:
         return None
     path = _library()
     if path is None:  # pragma: no cover - a wheel without its library beside the bindings
         return None
     try:
-        import numba
         from llvmlite import binding
-        from numba import types
-        from numba.extending import intrinsic
 
+        # (before the kernel is compiled or loaded from numba's cache: it links to mj_step)
         binding.load_library_permanently(path)
-        # (pointers as 64-bit integers: the same registers in the x86-64 and AArch64 ABIs)
-        mj_step = types.ExternalFunction("mj_step", types.void(types.intp, types.intp))
-
-        @intrinsic
-        def f64_at(typingctx, address):
-            """A ``float64*`` at the integer ``address``."""
-            sig = types.CPointer(types.float64)(types.intp)
-
-            def codegen(context, builder, signature, args):
-                return builder.inttoptr(
-                    args[0], context.get_value_type(types.CPointer(types.float64))
-                )
-
-            return sig, codegen
-
-        @numba.njit(cache=True, nogil=True)
-        def step_rows(model, data, address, body, rows, out, ctrl, xfrc, Q, V, QB, QG, XI,
-                      gravcomp):  # fmt: skip
-            nu, nq, nv = ctrl.shape[1], Q.shape[1], V.shape[1]
-            for j in range(rows.shape[0]):
-                r, o = rows[j], out[j]
-                a = address[r]
-                c = numba.carray(f64_at(a[0]), (nu,))
-                for k in range(nu):
-                    c[k] = ctrl[r, k]
-                if body >= 0:
-                    x = numba.carray(f64_at(a[1]), (6 * (body + 1),))
-                    for k in range(6):
-                        x[6 * body + k] = xfrc[r, k]
-                mj_step(model[r], data[r])
-                q = numba.carray(f64_at(a[2]), (nq,))
-                for k in range(nq):
-                    Q[o, k] = q[k]
-                v = numba.carray(f64_at(a[3]), (nv,))
-                b = numba.carray(f64_at(a[4]), (nv,))
-                for k in range(nv):
-                    V[o, k] = v[k]
-                    QB[o, k] = b[k]
-                if gravcomp:
-                    g = numba.carray(f64_at(a[5]), (nv,))
-                    for k in range(nv):
-                        QG[o, k] = g[k]
-                if body >= 0:
-                    xi = numba.carray(f64_at(a[6]), (3 * (body + 1),))
-                    for k in range(3):
-                        XI[o, k] = xi[3 * body + k]
+        from davinci_sim.sim.rows_kernel import step_rows
 
         return step_rows
     except Exception as e:  # pragma: no cover - a numba or llvmlite that cannot do it
