@@ -137,7 +137,10 @@ def test_servo_holds_keyframes_and_tracks_steps_without_overshoot(full_model):
     # Joint limits (closed jaws/grippers at 0) make the servo press a little: 1 mrad.
     assert np.abs(held - q_ref).max() < 1e-3
     response = (trace[200:, idx] - held[idx]) / amp
-    assert np.allclose(response[-1], 1.0, atol=0.02)
+    # A joint with dry friction (the MTM's drives) stops where the servo's pull kp·error
+    # falls below it: within frictionloss / kp of the step.
+    friction_band = m.dof_frictionloss[dof[idx]] / (gains.kp[idx] * amp)
+    assert np.all(np.abs(response[-1] - 1.0) <= 0.02 + friction_band), response[-1]
     assert response.max() < 1.05
 
 

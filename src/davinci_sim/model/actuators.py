@@ -29,6 +29,11 @@ class JointServoSpec:
     armature: float
     """Reflected drive inertia, kg·m² or kg."""
     damping_ratio: float = 1.0
+    viscous_friction: float = 0.0
+    """The drive's viscous friction, N·m·s/rad or N·s/m (MuJoCo joint ``damping``)."""
+    coulomb_friction: float = 0.0
+    """The drive's dry friction, N·m or N (MuJoCo joint ``frictionloss``, made to stick:
+    :data:`STICKING_FRICTION`)."""
 
 
 class ServoGains(NamedTuple):
@@ -43,13 +48,27 @@ class ServoGains(NamedTuple):
     """(nu, 2) effort limits."""
 
 
+#: MuJoCo's dry friction is a soft constraint: below the friction force a joint still creeps,
+#: at a speed set by the constraint's impedance. With the default (0.9) a servo holding a
+#: joint slides it to its setpoint within a second, as if there were no friction; at the
+#: impedance's upper end the joint sticks (creep about 1 % of the error per second), as a
+#: drive's static friction holds it a little off its setpoint.
+STICKING_FRICTION = (0.9999, 0.9999, 0.001, 0.5, 2.0)
+
+
 def add_actuators(spec: mujoco.MjSpec, servos: list[JointServoSpec]) -> None:
-    """Add one actuator per servo (placeholder gains, see :func:`tune_gains`), set armatures."""
+    """Add one actuator per servo (placeholder gains, see :func:`tune_gains`), set armatures
+    and the drives' friction."""
     for s in servos:
         joint = spec.joint(s.joint)
         if joint is None:
             raise KeyError(f"no joint {s.joint!r} in the spec")
         joint.armature = s.armature
+        if s.viscous_friction > 0:
+            joint.damping = [s.viscous_friction, 0.0, 0.0]
+        if s.coulomb_friction > 0:
+            joint.frictionloss = s.coulomb_friction
+            joint.solimp_friction = STICKING_FRICTION
         act = spec.add_actuator(name=s.joint, target=s.joint, trntype=mujoco.mjtTrn.mjTRN_JOINT)
         act.dyntype = mujoco.mjtDyn.mjDYN_NONE
         act.gaintype = mujoco.mjtGain.mjGAIN_FIXED

@@ -73,6 +73,25 @@ _MTM_SERVO = {
     "wrist_roll": (15.0, 2e-4),
     "gripper": (10.0, 2e-5),
 }
+#: Viscous (N·m·s/rad) and dry (N·m) friction of the MTM's drives, by joint (our choices:
+#: dvrk.md gives no friction). A real MTM's motors, capstans and cables are never
+#: frictionless: left alone in effort mode it stays where it is, a position hold ends a
+#: little off its setpoint (static friction against the PID), and it damps a haptic wall
+#: closed over ROS. The values are the smallest of the order of a drive's friction with
+#: which an unheld MTM pushed with 3 N into crtk_python_client's haptic box (500 N/m,
+#: closed at 200 Hz on ``measured_cp`` published every 10 ms, dvrk.md 2.2) settles at the
+#: wall instead of oscillating, up to 40 ms of loop latency; without them a position hold
+#: is exact to 1e-16 rad (a frictionless joint and an exact gravity compensation), which no
+#: real MTM reading is. The gripper is the operator's fingers: no friction.
+_MTM_FRICTION = {
+    "outer_yaw": (1.0, 0.05),
+    "shoulder_pitch": (1.0, 0.05),
+    "elbow_pitch": (1.0, 0.05),
+    "wrist_platform": (0.01, 0.002),
+    "wrist_pitch": (0.01, 0.002),
+    "wrist_yaw": (0.01, 0.002),
+    "wrist_roll": (0.01, 0.002),
+}
 #: The SUJ joints are braked on the real cart. Their servos stand for the brakes: stiff
 #: (10 Hz with a large armature) and with effort limits far above the ≈ 350 N on a lift and
 #: the ≈ 100 N·m on a tilt joint that the carried arm causes, so they never slip.
@@ -92,9 +111,20 @@ def _servo_specs(config: SceneConfig) -> list[JointServoSpec]:
                 f, armature, ftmax = _SUJ_SERVO[j.joint_type]
                 servos.append(JointServoSpec(f"SUJ/{arm_name}/{j.name}", ftmax, f, armature))
         table = {"PSM": _PSM_SERVO, "ECM": _ECM_SERVO, "MTM": _MTM_SERVO}[arm.arm_type]
+        friction = _MTM_FRICTION if arm.arm_type == "MTM" else {}
         for j in arm.chain.joints:
             f, armature = table[j.name]
-            servos.append(JointServoSpec(f"{arm_name}/{j.name}", j.ftmax, f, armature))
+            viscous, coulomb = friction.get(j.name, (0.0, 0.0))
+            servos.append(
+                JointServoSpec(
+                    f"{arm_name}/{j.name}",
+                    j.ftmax,
+                    f,
+                    armature,
+                    viscous_friction=viscous,
+                    coulomb_friction=coulomb,
+                )  # fmt: skip
+            )
         if arm.jaw is not None:
             # jaw = q1 + q2, so by virtual work a jaw effort τ acts as τ on each finger:
             # each finger actuator gets the full jaw ftmax (0.16 N·m, dvrk.md 1.2).
