@@ -31,18 +31,29 @@ BROWSER_MODULES = (
 )
 
 
+#: The test modules that start a local Ray instance: one unit too, so that two Ray instances
+#: (each a dozen processes) never start at once.
+RAY_MODULES = (
+    "tests/envs/test_ray_envs.py",
+    "tests/study/test_study.py",
+)
+
+
 def _unit(nodeid: str) -> str:
-    """The unit of work of a test under xdist: its module, or "chromium" for the browser
-    tests."""
+    """The unit of work of a test under xdist: its module, "chromium" for the browser
+    tests, "ray" for the tests that start Ray."""
     module = nodeid.split("::", 1)[0]
-    return "chromium" if module in BROWSER_MODULES else module
+    if module in BROWSER_MODULES:
+        return "chromium"
+    return "ray" if module in RAY_MODULES else module
 
 
 def pytest_xdist_make_scheduler(config, log):
     """``make test`` runs ``pytest -n 2 --dist loadfile``: whole modules go to a worker, so
     that a module's fixtures (a homed system, a study's rows, a served console) are built
-    once, and the browser modules go together (:data:`BROWSER_MODULES`), in the order the
-    workers collected them (the browser tests first: see below)."""
+    once; the browser modules go together (:data:`BROWSER_MODULES`), as do the Ray ones
+    (:data:`RAY_MODULES`). Units go out in the order the workers collected them (the
+    browser tests first: see below)."""
     from xdist.scheduler import LoadScopeScheduling
 
     class ByModule(LoadScopeScheduling):
