@@ -30,8 +30,10 @@ lint: install
 	$(BIN)/ruff format --check src tests benchmarks examples
 	$(BIN)/mypy
 
+# Two pytest-xdist workers, whole test modules each (tests/conftest.py: the browser modules
+# are one unit, run first). Plain `pytest` (no -n) runs the same tests in one process.
 test: install lint
-	$(BIN)/python -m pytest -q
+	$(BIN)/python -m pytest -q -n 2 --dist loadfile
 
 bench: install
 	$(BIN)/python benchmarks/run_all.py

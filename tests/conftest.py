@@ -18,3 +18,63 @@ def _records_in_a_temporary_folder(tmp_path_factory):
         os.environ.pop("DAVINCI_SIM_RECORDS", None)
     else:
         os.environ["DAVINCI_SIM_RECORDS"] = before
+
+
+#: The test modules that drive the system's Chromium (each defines ``CHROMIUM``). Under
+#: pytest-xdist they are one unit of work: one worker runs them one after the other, first
+#: (together the longest unit), so that two browsers never share the cores.
+BROWSER_MODULES = (
+    "tests/web/test_scene3d_browser.py",
+    "tests/web/test_web_browser.py",
+    "tests/web/test_web_exercises.py",
+    "tests/web/test_web_make_run.py",
+)
+
+
+#: The test modules that start a local Ray instance: one unit too, so that two Ray instances
+#: (each a dozen processes) never start at once.
+RAY_MODULES = (
+    "tests/envs/test_ray_envs.py",
+    "tests/study/test_study.py",
+)
+
+
+def _unit(nodeid: str) -> str:
+    """The unit of work of a test under xdist: its module, "chromium" for the browser
+    tests, "ray" for the tests that start Ray."""
+    module = nodeid.split("::", 1)[0]
+    if module in BROWSER_MODULES:
+        return "chromium"
+    return "ray" if module in RAY_MODULES else module
+
+
+def pytest_xdist_make_scheduler(config, log):
+    """``make test`` runs ``pytest -n 2 --dist loadfile``: whole modules go to a worker, so
+    that a module's fixtures (a homed system, a study's rows, a served console) are built
+    once; the browser modules go together (:data:`BROWSER_MODULES`), as do the Ray ones
+    (:data:`RAY_MODULES`). Units go out in the order the workers collected them (the
+    browser tests first: see below)."""
+    from xdist.scheduler import LoadScopeScheduling
+
+    class ByModule(LoadScopeScheduling):
+        def _split_scope(self, nodeid: str) -> str:
+            return _unit(nodeid)
+
+    config.option.loadscopereorder = False  # (xdist would order the units by test count)
+    return ByModule(config, log)
+
+
+def pytest_collection_modifyitems(config, items):
+    """On an xdist worker: the browser tests first (a stable sort: every module's tests stay
+    together, in their order). A module that drives Chromium must be in
+    :data:`BROWSER_MODULES`. Without xdist the order is pytest's own."""
+    if not os.environ.get("PYTEST_XDIST_WORKER"):
+        return
+    for item in items:
+        module = getattr(item, "module", None)
+        if getattr(module, "CHROMIUM", None) is not None and _unit(item.nodeid) != "chromium":
+            raise pytest.UsageError(
+                f"{item.nodeid.split('::')[0]} drives Chromium: add it to BROWSER_MODULES "
+                "in tests/conftest.py"
+            )
+    items.sort(key=lambda item: _unit(item.nodeid) != "chromium")

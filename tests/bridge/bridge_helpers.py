@@ -8,6 +8,10 @@ from types import SimpleNamespace
 
 from websockets.sync.client import connect
 
+#: Longest wait for a roslibpy client to connect, s: a deadline for a failure, generous for a
+#: busy machine (``make test`` runs two workers); no test asserts how fast it connects.
+ROS_CONNECT_TIMEOUT = 60.0
+
 
 def wait_for(predicate, timeout=5.0, period=0.01):
     """Poll ``predicate`` until true or ``timeout`` s pass; returns its last value."""

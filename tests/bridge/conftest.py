@@ -10,7 +10,7 @@ os.environ.setdefault("MUJOCO_GL", "egl")
 
 import pytest  # noqa: E402
 import roslibpy  # noqa: E402
-from bridge_helpers import RawClient  # noqa: E402
+from bridge_helpers import ROS_CONNECT_TIMEOUT, RawClient  # noqa: E402
 
 from davinci_sim.bridge import BridgeConfig, RosbridgeServer  # noqa: E402
 from davinci_sim.bridge.dvrk_node import DvrkNode  # noqa: E402
@@ -55,7 +55,7 @@ def make_ros():
 
     def make(server):
         ros = roslibpy.Ros("127.0.0.1", server.port)
-        ros.run(10)
+        ros.run(ROS_CONNECT_TIMEOUT)
         clients.append(ros)
         return ros
 

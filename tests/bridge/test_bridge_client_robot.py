@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 import roslibpy
 import yourdfpy
-from bridge_helpers import enable_and_home, wait_for
+from bridge_helpers import ROS_CONNECT_TIMEOUT, enable_and_home, wait_for
 
 from davinci_sim.bridge import BridgeConfig, RosbridgeServer
 from davinci_sim.bridge import dvrk_messages as m
@@ -44,7 +44,7 @@ def remote(robot_handle, request):
     config = ClientModeConfig(server.url, namespace=namespace, mtms=(), ros_version=ros_version)
     client = RosClientMode(robot_handle, config).start()
     viewer = roslibpy.Ros("127.0.0.1", server.port)
-    viewer.run(10)
+    viewer.run(ROS_CONNECT_TIMEOUT)
     yield client, server, viewer
     viewer.close()
     client.stop()

@@ -11,7 +11,7 @@ import cbor2
 import pytest
 import roslibpy
 import roslibpy.ros2
-from bridge_helpers import wait_for
+from bridge_helpers import ROS_CONNECT_TIMEOUT, wait_for
 
 from davinci_sim.bridge.rosbridge import codec
 from davinci_sim.bridge.rosbridge.core import ServiceFailure
@@ -369,7 +369,7 @@ def test_roslibpy_authenticate_is_accepted(make_server):
     ros = roslibpy.Ros("127.0.0.1", server.port)
     ros.authenticate(rosauth_mac("s3cret", Auth(mac="", **fields)), **fields)
     try:
-        ros.run(10)
+        ros.run(ROS_CONNECT_TIMEOUT)
         topics = []
         ros.get_topics(lambda r: topics.append(r["topics"]))
         assert wait_for(lambda: topics, 10) and "/rosout" in topics[0]

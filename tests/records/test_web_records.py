@@ -95,3 +95,32 @@ def test_with_a_token_only_a_page_with_it_gets_the_curves(web):
     assert get(base + "?token=wrong")[0] == 403
     status, body = get(base + "?token=s3cret")
     assert status == 200 and body.startswith(b"\x89PNG")
+
+
+def test_a_trainee_changed_while_the_curves_draw_does_not_get_them_cached(tmp_path, monkeypatch):
+    """The page changes the trainee while the learning curves are drawn (in a worker thread,
+    here as the records file opens): the drawing is of the trainee it is cached for, so the
+    first trainee's curves come back, not the other's "no attempt" note."""
+    import davinci_sim.records.console as console
+
+    path = tmp_path / "records.sqlite3"
+    with RecordsDB(path) as db:
+        s = db.start_session("ana")
+        for i in range(2):
+            db.record_attempt(s, task="seed_path", metrics={"deviation_error": 0.003 - 0.001 * i},
+                              info={"deviation_error": MetricInfo("m", "lower")})  # fmt: skip
+    part = records_part("ana", path=path)
+    part.task_name = "seed_path"
+    changed = []
+
+    def open_while_the_page_changes_the_trainee(*args, **kwargs):
+        if not changed:
+            changed.append(part.set_trainee("ben"))  # what the page's trainee field does
+        return RecordsDB(*args, **kwargs)
+
+    monkeypatch.setattr(console, "RecordsDB", open_while_the_page_changes_the_trainee)
+    first = part.curve_png()
+    assert changed == ["ben"]
+    part.set_trainee("ana")
+    assert part.curve_png() == first  # ana's, from the cache
+    assert Image.open(io.BytesIO(first)).size != (600, 50)  # her curves, not a note

@@ -21,12 +21,17 @@ playwright = pytest.importorskip("playwright.sync_api")
 CHROMIUM = shutil.which("chromium") or shutil.which("chromium-browser")
 pytestmark = pytest.mark.skipif(CHROMIUM is None, reason="no system chromium")
 SOFTWARE_GL = ["--use-gl=angle", "--use-angle=swiftshader", "--enable-unsafe-swiftshader"]
+#: Longest wait for one screenshot or the first drawing, ms (a stuck page fails, it does not
+#: hang; no duration is asserted).
+SLOW_FRAME_MS = 180_000
 
 
 def canvas_pixels(page) -> np.ndarray:
     from PIL import Image
 
-    png = page.screenshot()  # (the page is the canvas and a small panel)
+    # (the page is the canvas and a small panel). A software-rendered frame can take tens of
+    # seconds on a busy machine (make test runs another worker beside this one).
+    png = page.screenshot(timeout=SLOW_FRAME_MS)
     return np.asarray(Image.open(io.BytesIO(png)).convert("RGB"), dtype=float)
 
 
@@ -47,14 +52,14 @@ def test_the_page_draws_the_system_and_a_preset_moves_the_view(tmp_path):
                 page.on("console", lambda m: errors.append(m.text) if m.type == "error" else None)
                 page.on("pageerror", lambda e: errors.append(str(e)))
                 page.goto(view.url)
-                page.wait_for_selector("canvas", timeout=60_000)
-                deadline = time.monotonic() + 60
+                page.wait_for_selector("canvas", timeout=SLOW_FRAME_MS)
+                deadline = time.monotonic() + SLOW_FRAME_MS / 1000
                 first = canvas_pixels(page)
                 while not drawn(first) and time.monotonic() < deadline:
                     time.sleep(0.5)
                     first = canvas_pixels(page)
                 assert drawn(first)
-                page.screenshot(path=tmp_path / "bedside_overview.png")
+                page.screenshot(path=tmp_path / "bedside_overview.png", timeout=SLOW_FRAME_MS)
                 view.set_preset("monitor_task")
                 second = canvas_pixels(page)
                 while np.abs(second - first).mean() < 5 and time.monotonic() < deadline:
@@ -62,7 +67,7 @@ def test_the_page_draws_the_system_and_a_preset_moves_the_view(tmp_path):
                     second = canvas_pixels(page)
                 assert np.abs(second - first).mean() >= 5
                 assert drawn(second)
-                page.screenshot(path=tmp_path / "bedside_monitor_task.png")
+                page.screenshot(path=tmp_path / "bedside_monitor_task.png", timeout=SLOW_FRAME_MS)
                 assert errors == []
             finally:
                 browser.close()

@@ -97,16 +97,19 @@ class RecordsPart:
         from davinci_sim.records.report import curves_png, note_png
 
         with self._curve_lock:
+            # (read once: the page may change the trainee while this draws, and the drawing
+            # must be the one of the trainee it is cached for)
+            trainee = self.trainee
             recorded = 0 if self.recorder is None else len(self.recorder.recorded)
-            key = (self.trainee, recorded)
+            key = (trainee, recorded)
             if self._curve is not None and self._curve[0] == key:
                 return self._curve[1]
             try:
                 with RecordsDB(self.path, create=False) as db:
-                    png = curves_png(db, self.trainee, task=self.task_name, columns=2)
+                    png = curves_png(db, trainee, task=self.task_name, columns=2)
             except RecordsError:  # no attempt yet (or no file yet): a note instead
                 at = f" at {self.task_name}" if self.task_name else ""
-                png = note_png(f"no recorded attempt of {self.trainee}{at} yet")
+                png = note_png(f"no recorded attempt of {trainee}{at} yet")
             self._curve = (key, png)
             return png
 
