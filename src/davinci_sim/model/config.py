@@ -64,8 +64,11 @@ SCENES: dict[str, SceneConfig] = {
     "full": SceneConfig(),
     "psm1_ecm_mtmr": SceneConfig(arms=("PSM1", "ECM", "MTMR")),
     "psm1": SceneConfig(arms=("PSM1", "ECM"), include_console=False),
+    "psm1_open": SceneConfig(arms=("PSM1", "ECM"), include_console=False, include_patient=False),
 }
-"""Named scenes: everything; PSM1 + ECM + MTMR (fast teleoperation tasks); PSM1 + ECM."""
+"""Named scenes: everything; PSM1 + ECM + MTMR (fast teleoperation tasks); PSM1 + ECM;
+PSM1 + ECM without the table and patient (room for sweeps over the whole joint range, as the
+dVRK's gravity-compensation data collection makes)."""
 
 
 def resolve_scene(scene: str | SceneConfig = "full", **overrides) -> SceneConfig:
