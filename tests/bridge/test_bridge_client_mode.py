@@ -90,10 +90,15 @@ def test_client_mode_drives_the_simulated_mtm_and_publishes_states(remote):
         # the guidance wrench, rotated into the handle's frame
         R = m.matrix_from_quaternion(0.0, 0.0, np.sin(0.25), np.cos(0.25))  # 0.5 rad about z
         fake.T[:3, :3] = R
-        time.sleep(0.2)
-        assert wait_for(lambda: fake.wrenches, 5)
-        w = fake.wrenches[-1]["wrench"]
-        assert np.allclose([w["force"][k] for k in "xyz"], R.T @ wrench[:3], atol=1e-6)
+        expected = R.T @ wrench[:3]
+
+        def rotated() -> bool:  # (once the rotated handle pose has reached the client mode)
+            if not fake.wrenches:
+                return False
+            w = fake.wrenches[-1]["wrench"]
+            return np.allclose([w["force"][k] for k in "xyz"], expected, atol=1e-6)
+
+        assert wait_for(rotated, 10)
         # the wrench goes to zero: one zero is sent, then nothing
         wrench[:] = 0.0
         assert wait_for(lambda: fake.wrenches[-1]["wrench"]["force"]["x"] == 0.0, 5)
