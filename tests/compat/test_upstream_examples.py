@@ -18,11 +18,11 @@ with our PyKDL subset, and in-process with the real PyKDL where the system has i
 from __future__ import annotations
 
 import sys
-import threading
 import time
 
 import numpy as np
 import pytest
+from observer import Observer
 from transports import connected
 
 from davinci_sim.compat import crtk_utils, pykdl
@@ -64,43 +64,6 @@ def PyKDL(request, monkeypatch, system):
     return module
 
 
-class Observer:
-    """Samples PSM1's measured tool-tip position (m, in its base frame) from the simulator
-    on its own thread."""
-
-    def __init__(self, system) -> None:
-        self._handle = system.handle
-        self.positions: list[np.ndarray] = []
-        self._stop = threading.Event()
-        self._thread = threading.Thread(target=self._run, daemon=True)
-
-    def _run(self) -> None:
-        while not self._stop.is_set():
-            self.positions.append(self._handle.snapshot().arms["PSM1"].measured_cp.T[:3, 3])
-            time.sleep(0.002)
-
-    def __enter__(self) -> Observer:
-        self._thread.start()
-        return self
-
-    def __exit__(self, *exc) -> None:
-        self._stop.set()
-        self._thread.join(5.0)
-
-    def visited_in_order(self, *points: np.ndarray) -> list[int]:
-        """The sample indices at which the arm came within :data:`TOLERANCE` of each of
-        ``points`` in turn (an assertion error names the first one never reached)."""
-        found, start = [], 0
-        for k, point in enumerate(points):
-            distances = [np.linalg.norm(p - point) for p in self.positions[start:]]
-            near = [i for i, d in enumerate(distances) if d < TOLERANCE]
-            closest = min(distances) if distances else float("nan")
-            assert near, f"point {k} {point} never reached (closest {closest * 1e3:.1f} mm)"
-            start += near[0]
-            found.append(start)
-        return found
-
-
 def test_crtk_move_cp_example_makes_its_three_moves(system, PyKDL):
     class Example:  # the example's device: operating state, setpoint_cp, move_cp
         def __init__(self, ral):
@@ -111,7 +74,7 @@ def test_crtk_move_cp_example_makes_its_three_moves(system, PyKDL):
             self.crtk_utils.add_move_cp()
 
     example = Example(ral_module.ral("crtk_move_cp_example", "PSM1"))
-    with Observer(system) as observer:
+    with Observer(system.handle) as observer:
         example.ral.check_connections()
         start_cp = PyKDL.Frame()
         setpoint, _ = example.setpoint_cp(wait_timeout=1.0)
@@ -134,14 +97,14 @@ def test_crtk_move_cp_example_makes_its_three_moves(system, PyKDL):
         time.sleep(0.1)
     start = np.array([setpoint.p[0], setpoint.p[1], setpoint.p[2]])
     offset = np.array([amplitude, amplitude, 0.0])
-    observer.visited_in_order(start + offset, start - offset, start)
+    observer.visited_in_order(start + offset, start - offset, start, tolerance=TOLERANCE)
     assert start_cp.p[0] == pytest.approx(start[0])  # the start never moved with the goal
 
 
 def test_dvrk_psm_test_moves_right_then_left_then_back(system, PyKDL):
     arm = dvrk.psm(ral_module.ral("dvrk_psm_test"), "PSM1")
     arm.check_connections()
-    with Observer(system) as observer:
+    with Observer(system.handle) as observer:
         jp, _ = arm.setpoint_jp()
         goal_jp = np.copy(jp)
         goal_jp[0], goal_jp[1], goal_jp[2], goal_jp[3] = 0.0, 0.0, 0.12, 0.0
@@ -168,7 +131,7 @@ def test_dvrk_psm_test_moves_right_then_left_then_back(system, PyKDL):
         time.sleep(0.1)
     start = np.array([initial.p[0], initial.p[1], initial.p[2]])
     right, left = start - [amplitude, 0.0, 0.0], start + [amplitude, 0.0, 0.0]
-    observer.visited_in_order(start, right, left, start)
+    observer.visited_in_order(start, right, left, start, tolerance=TOLERANCE)
 
 
 def test_dvrk_arm_test_servo_cp_draws_its_diagonal(system, PyKDL):
@@ -187,7 +150,7 @@ def test_dvrk_arm_test_servo_cp_draws_its_diagonal(system, PyKDL):
     arm = Device(r)
     r.check_connections()
     period, amplitude, duration = 0.01, 0.02, 5
-    with Observer(system) as observer:
+    with Observer(system.handle) as observer:
         ts = 0.0
         while ts == 0.0:
             jp, ts = arm.setpoint_jp()
@@ -212,9 +175,8 @@ def test_dvrk_arm_test_servo_cp_draws_its_diagonal(system, PyKDL):
         time.sleep(0.2)
     start = np.array([initial.p[0], initial.p[1], initial.p[2]])
     far = start + [2 * amplitude, 2 * amplitude, 0.0]
-    observer.visited_in_order(start, far, start)
-    reach = max(
-        np.linalg.norm(p - start) for p in observer.positions[observer.visited_in_order(start)[0] :]
-    )
+    observer.visited_in_order(start, far, start, tolerance=TOLERANCE)
+    first = observer.visited_in_order(start, tolerance=TOLERANCE)[0]
+    reach = max(np.linalg.norm(p - start) for p in observer.positions()[first:])
     assert reach < 2 * amplitude * np.sqrt(2) + TOLERANCE  # never past the diagonal's end
     assert arm.operating_state() == "ENABLED"

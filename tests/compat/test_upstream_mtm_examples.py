@@ -25,6 +25,7 @@ import time
 
 import numpy as np
 import pytest
+from observer import Observer
 from transports import TRANSPORTS, connected
 
 from davinci_sim.compat import crtk_utils, msgs
@@ -68,42 +69,6 @@ def wait_sim(handle, seconds: float, until=None) -> bool:
             return True
         time.sleep(0.005)
     return until is not None and until()
-
-
-class Observer:
-    """Samples the simulated ``arms``' measured tip positions (m, in their reference frames:
-    HRSV for the MTM, the camera for PSM1, as their ``measured_cp``) with the sim time."""
-
-    def __init__(self, handle, arms) -> None:
-        self._handle = handle
-        self._arms = arms
-        self.samples: list[tuple[float, dict[str, np.ndarray]]] = []
-        self._stop = threading.Event()
-        self._thread = threading.Thread(target=self._run, daemon=True)
-
-    def _run(self) -> None:
-        while not self._stop.is_set():
-            s = self._handle.snapshot()
-            poses = {a: s.arms[a].measured_cp.T[:3, 3].copy() for a in self._arms}
-            self.samples.append((s.time, poses))
-            time.sleep(0.002)
-
-    def __enter__(self) -> Observer:
-        self._thread.start()
-        return self
-
-    def __exit__(self, *exc) -> None:
-        self._stop.set()
-        self._thread.join(5.0)
-
-    def now(self, arm: str) -> np.ndarray:
-        while not self.samples:
-            time.sleep(0.002)
-        return self.samples[-1][1][arm]
-
-    def between(self, arm: str, t0: float, t1: float) -> np.ndarray:
-        """The positions of ``arm`` sampled at sim times t0 <= t <= t1, (n, 3)."""
-        return np.array([p[arm] for t, p in self.samples if t0 <= t <= t1])
 
 
 # ===================================================================== dvrk_teleoperation
