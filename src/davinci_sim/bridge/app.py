@@ -19,6 +19,7 @@ from dataclasses import dataclass, field
 from typing import Any, Literal
 
 from davinci_sim.bridge.rosbridge.config import BridgeConfig
+from davinci_sim.sim.runtime.loop import frozen_heap
 from davinci_sim.system.description import task_condition  # noqa: F401 (the CLI's check)
 
 _log = logging.getLogger("davinci_sim.bridge")
@@ -278,26 +279,27 @@ def serve(
             started.append(make(system, info))
         if endoscope is not None:  # ready means a subscriber's first image comes at once
             _wait_first_frame(endoscope, stop, info)
-        if on_ready is not None:
-            on_ready(info)
-        end = None if options.duration is None else time.monotonic() + options.duration
-        t0_wall, t0_sim = time.monotonic(), handle.snapshot().time
-        pace = RealTimeWatch() if options.real_time else None
-        while not stop.wait(0.1):
-            if end is not None and time.monotonic() >= end:
-                break
-            warning = pace.observe(time.monotonic(), handle.snapshot().time) if pace else None
-            if warning is not None:
-                info["real_time_warning"] = warning
-                _log.warning(warning)
-                if on_warning is not None:
-                    on_warning(warning)
-                if server is not None:
-                    server.call(lambda w=warning: server.bridge.rosout("warn", w))
-        wall = time.monotonic() - t0_wall
-        info["sim_over_wall"] = (handle.snapshot().time - t0_sim) / wall if wall > 0 else 0.0
-        if process:  # (the thread runner has them too; `serve` reports the process's)
-            info["period_statistics"] = handle.period_statistics()
+        with frozen_heap():  # a full collection over the start-up heap stalls the servers
+            if on_ready is not None:
+                on_ready(info)
+            end = None if options.duration is None else time.monotonic() + options.duration
+            t0_wall, t0_sim = time.monotonic(), handle.snapshot().time
+            pace = RealTimeWatch() if options.real_time else None
+            while not stop.wait(0.1):
+                if end is not None and time.monotonic() >= end:
+                    break
+                warning = pace.observe(time.monotonic(), handle.snapshot().time) if pace else None
+                if warning is not None:
+                    info["real_time_warning"] = warning
+                    _log.warning(warning)
+                    if on_warning is not None:
+                        on_warning(warning)
+                    if server is not None:
+                        server.call(lambda w=warning: server.bridge.rosout("warn", w))
+            wall = time.monotonic() - t0_wall
+            info["sim_over_wall"] = (handle.snapshot().time - t0_sim) / wall if wall > 0 else 0.0
+            if process:  # (the thread runner has them too; `serve` reports the process's)
+                info["period_statistics"] = handle.period_statistics()
     finally:
         for part in reversed(started):
             try:

@@ -27,6 +27,8 @@ import traceback
 from collections.abc import Callable
 from dataclasses import dataclass
 
+from davinci_sim.sim.runtime.loop import frozen_heap
+
 SHIM = pathlib.Path(__file__).parent / "shim"
 ROS_SHIM = SHIM / "ros"  # crtk/, dvrk/
 KDL_SHIM = SHIM / "kdl"  # PyKDL.py
@@ -193,7 +195,8 @@ def run_script(script: str, args: list[str], options: RunOptions,
         if options.connect:  # (in this process, the bridge's own log says them)
             echo_arm_messages(client, lambda text: print(text, file=sys.stderr, flush=True))
         ral_module.set_client(client)
-        return run_path_as_main(script, args)
+        with frozen_heap():  # no full collection over the simulation mid-script (a late tick)
+            return run_path_as_main(script, args)
     finally:
         ral_module.set_client(None)
         for part in reversed(stops):

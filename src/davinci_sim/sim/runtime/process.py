@@ -60,6 +60,7 @@ from davinci_sim.sim.runtime.loop import (
     DEFAULT_MAX_LAG,
     DEFAULT_SPIN,
     LoopRunner,
+    frozen_heap,
     reduce_timer_slack,
 )
 from davinci_sim.sim.runtime.render import (
@@ -680,7 +681,8 @@ def _loop_main(factory, options: LoopOptions, conn, paths: dict) -> None:
             if conn.poll(0.05):
                 serve()
                 flush()
-        stats = runner.run(until=done, before_tick=serve, after_tick=after)
+        with frozen_heap():  # no full collection over the model and system mid-run
+            stats = runner.run(until=done, before_tick=serve, after_tick=after)
         state_slot.write(_published_state(sim))
         flush()
         if dropped[0]:

@@ -32,6 +32,7 @@ from typing import Any
 
 import numpy as np
 
+from davinci_sim.sim.runtime.loop import frozen_heap
 from davinci_sim.sim.runtime.shm import LatestSlot, SharedBuffer
 
 _log = logging.getLogger("davinci_sim.render")
@@ -339,12 +340,20 @@ class StereoFrames:
         future.add_done_callback(got)
 
 
+RENDER_NICENESS = 10
+"""How much lower the render process's CPU priority is than its parent's (``os.nice``)."""
+
+
 def render_main(model_source, qpos_path: str, frames_path: str, rate_hz: float, cpu,
                 parent: int | None, width: int, height: int) -> None:  # fmt: skip
     """The render process's loop (see :class:`StereoRenderer`): until the stop flag is set or
     the parent process exits."""
     if cpu is not None and hasattr(os, "sched_setaffinity"):
         os.sched_setaffinity(0, {cpu})
+    if hasattr(os, "nice"):
+        # Images yield the CPU to the loop and the servers: on two cores a frame late by a
+        # few ms is not seen, a late tick or a silent state topic is.
+        os.nice(RENDER_NICENESS)
     import mujoco
 
     from davinci_sim.model import build_model, resolve_scene
@@ -368,34 +377,35 @@ def render_main(model_source, qpos_path: str, frames_path: str, rate_hz: float, 
     last_tick = None
     next_time = time.perf_counter()
     try:
-        while not stats[_STOP] and (parent is None or os.getppid() == parent):
-            now = time.perf_counter()
-            if now < next_time:
-                time.sleep(min(next_time - now, 0.05))
-                continue
-            msg = qslot.read()
-            if msg is None or QPOS_HEADER.unpack_from(msg)[0] == last_tick:
-                next_time = now + min(period, 0.005)  # nothing new: look again soon
-                continue
-            next_time = max(next_time + period, now - period)
-            tick, t, nq = QPOS_HEADER.unpack_from(msg)
-            last_tick = tick
-            data.qpos[:] = np.frombuffer(msg, dtype=np.float64, count=nq, offset=QPOS_HEADER.size)
-            start = time.perf_counter()
-            mujoco.mj_kinematics(model, data)
-            mujoco.mj_camlight(model, data)
-            left = renderer.render(data, "ECM/left", width, height, fast=True)
-            right = renderer.render(data, "ECM/right", width, height, fast=True)
-            elapsed = time.perf_counter() - start
-            frame += 1
-            header = FRAME_HEADER.pack(tick, t, frame, width, height, elapsed)
-            fslot.write(header, left, right)
-            stats[0] = frame
-            stats[1] += elapsed
-            stats[2] = max(stats[2], elapsed)
-            if frame == 1:
-                stats[3] = start
-            stats[4] = start
+        with frozen_heap():  # no full collection over the model mid-run
+            while not stats[_STOP] and (parent is None or os.getppid() == parent):
+                now = time.perf_counter()
+                if now < next_time:
+                    time.sleep(min(next_time - now, 0.05))
+                    continue
+                msg = qslot.read()
+                if msg is None or QPOS_HEADER.unpack_from(msg)[0] == last_tick:
+                    next_time = now + min(period, 0.005)  # nothing new: look again soon
+                    continue
+                next_time = max(next_time + period, now - period)
+                tick, t, nq = QPOS_HEADER.unpack_from(msg)
+                last_tick = tick
+                data.qpos[:] = np.frombuffer(msg, np.float64, nq, QPOS_HEADER.size)
+                start = time.perf_counter()
+                mujoco.mj_kinematics(model, data)
+                mujoco.mj_camlight(model, data)
+                left = renderer.render(data, "ECM/left", width, height, fast=True)
+                right = renderer.render(data, "ECM/right", width, height, fast=True)
+                elapsed = time.perf_counter() - start
+                frame += 1
+                header = FRAME_HEADER.pack(tick, t, frame, width, height, elapsed)
+                fslot.write(header, left, right)
+                stats[0] = frame
+                stats[1] += elapsed
+                stats[2] = max(stats[2], elapsed)
+                if frame == 1:
+                    stats[3] = start
+                stats[4] = start
     finally:
         renderer.close()
 
