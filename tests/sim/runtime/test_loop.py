@@ -6,6 +6,7 @@ import pytest
 
 from davinci_sim.console import SIMULATED_SYSTEM, install_console
 from davinci_sim.sim.runtime import LoopRunner, Pacer
+from davinci_sim.sim.runtime.loop import IDLE_WINDOW
 from davinci_sim.sim.simulation import Simulation
 
 
@@ -119,6 +120,50 @@ def test_real_time_and_fast_runs_give_identical_results():
     assert np.linalg.norm(paced.arms["PSM1"].setpoint_jp() - paced.arms["PSM1"].kin.home) > 1e-3
     np.testing.assert_array_equal(paced.data.qpos, fast.data.qpos)
     np.testing.assert_array_equal(paced.data.qvel, fast.data.qvel)
+
+
+@pytest.mark.parametrize("compute", [0.0015, 0.0009])  # behind real time; just keeping up
+def test_a_real_time_loop_sleeps_its_idle_share_in_short_sleeps(compute):
+    """A FIFO loop that never sleeps is stopped by Linux for 50 ms a second: with
+    ``min_idle`` the pacer sleeps that share itself, at most one window's worth at a time."""
+    v = VirtualClock(step=0.0)
+    pacer = Pacer(0.001, spin=0.0, max_lag=10.0, clock=v.clock, sleep=v.sleep, min_idle=0.06)
+    pacer.start()
+    for _ in range(2000):
+        pacer.wait()
+        v.now += compute  # the tick's computation
+    elapsed = v.now
+    assert sum(v.sleeps) >= 0.06 * elapsed - IDLE_WINDOW  # the share, up to the last window
+    assert max(v.sleeps) <= 0.06 * 2 * IDLE_WINDOW  # short sleeps, never a long stop
+    # Without it, a loop behind real time never sleeps.
+    v = VirtualClock(step=0.0)
+    pacer = Pacer(0.001, spin=0.0, max_lag=10.0, clock=v.clock, sleep=v.sleep)
+    pacer.start()
+    for _ in range(200):
+        pacer.wait()
+        v.now += 0.0015
+    assert v.sleeps == [pytest.approx(0.001)]  # (only the first period's wait)
+    with pytest.raises(ValueError):
+        Pacer(0.001, min_idle=1.0)
+
+
+def test_realtime_idle_share_follows_the_kernels_limit(monkeypatch):
+    import builtins
+    import io
+
+    from davinci_sim.sim.runtime.loop import realtime_idle_share
+
+    files = {"/proc/sys/kernel/sched_rt_runtime_us": "950000\n",
+             "/proc/sys/kernel/sched_rt_period_us": "1000000\n"}  # fmt: skip
+    real_open = builtins.open
+    monkeypatch.setattr(
+        builtins,
+        "open",
+        lambda f, *a, **k: io.StringIO(files[f]) if f in files else real_open(f, *a, **k),
+    )
+    assert realtime_idle_share() == pytest.approx(0.06)  # Linux's default: 5 %, and 1 point
+    files["/proc/sys/kernel/sched_rt_runtime_us"] = "-1\n"  # no limit
+    assert realtime_idle_share() == 0.0
 
 
 def test_frozen_heap_keeps_what_is_alive_out_of_collections_until_exit():

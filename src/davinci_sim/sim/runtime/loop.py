@@ -34,6 +34,8 @@ if TYPE_CHECKING:
 DEFAULT_SPIN = 200e-6
 #: Drop the backlog when more than 50 ms behind (a long stall: better to skip than to race).
 DEFAULT_MAX_LAG = 0.05
+#: The window over which :class:`Pacer` keeps its ``min_idle`` share of sleep, s.
+IDLE_WINDOW = 0.01
 
 _PR_SET_TIMERSLACK = 29
 
@@ -70,6 +72,27 @@ def frozen_heap() -> Iterator[None]:
         gc.unfreeze()  # what was frozen and has become garbage since can now be collected
 
 
+def realtime_idle_share() -> float:
+    """The share of wall time a real-time (``SCHED_FIFO``) loop must sleep so that Linux
+    never throttles it, with one point of margin; 0 where the kernel sets no such limit.
+
+    Linux lets real-time tasks run ``sched_rt_runtime_us`` of every ``sched_rt_period_us``
+    (950 ms of 1 s by default). A FIFO loop that cannot keep up never sleeps, uses it up, and
+    is then stopped for the rest of the second at once: one 50 ms period a second (measured:
+    ``bench_realtime``'s longest periods were 53-57 ms with FIFO, 5 ms without).
+    """
+    try:
+        with open("/proc/sys/kernel/sched_rt_runtime_us") as f:
+            runtime = int(f.read())
+        with open("/proc/sys/kernel/sched_rt_period_us") as f:
+            period = int(f.read())
+    except (OSError, ValueError):
+        return 0.0
+    if runtime < 0 or period <= 0:  # (-1: no limit)
+        return 0.0
+    return max(0.0, 1.0 - runtime / period) + 0.01
+
+
 class Pacer:
     """Wall-clock pacing of a periodic loop; see the module docstring.
 
@@ -79,6 +102,10 @@ class Pacer:
         max_lag: drop the backlog beyond this lag, s.
         clock: monotonic clock in s.
         sleep: how to wait ``s`` seconds (tests pass a virtual clock and sleep).
+        min_idle: the share of wall time the loop sleeps at least, kept over each
+            :data:`IDLE_WINDOW` (a loop behind real time sleeps the shortfall at the window's
+            end): a real-time loop's :func:`realtime_idle_share`, spread in short sleeps
+            instead of being taken from it in one long stop. 0: none.
     """
 
     def __init__(
@@ -89,23 +116,32 @@ class Pacer:
         max_lag: float = DEFAULT_MAX_LAG,
         clock: Callable[[], float] = time.perf_counter,
         sleep: Callable[[float], None] | None = None,
+        min_idle: float = 0.0,
     ) -> None:
         if not (math.isfinite(period) and period > 0):
             raise ValueError(f"period must be > 0 s, got {period!r}")
         if not (spin >= 0 and max_lag > 0):
             raise ValueError(f"spin must be >= 0 and max_lag > 0, got {spin!r}, {max_lag!r}")
+        if not 0 <= min_idle < 1:
+            raise ValueError(f"min_idle must be in [0, 1), got {min_idle!r}")
         self.period = period
         self.spin = spin
         self.max_lag = max_lag
         self.clock = clock
         self.sleep = sleep
+        self.min_idle = min_idle
+        self.idle_sleeps = 0
+        """Sleeps made to keep ``min_idle`` (the loop was behind)."""
         self._t0 = clock()
         self._n = 0
+        self._window = self._t0
+        self._slept = 0.0
 
     def start(self) -> None:
         """The next deadline is one period from now."""
         self._t0 = self.clock()
         self._n = 0
+        self._window, self._slept = self._t0, 0.0
 
     def wait(self) -> bool:
         """Wait for the next deadline; True if the backlog was dropped instead."""
@@ -118,9 +154,24 @@ class Pacer:
         remaining = deadline - now - self.spin
         if remaining > 0:
             (self.sleep or time.sleep)(remaining)
+            self._slept += remaining
+        if self.min_idle > 0:
+            self._keep_idle_share()
         while self.clock() < deadline:
             pass
         return False
+
+    def _keep_idle_share(self) -> None:
+        now = self.clock()
+        if now - self._window < IDLE_WINDOW:
+            return
+        # (the sleep itself is wall time too: share = slept / (window + owed))
+        owed = (self.min_idle * (now - self._window) - self._slept) / (1.0 - self.min_idle)
+        if owed > 0:
+            (self.sleep or time.sleep)(owed)
+            self.idle_sleeps += 1
+            now = self.clock()
+        self._window, self._slept = now, 0.0
 
 
 class LoopRunner:
@@ -136,6 +187,7 @@ class LoopRunner:
         recorder: where the period statistics go (default: a private recorder).
         spin, max_lag: see :class:`Pacer`.
         clock, sleep: the wall clock (s) and how to wait (tests pass a virtual clock).
+        min_idle: see :class:`Pacer` (a real-time loop's :func:`realtime_idle_share`).
     """
 
     def __init__(
@@ -149,6 +201,7 @@ class LoopRunner:
         max_lag: float = DEFAULT_MAX_LAG,
         clock: Callable[[], float] = time.perf_counter,
         sleep: Callable[[float], None] | None = None,
+        min_idle: float = 0.0,
     ) -> None:
         self.sim = sim
         self.real_time = real_time
@@ -157,7 +210,14 @@ class LoopRunner:
         if not (math.isfinite(speed) and speed > 0):
             raise ValueError(f"speed must be > 0, got {speed!r}")
         self.pacer = (
-            Pacer(sim.dt / speed, spin=spin, max_lag=max_lag, clock=clock, sleep=sleep)
+            Pacer(
+                sim.dt / speed,
+                spin=spin,
+                max_lag=max_lag,
+                clock=clock,
+                sleep=sleep,
+                min_idle=min_idle,
+            )  # fmt: skip
             if real_time
             else None
         )

@@ -61,6 +61,7 @@ from davinci_sim.sim.runtime.loop import (
     DEFAULT_SPIN,
     LoopRunner,
     frozen_heap,
+    realtime_idle_share,
     reduce_timer_slack,
 )
 from davinci_sim.sim.runtime.render import (
@@ -590,6 +591,8 @@ def _loop_main(factory, options: LoopOptions, conn, paths: dict) -> None:
             recorder=recorder,
             spin=options.spin,
             max_lag=options.max_lag,
+            # (a FIFO loop that never sleeps is stopped by Linux for 50 ms a second)
+            min_idle=realtime_idle_share() if applied["realtime_priority"] else 0.0,
         )
         outgoing: deque = deque()
         dropped = [0]
