@@ -340,20 +340,12 @@ class StereoFrames:
         future.add_done_callback(got)
 
 
-RENDER_NICENESS = 10
-"""How much lower the render process's CPU priority is than its parent's (``os.nice``)."""
-
-
 def render_main(model_source, qpos_path: str, frames_path: str, rate_hz: float, cpu,
                 parent: int | None, width: int, height: int) -> None:  # fmt: skip
     """The render process's loop (see :class:`StereoRenderer`): until the stop flag is set or
     the parent process exits."""
     if cpu is not None and hasattr(os, "sched_setaffinity"):
         os.sched_setaffinity(0, {cpu})
-    if hasattr(os, "nice"):
-        # Images yield the CPU to the loop and the servers: on two cores a frame late by a
-        # few ms is not seen, a late tick or a silent state topic is.
-        os.nice(RENDER_NICENESS)
     import mujoco
 
     from davinci_sim.model import build_model, resolve_scene
