@@ -330,15 +330,15 @@ class DavinciVectorEnv(VectorEnv):
         )  # fmt: skip
         rows = np.flatnonzero(running)
         if self._pool is None or len(rows) < 2 * self.threads:
-            self._physics(rows.tolist(), ctrl)
+            self._physics(rows, ctrl)
         else:  # (mj_step releases the GIL: the rows' physics on several cores)
             chunks = np.array_split(rows, self.threads)
-            list(self._pool.map(lambda c: self._physics(c.tolist(), ctrl), chunks))
+            list(self._pool.map(lambda c: self._physics(c, ctrl), chunks))
         qfrc_bias, qfrc_gravcomp = self._qfrc
         self.bias[rows] = servo.bias_of(qfrc_bias[rows], qfrc_gravcomp[rows])
         self._kinematics()
 
-    def _physics(self, rows: list[int], ctrl: np.ndarray) -> None:
+    def _physics(self, rows: np.ndarray, ctrl: np.ndarray) -> None:
         """``mj_step`` of ``rows`` with their actuator controls (one compiled call,
         :class:`~davinci_sim.sim.rows_step.RowStepper`); their state read back."""
         if self._map is not None:
@@ -351,12 +351,12 @@ class DavinciVectorEnv(VectorEnv):
                            gravcomp=gravcomp)  # fmt: skip
         self._advance_time(rows)
 
-    def _advance_time(self, rows: list[int]) -> None:
+    def _advance_time(self, rows: np.ndarray) -> None:
         """The rows' time after their step: MuJoCo's own ``time += opt.timestep``, the same
         sum on the same operands, without reading 256 ``MjData.time`` from Python a tick."""
         self.time[rows] += self.model.opt.timestep
 
-    def _physics_reduced(self, rows: list[int], ctrl: np.ndarray) -> None:
+    def _physics_reduced(self, rows: np.ndarray, ctrl: np.ndarray) -> None:
         """:meth:`_physics` on the reduced model (``physics="psm"``/``"arm"``): the rows'
         state gathered in the reduced layout, then written into the full model's at once
         (the welded joints keep their start values)."""
@@ -368,7 +368,7 @@ class DavinciVectorEnv(VectorEnv):
         self._stepper.step(rows, np.ascontiguousarray(ctrl[:, act]), None, q, v, fb, fg, None,
                            out=np.arange(len(rows)), gravcomp=gravcomp)  # fmt: skip
         self._advance_time(rows)
-        r = np.asarray(rows, dtype=int)[:, None]
+        r = rows[:, None]
         self.Q[r, qadr], self.V[r, dadr] = q, v
         self._qfrc[0][r, dadr] = fb
         if gravcomp:
