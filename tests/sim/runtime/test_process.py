@@ -186,3 +186,27 @@ def test_a_state_taken_in_one_loop_process_resumes_bit_identically_in_another():
         second.stop()
     np.testing.assert_array_equal(q_second, q_first)
     assert snap.extras["MTMR_PSM1"].following  # the console's state came along
+
+
+def test_the_loop_gets_sched_fifo_once_its_simulation_is_built():
+    """``realtime_priority``: the loop process runs on SCHED_FIFO (where the privilege is
+    granted; otherwise ``info`` says why not) and still ticks; the policy is set after the
+    build, so the build's seconds do not use up Linux's real-time share."""
+    import os
+
+    if not hasattr(os, "sched_getscheduler"):
+        pytest.skip("no POSIX scheduling policies here")
+    with ProcessSimulation(
+        functools.partial(Simulation, "psm1"), real_time=True, realtime_priority=1
+    ) as handle:
+        info = handle.info
+        if info.get("realtime_priority") is None:
+            assert info["realtime_priority_error"]  # (said, not silently ignored)
+            pytest.skip(f"SCHED_FIFO not granted here: {info['realtime_priority_error']}")
+        assert info["realtime_priority"] == 1
+        assert os.sched_getscheduler(info["pid"]) == os.SCHED_FIFO
+        tick = handle.snapshot().tick
+        deadline = time.monotonic() + 30
+        while handle.snapshot().tick < tick + 200 and time.monotonic() < deadline:
+            time.sleep(0.01)
+        assert handle.snapshot().tick >= tick + 200  # the real-time loop runs

@@ -32,7 +32,6 @@ from __future__ import annotations
 
 import atexit
 import functools
-import gc
 import itertools
 import math
 import multiprocessing as mp
@@ -539,13 +538,19 @@ def _apply_process_options(options: LoopOptions) -> dict:
     if options.cpu is not None and hasattr(os, "sched_setaffinity"):
         os.sched_setaffinity(0, {options.cpu})
         applied["cpu"] = options.cpu
+    return applied
+
+
+def _apply_realtime_priority(options: LoopOptions, applied: dict) -> None:
+    """SCHED_FIFO for the loop, once the simulation is built: seconds of building on FIFO
+    would hold the CPU from the other processes starting, and use up Linux's real-time
+    share of the second the loop then starts in (a 56 ms stop in its first ticks)."""
     if options.realtime_priority is not None and hasattr(os, "sched_setscheduler"):
         try:
             os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(options.realtime_priority))
             applied["realtime_priority"] = options.realtime_priority
         except (PermissionError, OSError) as e:
             applied["realtime_priority_error"] = str(e)
-    return applied
 
 
 def _published_state(sim) -> bytes:
@@ -581,6 +586,7 @@ def _loop_main(factory, options: LoopOptions, conn, paths: dict) -> None:
 
         if not isinstance(sim, Simulation):
             raise TypeError(f"the factory must return a Simulation, got {type(sim).__name__}")
+        _apply_realtime_priority(options, applied)
         buffers = {k: SharedBuffer(path=p) for k, p in paths.items()}
         recorder = PeriodRecorder(sim.dt, real_time=options.real_time, buffer=buffers["stats"].mm)
         state_slot = LatestSlot(buffers["state"])
@@ -623,8 +629,6 @@ def _loop_main(factory, options: LoopOptions, conn, paths: dict) -> None:
                 },
             )
         )
-        gc.collect()
-        gc.freeze()  # the model and components stay: keep them out of the collector's scans
         stop = [False]
         paused = [options.start_paused]
 
