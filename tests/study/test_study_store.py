@@ -26,6 +26,11 @@ SRC = Path(__file__).resolve().parents[2] / "src"
 #: (a deterministic interruption: right after a row was written, whatever the machine's speed).
 INTERRUPTING_CLI = """
 import os, signal, sys
+# Ctrl-C as a terminal delivers it, whatever disposition this child inherited from the test
+# process (an ignored or blocked SIGINT is inherited across exec; under the full suite the
+# study then ran to its end)
+signal.signal(signal.SIGINT, signal.default_int_handler)
+signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGINT})
 from davinci_sim.cli import main
 from davinci_sim.study import store
 sig, after = getattr(signal, sys.argv[1]), int(sys.argv[2])
