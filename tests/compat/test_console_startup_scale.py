@@ -8,7 +8,7 @@ from __future__ import annotations
 import time
 
 import pytest
-from transports import connected
+from transports import FAIL_AFTER, connected
 
 from davinci_sim.compat import dvrk_api as dvrk
 from davinci_sim.compat.ral import ral as make_ral
@@ -28,7 +28,7 @@ def console_ral(request):
 
 
 def read_scale(console, expected: float, timeout: float = 5.0) -> float:
-    deadline = time.monotonic() + timeout
+    deadline = time.monotonic() + max(timeout, FAIL_AFTER)
     while console.teleop_get_scale() != pytest.approx(expected) and time.monotonic() < deadline:
         time.sleep(0.02)
     return console.teleop_get_scale()

@@ -10,6 +10,7 @@ import time
 
 import numpy as np
 import pytest
+from transports import FAIL_AFTER
 
 from davinci_sim.bridge.rosbridge.config import BridgeConfig
 from davinci_sim.bridge.rosbridge.server import RosbridgeServer
@@ -150,7 +151,7 @@ def test_servo_jp_stream_reaches_the_arm(system, ral, psm):
     assert np.allclose(now(system, "PSM1", "setpoint_jp"), goal, atol=1e-9)
     # the arm settles on the last command (how fast depends on the machine's load: the loop
     # may run below real time, so a wall-clock profile is faster in simulated time)
-    deadline = time.monotonic() + 10.0
+    deadline = time.monotonic() + FAIL_AFTER
     while abs(psm.measured_jp()[0][0] - goal[0]) > math.radians(0.2):
         assert time.monotonic() < deadline, (psm.measured_jp()[0], goal)
         settle()
@@ -206,7 +207,7 @@ def test_mtm_wrench_moves_the_handle(system, ral):
         "orientation_positive": half, "orientation_negative": half,
     }  # fmt: skip
     mtm.servo_ci(gains)
-    deadline = time.monotonic() + 5
+    deadline = time.monotonic() + FAIL_AFTER
     while now(system, "MTMR", "impedance") is None and time.monotonic() < deadline:
         settle()
     g = now(system, "MTMR", "impedance")
@@ -220,7 +221,7 @@ def test_console_scale_and_pedal_events(system, ral):
     emulate = ral.publisher("/console/emulate_clutch", "sensor_msgs/Joy")
     settle(0.2)
     console.teleop_set_scale(0.3)
-    deadline = time.monotonic() + 5
+    deadline = time.monotonic() + FAIL_AFTER
     while console.teleop_get_scale() != pytest.approx(0.3) and time.monotonic() < deadline:
         settle()
     assert console.teleop_get_scale() == pytest.approx(0.3)
@@ -243,7 +244,7 @@ def test_ecm_suj_and_teleop(system, ral):
     assert suj.PSM1.local.measured_cp(wait_timeout=2)[0].p.Norm() > 0
     assert suj.ECM.operating_state() in ("ENABLED", "DISABLED")
     teleop.set_scale(0.15)
-    deadline = time.monotonic() + 5
+    deadline = time.monotonic() + FAIL_AFTER
     while teleop.get_scale() != pytest.approx(0.15) and time.monotonic() < deadline:
         settle()
     assert teleop.get_scale() == pytest.approx(0.15)

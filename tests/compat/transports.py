@@ -14,6 +14,10 @@ from davinci_sim.compat.transport import RosbridgeClient, WebSocketConnection
 
 TRANSPORTS = ("in-process", "rosbridge")
 
+#: The least time a test waits for a condition, s: the deadline only ends a failing test (a
+#: busy machine must not fail a passing one); no test asserts how fast a condition comes.
+FAIL_AFTER = 30.0
+
 
 @contextmanager
 def connected(handle, transport: str):
