@@ -383,7 +383,7 @@ def cmd_serve(args: argparse.Namespace) -> int:
         print("ready (Ctrl-C to stop)", flush=True)
 
     try:
-        info = serve(options, stop=stop, on_ready=ready, parts=parts,
+        info = serve(options, stop=stop, on_ready=ready, parts=parts, freeze_heap=True,
                      on_warning=lambda text: print(f"warning: {text}", flush=True))  # fmt: skip
     except OSError as e:  # a port is taken (the rosbridge server's or the web console's)
         problem = _taken_port_problem(args, web)  # (taken meanwhile: say by what, if known)
@@ -799,7 +799,8 @@ def _serve_replay(args: argparse.Namespace, recording) -> int:
         )
 
     try:
-        info = serve(options, stop=stop, on_ready=ready, parts=parts, system=system)
+        info = serve(options, stop=stop, on_ready=ready, parts=parts, system=system,
+                     freeze_heap=True)  # fmt: skip
     except OSError as e:
         print(f"davinci-sim replay: {e}; choose another port (--port, --web-port)", file=sys.stderr)
         return 2
@@ -858,7 +859,7 @@ def cmd_run(args: argparse.Namespace) -> int:
     options = RunOptions(
         connect=args.connect, scene=args.scene, keyframe=args.keyframe, seed=args.seed,
         console=not args.no_console, home=args.home, rate=args.rate, token=args.token,
-        force_compat=args.force_compat,
+        force_compat=args.force_compat, freeze_heap=True,
     )  # fmt: skip
     try:
         return run_script(args.script, args.args, options)

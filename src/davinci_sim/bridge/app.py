@@ -11,6 +11,7 @@ everything in reverse order.
 
 from __future__ import annotations
 
+import contextlib
 import logging
 import threading
 import time
@@ -195,6 +196,7 @@ def serve(
     parts: Sequence[Callable[[Any, dict], Any]] = (),
     on_warning: Callable[[str], None] | None = None,
     system: Any = None,
+    freeze_heap: bool = False,
 ) -> dict:
     """Run until ``stop`` is set or ``options.duration`` passes; returns final statistics.
 
@@ -206,6 +208,9 @@ def serve(
     keep real time (:class:`RealTimeWatch`; also logged and put on ``/rosout``).
     ``system``: a built, not started :class:`~davinci_sim.system.System` to serve instead
     of the one ``options`` describe (a replay's: ``davinci-sim replay``).
+    ``freeze_heap``: run within :func:`~davinci_sim.sim.runtime.loop.frozen_heap` once
+    started (the CLI, whose process this is; a caller embedding ``serve`` in a process of
+    its own decides for that process).
     """
     from davinci_sim.bridge.client_mode import ClientModeConfig, RosClientMode
     from davinci_sim.bridge.console_node import ConsoleNode
@@ -279,7 +284,9 @@ def serve(
             started.append(make(system, info))
         if endoscope is not None:  # ready means a subscriber's first image comes at once
             _wait_first_frame(endoscope, stop, info)
-        with frozen_heap():  # a full collection over the start-up heap stalls the servers
+        # (a full collection over the start-up heap stalls the servers: the process's owner,
+        # the CLI, asks to keep it out of the collector's reach for the run)
+        with frozen_heap() if freeze_heap else contextlib.nullcontext():
             if on_ready is not None:
                 on_ready(info)
             end = None if options.duration is None else time.monotonic() + options.duration

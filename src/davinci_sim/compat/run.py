@@ -17,6 +17,7 @@ one, from its import path or the system's packages (Debian's ``python3-pykdl``, 
 
 from __future__ import annotations
 
+import contextlib
 import importlib.util
 import json
 import os
@@ -161,6 +162,9 @@ class RunOptions:
     """In-process: publish rate of the arms' state topics, Hz (the dVRK's 100)."""
     token: str | None = None
     """``--connect``: the server's token, if it has one."""
+    freeze_heap: bool = False
+    """Run the script within :func:`~davinci_sim.sim.runtime.loop.frozen_heap` (the CLI:
+    this process is the script's; a caller running scripts in its own process decides)."""
     force_compat: bool = False
 
 
@@ -195,7 +199,8 @@ def run_script(script: str, args: list[str], options: RunOptions,
         if options.connect:  # (in this process, the bridge's own log says them)
             echo_arm_messages(client, lambda text: print(text, file=sys.stderr, flush=True))
         ral_module.set_client(client)
-        with frozen_heap():  # no full collection over the simulation mid-script (a late tick)
+        # (no full collection over the simulation mid-script: a late tick, a stale topic)
+        with frozen_heap() if options.freeze_heap else contextlib.nullcontext():
             return run_path_as_main(script, args)
     finally:
         ral_module.set_client(None)
