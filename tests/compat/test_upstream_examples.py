@@ -33,6 +33,10 @@ from davinci_sim.system import SystemDescription, build_system
 
 REAL = pykdl.load()
 TOLERANCE = 1e-3  # m: the arm within 1 mm of each goal
+#: How far past a streamed goal the servo may carry the tool, m: when the script's 100 Hz
+#: stream is late on a busy machine, the goal jumps and the servo overshoots by a millimetre
+#: or two (measured 1.4 mm once under the full suite); an aliasing PyKDL sent it metres off.
+OVERSHOOT = 5e-3
 
 
 @pytest.fixture(scope="module", params=["in-process", "rosbridge"])
@@ -178,5 +182,5 @@ def test_dvrk_arm_test_servo_cp_draws_its_diagonal(system, PyKDL):
     observer.visited_in_order(start, far, start, tolerance=TOLERANCE)
     first = observer.visited_in_order(start, tolerance=TOLERANCE)[0]
     reach = max(np.linalg.norm(p - start) for p in observer.positions()[first:])
-    assert reach < 2 * amplitude * np.sqrt(2) + TOLERANCE  # never past the diagonal's end
+    assert reach < 2 * amplitude * np.sqrt(2) + OVERSHOOT  # never past the diagonal's end
     assert arm.operating_state() == "ENABLED"
