@@ -210,3 +210,39 @@ def test_one_arms_twist_row_is_the_numpy_law():
         numpy_law = so3.rotate_pairs(R, np.sum(J * qd[None, :], axis=-1))
         np.testing.assert_array_equal(one, numpy_law, strict=True)
         assert (np.signbit(one) == np.signbit(numpy_law)).all()
+
+
+def test_square_solve_of_the_compiled_period_is_joint_velocitys_solve(psm_batch):
+    """The compiled rows' solve (ArmChunk's twist feed-forward) gives numpy's answer to
+    rounding, compiled and as Python, and declines where ``joint_velocity`` falls back to
+    least squares (a zero pivot, an answer beyond ``_SINGULAR_QD``)."""
+    rng, chain, q = psm_batch
+    _, J = laws.tip_kinematics(chain, q)
+    solvers = [laws.solve_square_into]
+    numba = pytest.importorskip("numba")
+    from davinci_sim.kinematics import jit
+
+    if jit.ENABLED:
+        solve = laws.solve_square_into
+
+        @numba.njit
+        def compiled(J, b, A, out):
+            return solve(J, b, A, out)
+
+        solvers.append(compiled)
+    A, out = np.empty((6, 6)), np.empty(6)
+    for solver in solvers:
+        for i in range(len(q)):
+            w = rng.normal(0, 0.05, 6)
+            assert solver(J[i], w, A, out)
+            np.testing.assert_allclose(out, laws.joint_velocity(J[i], w), rtol=1e-9, atol=1e-12)
+        singular = J[0].copy()
+        singular[:, 3] = 0.0  # (a joint that moves nothing: an exact zero pivot)
+        assert not solver(singular, np.ones(6), A, out)
+        nearly = J[0].copy()
+        nearly[:, 3] = 1e-9 * nearly[:, 4]  # (two parallel columns: a huge answer)
+        qd = np.full(6, np.nan)
+        if np.isfinite(laws._solve(nearly, np.ones(6))).all():
+            qd = laws._solve(nearly, np.ones(6))
+        declined = not solver(nearly, np.ones(6), A, out)
+        assert declined == (not np.abs(qd).max() < laws._SINGULAR_QD)

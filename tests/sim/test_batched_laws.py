@@ -173,3 +173,19 @@ def test_servo_ctrl_realises_pd_gravity_and_effort_modes():
         batch[0],
         servo_ctrl(q, qd, bias, q_ref, qd_ref, ff, effort, np.array([True, False]), kp, kv),
     )
+
+
+def test_one_actuators_servo_ctrl_is_the_batch_law_bit_for_bit():
+    """The compiled rows' servo (sim.rows_chunk) on floats: the batch law's bits, masks
+    included."""
+    from davinci_sim.sim.servo import servo_ctrl_scalar
+
+    rng = np.random.default_rng(8)
+    n = 500
+    args = [rng.normal(size=n) for _ in range(6)]
+    effort, gravity = rng.random(n) < 0.3, rng.random(n) < 0.7
+    kp, kv = rng.uniform(1, 500, n), rng.uniform(0.1, 20, n)
+    batch = servo_ctrl(*args, effort, gravity, kp, kv)
+    one = [servo_ctrl_scalar(*(float(a[i]) for a in args), bool(effort[i]), bool(gravity[i]),
+                             float(kp[i]), float(kv[i])) for i in range(n)]  # fmt: skip
+    np.testing.assert_array_equal(np.array(one), batch, strict=True)

@@ -48,6 +48,9 @@ class ReachProblem:
     ``reward_distance`` = −(distance to the target in cm) and ``reward_success`` =
     :data:`SUCCESS_REWARD` when within the tolerance (the episode then terminates)."""
 
+    samples_ticks = False
+    """Whether :meth:`after_tick` does anything (else a stepper need not record the ticks)."""
+
     def __init__(self, n: int, p_start: np.ndarray, radius: float, tolerance: float) -> None:
         self.n = n
         self.p_start = np.asarray(p_start, dtype=float)
@@ -87,6 +90,9 @@ class TaskProblem:
     """An exercise (``task``, any kind) for n rows; ``T_task_camera`` (4, 4) the camera in
     the task's frame (see the module docstring). The single environment passes the camera's
     current pose to :meth:`after_tick`; the vector one holds the start's."""
+
+    samples_ticks = True
+    """Every tick's sample goes through the task (:meth:`after_tick`)."""
 
     def __init__(self, task, n: int, T_task_camera: np.ndarray, camera) -> None:
         self.task, self.n = task, n

@@ -12,10 +12,20 @@ the joint limits, the twist feed-forward (:func:`~davinci_sim.sim.arm_laws.joint
 the tracking fault (:mod:`davinci_sim.sim.arm_laws`); the joint servo
 (:func:`~davinci_sim.sim.servo.servo_ctrl`, ``JointServo.bias_of``); the tip's pose and
 Jacobian (``tip_kinematics``); the task's sample, state machine and metrics
-(:mod:`davinci_sim.envs.problems`). Only ``mj_step`` runs per row (MuJoCo's C), and only
-for the rows stepping, all in one compiled call (:class:`~davinci_sim.sim.rows_step.RowStepper`,
-the same bits as Python's calls); ``threads=k`` steps the rows' physics on k threads (``mj_step``
-releases the GIL; the rows are independent, so the results are the same bits).
+(:mod:`davinci_sim.envs.problems`).
+
+**One compiled call per action.** With numba (the default) a whole control period runs in
+compiled code, row by row (:class:`~davinci_sim.sim.rows_chunk.ArmChunk`): the ramp, the
+IK and feed-forward, the tracking watch, the servo, ``mj_step`` (MuJoCo's C, called from the
+compiled loop) and the tip's kinematics, K ticks without returning to Python; the task's
+per-tick samples are then taken from the period's record. A tick the kernel has no compiled
+form of (an IK answer to polish, a singular Jacobian) runs in Python for that row. The
+Python ticks (:meth:`DavinciVectorEnv._python_tick`, the batch laws of the list above, one
+numpy call per law per tick with ``mj_step`` of the rows in one compiled call,
+:class:`~davinci_sim.sim.rows_step.RowStepper`) are the fallback without numba and the
+tests' oracle: the same results to 1e-12 (``tests/envs/test_vector_compiled.py``).
+``threads=k`` runs the rows on k threads (the compiled loop and ``mj_step`` release the GIL;
+the rows are independent, so the results are the same bits).
 
 Like the study's batch it holds the camera and the PSM's base frame as they are at the
 start (the ECM does not move; the live simulation follows the setup joints' µm-level yield
@@ -58,7 +68,9 @@ from davinci_sim.envs.setup import EnvConfig, build_start
 from davinci_sim.geometry.so3 import rotate_pairs
 from davinci_sim.kinematics.psm_ik import psm_ik_closed_form_batch
 from davinci_sim.sim import arm_laws as laws
+from davinci_sim.sim import rows_chunk
 from davinci_sim.sim.jaw import finger_setpoints
+from davinci_sim.sim.rows_chunk import ArmChunk, Ramp
 from davinci_sim.sim.rows_step import RowStepper
 from davinci_sim.sim.servo import servo_ctrl
 
@@ -67,6 +79,9 @@ from davinci_sim.sim.servo import servo_ctrl
 #: ``arm`` — the PSM's own 8 joints (its setup joints welded too: within ~0.3 mm).
 #: See :mod:`davinci_sim.envs.reduced`.
 PHYSICS = ("full", "psm", "arm")
+
+_NO_TWIST, _NO_ROTATION = np.zeros((0, 6)), np.zeros((0, 3, 3))
+"""Stand for the Cartesian ramp's arrays in a joint ramp (one compiled signature)."""
 
 
 class DavinciVectorEnv(VectorEnv):
@@ -163,6 +178,13 @@ class DavinciVectorEnv(VectorEnv):
         self.steps = np.zeros(n, dtype=np.int64)
         self._autoreset = np.zeros(n, dtype=bool)
         self._rngs = [seeding.np_random(None)[0] for _ in range(n)]
+        self._chunk = None  # (the compiled period; None: the Python ticks)
+        if rows_chunk.COMPILED:
+            self._chunk = ArmChunk(
+                self._stepper, servo, self.chain, self.psm_act, self.psm_q, self.tolerance,
+                self.T_camera_rcm, layout=self._map, copy_gravcomp=self._gravcomp,
+                timestep=self.model.opt.timestep,
+            )  # fmt: skip
         self._kinematics()
         self._row0 = {
             "Q": self.Q[0].copy(), "V": self.V[0].copy(), "bias": self.bias[0].copy(),
@@ -282,31 +304,100 @@ class DavinciVectorEnv(VectorEnv):
             T_goal[:, 3, 3] = 1.0
             twist = np.concatenate([velocity, np.zeros_like(velocity)], axis=1)
             local = rotate_pairs(self.T_rcm_camera[:3, :3], twist)
+            R_base_goal = np.ascontiguousarray((self.T_rcm_camera @ T_goal)[:, :3, :3])
+        else:
+            T_goal, local, R_base_goal = None, _NO_TWIST, _NO_ROTATION
+        ramp = Ramp(cartesian, start, delta, velocity, R_base_goal, local)
         fault = np.zeros(self.num_envs, dtype=bool)
         running = active.copy()
-        for k in range(1, K + 1):
-            g = control.ramp(start, delta, k, K)
-            live = np.flatnonzero(running)
-            if cartesian:
-                T_goal[:, :3, 3] = g
-                q_now = self.Q[:, self.psm_q]
-                ik = psm_ik_closed_form_batch(self.chain, self.T_rcm_camera @ T_goal, q_now)
-                ok = ik.success & laws.within_limits(ik.q, self.chain.qmin, self.chain.qmax)
-                qd = laws.joint_velocity(self.J_psm, local)
-                set_rows = np.flatnonzero(ok & running)
-                self.q_ref[np.ix_(set_rows, self.psm_act)] = ik.q[set_rows]
-                self.qd_ref[np.ix_(set_rows, self.psm_act)] = qd[set_rows]
-            else:
-                self.q_ref[np.ix_(live, self.psm_act)] = g[live]
-                self.qd_ref[np.ix_(live, self.psm_act)] = velocity[live]
-            self._tracking(running, fault)
-            self._tick(running)
-            self.problem.after_tick(self.time, self.T_psm, running)
+        if self._chunk is not None:
+            self._compiled_period(ramp, running, fault, T_goal)
+        else:
+            for k in range(1, K + 1):
+                self._python_tick(ramp, k, running, fault, T_goal)
+                self.problem.after_tick(self.time, self.T_psm, running)
         if cartesian:
             self.goal[active] = (start + delta)[active]
         else:
             self.q_goal[active] = (start + delta)[active]
         return fault
+
+    def _python_tick(self, ramp: Ramp, k: int, running, fault, T_goal) -> None:
+        """Tick ``k`` of the period's ``ramp`` for the rows ``running`` with the batch laws
+        (the compiled period's oracle and fallback): setpoints, tracking, servo and step."""
+        g = control.ramp(ramp.start, ramp.delta, k, self.K)
+        live = np.flatnonzero(running)
+        if ramp.cartesian:
+            T_goal[:, :3, 3] = g
+            q_now = self.Q[:, self.psm_q]
+            ik = psm_ik_closed_form_batch(self.chain, self.T_rcm_camera @ T_goal, q_now)
+            ok = ik.success & laws.within_limits(ik.q, self.chain.qmin, self.chain.qmax)
+            qd = laws.joint_velocity(self.J_psm, ramp.twist_base)
+            set_rows = np.flatnonzero(ok & running)
+            self.q_ref[np.ix_(set_rows, self.psm_act)] = ik.q[set_rows]
+            self.qd_ref[np.ix_(set_rows, self.psm_act)] = qd[set_rows]
+        else:
+            self.q_ref[np.ix_(live, self.psm_act)] = g[live]
+            self.qd_ref[np.ix_(live, self.psm_act)] = ramp.velocity[live]
+        self._tracking(running, fault)
+        self._tick(running)
+
+    def _compiled_period(self, ramp: Ramp, running, fault, T_goal) -> None:
+        """The period in compiled calls (:class:`~davinci_sim.sim.rows_chunk.ArmChunk`): a
+        row the kernel stops before a tick it has no compiled form of runs that tick in
+        :meth:`_python_tick`, then goes on compiled; the task's per-tick samples are taken
+        from the record afterwards, tick by tick as the Python path takes them (the task
+        does not act on the arm within a period)."""
+        K, n = self.K, self.num_envs
+        first = np.where(running, 1, K + 1).astype(np.intp)
+        stop = np.full(n, rows_chunk.DONE, dtype=np.intp)
+        record = rows_chunk.Record.empty(n, K) if self.problem.samples_ticks else None
+        T0, t0 = self.T_psm.copy(), self.time.copy()
+        while True:
+            rows = np.flatnonzero(first <= K)
+            if not len(rows):
+                break
+            self._run_chunk(rows, first, stop, ramp, record)
+            first[rows] = K + 1
+            fault[rows[stop[rows] == rows_chunk.FAULT]] = True
+            fallback = rows[stop[rows] > 0]
+            for k in np.unique(stop[fallback]).tolist():
+                these = np.zeros(n, dtype=bool)
+                these[fallback[stop[fallback] == k]] = True
+                ran = these.copy()
+                self._python_tick(ramp, k, these, fault, T_goal)
+                if record is not None:
+                    record.T[these, k - 1] = self.T_psm[these]
+                    record.t[these, k - 1] = self.time[these]
+                    record.ran[these, k - 1] = True
+                first[these] = k + 1
+                stop[ran & ~these] = rows_chunk.FAULT
+        running &= ~fault
+        if record is None:
+            return
+        T, t = T0, t0
+        for k in range(K):
+            on = record.ran[:, k]
+            T = np.where(on[:, None, None], record.T[:, k], T)
+            t = np.where(on, record.t[:, k], t)
+            self.problem.after_tick(t, T, on)
+
+    def _run_chunk(self, rows, first, stop, ramp: Ramp, record) -> None:
+        """:meth:`ArmChunk.run` of ``rows``, split over the thread pool if there is one."""
+        T_psm, J_psm = self.T_psm, self.J_psm
+        qfrc_bias, qfrc_gravcomp = self._qfrc
+
+        def run(rs: np.ndarray) -> None:
+            self._chunk.run(
+                rs, first, self.K, stop, self.effort_mode, self.gravity, self.Q, self.V,
+                qfrc_bias, qfrc_gravcomp, self.bias, self.q_ref, self.qd_ref, self.tau_ff,
+                self.time, self._bad_since, ramp, T_psm, J_psm, record,
+            )  # fmt: skip
+
+        if self._pool is None or len(rows) < 2 * self.threads:
+            run(rows)
+        else:  # (the kernel releases the GIL: the rows on several cores)
+            list(self._pool.map(run, np.array_split(rows, self.threads)))
 
     def _tracking(self, running: np.ndarray, fault: np.ndarray) -> None:
         """The PSM's tracking watch (the arm's law): a faulted row stops stepping (its
@@ -316,7 +407,7 @@ class DavinciVectorEnv(VectorEnv):
             self.effort_mode[self.psm_act],
         ).any(axis=1)  # fmt: skip
         since, now = laws.tracking_fault(bad, self._bad_since, self.time)
-        self._bad_since = np.where(running, since, self._bad_since)
+        self._bad_since[:] = np.where(running, since, self._bad_since)
         now &= running
         fault |= now
         running &= ~now

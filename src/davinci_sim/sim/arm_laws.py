@@ -23,7 +23,7 @@ from davinci_sim.geometry.so3 import rotate_pairs
 from davinci_sim.kinematics import fk
 from davinci_sim.kinematics.chain import DHChain
 from davinci_sim.kinematics.jit import ENABLED as _COMPILED
-from davinci_sim.kinematics.jit import jit
+from davinci_sim.kinematics.jit import helper, jit
 
 try:  # the gufunc behind np.linalg.solve (see _solve)
     from numpy.linalg import _umath_linalg
@@ -205,12 +205,59 @@ def tracking_fault(bad, bad_since, t: float):
     ``bad_since`` (...) when it became bad, s (nan: it is not). Returns the new
     ``(bad_since, fault)``: FAULT once bad for ``TRACKING_FAULT_TIME`` s."""
     if isinstance(bad, bool | np.bool_):  # one arm: the same rule on floats, faster
-        if not bad:
-            return math.nan, False
-        since = t if math.isnan(bad_since) else min(bad_since, t)
-        return since, t - since >= TRACKING_FAULT_TIME
+        return tracking_fault_scalar(bool(bad), float(bad_since), float(t))
     since = np.where(bad, np.fmin(bad_since, t), np.nan)
     return since, bad & (t - since >= TRACKING_FAULT_TIME)
+
+
+@helper
+def tracking_fault_scalar(bad: bool, bad_since: float, t: float) -> tuple[float, bool]:
+    """:func:`tracking_fault` of one arm on floats (the live arm, and the compiled rows of
+    :mod:`davinci_sim.sim.chunk_kernel`)."""
+    if not bad:
+        return math.nan, False
+    since = t if math.isnan(bad_since) else min(bad_since, t)
+    return since, t - since >= TRACKING_FAULT_TIME
+
+
+@helper
+def solve_square_into(J, b, A, out) -> bool:
+    """:func:`joint_velocity`'s square solve for one arm, compiled: ``J⁻¹·b`` (J (n, n),
+    b (n,)) into ``out`` by Gaussian elimination with partial pivoting (LAPACK's ``gesv``
+    algorithm; the same result to rounding, not the same bits), ``A`` (n, n) scratch.
+    False where the batch law would fall back to least squares: a zero pivot, a
+    non-finite answer or one of magnitude ``_SINGULAR_QD`` or more (the caller then runs
+    :func:`joint_velocity`)."""
+    n = J.shape[0]
+    for i in range(n):
+        out[i] = b[i]
+        for j in range(n):
+            A[i, j] = J[i, j]
+    for c in range(n):
+        p, big = c, abs(A[c, c])
+        for i in range(c + 1, n):
+            if abs(A[i, c]) > big:
+                p, big = i, abs(A[i, c])
+        if big == 0.0:
+            return False
+        if p != c:
+            for j in range(n):
+                A[c, j], A[p, j] = A[p, j], A[c, j]
+            out[c], out[p] = out[p], out[c]
+        for i in range(c + 1, n):
+            f = A[i, c] / A[c, c]
+            for j in range(c + 1, n):
+                A[i, j] = A[i, j] - f * A[c, j]
+            out[i] = out[i] - f * out[c]
+    for i in range(n - 1, -1, -1):
+        t = out[i]
+        for j in range(i + 1, n):
+            t = t - A[i, j] * out[j]
+        out[i] = t / A[i, i]
+    for i in range(n):
+        if not (abs(out[i]) < _SINGULAR_QD):  # (also false for NaN)
+            return False
+    return True
 
 
 def within_limits(q: np.ndarray, qmin: np.ndarray, qmax: np.ndarray) -> np.ndarray:

@@ -18,6 +18,8 @@ from __future__ import annotations
 import mujoco
 import numpy as np
 
+from davinci_sim.kinematics.jit import helper
+
 
 def servo_ctrl(q, qd, tau_bias, q_ref, qd_ref, tau_ff, effort_mode, gravity_compensation, kp, kv):
     """The actuators' ``ctrl`` realising the servo law (module docstring), any leading batch
@@ -27,6 +29,16 @@ def servo_ctrl(q, qd, tau_bias, q_ref, qd_ref, tau_ff, effort_mode, gravity_comp
     tau_g = np.where(gravity_compensation, tau_bias, 0.0)
     q_ref = np.where(effort_mode, q, q_ref)
     qd_ref = np.where(effort_mode, qd, qd_ref)
+    return q_ref + (kv * qd_ref + tau_g + tau_ff) / kp
+
+
+@helper
+def servo_ctrl_scalar(q, qd, tau_bias, q_ref, qd_ref, tau_ff, effort_mode, gravity, kp, kv):
+    """:func:`servo_ctrl` of one actuator on floats, the same operations in the same order
+    (the same bits): the compiled rows of :mod:`davinci_sim.sim.chunk_kernel`."""
+    tau_g = tau_bias if gravity else 0.0
+    if effort_mode:
+        q_ref, qd_ref = q, qd
     return q_ref + (kv * qd_ref + tau_g + tau_ff) / kp
 
 

@@ -1,0 +1,165 @@
+"""The compiled control period of :class:`~davinci_sim.sim.rows_chunk.ArmChunk` (numba only:
+imported by :mod:`davinci_sim.sim.rows_chunk` once MuJoCo's library is loaded into LLVM's
+symbols, as :mod:`davinci_sim.sim.rows_kernel`).
+
+One call runs up to K ticks of each given row without returning to Python: the setpoint's
+ramp (joint goal, or tip goal through the closed-form PSM IK with the twist feed-forward),
+the tracking watch, the joint servo, ``mj_step``, the servo's bias forces and the tip's
+kinematics. Every law is the per-row compiled form of the batch law the Python path calls
+(the module docstring of :mod:`~davinci_sim.sim.rows_chunk` lists them); nothing here
+states a formula of its own beyond the index bookkeeping.
+
+Module-level functions, so that numba's on-disk cache keeps them between processes.
+"""
+
+from __future__ import annotations
+
+import numba
+import numpy as np
+
+from davinci_sim.kinematics.fk_compiled import tip_pose_row
+from davinci_sim.kinematics.psm_closed_form import POLISH, closed_form_rows
+from davinci_sim.sim.arm_laws import LIMIT_SLACK, solve_square_into, tracking_fault_scalar
+from davinci_sim.sim.rows_kernel import f64_at, mj_step
+from davinci_sim.sim.servo import servo_ctrl_scalar
+
+_ik_rows = closed_form_rows.dispatcher  # (the compiled kernel itself, callable from here)
+
+#: ``stop`` codes a row ends a call with (besides the tick a Python tick must run).
+DONE = -1
+FAULT = -2
+
+
+@numba.njit(cache=True, nogil=True)
+def period_rows(
+    model, data, address, rows, first, K, stop,
+    qadr, dadr, act, qposadr, dofadr, copy_gravcomp, minus_gravcomp, timestep,
+    kp, kv, effort, gravity,
+    Q, V, QB, QG, bias, q_ref, qd_ref, tau_ff, time, bad_since,
+    arm_act, arm_q, tolerance, qmin, qmax, fk_links, fk_modified, fk_tool, fk_identity,
+    T_ref_base, cartesian, start, delta, velocity, R_base_goal, T_base_ref, twist_base,
+    ik_geometry, ik_tool, ik_revolute, ik_lo, ik_hi, ik_tolerance,
+    T_tip, J_tip, record, T_hist, t_hist, ran,
+):  # fmt: skip
+    """Ticks ``first[r]`` … ``K`` of each row ``r`` of ``rows``; see
+    :meth:`~davinci_sim.sim.rows_chunk.ArmChunk.run` for the arguments. ``stop[r]`` ends as
+    :data:`DONE` (all K ticks run), :data:`FAULT` (the tracking watch faulted the arm at a
+    tick; that tick's setpoint written, no step) or the tick k whose setpoint needs the
+    Python path (an IK answer to polish, a singular Jacobian): nothing of tick k done."""
+    nu_r, nq_r, nv_r, nu = act.shape[0], qadr.shape[0], dadr.shape[0], kp.shape[0]
+    dof = arm_act.shape[0]
+    ctrl = np.empty(nu)
+    q_arm = np.empty(dof)
+    F = np.empty((dof, 12))
+    T_base_tip = np.empty((4, 4))
+    A = np.empty((dof, dof))
+    qd = np.empty(dof)
+    T_goal = np.empty((1, 4, 4))
+    seed = np.empty((1, dof))
+    q_ik = np.empty((1, dof))
+    success = np.empty(1, dtype=np.bool_)
+    status = np.empty(1, dtype=np.int64)
+    info = np.empty((1, 5))
+    for j in range(rows.shape[0]):
+        r = rows[j]
+        a = address[r]
+        stop[r] = DONE
+        for k in range(first[r], K + 1):
+            # --- the setpoint of tick k: the ramp's goal (envs.control.ramp)
+            s = k / K
+            if cartesian:
+                g0 = start[r, 0] + s * delta[r, 0]
+                g1 = start[r, 1] + s * delta[r, 1]
+                g2 = start[r, 2] + s * delta[r, 2]
+                # the goal in the arm's base: T_base_ref · (R_goal, g)
+                for i in range(3):
+                    T_goal[0, i, 0] = R_base_goal[r, i, 0]
+                    T_goal[0, i, 1] = R_base_goal[r, i, 1]
+                    T_goal[0, i, 2] = R_base_goal[r, i, 2]
+                    T_goal[0, i, 3] = (
+                        T_base_ref[i, 0] * g0 + T_base_ref[i, 1] * g1 + T_base_ref[i, 2] * g2
+                    ) + T_base_ref[i, 3]
+                T_goal[0, 3, 0], T_goal[0, 3, 1], T_goal[0, 3, 2], T_goal[0, 3, 3] = (
+                    0.0, 0.0, 0.0, 1.0,
+                )  # fmt: skip
+                for i in range(dof):
+                    seed[0, i] = Q[r, arm_q[i]]
+                _ik_rows(
+                    ik_geometry, ik_tool, ik_revolute, ik_lo, ik_hi, fk_links, fk_modified,
+                    fk_tool, fk_identity, T_goal, seed, ik_tolerance, q_ik, success, status,
+                    info,
+                )  # fmt: skip
+                if status[0] == POLISH:
+                    stop[r] = k
+                    break
+                if not solve_square_into(J_tip[r], twist_base[r], A, qd):
+                    stop[r] = k
+                    break
+                ok = success[0]
+                for i in range(dof):
+                    qi = q_ik[0, i]
+                    ok = ok and (qi >= qmin[i] - LIMIT_SLACK) and (qi <= qmax[i] + LIMIT_SLACK)
+                if ok:
+                    for i in range(dof):
+                        q_ref[r, arm_act[i]] = q_ik[0, i]
+                        qd_ref[r, arm_act[i]] = qd[i]
+            else:
+                for i in range(dof):
+                    q_ref[r, arm_act[i]] = start[r, i] + s * delta[r, i]
+                    qd_ref[r, arm_act[i]] = velocity[r, i]
+            # --- the tracking watch (arm_laws.tracking_bad / tracking_fault)
+            bad = False
+            for i in range(dof):
+                m = arm_act[i]
+                bad = bad or (abs(Q[r, arm_q[i]] - q_ref[r, m]) > tolerance[i] and not effort[m])
+            since, fault = tracking_fault_scalar(bad, bad_since[r], time[r])
+            bad_since[r] = since
+            if fault:
+                stop[r] = FAULT
+                break
+            # --- the servo (servo.servo_ctrl), then mj_step (rows_kernel.step_rows)
+            for i in range(nu):
+                ctrl[i] = servo_ctrl_scalar(
+                    Q[r, qposadr[i]], V[r, dofadr[i]], bias[r, i], q_ref[r, i], qd_ref[r, i],
+                    tau_ff[r, i], effort[i], gravity[i], kp[i], kv[i],
+                )  # fmt: skip
+            c = numba.carray(f64_at(a[0]), (nu_r,))
+            for i in range(nu_r):
+                c[i] = ctrl[act[i]]
+            mj_step(model[r], data[r])
+            qp = numba.carray(f64_at(a[2]), (nq_r,))
+            for i in range(nq_r):
+                Q[r, qadr[i]] = qp[i]
+            qv = numba.carray(f64_at(a[3]), (nv_r,))
+            qb = numba.carray(f64_at(a[4]), (nv_r,))
+            for i in range(nv_r):
+                V[r, dadr[i]] = qv[i]
+                QB[r, dadr[i]] = qb[i]
+            if copy_gravcomp:
+                qg = numba.carray(f64_at(a[5]), (nv_r,))
+                for i in range(nv_r):
+                    QG[r, dadr[i]] = qg[i]
+            time[r] = time[r] + timestep
+            # --- the servo's bias forces (JointServo.bias_of)
+            for i in range(nu):
+                if minus_gravcomp:
+                    bias[r, i] = QB[r, dofadr[i]] - QG[r, dofadr[i]]
+                else:
+                    bias[r, i] = QB[r, dofadr[i]]
+            # --- the tip's pose and Jacobian (arm_laws.tip_kinematics, pose_in_reference)
+            for i in range(dof):
+                q_arm[i] = Q[r, arm_q[i]]
+            tip_pose_row(fk_links, fk_modified, fk_tool, fk_identity, q_arm, T_base_tip,
+                         J_tip[r], True, F)  # fmt: skip
+            for i in range(4):
+                for m in range(4):
+                    t = 0.0
+                    for h in range(4):
+                        t = t + T_ref_base[i, h] * T_base_tip[h, m]
+                    T_tip[r, i, m] = t
+            if record:
+                for i in range(4):
+                    for m in range(4):
+                        T_hist[r, k - 1, i, m] = T_tip[r, i, m]
+                t_hist[r, k - 1] = time[r]
+                ran[r, k - 1] = True
