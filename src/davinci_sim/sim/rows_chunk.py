@@ -186,3 +186,22 @@ _NO_IK = (
     np.zeros(29), np.zeros(12), np.zeros(6, dtype=bool), np.zeros(6), np.zeros(6), np.zeros(2),
 )  # fmt: skip
 """Stands for the IK's constants where a joint ramp does not use them (one signature)."""
+
+
+def _warm_up() -> None:
+    """Compile (or load from numba's cache) at import with the callers' one signature, on
+    no rows (no simulation is touched), as :mod:`davinci_sim.sim.rows_step` does."""
+    if _KERNEL is None:
+        return
+    i, f, b = np.zeros(0, dtype=np.intp), np.zeros(0), np.zeros(0, dtype=bool)
+    f2, f3 = np.zeros((0, 0)), np.zeros((0, 0, 0))
+    addresses, fk_links = np.zeros((0, 7), dtype=np.intp), np.zeros((6, 0))
+    _KERNEL(
+        i, i, addresses, i, i, 1, i, i, i, i, i, i, True, True, 0.001, f, f, b, b,
+        f2, f2, f2, f2, f2, f2, f2, f2, f, f, i, i, f, f, f, fk_links, True, np.eye(4), True,
+        np.eye(4), True, f2, f2, f2, f3, np.eye(4), f2, *_NO_IK, f3, f3, False,
+        *_NO_RECORD.__dict__.values(),
+    )  # fmt: skip
+
+
+_warm_up()

@@ -144,3 +144,18 @@ class RowStepper:
 
 _NONE = np.zeros((0, 0))
 """Stands for an array a step does not use (one compiled signature)."""
+
+
+def _warm_up() -> None:
+    """Compile (or load from numba's cache) at import with the callers' one signature, on
+    no rows (no simulation is touched): never in the middle of a batch's first tick, and
+    once for the processes started after this one (:mod:`davinci_sim.kinematics.jit`)."""
+    if _KERNEL is None:
+        return
+    none, rows = _NONE, np.zeros(0, dtype=np.intp)
+    addresses = np.zeros((0, 7), dtype=np.intp)
+    _KERNEL(rows, rows, addresses, -1, rows, rows, none, none, none, none, none, none, none,
+            True)  # fmt: skip
+
+
+_warm_up()
