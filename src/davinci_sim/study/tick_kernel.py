@@ -1,0 +1,272 @@
+"""The compiled tick of :class:`~davinci_sim.study.batch.TrialBatch` (numba only: imported by
+:mod:`davinci_sim.study.batch` when :data:`davinci_sim.sim.rows_step.COMPILED`, MuJoCo's
+library then being loaded into LLVM's symbols).
+
+Two calls per tick, over every row of the batch, between the trainee's hand (Python: the
+trainee's plan and noise) and the task's sample (Python: the task's state machine):
+
+* :func:`teleop_rows` — the teleoperation's following tick (``TrialBatch._teleop``): the
+  PSM goal (``teleop_math.follow_pose``), its closed-form IK and limits, the twist
+  feed-forward (``follow_twist``, ``joint_velocity``), the jaw (``follow_jaw``,
+  ``finger_setpoints``). It first solves every row and writes nothing if any row needs
+  what it has no compiled form of (an IK answer to polish, a singular Jacobian's least
+  squares): it returns True and the caller runs the Python tick's teleoperation instead.
+* :func:`physics_rows` — the PSM's tracking watch, the joint servo, ``mj_step`` of the rows
+  still running, the servo's bias forces, both arms' kinematics (``TrialBatch._kinematics``)
+  and the haptic loop (``TrialBatch._haptics``: the velocity filter, the viscous fixture of
+  each row's condition in the task's frame, the safety clamp, Jᵀw on the MTM).
+
+Each law is the per-row compiled form of the batch law the Python tick calls (listed at each
+step); the Python tick stays as the fallback and the tests' oracle.
+"""
+
+from __future__ import annotations
+
+import numba
+import numpy as np
+
+from davinci_sim.devices.safety import _clamp_rows
+from davinci_sim.haptics.path_query import _closest_point_into
+from davinci_sim.haptics.viscous import _viscous_into
+from davinci_sim.kinematics.fk_compiled import tip_pose_row
+from davinci_sim.kinematics.psm_closed_form import POLISH, closed_form_rows
+from davinci_sim.sim.arm_laws import (
+    LIMIT_SLACK,
+    solve_square_into,
+    tracking_fault_scalar,
+    twist_row,
+    wrench_effort_row,
+)
+from davinci_sim.sim.rows_kernel import f64_at, mj_step
+from davinci_sim.sim.servo import servo_ctrl_scalar
+
+_ik_rows = closed_form_rows.dispatcher
+_clamp = _clamp_rows.dispatcher
+_twist = twist_row.dispatcher
+_effort = wrench_effort_row.dispatcher
+
+
+@numba.njit(cache=True, nogil=True)
+def teleop_rows(
+    T_camera_psm0, T_hrsv_mtm0, T_mtm, R_offset, scale, use_linear, use_angular, twist_mtm,
+    T_rcm_camera, Q, psm_q, J_psm, q_ref, qd_ref, psm_act, qmin, qmax,
+    ik_geometry, ik_tool, ik_revolute, ik_lo, ik_hi, fk_links, fk_modified, fk_tool,
+    fk_identity, ik_tolerance,
+    gripper_q, jaw_act, ghost, catching_up, jaw_sent, rate, rate_after_clutch, dt, jaw_s,
+    jaw_o, jaw_min, jaw_max, catch_up_tolerance, q_ik, ok, qd,
+):  # fmt: skip
+    """The following tick of every row (module docstring); False when done, True (nothing
+    written) when a row needs the Python tick."""
+    n, dof = Q.shape[0], psm_q.shape[0]
+    T_goal = np.empty((1, 4, 4))
+    seed = np.empty((1, dof))
+    q1 = np.empty((1, dof))
+    success = np.empty(1, dtype=np.bool_)
+    status = np.empty(1, dtype=np.int64)
+    info = np.empty((1, 5))
+    A = np.empty((dof, dof))
+    local = np.empty(6)
+    G = np.empty((4, 4))
+    for r in range(n):
+        # --- follow_pose: p0 + s·(p_mtm − p_mtm0), R_mtm·R_offset (dvrk.md 4.2)
+        for i in range(3):
+            G[i, 3] = T_camera_psm0[i, 3] + scale * (T_mtm[r, i, 3] - T_hrsv_mtm0[i, 3])
+            for m in range(3):
+                t = 0.0
+                for h in range(3):
+                    t = t + T_mtm[r, i, h] * R_offset[h, m]
+                G[i, m] = t
+        G[3, 0], G[3, 1], G[3, 2], G[3, 3] = 0.0, 0.0, 0.0, 1.0
+        for i in range(4):  # the goal in the RCM frame
+            for m in range(4):
+                t = 0.0
+                for h in range(4):
+                    t = t + T_rcm_camera[i, h] * G[h, m]
+                T_goal[0, i, m] = t
+        for i in range(dof):
+            seed[0, i] = Q[r, psm_q[i]]
+        _ik_rows(ik_geometry, ik_tool, ik_revolute, ik_lo, ik_hi, fk_links, fk_modified,
+                 fk_tool, fk_identity, T_goal, seed, ik_tolerance, q1, success, status,
+                 info)  # fmt: skip
+        if status[0] == POLISH:
+            return True
+        good = success[0]
+        for i in range(dof):
+            q_ik[r, i] = q1[0, i]
+            good = good and q1[0, i] >= qmin[i] - LIMIT_SLACK and q1[0, i] <= qmax[i] + LIMIT_SLACK
+        ok[r] = good
+        # --- follow_twist, then the twist in the RCM axes (rotate_pairs) and J⁻¹
+        for h in range(2):
+            x, y, z = 0.0, 0.0, 0.0
+            if h == 0 and use_linear:
+                x, y, z = scale * twist_mtm[r, 0], scale * twist_mtm[r, 1], scale * twist_mtm[r, 2]
+            if h == 1 and use_angular:
+                x, y, z = twist_mtm[r, 3], twist_mtm[r, 4], twist_mtm[r, 5]
+            for i in range(3):
+                local[3 * h + i] = (
+                    x * T_rcm_camera[i, 0] + y * T_rcm_camera[i, 1] + z * T_rcm_camera[i, 2]
+                )
+        if not solve_square_into(J_psm[r], local, A, qd[r]):
+            return True
+    for r in range(n):
+        if ok[r]:
+            for i in range(dof):
+                q_ref[r, psm_act[i]] = q_ik[r, i]
+                qd_ref[r, psm_act[i]] = qd[r, i]
+        # --- follow_jaw (dvrk.md 4.2), sent when it changes (finger_setpoints: half each)
+        gripper = Q[r, gripper_q[0]]  # (numpy's sum starts from the first element)
+        for i in range(1, gripper_q.shape[0]):
+            gripper = gripper + Q[r, gripper_q[i]]
+        step = (rate_after_clutch if catching_up[r] else rate) * dt
+        g = ghost[r] + min(max(gripper - ghost[r], -step), step)
+        ghost[r] = g
+        catching_up[r] = catching_up[r] and abs(g - gripper) > catch_up_tolerance
+        jaw = min(max(jaw_s * g + jaw_o, jaw_min), jaw_max)
+        if jaw != jaw_sent[r]:
+            jaw_sent[r] = jaw
+            for i in range(jaw_act.shape[0]):
+                q_ref[r, jaw_act[i]] = 0.5 * jaw
+                qd_ref[r, jaw_act[i]] = 0.0
+    return False
+
+
+@numba.njit(cache=True, nogil=True)
+def physics_rows(
+    model, data, address, body, active, fault, bad_since, t,
+    psm_act, psm_q, tolerance, qposadr, dofadr, minus_gravcomp, kp, kv, effort, gravity,
+    Q, V, QB, QG, XI, bias, q_ref, qd_ref, tau_ff, xfrc,
+    psm_links, psm_modified, psm_tool, psm_identity, T_camera_rcm, T_psm, J_psm,
+    mtm_links, mtm_modified, mtm_tool, mtm_identity, T_hrsv_mtmbase, mtm_q, mtm_v, T_mtm,
+    J_mtm, twist_mtm,
+    vf_p, vf_v, vf_started, vf_dt, vf_alpha,
+    T_task_camera, cond, B, G_max, transition, centre, basis, AE, AA, EE, starts, edges,
+    cumulative, lengths,
+    requested, wrench_sent, max_force, max_torque, max_force_step, max_torque_step,
+    mtm_act, ftmax,
+):  # fmt: skip
+    """Tracking, servo, physics, kinematics and haptics of every row (module docstring).
+    ``active`` and ``fault`` (n,) are updated in place (a tracking fault ends the row's
+    trial); only rows still active step."""
+    n, nu, nq, nv = Q.shape[0], kp.shape[0], Q.shape[1], V.shape[1]
+    dof = psm_q.shape[0]
+    ctrl = np.empty(nu)
+    q = np.empty(dof)
+    qm = np.empty(mtm_q.shape[0])
+    qdm = np.empty(mtm_q.shape[0])
+    T = np.empty((4, 4))
+    F = np.empty((max(dof, mtm_q.shape[0]), 12))
+    cp = np.empty(8)
+    pt, vt, f = np.empty(3), np.empty(3), np.empty(3)
+    W = np.empty((n, 6))
+    R_base_hrsv = np.empty((3, 3))
+    for i in range(3):
+        for m in range(3):
+            R_base_hrsv[i, m] = T_hrsv_mtmbase[m, i]
+    # --- the PSM's tracking watch (arm_laws.tracking_bad / tracking_fault): ends a trial
+    for r in range(n):
+        bad = False
+        for i in range(dof):
+            a = psm_act[i]
+            bad = bad or (abs(Q[r, psm_q[i]] - q_ref[r, a]) > tolerance[i] and not effort[a])
+        since, now = tracking_fault_scalar(bad, bad_since[r], t)
+        bad_since[r] = since
+        if now and active[r]:
+            fault[r] = True
+            active[r] = False
+    for r in range(n):
+        if active[r]:
+            # --- the servo (servo_ctrl), mj_step (rows_kernel.step_rows), the bias forces
+            ad = address[r]
+            for i in range(nu):
+                ctrl[i] = servo_ctrl_scalar(
+                    Q[r, qposadr[i]], V[r, dofadr[i]], bias[r, i], q_ref[r, i], qd_ref[r, i],
+                    tau_ff[r, i], effort[i], gravity[i], kp[i], kv[i],
+                )  # fmt: skip
+            c = numba.carray(f64_at(ad[0]), (nu,))
+            for i in range(nu):
+                c[i] = ctrl[i]
+            x = numba.carray(f64_at(ad[1]), (6 * (body + 1),))
+            for k in range(6):
+                x[6 * body + k] = xfrc[r, k]
+            mj_step(model[r], data[r])
+            qp = numba.carray(f64_at(ad[2]), (nq,))
+            for i in range(nq):
+                Q[r, i] = qp[i]
+            qv = numba.carray(f64_at(ad[3]), (nv,))
+            qb = numba.carray(f64_at(ad[4]), (nv,))
+            qg = numba.carray(f64_at(ad[5]), (nv,))
+            for i in range(nv):
+                V[r, i] = qv[i]
+                QB[r, i] = qb[i]
+                QG[r, i] = qg[i]
+            xi = numba.carray(f64_at(ad[6]), (3 * (body + 1),))
+            for k in range(3):
+                XI[r, k] = xi[3 * body + k]
+            for i in range(nu):
+                if minus_gravcomp:
+                    bias[r, i] = QB[r, dofadr[i]] - QG[r, dofadr[i]]
+                else:
+                    bias[r, i] = QB[r, dofadr[i]]
+        # --- kinematics (tip_kinematics, pose_in_reference, twist_in_reference)
+        for i in range(dof):
+            q[i] = Q[r, psm_q[i]]
+        tip_pose_row(psm_links, psm_modified, psm_tool, psm_identity, q, T, J_psm[r], True, F)
+        _into_reference(T_camera_rcm, T, T_psm[r])
+        for i in range(qm.shape[0]):
+            qm[i] = Q[r, mtm_q[i]]
+            qdm[i] = V[r, mtm_v[i]]
+        tip_pose_row(mtm_links, mtm_modified, mtm_tool, mtm_identity, qm, T, J_mtm[r], True, F)
+        _into_reference(T_hrsv_mtmbase, T, T_mtm[r])
+        _twist(T_hrsv_mtmbase[:3, :3], J_mtm[r], qdm, twist_mtm[r])
+        # --- the velocity filter (VelocityFilter.update)
+        for i in range(3):
+            p = T_psm[r, i, 3]
+            if vf_started[r]:
+                d = (p - vf_p[r, i]) / vf_dt
+                vf_v[r, i] = vf_v[r, i] + vf_alpha * (d - vf_v[r, i])
+            else:
+                vf_v[r, i] = 0.0
+            vf_p[r, i] = p
+        vf_started[r] = True
+        # --- the fixture in the task's frame (fixture_force_camera, ViscousGuidance.force)
+        for i in range(3):
+            pt[i] = (
+                T_task_camera[i, 0] * T_psm[r, 0, 3] + T_task_camera[i, 1] * T_psm[r, 1, 3]
+            ) + T_task_camera[i, 2] * T_psm[r, 2, 3]
+            pt[i] = pt[i] + T_task_camera[i, 3]
+            vt[i] = (T_task_camera[i, 0] * vf_v[r, 0] + T_task_camera[i, 1] * vf_v[r, 1]) + (
+                T_task_camera[i, 2] * vf_v[r, 2]
+            )
+        _closest_point_into(pt, centre, basis, AE, AA, EE, starts, edges, cumulative, lengths,
+                            cp)  # fmt: skip
+        k = cond[r]
+        _viscous_into(vt, cp[3:6], B[k], G_max[k], transition[k], f)
+        for i in range(3):
+            f[i] = 0.0 + f[i]  # (FixtureSum: a sum started from zeros)
+        for i in range(3):
+            requested[r, i] = (
+                T_task_camera[0, i] * f[0] + T_task_camera[1, i] * f[1]
+            ) + T_task_camera[2, i] * f[2]
+            W[r, i] = requested[r, i]
+            W[r, 3 + i] = 0.0
+    # --- the safety clamp (clamp_wrenches), then Jᵀw on the MTM (wrench_effort)
+    out = np.empty((n, 6))
+    _clamp(W, wrench_sent, max_force, max_torque, max_force_step, max_torque_step, out)
+    tau = np.empty(mtm_act.shape[0])
+    for r in range(n):
+        for i in range(6):
+            wrench_sent[r, i] = out[r, i]
+        _effort(J_mtm[r], R_base_hrsv, wrench_sent[r], ftmax, tau)
+        for i in range(mtm_act.shape[0]):
+            tau_ff[r, mtm_act[i]] = tau[i]
+
+
+@numba.njit(cache=True, nogil=True)
+def _into_reference(T_ref_base, T_base_tip, out):
+    """``out = T_ref_base · T_base_tip`` (4, 4), summed in index order."""
+    for i in range(4):
+        for m in range(4):
+            t = 0.0
+            for h in range(4):
+                t = t + T_ref_base[i, h] * T_base_tip[h, m]
+            out[i, m] = t
