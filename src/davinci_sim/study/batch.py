@@ -63,7 +63,7 @@ import numpy as np
 from davinci_sim.console import teleop_math as tm
 from davinci_sim.devices.hand import hand_wrenches, handle_xfrc
 from davinci_sim.devices.safety import clamp_wrenches
-from davinci_sim.geometry.path import BRUTE_FORCE_MAX_SEGMENTS, brute_force_constants
+from davinci_sim.geometry.path import BRUTE_FORCE_MAX_SEGMENTS, Polyline, brute_force_constants
 from davinci_sim.geometry.so3 import rotate_pairs, rotate_rows
 from davinci_sim.haptics.combine import FixtureSum
 from davinci_sim.haptics.fixture import fixture_force_camera
@@ -101,6 +101,14 @@ _IK_TOLERANCE = np.array([POSITION_TOLERANCE, ROTATION_TOLERANCE])
 
 #: Below this many rows a batch is not compacted any more (the fixed cost per tick dominates).
 COMPACT_MIN_ROWS = 8
+
+
+def _path_constants(path: Polyline) -> tuple:
+    """The path's arrays for the compiled closest point, as new writable C arrays (one
+    compiled signature, whatever flags the path's own arrays have)."""
+    parts = (path.centre, *brute_force_constants(path), path.starts, path.edges,
+             path.cumulative_length, path.segment_lengths)  # fmt: skip
+    return tuple(np.array(a, dtype=float, order="C") for a in parts)
 
 
 class TrialBatch:
@@ -457,8 +465,7 @@ class TrialBatch:
             "B": np.array([laws_of[k].B for k in order]),
             "G_max": np.array([laws_of[k].G_max for k in order]),
             "transition": np.array([float(laws_of[k].transition) for k in order]),
-            "path": (path.centre, *brute_force_constants(path), path.starts, path.edges,
-                     path.cumulative_length, path.segment_lengths),
+            "path": _path_constants(path),
         }  # fmt: skip
         ik = _ik_packed(self.psm_chain)
         c["ik"] = (ik.geometry, ik.tool, ik.revolute, ik.lim_lo, ik.lim_hi)
@@ -622,3 +629,32 @@ def run_batch(
         return batch.run(on_done, on_row, on_tick)
     finally:
         batch._setup.sim.close()
+
+
+def _warm_up() -> None:
+    """Compile (or load from numba's cache) the compiled tick at import, on no rows, with
+    the one signature :meth:`TrialBatch._tick_compiled` calls it with (the PSM's and MTM's
+    real chain constants, every state array empty): a study's workers then load it."""
+    if _KERNELS is None:
+        return
+    from davinci_sim.kinematics.arms import load_arm
+
+    psm, mtm = load_arm("PSM1").chain, load_arm("MTMR").chain
+    ik, psm_fk, mtm_fk = _ik_packed(psm), fk._consts(psm).packed, fk._consts(mtm).packed
+    path = _path_constants(Polyline(np.array([[0.0, 0.0, 0.0], [0.01, 0.0, 0.0]])))
+    i, f, b = np.zeros(0, dtype=np.intp), np.zeros(0), np.zeros(0, dtype=bool)
+    f2, f3, I4 = np.zeros((0, 6)), np.zeros((0, 4, 4)), np.eye(4)
+    _KERNELS.teleop_rows(
+        I4, I4, f3, np.eye(3), 1.0, True, False, f2, I4, f2, i, f3, f2, f2, i, psm.qmin,
+        psm.qmax, ik.geometry, ik.tool, ik.revolute, ik.lim_lo, ik.lim_hi, *psm_fk,
+        _IK_TOLERANCE, i, i, f, b, f, 1.0, 1.0, 0.001, 1.0, 0.0, 0.0, 1.0, 0.01, f2, b, f2,
+    )  # fmt: skip
+    _KERNELS.physics_rows(
+        i, i, np.zeros((0, 7), dtype=np.intp), 0, b, b, f, 0.0, i, i, f, i, i, True, f, f,
+        b, b, f2, f2, f2, f2, f2, f2, f2, f2, f2, f2, *psm_fk, I4, f3, f3, *mtm_fk, I4, i, i,
+        f3, f3, f2, f2, f2, b, 0.001, 0.5, I4, i, f, f, f, *path, f2, f2, 1.0, 1.0, 1.0, 1.0,
+        i, f,
+    )  # fmt: skip
+
+
+_warm_up()
