@@ -32,6 +32,14 @@ runs n trials as arrays instead:
   (:meth:`TrialBatch.fixture_forces`). Only ``mj_step`` runs per trial (MuJoCo's C),
   and only for trials still running: every running trial's step in one compiled call
   (:class:`~davinci_sim.sim.rows_step.RowStepper`), the same bits as Python's calls.
+* **Compiled tick.** With numba, and when every condition's fixture is the seed's viscous
+  law (the study's own conditions), everything after the trainee's hand runs in two
+  compiled calls over the rows (:mod:`davinci_sim.study.tick_kernel`: the teleoperation
+  with its IK, then tracking, servo, ``mj_step``, bias forces, kinematics and the haptic
+  loop), each law in its per-row compiled form; the trainee and the task's state machine
+  stay Python. The numpy tick above is the fallback (any other fixture, or a tick whose
+  teleoperation a row needs Python for) and the tests' oracle: tick by tick the two agree
+  to rounding (``tests/study/test_batch_compiled.py``).
 * The order within a tick is the live simulation's: trainee, hand, teleoperation, arms,
   servo, physics, then the haptic loop and the task on the new state.
 
