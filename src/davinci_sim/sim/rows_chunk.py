@@ -35,6 +35,7 @@ reduced model (:mod:`davinci_sim.envs.reduced`) steps with maps from its own lay
 
 from __future__ import annotations
 
+import warnings
 from dataclasses import dataclass
 from typing import Any
 
@@ -204,4 +205,12 @@ def _warm_up() -> None:
     )  # fmt: skip
 
 
-_warm_up()
+try:
+    _warm_up()
+except Exception as e:  # pragma: no cover - a numba that cannot compile it
+    warnings.warn(
+        f"the control period cannot be compiled; Python ticks ({type(e).__name__}: {e})",
+        RuntimeWarning,
+        stacklevel=1,
+    )
+    _KERNEL, COMPILED = None, False

@@ -158,4 +158,12 @@ def _warm_up() -> None:
             True)  # fmt: skip
 
 
-_warm_up()
+try:
+    _warm_up()
+except Exception as e:  # pragma: no cover - a numba that cannot compile it
+    warnings.warn(
+        f"MuJoCo's step cannot be compiled; stepping rows from Python ({type(e).__name__}: {e})",
+        RuntimeWarning,
+        stacklevel=1,
+    )
+    _KERNEL, COMPILED = None, False

@@ -62,6 +62,7 @@ from __future__ import annotations
 
 import copy
 import time
+import warnings
 from collections.abc import Callable
 from types import SimpleNamespace
 
@@ -665,4 +666,12 @@ def _warm_up() -> None:
     )  # fmt: skip
 
 
-_warm_up()
+try:
+    _warm_up()
+except Exception as e:  # pragma: no cover - a numba that cannot compile it
+    warnings.warn(
+        f"the study's tick cannot be compiled; running its numpy tick ({type(e).__name__}: {e})",
+        RuntimeWarning,
+        stacklevel=1,
+    )
+    _KERNELS = None
