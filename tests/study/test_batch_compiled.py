@@ -9,7 +9,8 @@ import numpy as np
 import pytest
 
 from davinci_sim.study import TrialSpec
-from davinci_sim.study.batch import _KERNELS, TrialBatch
+from davinci_sim.study.batch import TrialBatch
+from davinci_sim.study.batch_compiled import _KERNELS
 from davinci_sim.study.report import COLUMNS, TIMING_COLUMNS
 
 pytestmark = pytest.mark.skipif(_KERNELS is None, reason="needs numba")

@@ -32,14 +32,9 @@ runs n trials as arrays instead:
   (:meth:`TrialBatch.fixture_forces`). Only ``mj_step`` runs per trial (MuJoCo's C),
   and only for trials still running: every running trial's step in one compiled call
   (:class:`~davinci_sim.sim.rows_step.RowStepper`), the same bits as Python's calls.
-* **Compiled tick.** With numba, and when every condition's fixture is the seed's viscous
-  law (the study's own conditions), everything after the trainee's hand runs in two
-  compiled calls over the rows (:mod:`davinci_sim.study.tick_kernel`: the teleoperation
-  with its IK, then tracking, servo, ``mj_step``, bias forces, kinematics and the haptic
-  loop), each law in its per-row compiled form; the trainee and the task's state machine
-  stay Python. The numpy tick above is the fallback (any other fixture, or a tick whose
-  teleoperation a row needs Python for) and the tests' oracle: tick by tick the two agree
-  to rounding (``tests/study/test_batch_compiled.py``).
+* With numba, everything after the trainee's hand runs compiled for the seed's viscous
+  conditions (:mod:`davinci_sim.study.batch_compiled`); this numpy tick is the fallback and
+  the oracle (``tests/study/test_batch_compiled.py``).
 * The order within a tick is the live simulation's: trainee, hand, teleoperation, arms,
   servo, physics, then the haptic loop and the task on the new state.
 
@@ -62,7 +57,6 @@ from __future__ import annotations
 
 import copy
 import time
-import warnings
 from collections.abc import Callable
 from types import SimpleNamespace
 
@@ -72,22 +66,16 @@ import numpy as np
 from davinci_sim.console import teleop_math as tm
 from davinci_sim.devices.hand import hand_wrenches, handle_xfrc
 from davinci_sim.devices.safety import clamp_wrenches
-from davinci_sim.geometry.path import BRUTE_FORCE_MAX_SEGMENTS, Polyline, brute_force_constants
 from davinci_sim.geometry.so3 import rotate_pairs, rotate_rows
-from davinci_sim.haptics.combine import FixtureSum
 from davinci_sim.haptics.fixture import fixture_force_camera
 from davinci_sim.haptics.velocity import DEFAULT_CUTOFF_HZ, VelocityFilter
-from davinci_sim.haptics.viscous import ViscousGuidance
-from davinci_sim.kinematics import fk
-from davinci_sim.kinematics.ik_base import POSITION_TOLERANCE, ROTATION_TOLERANCE
-from davinci_sim.kinematics.psm_ik import _packed as _ik_packed
 from davinci_sim.kinematics.psm_ik import psm_ik_closed_form_batch
 from davinci_sim.model.cameras import in_left_image
 from davinci_sim.sim import arm_laws as laws
-from davinci_sim.sim import rows_step
 from davinci_sim.sim.jaw import finger_setpoints
 from davinci_sim.sim.rows_step import RowStepper
 from davinci_sim.sim.servo import servo_ctrl
+from davinci_sim.study import batch_compiled
 from davinci_sim.study.adaptive import fixture_keys
 from davinci_sim.study.trial import (
     METRICS,
@@ -101,23 +89,8 @@ from davinci_sim.tasks import Phase, Sample
 from davinci_sim.tasks.state import advance
 from davinci_sim.tasks.trainer import InstrumentContacts
 
-_KERNELS = None
-if rows_step.COMPILED:  # (MuJoCo's library is loaded into LLVM's symbols by rows_step)
-    from davinci_sim.study import tick_kernel as _KERNELS
-
-_IK_TOLERANCE = np.array([POSITION_TOLERANCE, ROTATION_TOLERANCE])
-"""The PSM IK's acceptance (m, rad), as ``psm_ik_closed_form_batch`` uses it."""
-
 #: Below this many rows a batch is not compacted any more (the fixed cost per tick dominates).
 COMPACT_MIN_ROWS = 8
-
-
-def _path_constants(path: Polyline) -> tuple:
-    """The path's arrays for the compiled closest point, as new writable C arrays (one
-    compiled signature, whatever flags the path's own arrays have)."""
-    parts = (path.centre, *brute_force_constants(path), path.starts, path.edges,
-             path.cumulative_length, path.segment_lengths)  # fmt: skip
-    return tuple(np.array(a, dtype=float, order="C") for a in parts)
 
 
 class TrialBatch:
@@ -253,9 +226,7 @@ class TrialBatch:
         self.contact_force = np.zeros(n)
         self._kinematics()
         self._cond_index = np.zeros(n, dtype=np.intp)
-        self._compiled = self._compiled_constants(keys)
-        """The compiled tick's constants (:mod:`davinci_sim.study.tick_kernel`), or None:
-        the Python tick (no numba, or a fixture with no compiled form)."""
+        self._compiled = batch_compiled.constants(self, keys)  # (None: the numpy tick)
         self._results = {name: np.full(n, np.nan) for name in METRICS}
         self._finished = np.zeros(n, dtype=bool)
         self._ticks = np.zeros(n, dtype=np.int64)
@@ -416,7 +387,7 @@ class TrialBatch:
         """One 1 ms tick of every running trial."""
         xfrc = self._hand()
         if self._compiled is not None:
-            self._tick_compiled(xfrc)
+            batch_compiled.tick(self, xfrc)
             return
         self._teleop()
         self._tracking()
@@ -439,125 +410,14 @@ class TrialBatch:
         active = np.flatnonzero(self.active)
         # mj_step of every running trial in one compiled call (sim.rows_step)
         self._stepper.step(active, ctrl, xfrc, Q, V, qfrc_bias, qfrc_gravcomp, xipos)
-        self._measure_contacts(active)
+        self._contacts.measure_rows(self.models, self.datas, active, self.n_contacts,
+                                    self.contact_force)  # fmt: skip
         self.bias[active] = self._servo.bias_of(qfrc_bias[active], qfrc_gravcomp[active])
         self.ticks += self.active
         self.time += self.dt
         self._kinematics()
         self._haptics()
         self._task()
-
-    # ------------------------------------------------------------ the compiled tick
-    def _compiled_constants(self, keys) -> dict | None:
-        """The compiled tick's constants, if every condition's fixture has a compiled form:
-        the seed's viscous law (alone or as a sum of one) on one path, in the task's frame."""
-        if _KERNELS is None or self.T_task_camera is None or self._body is None:
-            return None
-        laws_of = {}
-        for key, fixture in self.fixtures.items():
-            parts = fixture.fixtures if isinstance(fixture, FixtureSum) else (fixture,)
-            if len(parts) != 1 or type(parts[0]) is not ViscousGuidance:
-                return None
-            v = parts[0]
-            if not (isinstance(v.B, float) and isinstance(v.G_max, float)):
-                return None
-            laws_of[key] = v
-        paths = {id(v.path) for v in laws_of.values()}
-        if len(paths) != 1:
-            return None
-        path = next(iter(laws_of.values())).path
-        if len(path.segment_lengths) > BRUTE_FORCE_MAX_SEGMENTS:
-            return None
-        order = list(laws_of)
-        self._cond_index = np.array([order.index(k) for k in keys], dtype=np.intp)
-        c = {
-            "B": np.array([laws_of[k].B for k in order]),
-            "G_max": np.array([laws_of[k].G_max for k in order]),
-            "transition": np.array([float(laws_of[k].transition) for k in order]),
-            "path": _path_constants(path),
-        }  # fmt: skip
-        ik = _ik_packed(self.psm_chain)
-        c["ik"] = (ik.geometry, ik.tool, ik.revolute, ik.lim_lo, ik.lim_hi)
-        c["psm_fk"] = fk._consts(self.psm_chain).packed
-        c["mtm_fk"] = fk._consts(self.mtm_chain).packed
-        idx = np.intp
-        c["psm"] = (np.asarray(self.psm_act, idx), np.asarray(self.psm_q, idx))
-        c["mtm"] = (np.asarray(self.mtm_q, idx), np.asarray(self.mtm_v, idx),
-                    np.asarray(self.mtm_act, idx))  # fmt: skip
-        c["jaw"] = (np.asarray(self.gripper_q, idx), np.asarray(self.jaw_act, idx))
-        servo = self._servo
-        c["servo"] = (np.asarray(servo.qposadr, idx), np.asarray(servo.dofadr, idx),
-                      bool(servo._model_gravcomp), servo.kp, servo.kv)  # fmt: skip
-        lim = self.limits
-        dt = self.dt
-        c["clamp"] = (float(lim.max_force), float(lim.max_torque),
-                      float(lim.max_force_rate * dt), float(lim.max_torque_rate * dt))  # fmt: skip
-        return c
-
-    def _contiguous(self, *names: str) -> None:
-        for name in names:
-            a = getattr(self, name)
-            if not a.flags.c_contiguous:
-                setattr(self, name, np.ascontiguousarray(a))
-
-    def _tick_compiled(self, xfrc: np.ndarray) -> None:
-        """:meth:`tick` after the hand in two compiled calls
-        (:mod:`~davinci_sim.study.tick_kernel`), the teleoperation in Python when a row needs
-        it; the same laws in the same order."""
-        c, k = self._compiled, _KERNELS
-        self._contiguous("T_psm", "J_psm", "T_mtm", "J_mtm", "twist_mtm", "requested",
-                         "wrench_sent", "_bad_since")  # fmt: skip
-        n, dof = self.n, len(self.psm_act)
-        psm_act, psm_q = c["psm"]
-        q_ik, ok, qd = np.empty((n, dof)), np.empty(n, dtype=bool), np.empty((n, dof))
-        rate, rate_after_clutch = self.jaw_rates
-        needs_python = k.teleop_rows(
-            self.T_camera_psm0, self.T_hrsv_mtm0, self.T_mtm, self.R_offset, float(self.scale),
-            bool(self.use_linear), bool(self.use_angular), self.twist_mtm, self.T_rcm_camera,
-            self.Q, psm_q, self.J_psm, self.q_ref, self.qd_ref, psm_act,
-            self.psm_chain.qmin, self.psm_chain.qmax, *c["ik"], *c["psm_fk"], _IK_TOLERANCE,
-            *c["jaw"], self.ghost, self.jaw_catching_up, self.jaw_sent, float(rate),
-            float(rate_after_clutch), self.dt, float(self.jaw_s), float(self.jaw_o),
-            float(self.jaw_spec.qmin), float(self.jaw_spec.qmax), tm.JAW_CATCH_UP_TOLERANCE,
-            q_ik, ok, qd,
-        )  # fmt: skip
-        if needs_python:
-            self._teleop()
-            self._contiguous("ghost", "jaw_catching_up", "jaw_sent")
-        s = self._stepper
-        mtm_q, mtm_v, mtm_act = c["mtm"]
-        qposadr, dofadr, minus_gravcomp, kp, kv = c["servo"]
-        vf = self.velocity
-        qfrc_bias, qfrc_gravcomp = self._qfrc
-        k.physics_rows(
-            s._model, s._data, s._address, self._body, self.active, self.fault,
-            self._bad_since, self.time, psm_act, psm_q, np.asarray(self.psm_tol, float),
-            qposadr, dofadr, minus_gravcomp, kp, kv, self.effort_mode, self.gravity,
-            self.Q, self.V, qfrc_bias, qfrc_gravcomp, self.xipos, self.bias, self.q_ref,
-            self.qd_ref, self.tau_ff, np.ascontiguousarray(xfrc),
-            *c["psm_fk"], self.T_camera_rcm, self.T_psm, self.J_psm,
-            *c["mtm_fk"], self.T_hrsv_mtmbase, mtm_q, mtm_v, self.T_mtm, self.J_mtm,
-            self.twist_mtm, vf._p, vf._v, vf._started, vf.dt, vf.alpha,
-            self.T_task_camera, self._cond_index, c["B"], c["G_max"], c["transition"],
-            *c["path"], self.requested, self.wrench_sent, *c["clamp"], mtm_act,
-            np.asarray(self.mtm_ftmax, float),
-        )  # fmt: skip
-        self._measure_contacts(np.flatnonzero(self.active))
-        self.ticks += self.active
-        self.time += self.dt
-        self._task()
-
-    def _measure_contacts(self, stepped: np.ndarray) -> None:
-        """The instrument's contacts of the rows ``stepped`` (their trainer metrics), read
-        only from a step that has any."""
-        contacts, n_contacts, contact_force = self._contacts, self.n_contacts, self.contact_force
-        datas = self.datas
-        for i in stepped.tolist():
-            d = datas[i]
-            if d.ncon:  # (the study scene has no patient: usually none)
-                n_contacts[i], contact_force[i] = contacts.measure(self.models[i], d)
-            elif n_contacts[i]:
-                n_contacts[i], contact_force[i] = 0, 0.0
 
     def run(
         self,
@@ -638,40 +498,3 @@ def run_batch(
         return batch.run(on_done, on_row, on_tick)
     finally:
         batch._setup.sim.close()
-
-
-def _warm_up() -> None:
-    """Compile (or load from numba's cache) the compiled tick at import, on no rows, with
-    the one signature :meth:`TrialBatch._tick_compiled` calls it with (the PSM's and MTM's
-    real chain constants, every state array empty): a study's workers then load it."""
-    if _KERNELS is None:
-        return
-    from davinci_sim.kinematics.arms import load_arm
-
-    psm, mtm = load_arm("PSM1").chain, load_arm("MTMR").chain
-    ik, psm_fk, mtm_fk = _ik_packed(psm), fk._consts(psm).packed, fk._consts(mtm).packed
-    path = _path_constants(Polyline(np.array([[0.0, 0.0, 0.0], [0.01, 0.0, 0.0]])))
-    i, f, b = np.zeros(0, dtype=np.intp), np.zeros(0), np.zeros(0, dtype=bool)
-    f2, f3, I4 = np.zeros((0, 6)), np.zeros((0, 4, 4)), np.eye(4)
-    _KERNELS.teleop_rows(
-        I4, I4, f3, np.eye(3), 1.0, True, False, f2, I4, f2, i, f3, f2, f2, i, psm.qmin,
-        psm.qmax, ik.geometry, ik.tool, ik.revolute, ik.lim_lo, ik.lim_hi, *psm_fk,
-        _IK_TOLERANCE, i, i, f, b, f, 1.0, 1.0, 0.001, 1.0, 0.0, 0.0, 1.0, 0.01, f2, b, f2,
-    )  # fmt: skip
-    _KERNELS.physics_rows(
-        i, i, np.zeros((0, 7), dtype=np.intp), 0, b, b, f, 0.0, i, i, f, i, i, True, f, f,
-        b, b, f2, f2, f2, f2, f2, f2, f2, f2, f2, f2, *psm_fk, I4, f3, f3, *mtm_fk, I4, i, i,
-        f3, f3, f2, f2, f2, b, 0.001, 0.5, I4, i, f, f, f, *path, f2, f2, 1.0, 1.0, 1.0, 1.0,
-        i, f,
-    )  # fmt: skip
-
-
-try:
-    _warm_up()
-except Exception as e:  # pragma: no cover - a numba that cannot compile it
-    warnings.warn(
-        f"the study's tick cannot be compiled; running its numpy tick ({type(e).__name__}: {e})",
-        RuntimeWarning,
-        stacklevel=1,
-    )
-    _KERNELS = None

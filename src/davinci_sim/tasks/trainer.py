@@ -263,3 +263,14 @@ class InstrumentContacts:
             self._contact_force(model, data, i, self._force)
             force += abs(float(self._force[0]))  # normal component, contact frame
         return int(hit.sum()), force
+
+    def measure_rows(self, models, datas, rows, n_contacts, contact_force) -> None:
+        """:meth:`measure` of the simulations ``rows`` (indices into ``models``/``datas``)
+        into ``n_contacts`` and ``contact_force`` (a batch of trials after a step), reading
+        only a step that has contacts or rows that had some."""
+        for i in rows.tolist():
+            d = datas[i]
+            if d.ncon:  # (the study scene has no patient: usually none)
+                n_contacts[i], contact_force[i] = self.measure(models[i], d)
+            elif n_contacts[i]:
+                n_contacts[i], contact_force[i] = 0, 0.0

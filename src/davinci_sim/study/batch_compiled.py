@@ -1,0 +1,185 @@
+"""The study batch's compiled tick (:class:`~davinci_sim.study.batch.TrialBatch` with numba):
+the constants it packs once, the two kernel calls of :mod:`davinci_sim.study.tick_kernel`
+per tick, and their warm-up at import. (Beside ``batch.py``, which is long enough.)
+
+Everything after the trainee's hand runs compiled: the teleoperation with its IK
+(``teleop_rows``), then tracking, servo, ``mj_step``, bias forces, both arms' kinematics and
+the haptic loop (``physics_rows``). The trainee and the task's state machine stay Python.
+The batch's numpy tick is the fallback (a fixture other than the viscous law; a tick whose
+teleoperation a row needs Python for) and the tests' oracle.
+"""
+
+from __future__ import annotations
+
+import warnings
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from davinci_sim.console import teleop_math as tm
+from davinci_sim.geometry.path import BRUTE_FORCE_MAX_SEGMENTS, Polyline, brute_force_constants
+from davinci_sim.haptics.combine import FixtureSum
+from davinci_sim.haptics.viscous import ViscousGuidance
+from davinci_sim.kinematics import fk
+from davinci_sim.kinematics.ik_base import POSITION_TOLERANCE, ROTATION_TOLERANCE
+from davinci_sim.kinematics.psm_ik import _packed as _ik_packed
+from davinci_sim.sim import rows_step
+
+if TYPE_CHECKING:
+    from davinci_sim.study.batch import TrialBatch
+
+_KERNELS = None
+if rows_step.COMPILED:  # (MuJoCo's library is loaded into LLVM's symbols by rows_step)
+    from davinci_sim.study import tick_kernel as _KERNELS
+
+_IK_TOLERANCE = np.array([POSITION_TOLERANCE, ROTATION_TOLERANCE])
+"""The PSM IK's acceptance (m, rad), as ``psm_ik_closed_form_batch`` uses it."""
+
+
+def _path_constants(path: Polyline) -> tuple:
+    """The path's arrays for the compiled closest point, as new writable C arrays (one
+    compiled signature, whatever flags the path's own arrays have)."""
+    parts = (path.centre, *brute_force_constants(path), path.starts, path.edges,
+             path.cumulative_length, path.segment_lengths)  # fmt: skip
+    return tuple(np.array(a, dtype=float, order="C") for a in parts)
+
+
+def constants(batch: TrialBatch, keys) -> dict | None:
+    """``batch``'s constants for :func:`tick`, or None (no numba, or a fixture with no
+    compiled form): every condition's fixture must be the seed's viscous law (alone or as a
+    sum of one) on one path, in the task's frame. Sets ``batch._cond_index``."""
+    if _KERNELS is None or batch.T_task_camera is None or batch._body is None:
+        return None
+    laws_of = {}
+    for key, fixture in batch.fixtures.items():
+        parts = fixture.fixtures if isinstance(fixture, FixtureSum) else (fixture,)
+        if len(parts) != 1 or type(parts[0]) is not ViscousGuidance:
+            return None
+        v = parts[0]
+        if not (isinstance(v.B, float) and isinstance(v.G_max, float)):
+            return None
+        laws_of[key] = v
+    paths = {id(v.path) for v in laws_of.values()}
+    if len(paths) != 1:
+        return None
+    path = next(iter(laws_of.values())).path
+    if len(path.segment_lengths) > BRUTE_FORCE_MAX_SEGMENTS:
+        return None
+    order = list(laws_of)
+    batch._cond_index = np.array([order.index(k) for k in keys], dtype=np.intp)
+    c = {
+        "B": np.array([laws_of[k].B for k in order]),
+        "G_max": np.array([laws_of[k].G_max for k in order]),
+        "transition": np.array([float(laws_of[k].transition) for k in order]),
+        "path": _path_constants(path),
+    }  # fmt: skip
+    ik = _ik_packed(batch.psm_chain)
+    c["ik"] = (ik.geometry, ik.tool, ik.revolute, ik.lim_lo, ik.lim_hi)
+    c["psm_fk"] = fk._consts(batch.psm_chain).packed
+    c["mtm_fk"] = fk._consts(batch.mtm_chain).packed
+    idx = np.intp
+    c["psm"] = (np.asarray(batch.psm_act, idx), np.asarray(batch.psm_q, idx))
+    c["mtm"] = (np.asarray(batch.mtm_q, idx), np.asarray(batch.mtm_v, idx),
+                np.asarray(batch.mtm_act, idx))  # fmt: skip
+    c["jaw"] = (np.asarray(batch.gripper_q, idx), np.asarray(batch.jaw_act, idx))
+    servo = batch._servo
+    c["servo"] = (np.asarray(servo.qposadr, idx), np.asarray(servo.dofadr, idx),
+                  bool(servo._model_gravcomp), servo.kp, servo.kv)  # fmt: skip
+    lim = batch.limits
+    dt = batch.dt
+    c["clamp"] = (float(lim.max_force), float(lim.max_torque),
+                  float(lim.max_force_rate * dt), float(lim.max_torque_rate * dt))  # fmt: skip
+    return c
+
+
+def _contiguous(batch: TrialBatch, *names: str) -> None:
+    for name in names:
+        a = getattr(batch, name)
+        if not a.flags.c_contiguous:
+            setattr(batch, name, np.ascontiguousarray(a))
+
+
+def tick(batch: TrialBatch, xfrc: np.ndarray) -> None:
+    """``batch``'s tick after the hand in two compiled calls, the teleoperation in Python
+    when a row needs it; the same laws in the same order as :meth:`TrialBatch.tick`'s numpy
+    tick."""
+    c, k = batch._compiled, _KERNELS
+    _contiguous(batch, "T_psm", "J_psm", "T_mtm", "J_mtm", "twist_mtm", "requested",
+                     "wrench_sent", "_bad_since")  # fmt: skip
+    n, dof = batch.n, len(batch.psm_act)
+    psm_act, psm_q = c["psm"]
+    q_ik, ok, qd = np.empty((n, dof)), np.empty(n, dtype=bool), np.empty((n, dof))
+    rate, rate_after_clutch = batch.jaw_rates
+    needs_python = k.teleop_rows(
+        batch.T_camera_psm0, batch.T_hrsv_mtm0, batch.T_mtm, batch.R_offset, float(batch.scale),
+        bool(batch.use_linear), bool(batch.use_angular), batch.twist_mtm, batch.T_rcm_camera,
+        batch.Q, psm_q, batch.J_psm, batch.q_ref, batch.qd_ref, psm_act,
+        batch.psm_chain.qmin, batch.psm_chain.qmax, *c["ik"], *c["psm_fk"], _IK_TOLERANCE,
+        *c["jaw"], batch.ghost, batch.jaw_catching_up, batch.jaw_sent, float(rate),
+        float(rate_after_clutch), batch.dt, float(batch.jaw_s), float(batch.jaw_o),
+        float(batch.jaw_spec.qmin), float(batch.jaw_spec.qmax), tm.JAW_CATCH_UP_TOLERANCE,
+        q_ik, ok, qd,
+    )  # fmt: skip
+    if needs_python:
+        batch._teleop()
+        _contiguous(batch, "ghost", "jaw_catching_up", "jaw_sent")
+    s = batch._stepper
+    mtm_q, mtm_v, mtm_act = c["mtm"]
+    qposadr, dofadr, minus_gravcomp, kp, kv = c["servo"]
+    vf = batch.velocity
+    qfrc_bias, qfrc_gravcomp = batch._qfrc
+    k.physics_rows(
+        s._model, s._data, s._address, batch._body, batch.active, batch.fault,
+        batch._bad_since, batch.time, psm_act, psm_q, np.asarray(batch.psm_tol, float),
+        qposadr, dofadr, minus_gravcomp, kp, kv, batch.effort_mode, batch.gravity,
+        batch.Q, batch.V, qfrc_bias, qfrc_gravcomp, batch.xipos, batch.bias, batch.q_ref,
+        batch.qd_ref, batch.tau_ff, np.ascontiguousarray(xfrc),
+        *c["psm_fk"], batch.T_camera_rcm, batch.T_psm, batch.J_psm,
+        *c["mtm_fk"], batch.T_hrsv_mtmbase, mtm_q, mtm_v, batch.T_mtm, batch.J_mtm,
+        batch.twist_mtm, vf._p, vf._v, vf._started, vf.dt, vf.alpha,
+        batch.T_task_camera, batch._cond_index, c["B"], c["G_max"], c["transition"],
+        *c["path"], batch.requested, batch.wrench_sent, *c["clamp"], mtm_act,
+        np.asarray(batch.mtm_ftmax, float),
+    )  # fmt: skip
+    batch._contacts.measure_rows(batch.models, batch.datas, np.flatnonzero(batch.active),
+                                 batch.n_contacts, batch.contact_force)  # fmt: skip
+    batch.ticks += batch.active
+    batch.time += batch.dt
+    batch._task()
+
+
+def _warm_up() -> None:
+    """Compile (or load from numba's cache) the compiled tick at import, on no rows, with
+    the one signature :func:`tick` calls it with (the PSM's and MTM's
+    real chain constants, every state array empty): a study's workers then load it."""
+    if _KERNELS is None:
+        return
+    from davinci_sim.kinematics.arms import load_arm
+
+    psm, mtm = load_arm("PSM1").chain, load_arm("MTMR").chain
+    ik, psm_fk, mtm_fk = _ik_packed(psm), fk._consts(psm).packed, fk._consts(mtm).packed
+    path = _path_constants(Polyline(np.array([[0.0, 0.0, 0.0], [0.01, 0.0, 0.0]])))
+    i, f, b = np.zeros(0, dtype=np.intp), np.zeros(0), np.zeros(0, dtype=bool)
+    f2, f3, I4 = np.zeros((0, 6)), np.zeros((0, 4, 4)), np.eye(4)
+    _KERNELS.teleop_rows(
+        I4, I4, f3, np.eye(3), 1.0, True, False, f2, I4, f2, i, f3, f2, f2, i, psm.qmin,
+        psm.qmax, ik.geometry, ik.tool, ik.revolute, ik.lim_lo, ik.lim_hi, *psm_fk,
+        _IK_TOLERANCE, i, i, f, b, f, 1.0, 1.0, 0.001, 1.0, 0.0, 0.0, 1.0, 0.01, f2, b, f2,
+    )  # fmt: skip
+    _KERNELS.physics_rows(
+        i, i, np.zeros((0, 7), dtype=np.intp), 0, b, b, f, 0.0, i, i, f, i, i, True, f, f,
+        b, b, f2, f2, f2, f2, f2, f2, f2, f2, f2, f2, *psm_fk, I4, f3, f3, *mtm_fk, I4, i, i,
+        f3, f3, f2, f2, f2, b, 0.001, 0.5, I4, i, f, f, f, *path, f2, f2, 1.0, 1.0, 1.0, 1.0,
+        i, f,
+    )  # fmt: skip
+
+
+try:
+    _warm_up()
+except Exception as e:  # pragma: no cover - a numba that cannot compile it
+    warnings.warn(
+        f"the study's tick cannot be compiled; running its numpy tick ({type(e).__name__}: {e})",
+        RuntimeWarning,
+        stacklevel=1,
+    )
+    _KERNELS = None
