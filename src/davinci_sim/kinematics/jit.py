@@ -83,3 +83,16 @@ def helper(fn):
 
         register_jitable(fn)
     return fn
+
+
+def warmed_up(warm_up, fallback: str) -> bool:
+    """Run a module's ``warm_up()`` (its kernels compiled or loaded from the cache at
+    import); if numba cannot compile them, warn (``fallback``: what runs instead) and return
+    False, so that the module's callers take their Python path instead of failing to
+    import."""
+    try:
+        warm_up()
+    except Exception as e:  # pragma: no cover - a numba that cannot compile the kernel
+        warnings.warn(f"{fallback} ({type(e).__name__}: {e})", RuntimeWarning, stacklevel=2)
+        return False
+    return True

@@ -46,7 +46,7 @@ def period_rows(
     :data:`DONE` (all K ticks run), :data:`FAULT` (the tracking watch faulted the arm at a
     tick; that tick's setpoint written, no step) or the tick k whose setpoint needs the
     Python path (an IK answer to polish, a singular Jacobian): nothing of tick k done."""
-    nu_r, nq_r, nv_r, nu = act.shape[0], qadr.shape[0], dadr.shape[0], kp.shape[0]
+    nu = kp.shape[0]
     dof = arm_act.shape[0]
     ctrl = np.empty(nu)
     q_arm = np.empty(dof)
@@ -54,12 +54,7 @@ def period_rows(
     T_base_tip = np.empty((4, 4))
     A = np.empty((dof, dof))
     qd = np.empty(dof)
-    T_goal = np.empty((1, 4, 4))
-    seed = np.empty((1, dof))
-    q_ik = np.empty((1, dof))
-    success = np.empty(1, dtype=np.bool_)
-    status = np.empty(1, dtype=np.int64)
-    info = np.empty((1, 5))
+    T_goal, seed, q_ik, success, status, info = ik_scratch(dof)
     for j in range(rows.shape[0]):
         r = rows[j]
         a = address[r]
@@ -117,49 +112,91 @@ def period_rows(
             if fault:
                 stop[r] = FAULT
                 break
-            # --- the servo (servo.servo_ctrl), then mj_step (rows_kernel.step_rows)
-            for i in range(nu):
-                ctrl[i] = servo_ctrl_scalar(
-                    Q[r, qposadr[i]], V[r, dofadr[i]], bias[r, i], q_ref[r, i], qd_ref[r, i],
-                    tau_ff[r, i], effort[i], gravity[i], kp[i], kv[i],
-                )  # fmt: skip
-            c = numba.carray(f64_at(a[0]), (nu_r,))
-            for i in range(nu_r):
-                c[i] = ctrl[act[i]]
-            mj_step(model[r], data[r])
-            qp = numba.carray(f64_at(a[2]), (nq_r,))
-            for i in range(nq_r):
-                Q[r, qadr[i]] = qp[i]
-            qv = numba.carray(f64_at(a[3]), (nv_r,))
-            qb = numba.carray(f64_at(a[4]), (nv_r,))
-            for i in range(nv_r):
-                V[r, dadr[i]] = qv[i]
-                QB[r, dadr[i]] = qb[i]
-            if copy_gravcomp:
-                qg = numba.carray(f64_at(a[5]), (nv_r,))
-                for i in range(nv_r):
-                    QG[r, dadr[i]] = qg[i]
+            # --- the servo, mj_step, the state read back, the bias forces
+            servo_step_row(
+                model[r], data[r], a, r, qadr, dadr, act, qposadr, dofadr, copy_gravcomp,
+                minus_gravcomp, kp, kv, effort, gravity, Q, V, QB, QG, bias, q_ref, qd_ref,
+                tau_ff, ctrl, -1, Q, Q,
+            )  # fmt: skip
             time[r] = time[r] + timestep
-            # --- the servo's bias forces (JointServo.bias_of)
-            for i in range(nu):
-                if minus_gravcomp:
-                    bias[r, i] = QB[r, dofadr[i]] - QG[r, dofadr[i]]
-                else:
-                    bias[r, i] = QB[r, dofadr[i]]
             # --- the tip's pose and Jacobian (arm_laws.tip_kinematics, pose_in_reference)
             for i in range(dof):
                 q_arm[i] = Q[r, arm_q[i]]
             tip_pose_row(fk_links, fk_modified, fk_tool, fk_identity, q_arm, T_base_tip,
                          J_tip[r], True, F)  # fmt: skip
-            for i in range(4):
-                for m in range(4):
-                    t = 0.0
-                    for h in range(4):
-                        t = t + T_ref_base[i, h] * T_base_tip[h, m]
-                    T_tip[r, i, m] = t
+            pose_in_reference_into(T_ref_base, T_base_tip, T_tip[r])
             if record:
                 for i in range(4):
                     for m in range(4):
                         T_hist[r, k - 1, i, m] = T_tip[r, i, m]
                 t_hist[r, k - 1] = time[r]
                 ran[r, k - 1] = True
+
+
+@numba.njit(cache=True, nogil=True)
+def servo_step_row(
+    model, data, a, r, qadr, dadr, act, qposadr, dofadr, copy_gravcomp, minus_gravcomp,
+    kp, kv, effort, gravity, Q, V, QB, QG, bias, q_ref, qd_ref, tau_ff, ctrl, body, xfrc, XI,
+):  # fmt: skip
+    """One simulation's tick after its setpoints: the joint servo of every actuator
+    (``servo.servo_ctrl``) written to ``ctrl`` (``a``: its buffer addresses, as
+    :mod:`~davinci_sim.sim.rows_kernel`), the ``body``'s ``xfrc_applied`` from ``xfrc[r]``
+    (none if negative), ``mj_step``, the state read back into row ``r`` (``qadr``,
+    ``dadr``, ``act``: the stepped model's addresses in the rows' layout; ``qfrc_gravcomp``
+    if ``copy_gravcomp``; the body's ``xipos`` into ``XI``) and the servo's bias forces
+    (``JointServo.bias_of``). ``ctrl`` (nu,) is scratch."""
+    nu, nu_r, nq_r, nv_r = kp.shape[0], act.shape[0], qadr.shape[0], dadr.shape[0]
+    for i in range(nu):
+        ctrl[i] = servo_ctrl_scalar(
+            Q[r, qposadr[i]], V[r, dofadr[i]], bias[r, i], q_ref[r, i], qd_ref[r, i],
+            tau_ff[r, i], effort[i], gravity[i], kp[i], kv[i],
+        )  # fmt: skip
+    c = numba.carray(f64_at(a[0]), (nu_r,))
+    for i in range(nu_r):
+        c[i] = ctrl[act[i]]
+    if body >= 0:
+        x = numba.carray(f64_at(a[1]), (6 * (body + 1),))
+        for k in range(6):
+            x[6 * body + k] = xfrc[r, k]
+    mj_step(model, data)
+    qp = numba.carray(f64_at(a[2]), (nq_r,))
+    for i in range(nq_r):
+        Q[r, qadr[i]] = qp[i]
+    qv = numba.carray(f64_at(a[3]), (nv_r,))
+    qb = numba.carray(f64_at(a[4]), (nv_r,))
+    for i in range(nv_r):
+        V[r, dadr[i]] = qv[i]
+        QB[r, dadr[i]] = qb[i]
+    if copy_gravcomp:
+        qg = numba.carray(f64_at(a[5]), (nv_r,))
+        for i in range(nv_r):
+            QG[r, dadr[i]] = qg[i]
+    if body >= 0:
+        xi = numba.carray(f64_at(a[6]), (3 * (body + 1),))
+        for k in range(3):
+            XI[r, k] = xi[3 * body + k]
+    for i in range(nu):
+        if minus_gravcomp:
+            bias[r, i] = QB[r, dofadr[i]] - QG[r, dofadr[i]]
+        else:
+            bias[r, i] = QB[r, dofadr[i]]
+
+
+@numba.njit(cache=True, nogil=True)
+def pose_in_reference_into(T_ref_base, T_base_tip, out):
+    """``out = T_ref_base · T_base_tip`` (4, 4) (``arm_laws.pose_in_reference`` of one
+    row), each entry summed in index order."""
+    for i in range(4):
+        for m in range(4):
+            t = 0.0
+            for h in range(4):
+                t = t + T_ref_base[i, h] * T_base_tip[h, m]
+            out[i, m] = t
+
+
+@numba.njit(cache=True, nogil=True)
+def ik_scratch(dof):
+    """The arrays of one goal for ``closed_form_rows`` called on a single row from a kernel:
+    goal (1, 4, 4), seed, answer (1, dof), success, status, info."""
+    return (np.empty((1, 4, 4)), np.empty((1, dof)), np.empty((1, dof)),
+            np.empty(1, dtype=np.bool_), np.empty(1, dtype=np.int64), np.empty((1, 5)))  # fmt: skip

@@ -35,7 +35,6 @@ reduced model (:mod:`davinci_sim.envs.reduced`) steps with maps from its own lay
 
 from __future__ import annotations
 
-import warnings
 from dataclasses import dataclass
 from typing import Any
 
@@ -44,6 +43,7 @@ import numpy as np
 from davinci_sim.kinematics import fk
 from davinci_sim.kinematics.chain import DHChain
 from davinci_sim.kinematics.ik_base import POSITION_TOLERANCE, ROTATION_TOLERANCE
+from davinci_sim.kinematics.jit import warmed_up
 from davinci_sim.kinematics.psm_ik import _packed as _ik_packed
 from davinci_sim.sim import rows_step
 from davinci_sim.sim.rows_step import RowStepper
@@ -205,12 +205,5 @@ def _warm_up() -> None:
     )  # fmt: skip
 
 
-try:
-    _warm_up()
-except Exception as e:  # pragma: no cover - a numba that cannot compile it
-    warnings.warn(
-        f"the control period cannot be compiled; Python ticks ({type(e).__name__}: {e})",
-        RuntimeWarning,
-        stacklevel=1,
-    )
+if not warmed_up(_warm_up, "the control period cannot be compiled: Python ticks"):
     _KERNEL, COMPILED = None, False

@@ -158,12 +158,5 @@ def _warm_up() -> None:
             True)  # fmt: skip
 
 
-try:
-    _warm_up()
-except Exception as e:  # pragma: no cover - a numba that cannot compile it
-    warnings.warn(
-        f"MuJoCo's step cannot be compiled; stepping rows from Python ({type(e).__name__}: {e})",
-        RuntimeWarning,
-        stacklevel=1,
-    )
+if not jit.warmed_up(_warm_up, "MuJoCo's step cannot be compiled: rows step from Python"):
     _KERNEL, COMPILED = None, False

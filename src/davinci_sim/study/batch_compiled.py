@@ -11,7 +11,6 @@ teleoperation a row needs Python for) and the tests' oracle.
 
 from __future__ import annotations
 
-import warnings
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -22,6 +21,7 @@ from davinci_sim.haptics.combine import FixtureSum
 from davinci_sim.haptics.viscous import ViscousGuidance
 from davinci_sim.kinematics import fk
 from davinci_sim.kinematics.ik_base import POSITION_TOLERANCE, ROTATION_TOLERANCE
+from davinci_sim.kinematics.jit import warmed_up
 from davinci_sim.kinematics.psm_ik import _packed as _ik_packed
 from davinci_sim.sim import rows_step
 
@@ -174,12 +174,5 @@ def _warm_up() -> None:
     )  # fmt: skip
 
 
-try:
-    _warm_up()
-except Exception as e:  # pragma: no cover - a numba that cannot compile it
-    warnings.warn(
-        f"the study's tick cannot be compiled; running its numpy tick ({type(e).__name__}: {e})",
-        RuntimeWarning,
-        stacklevel=1,
-    )
+if not warmed_up(_warm_up, "the study's tick cannot be compiled: its numpy tick runs"):
     _KERNELS = None

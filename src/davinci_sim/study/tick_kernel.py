@@ -37,8 +37,7 @@ from davinci_sim.sim.arm_laws import (
     twist_row,
     wrench_effort_row,
 )
-from davinci_sim.sim.rows_kernel import f64_at, mj_step
-from davinci_sim.sim.servo import servo_ctrl_scalar
+from davinci_sim.sim.chunk_kernel import ik_scratch, pose_in_reference_into, servo_step_row
 
 _ik_rows = closed_form_rows.dispatcher
 _clamp = _clamp_rows.dispatcher
@@ -58,12 +57,7 @@ def teleop_rows(
     """The following tick of every row (module docstring); False when done, True (nothing
     written) when a row needs the Python tick."""
     n, dof = Q.shape[0], psm_q.shape[0]
-    T_goal = np.empty((1, 4, 4))
-    seed = np.empty((1, dof))
-    q1 = np.empty((1, dof))
-    success = np.empty(1, dtype=np.bool_)
-    status = np.empty(1, dtype=np.int64)
-    info = np.empty((1, 5))
+    T_goal, seed, q1, success, status, info = ik_scratch(dof)
     A = np.empty((dof, dof))
     local = np.empty(6)
     G = np.empty((4, 4))
@@ -147,7 +141,8 @@ def physics_rows(
     """Tracking, servo, physics, kinematics and haptics of every row (module docstring).
     ``active`` and ``fault`` (n,) are updated in place (a tracking fault ends the row's
     trial); only rows still active step."""
-    n, nu, nq, nv = Q.shape[0], kp.shape[0], Q.shape[1], V.shape[1]
+    n, nu = Q.shape[0], kp.shape[0]
+    qadr, dadr, act = np.arange(Q.shape[1]), np.arange(V.shape[1]), np.arange(nu)
     dof = psm_q.shape[0]
     ctrl = np.empty(nu)
     q = np.empty(dof)
@@ -174,49 +169,22 @@ def physics_rows(
             fault[r] = True
             active[r] = False
     for r in range(n):
-        if active[r]:
-            # --- the servo (servo_ctrl), mj_step (rows_kernel.step_rows), the bias forces
-            ad = address[r]
-            for i in range(nu):
-                ctrl[i] = servo_ctrl_scalar(
-                    Q[r, qposadr[i]], V[r, dofadr[i]], bias[r, i], q_ref[r, i], qd_ref[r, i],
-                    tau_ff[r, i], effort[i], gravity[i], kp[i], kv[i],
-                )  # fmt: skip
-            c = numba.carray(f64_at(ad[0]), (nu,))
-            for i in range(nu):
-                c[i] = ctrl[i]
-            x = numba.carray(f64_at(ad[1]), (6 * (body + 1),))
-            for k in range(6):
-                x[6 * body + k] = xfrc[r, k]
-            mj_step(model[r], data[r])
-            qp = numba.carray(f64_at(ad[2]), (nq,))
-            for i in range(nq):
-                Q[r, i] = qp[i]
-            qv = numba.carray(f64_at(ad[3]), (nv,))
-            qb = numba.carray(f64_at(ad[4]), (nv,))
-            qg = numba.carray(f64_at(ad[5]), (nv,))
-            for i in range(nv):
-                V[r, i] = qv[i]
-                QB[r, i] = qb[i]
-                QG[r, i] = qg[i]
-            xi = numba.carray(f64_at(ad[6]), (3 * (body + 1),))
-            for k in range(3):
-                XI[r, k] = xi[3 * body + k]
-            for i in range(nu):
-                if minus_gravcomp:
-                    bias[r, i] = QB[r, dofadr[i]] - QG[r, dofadr[i]]
-                else:
-                    bias[r, i] = QB[r, dofadr[i]]
+        if active[r]:  # --- the servo, mj_step, the state read back, the bias forces
+            servo_step_row(
+                model[r], data[r], address[r], r, qadr, dadr, act, qposadr, dofadr, True,
+                minus_gravcomp, kp, kv, effort, gravity, Q, V, QB, QG, bias, q_ref, qd_ref,
+                tau_ff, ctrl, body, xfrc, XI,
+            )  # fmt: skip
         # --- kinematics (tip_kinematics, pose_in_reference, twist_in_reference)
         for i in range(dof):
             q[i] = Q[r, psm_q[i]]
         tip_pose_row(psm_links, psm_modified, psm_tool, psm_identity, q, T, J_psm[r], True, F)
-        _into_reference(T_camera_rcm, T, T_psm[r])
+        pose_in_reference_into(T_camera_rcm, T, T_psm[r])
         for i in range(qm.shape[0]):
             qm[i] = Q[r, mtm_q[i]]
             qdm[i] = V[r, mtm_v[i]]
         tip_pose_row(mtm_links, mtm_modified, mtm_tool, mtm_identity, qm, T, J_mtm[r], True, F)
-        _into_reference(T_hrsv_mtmbase, T, T_mtm[r])
+        pose_in_reference_into(T_hrsv_mtmbase, T, T_mtm[r])
         _twist(T_hrsv_mtmbase[:3, :3], J_mtm[r], qdm, twist_mtm[r])
         # --- the velocity filter (VelocityFilter.update)
         for i in range(3):
@@ -259,14 +227,3 @@ def physics_rows(
         _effort(J_mtm[r], R_base_hrsv, wrench_sent[r], ftmax, tau)
         for i in range(mtm_act.shape[0]):
             tau_ff[r, mtm_act[i]] = tau[i]
-
-
-@numba.njit(cache=True, nogil=True)
-def _into_reference(T_ref_base, T_base_tip, out):
-    """``out = T_ref_base · T_base_tip`` (4, 4), summed in index order."""
-    for i in range(4):
-        for m in range(4):
-            t = 0.0
-            for h in range(4):
-                t = t + T_ref_base[i, h] * T_base_tip[h, m]
-            out[i, m] = t
