@@ -57,6 +57,12 @@ def session(tmp_path_factory):
         handle.call("PSM1/jaw", "servo_jp", np.array([0.4])).result(30)
         handle.call("PSM1", "servo_jp", [np.nan] * 6).result(30)  # refused: changes nothing
         wait_ticks(handle, 150)
+        # States to replay against: the recorder keeps the published snapshots, which come
+        # at the publisher's pace, not the loop's (a fast loop gives few in 740 ticks).
+        t0 = time.monotonic()
+        while recorder.snapshots < 30:
+            assert time.monotonic() - t0 < 120, "the recorder records no snapshots"
+            time.sleep(0.01)
     finally:
         recorder.stop()
         system.stop()

@@ -93,6 +93,8 @@ def constants(batch: TrialBatch, keys) -> dict | None:
 
 
 def _contiguous(batch: TrialBatch, *names: str) -> None:
+    """The batch's arrays ``names`` as C-ordered arrays (the kernels' one signature; the
+    numpy tick may leave a strided result behind)."""
     for name in names:
         a = getattr(batch, name)
         if not a.flags.c_contiguous:
@@ -105,7 +107,7 @@ def tick(batch: TrialBatch, xfrc: np.ndarray) -> None:
     tick."""
     c, k = batch._compiled, _KERNELS
     _contiguous(batch, "T_psm", "J_psm", "T_mtm", "J_mtm", "twist_mtm", "requested",
-                     "wrench_sent", "_bad_since")  # fmt: skip
+                "wrench_sent", "_bad_since")  # fmt: skip
     n, dof = batch.n, len(batch.psm_act)
     psm_act, psm_q = c["psm"]
     q_ik, ok, qd = np.empty((n, dof)), np.empty(n, dtype=bool), np.empty((n, dof))
