@@ -316,7 +316,9 @@ def test_a_synthetic_trainee_does_a_repetition_and_its_row_is_in_the_table(conso
         if page.js("document.querySelectorAll('#rows tbody tr').length") > 0:
             break
         time.sleep(0.05)
-    assert {"RUNNING", "FINISHED"} <= phases | {page.state()["task"]["phase"]}
+    # (FINISHED may pass between two polls on a fast loop: the row in the table is what a
+    # finished repetition leaves, checked below)
+    assert "RUNNING" in phases
     row = page.page.inner_text("#rows tbody tr")
     assert row.startswith("Grace") and "short_path" not in row  # trainee, condition, ...
     page.page.screenshot(path=tmp_path / "task_panel.png")
