@@ -364,14 +364,12 @@ class DavinciVectorEnv(VectorEnv):
             for k in np.unique(stop[fallback]).tolist():
                 these = np.zeros(n, dtype=bool)
                 these[fallback[stop[fallback] == k]] = True
-                ran = these.copy()
                 self._python_tick(ramp, k, these, fault, T_goal)
                 if record is not None:
                     record.T[these, k - 1] = self.T_psm[these]
                     record.t[these, k - 1] = self.time[these]
                     record.ran[these, k - 1] = True
-                first[these] = k + 1
-                stop[ran & ~these] = rows_chunk.FAULT
+                first[these] = k + 1  # (a row that faulted in it stays at K + 1)
         running &= ~fault
         if record is None:
             return

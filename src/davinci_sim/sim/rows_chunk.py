@@ -42,8 +42,8 @@ import numpy as np
 
 from davinci_sim.kinematics import fk
 from davinci_sim.kinematics.chain import DHChain
-from davinci_sim.kinematics.ik_base import POSITION_TOLERANCE, ROTATION_TOLERANCE
 from davinci_sim.kinematics.jit import warmed_up
+from davinci_sim.kinematics.psm_ik import _DEFAULT_TOLERANCE
 from davinci_sim.kinematics.psm_ik import _packed as _ik_packed
 from davinci_sim.sim import rows_step
 from davinci_sim.sim.rows_step import RowStepper
@@ -151,7 +151,7 @@ class ArmChunk:
         except ValueError:
             pass
         else:
-            tol = np.array([POSITION_TOLERANCE, ROTATION_TOLERANCE], dtype=float)
+            tol = _DEFAULT_TOLERANCE
             self._ik = (p.geometry, p.tool, p.revolute, p.lim_lo, p.lim_hi, tol)
 
     def run(self, rows, first, K: int, stop, effort_mode, gravity, Q, V, qfrc_bias,

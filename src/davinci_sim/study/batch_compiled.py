@@ -20,8 +20,8 @@ from davinci_sim.geometry.path import BRUTE_FORCE_MAX_SEGMENTS, Polyline, brute_
 from davinci_sim.haptics.combine import FixtureSum
 from davinci_sim.haptics.viscous import ViscousGuidance
 from davinci_sim.kinematics import fk
-from davinci_sim.kinematics.ik_base import POSITION_TOLERANCE, ROTATION_TOLERANCE
 from davinci_sim.kinematics.jit import warmed_up
+from davinci_sim.kinematics.psm_ik import _DEFAULT_TOLERANCE
 from davinci_sim.kinematics.psm_ik import _packed as _ik_packed
 from davinci_sim.sim import rows_step
 
@@ -31,9 +31,6 @@ if TYPE_CHECKING:
 _KERNELS = None
 if rows_step.COMPILED:  # (MuJoCo's library is loaded into LLVM's symbols by rows_step)
     from davinci_sim.study import tick_kernel as _KERNELS
-
-_IK_TOLERANCE = np.array([POSITION_TOLERANCE, ROTATION_TOLERANCE])
-"""The PSM IK's acceptance (m, rad), as ``psm_ik_closed_form_batch`` uses it."""
 
 
 def _path_constants(path: Polyline) -> tuple:
@@ -78,9 +75,11 @@ def constants(batch: TrialBatch, keys) -> dict | None:
     c["psm_fk"] = fk._consts(batch.psm_chain).packed
     c["mtm_fk"] = fk._consts(batch.mtm_chain).packed
     idx = np.intp
-    c["psm"] = (np.asarray(batch.psm_act, idx), np.asarray(batch.psm_q, idx))
+    c["psm"] = (np.asarray(batch.psm_act, idx), np.asarray(batch.psm_q, idx),
+                np.asarray(batch.psm_tol, float), batch.psm_chain.qmin,
+                batch.psm_chain.qmax)  # fmt: skip
     c["mtm"] = (np.asarray(batch.mtm_q, idx), np.asarray(batch.mtm_v, idx),
-                np.asarray(batch.mtm_act, idx))  # fmt: skip
+                np.asarray(batch.mtm_act, idx), np.asarray(batch.mtm_ftmax, float))  # fmt: skip
     c["jaw"] = (np.asarray(batch.gripper_q, idx), np.asarray(batch.jaw_act, idx))
     servo = batch._servo
     c["servo"] = (np.asarray(servo.qposadr, idx), np.asarray(servo.dofadr, idx),
@@ -109,14 +108,14 @@ def tick(batch: TrialBatch, xfrc: np.ndarray) -> None:
     _contiguous(batch, "T_psm", "J_psm", "T_mtm", "J_mtm", "twist_mtm", "requested",
                 "wrench_sent", "_bad_since")  # fmt: skip
     n, dof = batch.n, len(batch.psm_act)
-    psm_act, psm_q = c["psm"]
+    psm_act, psm_q, psm_tol, qmin, qmax = c["psm"]
     q_ik, ok, qd = np.empty((n, dof)), np.empty(n, dtype=bool), np.empty((n, dof))
     rate, rate_after_clutch = batch.jaw_rates
     needs_python = k.teleop_rows(
         batch.T_camera_psm0, batch.T_hrsv_mtm0, batch.T_mtm, batch.R_offset, float(batch.scale),
         bool(batch.use_linear), bool(batch.use_angular), batch.twist_mtm, batch.T_rcm_camera,
         batch.Q, psm_q, batch.J_psm, batch.q_ref, batch.qd_ref, psm_act,
-        batch.psm_chain.qmin, batch.psm_chain.qmax, *c["ik"], *c["psm_fk"], _IK_TOLERANCE,
+        qmin, qmax, *c["ik"], *c["psm_fk"], _DEFAULT_TOLERANCE,
         *c["jaw"], batch.ghost, batch.jaw_catching_up, batch.jaw_sent, float(rate),
         float(rate_after_clutch), batch.dt, float(batch.jaw_s), float(batch.jaw_o),
         float(batch.jaw_spec.qmin), float(batch.jaw_spec.qmax), tm.JAW_CATCH_UP_TOLERANCE,
@@ -126,13 +125,13 @@ def tick(batch: TrialBatch, xfrc: np.ndarray) -> None:
         batch._teleop()
         _contiguous(batch, "ghost", "jaw_catching_up", "jaw_sent")
     s = batch._stepper
-    mtm_q, mtm_v, mtm_act = c["mtm"]
+    mtm_q, mtm_v, mtm_act, ftmax = c["mtm"]
     qposadr, dofadr, minus_gravcomp, kp, kv = c["servo"]
     vf = batch.velocity
     qfrc_bias, qfrc_gravcomp = batch._qfrc
     k.physics_rows(
         s._model, s._data, s._address, batch._body, batch.active, batch.fault,
-        batch._bad_since, batch.time, psm_act, psm_q, np.asarray(batch.psm_tol, float),
+        batch._bad_since, batch.time, psm_act, psm_q, psm_tol,
         qposadr, dofadr, minus_gravcomp, kp, kv, batch.effort_mode, batch.gravity,
         batch.Q, batch.V, qfrc_bias, qfrc_gravcomp, batch.xipos, batch.bias, batch.q_ref,
         batch.qd_ref, batch.tau_ff, np.ascontiguousarray(xfrc),
@@ -140,8 +139,7 @@ def tick(batch: TrialBatch, xfrc: np.ndarray) -> None:
         *c["mtm_fk"], batch.T_hrsv_mtmbase, mtm_q, mtm_v, batch.T_mtm, batch.J_mtm,
         batch.twist_mtm, vf._p, vf._v, vf._started, vf.dt, vf.alpha,
         batch.T_task_camera, batch._cond_index, c["B"], c["G_max"], c["transition"],
-        *c["path"], batch.requested, batch.wrench_sent, *c["clamp"], mtm_act,
-        np.asarray(batch.mtm_ftmax, float),
+        *c["path"], batch.requested, batch.wrench_sent, *c["clamp"], mtm_act, ftmax,
     )  # fmt: skip
     batch._contacts.measure_rows(batch.models, batch.datas, np.flatnonzero(batch.active),
                                  batch.n_contacts, batch.contact_force)  # fmt: skip
@@ -166,7 +164,7 @@ def _warm_up() -> None:
     _KERNELS.teleop_rows(
         I4, I4, f3, np.eye(3), 1.0, True, False, f2, I4, f2, i, f3, f2, f2, i, psm.qmin,
         psm.qmax, ik.geometry, ik.tool, ik.revolute, ik.lim_lo, ik.lim_hi, *psm_fk,
-        _IK_TOLERANCE, i, i, f, b, f, 1.0, 1.0, 0.001, 1.0, 0.0, 0.0, 1.0, 0.01, f2, b, f2,
+        _DEFAULT_TOLERANCE, i, i, f, b, f, 1.0, 1.0, 0.001, 1.0, 0.0, 0.0, 1.0, 0.01, f2, b, f2,
     )  # fmt: skip
     _KERNELS.physics_rows(
         i, i, np.zeros((0, 7), dtype=np.intp), 0, b, b, f, 0.0, i, i, f, i, i, True, f, f,
