@@ -148,5 +148,8 @@ def test_deviation_continuous_inside_the_tube(u, offset, step):
     d = 1e-6 * np.array(step)
     a = path.closest_point(q)
     b = path.closest_point(q + d)
-    # Chord polygon of the arcs: slightly more than 1-Lipschitz near the arc vertices.
-    assert np.linalg.norm(b.deviation - a.deviation) <= 3.0 * np.linalg.norm(d) + 1e-15
+    # Chord polygon of the arcs: slightly more than 1-Lipschitz near the arc vertices, and
+    # on the inner side of a vertex the closest point may move to the next chord, a jump
+    # of at most the distance (≤ 4 mm) times the chord's turn (2°): 0.14 mm.
+    jump = 0.004 * math.radians(2.0)
+    assert np.linalg.norm(b.deviation - a.deviation) <= 3.0 * np.linalg.norm(d) + jump

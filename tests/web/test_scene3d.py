@@ -507,7 +507,8 @@ def test_stop_leaves_no_thread_and_frees_the_port():
         view.set_preset("bedside")
     port = view.port
     view.stop()
-    assert set(threading.enumerate()) <= before
+    # (the probe's websocket keepalive thread ends just after its close: wait for it)
+    assert wait(lambda: set(threading.enumerate()) <= before)
     with pytest.raises(RuntimeError):
         view.url  # noqa: B018
     # The port is free again: a new view can take it.
