@@ -9,7 +9,7 @@ import numpy as np
 from scipy.linalg.lapack import dgesv
 
 from davinci_sim.geometry import so3
-from davinci_sim.kinematics import fk
+from davinci_sim.kinematics import fk, jit
 from davinci_sim.kinematics.arms import ArmKinematics, SUJArmKinematics
 from davinci_sim.kinematics.chain import DHChain
 from davinci_sim.sim import arm_laws as laws
@@ -18,7 +18,7 @@ from davinci_sim.sim.impedance import CartesianImpedance, impedance_problem, imp
 from davinci_sim.sim.jaw import Jaw
 from davinci_sim.sim.trajectory import step_towards
 from davinci_sim.sim.types import ACCEPTED, CommandResult
-from davinci_sim.sim.validation import MAX_FORCE, MAX_TORQUE, as_number
+from davinci_sim.sim.validation import MAX_FORCE, MAX_TORQUE, as_number, as_transform, as_twist
 
 if TYPE_CHECKING:
     from davinci_sim.sim.simulation import Simulation
@@ -28,6 +28,16 @@ if TYPE_CHECKING:
 PSM_SAFE_CARTESIAN_DISTANCE = 0.045 - 0.002
 # dvrk.md 2.4: the ECM allows Cartesian control once insertion > 50 mm.
 ECM_SAFE_CARTESIAN_INSERTION = 0.050
+
+_CP = None  # servo_cp's compiled law (sim/cartesian_kernel.py), when numba compiles it
+if jit.ENABLED:
+    from davinci_sim.sim import cartesian_kernel as _cp_module
+
+    if jit.warmed_up(_cp_module._warm_up, "servo_cp's compiled law: the Python path runs"):
+        _CP = _cp_module
+
+
+_NO_TWIST = np.zeros(6)
 
 
 class PSM(Arm):
@@ -39,6 +49,9 @@ class PSM(Arm):
         self.jaw = Jaw(self, kin.jaw, "jaw", kin.jaw_v_max, kin.jaw_a_max)
         self._shaft_chain = self.chain.truncated(4)
         self._shaft_offset = _shaft_offset(self._shaft_chain)
+        if _CP is not None:  # servo_cp's compiled law: its constants and output arrays
+            self._cp = (_CP.servo_cp_constants(self.chain), np.array(self._feedforward_bound),
+                        np.empty(self.dof), np.empty(self.dof))  # fmt: skip
 
     def shaft_end_distance(self) -> float:
         """Distance (m) from the RCM to the end of the shaft (link-4 frame), dvrk.md 1.7."""
@@ -61,6 +74,37 @@ class PSM(Arm):
     def _hold_here(self) -> None:
         super()._hold_here()
         self.jaw._hold()
+
+    def _servo_cp(self, T_goal, twist, checked: bool) -> CommandResult:
+        # The common answer through the compiled law; any other (an IK answer to polish or
+        # adjust, a singular Jacobian, a refusal and its message) through the Python path.
+        if _CP is not None and self._servo_cp_compiled(T_goal, twist, checked):
+            return ACCEPTED
+        return super()._servo_cp(T_goal, twist, checked)
+
+    def _servo_cp_compiled(self, T_goal, twist, checked: bool) -> bool:
+        """:meth:`servo_cp` by :func:`~davinci_sim.sim.cartesian_kernel.servo_cp_row`: True
+        when it gave the answer (then applied, as the Python path would), False for the
+        Python path to run (nothing changed)."""
+        if self._not_ready(cartesian=True):
+            return False
+        T = T_goal if checked else as_transform(T_goal, "goal")[0]
+        tw = None if twist is None else as_twist(twist, "twist")[0]
+        if T is None or (twist is not None and tw is None):
+            return False
+        if not (T.flags.writeable and T.flags.c_contiguous):  # (the kernel's one signature)
+            T = np.array(T, order="C")
+        q, _, J = self._measured_kinematics(jacobian=True)
+        constants, bound, q_out, qd_out = self._cp
+        feedforward = tw is not None
+        if not _CP.servo_cp_row(
+            *constants, self._T_base_reference(), T, q, J, feedforward,
+            np.array(tw) if feedforward else _NO_TWIST, self._qmin, self._qmax, bound, q_out,
+            qd_out,
+        ):  # fmt: skip
+            return False
+        self._servo_position(q_out.copy(), qd_out.copy())
+        return True
 
     def _start_homing(self) -> None:
         super()._start_homing()

@@ -18,12 +18,10 @@ import numba
 import numpy as np
 
 from davinci_sim.kinematics.fk_compiled import tip_pose_row
-from davinci_sim.kinematics.psm_closed_form import POLISH, closed_form_rows
-from davinci_sim.sim.arm_laws import LIMIT_SLACK, solve_square_into, tracking_fault_scalar
+from davinci_sim.sim.arm_laws import LIMIT_SLACK, tracking_fault_scalar
+from davinci_sim.sim.cartesian_kernel import OK, cartesian_setpoint_row
 from davinci_sim.sim.rows_kernel import f64_at, mj_step
 from davinci_sim.sim.servo import servo_ctrl_scalar
-
-_ik_rows = closed_form_rows.dispatcher  # (the compiled kernel itself, callable from here)
 
 #: ``stop`` codes a row ends a call with (besides the tick a Python tick must run).
 DONE = -1
@@ -79,15 +77,11 @@ def period_rows(
                 )  # fmt: skip
                 for i in range(dof):
                     seed[0, i] = Q[r, arm_q[i]]
-                _ik_rows(
+                if cartesian_setpoint_row(
                     ik_geometry, ik_tool, ik_revolute, ik_lo, ik_hi, fk_links, fk_modified,
-                    fk_tool, fk_identity, T_goal, seed, ik_tolerance, q_ik, success, status,
-                    info,
-                )  # fmt: skip
-                if status[0] == POLISH:
-                    stop[r] = k
-                    break
-                if not solve_square_into(J_tip[r], twist_base[r], A, qd):
+                    fk_tool, fk_identity, ik_tolerance, T_goal, seed, J_tip[r], twist_base[r], A,
+                    q_ik, success, status, info, qd,
+                ) != OK:  # servo_cp's law (cartesian_kernel): polish or least squares next
                     stop[r] = k
                     break
                 ok = success[0]

@@ -29,17 +29,10 @@ from davinci_sim.devices.safety import _clamp_rows
 from davinci_sim.haptics.path_query import _closest_point_into
 from davinci_sim.haptics.viscous import _viscous_into
 from davinci_sim.kinematics.fk_compiled import tip_pose_row
-from davinci_sim.kinematics.psm_closed_form import POLISH, closed_form_rows
-from davinci_sim.sim.arm_laws import (
-    LIMIT_SLACK,
-    solve_square_into,
-    tracking_fault_scalar,
-    twist_row,
-    wrench_effort_row,
-)
+from davinci_sim.sim.arm_laws import LIMIT_SLACK, tracking_fault_scalar, twist_row, wrench_effort_row
+from davinci_sim.sim.cartesian_kernel import OK, cartesian_setpoint_row
 from davinci_sim.sim.chunk_kernel import ik_scratch, pose_in_reference_into, servo_step_row
 
-_ik_rows = closed_form_rows.dispatcher
 _clamp = _clamp_rows.dispatcher
 _twist = twist_row.dispatcher
 _effort = wrench_effort_row.dispatcher
@@ -79,17 +72,7 @@ def teleop_rows(
                 T_goal[0, i, m] = t
         for i in range(dof):
             seed[0, i] = Q[r, psm_q[i]]
-        _ik_rows(ik_geometry, ik_tool, ik_revolute, ik_lo, ik_hi, fk_links, fk_modified,
-                 fk_tool, fk_identity, T_goal, seed, ik_tolerance, q1, success, status,
-                 info)  # fmt: skip
-        if status[0] == POLISH:
-            return True
-        good = success[0]
-        for i in range(dof):
-            q_ik[r, i] = q1[0, i]
-            good = good and q1[0, i] >= qmin[i] - LIMIT_SLACK and q1[0, i] <= qmax[i] + LIMIT_SLACK
-        ok[r] = good
-        # --- follow_twist, then the twist in the RCM axes (rotate_pairs) and J⁻¹
+        # --- follow_twist, then the twist in the RCM axes (rotate_pairs)
         for h in range(2):
             x, y, z = 0.0, 0.0, 0.0
             if h == 0 and use_linear:
@@ -100,8 +83,17 @@ def teleop_rows(
                 local[3 * h + i] = (
                     x * T_rcm_camera[i, 0] + y * T_rcm_camera[i, 1] + z * T_rcm_camera[i, 2]
                 )
-        if not solve_square_into(J_psm[r], local, A, qd[r]):
+        # --- the IK and J⁻¹·twist (servo_cp's law, sim/cartesian_kernel.py)
+        if cartesian_setpoint_row(ik_geometry, ik_tool, ik_revolute, ik_lo, ik_hi, fk_links,
+                                  fk_modified, fk_tool, fk_identity, ik_tolerance, T_goal, seed,
+                                  J_psm[r], local, A, q1, success, status, info,
+                                  qd[r]) != OK:  # fmt: skip
             return True
+        good = success[0]
+        for i in range(dof):
+            q_ik[r, i] = q1[0, i]
+            good = good and q1[0, i] >= qmin[i] - LIMIT_SLACK and q1[0, i] <= qmax[i] + LIMIT_SLACK
+        ok[r] = good
     for r in range(n):
         if ok[r]:
             for i in range(dof):
