@@ -81,4 +81,3 @@ def test_read_only_and_strided_goals_use_the_one_signature(psm_sim):
     T.setflags(write=False)
     assert psm._servo_cp_compiled(T, None, checked=False)
     assert len(arm_types._CP.servo_cp_row.signatures) == 1
-

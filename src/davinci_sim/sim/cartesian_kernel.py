@@ -74,7 +74,9 @@ def servo_cp_row(
     for h in range(2):  # rotate_pairs(R_ref_base.T, twist): R_base_ref on both halves
         x, y, z = twist_ref[3 * h], twist_ref[3 * h + 1], twist_ref[3 * h + 2]
         for i in range(3):
-            twist_base[3 * h + i] = x * T_base_ref[i, 0] + y * T_base_ref[i, 1] + z * T_base_ref[i, 2]
+            twist_base[3 * h + i] = (
+                x * T_base_ref[i, 0] + y * T_base_ref[i, 1] + z * T_base_ref[i, 2]
+            )
     q_ik, success = np.empty((1, dof)), np.empty(1, dtype=np.bool_)
     status, info = np.empty(1, dtype=np.int64), np.empty((1, 5))
     code = cartesian_setpoint_row(

@@ -29,7 +29,12 @@ from davinci_sim.devices.safety import _clamp_rows
 from davinci_sim.haptics.path_query import _closest_point_into
 from davinci_sim.haptics.viscous import _viscous_into
 from davinci_sim.kinematics.fk_compiled import tip_pose_row
-from davinci_sim.sim.arm_laws import LIMIT_SLACK, tracking_fault_scalar, twist_row, wrench_effort_row
+from davinci_sim.sim.arm_laws import (
+    LIMIT_SLACK,
+    tracking_fault_scalar,
+    twist_row,
+    wrench_effort_row,
+)
 from davinci_sim.sim.cartesian_kernel import OK, cartesian_setpoint_row
 from davinci_sim.sim.chunk_kernel import ik_scratch, pose_in_reference_into, servo_step_row
 
