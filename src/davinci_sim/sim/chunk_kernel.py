@@ -77,31 +77,12 @@ def period_rows(
                 )  # fmt: skip
                 for i in range(dof):
                     seed[0, i] = Q[r, arm_q[i]]
-                if (
-                    cartesian_setpoint_row(
-                        ik_geometry,
-                        ik_tool,
-                        ik_revolute,
-                        ik_lo,
-                        ik_hi,
-                        fk_links,
-                        fk_modified,
-                        fk_tool,
-                        fk_identity,
-                        ik_tolerance,
-                        T_goal,
-                        seed,
-                        J_tip[r],
-                        twist_base[r],
-                        A,
-                        q_ik,
-                        success,
-                        status,
-                        info,
-                        qd,
-                    )
-                    != OK
-                ):  # servo_cp's law (cartesian_kernel): polish or least squares next
+                code = cartesian_setpoint_row(
+                    ik_geometry, ik_tool, ik_revolute, ik_lo, ik_hi, fk_links, fk_modified,
+                    fk_tool, fk_identity, ik_tolerance, T_goal, seed, J_tip[r], twist_base[r], A,
+                    q_ik, success, status, info, qd,
+                )  # fmt: skip
+                if code != OK:  # servo_cp's law (cartesian_kernel): polish or least squares
                     stop[r] = k
                     break
                 ok = success[0]
