@@ -16,6 +16,7 @@ from davinci_sim.geometry import so3
 from davinci_sim.geometry.path import Polyline
 from davinci_sim.haptics.fixture import fixture_force_camera
 from davinci_sim.haptics.viscous import ViscousGuidance
+from davinci_sim.kinematics import fk
 from davinci_sim.kinematics.arms import load_arm
 from davinci_sim.sim import arm_laws as laws
 
@@ -246,3 +247,53 @@ def test_square_solve_of_the_compiled_period_is_joint_velocitys_solve(psm_batch)
             qd = laws._solve(nearly, np.ones(6))
         declined = not solver(nearly, np.ones(6), A, out)
         assert declined == (not np.abs(qd).max() < laws._SINGULAR_QD)
+
+
+def _locked_wrist_reference(chain, q, R_base_goal, steps, damping):
+    """The orientation lock's DLS as numpy and LAPACK compute it (the law's oracle)."""
+    from scipy.linalg.lapack import dgesv
+
+    q = np.array(q, dtype=float)
+    for _ in range(steps):
+        T, J_spatial = fk.forward_kinematics_and_jacobian(chain, q)
+        err = so3.rotation_vector(R_base_goal @ T[:3, :3].T)
+        J = J_spatial[3:, 3:]
+        q[3:] += J.T @ dgesv(J @ J.T + damping * np.eye(3), err)[2]
+    return np.clip(q[3:], chain.qmin[3:], chain.qmax[3:])
+
+
+@pytest.mark.parametrize("compiled", [True, False])
+def test_locked_wrist_goal_is_the_damped_least_squares(compiled):
+    chain = load_arm("MTMR").chain
+    n = chain.dof
+    law = laws.locked_wrist_goal if compiled else laws.locked_wrist_goal.py_func
+    rng = np.random.default_rng(3)
+    for _ in range(50):
+        q = rng.uniform(chain.qmin, chain.qmax)
+        T = fk.forward_kinematics(chain, q)
+        R_goal = so3.rotation_from_vector(rng.normal(0.0, 0.3, 3)) @ T[:3, :3]
+        goal = np.empty(n - 3)
+        seed = q.copy()
+        assert law(*fk._consts(chain).packed, seed, 3, R_goal, 2, 1e-4, chain.qmin[3:],
+                   chain.qmax[3:], np.empty((4, 4)), np.empty((6, n)), np.empty((n, 12)),
+                   np.empty((3, 3)), np.empty(3), goal)  # fmt: skip
+        expected = _locked_wrist_reference(chain, q, R_goal, 2, 1e-4)
+        np.testing.assert_allclose(goal, expected, rtol=0, atol=1e-12)
+
+
+def test_locked_wrist_goal_reaches_the_orientation():
+    """Iterated tick after tick (each seeded with the last answer), the wrist turns the
+    handle to the locked orientation."""
+    chain = load_arm("MTMR").chain
+    n = chain.dof
+    q = np.array([0.0, 0.2, 0.1, 0.0, 0.3, 0.2, 0.1])
+    T = fk.forward_kinematics(chain, q)
+    R_goal = so3.rotation_from_vector([0.2, -0.1, 0.15]) @ T[:3, :3]
+    goal = np.empty(n - 3)
+    for _ in range(10):
+        laws.locked_wrist_goal(*fk._consts(chain).packed, q, 3, R_goal, 2, 1e-4, chain.qmin[3:],
+                               chain.qmax[3:], np.empty((4, 4)), np.empty((6, n)),
+                               np.empty((n, 12)), np.empty((3, 3)), np.empty(3), goal)  # fmt: skip
+        q[3:] = goal
+    R = fk.forward_kinematics(chain, q)[:3, :3]
+    assert so3.angle_between(R, R_goal) < 1e-6  # (acos: no finer near 0)

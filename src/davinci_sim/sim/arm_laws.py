@@ -19,9 +19,11 @@ import math
 
 import numpy as np
 
+from davinci_sim.geometry import so3
 from davinci_sim.geometry.so3 import rotate_pairs
 from davinci_sim.kinematics import fk
 from davinci_sim.kinematics.chain import DHChain
+from davinci_sim.kinematics.fk_compiled import tip_pose_row
 from davinci_sim.kinematics.jit import ENABLED as _COMPILED
 from davinci_sim.kinematics.jit import helper, jit
 
@@ -200,6 +202,50 @@ def tracking_first_bad(qpos, qposadr, q_ref, idx, tolerance, effort_mode) -> int
     return -1
 
 
+_rotation_vector = helper(so3.rotation_vector_floats)
+
+
+@jit
+def locked_wrist_goal(links, modified, tool, identity, q, first, R_base_goal, steps, damping,
+                      lo, hi, T, J, F, A, x, goal) -> bool:  # fmt: skip
+    """The MTM's orientation lock (``MTM._locked_wrist_goal``): ``steps`` damped least squares
+    steps of the wrist joints ``q[first:]`` (rad, seeded with ``q``, which is updated)
+    towards the tip orientation ``R_base_goal`` (3, 3, in the chain base): each step the
+    spatial rotation error ``rotvec(R_base_goal·R_base_tipᵀ)`` and
+    ``Δq = Jwᵀ (Jw Jwᵀ + damping·I)⁻¹ err`` with ``Jw`` the wrist's angular Jacobian
+    (the tip's rows 3-5 of the spatial Jacobian; ``damping``, rad²). Then the wrist clipped
+    to [``lo``, ``hi``] into ``goal``. ``links``…``identity``: the chain's packed FK;
+    ``T`` (4, 4), ``J`` (6, n), ``F`` (n, 12), ``A`` (3, 3), ``x`` (3,) scratch. False (``goal``
+    not written) if a solve fails (not for a proper chain: the damped matrix is positive
+    definite)."""
+    n = q.shape[0]
+    err = np.empty(3)
+    for _ in range(steps):
+        tip_pose_row(links, modified, tool, identity, q, T, J, True, F)
+        M = np.empty((3, 3))
+        for i in range(3):  # R_base_goal · R_base_tipᵀ
+            for m in range(3):
+                M[i, m] = (R_base_goal[i, 0] * T[m, 0] + R_base_goal[i, 1] * T[m, 1]) + (
+                    R_base_goal[i, 2] * T[m, 2]
+                )
+        err[0], err[1], err[2] = _rotation_vector(
+            M[0, 0], M[0, 1], M[0, 2], M[1, 0], M[1, 1], M[1, 2], M[2, 0], M[2, 1], M[2, 2]
+        )
+        for i in range(3):  # Jw·Jwᵀ + damping·I
+            for m in range(3):
+                t = damping if i == m else 0.0
+                for k in range(first, n):
+                    t = t + J[3 + i, k] * J[3 + m, k]
+                M[i, m] = t
+        if not solve_square_into(M, err, A, x):
+            return False
+        for k in range(first, n):
+            q[k] = q[k] + ((J[3, k] * x[0] + J[4, k] * x[1]) + J[5, k] * x[2])
+    for k in range(first, n):
+        goal[k - first] = min(max(q[k], lo[k - first]), hi[k - first])
+    return True
+
+
 def tracking_fault(bad, bad_since, t: float):
     """One tick of the tracking watch: ``bad`` (...) any joint of the arm is bad now;
     ``bad_since`` (...) when it became bad, s (nan: it is not). Returns the new
@@ -272,6 +318,14 @@ def _warm_up() -> None:
     tracking_first_bad(np.zeros(1), i, np.zeros(1), i, np.ones(1), np.zeros(1, dtype=bool))
     wrench_effort_row(np.zeros((6, 2)), np.eye(3), np.zeros(6), np.ones(2), np.empty(2))
     twist_row(np.eye(3), np.zeros((6, 2)), np.zeros(2), np.empty(6))
+    from davinci_sim.kinematics.arms import load_arm
+
+    mtm = load_arm("MTMR").chain
+    n = mtm.dof
+    scratch = (np.empty((4, 4)), np.empty((6, n)), np.empty((n, 12)), np.empty((3, 3)))
+    lo, hi = mtm.qmin[3:], mtm.qmax[3:]
+    locked_wrist_goal(*fk._consts(mtm).packed, np.zeros(n), 3, np.eye(3), 1, 1e-4, lo, hi,
+                      *scratch, np.empty(3), np.empty(n - 3))  # fmt: skip
 
 
 _warm_up()

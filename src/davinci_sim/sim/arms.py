@@ -6,7 +6,6 @@ import math
 from typing import TYPE_CHECKING
 
 import numpy as np
-from scipy.linalg.lapack import dgesv
 
 from davinci_sim.geometry import so3
 from davinci_sim.kinematics import fk, jit
@@ -181,7 +180,6 @@ _WRENCH_BOUND = np.array([MAX_FORCE] * 3 + [MAX_TORQUE] * 3)
 #: Damped-least-squares steps per tick of the orientation lock, and their damping (rad²).
 _LOCK_STEPS = 2
 _LOCK_DAMPING = 1e-4
-_LOCK_DAMPING_EYE = _LOCK_DAMPING * np.eye(3)
 
 
 class MTM(Arm):
@@ -219,6 +217,11 @@ class MTM(Arm):
             self.chain.qmin[MTM_WRIST_JOINTS].copy(),
             self.chain.qmax[MTM_WRIST_JOINTS].copy(),
         )
+        assert MTM_WRIST_JOINTS.stop == self.dof  # (the lock's law turns the chain's tail)
+        n = self.dof
+        self._lock_scratch = fk._consts(self.chain).packed
+        self._lock_scratch2 = (np.empty((4, 4)), np.empty((6, n)), np.empty((n, 12)),
+                               np.empty((3, 3)), np.empty(3))  # fmt: skip
 
     def lock_orientation(self, R_reference_tip) -> CommandResult:
         """Hold the handle at orientation ``R_reference_tip`` (3x3, in the ``measured_cp``
@@ -333,27 +336,20 @@ class MTM(Arm):
         servo.qd_ref[self._wrist_idx] = qd
 
     def _locked_wrist_goal(self) -> np.ndarray:
-        """Wrist joints giving the locked orientation with the current arm joints (DLS seeded
+        """Wrist joints giving the locked orientation with the current arm joints
+        (:func:`~davinci_sim.sim.arm_laws.locked_wrist_goal`: damped least squares seeded
         with the last solution, so it converges over the ticks as the dVRK's seeded IK)."""
         assert self._R_lock is not None
         R_base_goal = self.base_frame()[0][:3, :3].T @ self._R_lock
-        q = self._q()
-        chain, wrist = self.chain, MTM_WRIST_JOINTS
-        seeded = self._lock_goal is not None
-        if seeded:  # (the last solution: the lock's trajectory leads the measured wrist)
-            q[wrist] = self._lock_goal
-        for step in range(_LOCK_STEPS):
-            # Pose and Jacobian in one kernel pass (the pose is the same bits as FK alone);
-            # at the measured joints (an unseeded first step) the arm has them this tick.
-            if step == 0 and not seeded:
-                T, J_spatial = self._measured_kinematics(jacobian=True)[1:]
-            else:
-                T, J_spatial = fk.forward_kinematics_and_jacobian(chain, q)
-            err = so3.rotation_vector(R_base_goal @ T[:3, :3].T)  # spatial error, base frame
-            J = J_spatial[3:, wrist]
-            q[wrist] += J.T @ dgesv(J @ J.T + _LOCK_DAMPING_EYE, err)[2]
-        lo, hi = self._wrist_limits
-        goal = np.minimum(np.maximum(q[wrist], lo), hi)  # np.clip's arithmetic, less overhead
+        q = self._q()  # (a new array: the law updates it)
+        if self._lock_goal is not None:  # (the last solution: it leads the measured wrist)
+            q[MTM_WRIST_JOINTS] = self._lock_goal
+        goal = np.empty(q.shape[0] - MTM_WRIST_JOINTS.start)
+        if not laws.locked_wrist_goal(*self._lock_scratch, q, MTM_WRIST_JOINTS.start,
+                                      R_base_goal, _LOCK_STEPS, _LOCK_DAMPING,
+                                      *self._wrist_limits, *self._lock_scratch2, goal):  # fmt: skip
+            lo, hi = self._wrist_limits  # (no solve: NaN joints) the wrist held where it is
+            goal = np.minimum(np.maximum(self._q()[MTM_WRIST_JOINTS], lo), hi)
         self._lock_goal = goal
         return goal
 
