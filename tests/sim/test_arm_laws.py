@@ -297,3 +297,37 @@ def test_locked_wrist_goal_reaches_the_orientation():
         q[3:] = goal
     R = fk.forward_kinematics(chain, q)[:3, :3]
     assert so3.angle_between(R, R_goal) < 1e-6  # (acos: no finer near 0)
+
+
+@pytest.mark.parametrize("compiled", [True, False])
+def test_tracking_watch_is_each_arms_tracking_law(compiled):
+    """The watch over many arms gives, arm by arm, ``tracking_bad`` then ``tracking_fault``
+    (the first bad joint, when it became bad, whether it faults now), over ticks of random
+    errors, for the watched arms only."""
+    watch = laws.tracking_watch if compiled else laws.tracking_watch.py_func
+    rng = np.random.default_rng(5)
+    sizes = [6, 7, 3, 1]
+    starts = np.concatenate([[0], np.cumsum(sizes)]).astype(np.int64)
+    n = int(starts[-1])
+    adr, idx = rng.permutation(n).astype(np.int64), rng.permutation(n).astype(np.int64)
+    tol = rng.uniform(0.01, 0.3, n)
+    since = np.full(len(sizes), np.nan)
+    expected = since.copy()
+    first, fault = np.empty(len(sizes), dtype=np.int64), np.empty(len(sizes), dtype=bool)
+    for tick in range(200):
+        t = 0.001 * tick
+        qpos, q_ref = rng.normal(0, 0.1, n), rng.normal(0, 0.1, n)
+        effort = rng.random(n) < 0.2
+        watched = rng.random(len(sizes)) < 0.8
+        watch(qpos, adr, q_ref, idx, tol, effort, starts, watched, since, t, first, fault)
+        for k in range(len(sizes)):
+            if not watched[k]:
+                assert first[k] == -1 and not fault[k]
+                since[k] = expected[k]  # (unwatched: the arm's own value stays)
+                continue
+            j = slice(starts[k], starts[k + 1])
+            bad = laws.tracking_bad(qpos[adr[j]], q_ref[idx[j]], tol[j], effort[idx[j]])
+            assert first[k] == (int(np.argmax(bad)) if bad.any() else -1)
+            expected[k], now = laws.tracking_fault(bool(bad.any()), expected[k], t)
+            assert fault[k] == now
+            np.testing.assert_array_equal(since[k], expected[k])

@@ -347,21 +347,15 @@ class Arm(ServoJoints):
                 self._publish_state()
         if self._wrench is not None:
             servo.tau_ff[self._idx] = self._wrench_to_effort(*self._wrench)
-        if self._state == ops.ENABLED:
-            self._check_tracking(t)
+        # (The tracking watch runs after every arm's setpoints: sim/tracking_watch.py.)
 
-    def _check_tracking(self, t: float) -> None:
-        servo = self._sim.servo
-        # laws.tracking_bad as one compiled row kernel: every arm, every tick.
-        i = laws.tracking_first_bad(self._sim.measured_qpos(), self._tracking_adr, servo.q_ref,
-                                    self._tracking_idx, self._tol, servo.effort_mode)  # fmt: skip
-        self._tracking_bad_since, fault = laws.tracking_fault(i >= 0, self._tracking_bad_since, t)
-        if fault:
-            err = np.abs(self._q() - servo.q_ref[self._idx])
-            self._fault(
-                f"tracking error on joint {self.chain.joint_names[i]!r}: {err[i]:.4g} exceeds "
-                f"{self._tol[i]:.4g}"
-            )
+    def _tracking_fault(self, i: int) -> None:
+        """The tracking watch found joint ``i`` out of tolerance for too long: FAULT."""
+        err = abs(float(self._q()[i]) - float(self._sim.servo.q_ref[self._idx[i]]))
+        self._fault(
+            f"tracking error on joint {self.chain.joint_names[i]!r}: {err:.4g} exceeds "
+            f"{self._tol[i]:.4g}"
+        )
 
     def _fault(self, reason: str) -> None:
         """Go to FAULT holding where the joints are, saying ``reason`` on ``error``."""

@@ -189,19 +189,6 @@ def wrench_effort_row(J, R, w, ftmax, out):
         out[j] = t
 
 
-@jit
-def tracking_first_bad(qpos, qposadr, q_ref, idx, tolerance, effort_mode) -> int:
-    """:func:`tracking_bad` of one arm as one compiled row kernel (the live arm's check, on
-    every arm at 1 kHz): the first of its joints (``qposadr`` into ``qpos``, ``idx`` into
-    the servo's ``q_ref``/``effort_mode``; both int64) that is position-servoed and further
-    from its setpoint than ``tolerance``, or -1. The same comparisons as the batch law."""
-    for k in range(idx.shape[0]):
-        j = idx[k]
-        if abs(qpos[qposadr[k]] - q_ref[j]) > tolerance[k] and not effort_mode[j]:
-            return k
-    return -1
-
-
 _rotation_vector = helper(so3.rotation_vector_floats)
 
 
@@ -244,6 +231,33 @@ def locked_wrist_goal(links, modified, tool, identity, q, first, R_base_goal, st
     for k in range(first, n):
         goal[k - first] = min(max(q[k], lo[k - first]), hi[k - first])
     return True
+
+
+@jit
+def tracking_watch(qpos, qposadr, q_ref, idx, tolerance, effort_mode, starts, watched,
+                   bad_since, t, first_bad, fault) -> bool:  # fmt: skip
+    """:func:`tracking_bad` and :func:`tracking_fault_scalar` of many arms in one call (the
+    live simulation's watch over all its arms at 1 kHz, ``sim/tracking_watch.py``):
+    arm ``k`` owns entries ``starts[k]:starts[k + 1]`` of ``qposadr``, ``idx`` and
+    ``tolerance``; only arms with ``watched[k]`` are checked. Writes ``bad_since[k]`` (s,
+    nan: none bad), ``first_bad[k]`` (the arm's first bad joint, -1: none) and ``fault[k]``
+    (FAULT now); returns whether any arm faults now."""
+    any_fault = False
+    for k in range(watched.shape[0]):
+        fault[k] = False
+        first_bad[k] = -1
+        if not watched[k]:
+            continue
+        for m in range(starts[k], starts[k + 1]):
+            j = idx[m]
+            if abs(qpos[qposadr[m]] - q_ref[j]) > tolerance[m] and not effort_mode[j]:
+                first_bad[k] = m - starts[k]
+                break
+        since, now = tracking_fault_scalar(first_bad[k] >= 0, bad_since[k], t)
+        bad_since[k] = since
+        fault[k] = now
+        any_fault = any_fault or now
+    return any_fault
 
 
 def tracking_fault(bad, bad_since, t: float):
@@ -315,9 +329,11 @@ def _warm_up() -> None:
     """Compile (or load from numba's cache) at import, with the live arm's argument types,
     never in the 1 kHz loop (:mod:`davinci_sim.kinematics.jit`)."""
     i = np.zeros(1, dtype=np.int64)
-    tracking_first_bad(np.zeros(1), i, np.zeros(1), i, np.ones(1), np.zeros(1, dtype=bool))
     wrench_effort_row(np.zeros((6, 2)), np.eye(3), np.zeros(6), np.ones(2), np.empty(2))
     twist_row(np.eye(3), np.zeros((6, 2)), np.zeros(2), np.empty(6))
+    b = np.zeros(1, dtype=bool)
+    tracking_watch(np.zeros(1), i, np.zeros(1), i, np.ones(1), b, np.zeros(2, dtype=np.int64),
+                   b, np.zeros(1), 0.0, i.copy(), b.copy())  # fmt: skip
     from davinci_sim.kinematics.arms import load_arm
 
     mtm = load_arm("MTMR").chain

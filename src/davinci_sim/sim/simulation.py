@@ -39,6 +39,7 @@ from davinci_sim.sim.state import (
     describe_scene,
     model_signature,
 )
+from davinci_sim.sim.tracking_watch import TrackingWatch
 
 ARM_NAMES = ("PSM1", "PSM2", "PSM3", "ECM", "MTML", "MTMR")
 #: The base frames and the camera frame are memoized on the exact values of the setup and
@@ -115,6 +116,7 @@ class Simulation:
             if _has_joint(self.model, f"SUJ/{name}/{suj.chain.joint_names[0]}"):
                 self.arms[f"SUJ/{name}"] = SUJArm(f"SUJ/{name}", suj, self)
         self._init_frames()
+        self._watch = TrackingWatch(list(self.arms.values()))
         # Fingers (PSM jaws, MTM grippers) hold their initial opening.
         self.servo.q_ref[:] = self.data.qpos[self.servo.qposadr]
         self._instrument_bodies = {
@@ -141,7 +143,7 @@ class Simulation:
         return float(self.data.time)
 
     def tick(self) -> None:
-        """One 1 ms control tick: components → arm setpoints → servo → physics → components."""
+        """One 1 ms tick: components → arm setpoints → watch → servo → physics → components."""
         if self._initial_components is None:  # the components as assembled: for reset()
             self._initial_components = dict(self._capture_components(strict=False))
         t = self.data.time
@@ -149,17 +151,16 @@ class Simulation:
             component.pre_step(t)
         for arm in self.arms.values():
             arm._pre_step(t)
+        self._watch.check(self.measured_qpos(), self.servo, t)
         self.servo.apply(self.data)
         self._guard.save(self.data)
         mujoco.mj_step(self.model, self.data)
-        tripped = self._guard.tripped()
-        if tripped:
+        if tripped := self._guard.tripped():
             self._recover(tripped)
         self.tick_count += 1
         if self.encoder_noise_std > 0:
-            self._noisy_qpos = self.data.qpos + self.rng.normal(
-                0.0, self.encoder_noise_std, self.data.qpos.shape
-            )
+            noise = self.rng.normal(0.0, self.encoder_noise_std, self.data.qpos.shape)
+            self._noisy_qpos = self.data.qpos + noise
         t = self.data.time
         for component in self._components.values():
             post_step = getattr(component, "post_step", None)
