@@ -92,6 +92,7 @@ class FixtureField:
         self.dt = dt
         self._filters: dict[str, VelocityFilter] = {}
         self.__name__ = type(fixture).__name__
+        self._row: tuple | None | bool = False  # (False: not looked for yet)
 
     def tip_velocity_camera(self, state: HapticState) -> np.ndarray:
         """The tool tip velocity this field uses, camera axes, m/s."""
@@ -103,10 +104,33 @@ class FixtureField:
         return f.update(state.p_camera_tip)
 
     def __call__(self, state: HapticState) -> np.ndarray:
+        if self._row is False:
+            self._row = _compiled_form(self)
+        if self._row is not None:
+            return self._compiled_force(state, self._row)
         p = np.asarray(state.p_camera_tip, dtype=float)
         v = self.tip_velocity_camera(state)
         T = None if self.frame == "camera" else np.asarray(state.T_world_camera, dtype=float)
         return fixture_force_camera(self.fixture, T, p, v)
+
+    def _compiled_force(self, state: HapticState, row: tuple) -> np.ndarray:
+        """:meth:`__call__` by the compiled row (:mod:`~davinci_sim.haptics.fixture_row`):
+        the same bits, the filter's memory updated in place."""
+        from davinci_sim.haptics.fixture_row import viscous_fixture_force
+
+        f = self._filters.get(state.psm)
+        if f is None:
+            f = self._filters[state.psm] = VelocityFilter(dt=self.dt, cutoff_hz=self.cutoff_hz)
+        if not (f._p.flags.writeable and f._v.flags.writeable):  # (e.g. restored views)
+            f._p, f._v = np.array(f._p, dtype=float), np.array(f._v, dtype=float)
+        out = np.empty(3)
+        path, B, G_max, transition, summed = row
+        viscous_fixture_force(
+            np.array(state.T_world_camera, dtype=float), np.array(state.p_camera_tip, dtype=float),
+            f._p, f._v, bool(f._started), f.dt, f.alpha, *path, B, G_max, transition, summed, out,
+        )  # fmt: skip
+        f._started[...] = True
+        return out
 
     def reset(self) -> None:
         """Forget the velocity filters' history (e.g. after a clutch or a new repetition)."""
@@ -121,3 +145,29 @@ class FixtureField:
         for psm, filter_state in state.items():
             f = self._filters[psm] = VelocityFilter(dt=self.dt, cutoff_hz=self.cutoff_hz)
             f.set_state(filter_state)
+
+
+def _compiled_form(field: FixtureField) -> tuple | None:
+    """``field``'s arguments for the compiled row (path constants, ``B``, ``G_max``,
+    ``transition``, whether summed), or None where it has none: numba off, a fixture other
+    than the seed's viscous law (alone or as a sum of one, one ``B`` and ``G_max``), the
+    camera frame, the measured velocity, a path longer than the brute force serves."""
+    from davinci_sim.haptics.combine import FixtureSum
+    from davinci_sim.haptics.viscous import ViscousGuidance
+    from davinci_sim.kinematics import jit
+
+    if not jit.ENABLED or field.frame != "world" or field.velocity_source != "filtered":
+        return None
+    fixture, summed = field.fixture, False
+    if isinstance(fixture, FixtureSum) and len(fixture.fixtures) == 1:
+        fixture, summed = fixture.fixtures[0], True
+    if type(fixture) is not ViscousGuidance:
+        return None
+    if not (isinstance(fixture.B, float) and isinstance(fixture.G_max, float)):
+        return None
+    from davinci_sim.haptics.fixture_row import path_constants
+
+    path = path_constants(fixture.path)
+    if path is None:
+        return None
+    return path, fixture.B, fixture.G_max, float(fixture.transition), summed

@@ -16,8 +16,9 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from davinci_sim.console import teleop_math as tm
-from davinci_sim.geometry.path import BRUTE_FORCE_MAX_SEGMENTS, Polyline, brute_force_constants
+from davinci_sim.geometry.path import Polyline
 from davinci_sim.haptics.combine import FixtureSum
+from davinci_sim.haptics.fixture_row import path_constants
 from davinci_sim.haptics.viscous import ViscousGuidance
 from davinci_sim.kinematics import fk
 from davinci_sim.kinematics.jit import warmed_up
@@ -31,14 +32,6 @@ if TYPE_CHECKING:
 _KERNELS = None
 if rows_step.COMPILED:  # (MuJoCo's library is loaded into LLVM's symbols by rows_step)
     from davinci_sim.study import tick_kernel as _KERNELS
-
-
-def _path_constants(path: Polyline) -> tuple:
-    """The path's arrays for the compiled closest point, as new writable C arrays (one
-    compiled signature, whatever flags the path's own arrays have)."""
-    parts = (path.centre, *brute_force_constants(path), path.starts, path.edges,
-             path.cumulative_length, path.segment_lengths)  # fmt: skip
-    return tuple(np.array(a, dtype=float, order="C") for a in parts)
 
 
 def constants(batch: TrialBatch, keys) -> dict | None:
@@ -59,8 +52,8 @@ def constants(batch: TrialBatch, keys) -> dict | None:
     paths = {id(v.path) for v in laws_of.values()}
     if len(paths) != 1:
         return None
-    path = next(iter(laws_of.values())).path
-    if len(path.segment_lengths) > BRUTE_FORCE_MAX_SEGMENTS:
+    path = path_constants(next(iter(laws_of.values())).path)
+    if path is None:
         return None
     order = list(laws_of)
     batch._cond_index = np.array([order.index(k) for k in keys], dtype=np.intp)
@@ -68,7 +61,7 @@ def constants(batch: TrialBatch, keys) -> dict | None:
         "B": np.array([laws_of[k].B for k in order]),
         "G_max": np.array([laws_of[k].G_max for k in order]),
         "transition": np.array([float(laws_of[k].transition) for k in order]),
-        "path": _path_constants(path),
+        "path": path,
     }  # fmt: skip
     ik = _ik_packed(batch.psm_chain)
     c["ik"] = (ik.geometry, ik.tool, ik.revolute, ik.lim_lo, ik.lim_hi)
@@ -158,7 +151,7 @@ def _warm_up() -> None:
 
     psm, mtm = load_arm("PSM1").chain, load_arm("MTMR").chain
     ik, psm_fk, mtm_fk = _ik_packed(psm), fk._consts(psm).packed, fk._consts(mtm).packed
-    path = _path_constants(Polyline(np.array([[0.0, 0.0, 0.0], [0.01, 0.0, 0.0]])))
+    path = path_constants(Polyline(np.array([[0.0, 0.0, 0.0], [0.01, 0.0, 0.0]])))
     i, f, b = np.zeros(0, dtype=np.intp), np.zeros(0), np.zeros(0, dtype=bool)
     f2, f3, I4 = np.zeros((0, 6)), np.zeros((0, 4, 4)), np.eye(4)
     _KERNELS.teleop_rows(

@@ -26,8 +26,7 @@ import numba
 import numpy as np
 
 from davinci_sim.devices.safety import _clamp_rows
-from davinci_sim.haptics.path_query import _closest_point_into
-from davinci_sim.haptics.viscous import _viscous_into
+from davinci_sim.haptics.fixture_row import viscous_fixture_row
 from davinci_sim.kinematics.fk_compiled import tip_pose_row
 from davinci_sim.sim.arm_laws import (
     LIMIT_SLACK,
@@ -183,35 +182,16 @@ def physics_rows(
         tip_pose_row(mtm_links, mtm_modified, mtm_tool, mtm_identity, qm, T, J_mtm[r], True, F)
         pose_in_reference_into(T_hrsv_mtmbase, T, T_mtm[r])
         _twist(T_hrsv_mtmbase[:3, :3], J_mtm[r], qdm, twist_mtm[r])
-        # --- the velocity filter (VelocityFilter.update)
-        for i in range(3):
-            p = T_psm[r, i, 3]
-            if vf_started[r]:
-                d = (p - vf_p[r, i]) / vf_dt
-                vf_v[r, i] = vf_v[r, i] + vf_alpha * (d - vf_v[r, i])
-            else:
-                vf_v[r, i] = 0.0
-            vf_p[r, i] = p
-        vf_started[r] = True
-        # --- the fixture in the task's frame (fixture_force_camera, ViscousGuidance.force)
-        for i in range(3):
-            pt[i] = (
-                T_task_camera[i, 0] * T_psm[r, 0, 3] + T_task_camera[i, 1] * T_psm[r, 1, 3]
-            ) + T_task_camera[i, 2] * T_psm[r, 2, 3]
-            pt[i] = pt[i] + T_task_camera[i, 3]
-            vt[i] = (T_task_camera[i, 0] * vf_v[r, 0] + T_task_camera[i, 1] * vf_v[r, 1]) + (
-                T_task_camera[i, 2] * vf_v[r, 2]
-            )
-        _closest_point_into(pt, centre, basis, AE, AA, EE, starts, edges, cumulative, lengths,
-                            cp)  # fmt: skip
+        # --- the velocity filter and the fixture in the task's frame (FixtureField of the
+        # viscous law: haptics/fixture_row.py, the live haptic loop's row)
         k = cond[r]
-        _viscous_into(vt, cp[3:6], B[k], G_max[k], transition[k], f)
+        viscous_fixture_row(
+            T_task_camera, T_psm[r, :3, 3], vf_p[r], vf_v[r], vf_started[r], vf_dt, vf_alpha,
+            centre, basis, AE, AA, EE, starts, edges, cumulative, lengths,
+            B[k], G_max[k], transition[k], True, cp, pt, vt, f, requested[r],
+        )  # fmt: skip
+        vf_started[r] = True
         for i in range(3):
-            f[i] = 0.0 + f[i]  # (FixtureSum: a sum started from zeros)
-        for i in range(3):
-            requested[r, i] = (
-                T_task_camera[0, i] * f[0] + T_task_camera[1, i] * f[1]
-            ) + T_task_camera[2, i] * f[2]
             W[r, i] = requested[r, i]
             W[r, 3 + i] = 0.0
     # --- the safety clamp (clamp_wrenches), then Jᵀw on the MTM (wrench_effort)

@@ -1,0 +1,99 @@
+"""The seed's viscous fixture on one tool tip as one compiled row: the velocity filter, the tip
+into the fixture's frame, the path's closest point, the viscous law, the force back in camera
+axes (:class:`~davinci_sim.haptics.fixture.FixtureField` of a
+:class:`~davinci_sim.haptics.viscous.ViscousGuidance` in the world frame with the filtered
+velocity).
+
+:func:`viscous_fixture_row` is the one per-row form of that chain: the live haptic loop calls
+it through :func:`viscous_fixture_force` (one tip a tick), the study's compiled tick for each
+of its rows (``study/tick_kernel.py``). Each step is the batch law's operations in their
+order (``filtered_velocity_step``, ``rotate_rows``, ``closest_point``, ``_viscous_into``,
+``FixtureSum``'s sum from zeros), so the bits are those of the Python path
+(``tests/haptics/test_fixture_row.py``).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from davinci_sim.geometry.path import BRUTE_FORCE_MAX_SEGMENTS, Polyline, brute_force_constants
+from davinci_sim.haptics.path_query import _closest_point_into
+from davinci_sim.haptics.viscous import _viscous_into
+from davinci_sim.kinematics.jit import helper, jit
+
+
+def path_constants(path: Polyline) -> tuple | None:
+    """``path``'s arrays for the compiled closest point (new writable C arrays: one compiled
+    signature, whatever flags the path's own arrays have), or None for a path the brute
+    force does not serve (longer than :data:`BRUTE_FORCE_MAX_SEGMENTS`: the k-d tree)."""
+    if len(path.segment_lengths) > BRUTE_FORCE_MAX_SEGMENTS:
+        return None
+    parts = (path.centre, *brute_force_constants(path), path.starts, path.edges,
+             path.cumulative_length, path.segment_lengths)  # fmt: skip
+    return tuple(np.array(a, dtype=float, order="C") for a in parts)
+
+
+@helper
+def viscous_fixture_row(
+    T_task_camera, p_camera, vf_p, vf_v, started, vf_dt, vf_alpha,
+    centre, basis, AE, AA, EE, starts, edges, cumulative, lengths,
+    B, G_max, transition, summed, cp, pt, vt, f, f_camera,
+):  # fmt: skip
+    """The force ``f_camera`` (3,), N, camera axes, of the viscous fixture (``B``, N·s/m;
+    ``G_max``, N; ``transition``; ``summed``: inside a ``FixtureSum`` of one) along the path
+    (``centre`` … ``lengths``: its :func:`path_constants`, task frame) on the tool tip at
+    ``p_camera`` (3,), m, camera frame. ``T_task_camera`` (4, 4): the camera in the task's
+    frame. The velocity filter's memory ``vf_p``, ``vf_v`` (3,) is updated in place
+    (``started``: it has a previous sample; ``vf_dt`` s, ``vf_alpha``); ``cp`` (8,),
+    ``pt``, ``vt``, ``f`` (3,) scratch."""
+    for i in range(3):  # the velocity filter (VelocityFilter.update)
+        p = p_camera[i]
+        if started:
+            d = (p - vf_p[i]) / vf_dt
+            vf_v[i] = vf_v[i] + vf_alpha * (d - vf_v[i])
+        else:
+            vf_v[i] = 0.0
+        vf_p[i] = p
+    for i in range(3):  # into the task's frame (rotate_rows, then the translation)
+        pt[i] = (T_task_camera[i, 0] * p_camera[0] + T_task_camera[i, 1] * p_camera[1]) + (
+            T_task_camera[i, 2] * p_camera[2]
+        )
+        pt[i] = pt[i] + T_task_camera[i, 3]
+        vt[i] = (T_task_camera[i, 0] * vf_v[0] + T_task_camera[i, 1] * vf_v[1]) + (
+            T_task_camera[i, 2] * vf_v[2]
+        )
+    _closest_point_into(pt, centre, basis, AE, AA, EE, starts, edges, cumulative, lengths, cp)
+    _viscous_into(vt, cp[3:6], B, G_max, transition, f)
+    if summed:
+        for i in range(3):
+            f[i] = 0.0 + f[i]  # (FixtureSum: a sum started from zeros)
+    for i in range(3):  # back to camera axes (rotate_rows by the rotation's transpose)
+        f_camera[i] = (T_task_camera[0, i] * f[0] + T_task_camera[1, i] * f[1]) + (
+            T_task_camera[2, i] * f[2]
+        )
+
+
+@jit
+def viscous_fixture_force(
+    T_task_camera, p_camera, vf_p, vf_v, started, vf_dt, vf_alpha,
+    centre, basis, AE, AA, EE, starts, edges, cumulative, lengths,
+    B, G_max, transition, summed, f_camera,
+):  # fmt: skip
+    """:func:`viscous_fixture_row` of one tip (the live haptic tick), scratch allocated."""
+    viscous_fixture_row(
+        T_task_camera, p_camera, vf_p, vf_v, started, vf_dt, vf_alpha,
+        centre, basis, AE, AA, EE, starts, edges, cumulative, lengths,
+        B, G_max, transition, summed, np.empty(8), np.empty(3), np.empty(3), np.empty(3), f_camera,
+    )  # fmt: skip
+
+
+def _warm_up() -> None:
+    """Compile (or load from numba's cache) at import, never in the 1 kHz loop, with the
+    live field's argument types."""
+    path = path_constants(Polyline(np.array([[0.0, 0.0, 0.0], [0.01, 0.0, 0.0]])))
+    assert path is not None
+    viscous_fixture_force(np.eye(4), np.zeros(3), np.zeros(3), np.zeros(3), True, 0.001, 0.5,
+                          *path, 1.0, 1.0, 0.0, True, np.empty(3))  # fmt: skip
+
+
+_warm_up()
