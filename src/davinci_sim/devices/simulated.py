@@ -22,7 +22,7 @@ from davinci_sim.devices.safety import WrenchLimits
 from davinci_sim.devices.state import DeviceInput
 from davinci_sim.sim.arms import MTM
 from davinci_sim.sim.types import CommandResult
-from davinci_sim.sim.validation import as_transform
+from davinci_sim.sim.validation import MAX_FORCE, MAX_TORQUE, as_transform
 
 if TYPE_CHECKING:
     from davinci_sim.sim.simulation import Simulation
@@ -265,7 +265,11 @@ class SimulatedMTM(MasterDevice):
         current = self.arm.wrench_setpoint()
         if current is not None and current[0] == "spatial" and np.array_equal(current[1], wrench):
             return  # already applied (the arm re-applies it every tick)
-        self.arm.spatial.servo_cf(wrench)
+        # The device's wrench is checked and clamped to its limits: within the arm's own
+        # bounds when the limits are (the defaults), so not checked again there.
+        limits = self._limiter.limits
+        checked = limits.max_force <= MAX_FORCE and limits.max_torque <= MAX_TORQUE
+        self.arm._servo_cf("spatial", wrench, checked=checked)
 
     # ------------------------------------------------------------ state
     _STATE = MasterDevice._STATE + (

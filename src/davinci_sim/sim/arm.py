@@ -708,11 +708,14 @@ class Arm(ServoJoints):
             R_base_tip = self.base_frame()[0][:3, :3].T
         return laws.wrench_effort(Js, R_base_tip, w, self.chain.ftmax)
 
-    def _servo_cf(self, kind: str, wrench) -> CommandResult:
+    def _servo_cf(self, kind: str, wrench, checked: bool = False) -> CommandResult:
+        """``servo_cf`` of ``kind`` (body or spatial); ``checked``: ``wrench`` is already a
+        checked (6,) float array within the bounds (the haptic loop's clamped sum: validated
+        once, at the edge it came in by)."""
         why = self._not_ready()
         if why:
             return self._refuse(f"{kind}/servo_cf", why)
-        w, msg = as_wrench(wrench, "wrench")
+        w, msg = (wrench, "") if checked else as_wrench(wrench, "wrench")
         if w is None:
             return self._refuse(f"{kind}/servo_cf", msg)
         if self._wrench is None or self._wrench[0] != kind:  # entering this wrench mode
