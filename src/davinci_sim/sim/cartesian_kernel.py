@@ -120,6 +120,7 @@ def _warm_up() -> None:
     chain = load_arm("PSM1").chain
     T = np.eye(4)
     T[2, 3] = -0.1
-    servo_cp_row(*servo_cp_constants(chain), np.eye(4), T, _readonly(np.zeros(6)),
-                 _readonly(np.eye(6)), True, np.zeros(6), chain.qmin, chain.qmax, np.ones(6),
-                 np.empty(6), np.empty(6))  # fmt: skip
+    args = (*servo_cp_constants(chain), np.eye(4), T, _readonly(np.zeros(6)),
+            _readonly(np.eye(6)), True, np.zeros(6), chain.qmin, chain.qmax, np.ones(6),
+            np.empty(6), np.empty(6))  # fmt: skip
+    servo_cp_row(*args)
