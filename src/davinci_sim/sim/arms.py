@@ -102,7 +102,7 @@ class PSM(Arm):
             qd_out,
         ):  # fmt: skip
             return False
-        self._servo_position(q_out.copy(), qd_out.copy())
+        self._servo_position(q_out, qd_out)  # (copied into the servo's references)
         return True
 
     def _start_homing(self) -> None:

@@ -4,10 +4,11 @@ seeded with the measured joints, and the twist feed-forward ``J⁻¹·twist`` in
 
 :func:`cartesian_setpoint_row` is the one per-row form of that law. The live arm calls it
 through :func:`servo_cp_row` for the common answer of every ``servo_cp`` (the teleoperation's
-at 1 kHz, and ROS/web clients'), and the study's compiled tick calls it for each row
-(``study/tick_kernel.py``). What it has no compiled form of (an IK answer to polish, a
-singular Jacobian's least squares), and the messages of a refusal, stay with the Python path
-(:meth:`~davinci_sim.sim.arm.Arm.servo_cp`), which is also the tests' oracle.
+at 1 kHz, and ROS/web clients'), and the study's compiled tick and the environments' control
+period call it for each row (``study/tick_kernel.py``, ``sim/chunk_kernel.py``). What it has
+no compiled form of (an IK answer to polish, a singular Jacobian's least squares), and the
+messages of a refusal, stay with the Python path (:meth:`~davinci_sim.sim.arm.Arm.servo_cp`),
+which is also the tests' oracle.
 """
 
 from __future__ import annotations
