@@ -28,6 +28,14 @@ OK, NEEDS_POLISH, SINGULAR = 0, 1, 2
 
 
 @numba.njit(cache=True, nogil=True)
+def ik_scratch(dof):
+    """The arrays of one goal for ``closed_form_rows`` called on a single row from a kernel:
+    goal (1, 4, 4), seed, answer (1, dof), success, status, info."""
+    return (np.empty((1, 4, 4)), np.empty((1, dof)), np.empty((1, dof)),
+            np.empty(1, dtype=np.bool_), np.empty(1, dtype=np.int64), np.empty((1, 5)))  # fmt: skip
+
+
+@numba.njit(cache=True, nogil=True)
 def cartesian_setpoint_row(
     ik_geometry, ik_tool, ik_revolute, ik_lo, ik_hi, fk_links, fk_modified, fk_tool,
     fk_identity, ik_tolerance, T_goal, seed, J, twist_base, A, q_ik, success, status, info, qd,
@@ -61,14 +69,13 @@ def servo_cp_row(
     ``qd_bound``; False otherwise (the caller runs the Python path, which has the rarer
     answers and the messages). ``T_base_ref``: the reference frame in the arm's base."""
     dof = q.shape[0]
-    T_goal = np.empty((1, 4, 4))
+    T_goal, seed, q_ik, success, status, info = ik_scratch(dof)
     for i in range(4):  # T_base_ref · T_ref_goal (IK works in the base frame, dvrk.md 1.8)
         for m in range(4):
             t = 0.0
             for h in range(4):
                 t = t + T_base_ref[i, h] * T_ref_goal[h, m]
             T_goal[0, i, m] = t
-    seed = np.empty((1, dof))
     for i in range(dof):
         seed[0, i] = q[i]
     twist_base = np.empty(6)
@@ -78,8 +85,6 @@ def servo_cp_row(
             twist_base[3 * h + i] = (
                 x * T_base_ref[i, 0] + y * T_base_ref[i, 1] + z * T_base_ref[i, 2]
             )
-    q_ik, success = np.empty((1, dof)), np.empty(1, dtype=np.bool_)
-    status, info = np.empty(1, dtype=np.int64), np.empty((1, 5))
     code = cartesian_setpoint_row(
         ik_geometry, ik_tool, ik_revolute, ik_lo, ik_hi, fk_links, fk_modified, fk_tool,
         fk_identity, ik_tolerance, T_goal, seed, J, twist_base, np.empty((dof, dof)), q_ik,

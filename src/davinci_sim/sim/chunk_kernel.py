@@ -19,7 +19,7 @@ import numpy as np
 
 from davinci_sim.kinematics.fk_compiled import tip_pose_row
 from davinci_sim.sim.arm_laws import LIMIT_SLACK, tracking_fault_scalar
-from davinci_sim.sim.cartesian_kernel import OK, cartesian_setpoint_row
+from davinci_sim.sim.cartesian_kernel import OK, cartesian_setpoint_row, ik_scratch
 from davinci_sim.sim.rows_kernel import f64_at, mj_step
 from davinci_sim.sim.servo import servo_ctrl_scalar
 
@@ -187,11 +187,3 @@ def pose_in_reference_into(T_ref_base, T_base_tip, out):
             for h in range(4):
                 t = t + T_ref_base[i, h] * T_base_tip[h, m]
             out[i, m] = t
-
-
-@numba.njit(cache=True, nogil=True)
-def ik_scratch(dof):
-    """The arrays of one goal for ``closed_form_rows`` called on a single row from a kernel:
-    goal (1, 4, 4), seed, answer (1, dof), success, status, info."""
-    return (np.empty((1, 4, 4)), np.empty((1, dof)), np.empty((1, dof)),
-            np.empty(1, dtype=np.bool_), np.empty(1, dtype=np.int64), np.empty((1, 5)))  # fmt: skip

@@ -34,8 +34,8 @@ from davinci_sim.sim.arm_laws import (
     twist_row,
     wrench_effort_row,
 )
-from davinci_sim.sim.cartesian_kernel import OK, cartesian_setpoint_row
-from davinci_sim.sim.chunk_kernel import ik_scratch, pose_in_reference_into, servo_step_row
+from davinci_sim.sim.cartesian_kernel import OK, cartesian_setpoint_row, ik_scratch
+from davinci_sim.sim.chunk_kernel import pose_in_reference_into, servo_step_row
 
 _clamp = _clamp_rows.dispatcher
 _twist = twist_row.dispatcher
