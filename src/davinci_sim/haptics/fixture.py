@@ -116,16 +116,14 @@ class FixtureField:
     def _compiled_force(self, state: HapticState, row: tuple) -> np.ndarray:
         """:meth:`__call__` by the compiled row (:mod:`~davinci_sim.haptics.fixture_row`):
         the same bits, the filter's memory updated in place."""
-        from davinci_sim.haptics.fixture_row import viscous_fixture_force
-
         f = self._filters.get(state.psm)
         if f is None:
             f = self._filters[state.psm] = VelocityFilter(dt=self.dt, cutoff_hz=self.cutoff_hz)
         if not (f._p.flags.writeable and f._v.flags.writeable):  # (e.g. restored views)
             f._p, f._v = np.array(f._p, dtype=float), np.array(f._v, dtype=float)
         out = np.empty(3)
-        path, B, G_max, transition, summed = row
-        viscous_fixture_force(
+        force, path, B, G_max, transition, summed = row
+        force(
             np.array(state.T_world_camera, dtype=float), np.array(state.p_camera_tip, dtype=float),
             f._p, f._v, bool(f._started), f.dt, f.alpha, *path, B, G_max, transition, summed, out,
         )  # fmt: skip
@@ -148,7 +146,7 @@ class FixtureField:
 
 
 def _compiled_form(field: FixtureField) -> tuple | None:
-    """``field``'s arguments for the compiled row (path constants, ``B``, ``G_max``,
+    """``field``'s compiled row and its arguments (the row, path constants, ``B``, ``G_max``,
     ``transition``, whether summed), or None where it has none: numba off, a fixture other
     than the seed's viscous law (alone or as a sum of one, one ``B`` and ``G_max``), the
     camera frame, the measured velocity, a path longer than the brute force serves."""
@@ -165,9 +163,9 @@ def _compiled_form(field: FixtureField) -> tuple | None:
         return None
     if not (isinstance(fixture.B, float) and isinstance(fixture.G_max, float)):
         return None
-    from davinci_sim.haptics.fixture_row import path_constants
+    from davinci_sim.haptics.fixture_row import path_constants, viscous_fixture_force
 
     path = path_constants(fixture.path)
     if path is None:
         return None
-    return path, fixture.B, fixture.G_max, float(fixture.transition), summed
+    return viscous_fixture_force, path, fixture.B, fixture.G_max, float(fixture.transition), summed
