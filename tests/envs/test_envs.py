@@ -66,6 +66,25 @@ def test_the_same_seed_gives_the_same_episode_bit_for_bit(reach):
     assert not np.array_equal(first[0]["target"], other[0]["target"])
 
 
+def test_an_action_runs_compiled_with_the_python_ticks_results(reach, monkeypatch):
+    """The control period's ticks in one compiled call (sim/live_period.py) give the
+    episode the Python ticks give, bit for bit; they ran compiled."""
+    actions = np.random.default_rng(2).uniform(-1, 1, (30, 4)).astype(np.float32)
+    if reach._period is None:
+        pytest.skip("numba does not compile here")
+    calls = []
+    run = reach._period.run
+    monkeypatch.setattr(reach._period, "run", lambda *a, **k: calls.append(1) or run(*a, **k))
+    compiled = _run(reach, 5, actions)
+    assert len(calls) >= len(compiled) - 1
+    monkeypatch.setattr(reach, "_period", None)
+    python = _run(reach, 5, actions)
+    assert len(compiled) == len(python)
+    for a, b in zip(compiled, python, strict=True):
+        for k in a:
+            np.testing.assert_array_equal(a[k], b[k], err_msg=k)
+
+
 def test_reset_restores_the_start_state_without_rebuilding(reach):
     sim, model = reach.sim, reach.sim.model
     obs0, _ = reach.reset(seed=2)

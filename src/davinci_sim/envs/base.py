@@ -7,6 +7,9 @@ goal in the camera frame, orientation held, with the twist feed-forward) or ``se
 (joint goal with its velocity), moving along the period's ramp as the teleoperation does
 with the master's motion (:mod:`davinci_sim.envs.control`); the jaw's ``servo_jp`` once.
 Then the simulation ticks (:meth:`Simulation.tick`: the arm's laws, the servo, ``mj_step``).
+Without a task to sample every tick, the period's ticks run in one compiled call
+(:func:`~davinci_sim.sim.live_period.run_period`: the same laws, the same bits), each tick it
+has no compiled form of in Python.
 
 **Action** (``Box(-1, 1)``, float32): ``cartesian``, (dx, dy, dz, jaw): the goal's
 displacement in the camera frame in units of ``max_step`` (m), the jaw opening from closed
@@ -50,7 +53,9 @@ from davinci_sim.envs import control
 from davinci_sim.envs.control import orientation_features
 from davinci_sim.envs.problems import ReachProblem, TaskProblem
 from davinci_sim.envs.setup import EnvConfig, EnvStart, build_start
+from davinci_sim.sim import live_period
 from davinci_sim.sim import operating_state as ops
+from davinci_sim.sim.live_period import ArmPeriod, run_period
 
 
 def joint_steps(chain, max_joint_step: float) -> np.ndarray:
@@ -132,6 +137,7 @@ class DavinciEnv(gym.Env):
         self._q_goal = self._q_set()
         self._scene_cache: dict = {}
         self._episode_over = True
+        self._period = ArmPeriod(self.sim, self.arm) if live_period.COMPILED else None
 
     # ------------------------------------------------------------ gymnasium
     def reset(self, *, seed: int | None = None, options: dict | None = None):
@@ -208,20 +214,16 @@ class DavinciEnv(gym.Env):
         if self.arm is self.psm:
             jaw = control.jaw_angle(a[-1], self.psm.jaw.spec.qmin, self.psm.jaw.spec.qmax)
             self.psm.jaw.servo_jp([float(jaw)])
-        T_goal = np.eye(4)
-        T_goal[:3, :3] = self._start.R_goal
         twist = np.concatenate([velocity, np.zeros(3)]) if cfg.action_space == "cartesian" else None
         task = self.problem if isinstance(self.problem, TaskProblem) else None
-        for k in range(1, K + 1):
-            g = control.ramp(start, delta, k, K)
-            if cfg.action_space == "cartesian":
-                T_goal[:3, 3] = g
-                self.arm.servo_cp(T_goal, twist)
-            else:
-                self.arm.servo_jp(g, velocity)
-            self.sim.tick()
-            if task is not None:
-                self._sample_task(task)
+        # Without a task to sample every tick, the ticks run compiled while they can
+        # (sim/live_period.py); the others, and a tick the kernel stops before, in Python.
+        run_period(
+            self.sim, self.arm, K, cartesian=cfg.action_space == "cartesian", start=start,
+            delta=delta, velocity=velocity, R_ref_goal=self._start.R_goal, twist_ref=twist,
+            period=self._period if task is None else None,
+            after_tick=None if task is None else lambda: self._sample_task(task),
+        )  # fmt: skip
         if cfg.action_space == "cartesian":
             self._goal = start + delta
         else:

@@ -64,11 +64,19 @@ def _rcm_rows(links, modified, tool, tool_is_identity, T_cart_sujbase, Q, out, T
         _rcm_row(links, modified, tool, tool_is_identity, T_cart_sujbase, Q[r], out[r], T1, J, F)
 
 
-@jit
-def _frames_rows(
+invert_rigid = jit(_invert_rigid)
+""":func:`_invert_rigid` compiled, for Python callers: the inverse of an arm's base frame
+(``Arm._T_base_reference``) with the arithmetic of the compiled control period."""
+
+
+@helper
+def frames_row(
     links, modified, tools, tools_identity, T_cart_sujbase, Q_suj, reference,
     ref_links, ref_modified, ref_tool, ref_tool_identity, q_ref, out, T1, J, F,
 ):  # fmt: skip
+    """:func:`frames_into`'s arithmetic (``plan.args``, the SUJ joints ``Q_suj`` (k, n),
+    ``plan.reference``, ``plan.ref_args``, the reference arm's joints ``q_ref``), callable
+    from kernels (:mod:`davinci_sim.sim.live_kernel`); ``T1``, ``J``, ``F`` scratch."""
     k = Q_suj.shape[0]
     for i in range(k):
         _rcm_row(links[i], modified[i], tools[i], tools_identity[i], T_cart_sujbase[i],
@@ -83,6 +91,9 @@ def _frames_rows(
                     out[k + 2 + i, r, c] = out[i, r, c]
         else:
             _compose_rigid(out[k + 1], out[i], out[k + 2 + i])
+
+
+_frames_rows = jit(frames_row)
 
 
 def _packed_rcm_chain(suj_arm: SUJArmKinematics) -> tuple:
@@ -237,6 +248,10 @@ def _warm_up() -> None:
     suj = load_suj()
     cart_frames(suj=suj)
     T_cart_rcm(suj["ECM"], suj["ECM"].simulated_position)
+    T = np.eye(4)
+    invert_rigid(T, np.empty((4, 4)))
+    T.setflags(write=False)  # (the simulation's base frames are read-only)
+    invert_rigid(T, np.empty((4, 4)))
 
 
 _warm_up()

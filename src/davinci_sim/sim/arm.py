@@ -23,11 +23,11 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from davinci_sim.geometry.se3 import invert_transform
 from davinci_sim.geometry.so3 import rotate_pairs
 from davinci_sim.kinematics import fk
 from davinci_sim.kinematics.arms import ArmKinematics
 from davinci_sim.kinematics.ik import inverse_kinematics
+from davinci_sim.kinematics.suj import invert_rigid
 from davinci_sim.sim import arm_laws as laws
 from davinci_sim.sim import operating_state as ops
 from davinci_sim.sim.arm_laws import TRACKING_FAULT_TIME, TRACKING_FAULT_TOLERANCE
@@ -349,6 +349,11 @@ class Arm(ServoJoints):
             servo.tau_ff[self._idx] = self._wrench_to_effort(*self._wrench)
         # (The tracking watch runs after every arm's setpoints: sim/tracking_watch.py.)
 
+    def _pre_step_idle(self) -> bool:
+        """Whether :meth:`_pre_step` has nothing to do now (no trajectory, no wrench): ticks
+        may then run without calling it (:mod:`davinci_sim.sim.live_period`)."""
+        return self._traj is None and self._wrench is None
+
     def _tracking_fault(self, i: int) -> None:
         """The tracking watch found joint ``i`` out of tolerance for too long: FAULT."""
         err = abs(float(self._q()[i]) - float(self._sim.servo.q_ref[self._idx[i]]))
@@ -543,7 +548,10 @@ class Arm(ServoJoints):
         T_ref_base = self.base_frame()[0]
         cached = self._inv_base
         if cached is None or cached[0] is not T_ref_base:
-            cached = self._inv_base = (T_ref_base, invert_transform(T_ref_base))
+            # (the compiled control period's arithmetic: sim/live_kernel.py, the same bits)
+            inverse = np.empty((4, 4))
+            invert_rigid(np.ascontiguousarray(T_ref_base, dtype=float), inverse)
+            cached = self._inv_base = (T_ref_base, inverse)
         return cached[1]
 
     def set_base_frame(self, T_reference_base, reference_frame: str = "") -> CommandResult:

@@ -233,11 +233,12 @@ def locked_wrist_goal(links, modified, tool, identity, q, first, R_base_goal, st
     return True
 
 
-@jit
-def tracking_watch(qpos, qposadr, q_ref, idx, tolerance, effort_mode, starts, watched,
-                   bad_since, t, first_bad, fault) -> bool:  # fmt: skip
+@helper
+def tracking_watch_row(qpos, qposadr, q_ref, idx, tolerance, effort_mode, starts, watched,
+                       bad_since, t, first_bad, fault) -> bool:  # fmt: skip
     """:func:`tracking_bad` and :func:`tracking_fault_scalar` of many arms in one call (the
-    live simulation's watch over all its arms at 1 kHz, ``sim/tracking_watch.py``):
+    live simulation's watch over all its arms at 1 kHz, ``sim/tracking_watch.py``, and the
+    compiled control period of :mod:`davinci_sim.sim.live_kernel`):
     arm ``k`` owns entries ``starts[k]:starts[k + 1]`` of ``qposadr``, ``idx`` and
     ``tolerance``; only arms with ``watched[k]`` are checked. Writes ``bad_since[k]`` (s,
     nan: none bad), ``first_bad[k]`` (the arm's first bad joint, -1: none) and ``fault[k]``
@@ -258,6 +259,10 @@ def tracking_watch(qpos, qposadr, q_ref, idx, tolerance, effort_mode, starts, wa
         fault[k] = now
         any_fault = any_fault or now
     return any_fault
+
+
+tracking_watch = jit(tracking_watch_row)
+""":func:`tracking_watch_row` compiled, for Python callers (:class:`TrackingWatch`)."""
 
 
 def tracking_fault(bad, bad_since, t: float):

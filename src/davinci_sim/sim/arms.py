@@ -113,6 +113,9 @@ class PSM(Arm):
         super()._pre_step(t)
         self.jaw._pre_step(t)
 
+    def _pre_step_idle(self) -> bool:
+        return super()._pre_step_idle() and self.jaw._traj is None
+
     def is_busy(self) -> bool:
         return super().is_busy() or self.jaw.is_busy()
 
@@ -307,6 +310,12 @@ class MTM(Arm):
         self._impedance_w = None
         if self._impedance is not None and self._wrench is not None:
             self._impedance_w = self._wrench[1]  # the restored wrench is the impedance's
+
+    def _pre_step_idle(self) -> bool:
+        return (
+            super()._pre_step_idle() and self._impedance is None and self.gripper._traj is None
+            and self._R_lock is None and self._lock_traj is None and self._lock_goal is None
+        )  # fmt: skip
 
     def _pre_step(self, t: float) -> None:
         if self._impedance is not None:

@@ -13,6 +13,14 @@ from numba.extending import intrinsic
 # MuJoCo's ``void mj_step(const mjModel*, mjData*)``, the pointers passed as 64-bit integers
 # (the same registers in the x86-64 and AArch64 calling conventions).
 mj_step = types.ExternalFunction("mj_step", types.void(types.intp, types.intp))
+# ``void mj_getState(const mjModel*, const mjData*, mjtNum* state, int sig)`` and
+# ``mj_setState`` (the same arguments): the divergence guard's save and rewind.
+mj_get_state = types.ExternalFunction(
+    "mj_getState", types.void(types.intp, types.intp, types.intp, types.int32)
+)
+mj_set_state = types.ExternalFunction(
+    "mj_setState", types.void(types.intp, types.intp, types.intp, types.int32)
+)
 
 
 @intrinsic

@@ -163,14 +163,12 @@ class Simulation:
             self._noisy_qpos = self.data.qpos + noise
         t = self.data.time
         for component in self._components.values():
-            post_step = getattr(component, "post_step", None)
-            if post_step is not None:
+            if (post_step := getattr(component, "post_step", None)) is not None:
                 post_step(t)
 
     def _recover(self, tripped: dict[str, int]) -> None:
-        """Undo a step MuJoCo found unstable: the physics back to before it (the clock
-        advances), the arms involved stopped and in FAULT with the reason, the rest ticking
-        on (:mod:`davinci_sim.sim.divergence`)."""
+        """Undo a step MuJoCo found unstable: the physics back to before it (the clock advances),
+        the arms involved stopped and in FAULT, the rest ticking on (sim/divergence.py)."""
         arms, reason = self._guard.recover(self.data, self._owners, tripped)
         for name in arms:
             self.arms[name]._fault(reason)
@@ -214,9 +212,8 @@ class Simulation:
             self._frame_adr = np.concatenate([*parts, self.arms["ECM"]._qposadr])
 
     def _frames(self) -> dict:
-        """The base frames (by arm) and ``camera`` at the joints as they are now: one
-        compiled call (:func:`frames_into`) when a setup or ECM joint changed at all (see
-        :data:`BASE_FRAME_TOLERANCE`), else the same objects (asked many times per tick)."""
+        """The base frames (by arm) and ``camera`` at the joints now: recomputed when a setup
+        or ECM joint changed (:data:`BASE_FRAME_TOLERANCE`), else the same objects."""
         q = self.measured_qpos()[self._frame_adr]
         key = q.tobytes()
         entry, tol = self._base_frames.get("frames"), BASE_FRAME_TOLERANCE
@@ -225,9 +222,12 @@ class Simulation:
         ):
             return entry[1]
         plan = self._frame_plan
-        k = len(plan.arms)
-        out = frames_into(plan, q[: -plan.dof], q[-plan.dof :])
+        return self._keep_frames(key, frames_into(plan, q[: -plan.dof], q[-plan.dof :]))
+
+    def _keep_frames(self, key: bytes, out: np.ndarray) -> dict:
+        """:meth:`_frames`' answer for the joints ``key`` from ``out`` (frames_into's rows)."""
         out.setflags(write=False)
+        plan, k = self._frame_plan, len(self._frame_plan.arms)
         frames = {"camera": out[k]}
         for i, name in enumerate(plan.arms):
             frames[name] = (out[k + 2 + i], "Cart" if i == plan.reference else "ECM")

@@ -1,0 +1,212 @@
+"""The compiled control period of one arm of the live simulation (numba only: imported by
+:mod:`davinci_sim.sim.live_period` once MuJoCo's library is loaded into LLVM's symbols, as
+:mod:`davinci_sim.sim.rows_kernel`).
+
+One call runs ticks ``first`` … ``K`` of :meth:`Simulation.tick
+<davinci_sim.sim.simulation.Simulation.tick>` for a simulation in which one arm follows a
+ramp of setpoints and nothing else runs Python between two steps: per tick, the arm's
+``servo_cp`` (:func:`~davinci_sim.sim.cartesian_kernel.servo_cp_row`, with the PSM's
+in-cannula check) or ``servo_jp`` (the goal clipped to the limits, the feed-forward bound),
+the tracking watch over every arm (:func:`~davinci_sim.sim.arm_laws.tracking_watch_row`),
+the joint servo of every actuator (:func:`~davinci_sim.sim.servo.servo_ctrl_scalar`), the
+divergence guard's save (``mj_getState``) and ``mj_step``.
+
+Where the Python tick would do something the kernel has no form of — a refusal and its
+message, an IK answer to polish, a tracking fault, a step that raises one of the divergence
+guard's warnings (:mod:`davinci_sim.sim.divergence`: MuJoCo's own counters are read) — the
+call returns that tick's number with nothing of it done that the Python tick would not do
+the same way (at most the tick's setpoints, which the Python tick writes again, equal): the
+step is rewound (``mj_setState``, and the bias forces the servo reads), the watch's state
+put back. The caller runs that tick in Python and calls again from the next one.
+
+Module-level functions, so that numba's on-disk cache keeps them between processes.
+"""
+
+from __future__ import annotations
+
+import numba
+import numpy as np
+from numba import types
+from numba.extending import intrinsic
+
+from davinci_sim.kinematics.fk_compiled import tip_pose_row
+from davinci_sim.kinematics.suj import _invert_rigid, frames_row
+from davinci_sim.sim.arm_laws import tracking_watch_row
+from davinci_sim.sim.cartesian_kernel import servo_cp_row
+from davinci_sim.sim.rows_kernel import f64_at, mj_get_state, mj_set_state, mj_step
+from davinci_sim.sim.servo import servo_ctrl_scalar
+from davinci_sim.sim.validation import MAX_JOINT_VALUE
+
+#: What a call returns when it ran every tick up to K.
+DONE = -1
+
+
+@intrinsic
+def i32_at(typingctx, address):
+    """An ``int32*`` at the integer ``address`` (MuJoCo's warning counters)."""
+    sig = types.CPointer(types.int32)(types.intp)
+
+    def codegen(context, builder, signature, args):
+        return builder.inttoptr(args[0], context.get_value_type(types.CPointer(types.int32)))
+
+    return sig, codegen
+
+
+@numba.njit(cache=True, nogil=True)
+def _warning_counts(w, watched, out):
+    for i in range(watched.shape[0]):
+        out[i] = w[2 * watched[i] + 1]  # mjWarningStat: (lastinfo, number)
+
+
+@numba.njit(cache=True, nogil=True)
+def live_period(
+    model, data, address, sizes, state, state_sig, warnings, first, K,
+    qposadr, dofadr, minus_gravcomp, kp, kv, effort, gravity, q_ref, qd_ref, tau_ff,
+    w_adr, w_idx, w_tol, w_starts, w_watched, w_since, w_first_bad, w_fault,
+    arm_act, arm_q, shaft_q, shaft_offset, shaft_min, fk_links, fk_modified, fk_tool,
+    fk_identity, cartesian, ik_geometry, ik_tool, ik_revolute, ik_lo, ik_hi, ik_tolerance,
+    T_base_ref, R_ref_goal, start, delta, velocity, feedforward, twist_ref, qmin, qmax, bound,
+    frames, plan_links, plan_modified, plan_tools, plan_tools_identity, plan_T_cart_sujbase,
+    plan_reference, ref_links, ref_modified, ref_tool, ref_tool_identity, frame_adr, key, tol,
+    frames_out, arm_row, computed,
+):  # fmt: skip
+    """Ticks ``first`` … ``K`` (see the module docstring); returns :data:`DONE` or the
+    tick the caller must run in Python.
+
+    ``model``, ``data``: the C pointers; ``address``: the buffers of ``ctrl``, ``qpos``,
+    ``qvel``, ``qfrc_bias``, ``qfrc_gravcomp`` and the warning statistics; ``sizes``:
+    (nu, nq, nv, number of warnings); ``state`` scratch of ``mj_stateSize(state_sig)``;
+    ``warnings``: the indices of the guard's warnings. The servo's arrays (actuator order)
+    and the watch's (``TrackingWatch``: per arm, its entries and state) are the live
+    objects' own, updated in place. The arm: its actuators ``arm_act`` and ``qpos``
+    addresses ``arm_q``, the PSM's insertion ``qpos`` address ``shaft_q`` (-1: no
+    in-cannula check) with the shaft's offset and least distance (m), its FK constants.
+    ``cartesian``: tick k's goal is ``(R_ref_goal, start + (k/K)·delta)`` in the arm's
+    reference, solved with ``T_base_ref`` (held over the call) and the twist ``twist_ref``
+    (if ``feedforward``); else the joint goal ``start + (k/K)·delta`` with ``velocity``.
+    ``qmin``, ``qmax``: the arm's limits; ``bound``: the feed-forward bound per joint.
+
+    ``frames``: the arm's base frame follows the setup and ECM joints (``frame_adr``: their
+    ``qpos`` addresses, the SUJ arms' then the ECM's), as ``Simulation._frames`` computes
+    it: recomputed (``suj.frames_row`` with the plan's constants into ``frames_out``, row
+    ``arm_row`` the arm's; ``T_base_ref`` its inverse) when the joints differ from ``key``
+    (the joints of the last frames, updated) by more than ``tol``, or at all with ``tol``
+    0; ``computed[0]`` then True."""
+    nu, nq, nv, nw = sizes[0], sizes[1], sizes[2], sizes[3]
+    dof = arm_act.shape[0]
+    q_arm = np.empty(dof)
+    q_out = np.empty(dof)
+    qd_out = np.empty(dof)
+    T_base_tip = np.empty((4, 4))
+    J = np.empty((6, dof))
+    F = np.empty((dof, 12))
+    T_goal = np.eye(4)
+    ctrl = np.empty(nu)
+    since = np.empty(w_since.shape[0])
+    bias_before = np.empty(nv)
+    gravcomp_before = np.empty(nv)
+    counts = np.empty(warnings.shape[0], dtype=np.int32)
+    counts_after = np.empty(warnings.shape[0], dtype=np.int32)
+    sp = state.ctypes.data
+    n_suj = plan_links.shape[0]
+    n_ref = ref_links.shape[1]
+    n_joints = (frame_adr.shape[0] - n_ref) // n_suj if frames else 0
+    Q_suj = np.empty((n_suj, n_joints))
+    q_frame_ref = np.empty(n_ref)
+    T1 = np.empty((4, 4))
+    F_suj = np.empty((max(n_joints, 8), 12))
+    J_none = np.empty((6, 0))
+    for k in range(first, K + 1):
+        qp = numba.carray(f64_at(address[1]), (nq,))
+        qv = numba.carray(f64_at(address[2]), (nv,))
+        qb = numba.carray(f64_at(address[3]), (nv,))
+        qg = numba.carray(f64_at(address[4]), (nv,))
+        w = numba.carray(i32_at(address[5]), (2 * nw,))
+        s = k / K  # (envs.control.ramp's arithmetic)
+        # --- the arm's setpoint: servo_cp or servo_jp, as the Python path accepts it
+        if frames:  # the base frame at the joints now (Simulation._frames)
+            same, close = True, tol > 0
+            for i in range(frame_adr.shape[0]):
+                v = qp[frame_adr[i]]
+                same = same and v == key[i]
+                close = close and abs(v - key[i]) <= tol
+            if not (same or close):
+                for i in range(frame_adr.shape[0]):
+                    key[i] = qp[frame_adr[i]]
+                for i in range(n_suj):
+                    for m in range(n_joints):
+                        Q_suj[i, m] = key[i * n_joints + m]
+                for m in range(n_ref):
+                    q_frame_ref[m] = key[n_suj * n_joints + m]
+                frames_row(
+                    plan_links, plan_modified, plan_tools, plan_tools_identity,
+                    plan_T_cart_sujbase, Q_suj, plan_reference, ref_links, ref_modified,
+                    ref_tool, ref_tool_identity, q_frame_ref, frames_out, T1, J_none, F_suj,
+                )  # fmt: skip
+                _invert_rigid(frames_out[arm_row], T_base_ref)  # (Arm._T_base_reference)
+                computed[0] = True
+        if cartesian:
+            if shaft_q >= 0 and abs(qp[shaft_q] + shaft_offset) < shaft_min:
+                return k  # in the cannula: servo_cp refuses, with its message
+            for i in range(3):
+                for m in range(3):
+                    T_goal[i, m] = R_ref_goal[i, m]
+                T_goal[i, 3] = start[i] + s * delta[i]
+            for i in range(dof):
+                q_arm[i] = qp[arm_q[i]]
+            # the measured kinematics (Arm._measured_kinematics: the Jacobian of the twist)
+            tip_pose_row(fk_links, fk_modified, fk_tool, fk_identity, q_arm, T_base_tip, J,
+                         True, F)  # fmt: skip
+            if not servo_cp_row(
+                ik_geometry, ik_tool, ik_revolute, ik_lo, ik_hi, fk_links, fk_modified,
+                fk_tool, fk_identity, ik_tolerance, T_base_ref, T_goal, q_arm, J, feedforward,
+                twist_ref, qmin, qmax, bound, q_out, qd_out,
+            ):  # fmt: skip
+                return k
+        else:
+            for i in range(dof):
+                g = start[i] + s * delta[i]
+                if not abs(g) <= MAX_JOINT_VALUE or not abs(velocity[i]) <= bound[i]:
+                    return k  # servo_jp refuses, with its message
+                q_out[i] = min(max(g, qmin[i]), qmax[i])  # (clip_goal)
+                qd_out[i] = velocity[i]
+        for i in range(dof):
+            q_ref[arm_act[i]] = q_out[i]
+            qd_ref[arm_act[i]] = qd_out[i]
+        # --- the guard's save; the time of the tick is the state's first entry
+        mj_get_state(model, data, sp, state_sig)
+        t = state[0]
+        # --- the tracking watch of every arm
+        for i in range(since.shape[0]):
+            since[i] = w_since[i]
+        if tracking_watch_row(qp, w_adr, q_ref, w_idx, w_tol, effort, w_starts, w_watched,
+                              w_since, t, w_first_bad, w_fault):  # fmt: skip
+            for i in range(since.shape[0]):
+                w_since[i] = since[i]
+            return k  # an arm faults: the Python tick faults it, with the reason
+        # --- the servo (JointServo.apply: the bias forces of the last step)
+        for i in range(nu):
+            b = qb[dofadr[i]] - qg[dofadr[i]] if minus_gravcomp else qb[dofadr[i]]
+            ctrl[i] = servo_ctrl_scalar(
+                qp[qposadr[i]], qv[dofadr[i]], b, q_ref[i], qd_ref[i], tau_ff[i], effort[i],
+                gravity[i], kp[i], kv[i],
+            )  # fmt: skip
+        for i in range(nv):
+            bias_before[i] = qb[i]
+            gravcomp_before[i] = qg[i]
+        c = numba.carray(f64_at(address[0]), (nu,))
+        for i in range(nu):
+            c[i] = ctrl[i]
+        _warning_counts(w, warnings, counts)
+        mj_step(model, data)
+        _warning_counts(w, warnings, counts_after)
+        for i in range(counts.shape[0]):
+            if counts_after[i] != counts[i]:  # diverged: undo, for the Python tick's guard
+                mj_set_state(model, data, sp, state_sig)
+                for m in range(nv):
+                    qb[m] = bias_before[m]
+                    qg[m] = gravcomp_before[m]
+                for m in range(since.shape[0]):
+                    w_since[m] = since[m]
+                return k
+    return DONE

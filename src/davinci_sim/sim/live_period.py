@@ -1,0 +1,289 @@
+"""A control period of one arm of the live simulation in one compiled call: many ticks of
+:meth:`Simulation.tick <davinci_sim.sim.simulation.Simulation.tick>` without returning to
+Python (:mod:`davinci_sim.sim.live_kernel`).
+
+A caller that streams a ramp of setpoints to one arm — the single learning environment, 20
+ticks per action — would otherwise call ``servo_cp``/``servo_jp`` and ``tick`` per tick:
+a few hundred Python calls for one MuJoCo step. :class:`ArmPeriod` runs those ticks in one
+call whenever nothing else needs Python between two steps (:meth:`ArmPeriod.ready`: no
+component, no encoder noise, every arm's pre-step idle, the arm ready for the command);
+each law is the live objects' own compiled form, on the live ``MjData`` and servo arrays.
+A tick the kernel stops before (a refusal, an IK answer to polish, a fault, a divergence)
+is the caller's to run in Python, the same tick as before; the results are those of the
+Python ticks to rounding (``tests/sim/test_live_period.py``).
+
+One difference: the arm's base frame in its reference (the PSM's in the camera frame) is
+held over a call, where the Python ticks recompute it every tick; the setup joints and the
+ECM yield by micrometres under the arms' reaction forces, so the goals differ by that much
+over a period (none with ``simulation.BASE_FRAME_TOLERANCE`` beyond the yield).
+"""
+
+from __future__ import annotations
+
+import ctypes
+from typing import TYPE_CHECKING, Any
+
+import mujoco
+import numpy as np
+
+from davinci_sim.kinematics import fk
+from davinci_sim.kinematics.jit import warmed_up
+from davinci_sim.sim import operating_state as ops
+from davinci_sim.sim import rows_step, simulation
+from davinci_sim.sim.divergence import WARNINGS
+
+if TYPE_CHECKING:
+    from davinci_sim.sim.arm import Arm
+    from davinci_sim.sim.simulation import Simulation
+
+_KERNEL: Any = None
+DONE = -1
+if rows_step.COMPILED:  # (MuJoCo's library is loaded into LLVM's symbols by rows_step)
+    from davinci_sim.sim.live_kernel import DONE, live_period
+
+    _KERNEL = live_period
+
+COMPILED = _KERNEL is not None
+"""Whether :class:`ArmPeriod` can run (else callers tick in Python)."""
+
+_SIG = int(mujoco.mjtState.mjSTATE_INTEGRATION)  # (the divergence guard's state)
+_NO_IK = (np.zeros(29), np.zeros(12), np.zeros(6, dtype=bool), np.zeros(6), np.zeros(6),
+          np.zeros(2))  # fmt: skip
+"""Stands for the IK's constants in a joint period (one compiled signature)."""
+_NO_PLAN = (np.zeros((1, 6, 0)), np.zeros(1, dtype=bool), np.zeros((1, 4, 4)),
+            np.zeros(1, dtype=bool), np.zeros((1, 4, 4)), 0, np.zeros((6, 0)), True, np.eye(4),
+            True, np.zeros(0, dtype=np.intp))  # fmt: skip
+"""Stands for the frame plan's constants where the base frame is held."""
+
+
+def warning_address(data: mujoco.MjData) -> int | None:
+    """The address of ``data``'s warning statistics (``mjWarningStat warning[]``: ``int``
+    ``lastinfo``, ``number``), which follow ``solver_fwdinv`` (two ``mjtNum``) in
+    ``mjData``; checked by writing distinct counts through the bindings and reading them
+    back (then restored). None if the layout is not that one."""
+    n = len(data.warning)
+    address = data.solver_fwdinv.ctypes.data + data.solver_fwdinv.nbytes
+    kept = [(w.lastinfo, w.number) for w in data.warning]
+    try:
+        for i in range(n):
+            data.warning[i].lastinfo, data.warning[i].number = 7_000 + i, 9_000 + i
+        seen = list((ctypes.c_int32 * (2 * n)).from_address(address))
+        expected = [v for i in range(n) for v in (7_000 + i, 9_000 + i)]
+    finally:
+        for w, (info, number) in zip(data.warning, kept, strict=True):
+            w.lastinfo, w.number = info, number
+    return address if seen == expected else None
+
+
+class ArmPeriod:
+    """Control periods of ``arm`` in ``sim`` (see the module docstring). Build one per arm
+    and keep it: it holds the simulation's buffer addresses (checked at every call)."""
+
+    def __init__(self, sim: Simulation, arm: Arm) -> None:
+        if not COMPILED:
+            raise RuntimeError("ArmPeriod needs numba and MuJoCo's library (rows_step.COMPILED)")
+        self.sim, self.arm = sim, arm
+        self._data, self._model = sim.data, sim.model
+        data, model = sim.data, sim.model
+        w = warning_address(data)
+        self.available = w is not None
+        """Whether the kernel can watch MuJoCo's warnings here (else :meth:`ready` is False)."""
+        self._address = np.array(
+            [x.ctypes.data for x in (data.ctrl, data.qpos, data.qvel, data.qfrc_bias,
+                                     data.qfrc_gravcomp)] + [w or 0], dtype=np.intp,
+        )  # fmt: skip
+        self._sizes = np.array([model.nu, model.nq, model.nv, len(data.warning)], dtype=np.intp)
+        self._state = np.empty(mujoco.mj_stateSize(model, _SIG))
+        self._warnings = np.array(list(WARNINGS), dtype=np.intp)
+        chain = arm.chain
+        self._arm = (
+            np.ascontiguousarray(arm._idx, dtype=np.intp),
+            np.ascontiguousarray(arm._qposadr, dtype=np.intp),
+        )
+        offset = getattr(arm, "_shaft_offset", None)
+        cp = getattr(arm, "_cp", None)
+        self.cartesian_ok = offset is not None and cp is not None
+        """Whether Cartesian periods run compiled (a PSM with the closed-form IK)."""
+        if self.cartesian_ok:
+            from davinci_sim.sim.arms import PSM_SAFE_CARTESIAN_DISTANCE
+
+            constants = _writable(cp[0])
+            self._shaft = (int(arm._qposadr[2]), float(offset), PSM_SAFE_CARTESIAN_DISTANCE)
+            self._ik = (*constants[:5], constants[9])
+        else:
+            self._shaft = (-1, 0.0, 0.0)
+            self._ik = _NO_IK
+        self._fk = _writable(fk._consts(chain).packed)
+        servo = sim.servo
+        self._servo = (
+            np.array(servo.qposadr, dtype=np.intp),
+            np.array(servo.dofadr, dtype=np.intp),
+            bool(servo._model_gravcomp),
+        )
+        self._limits = (
+            np.ascontiguousarray(chain.qmin, dtype=float),
+            np.ascontiguousarray(chain.qmax, dtype=float),
+            np.array(arm._feedforward_bound, dtype=float),
+        )
+        # The base frame: constant (no setup joints), or the simulation's frame plan's row.
+        plan = sim._frame_plan
+        self._on_suj = f"SUJ/{arm.name}" in sim.arms
+        self._plan_row = -1
+        if self._on_suj and plan is not None and arm.name in plan.arms:
+            k = len(plan.arms)
+            self._plan_row = k + 2 + plan.arms.index(arm.name)
+            self._plan = (*_writable(plan.args), plan.reference, *_writable(plan.ref_args),
+                          np.array(sim._frame_adr, dtype=np.intp))  # fmt: skip
+            self._frames_out = np.empty((2 * k + 2, 4, 4))
+            self._key = np.empty(len(sim._frame_adr))
+        else:
+            self._plan = _NO_PLAN
+            self._frames_out = np.empty((0, 4, 4))
+            self._key = np.empty(0)
+        self._computed = np.zeros(1, dtype=bool)
+
+    def _frames(self) -> bool | None:
+        """How a Cartesian period gets the arm's base frame: held (False: a base frame the
+        user set, or none without setup joints), recomputed from the joints (True), or no
+        compiled form (None: a PSM on setup joints without the ECM's frame plan)."""
+        if self.arm._T_user_base is not None or not self._on_suj:
+            return False
+        return True if self._plan_row >= 0 else None
+
+    def ready(self, cartesian: bool) -> bool:
+        """Whether ticks may run compiled now: nothing else needs Python between two steps
+        and the arm would take the command (else the caller ticks in Python)."""
+        sim, arm = self.sim, self.arm
+        if not self.available or sim.data is not self._data or sim.model is not self._model:
+            return False
+        if cartesian and (not self.cartesian_ok or self._frames() is None):
+            return False
+        if sim._components or sim.encoder_noise_std > 0 or sim._noisy_qpos is not None:
+            return False
+        if sim._initial_components is None:  # (the first tick records the components)
+            return False
+        if not all(a._pre_step_idle() for a in sim.arms.values()):
+            return False
+        if arm._not_ready(cartesian=cartesian):
+            return False
+        servo, idx = sim.servo, arm._idx
+        # What every accepted servo_cp/servo_jp sets besides the references: set already.
+        return not servo.effort_mode[idx].any() and not servo.tau_ff[idx].any()
+
+    def run(self, first: int, K: int, *, cartesian: bool, start, delta, velocity=None,
+            R_ref_goal=None, twist_ref=None) -> int:  # fmt: skip
+        """Ticks ``first`` … ``K`` of a period whose tick k commands
+        ``start + (k/K)·delta``: a Cartesian goal (the tip's position in the arm's reference,
+        m, with the orientation ``R_ref_goal`` (3, 3) and the feed-forward ``twist_ref`` (6,
+        m/s and rad/s; None: none)) through ``servo_cp``, or a joint goal (rad, m) with the
+        velocity ``velocity`` through ``servo_jp``. Call only when :meth:`ready`. Returns
+        :data:`DONE`, or the tick k the caller must run in Python (ticks before it ran)."""
+        sim, arm = self.sim, self.arm
+        servo, watch = sim.servo, sim._watch
+        arms = watch.arms
+        watched, since = watch._watched, watch._bad_since
+        for k, a in enumerate(arms):
+            watched[k] = a._state == ops.ENABLED
+            since[k] = a._tracking_bad_since
+        dof = arm.dof
+        feedforward = twist_ref is not None
+        T_base_ref = arm._T_base_reference() if cartesian else np.eye(4)
+        frames = bool(cartesian and self._frames())
+        if frames:  # the joints of the simulation's current frames (just asked for)
+            self._key[:] = np.frombuffer(sim._base_frames["frames"][0])
+        self._computed[0] = False
+        n = 3 if cartesian else dof
+        stop = _KERNEL(
+            self._model._address, self._data._address, self._address, self._sizes, self._state,
+            _SIG, self._warnings, first, K, *self._servo, servo.kp, servo.kv,
+            servo.effort_mode, servo.gravity_compensation, servo.q_ref, servo.qd_ref,
+            servo.tau_ff, watch._adr, watch._idx, watch._tol, watch._starts, watched, since,
+            watch._first_bad, watch._fault, *self._arm, *self._shaft, *self._fk, cartesian,
+            *self._ik, _f64(T_base_ref, (4, 4)), _f64(R_ref_goal, (3, 3)), _f64(start, (n,)),
+            _f64(delta, (n,)), _f64(None if cartesian else velocity, (dof,)), feedforward,
+            _f64(twist_ref, (6,)), *self._limits, frames, *self._plan, self._key,
+            float(simulation.BASE_FRAME_TOLERANCE), self._frames_out, self._plan_row,
+            self._computed,
+        )  # fmt: skip
+        if self._computed[0]:  # the frames the kernel computed last: the simulation's now
+            sim._keep_frames(self._key.tobytes(), self._frames_out.copy())
+        ran = (K if stop == DONE else stop - 1) - first + 1
+        sim.tick_count += ran
+        for k, a in enumerate(arms):
+            if watched[k]:
+                a._tracking_bad_since = float(since[k])
+        return int(stop)
+
+
+def run_period(
+    sim: Simulation, arm: Arm, K: int, *, cartesian: bool, start, delta, velocity=None,
+    R_ref_goal=None, twist_ref=None, period: ArmPeriod | None = None, after_tick=None,
+) -> None:  # fmt: skip
+    """The K ticks of a control period whose tick k commands ``start + (k/K)·delta`` to
+    ``arm`` (the arguments of :meth:`ArmPeriod.run`): in ``period``'s compiled calls while
+    it is :meth:`~ArmPeriod.ready`, else tick by tick in Python — ``arm.servo_cp`` (the goal
+    with the orientation ``R_ref_goal`` and the twist) or ``arm.servo_jp`` (with
+    ``velocity``), :meth:`Simulation.tick`, then ``after_tick()`` if given (a caller that
+    samples every tick passes no ``period``). Without ``period``: the Python path, the
+    oracle of the compiled one."""
+    T_goal = np.eye(4)
+    if cartesian:
+        T_goal[:3, :3] = R_ref_goal
+    k = 1
+    while k <= K:
+        if period is not None and period.ready(cartesian):
+            k = period.run(
+                k,
+                K,
+                cartesian=cartesian,
+                start=start,
+                delta=delta,
+                velocity=velocity,
+                R_ref_goal=R_ref_goal,
+                twist_ref=twist_ref,
+            )
+            if k == DONE:
+                return
+        g = start + (k / K) * delta  # (envs.control.ramp)
+        if cartesian:
+            T_goal[:3, 3] = g
+            arm.servo_cp(T_goal, twist_ref)
+        else:
+            arm.servo_jp(g, velocity)
+        sim.tick()
+        if after_tick is not None:
+            after_tick()
+        k += 1
+
+
+def _f64(x, shape) -> np.ndarray:
+    """``x`` as a new C-ordered, writable float64 array of ``shape`` (zeros for None): the
+    kernel's one compiled signature, whatever the caller's array."""
+    if x is None:
+        return np.zeros(shape)
+    return np.array(x, dtype=float, order="C").reshape(shape)
+
+
+def _writable(constants) -> tuple:
+    """Writable copies of the arrays among ``constants`` (the one compiled signature)."""
+    return tuple(np.array(c, order="C") if isinstance(c, np.ndarray) else c for c in constants)
+
+
+def _warm_up() -> None:
+    """Compile (or load from numba's cache) at import with the callers' one signature, on no
+    tick (no simulation is touched), as :mod:`davinci_sim.sim.rows_step` does."""
+    if _KERNEL is None:
+        return
+    i, f, b = np.zeros(0, dtype=np.intp), np.zeros(0), np.zeros(0, dtype=bool)
+    i64 = np.zeros(1, dtype=np.int64)
+    _KERNEL(
+        0, 0, np.zeros(6, dtype=np.intp), np.zeros(4, dtype=np.intp), f, _SIG, i, 1, 0,
+        i, i, True, f, f, b, b, f, f, f, i64, i64, f, i64, b, f, i64, b, i, i, -1, 0.0, 0.0,
+        np.zeros((6, 0)), True, np.eye(4), True, True, *_NO_IK, np.eye(4), np.eye(3), f, f, f,
+        True, np.zeros(6), f, f, f, False, *_NO_PLAN, f, 0.0, np.empty((0, 4, 4)), -1,
+        np.zeros(1, dtype=bool),
+    )  # fmt: skip
+
+
+if COMPILED and not warmed_up(_warm_up, "the live control period cannot be compiled: Python ticks"):
+    _KERNEL, COMPILED = None, False

@@ -1,0 +1,178 @@
+"""The compiled control period of the live simulation (``sim/live_period.py``) against the
+Python ticks it replaces, its oracle: from the same state, the same state after — bit for
+bit — including when a tick of the period is refused, faults an arm or diverges."""
+
+import numpy as np
+import pytest
+
+from davinci_sim.sim import live_period
+from davinci_sim.sim import operating_state as ops
+from davinci_sim.sim.live_period import ArmPeriod, run_period
+
+pytestmark = pytest.mark.skipif(not live_period.COMPILED, reason="numba does not compile here")
+
+K = 20  # ticks per period (the environments' 50 Hz actions)
+
+
+def _snapshot(sim) -> dict:
+    """What the two paths must leave the same (arrays copied)."""
+    servo = sim.servo
+    return {
+        "qpos": sim.data.qpos.copy(),
+        "qvel": sim.data.qvel.copy(),
+        "ctrl": sim.data.ctrl.copy(),
+        "time": sim.data.time,
+        "ticks": sim.tick_count,
+        "q_ref": servo.q_ref.copy(),
+        "qd_ref": servo.qd_ref.copy(),
+        "effort": servo.effort_mode.copy(),
+        "since": [a._tracking_bad_since for a in sim.arms.values()],
+        "states": [a.operating_state().state for a in sim.arms.values()],
+        "frames_key": sim._base_frames.get("frames", (b"",))[0],
+    }
+
+
+def _assert_same(a: dict, b: dict) -> None:
+    for key in a:
+        if isinstance(a[key], np.ndarray):
+            np.testing.assert_array_equal(a[key], b[key], err_msg=key)
+        else:
+            np.testing.assert_equal(a[key], b[key], err_msg=key)
+
+
+def _messages(sim, run) -> list:
+    """The arms' messages (level, text, time) ``run()`` posts."""
+    channels = [a.channels for a in sim.arms.values()]
+    seen = [len(c.messages) for c in channels]
+    run()
+    return [(m.level, m.text, m.timestamp)
+            for c, n in zip(channels, seen, strict=True) for m in list(c.messages)[n:]]  # fmt: skip
+
+
+def _both(sim, arm, period, setup=lambda: None, ticks=K, **ramp):
+    """Run the period compiled and in Python from the same state (after ``setup()``):
+    (compiled, python) snapshots with the messages posted; the simulation is left as the
+    Python path left it."""
+    state = sim.get_state()
+    out = []
+    for p in (period, None):
+        sim.set_state(state)
+        setup()
+        recoveries = sim.recoveries  # (cumulative: not part of the state)
+        said = _messages(sim, lambda p=p: run_period(sim, arm, ticks, period=p, **ramp))
+        out.append({**_snapshot(sim), "messages": said, "recoveries": sim.recoveries - recoveries})
+    return out[0], out[1]
+
+
+def _cartesian_ramp(psm, delta) -> dict:
+    T = psm.measured_cp().T
+    delta = np.asarray(delta, dtype=float)
+    twist = np.concatenate([delta / (K * 0.001), np.zeros(3)])
+    return {"cartesian": True, "start": T[:3, 3].copy(), "delta": delta,
+            "R_ref_goal": T[:3, :3].copy(), "twist_ref": twist}  # fmt: skip
+
+
+def test_cartesian_periods_are_the_python_ticks_bit_for_bit(psm_sim):
+    sim, psm = psm_sim, psm_sim.arms["PSM1"]
+    period = ArmPeriod(sim, psm)
+    assert period.ready(cartesian=True)
+    rng = np.random.default_rng(3)
+    for _ in range(12):
+        compiled, python = _both(sim, psm, period, **_cartesian_ramp(psm, rng.normal(0, 0.004, 3)))
+        _assert_same(compiled, python)
+    assert python["ticks"] > 0 and psm.operating_state().state == ops.ENABLED
+    # the base frames moved with the setup joints' yield, as the Python ticks recompute them
+    assert python["frames_key"] != b""
+
+
+@pytest.mark.parametrize("name", ["PSM1", "ECM"])
+def test_joint_periods_are_the_python_ticks_bit_for_bit(psm_sim, name):
+    sim, arm = psm_sim, psm_sim.arms[name]
+    period = ArmPeriod(sim, arm)
+    rng = np.random.default_rng(4)
+    for _ in range(6):
+        q = arm.setpoint_js().position
+        delta = rng.normal(0.0, 0.01, arm.dof)
+        ramp = {"cartesian": False, "start": q, "delta": delta, "velocity": delta / (K * 0.001)}
+        compiled, python = _both(sim, arm, period, **ramp)
+        _assert_same(compiled, python)
+
+
+def test_a_refused_tick_runs_in_python_with_its_refusal(psm_sim):
+    """A ramp whose last goal is on the RCM: servo_cp refuses it (the Python path's
+    message); the ticks before ran compiled; the same state after."""
+    sim, psm = psm_sim, psm_sim.arms["PSM1"]
+    period = ArmPeriod(sim, psm)
+    T = psm.measured_cp().T
+    p_rcm = psm.base_frame()[0][:3, 3]
+    ramp = {**_cartesian_ramp(psm, p_rcm - T[:3, 3]), "twist_ref": None}
+    calls = []
+    run = period.run
+    period.run = lambda *a, **k: calls.append(run(*a, **k)) or calls[-1]
+    compiled, python = _both(sim, psm, period, **ramp)
+    _assert_same(compiled, python)
+    assert calls[0] > 1, "the first ticks ran compiled"
+    assert any(k > 0 for k in calls), "a tick went to the Python path"
+    assert any("servo_cp" in text for _, text, _ in python["messages"])
+
+
+def test_a_tracking_fault_in_a_period_is_the_python_ticks_fault(psm_sim):
+    sim, psm = psm_sim, psm_sim.arms["PSM1"]
+    period = ArmPeriod(sim, psm)
+    sim._watch._tol[:] = 1e-9  # (every arm is out of tolerance at once)
+    ramp = _cartesian_ramp(psm, [0.002, 0.0, 0.0])
+    compiled, python = _both(sim, psm, period, ticks=400, **ramp)
+    _assert_same(compiled, python)
+    assert ops.FAULT in python["states"]
+    assert any("tracking error" in text for _, text, _ in python["messages"])
+
+
+def test_a_diverging_step_in_a_period_is_undone_as_the_python_tick_undoes_it(psm_sim):
+    sim, psm = psm_sim, psm_sim.arms["PSM1"]
+    period = ArmPeriod(sim, psm)
+    ecm = sim.arms["ECM"]
+
+    def bad_setpoint():  # written between ticks: a bad ctrl in the period's first step
+        sim.servo.q_ref[ecm._idx[0]] = 1e12
+
+    ramp = _cartesian_ramp(psm, [0.0, 0.002, 0.0])
+    compiled, python = _both(sim, psm, period, setup=bad_setpoint, **ramp)
+    _assert_same(compiled, python)
+    assert python["recoveries"] == 1
+    assert ecm.operating_state().state == ops.FAULT
+    assert psm.operating_state().state == ops.ENABLED
+    assert any("diverged" in text for _, text, _ in python["messages"])
+
+
+def test_ticks_stay_in_python_while_anything_else_needs_them(psm_sim):
+    sim, psm = psm_sim, psm_sim.arms["PSM1"]
+    period = ArmPeriod(sim, psm)
+    assert period.ready(cartesian=True) and period.ready(cartesian=False)
+    state = sim.get_state()
+    sim.arms["ECM"].move_jr(np.array([0.01, 0.0, 0.0, 0.0]))  # a trajectory to sample
+    assert not period.ready(cartesian=True)
+    sim.set_state(state)
+    psm.servo_jf(np.zeros(psm.dof))  # effort mode: a servo_cp would switch it off first
+    assert not period.ready(cartesian=True)
+    sim.set_state(state)
+    sim.encoder_noise_std = 1e-6  # noise drawn every tick
+    assert not period.ready(cartesian=True)
+    sim.encoder_noise_std = 0.0
+    psm.state_command("disable")
+    assert not period.ready(cartesian=False)
+    sim.set_state(state)
+    assert period.ready(cartesian=True)
+
+
+def test_the_kernel_keeps_its_one_compiled_signature(psm_sim):
+    sim, psm = psm_sim, psm_sim.arms["PSM1"]
+    period = ArmPeriod(sim, psm)
+    run_period(sim, psm, K, period=period, **_cartesian_ramp(psm, [0.001, 0.0, 0.0]))
+    assert len(live_period._KERNEL.signatures) == 1
+
+
+def test_the_warning_counters_are_found_and_left_unchanged(psm_sim):
+    data = psm_sim.data
+    before = [(w.lastinfo, w.number) for w in data.warning]
+    assert live_period.warning_address(data) is not None
+    assert [(w.lastinfo, w.number) for w in data.warning] == before
