@@ -1,7 +1,9 @@
 """The learning environments' speed: simulated seconds per wall second and environment steps
 per second of the vector environment (:class:`~davinci_sim.envs.vector.DavinciVectorEnv`) for
-N = 1, 64, 256 without images, the single environment on the live simulation for
-comparison, and the rate of image observations separately.
+N = 1, 64, 256 without images, the single environment on the live simulation (and its
+ratio to the bare ``mj_step`` rate of its own model, ``*_single_over_mj_step``: Reach's actions
+run compiled, ``sim/live_period.py``; PathFollow's task samples every tick in Python), and the
+rate of image observations separately.
 
 One environment step is one action at 50 Hz: 20 ticks of the 1 kHz physics and servo, so
 20 ms of simulated time. Random actions; rows autoreset as Gymnasium's NEXT_STEP says. The
@@ -109,6 +111,35 @@ def _single(env_id: str, wall: float, **kwargs) -> dict:
     return {"env_steps_per_s": steps / elapsed, "sim_s_per_s": steps * STEP_S / elapsed}
 
 
+def _single_reference(env_id: str, wall: float, rounds: int = 10) -> tuple[float, float]:
+    """Simulated s per wall s of the single environment (random actions) and of the bare
+    ``mujoco.mj_step`` of its own model (a copy of its state, 20 steps per call, from
+    Python), timed in alternating slices as :func:`_batch_reference`: issue 20's bar for
+    the single environment is ≥ 0.7× the bare rate."""
+    env = DavinciEnv(**ENVIRONMENTS[env_id])
+    env.reset(seed=0)
+    model = env.sim.model
+    data = mujoco.MjData(model)
+    mujoco.mj_copyData(data, model, env.sim.data)
+    steps = {"env": 0, "bare": 0}
+    spent = {"env": 0.0, "bare": 0.0}
+    for _ in range(rounds):
+        for which in ("env", "bare"):
+            t0 = time.perf_counter()
+            while time.perf_counter() - t0 < wall / (2 * rounds):
+                if which == "env":
+                    _, _, terminated, truncated, _ = env.step(env.action_space.sample())
+                    if terminated or truncated:
+                        env.reset()
+                else:
+                    for _ in range(20):
+                        mujoco.mj_step(model, data)
+                steps[which] += 1
+            spent[which] += time.perf_counter() - t0
+    env.close()
+    return tuple(steps[k] * STEP_S / spent[k] for k in ("env", "bare"))  # type: ignore[return-value]
+
+
 def _renders(size: tuple[int, int], wall: float) -> float:
     """Stereo pairs per second of the endoscope at ``size`` (the image observation's cost)."""
     env = DavinciEnv()
@@ -149,6 +180,11 @@ def main(wall: float = 10.0) -> None:
         r = _single(env_id, wall)
         figures[f"{name}_single_sim_s_per_s"] = r["sim_s_per_s"]
         figures[f"{name}_single_env_steps_per_s"] = r["env_steps_per_s"]
+        single, bare = _single_reference(env_id, 2 * wall)
+        figures[f"{name}_single_interleaved_sim_s_per_s"] = single
+        figures[f"{name}_bare_mj_step_sim_s_per_s"] = bare
+        figures[f"{name}_single_over_mj_step"] = single / bare
+    figures["target_single_over_mj_step"] = 0.7
     r = _single("DavinciSim/Reach-v0", wall, images=True)
     figures["reach_single_images_160x120_env_steps_per_s"] = r["env_steps_per_s"]
     figures["stereo_pairs_per_s_160x120"] = _renders((160, 120), wall)
