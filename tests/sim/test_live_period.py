@@ -5,7 +5,7 @@ bit — including when a tick of the period is refused, faults an arm or diverge
 import numpy as np
 import pytest
 
-from davinci_sim.sim import live_period
+from davinci_sim.sim import live_period, simulation
 from davinci_sim.sim import operating_state as ops
 from davinci_sim.sim.live_period import ArmPeriod, run_period
 
@@ -72,8 +72,13 @@ def _cartesian_ramp(psm, delta) -> dict:
             "R_ref_goal": T[:3, :3].copy(), "twist_ref": twist}  # fmt: skip
 
 
-def test_cartesian_periods_are_the_python_ticks_bit_for_bit(psm_sim):
+@pytest.mark.parametrize("frames", ["exact", "held within 1e-6", "set by the user"])
+def test_cartesian_periods_are_the_python_ticks_bit_for_bit(psm_sim, monkeypatch, frames):
     sim, psm = psm_sim, psm_sim.arms["PSM1"]
+    if frames == "held within 1e-6":
+        monkeypatch.setattr(simulation, "BASE_FRAME_TOLERANCE", 1e-6)
+    elif frames == "set by the user":
+        assert psm.set_base_frame(psm.base_frame()[0].copy(), "ECM")
     period = ArmPeriod(sim, psm)
     assert period.ready(cartesian=True)
     rng = np.random.default_rng(3)
@@ -81,8 +86,8 @@ def test_cartesian_periods_are_the_python_ticks_bit_for_bit(psm_sim):
         compiled, python = _both(sim, psm, period, **_cartesian_ramp(psm, rng.normal(0, 0.004, 3)))
         _assert_same(compiled, python)
     assert python["ticks"] > 0 and psm.operating_state().state == ops.ENABLED
-    # the base frames moved with the setup joints' yield, as the Python ticks recompute them
-    assert python["frames_key"] != b""
+    if frames == "exact":  # the frames followed the setup joints' yield in both
+        assert python["frames_key"] != b""
 
 
 @pytest.mark.parametrize("name", ["PSM1", "ECM"])
