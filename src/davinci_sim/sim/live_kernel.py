@@ -26,30 +26,17 @@ from __future__ import annotations
 
 import numba
 import numpy as np
-from numba import types
-from numba.extending import intrinsic
 
 from davinci_sim.kinematics.fk_compiled import tip_pose_row
 from davinci_sim.kinematics.suj import _invert_rigid, frames_row
 from davinci_sim.sim.arm_laws import tracking_watch_row
 from davinci_sim.sim.cartesian_kernel import servo_cp_row
-from davinci_sim.sim.rows_kernel import f64_at, mj_get_state, mj_set_state, mj_step
+from davinci_sim.sim.rows_kernel import f64_at, i32_at, mj_get_state, mj_set_state, mj_step
 from davinci_sim.sim.servo import servo_ctrl_scalar
 from davinci_sim.sim.validation import MAX_JOINT_VALUE
 
 #: What a call returns when it ran every tick up to K.
 DONE = -1
-
-
-@intrinsic
-def i32_at(typingctx, address):
-    """An ``int32*`` at the integer ``address`` (MuJoCo's warning counters)."""
-    sig = types.CPointer(types.int32)(types.intp)
-
-    def codegen(context, builder, signature, args):
-        return builder.inttoptr(args[0], context.get_value_type(types.CPointer(types.int32)))
-
-    return sig, codegen
 
 
 @numba.njit(cache=True, nogil=True)

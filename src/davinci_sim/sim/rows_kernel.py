@@ -23,15 +23,23 @@ mj_set_state = types.ExternalFunction(
 )
 
 
-@intrinsic
-def f64_at(typingctx, address):
-    """A ``float64*`` at the integer ``address``."""
-    sig = types.CPointer(types.float64)(types.intp)
+def _pointer(nbtype, what: str):
+    """An intrinsic giving a ``nbtype*`` at an integer address (``what``: its docstring)."""
 
-    def codegen(context, builder, signature, args):
-        return builder.inttoptr(args[0], context.get_value_type(types.CPointer(types.float64)))
+    def at(typingctx, address):
+        sig = types.CPointer(nbtype)(types.intp)
 
-    return sig, codegen
+        def codegen(context, builder, signature, args):
+            return builder.inttoptr(args[0], context.get_value_type(types.CPointer(nbtype)))
+
+        return sig, codegen
+
+    at.__doc__ = what
+    return intrinsic(at)
+
+
+f64_at = _pointer(types.float64, "A ``float64*`` at the integer ``address``.")
+i32_at = _pointer(types.int32, "An ``int32*`` at the integer ``address`` (MuJoCo's counters).")
 
 
 @numba.njit(cache=True, nogil=True)
