@@ -81,20 +81,33 @@ def _batch_reference(env_id: str, n: int, wall: float, rounds: int = 10) -> tupl
         batch.bind(field)[:] = [getattr(d, field) for d in env.datas]
     batch.bind("time")[:] = [d.time for d in env.datas]
     batch.step(nstep=20)
-    steps = {"vector": 0, "batch": 0}
-    spent = {"vector": 0.0, "batch": 0.0}
-    for _ in range(rounds):
-        for which in ("vector", "batch"):
-            t0 = time.perf_counter()
-            while time.perf_counter() - t0 < wall / (2 * rounds):
-                if which == "vector":
-                    env.step(rng.uniform(-1, 1, env.action_space.shape).astype(np.float32))
-                else:
-                    batch.step(nstep=20)
-                steps[which] += 1
-            spent[which] += time.perf_counter() - t0
+    rates = _alternating(
+        {
+            "vector": lambda: env.step(
+                rng.uniform(-1, 1, env.action_space.shape).astype(np.float32)
+            ),
+            "batch": lambda: batch.step(nstep=20),
+        },
+        wall,
+        rounds,
+    )
     env.close()
-    return tuple(n * steps[k] * STEP_S / spent[k] for k in ("vector", "batch"))  # type: ignore[return-value]
+    return n * rates["vector"] * STEP_S, n * rates["batch"] * STEP_S
+
+
+def _alternating(steps: dict, wall: float, rounds: int) -> dict:
+    """Calls per second of each of ``steps`` (name → a function), timed in ``rounds``
+    alternating slices within ``wall`` s."""
+    count = dict.fromkeys(steps, 0)
+    spent = dict.fromkeys(steps, 0.0)
+    for _ in range(rounds):
+        for name, step in steps.items():
+            t0 = time.perf_counter()
+            while time.perf_counter() - t0 < wall / (len(steps) * rounds):
+                step()
+                count[name] += 1
+            spent[name] += time.perf_counter() - t0
+    return {name: count[name] / spent[name] for name in steps}
 
 
 def _single(env_id: str, wall: float, **kwargs) -> dict:
@@ -121,23 +134,19 @@ def _single_reference(env_id: str, wall: float, rounds: int = 10) -> tuple[float
     model = env.sim.model
     data = mujoco.MjData(model)
     mujoco.mj_copyData(data, model, env.sim.data)
-    steps = {"env": 0, "bare": 0}
-    spent = {"env": 0.0, "bare": 0.0}
-    for _ in range(rounds):
-        for which in ("env", "bare"):
-            t0 = time.perf_counter()
-            while time.perf_counter() - t0 < wall / (2 * rounds):
-                if which == "env":
-                    _, _, terminated, truncated, _ = env.step(env.action_space.sample())
-                    if terminated or truncated:
-                        env.reset()
-                else:
-                    for _ in range(20):
-                        mujoco.mj_step(model, data)
-                steps[which] += 1
-            spent[which] += time.perf_counter() - t0
+
+    def env_step() -> None:
+        _, _, terminated, truncated, _ = env.step(env.action_space.sample())
+        if terminated or truncated:
+            env.reset()
+
+    def bare_step() -> None:
+        for _ in range(20):
+            mujoco.mj_step(model, data)
+
+    rates = _alternating({"env": env_step, "bare": bare_step}, wall, rounds)
     env.close()
-    return tuple(steps[k] * STEP_S / spent[k] for k in ("env", "bare"))  # type: ignore[return-value]
+    return rates["env"] * STEP_S, rates["bare"] * STEP_S
 
 
 def _renders(size: tuple[int, int], wall: float) -> float:
