@@ -467,3 +467,25 @@ def test_the_sample_carries_camera_poses_and_tool_orientations():
     np.testing.assert_array_equal(mixed.R_task_tip[1], -np.eye(3))
     assert s.take([1]).T_task_camera.shape == (1, 4, 4)
     assert s.where([True, True], Sample.of([0.0, 1.0], np.ones((2, 3)))).R_task_tip is None
+
+
+def test_where_with_every_row_taken_gives_np_wheres_values_types_and_nones():
+    """The shortcut for a mask true everywhere (no array arithmetic) against ``np.where``
+    field by field."""
+    from davinci_sim.tasks.base import _FIELDS
+
+    rng = np.random.default_rng(0)
+    a = Sample.of([0.0, 1.0], rng.normal(size=(2, 3)), T_task_camera=np.eye(4),
+                  contacts=[1, 2], visible=[True, False])  # fmt: skip
+    b = Sample.of([0.5, 1.5], rng.normal(size=(2, 3)), R_task_tip=np.eye(3),
+                  tool_force=[0.1, 0.2], contacts=[3, 0], visible=[False, False])  # fmt: skip
+    for first, second in ((a, b), (b, a), (a, a)):
+        got = first.where([True, True], second)
+        for k in _FIELDS:
+            x, y = getattr(first, k), getattr(second, k)
+            if x is None or y is None:
+                assert getattr(got, k) is None, k
+                continue
+            want = np.where(np.ones((2,) + (1,) * (x.ndim - 1), dtype=bool), y, x)
+            assert getattr(got, k).dtype == want.dtype, k
+            np.testing.assert_array_equal(getattr(got, k), want, err_msg=k)

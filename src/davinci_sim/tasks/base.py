@@ -188,6 +188,8 @@ class Sample:
         """``other``'s rows where ``mask`` (n,) is true, this sample's elsewhere (an optional
         field is None unless both have it)."""
         m = np.asarray(mask, dtype=bool)
+        if m.all():  # every row taken (a running trial, every tick): no array arithmetic
+            return other.kept(self)
         out = []
         for k in _FIELDS:
             a, b = getattr(self, k), getattr(other, k)
