@@ -42,7 +42,7 @@ def _compose_rigid(A, B, out):
 
 
 @helper
-def _invert_rigid(T, out):
+def invert_rigid_row(T, out):
     """``out = T⁻¹ = (Rᵀ, −Rᵀp)`` for a rigid 4x4 ``T`` (``out`` is not ``T``)."""
     for i in range(3):
         for j in range(3):
@@ -64,8 +64,8 @@ def _rcm_rows(links, modified, tool, tool_is_identity, T_cart_sujbase, Q, out, T
         _rcm_row(links, modified, tool, tool_is_identity, T_cart_sujbase, Q[r], out[r], T1, J, F)
 
 
-invert_rigid = jit(_invert_rigid)
-""":func:`_invert_rigid` compiled, for Python callers: the inverse of an arm's base frame
+invert_rigid = jit(invert_rigid_row)
+""":func:`invert_rigid_row` compiled, for Python callers: the inverse of an arm's base frame
 (``Arm._T_base_reference``) with the arithmetic of the compiled control period."""
 
 
@@ -83,7 +83,7 @@ def frames_row(
                  Q_suj[i], out[i], T1, J, F)  # fmt: skip
     tip_pose_row(ref_links, ref_modified, ref_tool, ref_tool_identity, q_ref, T1, J, False, F)
     _compose_rigid(out[reference], T1, out[k])
-    _invert_rigid(out[k], out[k + 1])
+    invert_rigid_row(out[k], out[k + 1])
     for i in range(k):
         if i == reference:
             for r in range(4):

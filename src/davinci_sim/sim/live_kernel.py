@@ -9,7 +9,8 @@ ramp of setpoints and nothing else runs Python between two steps: per tick, the 
 in-cannula check) or ``servo_jp`` (the goal clipped to the limits, the feed-forward bound),
 the tracking watch over every arm (:func:`~davinci_sim.sim.arm_laws.tracking_watch_row`),
 the joint servo of every actuator (:func:`~davinci_sim.sim.servo.servo_ctrl_scalar`), the
-divergence guard's save (``mj_getState``) and ``mj_step``.
+divergence guard's save (``mj_getState``) and ``mj_step``; the arm's base frame follows the
+setup and ECM joints as ``Simulation._frames`` computes it.
 
 Where the Python tick would do something the kernel has no form of — a refusal and its
 message, an IK answer to polish, a tracking fault, a step that raises one of the divergence
@@ -28,7 +29,7 @@ import numba
 import numpy as np
 
 from davinci_sim.kinematics.fk_compiled import tip_pose_row
-from davinci_sim.kinematics.suj import _invert_rigid, frames_row
+from davinci_sim.kinematics.suj import frames_row, invert_rigid_row
 from davinci_sim.sim.arm_laws import tracking_watch_row
 from davinci_sim.sim.cartesian_kernel import servo_cp_row
 from davinci_sim.sim.rows_kernel import f64_at, i32_at, mj_get_state, mj_set_state, mj_step
@@ -69,7 +70,8 @@ def live_period(
     addresses ``arm_q``, the PSM's insertion ``qpos`` address ``shaft_q`` (-1: no
     in-cannula check) with the shaft's offset and least distance (m), its FK constants.
     ``cartesian``: tick k's goal is ``(R_ref_goal, start + (k/K)·delta)`` in the arm's
-    reference, solved with ``T_base_ref`` (held over the call) and the twist ``twist_ref``
+    reference, solved with ``T_base_ref`` (the base frame's inverse, updated in place when
+    ``frames`` recomputes it, else held) and the twist ``twist_ref``
     (if ``feedforward``); else the joint goal ``start + (k/K)·delta`` with ``velocity``.
     ``qmin``, ``qmax``: the arm's limits; ``bound``: the feed-forward bound per joint.
 
@@ -130,7 +132,7 @@ def live_period(
                     plan_T_cart_sujbase, Q_suj, plan_reference, ref_links, ref_modified,
                     ref_tool, ref_tool_identity, q_frame_ref, frames_out, T1, J_none, F_suj,
                 )  # fmt: skip
-                _invert_rigid(frames_out[arm_row], T_base_ref)  # (Arm._T_base_reference)
+                invert_rigid_row(frames_out[arm_row], T_base_ref)  # (Arm._T_base_reference)
                 computed[0] = True
         if cartesian:
             if shaft_q >= 0 and abs(qp[shaft_q] + shaft_offset) < shaft_min:

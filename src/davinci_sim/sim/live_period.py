@@ -9,13 +9,11 @@ call whenever nothing else needs Python between two steps (:meth:`ArmPeriod.read
 component, no encoder noise, every arm's pre-step idle, the arm ready for the command);
 each law is the live objects' own compiled form, on the live ``MjData`` and servo arrays.
 A tick the kernel stops before (a refusal, an IK answer to polish, a fault, a divergence)
-is the caller's to run in Python, the same tick as before; the results are those of the
-Python ticks to rounding (``tests/sim/test_live_period.py``).
-
-One difference: the arm's base frame in its reference (the PSM's in the camera frame) is
-held over a call, where the Python ticks recompute it every tick; the setup joints and the
-ECM yield by micrometres under the arms' reaction forces, so the goals differ by that much
-over a period (none with ``simulation.BASE_FRAME_TOLERANCE`` beyond the yield).
+is the caller's to run in Python, the same tick as before. The results are the Python
+ticks' bit for bit (``tests/sim/test_live_period.py``): the same compiled laws on the same
+numbers — the arm's base frame recomputed from the setup and ECM joints whenever they move
+(``Simulation._frames``, with its tolerance), its inverse by the arm's own arithmetic
+(``Arm._T_base_reference``), MuJoCo's warning counters read after each step.
 """
 
 from __future__ import annotations
