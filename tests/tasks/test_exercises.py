@@ -489,3 +489,5 @@ def test_where_with_every_row_taken_gives_np_wheres_values_types_and_nones():
             want = np.where(np.ones((2,) + (1,) * (x.ndim - 1), dtype=bool), y, x)
             assert getattr(got, k).dtype == want.dtype, k
             np.testing.assert_array_equal(getattr(got, k), want, err_msg=k)
+            # its own arrays, as np.where's: a caller may refill its sample's buffers
+            assert not np.shares_memory(getattr(got, k), y), k

@@ -188,8 +188,10 @@ class Sample:
         """``other``'s rows where ``mask`` (n,) is true, this sample's elsewhere (an optional
         field is None unless both have it)."""
         m = np.asarray(mask, dtype=bool)
-        if m.all():  # every row taken (a running trial, every tick): no array arithmetic
-            return other.kept(self)
+        if m.all():  # every row taken (a running trial, every tick): copies, no np.where
+            # (copies: a caller may refill its sample's arrays, e.g. a period's record)
+            taken = [getattr(other.kept(self), k) for k in _FIELDS]
+            return Sample(*(None if a is None else a.copy() for a in taken))
         out = []
         for k in _FIELDS:
             a, b = getattr(self, k), getattr(other, k)
