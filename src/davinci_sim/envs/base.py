@@ -148,10 +148,9 @@ class DavinciEnv(gym.Env):
         self._steps = 0
         self.problem.reset([0], [self.np_random])
         self._episode_over = False
-        obs = self._observation()
-        self.problem.outcome(
-            self._T_tip()[None], self._T_task_camera()
-        )  # (the reward's baselines: progress, phase)
+        T, T_task_camera = self._T_tip(), self._T_task_camera()
+        obs = self._observation(T, T_task_camera)
+        self.problem.outcome(T[None], T_task_camera)  # (the reward's baselines: progress, phase)
         return obs, {}
 
     def step(self, action):
@@ -161,7 +160,8 @@ class DavinciEnv(gym.Env):
         if not np.all(np.isfinite(a)):
             raise ValueError(f"the action must be finite, got {action!r}")
         self._apply(a)
-        reward, done, terms = self.problem.outcome(self._T_tip()[None], self._T_task_camera())
+        T, T_task_camera = self._T_tip(), self._T_task_camera()  # (the outcome's and the obs')
+        reward, done, terms = self.problem.outcome(T[None], T_task_camera)
         self._steps += 1
         fault = self.arm.operating_state().state == ops.FAULT
         terminated = bool(done[0]) or fault
@@ -174,7 +174,7 @@ class DavinciEnv(gym.Env):
             metrics = {k: float(v[0]) for k, v in self.problem.info().items()}
             info.update({k: v for k, v in metrics.items() if np.isfinite(v)})
             self._episode_over = True
-        return self._observation(), float(reward[0]), terminated, truncated, info
+        return self._observation(T, T_task_camera), float(reward[0]), terminated, truncated, info
 
     def render(self):
         if self.render_mode != "rgb_array":
@@ -251,8 +251,9 @@ class DavinciEnv(gym.Env):
             )
         return c
 
-    def _observation(self) -> dict[str, np.ndarray]:
-        T = self._T_tip()
+    def _observation(self, T: np.ndarray, T_task_camera) -> dict[str, np.ndarray]:
+        """The observation at the tip pose ``T`` (camera frame) and the camera's pose in the
+        task's frame ``T_task_camera`` (None for Reach), both as they are now."""
         arm = self.arm
         js = arm.measured_js()
         obs = {
@@ -265,7 +266,6 @@ class DavinciEnv(gym.Env):
                 self._goal if self.config.action_space == "cartesian" else self._q_goal
             ).copy(),
         }
-        T_task_camera = self._T_task_camera()
         feats = self.problem.features(T[None], T_task_camera)
         if "objects" in self.observation_space.spaces:
             extra = self._start.task.scene_fields(self.sim.model, self.sim.data, self._scene_cache)
