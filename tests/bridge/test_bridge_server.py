@@ -368,8 +368,15 @@ def test_roslibpy_authenticate_is_accepted(make_server):
                   end=now + 60)  # fmt: skip
     ros = roslibpy.Ros("127.0.0.1", server.port)
     ros.authenticate(rosauth_mac("s3cret", Auth(mac="", **fields)), **fields)
+    # roslibpy sends the auth from its "ready" listener, but run() can return before that
+    # listener ran (the connection is set before the event): a call made then reaches the
+    # server first and is refused, as rosbridge refuses it. A listener added after
+    # authenticate's runs after the auth is sent.
+    auth_sent = threading.Event()
+    ros.on("ready", lambda *_: auth_sent.set())
     try:
         ros.run(ROS_CONNECT_TIMEOUT)
+        assert auth_sent.wait(ROS_CONNECT_TIMEOUT)
         topics = []
         ros.get_topics(lambda r: topics.append(r["topics"]))
         assert wait_for(lambda: topics, 10) and "/rosout" in topics[0]
