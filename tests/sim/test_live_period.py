@@ -52,15 +52,29 @@ def _messages(sim, run) -> list:
 def _both(sim, arm, period, setup=lambda: None, ticks=K, **ramp):
     """Run the period compiled and in Python from the same state (after ``setup()``):
     (compiled, python) snapshots with the messages posted; the simulation is left as the
-    Python path left it."""
+    Python path left it. ``period.compiled_ticks`` counts the ticks the kernel ran."""
     state = sim.get_state()
     out = []
-    for p in (period, None):
-        sim.set_state(state)
-        setup()
-        recoveries = sim.recoveries  # (cumulative: not part of the state)
-        said = _messages(sim, lambda p=p: run_period(sim, arm, ticks, period=p, **ramp))
-        out.append({**_snapshot(sim), "messages": said, "recoveries": sim.recoveries - recoveries})
+    run = period.run
+    period.compiled_ticks = 0
+
+    def counted(*args, **kwargs):
+        before = sim.tick_count
+        stop = run(*args, **kwargs)
+        period.compiled_ticks += sim.tick_count - before
+        return stop
+
+    period.run = counted
+    try:
+        for p in (period, None):
+            sim.set_state(state)
+            setup()
+            recoveries = sim.recoveries  # (cumulative: not part of the state)
+            said = _messages(sim, lambda p=p: run_period(sim, arm, ticks, period=p, **ramp))
+            out.append({**_snapshot(sim), "messages": said,
+                        "recoveries": sim.recoveries - recoveries})  # fmt: skip
+    finally:
+        period.run = run
     return out[0], out[1]
 
 
@@ -82,9 +96,12 @@ def test_cartesian_periods_are_the_python_ticks_bit_for_bit(psm_sim, monkeypatch
     period = ArmPeriod(sim, psm)
     assert period.ready(cartesian=True)
     rng = np.random.default_rng(3)
+    compiled_ticks = 0
     for _ in range(12):
         compiled, python = _both(sim, psm, period, **_cartesian_ramp(psm, rng.normal(0, 0.004, 3)))
         _assert_same(compiled, python)
+        compiled_ticks += period.compiled_ticks
+    assert compiled_ticks >= 12 * K * 0.9  # (nearly all compiled: the test compares something)
     assert python["ticks"] > 0 and psm.operating_state().state == ops.ENABLED
     if frames == "exact":  # the frames followed the setup joints' yield in both
         assert python["frames_key"] != b""
@@ -97,10 +114,11 @@ def test_joint_periods_are_the_python_ticks_bit_for_bit(psm_sim, name):
     rng = np.random.default_rng(4)
     for _ in range(6):
         q = arm.setpoint_js().position
-        delta = rng.normal(0.0, 0.01, arm.dof)
+        delta = rng.normal(0.0, 0.003, arm.dof)  # (feed-forwards within the bounds)
         ramp = {"cartesian": False, "start": q, "delta": delta, "velocity": delta / (K * 0.001)}
         compiled, python = _both(sim, arm, period, **ramp)
         _assert_same(compiled, python)
+        assert period.compiled_ticks == K
 
 
 def test_a_refused_tick_runs_in_python_with_its_refusal(psm_sim):
@@ -128,6 +146,7 @@ def test_a_tracking_fault_in_a_period_is_the_python_ticks_fault(psm_sim):
     ramp = _cartesian_ramp(psm, [0.002, 0.0, 0.0])
     compiled, python = _both(sim, psm, period, ticks=400, **ramp)
     _assert_same(compiled, python)
+    assert period.compiled_ticks > 0
     assert ops.FAULT in python["states"]
     assert any("tracking error" in text for _, text, _ in python["messages"])
 
@@ -143,6 +162,7 @@ def test_a_diverging_step_in_a_period_is_undone_as_the_python_tick_undoes_it(psm
     ramp = _cartesian_ramp(psm, [0.0, 0.002, 0.0])
     compiled, python = _both(sim, psm, period, setup=bad_setpoint, **ramp)
     _assert_same(compiled, python)
+    assert period.compiled_ticks > 0  # (the ticks after the recovery)
     assert python["recoveries"] == 1
     assert ecm.operating_state().state == ops.FAULT
     assert psm.operating_state().state == ops.ENABLED
