@@ -81,8 +81,8 @@ class ArmPeriod:
         if not COMPILED:
             raise RuntimeError("ArmPeriod needs numba and MuJoCo's library (rows_step.COMPILED)")
         self.sim, self.arm = sim, arm
-        self._data, self._model = sim.data, sim.model
-        data, model = sim.data, sim.model
+        self._data = data = sim.data
+        self._model = model = sim.model
         w = warning_address(data)
         self.available = w is not None
         """Whether the kernel can watch MuJoCo's warnings here (else :meth:`ready` is False)."""
@@ -224,22 +224,15 @@ def run_period(
     ``velocity``), :meth:`Simulation.tick`, then ``after_tick()`` if given (a caller that
     samples every tick passes no ``period``). Without ``period``: the Python path, the
     oracle of the compiled one."""
+    ramp = {"cartesian": cartesian, "start": start, "delta": delta, "velocity": velocity,
+            "R_ref_goal": R_ref_goal, "twist_ref": twist_ref}  # fmt: skip
     T_goal = np.eye(4)
     if cartesian:
         T_goal[:3, :3] = R_ref_goal
     k = 1
     while k <= K:
         if period is not None and period.ready(cartesian):
-            k = period.run(
-                k,
-                K,
-                cartesian=cartesian,
-                start=start,
-                delta=delta,
-                velocity=velocity,
-                R_ref_goal=R_ref_goal,
-                twist_ref=twist_ref,
-            )
+            k = period.run(k, K, **ramp)
             if k == DONE:
                 return
         g = start + (k / K) * delta  # (envs.control.ramp)
