@@ -11,6 +11,7 @@ from bridge_helpers import enable_and_home, wait_for
 from davinci_sim.bridge import dvrk_messages as m
 from davinci_sim.bridge.dvrk_node import DvrkNode
 from davinci_sim.sim.simulation import Simulation
+from davinci_sim.sim.types import OperatingState
 
 
 def subscribe(ros, name, type_name):
@@ -112,6 +113,29 @@ def test_ros1_dialect_headers(handle, make_server, make_ros):
     assert set(headers[0]["stamp"]) == {"secs", "nsecs"}
     assert headers[0]["frame_id"] == "ECM"  # PSM poses are in the camera frame (dvrk.md 1.6)
     assert ros.get_topic_type("/PSM1/measured_cp") == "geometry_msgs/PoseStamped"
+
+
+def test_the_operating_state_service_never_lags_the_topic(handle, make_server, make_ros):
+    """The service answers from the latest snapshot, which may be a tick behind the state
+    the topic has already published from the arm's event: the newer of the two."""
+    node = DvrkNode(handle)
+    server = make_server(nodes=[node])
+    ros = make_ros(server)
+    service = roslibpy.Service(ros, "/PSM1/operating_state", "crtk_msgs/TriggerOperatingState")
+
+    def reply():
+        r = service.call({})["operating_state"]
+        return r["state"], r["is_homed"], r["is_busy"]
+
+    assert wait_for(lambda: handle.snapshot().time > 0.01)
+    old = OperatingState("ENABLED", True, False, timestamp=0.0)  # older than the snapshot
+    node._event_from_loop("PSM1", "operating_state", old)
+    assert wait_for(lambda: node.arms["PSM1"].last_state is old)
+    assert reply() == ("DISABLED", False, False)  # the snapshot's
+    new = OperatingState("ENABLED", True, False, timestamp=handle.snapshot().time + 1e3)
+    node._event_from_loop("PSM1", "operating_state", new)
+    assert wait_for(lambda: node.arms["PSM1"].last_state is new)
+    assert reply() == ("ENABLED", True, False)  # the event's, which the topic published
 
 
 def test_enable_home_and_operating_state(handle, make_server, make_ros):

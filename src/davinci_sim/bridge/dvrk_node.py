@@ -72,6 +72,8 @@ class _Arm:
         self.goal_reached: Topic | None = None
         self.busy = False
         self.last_event_time = -1.0
+        self.last_state: Any = None
+        """The last operating state published (an event's, or the snapshot's safety net)."""
         self.gripper_closed: Topic | None = None
         self.closed: bool | None = None
 
@@ -257,6 +259,7 @@ class DvrkNode:
         b, d = self.bridge, self.bridge.dialect
         assert arm.operating_state is not None and arm.goal_reached is not None
         arm.last_event_time = s.timestamp
+        arm.last_state = s
         b.publish(
             arm.operating_state,
             m.operating_state(d, s, self._stamp(s.timestamp), arm.operating_state.next_seq()),
@@ -329,6 +332,9 @@ class DvrkNode:
 
         async def operating_state(req, session) -> dict:
             s = self.handle.snapshot().arms[name].operating_state
+            latest = arm.last_state
+            if latest is not None and latest.timestamp > s.timestamp:
+                s = latest  # (the snapshot may be a tick behind the state the topic published)
             return {"operating_state": m.operating_state(b.dialect, s, self._stamp(s.timestamp))}
 
         def fk(target: str):
