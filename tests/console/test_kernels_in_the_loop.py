@@ -26,7 +26,13 @@ def test_the_live_tick_compiles_no_new_kernel_signature():
         importlib.import_module(module.name)
     # Every kernel compiled at import: from here the build, the homing and the following
     # must call each with a signature it has.
+    from davinci_sim.console import teleop_row
+    from davinci_sim.sim import cartesian_kernel
+
+    # (and the kernels a live component calls itself: servo_cp's, the teleoperation's)
+    direct = (cartesian_kernel.servo_cp_row, teleop_row.follow_tick)
     before = {k.__qualname__: len(k.dispatcher.signatures) for k in jit.KERNELS}
+    before.update({k.__name__: len(k.signatures) for k in direct})
     console = ConsoleDescription(
         operator_present=True, teleop_enabled=True, contact_feedback=True, scripted_hands=True
     )
@@ -38,4 +44,5 @@ def test_the_live_tick_compiles_no_new_kernel_signature():
     sim.run_for(0.3)  # following: teleoperation, hand, haptics, fixture, task session
     assert sim.components["console"].haptics.requested("MTMR") is not None
     after = {k.__qualname__: len(k.dispatcher.signatures) for k in jit.KERNELS}
+    after.update({k.__name__: len(k.signatures) for k in direct})
     assert after == before

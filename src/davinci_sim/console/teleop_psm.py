@@ -38,11 +38,19 @@ from davinci_sim.console.teleop_base import TeleopBase
 from davinci_sim.console.teleop_config import TeleopPSMConfig
 from davinci_sim.devices.device import MasterDevice
 from davinci_sim.geometry import so3
+from davinci_sim.kinematics import jit
 from davinci_sim.sim.arms import PSM
 from davinci_sim.sim.channels import Channels
 from davinci_sim.sim.state import capture, restore
 from davinci_sim.sim.types import ACCEPTED, CommandResult
 from davinci_sim.sim.validation import short_repr
+
+_ROW = None  # the following tick's compiled rows (console/teleop_row.py), when numba compiles
+if jit.ENABLED:
+    from davinci_sim.console import teleop_row as _row_module
+
+    if jit.warmed_up(_row_module._warm_up, "the teleoperation's compiled tick: Python runs"):
+        _ROW = _row_module
 
 if TYPE_CHECKING:
     from davinci_sim.sim.simulation import Simulation
@@ -168,6 +176,9 @@ class TeleopPSM(TeleopBase):
         self._ghost = 0.0
         self._jaw_catching_up = False
         self._jaw_sent = math.nan
+        # the compiled following tick's arguments (:meth:`_follow_compiled`), reused
+        self._row_flags = np.zeros(5)
+        self._row_jaw = np.zeros(12)
         if self.config.align_mtm and not device.can_align:
             self.channels.message(
                 "status",
@@ -503,6 +514,8 @@ class TeleopPSM(TeleopBase):
         inp = self.device.input()
         if not self._following or inp is None:
             return
+        if _ROW is not None and self._follow_compiled(inp):
+            return
         goal = tm.follow_pose(
             self._T_camera_psm0,
             self._T_hrsv_mtm0,
@@ -525,6 +538,45 @@ class TeleopPSM(TeleopBase):
         self.psm._servo_cp_checked(goal, twist=twist)
         if not self._ignore_jaw:
             self._follow_jaw(inp.gripper)
+
+    def _follow_compiled(self, inp) -> bool:
+        """:meth:`_run_enabled` in one compiled call (``teleop_row.follow_tick``): True when
+        it gave the answer, applied as the Python path below applies it; False for that
+        path to run (nothing changed): the PSM not ready for Cartesian control, or a goal
+        ``servo_cp`` has no compiled answer for (its refusal and message are Python's)."""
+        psm = self.psm
+        cp = getattr(psm, "_cp", None)  # (servo_cp's compiled law, sim/arms.py)
+        if cp is None or psm._not_ready(cartesian=True):
+            return False
+        c, spec = self.config, psm.jaw.spec
+        flags = self._row_flags
+        flags[0] = self._scale
+        flags[1] = c.use_mtm_linear_velocity
+        flags[2] = c.use_mtm_angular_velocity
+        flags[3] = self._translation_locked
+        flags[4] = self._rotation_locked
+        jaw = self._row_jaw
+        jaw[:11] = (self._ghost, inp.gripper, self._jaw_catching_up, c.jaw_rate,
+                    c.jaw_rate_after_clutch, self._dt, self._jaw_s, self._jaw_o, spec.qmin,
+                    spec.qmax, tm.JAW_CATCH_UP_TOLERANCE)  # fmt: skip
+        q, _, J = psm._measured_kinematics(jacobian=True)
+        constants, bound, q_out, qd_out = cp
+        if not _ROW.follow_tick(
+            *constants, psm._T_base_reference(), self._T_camera_psm0, self._T_hrsv_mtm0,
+            inp.T_hrsv_tip, self._R_offset, inp.twist_hrsv_tip, flags, q, J, psm._qmin,
+            psm._qmax, bound, q_out, qd_out, jaw,
+        ):  # fmt: skip
+            return False
+        psm._servo_position(q_out, qd_out)  # (copied into the servo's references)
+        if not self._ignore_jaw:
+            self._ghost, self._jaw_catching_up, angle = float(jaw[0]), bool(jaw[2]), float(jaw[11])
+            if angle != self._jaw_sent:  # the jaw servo keeps its setpoint: send changes only
+                self._jaw_sent = angle
+                if math.isfinite(angle):  # (clamped to the jaw's limits by follow_jaw)
+                    psm.jaw._servo_jp_checked(angle)
+                else:
+                    psm.jaw.servo_jp(angle)  # (refused, with the jaw's message)
+        return True
 
     def _follow_jaw(self, gripper: float) -> None:
         c, spec = self.config, self.psm.jaw.spec

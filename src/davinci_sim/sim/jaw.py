@@ -129,6 +129,12 @@ class Jaw(ServoJoints):
         self._set(goal, 0.0, effort=None)
         return ACCEPTED
 
+    def _servo_jp_checked(self, angle: float) -> None:
+        """:meth:`servo_jp` of an angle known finite and within the jaw's limits, the arm
+        ready (the teleoperation's, clamped to the limits, at 1 kHz): not checked again."""
+        self._traj = None
+        self._set(angle, 0.0, effort=None)
+
     def move_jp(self, angle) -> CommandResult:
         """Trajectory to the opening angle (rad) within the jaw limits (dvrk.md 1.9)."""
         goal, result = self._goal("move_jp", angle)

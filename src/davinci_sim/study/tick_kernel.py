@@ -8,7 +8,8 @@ trainee's plan and noise) and the task's sample (Python: the task's state machin
 * :func:`teleop_rows` — the teleoperation's following tick (``TrialBatch._teleop``): the
   PSM goal (``teleop_math.follow_pose``), its closed-form IK and limits, the twist
   feed-forward (``follow_twist``, ``joint_velocity``), the jaw (``follow_jaw``,
-  ``finger_setpoints``). It first solves every row and writes nothing if any row needs
+  ``finger_setpoints``); the following laws are the live teleoperation's compiled rows
+  (``console/teleop_row.py``). It first solves every row and writes nothing if any row needs
   what it has no compiled form of (an IK answer to polish, a singular Jacobian's least
   squares): it returns True and the caller runs the Python tick's teleoperation instead.
 * :func:`physics_rows` — the PSM's tracking watch, the joint servo, ``mj_step`` of the rows
@@ -25,6 +26,9 @@ from __future__ import annotations
 import numba
 import numpy as np
 
+from davinci_sim.console.teleop_row import follow_jaw_row as _follow_jaw
+from davinci_sim.console.teleop_row import follow_pose_row as _follow_pose
+from davinci_sim.console.teleop_row import follow_twist_row as _follow_twist
 from davinci_sim.devices.safety import _clamp_rows
 from davinci_sim.haptics.fixture_row import viscous_fixture_row
 from davinci_sim.kinematics.fk_compiled import tip_pose_row
@@ -57,17 +61,11 @@ def teleop_rows(
     T_goal, seed, q1, success, status, info = ik_scratch(dof)
     A = np.empty((dof, dof))
     local = np.empty(6)
+    twist = np.empty(6)
     G = np.empty((4, 4))
     for r in range(n):
         # --- follow_pose: p0 + s·(p_mtm − p_mtm0), R_mtm·R_offset (dvrk.md 4.2)
-        for i in range(3):
-            G[i, 3] = T_camera_psm0[i, 3] + scale * (T_mtm[r, i, 3] - T_hrsv_mtm0[i, 3])
-            for m in range(3):
-                t = 0.0
-                for h in range(3):
-                    t = t + T_mtm[r, i, h] * R_offset[h, m]
-                G[i, m] = t
-        G[3, 0], G[3, 1], G[3, 2], G[3, 3] = 0.0, 0.0, 0.0, 1.0
+        _follow_pose(T_camera_psm0, T_hrsv_mtm0, T_mtm[r], R_offset, scale, False, False, G)
         for i in range(4):  # the goal in the RCM frame
             for m in range(4):
                 t = 0.0
@@ -77,12 +75,9 @@ def teleop_rows(
         for i in range(dof):
             seed[0, i] = Q[r, psm_q[i]]
         # --- follow_twist, then the twist in the RCM axes (rotate_pairs)
+        _follow_twist(twist_mtm[r], scale, use_linear, use_angular, False, False, twist)
         for h in range(2):
-            x, y, z = 0.0, 0.0, 0.0
-            if h == 0 and use_linear:
-                x, y, z = scale * twist_mtm[r, 0], scale * twist_mtm[r, 1], scale * twist_mtm[r, 2]
-            if h == 1 and use_angular:
-                x, y, z = twist_mtm[r, 3], twist_mtm[r, 4], twist_mtm[r, 5]
+            x, y, z = twist[3 * h], twist[3 * h + 1], twist[3 * h + 2]
             for i in range(3):
                 local[3 * h + i] = (
                     x * T_rcm_camera[i, 0] + y * T_rcm_camera[i, 1] + z * T_rcm_camera[i, 2]
@@ -107,11 +102,10 @@ def teleop_rows(
         gripper = Q[r, gripper_q[0]]  # (numpy's sum starts from the first element)
         for i in range(1, gripper_q.shape[0]):
             gripper = gripper + Q[r, gripper_q[i]]
-        step = (rate_after_clutch if catching_up[r] else rate) * dt
-        g = ghost[r] + min(max(gripper - ghost[r], -step), step)
-        ghost[r] = g
-        catching_up[r] = catching_up[r] and abs(g - gripper) > catch_up_tolerance
-        jaw = min(max(jaw_s * g + jaw_o, jaw_min), jaw_max)
+        ghost[r], catching_up[r], jaw = _follow_jaw(
+            ghost[r], gripper, catching_up[r], rate, rate_after_clutch, dt, jaw_s, jaw_o,
+            jaw_min, jaw_max, catch_up_tolerance,
+        )  # fmt: skip
         if jaw != jaw_sent[r]:
             jaw_sent[r] = jaw
             for i in range(jaw_act.shape[0]):
