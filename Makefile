@@ -33,7 +33,7 @@ lint: install
 # Two pytest-xdist workers, whole test modules each (tests/conftest.py: the browser modules
 # are one unit, run first). Plain `pytest` (no -n) runs the same tests in one process.
 test: install lint
-	$(BIN)/python -m pytest -q -n 2 --dist loadfile
+	$(BIN)/python -m pytest -q -n 2 --dist loadfile --durations=30
 
 bench: install
 	$(BIN)/python benchmarks/run_all.py
