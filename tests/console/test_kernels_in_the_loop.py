@@ -27,10 +27,11 @@ def test_the_live_tick_compiles_no_new_kernel_signature():
     # Every kernel compiled at import: from here the build, the homing and the following
     # must call each with a signature it has.
     from davinci_sim.console import teleop_row
+    from davinci_sim.devices import device_row
     from davinci_sim.sim import cartesian_kernel
 
-    # (and the kernels a live component calls itself: servo_cp's, the teleoperation's)
-    direct = (cartesian_kernel.servo_cp_row, teleop_row.follow_tick)
+    # (and the kernels a live part calls itself: servo_cp's, the teleoperation's, the MTM's)
+    direct = (cartesian_kernel.servo_cp_row, teleop_row.follow_tick, device_row.hand_read_row)
     before = {k.__qualname__: len(k.dispatcher.signatures) for k in jit.KERNELS}
     before.update({k.__name__: len(k.signatures) for k in direct})
     console = ConsoleDescription(

@@ -20,12 +20,22 @@ from davinci_sim.devices.device import MasterDevice
 from davinci_sim.devices.hand import HandImpedance, hand_wrenches, handle_xfrc
 from davinci_sim.devices.safety import WrenchLimits
 from davinci_sim.devices.state import DeviceInput
+from davinci_sim.kinematics import jit
 from davinci_sim.sim.arms import MTM
 from davinci_sim.sim.types import CommandResult
 from davinci_sim.sim.validation import MAX_FORCE, MAX_TORQUE, as_transform
 
 if TYPE_CHECKING:
     from davinci_sim.sim.simulation import Simulation
+
+_ROW = None  # the read's compiled row (devices/device_row.py), when numba compiles it
+if jit.ENABLED:
+    from davinci_sim.devices import device_row as _row_module
+
+    if jit.warmed_up(_row_module._warm_up, "the simulated MTM's compiled read: Python runs"):
+        _ROW = _row_module
+
+_NO_TARGET = np.eye(4)  # (the compiled read's target argument when the hand has none)
 
 #: The body the hand holds: the last gimbal link, which carries the handle (model/mtm.py).
 HANDLE_BODY = "wrist_roll"
@@ -79,6 +89,7 @@ class SimulatedMTM(MasterDevice):
         self._push = np.zeros(6)
         self._hand_wrench = np.zeros(6)
         self._hand_applied = False
+        self._row_impedance: tuple[np.ndarray, HandImpedance] | None = None  # (_read_compiled)
 
     # ------------------------------------------------------------ model
     @property
@@ -146,7 +157,7 @@ class SimulatedMTM(MasterDevice):
             w = np.concatenate([w, np.zeros(3)])
         if w.shape != (6,) or not np.isfinite(w).all():
             raise ValueError(f"push needs 3 or 6 finite numbers (N, N·m), got {wrench!r}")
-        self._push = w
+        self._push = np.array(w, dtype=float)  # (own, writable: the compiled read's argument)
 
     def squeeze(self, angle: float) -> CommandResult:
         """The fingers set the gripper opening, rad (−15° squeezed, 0 just closed … 60°;
@@ -183,6 +194,8 @@ class SimulatedMTM(MasterDevice):
     def _read(self, t: float) -> DeviceInput:
         arm = self.arm
         T = arm._measured_T()  # (measured_cp().T and measured_cv().twist, read-only)
+        if _ROW is not None:
+            return self._read_compiled(T, t)
         twist = arm._measured_twist()
         if self._hand_on or self._pushing or self._hand_applied:
             w = self._push.copy()
@@ -199,6 +212,34 @@ class SimulatedMTM(MasterDevice):
                     hold_orientation=self._hold_orientation,
                 )[0]
             self._apply_hand(w, T)
+        return DeviceInput(T, twist, arm.gripper.measured_jp(), t)
+
+    def _read_compiled(self, T: np.ndarray, t: float) -> DeviceInput:
+        """:meth:`_read` after the pose in one compiled call (``device_row.hand_read_row``):
+        the same laws and the same bits."""
+        arm, hand = self.arm, self.hand
+        J = arm._measured_kinematics(jacobian=True)[2]
+        twist, w, xfrc = np.empty(6), np.empty(6), np.empty(6)
+        target = self._hand_target
+        impedance = self._row_impedance
+        if impedance is None or impedance[1] is not hand:  # (the hand may be replaced)
+            impedance = self._row_impedance = (
+                np.array([hand.stiffness, hand.damping, hand.rotational_stiffness,
+                          hand.rotational_damping, hand.max_force, hand.max_torque]),
+                hand,
+            )  # fmt: skip
+        body = self._body
+        data = self.sim.data
+        if _ROW.hand_read_row(
+            T, arm.base_frame()[0][:3, :3], J, arm._qd(), self._hand_on,
+            _NO_TARGET if target is None else target, target is not None,
+            self._hold_orientation, self._hand_applied, impedance[0], self._push,
+            self._R_world_hrsv, self._p_world_hrsv, data.xipos[body], twist, w, xfrc,
+        ):  # fmt: skip
+            self._hand_wrench = w
+            self._hand_applied = bool(w.any())
+            data.xfrc_applied[body] = xfrc
+        twist.setflags(write=False)
         return DeviceInput(T, twist, arm.gripper.measured_jp(), t)
 
     @property

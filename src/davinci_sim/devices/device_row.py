@@ -1,0 +1,99 @@
+"""The simulated MTM's per-tick read as one compiled call (numba only: imported where
+:data:`davinci_sim.kinematics.jit.ENABLED`).
+
+:func:`hand_read_row` is ``SimulatedMTM._read`` after the handle's pose: the handle's twist
+(``arm_laws.twist_row``, as ``measured_cv``), the hand's spring-damper
+(``hand._hand_rows``, as ``hand_wrenches``) plus a push, and that wrench as MuJoCo's
+``xfrc_applied`` on the handle body (``hand.handle_xfrc``'s float form). The same compiled
+laws and the same float operations in the same order as the Python path, so the same bits
+(``tests/devices/test_device_row.py``); the Python path stays the fallback and the oracle.
+"""
+
+from __future__ import annotations
+
+import numba
+import numpy as np
+
+from davinci_sim.devices.hand import _hand_rows
+from davinci_sim.sim.arm_laws import twist_row
+
+_twist = twist_row.dispatcher
+_hand = _hand_rows.dispatcher
+
+
+@numba.njit(cache=True, nogil=True)
+def hand_read_row(
+    T_hrsv_tip, R_hrsv_base, J, qd, hand_on, target, pull, hold, applied, impedance, push,
+    R_world_hrsv, p_world_hrsv, p_world_com, twist_out, wrench_out, xfrc_out,
+):  # fmt: skip
+    """One tick of a simulated MTM's reading.
+
+    ``T_hrsv_tip`` (4, 4) the handle's pose (``measured_cp``), ``R_hrsv_base`` the MTM base's
+    orientation in HRSV, ``J`` (6, dof) the spatial Jacobian, ``qd`` (dof,) the joint
+    velocities: ``twist_out`` (6,) the handle's twist in HRSV axes, m/s and rad/s.
+
+    With ``hand_on`` (the hand holds the handle), a push (``push`` (6,) non-zero) or a wrench
+    applied at the last tick (``applied``): ``wrench_out`` = ``push`` + the hand's wrench
+    (towards ``target`` (4, 4) when ``pull``, holding its orientation when ``hold``;
+    ``impedance`` (6,): stiffness N/m, damping N·s/m, rotational stiffness and damping,
+    maximum force N and torque N·m), HRSV axes, and ``xfrc_out`` (6,) that wrench moved to
+    the handle body's centre of mass ``p_world_com``, world axes (HRSV placed by
+    ``R_world_hrsv``, ``p_world_hrsv``). Returns whether the wrench was computed (else
+    ``wrench_out`` and ``xfrc_out`` are untouched)."""
+    _twist(R_hrsv_base, J, qd, twist_out)
+    pushing = False
+    for i in range(6):
+        pushing = pushing or push[i] != 0.0
+    if not (hand_on or pushing or applied):
+        return False
+    for i in range(6):
+        wrench_out[i] = push[i]
+    if hand_on:
+        tip = np.empty((1, 4, 4))
+        goal = np.empty((1, 4, 4))
+        for i in range(4):
+            for m in range(4):
+                tip[0, i, m] = T_hrsv_tip[i, m]
+                goal[0, i, m] = target[i, m] if pull else T_hrsv_tip[i, m]
+        twist = np.empty((1, 6))
+        for i in range(6):
+            twist[0, i] = twist_out[i]
+        w = np.empty((1, 6))
+        _hand(goal, pull, hold, tip, twist, impedance[0:1], impedance[1:2], impedance[2],
+              impedance[3], impedance[4], impedance[5], w)  # fmt: skip
+        for i in range(6):
+            wrench_out[i] = wrench_out[i] + w[0, i]
+    # handle_xfrc of one hand: the force and torque in world axes, the force's moment about
+    # the centre of mass (lever × f)
+    R = R_world_hrsv
+    f = np.empty(3)
+    lever = np.empty(3)
+    x, y, z = wrench_out[0], wrench_out[1], wrench_out[2]
+    px, py, pz = T_hrsv_tip[0, 3], T_hrsv_tip[1, 3], T_hrsv_tip[2, 3]
+    u, v, s = wrench_out[3], wrench_out[4], wrench_out[5]
+    for i in range(3):
+        f[i] = x * R[i, 0] + y * R[i, 1] + z * R[i, 2]
+        lever[i] = (px * R[i, 0] + py * R[i, 1] + pz * R[i, 2]) + p_world_hrsv[i] - p_world_com[i]
+        xfrc_out[3 + i] = u * R[i, 0] + v * R[i, 1] + s * R[i, 2]
+        xfrc_out[i] = f[i]
+    xfrc_out[3] = xfrc_out[3] + (lever[1] * f[2] - lever[2] * f[1])
+    xfrc_out[4] = xfrc_out[4] + (lever[2] * f[0] - lever[0] * f[2])
+    xfrc_out[5] = xfrc_out[5] + (lever[0] * f[1] - lever[1] * f[0])
+    return True
+
+
+def _warm_up() -> None:
+    """Compile (or load from numba's cache) at import with the live device's one signature:
+    the pose, Jacobian and joint velocities read-only or new (``Arm._measured_T``,
+    ``_measured_kinematics``, ``_qd``), the base rotation a view of the base frame."""
+
+    def readonly(a: np.ndarray) -> np.ndarray:
+        a.setflags(write=False)
+        return a
+
+    # (the base frame read-only as the simulation caches it, or writable as a user's)
+    for T_ref_base in (readonly(np.eye(4)), np.eye(4)):
+        hand_read_row(readonly(np.eye(4)), T_ref_base[:3, :3], readonly(np.zeros((6, 7))),
+                      np.zeros(7), True, np.eye(4), True, True, False, np.ones(6),
+                      np.zeros(6), np.eye(3), np.zeros(3), np.zeros(3), np.empty(6),
+                      np.empty(6), np.empty(6))  # fmt: skip

@@ -1,0 +1,93 @@
+"""The simulated MTM's compiled read (devices/device_row.py) against the Python read it
+replaces: the same twist, hand wrench and external force, bit for bit."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from davinci_sim.devices import SimulatedMTM, simulated
+from davinci_sim.devices.safety import WrenchLimits
+from davinci_sim.geometry import so3
+from davinci_sim.kinematics import jit
+from davinci_sim.sim.simulation import Simulation
+
+pytestmark = pytest.mark.skipif(not jit.ENABLED, reason="numba is off: nothing is compiled")
+
+
+@pytest.fixture(scope="module")
+def homed():
+    """MTMR enabled, homed and free (effort mode), with its device; and that state."""
+    sim = Simulation("psm1_ecm_mtmr", keyframe="surgical")
+    arm = sim.arms["MTMR"]
+    assert arm.state_command("enable") and arm.state_command("home")
+    assert sim.run_until(lambda: arm.is_homed() and not arm.is_busy(), 10)
+    device = SimulatedMTM(sim, "MTMR", limits=WrenchLimits(max_force=4.0, max_force_rate=500.0))
+    sim.add_component(device)
+    device.enter_effort_mode()
+    sim.run_for(0.01)
+    return sim, device, sim.get_state()
+
+
+def _target(device) -> np.ndarray:
+    T = device.input().T_hrsv_tip.copy()
+    T[:3, 3] += (0.02, -0.01, 0.015)
+    T[:3, :3] = so3.rotation_from_vector([0.2, -0.3, 0.1]) @ T[:3, :3]
+    return T
+
+
+HANDS = {
+    "hand pulling and holding the orientation": lambda d: d.grasp(_target(d)),
+    "hand pulling, orientation free": lambda d: d.grasp(_target(d), hold_orientation=False),
+    "hand resting on the handle": lambda d: d.grasp(),
+    "a push, no hand": lambda d: d.push([0.5, -0.2, 1.0, 0.01, 0.0, -0.02]),
+    "a hand and a push": lambda d: (d.grasp(_target(d)), d.push([0.0, 0.0, 2.0])),
+    "the hand let go after holding": lambda d: (d.grasp(_target(d)), d.release()),
+}
+
+
+@pytest.mark.parametrize("hand", list(HANDS))
+def test_the_compiled_read_is_the_python_read_bit_for_bit(monkeypatch, homed, hand):
+    sim, device, start = homed
+    runs = []
+    for row in (simulated._ROW, None):
+        sim.set_state(start)
+        monkeypatch.setattr(simulated, "_ROW", row)
+        HANDS[hand](device)
+        if hand.startswith("the hand let go"):
+            sim.run_for(0.02)  # (held first: the wrench applied at the last tick is cleared)
+            device.release()
+        inputs = []
+        for _ in range(150):
+            sim.tick()
+            inp = device.input()
+            inputs.append((inp.T_hrsv_tip.copy(), inp.twist_hrsv_tip.copy(), inp.gripper))
+        runs.append(
+            (inputs, device.hand_wrench(), device._hand_applied,
+             sim.data.xfrc_applied.copy(), sim.data.qpos.copy(), sim.data.qvel.copy())
+        )  # fmt: skip
+    compiled, python = runs
+    for (T_a, tw_a, g_a), (T_b, tw_b, g_b) in zip(compiled[0], python[0], strict=True):
+        np.testing.assert_array_equal(T_a, T_b)
+        np.testing.assert_array_equal(tw_a, tw_b)
+        assert g_a == g_b
+    np.testing.assert_array_equal(compiled[1], python[1])
+    assert compiled[2] == python[2]
+    for a, b in zip(compiled[3:], python[3:], strict=True):
+        np.testing.assert_array_equal(a, b)
+    assert np.abs(compiled[3]).sum() > 0 or hand.startswith("the hand let go")
+
+
+def test_the_read_compiles_no_new_signature_in_the_loop(homed):
+    from davinci_sim.devices import device_row
+
+    sim, device, start = homed
+    sim.set_state(start)
+    before = len(device_row.hand_read_row.signatures)
+    device.grasp(_target(device))
+    device.push([0.0, 0.0, 1.0])
+    sim.run_for(0.05)
+    device.release()
+    device.push(np.zeros(6))
+    sim.run_for(0.05)
+    assert len(device_row.hand_read_row.signatures) == before
