@@ -82,6 +82,10 @@ def test_a_person_who_waits_after_taking_control_keeps_the_tools_still(console):
         page.close()
 
 
+def psm1_faulted_and_not_followed(s: dict) -> bool:
+    return s["arms"]["PSM1"]["state"] == "FAULT" and not s["teleops"]["MTMR_PSM1"]["following"]
+
+
 def test_a_fault_is_shown_with_its_reason_and_recovered_in_one_click(console):
     web, system = console
     page = Page(web)
@@ -92,13 +96,7 @@ def test_a_fault_is_shown_with_its_reason_and_recovered_in_one_click(console):
         system.handle.call("MTMR/device", "push", [0.0, 0.0, -40.0]).result(10)
         errors: list[str] = []
         # (the teleoperation sees the fault on its next tick: a state may fall between the two)
-        faulted = wait_state(
-            page,
-            lambda s: s["arms"]["PSM1"]["state"] == "FAULT"
-            and not s["teleops"]["MTMR_PSM1"]["following"],
-            30,
-            errors,
-        )
+        faulted = wait_state(page, psm1_faulted_and_not_followed, 30, errors)
         system.handle.call("MTMR/device", "push", [0.0, 0.0, 0.0]).result(10)
         shown = wait_state(
             page, lambda s: "MTMR" in {p["source"] for p in s["problems"]}, 2, errors

@@ -161,7 +161,8 @@ def _warm_up() -> None:
     chain = load_arm("PSM1").chain
     T = np.eye(4)
     T[2, 3] = -0.1
-    follow_tick(*servo_cp_constants(chain), np.eye(4), T, np.eye(4), readonly(np.eye(4)),
-                np.eye(3), readonly(np.zeros(6)), np.zeros(5), readonly(np.zeros(6)),
-                readonly(np.eye(6)), chain.qmin, chain.qmax, np.ones(6), np.empty(6),
-                np.empty(6), np.zeros(12))  # fmt: skip
+    args = (*servo_cp_constants(chain), np.eye(4), T, np.eye(4), readonly(np.eye(4)),
+            np.eye(3), readonly(np.zeros(6)), np.zeros(5), readonly(np.zeros(6)),
+            readonly(np.eye(6)), chain.qmin, chain.qmax, np.ones(6), np.empty(6),
+            np.empty(6), np.zeros(12))  # fmt: skip
+    follow_tick(*args)
