@@ -5,7 +5,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from davinci_sim.sim.trajectory import plan_trajectory, step_towards
+from davinci_sim.sim.trajectory import plan_trajectory, step_towards, step_towards_row
 
 vec = st.lists(st.floats(-2.0, 2.0), min_size=3, max_size=3)
 lim = st.lists(st.floats(0.05, 5.0), min_size=3, max_size=3)
@@ -68,3 +68,29 @@ def test_step_towards_reaches_the_goal_within_the_limits_from_a_moving_start():
         assert np.all(np.abs(qd_next - qd) <= a_max * dt + 1e-12)
         q, qd = q_next, qd_next
     assert np.allclose(q, goal, atol=1e-6) and np.allclose(qd, 0.0, atol=1e-3)
+
+
+_values = st.one_of(
+    st.floats(-3.0, 3.0),
+    st.sampled_from([0.0, -0.0, float("nan"), 1e-300, -1e-300]),
+)
+
+
+@settings(max_examples=200, deadline=None)
+@given(
+    st.lists(_values, min_size=3, max_size=3),
+    st.lists(_values, min_size=3, max_size=3),
+    st.lists(_values, min_size=3, max_size=3),
+    st.floats(0.1, 1.0),
+)
+def test_the_float_step_is_numpys_step_bit_for_bit(q, qd, goal, ratio):
+    """step_towards_row (the MTM lock's compiled step) against step_towards, NaN and signed
+    zeros included."""
+    q, qd, goal = np.array(q), np.array(qd), np.array(goal)
+    v_max, a_max, dt = np.array([1.0, 2.0, 3.5]), np.array([4.0, 8.0, 15.0]), 0.001
+    want_q, want_qd = step_towards(q, qd, goal, v_max * ratio, a_max * ratio, dt)
+    got_q, got_qd = np.empty(3), np.empty(3)
+    step_towards_row(q, qd, goal, v_max, a_max, ratio, dt, got_q, got_qd)
+    np.testing.assert_array_equal(np.signbit(got_qd), np.signbit(want_qd))
+    np.testing.assert_array_equal(got_q, want_q)
+    np.testing.assert_array_equal(got_qd, want_qd)

@@ -26,6 +26,7 @@ from davinci_sim.kinematics.chain import DHChain
 from davinci_sim.kinematics.fk_compiled import tip_pose_row
 from davinci_sim.kinematics.jit import ENABLED as _COMPILED
 from davinci_sim.kinematics.jit import helper, jit
+from davinci_sim.sim.trajectory import step_towards_row
 
 try:  # the gufunc behind np.linalg.solve (see _solve)
     from numpy.linalg import _umath_linalg
@@ -233,6 +234,25 @@ def locked_wrist_goal(links, modified, tool, identity, q, first, R_base_goal, st
     return True
 
 
+_locked_wrist_goal = getattr(locked_wrist_goal, "dispatcher", locked_wrist_goal)
+
+
+@jit
+def wrist_lock_step(links, modified, tool, identity, q, first, R_base_goal, steps, damping,
+                    lo, hi, T, J, F, A, x, goal, traj_q, traj_qd, v_max, a_max, ratio, dt,
+                    q_out, qd_out) -> bool:  # fmt: skip
+    """One tick of the MTM's orientation lock (``MTM._pre_step``): the wrist's goal
+    (:func:`locked_wrist_goal`, arguments as there), then one step of the wrist's online
+    trajectory from ``(traj_q, traj_qd)`` towards it within ``v_max·ratio`` and
+    ``a_max·ratio`` (``trajectory.step_towards``) into ``q_out``, ``qd_out`` (rad, rad/s).
+    False (nothing written but ``q``) when the goal's solve fails."""
+    if not _locked_wrist_goal(links, modified, tool, identity, q, first, R_base_goal, steps,
+                              damping, lo, hi, T, J, F, A, x, goal):  # fmt: skip
+        return False
+    step_towards_row(traj_q, traj_qd, goal, v_max, a_max, ratio, dt, q_out, qd_out)
+    return True
+
+
 @helper
 def tracking_watch_row(qpos, qposadr, q_ref, idx, tolerance, effort_mode, starts, watched,
                        bad_since, t, first_bad, fault) -> bool:  # fmt: skip
@@ -347,6 +367,11 @@ def _warm_up() -> None:
     lo, hi = mtm.qmin[3:], mtm.qmax[3:]
     locked_wrist_goal(*fk._consts(mtm).packed, np.zeros(n), 3, np.eye(3), 1, 1e-4, lo, hi,
                       *scratch, np.empty(3), np.empty(n - 3))  # fmt: skip
+    v, a = mtm.qmax[3:].copy(), mtm.qmax[3:].copy()  # (any positive limits)
+    args = (*fk._consts(mtm).packed, np.zeros(n), 3, np.eye(3), 1, 1e-4, lo, hi, *scratch,
+            np.empty(3), np.empty(n - 3), np.zeros(n - 3), np.zeros(n - 3), v, a, 1.0, 0.001,
+            np.empty(n - 3), np.empty(n - 3))  # fmt: skip
+    wrist_lock_step(*args)
 
 
 _warm_up()

@@ -225,6 +225,7 @@ class MTM(Arm):
         self._lock_scratch = fk._consts(self.chain).packed
         self._lock_scratch2 = (np.empty((4, 4)), np.empty((6, n)), np.empty((n, 12)),
                                np.empty((3, 3)), np.empty(3))  # fmt: skip
+        self._wrist_v_a = (kin.v_max[MTM_WRIST_JOINTS].copy(), kin.a_max[MTM_WRIST_JOINTS].copy())
 
     def lock_orientation(self, R_reference_tip) -> CommandResult:
         """Hold the handle at orientation ``R_reference_tip`` (3x3, in the ``measured_cp``
@@ -335,24 +336,47 @@ class MTM(Arm):
             return
         if self._lock_traj is None:  # the lock starts driving the wrist: from where it is
             self._lock_traj = (self._q()[MTM_WRIST_JOINTS], self._qd()[MTM_WRIST_JOINTS].copy())
-        r = self._trajectory_ratio
-        q, qd = step_towards(*self._lock_traj, self._locked_wrist_goal(),
-                             self.kin.v_max[MTM_WRIST_JOINTS] * r,
-                             self.kin.a_max[MTM_WRIST_JOINTS] * r, self._sim.dt)  # fmt: skip
+        q, qd = self._lock_step()
         self._lock_traj = (q, qd)
         servo.effort_mode[self._wrist_idx] = False
         servo.q_ref[self._wrist_idx] = q
         servo.qd_ref[self._wrist_idx] = qd
 
+    def _lock_step(self) -> tuple[np.ndarray, np.ndarray]:
+        """The wrist's next setpoint ``(q, qd)`` towards the locked orientation: its goal
+        (:meth:`_locked_wrist_goal`) and one step of its online trajectory, in one compiled
+        call (``arm_laws.wrist_lock_step``, the same bits) or, where the goal's solve
+        fails, the Python path's held wrist."""
+        assert self._R_lock is not None and self._lock_traj is not None
+        r = self._trajectory_ratio
+        v_max, a_max = self._wrist_v_a
+        q_out, qd_out = np.empty(len(v_max)), np.empty(len(v_max))
+        R_base_goal, q = self._lock_seed()
+        goal = np.empty(q.shape[0] - MTM_WRIST_JOINTS.start)
+        if laws.wrist_lock_step(*self._lock_scratch, q, MTM_WRIST_JOINTS.start, R_base_goal,
+                                _LOCK_STEPS, _LOCK_DAMPING, *self._wrist_limits,
+                                *self._lock_scratch2, goal, *self._lock_traj, v_max, a_max, r,
+                                self._sim.dt, q_out, qd_out):  # fmt: skip
+            self._lock_goal = goal
+            return q_out, qd_out
+        return step_towards(*self._lock_traj, self._locked_wrist_goal(), v_max * r, a_max * r,
+                            self._sim.dt)  # fmt: skip
+
+    def _lock_seed(self) -> tuple[np.ndarray, np.ndarray]:
+        """The locked orientation in the chain base (3, 3) and the joints seeding its solve
+        (a new array: the law updates it)."""
+        assert self._R_lock is not None
+        R_base_goal = self.base_frame()[0][:3, :3].T @ self._R_lock
+        q = self._q()
+        if self._lock_goal is not None:  # (the last solution: it leads the measured wrist)
+            q[MTM_WRIST_JOINTS] = self._lock_goal
+        return R_base_goal, q
+
     def _locked_wrist_goal(self) -> np.ndarray:
         """Wrist joints giving the locked orientation with the current arm joints
         (:func:`~davinci_sim.sim.arm_laws.locked_wrist_goal`: damped least squares seeded
         with the last solution, so it converges over the ticks as the dVRK's seeded IK)."""
-        assert self._R_lock is not None
-        R_base_goal = self.base_frame()[0][:3, :3].T @ self._R_lock
-        q = self._q()  # (a new array: the law updates it)
-        if self._lock_goal is not None:  # (the last solution: it leads the measured wrist)
-            q[MTM_WRIST_JOINTS] = self._lock_goal
+        R_base_goal, q = self._lock_seed()
         goal = np.empty(q.shape[0] - MTM_WRIST_JOINTS.start)
         if not laws.locked_wrist_goal(*self._lock_scratch, q, MTM_WRIST_JOINTS.start,
                                       R_base_goal, _LOCK_STEPS, _LOCK_DAMPING,

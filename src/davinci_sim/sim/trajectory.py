@@ -8,9 +8,12 @@ are in rad or m, times in s.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
+
+from davinci_sim.kinematics.jit import helper
 
 
 @dataclass(frozen=True, eq=False)
@@ -103,3 +106,33 @@ def step_towards(
     dv = a_max * dt
     qd_next = qd + np.clip(v_goal - qd, -dv, dv)
     return q + qd_next * dt, qd_next
+
+
+@helper
+def _min(a, b):
+    """numpy's ``minimum`` of two floats (NaN if either is; ``b`` on a tie)."""
+    return a if (a != a or a < b) else b
+
+
+@helper
+def _max(a, b):
+    """numpy's ``maximum`` of two floats."""
+    return a if (a != a or a > b) else b
+
+
+@helper
+def step_towards_row(q, qd, goal, v_max, a_max, ratio, dt, q_out, qd_out):
+    """:func:`step_towards` of one arm's joints on floats, into ``q_out``, ``qd_out``, with
+    the limits ``v_max·ratio``, ``a_max·ratio`` (the arm's trajectory ratio): the same
+    operations in the same order as numpy's (``np.sign``, ``np.minimum``, ``np.clip``
+    with their NaN and signed-zero rules), so the same bits."""
+    for i in range(q.shape[0]):
+        v, a = v_max[i] * ratio, a_max[i] * ratio
+        e = goal[i] - q[i]
+        dist = abs(e)
+        sign = 1.0 if e > 0 else -1.0 if e < 0 else 0.0 if e == 0 else e
+        v_goal = sign * _min(_min(v, math.sqrt(2.0 * a * dist)), dist / dt)
+        dv = a * dt
+        qd_next = qd[i] + _min(_max(v_goal - qd[i], -dv), dv)
+        q_out[i] = q[i] + qd_next * dt
+        qd_out[i] = qd_next
