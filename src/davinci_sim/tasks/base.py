@@ -190,8 +190,8 @@ class Sample:
         m = np.asarray(mask, dtype=bool)
         if m.all():  # every row taken (a running trial, every tick): copies, no np.where
             # (copies: a caller may refill its sample's arrays, e.g. a period's record)
-            taken = [getattr(other.kept(self), k) for k in _FIELDS]
-            return Sample(*(None if a is None else a.copy() for a in taken))
+            kept = other.kept(self)
+            return Sample(*(None if (a := getattr(kept, k)) is None else a.copy() for k in _FIELDS))
         out = []
         for k in _FIELDS:
             a, b = getattr(self, k), getattr(other, k)
