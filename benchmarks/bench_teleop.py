@@ -10,7 +10,8 @@ teleop tick / bare tick reported (issue 9's figures: one pair ≤ 100 µs, both 
 A third set-up is what ``make run`` ticks (``serve_seed_path``): the full scene homed, the
 web console's rate inputs on both MTMs (held still: the operator reading the keys), the
 ``seed_path`` task session with its viscous fixture and the endoscope framed on the task,
-both teleoperations following.
+both teleoperations following; ``serve_seed_path_trial`` the same while a repetition of the
+task runs (the tool moved off point 1: the session's metrics accumulate every tick).
 
 Beside each tick, ``<label>_mj_step_median_us`` is MuJoCo's own ``mj_step`` on the same
 model at the same state (the set-up's state restored before each step, not timed), and
@@ -42,6 +43,7 @@ from davinci_sim.system import (
     build_simulation,
 )
 from davinci_sim.tasks.session import VIEW_DISTANCE
+from davinci_sim.tasks.state import Phase
 
 
 def viscous(state):
@@ -63,9 +65,11 @@ def teleop_sim(scene: str) -> Simulation:
     return sim
 
 
-def serve_sim() -> Simulation:
+def serve_sim(trial: bool = False) -> Simulation:
     """What ``make run`` (``serve --task seed_path --home``) ticks, with the person at the
-    web console holding both handles still after taking control."""
+    web console holding both handles still after taking control; with ``trial``, the
+    handle moved 3 cm so that the tool left point 1 and a repetition runs (its metrics
+    accumulate every tick)."""
     sim = build_simulation(
         SystemDescription(
             scene="full",
@@ -87,6 +91,15 @@ def serve_sim() -> Simulation:
     if not sim.run_until(lambda: all(t.is_following() for t in teleops), 30):
         raise RuntimeError("the teleoperations did not start following")
     sim.run_for(0.5)
+    if trial:
+        device = sim.components["MTMR/device"]
+        T = device.input().T_hrsv_tip.copy()
+        T[2, 3] += 0.03
+        device.move_hand(T)
+        session = sim.components["task"]
+        if not sim.run_until(lambda: session.monitor.phase == Phase.RUNNING, 5):
+            raise RuntimeError(f"the repetition did not start: {session.monitor.phase}")
+        sim.run_for(0.2)
     return sim
 
 
@@ -142,10 +155,14 @@ def main(n: int = 5000) -> None:
         ("one_pair", "psm1_ecm_mtmr"),
         ("full_two_pairs", "full"),
         ("serve_seed_path", "full"),
+        ("serve_seed_path_trial", "full"),
     ):
         bare = Simulation(scene, keyframe="surgical")
         figures.update(summary(time_each(bare.tick, n), f"{label}_bare_tick"))
-        sim = serve_sim() if label == "serve_seed_path" else teleop_sim(scene)
+        if label.startswith("serve_seed_path"):
+            sim = serve_sim(trial=label.endswith("trial"))
+        else:
+            sim = teleop_sim(scene)
         figures.update(summary(time_each(sim.tick, n), f"{label}_teleop_tick"))
         figures.update(summary(mj_step_each(sim, n), f"{label}_mj_step"))
         tick = figures[f"{label}_teleop_tick_median_us"]
