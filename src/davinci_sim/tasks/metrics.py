@@ -404,6 +404,11 @@ class MetricsAccumulator:
             getattr(m.reduce, "unchanged_unmeasured", None) for m in self.metrics
         )
         """Each metric's reducer's ``unchanged_unmeasured`` (None: always run its ``add``)."""
+        from davinci_sim.tasks import metrics_one  # (it imports this module's declarations)
+
+        self.floats = metrics_one.applies(self.metrics, 1)
+        """Whether one trial's :meth:`update` runs on floats (:mod:`~davinci_sim.tasks.metrics_one`:
+        the path kind's declaration)."""
         self.reset()
 
     def reset(self, mask=None) -> None:
@@ -436,6 +441,8 @@ class MetricsAccumulator:
     def update(self, mask, sample: Sample, obs: dict) -> None:
         """One sample of every trial; ``mask`` (n,) marks the trials whose repetition
         includes it; ``obs`` the task's observations of it."""
+        if self.floats and self.n == 1 and _floats_update(self, mask, sample, obs):
+            return
         m = np.asarray(mask, dtype=bool)
         pair = m & self._prev_in
         prev = sample if self._prev is None else self._prev
@@ -480,6 +487,12 @@ class MetricsAccumulator:
     def set_state(self, state: dict) -> None:
         for k, v in copy.deepcopy(state).items():
             setattr(self, k, v)
+
+
+def _floats_update(acc, mask, sample, obs) -> bool:
+    from davinci_sim.tasks.metrics_one import update_one
+
+    return update_one(acc, mask, sample, obs)
 
 
 def _where(m, fresh, acc):
