@@ -72,19 +72,28 @@ def test_the_float_path_is_the_reducers_bit_for_bit(seed):
     assert row["master_workspace"] > 0 and math.isfinite(row["completion_time"])
 
 
-def test_a_sample_without_a_needed_field_takes_the_reducers_path():
+@pytest.mark.parametrize("lacking", [("master",), ("visible", "contacts", "tool_force")])
+def test_a_sample_without_a_field_marks_its_metric_unavailable_as_the_reducers(lacking):
+    """(The learning environments' samples have no master, visibility or contacts.)"""
     task = load_task("seed_path")
     floats, arrays = TaskMonitor(task), TaskMonitor(task)
     arrays.metrics.floats = False
     rng = np.random.default_rng(5)
     for i, sample in enumerate(_walk(task, rng, 800)):
-        if 100 <= i < 120:
-            sample = Sample(*(None if k == "master" else getattr(sample, k)
+        if i >= 100:
+            sample = Sample(*(None if k in lacking else getattr(sample, k)
                               for k in sample.__dataclass_fields__))  # fmt: skip
         floats.observe(sample)
         arrays.observe(sample)
-    assert floats.metrics._missing == arrays.metrics._missing == {"master_workspace"}
-    np.testing.assert_array_equal(floats.metrics._acc[0], arrays.metrics._acc[0])
+        for x, y in zip(floats.metrics._acc, arrays.metrics._acc, strict=True):
+            for u, v in zip(x if isinstance(x, tuple) else (x,),
+                            y if isinstance(y, tuple) else (y,), strict=True):  # fmt: skip
+                np.testing.assert_array_equal(u, v)
+    assert floats.metrics._missing == arrays.metrics._missing
+    assert len(floats.metrics._missing) == len(lacking)
+    assert floats.results is not None
+    for name in floats.results._fields:
+        np.testing.assert_array_equal(floats.results[name], arrays.results[name])
 
 
 def test_other_declarations_and_batches_keep_the_reducers():

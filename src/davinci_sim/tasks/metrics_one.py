@@ -8,8 +8,8 @@ repetition runs. For the path kind's own declaration (:data:`PATH_KIND_METRICS`,
 on the trial's floats and writes them into the accumulator's own arrays: the same
 comparisons, the same operations in the same order (numpy's ``maximum``/``minimum`` rules,
 a row's norm summed ``(x² + y²) + z²``), so the same bits (``tests/tasks/test_metrics_one.py``
-runs both on the same samples). Any other declaration, a batch, or a sample without one of
-the fields a metric needs takes the reducers' path, which stays the oracle.
+runs both on the same samples, with and without the optional fields the trainer metrics
+need). Any other declaration or a batch takes the reducers' path, which stays the oracle.
 """
 
 from __future__ import annotations
@@ -67,14 +67,18 @@ def _minimum(a: float, b: float) -> float:
 
 def update_one(acc, mask, sample, obs) -> bool:
     """:meth:`MetricsAccumulator.update` of ``acc`` (one trial of :data:`PATH_KIND_METRICS`)
-    on floats; False (nothing changed) when the sample lacks a field a metric needs, for
-    the reducers' path to run (and mark the metric unavailable)."""
-    master, visible = sample.master, sample.visible
-    contacts, tool_force = sample.contacts, sample.tool_force
-    if master is None or visible is None or contacts is None or tool_force is None:
-        return False
+    on floats; False (nothing changed) for an observation the path kind does not make (the
+    reducers' path runs then)."""
     if "dropped" in obs:  # (a path observes no drops: its Sum adds 0)
         return False
+    master, visible = sample.master, sample.visible
+    contacts, tool_force = sample.contacts, sample.tool_force
+    # A metric whose field the sample lacks cannot tell: unavailable (nan in the results),
+    # its running value left as it is, as the reducers' path does.
+    for value, name in ((contacts, "instrument_collisions"), (tool_force, "excessive_force"),
+                        (visible, "out_of_view"), (master, "master_workspace")):  # fmt: skip
+        if value is None:
+            acc._missing.add(name)
     a = acc._acc
     m = bool(mask[0])
     pair = m and bool(acc._prev_in[0])
@@ -87,7 +91,8 @@ def update_one(acc, mask, sample, obs) -> bool:
     dt = t - float(prev.time[0])
     if pair:  # (the integer pair sums: counted whether or not the sample is measured)
         a[7][0] += int(bool(sample.clutch[0]) and not bool(prev.clutch[0]))
-        a[9][0] += int(bool(contacts[0] > 0) and not bool(prev.contacts[0] > 0))
+        if contacts is not None:
+            a[9][0] += int(bool(contacts[0] > 0) and not bool(prev.contacts[0] > 0))
     # (drops: the path kind observes none, its Sum adds 0)
     if m:
         task = acc.task
@@ -105,16 +110,24 @@ def update_one(acc, mask, sample, obs) -> bool:
         if pair:
             a[2][0] = a[2][0] + step
             a[6][0] = a[6][0] + (dt if distance > task.tube_radius else 0.0)
-            a[10][0] = a[10][0] + (dt if float(tool_force[0]) > force_threshold(task) else 0.0)
-            a[11][0] = a[11][0] + (0.0 if bool(visible[0]) else step)
+            if tool_force is not None:
+                over = float(tool_force[0]) > force_threshold(task)
+                a[10][0] = a[10][0] + (dt if over else 0.0)
+            if visible is not None:
+                a[11][0] = a[11][0] + (0.0 if bool(visible[0]) else step)
         else:  # (+ 0: the same float, as where(pair, value, 0) adds)
-            for i in (2, 6, 10, 11):
-                a[i][0] = a[i][0] + 0.0
-        lo, hi = a[12]
-        p = master[0]
-        for i in range(3):
-            lo[0, i] = _minimum(float(lo[0, i]), float(p[i]))
-            hi[0, i] = _maximum(float(hi[0, i]), float(p[i]))
+            a[2][0] = a[2][0] + 0.0
+            a[6][0] = a[6][0] + 0.0
+            if tool_force is not None:
+                a[10][0] = a[10][0] + 0.0
+            if visible is not None:
+                a[11][0] = a[11][0] + 0.0
+        if master is not None:
+            lo, hi = a[12]
+            p = master[0]
+            for i in range(3):
+                lo[0, i] = _minimum(float(lo[0, i]), float(p[i]))
+                hi[0, i] = _maximum(float(hi[0, i]), float(p[i]))
         reached = a[14]
         tolerance = task.tube_radius
         for k, q in enumerate(np.asarray(task.markers[1:-1], dtype=float).reshape(-1, 3)):
