@@ -5,12 +5,11 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from device_helpers import free_mtmr
 
-from davinci_sim.devices import SimulatedMTM, simulated
-from davinci_sim.devices.safety import WrenchLimits
+from davinci_sim.devices import simulated
 from davinci_sim.geometry import so3
 from davinci_sim.kinematics import jit
-from davinci_sim.sim.simulation import Simulation
 
 pytestmark = pytest.mark.skipif(not jit.ENABLED, reason="numba is off: nothing is compiled")
 
@@ -18,13 +17,7 @@ pytestmark = pytest.mark.skipif(not jit.ENABLED, reason="numba is off: nothing i
 @pytest.fixture(scope="module")
 def homed():
     """MTMR enabled, homed and free (effort mode), with its device; and that state."""
-    sim = Simulation("psm1_ecm_mtmr", keyframe="surgical")
-    arm = sim.arms["MTMR"]
-    assert arm.state_command("enable") and arm.state_command("home")
-    assert sim.run_until(lambda: arm.is_homed() and not arm.is_busy(), 10)
-    device = SimulatedMTM(sim, "MTMR", limits=WrenchLimits(max_force=4.0, max_force_rate=500.0))
-    sim.add_component(device)
-    device.enter_effort_mode()
+    sim, device = free_mtmr()
     sim.run_for(0.01)
     return sim, device, sim.get_state()
 

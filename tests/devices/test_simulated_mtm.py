@@ -6,23 +6,16 @@ import pickle
 
 import numpy as np
 import pytest
+from device_helpers import free_mtmr
 
 from davinci_sim.devices import HandImpedance, SimulatedMTM, hand_wrenches
-from davinci_sim.devices.safety import WrenchLimits
 from davinci_sim.geometry import so3
-from davinci_sim.sim.simulation import Simulation
 
 
 @pytest.fixture
 def mtm_sim():
     """MTMR enabled, homed and free (effort mode, gravity compensated), as when following."""
-    sim = Simulation("psm1_ecm_mtmr", keyframe="surgical")
-    arm = sim.arms["MTMR"]
-    assert arm.state_command("enable") and arm.state_command("home")
-    assert sim.run_until(lambda: arm.is_homed() and not arm.is_busy(), 10)
-    device = SimulatedMTM(sim, "MTMR", limits=WrenchLimits(max_force=4.0, max_force_rate=500.0))
-    sim.add_component(device)
-    device.enter_effort_mode()
+    sim, device = free_mtmr()
     sim.tick()
     return sim, device
 
