@@ -116,12 +116,25 @@ def test_ros1_dialect_headers(handle, make_server, make_ros):
     assert ros.get_topic_type("/PSM1/measured_cp") == "geometry_msgs/PoseStamped"
 
 
-def test_the_operating_state_service_never_lags_the_topic(handle, make_server, make_ros):
-    """The service answers from the latest snapshot, which may be a tick behind the state
-    the topic has already published from the arm's event: the newer of the two."""
+def test_an_operating_state_goes_out_after_the_snapshot_of_its_tick(handle, make_server,
+                                                                     make_ros):  # fmt: skip
+    """An operating-state event newer than the latest snapshot waits for the state topics of
+    a snapshot that covers it (a client that sees a move end then reads joints from then);
+    one no snapshot covers goes out after EVENT_HOLD_MAX anyway, and the service answers
+    the newer of the snapshot and the state the topic published."""
     node = DvrkNode(handle)
     server = make_server(nodes=[node])
     ros = make_ros(server)
+    order: list[str] = []  # (the client's callbacks run in arrival order)
+    states, joints = [], []
+    for name, type_name, got in (("operating_state", "crtk_msgs/OperatingState", states),
+                                 ("measured_js", "sensor_msgs/JointState", joints)):  # fmt: skip
+
+        def on(msg, got=got, name=name):
+            got.append(msg)
+            order.append(name if name == "measured_js" or not msg["is_busy"] else "busy")
+
+        roslibpy.Topic(ros, f"/PSM1/{name}", type_name).subscribe(on)
     service = roslibpy.Service(ros, "/PSM1/operating_state", "crtk_msgs/TriggerOperatingState")
 
     def reply():
@@ -135,11 +148,20 @@ def test_the_operating_state_service_never_lags_the_topic(handle, make_server, m
         )
         done.result(10)
 
-    assert wait_for(lambda: handle.snapshot().time > 0.01)
-    event(OperatingState("ENABLED", True, False, timestamp=0.0))  # older than the snapshot
-    assert reply() == ("DISABLED", False, False)  # the snapshot's
+    assert wait_for(lambda: handle.snapshot().time > 0.01 and states and joints)
+    # An event of a tick the snapshot does not cover yet (a few ms ahead of it): held, then
+    # published once a snapshot passed it, after that snapshot's joints.
+    ahead = handle.snapshot().time + 0.005
+    event(OperatingState("DISABLED", False, True, timestamp=ahead))
+    assert node.arms["PSM1"].pending
+    assert wait_for(lambda: any(s["is_busy"] for s in states))
+    assert not node.arms["PSM1"].pending
+    assert order[order.index("busy") - 1] == "measured_js"  # the snapshot's joints first
+    # An event no snapshot will cover (a clock far ahead): out after the hold, and the
+    # service answers it, the newer of the two.
     event(OperatingState("ENABLED", True, False, timestamp=handle.snapshot().time + 1e3))
-    assert reply() == ("ENABLED", True, False)  # the event's, which the topic published
+    assert wait_for(lambda: states[-1]["state"] == "ENABLED")
+    assert reply() == ("ENABLED", True, False)
 
 
 def test_enable_home_and_operating_state(handle, make_server, make_ros):

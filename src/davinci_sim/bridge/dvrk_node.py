@@ -11,7 +11,9 @@ For each arm of the simulation (``PSM1..3``, ``ECM``, ``MTML``, ``MTMR``, ``SUJ/
 * values the snapshot lacks, asked from the loop only while subscribed: ``body|spatial/
   measured_cf``, ``body|spatial/jacobian``, ``trajectory_j/ratio``, ``orientation_locked``;
 * events: ``operating_state`` (latched, so a new subscriber gets the current state),
-  ``error``/``warning``/``status``, ``goal_reached`` at the end of a move;
+  ``error``/``warning``/``status``, ``goal_reached`` at the end of a move; an operating
+  state goes out after the state topics of a snapshot of its tick (at most
+  :data:`EVENT_HOLD_MAX` later), so a client that sees a move end reads joints from then;
 * commands (the tables below) and the services ``forward_kinematics``,
   ``local/forward_kinematics``, ``inverse_kinematics``, ``operating_state``, ``crtk_version``.
 
@@ -58,6 +60,10 @@ if TYPE_CHECKING:
 
 _log = logging.getLogger("davinci_sim.bridge")
 
+#: An operating-state event waits for a snapshot of its tick at most this long, wall s (a
+#: few state periods: snapshots come every 10 ms of simulation; after a stop, not at all).
+EVENT_HOLD_MAX = 0.1
+
 
 # =========================================================================== the node
 class _Arm:
@@ -74,6 +80,9 @@ class _Arm:
         self.last_event_time = -1.0
         self.last_state: Any = None
         """The last operating state published (an event's, or the snapshot's safety net)."""
+        self.pending: list[tuple[Any, float]] = []
+        """Operating-state events newer than the snapshot, with their arrival (monotonic s):
+        published after the state topics of a snapshot that covers them."""
         self.gripper_closed: Topic | None = None
         self.closed: bool | None = None
 
@@ -185,10 +194,16 @@ class DvrkNode:
         return sim_time if self.bridge.config.stamp_clock == "sim" else time.time()
 
     def _publish_state(self) -> None:
-        b, d = self.bridge, self.bridge.dialect
         snap: Snapshot = self.handle.snapshot()
         self._check_operating_states(snap)
         self._check_grippers(snap)
+        try:
+            self._publish_state_topics(snap)
+        finally:
+            self._flush_operating_states(snap.time)
+
+    def _publish_state_topics(self, snap: Snapshot) -> None:
+        b, d = self.bridge, self.bridge.dialect
         for arm in self.arms.values():
             for topic, spec in arm.state:
                 if not topic.subscriptions:
@@ -250,7 +265,16 @@ class DvrkNode:
             return
         b = self.bridge
         if event == "operating_state":
-            self._publish_operating_state(arm, payload)
+            # After the state topics of its tick: a client that sees a move end (not busy)
+            # then reads measured_js gets the joints of that tick or later, not a snapshot
+            # from before the end (a thread runner behind a busy loop: 100s of ms).
+            arm.last_event_time = payload.timestamp  # (the safety net: this state came)
+            # (a snapshot of time t was taken before the tick that starts at t: it covers
+            # events of earlier ticks only)
+            if not arm.pending and payload.timestamp < self.handle.snapshot().time:
+                self._publish_operating_state(arm, payload)
+            else:
+                arm.pending.append((payload, time.monotonic()))
         elif event in arm.events:
             topic = arm.events[event]
             b.publish(topic, {"data": getattr(payload, "text", str(payload))})
@@ -267,6 +291,18 @@ class DvrkNode:
         if arm.busy and not s.is_busy:  # end of a move (dvrk.md 2.2 goal_reached)
             b.publish(arm.goal_reached, {"data": True})
         arm.busy = s.is_busy
+
+    def _flush_operating_states(self, snapshot_time: float) -> None:
+        """Publish the pending operating-state events the snapshot of ``snapshot_time`` (s,
+        simulation) covers, in order; one held longer than :data:`EVENT_HOLD_MAX` (wall s:
+        snapshots that stopped coming) goes out anyway."""
+        now = time.monotonic()
+        for arm in self.arms.values():
+            while arm.pending and (
+                arm.pending[0][0].timestamp < snapshot_time
+                or now - arm.pending[0][1] > EVENT_HOLD_MAX
+            ):
+                self._publish_operating_state(arm, arm.pending.pop(0)[0])
 
     def _check_operating_states(self, snap: Snapshot) -> None:
         """Safety net for a handle that loses events: publish a state the snapshot shows
