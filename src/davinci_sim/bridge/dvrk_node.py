@@ -195,12 +195,14 @@ class DvrkNode:
 
     def _publish_state(self) -> None:
         snap: Snapshot = self.handle.snapshot()
-        self._check_operating_states(snap)
         self._check_grippers(snap)
         try:
             self._publish_state_topics(snap)
         finally:
+            # the events this snapshot covers, after its state; then the safety net (which
+            # must not publish the snapshot's state ahead of events still held)
             self._flush_operating_states(snap.time)
+            self._check_operating_states(snap)
 
     def _publish_state_topics(self, snap: Snapshot) -> None:
         b, d = self.bridge, self.bridge.dialect
@@ -311,6 +313,8 @@ class DvrkNode:
             a = snap.arms.get(name)
             topic = arm.operating_state
             if a is None or topic is None or topic.last is None:
+                continue
+            if arm.pending:  # (events are coming for it)
                 continue
             s = a.operating_state
             last = topic.last.msg
