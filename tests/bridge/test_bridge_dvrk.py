@@ -141,25 +141,29 @@ def test_an_operating_state_goes_out_after_the_snapshot_of_its_tick(handle, make
         r = service.call({})["operating_state"]
         return r["state"], r["is_homed"], r["is_busy"]
 
-    def event(state: OperatingState) -> None:  # handled on the bridge's loop, as events are
+    def event(state, ahead: float) -> bool:
+        """``state`` stamped ``ahead`` s after the latest snapshot, handled on the bridge's
+        loop as events are; whether it is held (read in the same loop callback)."""
+
+        def on_loop() -> bool:
+            stamped = OperatingState(*state, timestamp=handle.snapshot().time + ahead)
+            node._on_event("PSM1", "operating_state", stamped)
+            return bool(node.arms["PSM1"].pending)
+
         done: Future = Future()
-        node.loop.call_soon_threadsafe(
-            lambda: done.set_result(node._on_event("PSM1", "operating_state", state))
-        )
-        done.result(10)
+        node.loop.call_soon_threadsafe(lambda: done.set_result(on_loop()))
+        return done.result(10)
 
     assert wait_for(lambda: handle.snapshot().time > 0.01 and states and joints)
     # An event of a tick the snapshot does not cover yet (a few ms ahead of it): held, then
     # published once a snapshot passed it, after that snapshot's joints.
-    ahead = handle.snapshot().time + 0.005
-    event(OperatingState("DISABLED", False, True, timestamp=ahead))
-    assert node.arms["PSM1"].pending
+    assert event(("DISABLED", False, True), 0.005)
     assert wait_for(lambda: any(s["is_busy"] for s in states))
     assert not node.arms["PSM1"].pending
     assert order[order.index("busy") - 1] == "measured_js"  # the snapshot's joints first
     # An event no snapshot will cover (a clock far ahead): out after the hold, and the
     # service answers it, the newer of the two.
-    event(OperatingState("ENABLED", True, False, timestamp=handle.snapshot().time + 1e3))
+    assert event(("ENABLED", True, False), 1e3)
     assert wait_for(lambda: states[-1]["state"] == "ENABLED")
     assert reply() == ("ENABLED", True, False)
 
