@@ -13,6 +13,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from davinci_sim.geometry.floats import np_maximum, np_minimum
 from davinci_sim.kinematics.jit import helper
 
 
@@ -108,16 +109,8 @@ def step_towards(
     return q + qd_next * dt, qd_next
 
 
-@helper
-def _min(a, b):
-    """numpy's ``minimum`` of two floats (NaN if either is; ``b`` on a tie)."""
-    return a if (a != a or a < b) else b
-
-
-@helper
-def _max(a, b):
-    """numpy's ``maximum`` of two floats."""
-    return a if (a != a or a > b) else b
+_min = helper(np_minimum)
+_max = helper(np_maximum)
 
 
 @helper

@@ -14,10 +14,9 @@ need). Any other declaration or a batch takes the reducers' path, which stays th
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
 
+from davinci_sim.geometry.floats import norm3, np_maximum, np_minimum
 from davinci_sim.tasks.metrics import PATH_METRICS
 from davinci_sim.tasks.trainer import PATH_MISSED_TARGETS, force_threshold, trainer_metrics
 
@@ -48,21 +47,6 @@ assert _NAMES == (
 def applies(metrics, n: int) -> bool:
     """Whether :func:`update_one` computes these ``metrics`` of ``n`` trials."""
     return n == 1 and tuple(metrics) == PATH_KIND_METRICS
-
-
-def _norm3(x: float, y: float, z: float) -> float:
-    """``np.linalg.norm`` of a row of three: its squares summed ``(x² + y²) + z²``."""
-    return math.sqrt((x * x + y * y) + z * z)
-
-
-def _maximum(a: float, b: float) -> float:
-    """numpy's ``maximum`` of two floats (NaN if either is; ``b`` on a tie)."""
-    return a if (a != a or a > b) else b
-
-
-def _minimum(a: float, b: float) -> float:
-    """numpy's ``minimum`` of two floats."""
-    return a if (a != a or a < b) else b
 
 
 def update_one(acc, mask, sample, obs) -> bool:
@@ -98,15 +82,15 @@ def update_one(acc, mask, sample, obs) -> bool:
         task = acc.task
         distance = float(obs["distance"][0])
         f = sample.force[0]
-        force = _norm3(float(f[0]), float(f[1]), float(f[2]))
+        force = norm3(float(f[0]), float(f[1]), float(f[2]))
         a[0][0] = a[0][0] + distance
         t0, t1 = a[1]
         if t0[0] != t0[0]:
             t0[0] = t
         t1[0] = t
-        a[4][0] = _maximum(float(a[4][0]), force)
+        a[4][0] = np_maximum(float(a[4][0]), force)
         a[5][0] = a[5][0] + force
-        step = _norm3(dx, dy, dz)
+        step = norm3(dx, dy, dz)
         if pair:
             a[2][0] = a[2][0] + step
             a[6][0] = a[6][0] + (dt if distance > task.tube_radius else 0.0)
@@ -126,12 +110,12 @@ def update_one(acc, mask, sample, obs) -> bool:
             lo, hi = a[12]
             p = master[0]
             for i in range(3):
-                lo[0, i] = _minimum(float(lo[0, i]), float(p[i]))
-                hi[0, i] = _maximum(float(hi[0, i]), float(p[i]))
+                lo[0, i] = np_minimum(float(lo[0, i]), float(p[i]))
+                hi[0, i] = np_maximum(float(hi[0, i]), float(p[i]))
         reached = a[14]
         tolerance = task.tube_radius
         for k, q in enumerate(np.asarray(task.markers[1:-1], dtype=float).reshape(-1, 3)):
-            if _norm3(x - float(q[0]), y - float(q[1]), z - float(q[2])) <= tolerance:
+            if norm3(x - float(q[0]), y - float(q[1]), z - float(q[2])) <= tolerance:
                 reached[0, k] = True
         acc._k[0] += 1
     acc._prev_in[0] = m

@@ -25,13 +25,13 @@ the task's frame.
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass, field
 from functools import cached_property
 from typing import Any, ClassVar
 
 import numpy as np
 
+from davinci_sim.geometry.floats import norm3
 from davinci_sim.geometry.path import Polyline, rounded_polyline
 from davinci_sim.haptics.adaptive import MODES
 from davinci_sim.haptics.adaptive import PARAMS as ADAPTIVE_PARAMS
@@ -389,7 +389,6 @@ def _guidance(spec: dict, path: Polyline):
 
 
 def _distance(p: np.ndarray, q: np.ndarray) -> float:
-    """‖p − q‖ of two points (3,), m, summed as ``np.linalg.norm`` sums a row,
-    ``(x² + y²) + z²``: the same float as the batch form's row."""
-    x, y, z = (p - q).tolist()
-    return math.sqrt((x * x + y * y) + z * z)
+    """‖p − q‖ of two points (3,), m, summed as ``np.linalg.norm`` sums a row: the same
+    float as the batch form's row."""
+    return norm3(*(p - q).tolist())
