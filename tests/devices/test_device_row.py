@@ -84,3 +84,50 @@ def test_the_read_compiles_no_new_signature_in_the_loop(homed):
     device.push(np.zeros(6))
     sim.run_for(0.05)
     assert len(device_row.hand_read_row.signatures) == before
+
+
+WRENCHES = {
+    "within the limits": lambda k: np.array([0.3, -0.2, 0.5, 0.01, -0.02, 0.005]) * (k % 7),
+    "over the force limit, clamped": lambda k: np.array([3.0, 2.0, -4.0, 0.0, 0.0, 0.0]),
+    "rate limited, changing sign": lambda k: np.array([0.0, 0.0, 3.0 * (-1) ** (k // 10)]
+                                                      + [0.0, 0.1, 0.0]),
+}  # fmt: skip
+
+
+@pytest.mark.parametrize("wrench", list(WRENCHES))
+def test_the_compiled_render_is_the_python_render_bit_for_bit(monkeypatch, homed, wrench):
+    """``_render_wrench`` (the haptic loop's way in) through ``render_row`` and through the
+    device's limiter and the arm's ``servo_cf``: the same wrench let through, the same
+    limiter state and joint efforts, the same motion."""
+    from davinci_sim.devices import device_row
+
+    sim, device, start = homed
+    arm = device.arm
+    runs = []
+    for row in (simulated._ROW, None):
+        sim.set_state(start)
+        monkeypatch.setattr(simulated, "_ROW", row)
+        calls = len(device_row.render_row.signatures)  # (touched: the kernel is loaded)
+        device.grasp()
+        ticks = []
+        for k in range(120):
+            assert device._render_wrench(WRENCHES[wrench](k))
+            sent = (device.wrench(), device._limiter.previous.copy(), device._limiter.active,
+                    arm.wrench_setpoint()[1])  # fmt: skip
+            sim.tick()
+            # The efforts the step used. (Between two ticks the Python path may still hold
+            # the last tick's: it skips a wrench equal to the one the arm renders, which the
+            # arm's pre-step then recomputes at the new joints.)
+            ticks.append((*sent, sim.servo.tau_ff.copy()))
+        runs.append((ticks, sim.data.qpos.copy(), sim.data.qvel.copy()))
+        assert len(device_row.render_row.signatures) == calls
+    (compiled, q_a, qd_a), (python, q_b, qd_b) = runs
+    for a, b in zip(compiled, python, strict=True):
+        for x, y in zip(a, b, strict=True):
+            np.testing.assert_array_equal(x, y)
+    np.testing.assert_array_equal(q_a, q_b)
+    np.testing.assert_array_equal(qd_a, qd_b)
+    actives = [t[2] for t in compiled]
+    assert any(actives)  # (the clamp's branches were taken)
+    assert all(actives) or not wrench.startswith("over")
+    assert np.abs(compiled[-1][4][arm._idx]).sum() > 0

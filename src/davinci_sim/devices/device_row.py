@@ -1,4 +1,4 @@
-"""The simulated MTM's per-tick read as one compiled call (numba only: imported where
+"""The simulated MTM's per-tick read and wrench as compiled calls (numba only: imported where
 :data:`davinci_sim.kinematics.jit.ENABLED`).
 
 :func:`hand_read_row` is ``SimulatedMTM._read`` after the handle's pose: the handle's twist
@@ -7,6 +7,10 @@
 ``xfrc_applied`` on the handle body (``hand.handle_xfrc``'s float form). The same compiled
 laws and the same float operations in the same order as the Python path, so the same bits
 (``tests/devices/test_device_row.py``); the Python path stays the fallback and the oracle.
+
+:func:`render_row` is the haptic wrench's way to the MTM's joints after the haptic loop
+summed it: the device's clamp (``WrenchLimiter.limit_checked``) and ``spatial/servo_cf``'s
+``Jᵀ·w`` (``arm_laws.wrench_effort_row``), one call instead of three layers of Python.
 """
 
 from __future__ import annotations
@@ -15,10 +19,13 @@ import numba
 import numpy as np
 
 from davinci_sim.devices.hand import _hand_rows
-from davinci_sim.sim.arm_laws import twist_row
+from davinci_sim.devices.safety import _clamp_rows
+from davinci_sim.sim.arm_laws import twist_row, wrench_effort_row
 
 _twist = twist_row.dispatcher
 _hand = _hand_rows.dispatcher
+_clamp = _clamp_rows.dispatcher
+_effort = wrench_effort_row.dispatcher
 
 
 @numba.njit(cache=True, nogil=True)
@@ -82,6 +89,31 @@ def hand_read_row(
     return True
 
 
+@numba.njit(cache=True, nogil=True)
+def render_row(wrench, previous, steps, T_ref_base, J, ftmax, wrench_out, tau_out):
+    """One tick of a simulated MTM rendering a checked wrench (``spatial/servo_cf``).
+
+    ``wrench`` (6,) finite, N and N·m in HRSV axes, clamped as the device's limiter does
+    from the last wrench let through ``previous`` (6,) with ``steps`` (4,): the maximum
+    force N and torque N·m, and the largest force and torque change over one tick (rate ×
+    dt), into ``wrench_out`` (6,); then ``tau_out`` (dof,) the joint efforts (N·m, N) that
+    render it: ``Jᵀ·w`` with the spatial Jacobian ``J`` (6, dof) in the MTM's base, the
+    wrench's axes turned from HRSV by the base frame ``T_ref_base`` (4, 4, the base in
+    HRSV), clamped to ``ftmax`` (dof,). Returns whether the clamp changed the wrench (by
+    more than 1e-12 in a component: the limiter's ``active``)."""
+    _clamp(wrench.reshape(1, 6), previous.reshape(1, 6), steps[0], steps[1], steps[2],
+           steps[3], wrench_out.reshape(1, 6))  # fmt: skip
+    active = False
+    for i in range(6):
+        active = active or abs(wrench_out[i] - wrench[i]) > 1e-12
+    R_base_ref = np.empty((3, 3))  # (the wrench's axes in the base: T_ref_base's rotation ᵀ)
+    for i in range(3):
+        for j in range(3):
+            R_base_ref[i, j] = T_ref_base[j, i]
+    _effort(J, R_base_ref, wrench_out, ftmax, tau_out)
+    return active
+
+
 def _warm_up() -> None:
     """Compile (or load from numba's cache) at import with the live device's one signature:
     the pose, Jacobian and joint velocities read-only or new (``Arm._measured_T``,
@@ -97,3 +129,8 @@ def _warm_up() -> None:
                       np.zeros(7), True, np.eye(4), True, True, False, np.ones(6),
                       np.zeros(6), np.eye(3), np.zeros(3), np.zeros(3), np.empty(6),
                       np.empty(6), np.empty(6))  # fmt: skip
+    # (the MTM's base frame and the chain's joint limits read-only or not)
+    for T_ref_base in (readonly(np.eye(4)), np.eye(4)):
+        for ftmax in (readonly(np.ones(7)), np.ones(7)):
+            render_row(np.zeros(6), np.zeros(6), np.ones(4), T_ref_base,
+                       readonly(np.zeros((6, 7))), ftmax, np.empty(6), np.empty(7))  # fmt: skip

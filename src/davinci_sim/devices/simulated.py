@@ -22,7 +22,7 @@ from davinci_sim.devices.safety import WrenchLimits
 from davinci_sim.devices.state import DeviceInput
 from davinci_sim.kinematics import jit
 from davinci_sim.sim.arms import MTM
-from davinci_sim.sim.types import CommandResult
+from davinci_sim.sim.types import ACCEPTED, CommandResult
 from davinci_sim.sim.validation import MAX_FORCE, MAX_TORQUE, as_transform
 
 if TYPE_CHECKING:
@@ -90,6 +90,7 @@ class SimulatedMTM(MasterDevice):
         self._hand_wrench = np.zeros(6)
         self._hand_applied = False
         self._row_impedance: tuple[np.ndarray, HandImpedance] | None = None  # (_read_compiled)
+        self._steps: tuple[WrenchLimits, float, np.ndarray] | None = None  # (_render_steps)
 
     # ------------------------------------------------------------ model
     @property
@@ -302,15 +303,61 @@ class SimulatedMTM(MasterDevice):
         current = self.arm.wrench_setpoint()
         return current[1] if current is not None and current[0] == "spatial" else np.zeros(6)
 
+    def _render_wrench(self, w: np.ndarray) -> CommandResult:
+        """The device's clamp and ``spatial/servo_cf`` in one compiled call
+        (``device_row.render_row``) while the MTM renders wrenches already; else (the first
+        wrench, limits beyond the arm's bounds, a stale device, an arm not ready, no numba)
+        the Python path. The same bits and the same state either way."""
+        arm = self.arm
+        current = arm._wrench
+        limiter = self._limiter
+        if (
+            _ROW is None
+            or current is None
+            or current[0] != "spatial"
+            or not self._limits_within_arm()
+            or self.is_stale()
+            or arm._not_ready()
+        ):
+            return super()._render_wrench(w)
+        q, _, J = arm._measured_kinematics()
+        T_ref_base = arm.base_frame()[0]
+        limited, tau = np.empty(6), np.empty(arm.dof)
+        steps = self._render_steps()
+        active = _ROW.render_row(w, limiter.previous, steps, T_ref_base, J, arm.chain.ftmax,
+                                 limited, tau)  # fmt: skip
+        limiter.active = bool(active)
+        limiter.previous = limited
+        sent = self._wrench = limited.copy()  # (the device and the arm hold one object)
+        arm._hold_wrench_effort("spatial", sent, tau, q, T_ref_base)
+        return ACCEPTED
+
+    def _limits_within_arm(self) -> bool:
+        """Whether the device's limits are within the arm's own wrench bounds (the
+        defaults), so that a wrench the device let through needs no check there."""
+        limits = self._limiter.limits
+        return limits.max_force <= MAX_FORCE and limits.max_torque <= MAX_TORQUE
+
+    def _render_steps(self) -> np.ndarray:
+        """The clamp's four numbers for :func:`device_row.render_row`, as
+        ``WrenchLimiter.limit_checked`` computes them (cached per limits object)."""
+        limiter = self._limiter
+        cached = self._steps
+        if cached is None or cached[0] is not limiter.limits or cached[1] != limiter.dt:
+            limits, dt = limiter.limits, limiter.dt
+            steps = np.array([float(limits.max_force), float(limits.max_torque),
+                              float(limits.max_force_rate * dt),
+                              float(limits.max_torque_rate * dt)])  # fmt: skip
+            cached = self._steps = (limits, dt, steps)
+        return cached[2]
+
     def _apply_wrench(self, wrench: np.ndarray) -> None:
         current = self.arm.wrench_setpoint()
         if current is not None and current[0] == "spatial" and np.array_equal(current[1], wrench):
             return  # already applied (the arm re-applies it every tick)
         # The device's wrench is checked and clamped to its limits: within the arm's own
         # bounds when the limits are (the defaults), so not checked again there.
-        limits = self._limiter.limits
-        checked = limits.max_force <= MAX_FORCE and limits.max_torque <= MAX_TORQUE
-        self.arm._servo_cf("spatial", wrench, checked=checked)
+        self.arm._servo_cf("spatial", wrench, checked=self._limits_within_arm())
 
     # ------------------------------------------------------------ state
     _STATE = MasterDevice._STATE + (

@@ -732,6 +732,18 @@ class Arm(ServoJoints):
         self._sim.servo.tau_ff[self._idx] = self._wrench_to_effort(kind, w)
         return ACCEPTED
 
+    def _hold_wrench_effort(
+        self, kind: str, w: np.ndarray, tau: np.ndarray, q: np.ndarray, T_ref_base: np.ndarray
+    ) -> None:
+        """What ``_servo_cf(kind, w, checked=True)`` leaves, for an arm ready and in ``kind``
+        wrench mode already, with ``tau`` its efforts computed by the caller (the compiled
+        haptic render, ``devices/device_row.py``) at the joints ``q`` and base frame
+        ``T_ref_base`` (the objects ``_measured_kinematics`` and ``base_frame`` return now,
+        so that the next pre-step's ``_wrench_to_effort`` finds them cached)."""
+        self._wrench = (kind, w)
+        self._effort_cache = ((q, T_ref_base, kind, w.tobytes(), self._body_cf_absolute), tau)
+        self._sim.servo.tau_ff[self._idx] = tau
+
     def _measured_cf(self, kind: str) -> np.ndarray:
         """Wrench at the tip estimated from joint efforts minus gravity compensation."""
         _, T_base_tip, Js = self._measured_kinematics(jacobian=True)
