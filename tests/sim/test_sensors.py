@@ -52,8 +52,32 @@ def test_contact_force_on_an_instrument_pressed_into_tissue():
     f = sim.contact_force("PSM1")
     assert np.linalg.norm(f) > 0.5
     assert f[2] > 0  # the tissue pushes the instrument up
+    np.testing.assert_allclose(f, _contact_force_reference(sim, "PSM1"), rtol=1e-12, atol=1e-12)
     with pytest.raises(KeyError, match="instrument"):
         sim.contact_force("MTMR")
+
+
+def _contact_force_reference(sim, arm: str) -> np.ndarray:
+    """The contact force on ``arm``'s instrument contact by contact, from the bodies' names:
+    MuJoCo's force on geom2 from geom1, turned into the world, signed by which side the
+    instrument is on, pairs inside the instrument skipped."""
+    import mujoco
+
+    from davinci_sim.sim.sensors import INSTRUMENT_BODIES
+
+    model, data = sim.model, sim.data
+    names = {f"{arm}/{b}" for b in INSTRUMENT_BODIES["PSM"]}
+    total = np.zeros(3)
+    for i in range(data.ncon):
+        c = data.contact[i]
+        on = [model.body(model.geom_bodyid[g]).name in names for g in (c.geom1, c.geom2)]
+        if on[0] == on[1]:
+            continue
+        f6 = np.zeros(6)
+        mujoco.mj_contactForce(model, data, i, f6)
+        f_world = c.frame.reshape(3, 3).T @ f6[:3]
+        total += f_world if on[1] else -f_world
+    return total
 
 
 def test_a_task_draws_its_path_into_the_scene_before_compiling():

@@ -18,8 +18,19 @@ def body_ids(model: mujoco.MjModel, names) -> np.ndarray:
     return np.array([i for i in ids if i >= 0], dtype=int)
 
 
-def contact_force(model: mujoco.MjModel, data: mujoco.MjData, bodies: np.ndarray) -> np.ndarray:
-    """Total contact force (N, world frame) that the environment exerts on ``bodies``.
+def instrument_geoms(model: mujoco.MjModel, bodies: np.ndarray) -> np.ndarray:
+    """Per geom of ``model`` ((ngeom,) bool): whether it is on one of
+    ``bodies`` (:func:`contact_force`'s selection, computed once per model)."""
+    member = np.zeros(model.nbody, dtype=bool)
+    member[bodies] = True
+    return member[model.geom_bodyid]
+
+
+def contact_force(
+    model: mujoco.MjModel, data: mujoco.MjData, bodies: np.ndarray, geoms: np.ndarray | None = None
+) -> np.ndarray:
+    """Total contact force (N, world frame) that the environment exerts on ``bodies``
+    (``geoms``: their :func:`instrument_geoms`, if the caller keeps them).
 
     Contacts between two of ``bodies`` (e.g. jaw against jaw) cancel out and are skipped.
     """
@@ -28,13 +39,13 @@ def contact_force(model: mujoco.MjModel, data: mujoco.MjData, bodies: np.ndarray
         return total
     # Vectorised selection of the contacts between ``bodies`` and the rest (this runs every
     # tick in the haptic loop).
-    member = np.zeros(model.nbody, dtype=bool)
-    member[bodies] = True
+    if geoms is None:
+        geoms = instrument_geoms(model, bodies)
     contacts = data.contact
-    b1 = member[model.geom_bodyid[contacts.geom1]]
-    b2 = member[model.geom_bodyid[contacts.geom2]]
+    inside = geoms[contacts.geom]  # (ncon, 2): geom1's and geom2's
+    b2 = inside[:, 1]
     f6 = np.zeros(6)
-    for i in np.flatnonzero(b1 != b2):
+    for i in np.flatnonzero(inside[:, 0] != b2):
         mujoco.mj_contactForce(model, data, int(i), f6)
         # f6 is in the contact frame (rows of frame); it acts on geom2, from geom1.
         f_world = contacts.frame[i].reshape(3, 3).T @ f6[:3]

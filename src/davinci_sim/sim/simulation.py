@@ -29,7 +29,13 @@ from davinci_sim.sim.arm import Arm
 from davinci_sim.sim.arms import ECM, MTM, PSM, SUJArm
 from davinci_sim.sim.component import Component, check_component
 from davinci_sim.sim.divergence import DivergenceGuard, arm_owners
-from davinci_sim.sim.sensors import INSTRUMENT_BODIES, CameraRenderer, body_ids, contact_force
+from davinci_sim.sim.sensors import (
+    INSTRUMENT_BODIES,
+    CameraRenderer,
+    body_ids,
+    contact_force,
+    instrument_geoms,
+)
 from davinci_sim.sim.servo import JointServo
 from davinci_sim.sim.state import (
     STATE_SPEC,
@@ -123,6 +129,10 @@ class Simulation:
             name: body_ids(self.model, [f"{name}/{b}" for b in INSTRUMENT_BODIES[arm.kin.arm_type]])
             for name, arm in self.arms.items()
             if arm.kin.arm_type in INSTRUMENT_BODIES
+        }
+        self._instrument_geoms = {
+            name: instrument_geoms(self.model, bodies)
+            for name, bodies in self._instrument_bodies.items()
         }
         self._cameras: CameraRenderer | None = None
         self._components: dict[str, Component] = {}
@@ -271,7 +281,9 @@ class Simulation:
             raise KeyError(
                 f"no instrument on {arm!r}; arms with one: {list(self._instrument_bodies)}"
             )
-        return contact_force(self.model, self.data, self._instrument_bodies[arm])
+        return contact_force(
+            self.model, self.data, self._instrument_bodies[arm], self._instrument_geoms[arm]
+        )
 
     def camera_names(self) -> list[str]:
         return [self.model.camera(i).name for i in range(self.model.ncam)]
