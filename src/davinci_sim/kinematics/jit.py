@@ -78,11 +78,15 @@ def helper(fn):
     other modules: after changing such a helper, delete the ``__pycache__/*.nbi``/``*.nbc``
     files of the kernels' modules (or compare with ``DAVINCI_SIM_JIT=0``).
     """
-    if ENABLED:
+    if ENABLED and fn not in _HELPERS:  # (once: a second registration is a second overload)
         from numba.extending import register_jitable
 
         register_jitable(fn)
+        _HELPERS.add(fn)
     return fn
+
+
+_HELPERS: set = set()  # the functions :func:`helper` registered
 
 
 def warmed_up(warm_up, fallback: str) -> bool:

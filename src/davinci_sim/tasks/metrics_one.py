@@ -17,6 +17,7 @@ from __future__ import annotations
 import numpy as np
 
 from davinci_sim.geometry.floats import norm3, np_maximum, np_minimum
+from davinci_sim.kinematics import jit
 from davinci_sim.tasks.metrics import PATH_METRICS
 from davinci_sim.tasks.trainer import PATH_MISSED_TARGETS, force_threshold, trainer_metrics
 
@@ -43,6 +44,10 @@ assert _NAMES == (
     "missed_targets",
 ), _NAMES  # fmt: skip  (update_one's indices below)
 
+jit.helper(norm3)
+jit.helper(np_maximum)
+jit.helper(np_minimum)
+
 
 def applies(metrics, n: int) -> bool:
     """Whether :func:`update_one` computes these ``metrics`` of ``n`` trials."""
@@ -55,72 +60,123 @@ def update_one(acc, mask, sample, obs) -> bool:
     reducers' path runs then)."""
     if "dropped" in obs:  # (a path observes no drops: its Sum adds 0)
         return False
-    master, visible = sample.master, sample.visible
-    contacts, tool_force = sample.contacts, sample.tool_force
-    # A metric whose field the sample lacks cannot tell: unavailable (nan in the results),
-    # its running value left as it is, as the reducers' path does.
-    for value, name in ((contacts, "instrument_collisions"), (tool_force, "excessive_force"),
-                        (visible, "out_of_view"), (master, "master_workspace")):  # fmt: skip
-        if value is None:
-            acc._missing.add(name)
+    prev = sample if acc._prev is None else acc._prev
+    if (sample.contacts is None) != (prev.contacts is None):
+        return False  # (the reducers' path: what it does with one side missing)
+    mark_missing(acc, sample)
+    task = acc.task
+    master, contacts, tool_force, visible = (sample.master, sample.contacts,
+                                             sample.tool_force, sample.visible)  # fmt: skip
+    tip, f, pt = sample.tip[0], sample.force[0], prev.tip[0]
     a = acc._acc
     m = bool(mask[0])
-    pair = m and bool(acc._prev_in[0])
-    prev = sample if acc._prev is None else acc._prev
-    tip = sample.tip[0]
-    x, y, z = float(tip[0]), float(tip[1]), float(tip[2])
-    pt = prev.tip[0]
-    dx, dy, dz = x - float(pt[0]), y - float(pt[1]), z - float(pt[2])
-    t = float(sample.time[0])
-    dt = t - float(prev.time[0])
-    if pair:  # (the integer pair sums: counted whether or not the sample is measured)
-        a[7][0] += int(bool(sample.clutch[0]) and not bool(prev.clutch[0]))
-        if contacts is not None:
-            a[9][0] += int(bool(contacts[0] > 0) and not bool(prev.contacts[0] > 0))
-    # (drops: the path kind observes none, its Sum adds 0)
-    if m:
-        task = acc.task
-        distance = float(obs["distance"][0])
-        f = sample.force[0]
-        force = norm3(float(f[0]), float(f[1]), float(f[2]))
-        a[0][0] = a[0][0] + distance
-        t0, t1 = a[1]
-        if t0[0] != t0[0]:
-            t0[0] = t
-        t1[0] = t
-        a[4][0] = np_maximum(float(a[4][0]), force)
-        a[5][0] = a[5][0] + force
-        step = norm3(dx, dy, dz)
-        if pair:
-            a[2][0] = a[2][0] + step
-            a[6][0] = a[6][0] + (dt if distance > task.tube_radius else 0.0)
-            if tool_force is not None:
-                over = float(tool_force[0]) > force_threshold(task)
-                a[10][0] = a[10][0] + (dt if over else 0.0)
-            if visible is not None:
-                a[11][0] = a[11][0] + (0.0 if bool(visible[0]) else step)
-        else:  # (+ 0: the same float, as where(pair, value, 0) adds)
-            a[2][0] = a[2][0] + 0.0
-            a[6][0] = a[6][0] + 0.0
-            if tool_force is not None:
-                a[10][0] = a[10][0] + 0.0
-            if visible is not None:
-                a[11][0] = a[11][0] + 0.0
-        if master is not None:
-            lo, hi = a[12]
-            p = master[0]
-            for i in range(3):
-                lo[0, i] = np_minimum(float(lo[0, i]), float(p[i]))
-                hi[0, i] = np_maximum(float(hi[0, i]), float(p[i]))
-        reached = a[14]
-        tolerance = task.tube_radius
-        for k, q in enumerate(np.asarray(task.markers[1:-1], dtype=float).reshape(-1, 3)):
-            if norm3(x - float(q[0]), y - float(q[1]), z - float(q[2])) <= tolerance:
-                reached[0, k] = True
-        acc._k[0] += 1
+    path_update(
+        a[0], a[1][0], a[1][1], a[2], a[4], a[5], a[6], a[7], a[9], a[10], a[11], a[12][0],
+        a[12][1], a[14], acc._k, m, bool(acc._prev_in[0]), float(sample.time[0]),
+        float(tip[0]), float(tip[1]), float(tip[2]), float(prev.time[0]), float(pt[0]),
+        float(pt[1]), float(pt[2]), bool(sample.clutch[0]), bool(prev.clutch[0]),
+        contacts is not None, 0 if contacts is None else int(contacts[0]),
+        0 if contacts is None else int(prev.contacts[0]), tool_force is not None,
+        0.0 if tool_force is None else float(tool_force[0]), visible is not None,
+        visible is not None and bool(visible[0]), master is not None, _NO_MASTER
+        if master is None else master[0], float(f[0]), float(f[1]), float(f[2]),
+        float(obs["distance"][0]), float(task.tube_radius), force_threshold(task),
+        targets(task),
+    )  # fmt: skip
+    keep_previous(acc, mask, sample, m)
+    return True
+
+
+_NO_MASTER = np.zeros(3)
+
+
+def mark_missing(acc, sample) -> None:
+    """A metric whose field the sample lacks cannot tell: unavailable (nan in the results),
+    its running value left as it is, as the reducers' path does."""
+    for value, name in ((sample.contacts, "instrument_collisions"),
+                        (sample.tool_force, "excessive_force"),
+                        (sample.visible, "out_of_view"),
+                        (sample.master, "master_workspace")):  # fmt: skip
+        if value is None:
+            acc._missing.add(name)
+
+
+def keep_previous(acc, mask, sample, m: bool) -> None:
+    """The accumulator's previous sample and whether it was measured, after ``sample``."""
     acc._prev_in[0] = m
     if acc._prev is None:
         acc._prev = sample
     else:
         acc._prev = acc._prev.where(mask, sample) if m else acc._prev.kept(sample)
-    return True
+
+
+def targets(task) -> np.ndarray:
+    """The numbered points 2..N−1 of ``task``'s path (k, 3), m: the missed targets' marks
+    (cached on the task: its markers do not change)."""
+    cached = task.__dict__.get("_metrics_targets")
+    if cached is None:
+        cached = np.asarray(task.markers[1:-1], dtype=float).reshape(-1, 3).copy()
+        object.__setattr__(task, "_metrics_targets", cached)
+    return cached
+
+
+@jit.helper
+def path_update(
+    deviation, t_first, t_last, length, peak, force_sum, outside, presses, collisions,
+    excessive, unseen, low, high, reached, count, m, prev_in, t, x, y, z, prev_t, px, py, pz,
+    clutch, prev_clutch, has_contacts, contacts, prev_contacts, has_tool_force, tool_force,
+    has_visible, visible, has_master, p_master, fx, fy, fz, distance, tube_radius,
+    force_limit, marks,
+):  # fmt: skip
+    """One sample of one trial into the path kind's running reductions, in place: each
+    argument up to ``count`` is the (1,)-row (or (1, 3) extent, (1, k) reached marks)
+    array of :data:`PATH_KIND_METRICS`' reducers in order (the mean deviation's sum, the
+    elapsed time's first and last times, the path length, the peak and summed force, the
+    time outside the tube, clutch presses, instrument collisions, time over the force
+    limit, distance out of view, the master's extent, the targets reached) and the sample
+    count; ``m``: this sample is measured, ``prev_in``: the previous one was; then the
+    sample (time s, tip m, clutch, the optional contacts, tool force N, visibility and
+    master position m, each with whether the sample has it; the guidance force N), the
+    previous sample's, the observed ``distance`` to the path (m), the task's tube radius
+    (m), force limit (N) and target marks ``marks`` (k, 3), m. The reducers' arithmetic on
+    floats: the same comparisons, the same operations in the same order (numpy's
+    ``maximum``/``minimum`` rules, a row's norm summed ``(x² + y²) + z²``)."""
+    pair = m and prev_in
+    dx, dy, dz = x - px, y - py, z - pz
+    dt = t - prev_t
+    if pair:  # (the integer pair sums: counted whether or not the sample is measured)
+        presses[0] += 1 if clutch and not prev_clutch else 0
+        if has_contacts:
+            collisions[0] += 1 if contacts > 0 and not prev_contacts > 0 else 0
+    if not m:
+        return
+    force = norm3(fx, fy, fz)
+    deviation[0] = deviation[0] + distance
+    if t_first[0] != t_first[0]:
+        t_first[0] = t
+    t_last[0] = t
+    peak[0] = np_maximum(peak[0], force)
+    force_sum[0] = force_sum[0] + force
+    step = norm3(dx, dy, dz)
+    if pair:
+        length[0] = length[0] + step
+        outside[0] = outside[0] + (dt if distance > tube_radius else 0.0)
+        if has_tool_force:
+            excessive[0] = excessive[0] + (dt if tool_force > force_limit else 0.0)
+        if has_visible:
+            unseen[0] = unseen[0] + (0.0 if visible else step)
+    else:  # (+ 0: the same float, as where(pair, value, 0) adds)
+        length[0] = length[0] + 0.0
+        outside[0] = outside[0] + 0.0
+        if has_tool_force:
+            excessive[0] = excessive[0] + 0.0
+        if has_visible:
+            unseen[0] = unseen[0] + 0.0
+    if has_master:
+        for i in range(3):
+            low[0, i] = np_minimum(low[0, i], p_master[i])
+            high[0, i] = np_maximum(high[0, i], p_master[i])
+    for k in range(marks.shape[0]):
+        if norm3(x - marks[k, 0], y - marks[k, 1], z - marks[k, 2]) <= tube_radius:
+            reached[0, k] = True
+    count[0] += 1

@@ -32,6 +32,7 @@ from typing import TYPE_CHECKING, NamedTuple
 
 import numpy as np
 
+from davinci_sim.kinematics import jit
 from davinci_sim.tasks.base import Sample
 
 if TYPE_CHECKING:
@@ -140,31 +141,45 @@ def _task_step_one(state, time, dist_start, dist_finish, arc_length, min_arc, st
     t = float(np.asarray(time, dtype=float).reshape(-1)[0])
     at_start = bool(np.asarray(dist_start).reshape(-1)[0] <= start_tol)
     at_finish = bool(np.asarray(dist_finish).reshape(-1)[0] <= finish_tol)
-    arc = np.asarray(arc_length, dtype=float).reshape(-1)[0]
-    phase = int(state.phase[0])
-    old = state.progress[0]
-    running = phase == Phase.RUNNING
-    if running:  # np.maximum: NaN if either is
-        progress = old if old != old else arc if arc != arc else old if old >= arc else arc
-    else:
-        progress = old
-    new = phase
-    begin = phase == Phase.READY and not at_start
-    done = running and at_finish and bool(progress >= min_arc)
-    if phase == Phase.IDLE and at_start:
-        new = Phase.READY
-    elif begin:
-        new = Phase.RUNNING
-    elif done:
-        new = Phase.FINISHED
-    elif phase == Phase.FINISHED:
-        new = Phase.RESULTS
+    arc = float(np.asarray(arc_length, dtype=float).reshape(-1)[0])
+    new, begin, done, progress = phase_step(
+        int(state.phase[0]), float(state.progress[0]), at_start, at_finish, arc, min_arc
+    )
     return TaskState(
         np.array([new], dtype=state.phase.dtype),
         np.array([t]) if begin else state.t_start.astype(float),
         np.array([t]) if done else state.t_finish.astype(float),
         np.array([arc if begin else progress], dtype=float),
     )
+
+
+@jit.helper
+def phase_step(phase, progress, at_start, at_finish, arc, min_arc):
+    """One trial's state machine on floats (:func:`task_step`'s rules): from ``phase`` (an
+    int of :class:`Phase`) with the ``progress`` so far (m), this sample's tip at point 1
+    (``at_start``) or at the last point (``at_finish``) and its closest point's arc length
+    ``arc`` (m), ``min_arc`` the progress a finish needs (m). Returns ``(new phase,
+    begins, finishes, progress)``: the progress is ``np.maximum(progress, arc)`` while
+    RUNNING (NaN if either is), else unchanged. Compiled into the path kind's tick
+    (:mod:`~davinci_sim.tasks.path_row`)."""
+    running = phase == _RUNNING
+    if running:  # np.maximum: NaN if either is
+        if progress != progress:
+            pass
+        elif arc != arc or progress < arc:
+            progress = arc
+    begin = phase == _READY and not at_start
+    done = running and at_finish and progress >= min_arc
+    new = phase
+    if phase == _IDLE and at_start:
+        new = _READY
+    elif begin:
+        new = _RUNNING
+    elif done:
+        new = _FINISHED
+    elif phase == _FINISHED:
+        new = _RESULTS
+    return new, begin, done, progress
 
 
 def measuring(phase) -> np.ndarray:
@@ -187,6 +202,12 @@ def advance(task: Task, state, metrics: MetricsAccumulator, sample: Sample, acti
     Returns:
         ``(new state, observations)`` (:meth:`~davinci_sim.tasks.base.Task.step`).
     """
+    if active is None:  # one path trial (the live session, an environment): compiled
+        from davinci_sim.tasks.path_row import advance_one
+
+        stepped = advance_one(task, state, metrics, sample)
+        if stepped is not None:
+            return stepped
     new, obs = task.step(state, sample)
     if active is not None:
         new = type(new)(*(np.where(active, a, b) for a, b in zip(new, state, strict=True)))

@@ -1,0 +1,128 @@
+"""The path kind's compiled tick (tasks/path_row.py) against the Python tick it replaces:
+the same state, observations, running metrics, previous sample and results, bit for bit."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from test_metrics_one import _walk
+
+from davinci_sim.kinematics import jit
+from davinci_sim.tasks import load_task, path_row
+from davinci_sim.tasks.base import _FIELDS, Sample
+from davinci_sim.tasks.state import Phase, TaskMonitor
+
+pytestmark = pytest.mark.skipif(not jit.ENABLED, reason="numba is off: nothing is compiled")
+
+
+def _arrays(x) -> list:
+    if x is None:
+        return [None]
+    if isinstance(x, tuple):
+        return [a for part in x for a in _arrays(part)]
+    return [x]
+
+
+def _same(a, b) -> None:
+    assert (a is None) == (b is None)
+    if a is not None:
+        a, b = np.asarray(a), np.asarray(b)
+        assert a.dtype == b.dtype and a.shape == b.shape
+        np.testing.assert_array_equal(a, b)
+
+
+_KERNEL = path_row.path_tick_row
+
+
+def _observe_both(monkeypatch, compiled, python, sample) -> bool:
+    """``sample`` into both monitors; whether the compiled one ran the compiled tick."""
+    calls = []
+
+    def counted(*args):
+        calls.append(1)
+        return _KERNEL(*args)
+
+    monkeypatch.setattr(path_row, "path_tick_row", counted)
+    compiled.observe(sample)
+    ran = len(calls)
+    monkeypatch.setattr(path_row, "COMPILED", False)
+    python.observe(sample)
+    assert len(calls) == ran <= 1
+    monkeypatch.setattr(path_row, "COMPILED", True)
+    return bool(ran)
+
+
+def _check(compiled, python) -> None:
+    for x, y in zip(compiled.state, python.state, strict=True):
+        _same(x, y)
+    assert compiled.observations.keys() == python.observations.keys()
+    for k in compiled.observations:
+        _same(compiled.observations[k], python.observations[k])
+    a, b = compiled.metrics, python.metrics
+    for x, y in zip(a._acc, b._acc, strict=True):
+        for u, v in zip(_arrays(x), _arrays(y), strict=True):
+            _same(u, v)
+    _same(a._k, b._k)
+    _same(a._prev_in, b._prev_in)
+    assert a._missing == b._missing
+    for k in _FIELDS:
+        _same(getattr(a._prev, k), getattr(b._prev, k))
+
+
+LACKING = [(0, ()), (1, ()), (2, ("master",)), (3, ("visible", "contacts", "tool_force"))]
+
+
+@pytest.mark.parametrize("seed, lacking", LACKING)
+def test_the_compiled_tick_is_the_python_tick_bit_for_bit(monkeypatch, seed, lacking):
+    task = load_task("seed_path")
+    compiled, python = TaskMonitor(task), TaskMonitor(task)
+    rng = np.random.default_rng(seed)
+    phases, python_ticks = set(), 0
+    for i, sample in enumerate(_walk(task, rng, 3000)):
+        if lacking and i >= 100:
+            sample = Sample(*(None if k in lacking else getattr(sample, k) for k in _FIELDS))
+        python_ticks += not _observe_both(monkeypatch, compiled, python, sample)
+        _check(compiled, python)
+        phases.add(compiled.phase)
+    # (only the sample that drops the contacts the previous one had takes the reducers)
+    assert python_ticks == ("contacts" in lacking)
+    assert {Phase.READY, Phase.RUNNING, Phase.FINISHED} <= phases
+    assert compiled.results is not None
+    for name in compiled.results._fields:
+        _same(compiled.results[name], python.results[name])
+    row = compiled.results.row()
+    assert row["path_length"] > 0 and row["samples"] > 1000
+    assert lacking or (row["clutch_count"] > 0 and row["instrument_collisions"] > 0)
+
+
+def test_the_state_machines_edges_as_the_python_tick(monkeypatch):
+    """At point 1 (READY), leaving it (RUNNING), at the last point (FINISHED), then RESULTS;
+    after a reset, a NaN tip while running: the progress NaN, so no finish, as numpy's
+    maximum makes it."""
+    task = load_task("seed_path")
+    compiled, python = TaskMonitor(task), TaskMonitor(task)
+    start, finish = np.asarray(task.start), np.asarray(task.finish)
+    mid = np.asarray(task.waypoints, dtype=float)[len(task.waypoints) // 2]
+    away = start + 3 * task.start_tolerance
+    rounds = (
+        ([start, start, away, mid, finish, finish, mid], Phase.RESULTS),
+        ([start, start, away, np.full(3, np.nan), mid, finish, finish], Phase.RUNNING),
+    )
+    for tips, end in rounds:
+        for k, tip in enumerate(tips):
+            assert _observe_both(monkeypatch, compiled, python, Sample.of(0.01 * k, tip))
+            _check(compiled, python)
+        assert compiled.phase == python.phase == end
+        compiled.reset()
+        python.reset()
+
+
+def test_other_kinds_and_batches_take_the_python_tick():
+    ring = load_task("ring_walk")
+    monitor = TaskMonitor(ring)
+    sample = Sample.of(0.0, np.zeros(3))
+    assert path_row.advance_one(ring, monitor.state, monitor.metrics, sample) is None
+    task = load_task("seed_path")
+    batch = TaskMonitor(task, n=2)
+    two = Sample.of(0.0, np.zeros((2, 3)))
+    assert path_row.advance_one(task, batch.state, batch.metrics, two) is None
