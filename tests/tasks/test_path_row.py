@@ -34,7 +34,7 @@ def _same(a, b) -> None:
 _KERNEL = path_row.path_tick_row
 
 
-def _observe_both(monkeypatch, compiled, python, sample) -> bool:
+def _observe_both(monkeypatch, compiled, python, sample, active=None) -> bool:
     """``sample`` into both monitors; whether the compiled one ran the compiled tick."""
     calls = []
 
@@ -43,10 +43,10 @@ def _observe_both(monkeypatch, compiled, python, sample) -> bool:
         return _KERNEL(*args)
 
     monkeypatch.setattr(path_row, "path_tick_row", counted)
-    compiled.observe(sample)
+    compiled.observe(sample, active)
     ran = len(calls)
     monkeypatch.setattr(path_row, "COMPILED", False)
-    python.observe(sample)
+    python.observe(sample, active)
     assert len(calls) == ran <= 1
     monkeypatch.setattr(path_row, "COMPILED", True)
     return bool(ran)
@@ -115,6 +115,19 @@ def test_the_state_machines_edges_as_the_python_tick(monkeypatch):
         assert compiled.phase == python.phase == end
         compiled.reset()
         python.reset()
+
+
+def test_an_environments_active_trial_takes_the_compiled_tick(monkeypatch):
+    """The single environment passes its one trial as active: compiled, as the Python tick
+    with the mask; an inactive trial keeps the Python tick (its state held)."""
+    task = load_task("seed_path")
+    compiled, python = TaskMonitor(task), TaskMonitor(task)
+    on, off = np.ones(1, dtype=bool), np.zeros(1, dtype=bool)
+    for i, sample in enumerate(_walk(task, np.random.default_rng(7), 1500)):
+        active = off if 200 <= i < 210 else on
+        assert _observe_both(monkeypatch, compiled, python, sample, active) == active[0]
+        _check(compiled, python)
+    assert compiled.results is not None
 
 
 def test_other_kinds_and_batches_take_the_python_tick():

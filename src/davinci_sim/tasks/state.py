@@ -202,7 +202,9 @@ def advance(task: Task, state, metrics: MetricsAccumulator, sample: Sample, acti
     Returns:
         ``(new state, observations)`` (:meth:`~davinci_sim.tasks.base.Task.step`).
     """
-    if active is None:  # one path trial (the live session, an environment): compiled
+    # One path trial going on (the live session, the single environment): compiled. (A
+    # trial that is active everywhere is one whose arrays np.where would give back equal.)
+    if active is None or (np.shape(active) == (1,) and bool(active[0])):
         from davinci_sim.tasks.path_row import advance_one
 
         stepped = advance_one(task, state, metrics, sample)
