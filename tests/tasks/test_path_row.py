@@ -1,5 +1,6 @@
-"""The path kind's compiled tick (tasks/path_row.py) against the Python tick it replaces:
-the same state, observations, running metrics, previous sample and results, bit for bit."""
+"""The path kind's compiled tick (tasks/path_row.py) against the Python tick it replaces,
+one trial and a batch: the same state, observations, running metrics, previous sample and
+results, bit for bit."""
 
 from __future__ import annotations
 
@@ -31,7 +32,7 @@ def _same(a, b) -> None:
         np.testing.assert_array_equal(a, b)
 
 
-_KERNEL = path_row.path_tick_row
+_KERNEL = path_row.path_tick_rows
 
 
 def _observe_both(monkeypatch, compiled, python, sample, active=None) -> bool:
@@ -42,7 +43,7 @@ def _observe_both(monkeypatch, compiled, python, sample, active=None) -> bool:
         calls.append(1)
         return _KERNEL(*args)
 
-    monkeypatch.setattr(path_row, "path_tick_row", counted)
+    monkeypatch.setattr(path_row, "path_tick_rows", counted)
     compiled.observe(sample, active)
     ran = len(calls)
     monkeypatch.setattr(path_row, "COMPILED", False)
@@ -118,24 +119,53 @@ def test_the_state_machines_edges_as_the_python_tick(monkeypatch):
 
 
 def test_an_environments_active_trial_takes_the_compiled_tick(monkeypatch):
-    """The single environment passes its one trial as active: compiled, as the Python tick
-    with the mask; an inactive trial keeps the Python tick (its state held)."""
+    """The single environment passes its one trial's activity: compiled, as the Python
+    tick with the mask (an inactive trial's state held, its sample not measured)."""
     task = load_task("seed_path")
     compiled, python = TaskMonitor(task), TaskMonitor(task)
     on, off = np.ones(1, dtype=bool), np.zeros(1, dtype=bool)
     for i, sample in enumerate(_walk(task, np.random.default_rng(7), 1500)):
         active = off if 200 <= i < 210 else on
-        assert _observe_both(monkeypatch, compiled, python, sample, active) == active[0]
+        assert _observe_both(monkeypatch, compiled, python, sample, active)
         _check(compiled, python)
     assert compiled.results is not None
 
 
-def test_other_kinds_and_batches_take_the_python_tick():
+def _batch(task, rng, n: int, ticks: int):
+    """Samples of ``n`` trials walking the path at their own paces (each trial's walk, the
+    shorter ones holding their last sample), the optional fields toggling."""
+    seeds = rng.integers(1 << 30, size=n)
+    walks = [list(_walk(task, np.random.default_rng(seeds[i]), int(ticks * (1 - 0.15 * i))))
+             for i in range(n)]  # fmt: skip
+    for k in range(ticks):
+        rows = [w[min(k, len(w) - 1)] for w in walks]
+        yield Sample(*(None if getattr(rows[0], f) is None else np.concatenate(
+            [getattr(r, f) for r in rows]) for f in _FIELDS))  # fmt: skip
+
+
+def test_a_batch_with_trials_ending_at_their_own_time_as_the_python_tick(monkeypatch):
+    """The study's batch: three trials, each inactive once it has finished (as the batch
+    marks them), then all but one reset (a new repetition)."""
+    task = load_task("seed_path")
+    compiled, python = TaskMonitor(task, 3), TaskMonitor(task, 3)
+    active = np.ones(3, dtype=bool)
+    for sample in _batch(task, np.random.default_rng(11), 3, 3000):
+        assert _observe_both(monkeypatch, compiled, python, sample, active.copy())
+        _check(compiled, python)
+        active &= compiled.state.phase < Phase.FINISHED
+    assert not active.any() and compiled.results is not None
+    for name in compiled.results._fields:
+        _same(compiled.results[name], python.results[name])
+    for monitor in (compiled, python):
+        monitor.state = task.reset_state(monitor.state, np.array([True, True, False]))
+        monitor.metrics.reset(np.array([True, True, False]))
+    for sample in _batch(task, np.random.default_rng(12), 3, 600):
+        assert _observe_both(monkeypatch, compiled, python, sample)
+        _check(compiled, python)
+
+
+def test_other_kinds_take_the_python_tick():
     ring = load_task("ring_walk")
     monitor = TaskMonitor(ring)
     sample = Sample.of(0.0, np.zeros(3))
-    assert path_row.advance_one(ring, monitor.state, monitor.metrics, sample) is None
-    task = load_task("seed_path")
-    batch = TaskMonitor(task, n=2)
-    two = Sample.of(0.0, np.zeros((2, 3)))
-    assert path_row.advance_one(task, batch.state, batch.metrics, two) is None
+    assert path_row.advance_rows(ring, monitor.state, monitor.metrics, sample) is None

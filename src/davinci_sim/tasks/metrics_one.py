@@ -83,7 +83,7 @@ def update_one(acc, mask, sample, obs) -> bool:
         float(obs["distance"][0]), float(task.tube_radius), force_threshold(task),
         targets(task),
     )  # fmt: skip
-    keep_previous(acc, mask, sample, m)
+    update_previous(acc, np.asarray(mask, dtype=bool), sample)
     return True
 
 
@@ -101,13 +101,15 @@ def mark_missing(acc, sample) -> None:
             acc._missing.add(name)
 
 
-def keep_previous(acc, mask, sample, m: bool) -> None:
-    """The accumulator's previous sample and whether it was measured, after ``sample``."""
-    acc._prev_in[0] = m
+def update_previous(acc, measured, sample) -> None:
+    """The accumulator's previous sample and which trials it measured (``measured`` (n,)
+    bool), after ``sample``: as :meth:`MetricsAccumulator.update` leaves them."""
+    idle = not measured.any()
+    acc._prev_in = np.array(measured, dtype=bool)
     if acc._prev is None:
         acc._prev = sample
     else:
-        acc._prev = acc._prev.where(mask, sample) if m else acc._prev.kept(sample)
+        acc._prev = acc._prev.kept(sample) if idle else acc._prev.where(measured, sample)
 
 
 def targets(task) -> np.ndarray:

@@ -1,17 +1,19 @@
-"""One sample of one trial of the path kind in one compiled call: the task's tick of the
-live session and of the single learning environment.
+"""The path kind's tick in one compiled call: a sample of every trial through the task's
+state machine and metrics (the live session's one trial, the single environment's, the
+study batch's trials).
 
 Each tick, :func:`~davinci_sim.tasks.state.advance` runs a task's state machine on the
-sample and adds it to the metrics. For one trial of :class:`~davinci_sim.tasks.task.PathTask`
-(``seed_path`` and every path task file) that is the tip's closest point on the path
+sample and adds it to the metrics. For :class:`~davinci_sim.tasks.task.PathTask` (``seed_path``
+and every path task file) scoring :data:`~davinci_sim.tasks.metrics_one.PATH_KIND_METRICS`
+that is, per trial, the tip's closest point on the path
 (:func:`~davinci_sim.haptics.path_query.closest_point_row`'s body), its distances to point
 1 and the last point, the state machine (:func:`~davinci_sim.tasks.state.phase_step`) and
 the metrics' reductions (:func:`~davinci_sim.tasks.metrics_one.path_update`): a few dozen
-numpy and Python calls. :func:`advance_one` runs them as one compiled call of those same
-laws, so the same bits (``tests/tasks/test_path_row.py``), and leaves the Python objects
-(the state, the observations, the accumulator and its previous sample) as the Python path
-leaves them. Anything else — another kind, a batch, a path too long for the brute force,
-no numba — returns None and takes the Python path, which stays the oracle.
+numpy and Python calls a tick. :func:`advance_rows` runs them as one compiled call of those
+same laws, row by row, so the same bits (``tests/tasks/test_path_row.py``), and leaves the
+Python objects (the state, the observations, the accumulator and its previous sample) as
+the Python path leaves them. Anything else — another kind or declaration, a path too long
+for the brute force, no numba — returns None and takes the Python path, the oracle.
 """
 
 from __future__ import annotations
@@ -26,7 +28,12 @@ from davinci_sim.haptics.path_query import (
     brute_force_constants,
 )
 from davinci_sim.kinematics import jit
-from davinci_sim.tasks.metrics_one import keep_previous, mark_missing, path_update, targets
+from davinci_sim.tasks.metrics_one import (
+    mark_missing,
+    path_update,
+    targets,
+    update_previous,
+)
 from davinci_sim.tasks.state import _FINISHED, _RUNNING, TaskState, phase_step
 from davinci_sim.tasks.trainer import force_threshold
 
@@ -34,47 +41,65 @@ jit.helper(norm3)
 
 
 @numba.njit(cache=True, nogil=True)
-def path_tick_row(
+def path_tick_rows(
     centre, basis, AE, AA, EE, starts, edges, cumulative, lengths, start, finish, start_tol,
-    finish_tol, min_arc, tube_radius, force_limit, marks, phase, progress, t, x, y, z, fx, fy,
-    fz, clutch, has_contacts, contacts, has_tool_force, tool_force, has_visible, visible,
-    has_master, mx, my, mz, prev_t, px, py, pz, prev_clutch, prev_contacts, deviation,
-    t_first, t_last, length, peak, force_sum, outside, presses, collisions, excessive, unseen,
-    low, high, reached, count, prev_in, closest,
+    finish_tol, min_arc, tube_radius, force_limit, marks, active, phase, t_start, t_finish,
+    progress, time, tip, force, clutch, has_contacts, contacts, has_tool_force, tool_force,
+    has_visible, visible, has_master, master, prev_time, prev_tip, prev_clutch, prev_contacts,
+    deviation, t_first, t_last, length, peak, force_sum, outside, presses, collisions,
+    excessive, unseen, low, high, reached, count, prev_in, closest, measured,
 ):  # fmt: skip
-    """One sample of one path trial: the path's constants (``closest_point_row``'s, point 1
-    ``start`` and the last point ``finish`` (3,) m, their tolerances, the progress a finish
-    needs ``min_arc`` m, the tube radius m, the force limit N and the target marks (k, 3)),
-    the trial's ``phase`` and ``progress`` (m), the sample (time s, tip ``x, y, z`` m, force
-    N, the optional fields with whether it has them, the master's position m), the previous
-    sample's time, tip, clutch and contacts, and the metrics' running arrays
-    (:func:`~davinci_sim.tasks.metrics_one.path_update`'s, updated in place).
+    """One sample of n path trials.
 
-    ``closest`` (8,) receives the closest point's row (point, deviation, distance, arc
-    length: ``closest_point_row``'s). Returns ``(new phase, begins, finishes, progress,
-    measured)``: :func:`~davinci_sim.tasks.state.phase_step`'s and whether the metrics
-    took the sample."""
-    p = np.empty(3)
-    p[0], p[1], p[2] = x, y, z
-    _closest_point_into(p, centre, basis, AE, AA, EE, starts, edges, cumulative, lengths,
-                        closest)  # fmt: skip
-    at_start = norm3(x - start[0], y - start[1], z - start[2]) <= start_tol
-    at_finish = norm3(x - finish[0], y - finish[1], z - finish[2]) <= finish_tol
-    new, begin, done, progress = phase_step(phase, progress, at_start, at_finish, closest[7],
-                                            min_arc)  # fmt: skip
-    m = new == _RUNNING or new == _FINISHED
-    path_update(
-        deviation, t_first, t_last, length, peak, force_sum, outside, presses, collisions,
-        excessive, unseen, low, high, reached, count, m, prev_in, t, x, y, z, prev_t, px, py,
-        pz, clutch, prev_clutch, has_contacts, contacts, prev_contacts, has_tool_force,
-        tool_force, has_visible, visible, has_master, (mx, my, mz), fx, fy, fz, closest[6],
-        tube_radius, force_limit, marks,
-    )  # fmt: skip
-    return new, begin, done, progress, m
+    The path's constants (``closest_point_row``'s, point 1 ``start`` and the last point
+    ``finish`` (3,) m, their tolerances, the progress a finish needs ``min_arc`` m, the
+    tube radius m, the force limit N and the target marks (k, 3)); ``active`` (n,) the
+    trials going on (the others keep their state and are not measured); the trials' state
+    (``phase``, ``t_start``, ``t_finish``, ``progress``, (n,), updated in place); the sample
+    (``time`` (n,) s, ``tip`` and ``force`` (n, 3) m and N, ``clutch`` (n,), the optional
+    fields with whether it has them, ``master`` (n, 3)); the previous sample's time, tip,
+    clutch and contacts; the metrics' running arrays
+    (:func:`~davinci_sim.tasks.metrics_one.path_update`'s, (n,) rows, updated in place).
+
+    ``closest`` (n, 8) receives each tip's closest point (point, deviation, distance, arc
+    length: ``closest_point_row``'s row); ``measured`` (n,) whether the metrics took the
+    trial's sample."""
+    for r in range(tip.shape[0]):
+        x, y, z = tip[r, 0], tip[r, 1], tip[r, 2]
+        _closest_point_into(tip[r], centre, basis, AE, AA, EE, starts, edges, cumulative,
+                            lengths, closest[r])  # fmt: skip
+        measured[r] = False
+        if not active[r]:
+            continue
+        at_start = norm3(x - start[0], y - start[1], z - start[2]) <= start_tol
+        at_finish = norm3(x - finish[0], y - finish[1], z - finish[2]) <= finish_tol
+        new, begin, done, progressed = phase_step(phase[r], progress[r], at_start, at_finish,
+                                                  closest[r, 7], min_arc)  # fmt: skip
+        phase[r] = new
+        if begin:
+            t_start[r] = time[r]
+            progress[r] = closest[r, 7]
+        else:
+            progress[r] = progressed
+        if done:
+            t_finish[r] = time[r]
+        m = new == _RUNNING or new == _FINISHED
+        measured[r] = m
+        q = r + 1
+        path_update(
+            deviation[r:q], t_first[r:q], t_last[r:q], length[r:q], peak[r:q],
+            force_sum[r:q], outside[r:q], presses[r:q], collisions[r:q], excessive[r:q],
+            unseen[r:q], low[r:q], high[r:q], reached[r:q], count[r:q], m, prev_in[r],
+            time[r], x, y, z, prev_time[r], prev_tip[r, 0], prev_tip[r, 1], prev_tip[r, 2],
+            clutch[r], prev_clutch[r], has_contacts, contacts[r], prev_contacts[r],
+            has_tool_force, tool_force[r], has_visible, visible[r], has_master, master[r],
+            force[r, 0], force[r, 1], force[r, 2], closest[r, 6], tube_radius, force_limit,
+            marks,
+        )  # fmt: skip
 
 
 def _constants(task) -> tuple | None:
-    """``task``'s constants of :func:`path_tick_row` (cached on it: a task is a value), or
+    """``task``'s constants of :func:`path_tick_rows` (cached on it: a task is a value), or
     None where the brute force does not serve its path."""
     cached = task.__dict__.get("_tick_row_constants", False)
     if cached is False:
@@ -93,55 +118,58 @@ def _constants(task) -> tuple | None:
     return cached
 
 
-def advance_one(task, state: TaskState, metrics, sample) -> tuple | None:
-    """:func:`~davinci_sim.tasks.state.advance` of one trial of a
-    :class:`~davinci_sim.tasks.task.PathTask` by :func:`path_tick_row`: ``(new state,
-    observations)``, with ``metrics`` updated as its float path updates it; None (nothing
+def _c(a, dtype) -> np.ndarray:
+    """``a`` as a C-ordered array of ``dtype`` (a copy only where it is not one): the
+    kernel's one signature, whatever views the sample holds."""
+    return np.ascontiguousarray(a, dtype=dtype)
+
+
+def advance_rows(task, state: TaskState, metrics, sample, active=None) -> tuple | None:
+    """:func:`~davinci_sim.tasks.state.advance` of the trials of a
+    :class:`~davinci_sim.tasks.task.PathTask` by :func:`path_tick_rows`: ``(new state,
+    observations)``, with ``metrics`` updated as the reducers update it; None (nothing
     changed) where the compiled tick does not apply."""
     from davinci_sim.tasks.task import PathTask
 
-    if not COMPILED or type(task) is not PathTask or not metrics.floats or metrics.n != 1:
+    if not COMPILED or type(task) is not PathTask or not metrics.floats:  # (the declaration)
         return None
-    if state.phase.shape != (1,) or sample.tip.shape != (1, 3):
+    n = metrics.n
+    if state.phase.shape != (n,) or sample.tip.shape != (n, 3):
         return None
     prev = sample if metrics._prev is None else metrics._prev
-    if (sample.contacts is None) != (prev.contacts is None):
-        return None  # (the float path's own rule: the reducers then)
+    contacts = sample.contacts
+    if (contacts is None) != (prev.contacts is None):
+        return None  # (the reducers' path: what it does with one side missing)
     constants = _constants(task)
     if constants is None:
         return None
     a = metrics._acc
-    contacts, tool_force = sample.contacts, sample.tool_force
-    visible, master = sample.visible, sample.master
-    t = float(sample.time[0])
-    closest = np.empty(8)
-    # (the rows as floats: the kernel's one signature, whatever views the sample holds)
-    tip, force, p_prev = sample.tip[0].tolist(), sample.force[0].tolist(), prev.tip[0].tolist()
-    p_master = (0.0, 0.0, 0.0) if master is None else master[0].tolist()
+    tool_force, visible, master = sample.tool_force, sample.visible, sample.master
+    zeros_i, zeros_f = np.zeros(n, dtype=np.int64), np.zeros(n)
+    new = TaskState(state.phase.copy(), state.t_start.astype(float), state.t_finish.astype(float),
+                    state.progress.astype(float))  # fmt: skip
+    closest, measured = np.empty((n, 8)), np.empty(n, dtype=bool)
     args = (
-        *constants, int(state.phase[0]), float(state.progress[0]), t, *tip, *force,
-        bool(sample.clutch[0]), contacts is not None, 0 if contacts is None else int(contacts[0]),
-        tool_force is not None, 0.0 if tool_force is None else float(tool_force[0]),
-        visible is not None, visible is not None and bool(visible[0]), master is not None,
-        *p_master, float(prev.time[0]), *p_prev, bool(prev.clutch[0]),
-        0 if contacts is None else int(prev.contacts[0]), a[0],
-        a[1][0], a[1][1], a[2], a[4], a[5], a[6], a[7], a[9], a[10], a[11], a[12][0],
-        a[12][1], a[14], metrics._k, bool(metrics._prev_in[0]), closest,
+        *constants, np.ones(n, dtype=bool) if active is None else _c(active, bool), *new,
+        _c(sample.time, float), _c(sample.tip, float), _c(sample.force, float),
+        _c(sample.clutch, bool), contacts is not None,
+        zeros_i if contacts is None else _c(contacts, np.int64), tool_force is not None,
+        zeros_f if tool_force is None else _c(tool_force, float), visible is not None,
+        np.zeros(n, dtype=bool) if visible is None else _c(visible, bool), master is not None,
+        np.zeros((n, 3)) if master is None else _c(master, float), _c(prev.time, float),
+        _c(prev.tip, float), _c(prev.clutch, bool),
+        zeros_i if contacts is None else _c(prev.contacts, np.int64), a[0], a[1][0], a[1][1],
+        a[2], a[4], a[5], a[6], a[7], a[9], a[10], a[11], a[12][0], a[12][1], a[14],
+        metrics._k, metrics._prev_in.copy(), closest, measured,
     )  # fmt: skip
-    new, begin, done, progress, m = path_tick_row(*args)
-    new_state = TaskState(
-        np.array([new], dtype=state.phase.dtype),
-        np.array([t]) if begin else state.t_start.astype(float),
-        np.array([t]) if done else state.t_finish.astype(float),
-        np.array([closest[7] if begin else progress], dtype=float),
-    )
+    path_tick_rows(*args)
     mark_missing(metrics, sample)
-    keep_previous(metrics, np.array([m]), sample, bool(m))
-    return new_state, {"distance": closest[6:7], "arc_length": closest[7:8]}
+    update_previous(metrics, measured, sample)
+    return new, {"distance": closest[:, 6], "arc_length": closest[:, 7]}
 
 
 def _warm_up() -> None:
-    """Compile (or load from numba's cache) at import with the live session's signature."""
+    """Compile (or load from numba's cache) at import with the callers' one signature."""
     from davinci_sim.tasks import load_task
     from davinci_sim.tasks.base import Sample
     from davinci_sim.tasks.state import TaskMonitor
@@ -150,7 +178,11 @@ def _warm_up() -> None:
     monitor = TaskMonitor(task)
     sample = Sample.of(0.0, task.start, np.zeros(3), False, visible=True, master=np.zeros(3),
                        contacts=0, tool_force=0.0)  # fmt: skip
-    advance_one(task, monitor.state, monitor.metrics, sample)
+    advance_rows(task, monitor.state, monitor.metrics, sample)
+    batch = TaskMonitor(task, 2)
+    two = Sample.of(0.0, np.zeros((2, 3)), master=np.zeros((2, 3)), visible=True, contacts=0,
+                    tool_force=0.0)  # fmt: skip
+    advance_rows(task, batch.state, batch.metrics, two, np.ones(2, dtype=bool))
 
 
 COMPILED = jit.ENABLED

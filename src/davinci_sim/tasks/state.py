@@ -202,14 +202,11 @@ def advance(task: Task, state, metrics: MetricsAccumulator, sample: Sample, acti
     Returns:
         ``(new state, observations)`` (:meth:`~davinci_sim.tasks.base.Task.step`).
     """
-    # One path trial going on (the live session, the single environment): compiled. (A
-    # trial that is active everywhere is one whose arrays np.where would give back equal.)
-    if active is None or (np.shape(active) == (1,) and bool(active[0])):
-        from davinci_sim.tasks.path_row import advance_one
+    from davinci_sim.tasks.path_row import advance_rows  # (the path kind's compiled tick)
 
-        stepped = advance_one(task, state, metrics, sample)
-        if stepped is not None:
-            return stepped
+    stepped = advance_rows(task, state, metrics, sample, active)
+    if stepped is not None:
+        return stepped
     new, obs = task.step(state, sample)
     if active is not None:
         new = type(new)(*(np.where(active, a, b) for a, b in zip(new, state, strict=True)))
