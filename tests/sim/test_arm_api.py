@@ -326,3 +326,24 @@ def _far(T):
     T = T.copy()
     T[0, 3] = 1e300
     return T
+
+
+@pytest.mark.parametrize("kind", ["body", "spatial"])
+def test_a_zero_wrench_renders_zero_efforts_as_the_law_computes_them(psm_sim, kind):
+    """(A zero wrench skips the kinematics: the efforts are the law's own, +0.0 each, at
+    any joints; a following MTM without a field renders it every tick.)"""
+    from davinci_sim.sim import arm_laws as laws
+
+    psm = psm_sim.arms["PSM1"]
+    rng = np.random.default_rng(3)
+    for w in (np.zeros(6), -np.zeros(6)):
+        for _ in range(5):
+            q = psm.setpoint_jp() + rng.uniform(-0.2, 0.2, psm.dof) * [1, 1, 0.1, 1, 1, 1]
+            psm.servo_jp(q)
+            psm_sim.run_for(0.01)
+            tau = psm._wrench_to_effort(kind, w)
+            _, T_base_tip, J = psm._measured_kinematics()
+            R = T_base_tip[:3, :3] if kind == "body" else psm.base_frame()[0][:3, :3].T
+            want = laws.wrench_effort(J, R, w, psm.chain.ftmax)
+            assert tau.tobytes() == want.tobytes()  # (the same signed zeros)
+            assert not np.signbit(tau).any()

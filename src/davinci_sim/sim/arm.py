@@ -693,6 +693,8 @@ class Arm(ServoJoints):
 
     # -------------------------------------------------------------- wrenches
     def _wrench_to_effort(self, kind: str, w: np.ndarray) -> np.ndarray:
+        if not w.any():  # zero (no NaN): Jᵀ·0 is +0.0 at any joints, as the law computes it
+            return np.zeros(self.dof)
         # Cached: servo_cf and the next _pre_step ask for the same joints and wrench.
         q, T_base_tip, Js = self._measured_kinematics(jacobian=True)
         # The same cached q and base-frame objects mean the same joints and frame.
