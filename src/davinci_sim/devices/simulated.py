@@ -307,7 +307,10 @@ class SimulatedMTM(MasterDevice):
         """The device's clamp and ``spatial/servo_cf`` in one compiled call
         (``device_row.render_row``) while the MTM renders wrenches already; else (the first
         wrench, limits beyond the arm's bounds, a stale device, an arm not ready, no numba)
-        the Python path. The same bits and the same state either way."""
+        the Python path. The same bits either way: the wrench let through, the limiter's
+        state, the efforts the next step uses. (Between two ticks the Python path may still
+        hold the last tick's efforts for a wrench equal to the last one; the arm's pre-step
+        recomputes them at the new joints, which this call has done already.)"""
         arm = self.arm
         current = arm._wrench
         limiter = self._limiter
