@@ -49,3 +49,35 @@ def test_the_live_tick_compiles_no_new_kernel_signature():
     after = {k.__qualname__: len(k.dispatcher.signatures) for k in jit.KERNELS}
     after.update({k.__name__: len(k.signatures) for k in direct})
     assert after == before
+
+
+_IMPORTS_IN_THE_LOOP = """
+import sys
+from davinci_sim.system import (ConsoleDescription, SystemDescription, TaskDescription,
+                                build_simulation)
+console = ConsoleDescription(operator_present=True, teleop_enabled=True, contact_feedback=True,
+                             scripted_hands=True)
+sim = build_simulation(SystemDescription("psm1_ecm_mtmr", console=console,
+                                         task=TaskDescription("seed_path")))
+teleop = sim.components["console"].psm_teleops["MTMR_PSM1"]
+before = set(sys.modules)
+assert sim.run_until(teleop.is_following, 30)
+sim.run_for(0.3)
+print(sorted(set(sys.modules) - before))
+"""
+
+
+def test_the_live_tick_imports_nothing():
+    """A fresh process (as ``make run``'s loop process): once the system is built, its
+    ticks — homing, alignment, following, the haptic loop with the task's fixture, the task
+    session — import no module. A module imported at its first use inside the loop (a
+    kernel's warm-up with it) stalls the loop for its compile: 1.8 s seen in ``make run``
+    with a cold numba cache."""
+    import json
+    import subprocess
+    import sys
+
+    out = subprocess.run([sys.executable, "-c", _IMPORTS_IN_THE_LOOP], capture_output=True,
+                         text=True, timeout=600, check=True)  # fmt: skip
+    imported = json.loads(out.stdout.strip().splitlines()[-1].replace("'", '"'))
+    assert imported == []

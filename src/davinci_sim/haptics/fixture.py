@@ -24,6 +24,10 @@ from typing import Literal, Protocol, runtime_checkable
 import numpy as np
 
 from davinci_sim.geometry.so3 import rotate_rows
+
+# (the viscous law's compiled row, compiled or loaded from numba's cache with this module:
+# the first haptic tick of a fixture must not wait for it inside the loop)
+from davinci_sim.haptics import fixture_row
 from davinci_sim.haptics.field import HapticState
 from davinci_sim.haptics.velocity import DEFAULT_CUTOFF_HZ, VelocityFilter
 
@@ -163,9 +167,8 @@ def _compiled_form(field: FixtureField) -> tuple | None:
         return None
     if not (isinstance(fixture.B, float) and isinstance(fixture.G_max, float)):
         return None
-    from davinci_sim.haptics.fixture_row import path_constants, viscous_fixture_force
-
-    path = path_constants(fixture.path)
+    path = fixture_row.path_constants(fixture.path)
     if path is None:
         return None
-    return viscous_fixture_force, path, fixture.B, fixture.G_max, float(fixture.transition), summed
+    row = fixture_row.viscous_fixture_force
+    return row, path, fixture.B, fixture.G_max, float(fixture.transition), summed

@@ -92,3 +92,7 @@ __all__ = [
     "task_step",
     "task_to_dict",
 ]
+
+# The path kind's compiled tick, compiled (or loaded from numba's cache) with the package:
+# ``advance`` looks it up at its first tick, which must not wait for a compile in the loop.
+from davinci_sim.tasks import path_row as _path_row  # noqa: E402, F401
