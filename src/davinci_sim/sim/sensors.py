@@ -18,6 +18,18 @@ def body_ids(model: mujoco.MjModel, names) -> np.ndarray:
     return np.array([i for i in ids if i >= 0], dtype=int)
 
 
+def instruments(model: mujoco.MjModel, arm_types: dict) -> dict:
+    """Per arm with an instrument (``arm_types``: arm name → its kind, PSM or ECM: the
+    :data:`INSTRUMENT_BODIES` of its kind), ``(body ids, per-geom mask)``: the arguments of
+    :func:`contact_force` after the model and data, computed once per model."""
+    out = {}
+    for name, kind in arm_types.items():
+        if kind in INSTRUMENT_BODIES:
+            bodies = body_ids(model, [f"{name}/{b}" for b in INSTRUMENT_BODIES[kind]])
+            out[name] = (bodies, instrument_geoms(model, bodies))
+    return out
+
+
 def instrument_geoms(model: mujoco.MjModel, bodies: np.ndarray) -> np.ndarray:
     """Per geom of ``model`` ((ngeom,) bool): whether it is on one of
     ``bodies`` (:func:`contact_force`'s selection, computed once per model)."""

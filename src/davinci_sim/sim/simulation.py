@@ -29,13 +29,7 @@ from davinci_sim.sim.arm import Arm
 from davinci_sim.sim.arms import ECM, MTM, PSM, SUJArm
 from davinci_sim.sim.component import Component, check_component
 from davinci_sim.sim.divergence import DivergenceGuard, arm_owners
-from davinci_sim.sim.sensors import (
-    INSTRUMENT_BODIES,
-    CameraRenderer,
-    body_ids,
-    contact_force,
-    instrument_geoms,
-)
+from davinci_sim.sim.sensors import CameraRenderer, contact_force, instruments
 from davinci_sim.sim.servo import JointServo
 from davinci_sim.sim.state import (
     STATE_SPEC,
@@ -125,15 +119,8 @@ class Simulation:
         self._watch = TrackingWatch(list(self.arms.values()))
         # Fingers (PSM jaws, MTM grippers) hold their initial opening.
         self.servo.q_ref[:] = self.data.qpos[self.servo.qposadr]
-        self._instrument_bodies = {
-            name: body_ids(self.model, [f"{name}/{b}" for b in INSTRUMENT_BODIES[arm.kin.arm_type]])
-            for name, arm in self.arms.items()
-            if arm.kin.arm_type in INSTRUMENT_BODIES
-        }
-        self._instrument_geoms = {
-            name: instrument_geoms(self.model, bodies)
-            for name, bodies in self._instrument_bodies.items()
-        }
+        kinds = {name: arm.kin.arm_type for name, arm in self.arms.items()}
+        self._instruments = instruments(self.model, kinds)  # (bodies, geoms) by arm
         self._cameras: CameraRenderer | None = None
         self._components: dict[str, Component] = {}
         self._guard = DivergenceGuard(self.model, self.data)
@@ -277,13 +264,9 @@ class Simulation:
     # ------------------------------------------------------------ sensors
     def contact_force(self, arm: str) -> np.ndarray:
         """Contact force (N, cart/world frame) on the instrument of ``arm`` (PSM) or the scope."""
-        if arm not in self._instrument_bodies:
-            raise KeyError(
-                f"no instrument on {arm!r}; arms with one: {list(self._instrument_bodies)}"
-            )
-        return contact_force(
-            self.model, self.data, self._instrument_bodies[arm], self._instrument_geoms[arm]
-        )
+        if arm not in self._instruments:
+            raise KeyError(f"no instrument on {arm!r}; arms with one: {list(self._instruments)}")
+        return contact_force(self.model, self.data, *self._instruments[arm])
 
     def camera_names(self) -> list[str]:
         return [self.model.camera(i).name for i in range(self.model.ncam)]
