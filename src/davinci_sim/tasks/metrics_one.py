@@ -60,9 +60,9 @@ def update_one(acc, mask, sample, obs) -> bool:
     reducers' path runs then)."""
     if "dropped" in obs:  # (a path observes no drops: its Sum adds 0)
         return False
-    prev = sample if acc._prev is None else acc._prev
-    if (sample.contacts is None) != (prev.contacts is None):
-        return False  # (the reducers' path: what it does with one side missing)
+    prev = previous_of(acc, sample)
+    if prev is None:
+        return False
     mark_missing(acc, sample)
     task = acc.task
     master, contacts, tool_force, visible = (sample.master, sample.contacts,
@@ -88,6 +88,14 @@ def update_one(acc, mask, sample, obs) -> bool:
 
 
 _NO_MASTER = np.zeros(3)
+
+
+def previous_of(acc, sample):
+    """The previous sample :func:`path_update` pairs ``sample`` with (``sample`` itself at
+    the first), or None where the float law does not apply: one of the two has contacts
+    and the other not (the reducers' path decides what that means)."""
+    prev = sample if acc._prev is None else acc._prev
+    return None if (sample.contacts is None) != (prev.contacts is None) else prev
 
 
 def mark_missing(acc, sample) -> None:

@@ -31,6 +31,7 @@ from davinci_sim.kinematics import jit
 from davinci_sim.tasks.metrics_one import (
     mark_missing,
     path_update,
+    previous_of,
     targets,
     update_previous,
 )
@@ -118,9 +119,12 @@ def _constants(task) -> tuple | None:
     return cached
 
 
-def _c(a, dtype) -> np.ndarray:
+def _c(a, dtype, missing=None) -> np.ndarray:
     """``a`` as a C-ordered array of ``dtype`` (a copy only where it is not one): the
-    kernel's one signature, whatever views the sample holds."""
+    kernel's one signature, whatever views the sample holds; for an optional field the
+    sample lacks (``a`` None), zeros of shape ``missing`` (the kernel ignores them)."""
+    if a is None:
+        return np.zeros(missing, dtype=dtype)
     return np.ascontiguousarray(a, dtype=dtype)
 
 
@@ -136,29 +140,24 @@ def advance_rows(task, state: TaskState, metrics, sample, active=None) -> tuple 
     n = metrics.n
     if state.phase.shape != (n,) or sample.tip.shape != (n, 3):
         return None
-    prev = sample if metrics._prev is None else metrics._prev
-    contacts = sample.contacts
-    if (contacts is None) != (prev.contacts is None):
-        return None  # (the reducers' path: what it does with one side missing)
+    prev = previous_of(metrics, sample)
     constants = _constants(task)
-    if constants is None:
+    if prev is None or constants is None:
         return None
     a = metrics._acc
-    tool_force, visible, master = sample.tool_force, sample.visible, sample.master
-    zeros_i, zeros_f = np.zeros(n, dtype=np.int64), np.zeros(n)
+    contacts, tool_force = sample.contacts, sample.tool_force
+    visible, master = sample.visible, sample.master
     new = TaskState(state.phase.copy(), state.t_start.astype(float), state.t_finish.astype(float),
                     state.progress.astype(float))  # fmt: skip
     closest, measured = np.empty((n, 8)), np.empty(n, dtype=bool)
     args = (
         *constants, np.ones(n, dtype=bool) if active is None else _c(active, bool), *new,
         _c(sample.time, float), _c(sample.tip, float), _c(sample.force, float),
-        _c(sample.clutch, bool), contacts is not None,
-        zeros_i if contacts is None else _c(contacts, np.int64), tool_force is not None,
-        zeros_f if tool_force is None else _c(tool_force, float), visible is not None,
-        np.zeros(n, dtype=bool) if visible is None else _c(visible, bool), master is not None,
-        np.zeros((n, 3)) if master is None else _c(master, float), _c(prev.time, float),
-        _c(prev.tip, float), _c(prev.clutch, bool),
-        zeros_i if contacts is None else _c(prev.contacts, np.int64), a[0], a[1][0], a[1][1],
+        _c(sample.clutch, bool), contacts is not None, _c(contacts, np.int64, n),
+        tool_force is not None, _c(tool_force, float, n), visible is not None,
+        _c(visible, bool, n), master is not None, _c(master, float, (n, 3)),
+        _c(prev.time, float), _c(prev.tip, float), _c(prev.clutch, bool),
+        _c(prev.contacts, np.int64, n), a[0], a[1][0], a[1][1],
         a[2], a[4], a[5], a[6], a[7], a[9], a[10], a[11], a[12][0], a[12][1], a[14],
         metrics._k, metrics._prev_in.copy(), closest, measured,
     )  # fmt: skip
