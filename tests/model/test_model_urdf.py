@@ -56,6 +56,12 @@ def test_rpy_round_trip_and_convention():
     Ry = matrix_from_rpy(0, 0.2, 0)
     Rz = matrix_from_rpy(0, 0, 0.1)
     np.testing.assert_allclose(R, Rz @ Ry @ Rx, atol=1e-12)
+    # near the lock (pitch within 1e-3 of ±90°, as the dVRK's link frames have), to rounding
+    for _ in range(50):
+        rpy = [rng.uniform(-3, 3), rng.choice([-1, 1]) * (math.pi / 2 - rng.uniform(0, 1e-3)),
+               rng.uniform(-3, 3)]  # fmt: skip
+        R = matrix_from_rpy(*rpy)
+        np.testing.assert_allclose(matrix_from_rpy(*rpy_from_matrix(R)), R, atol=1e-14)
     # gimbal lock: the rotation is still reproduced
     R = matrix_from_rpy(0.4, math.pi / 2, -0.3)
     np.testing.assert_allclose(matrix_from_rpy(*rpy_from_matrix(R)), R, atol=1e-9)

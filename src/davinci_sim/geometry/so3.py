@@ -132,7 +132,9 @@ def rpy_from_matrix(R) -> tuple[float, float, float]:
     x, then y, then z). At gimbal lock (pitch = ±π/2) roll is 0 and yaw carries the rest."""
     r = np.asarray(R, dtype=float)
     sp = max(-1.0, min(1.0, -float(r[2, 0])))
-    pitch = math.asin(sp)
+    # atan2 of sin and cos, not asin: asin loses half the digits near pitch = ±π/2 (~1e-8
+    # rad, which the dVRK's ±90° link frames hit in the URDF's origins)
+    pitch = math.atan2(-float(r[2, 0]), math.hypot(float(r[0, 0]), float(r[1, 0])))
     if abs(sp) < 1.0 - 1e-12:
         roll = math.atan2(float(r[2, 1]), float(r[2, 2]))
         yaw = math.atan2(float(r[1, 0]), float(r[0, 0]))
