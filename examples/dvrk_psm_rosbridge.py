@@ -191,9 +191,15 @@ def main(argv: list[str] | None = None) -> int:
         T[:3, 3] += 0.01 * np.array([math.sin(s), 1 - math.cos(s), 0.0])
         arm.servo_cp(T, frame)
         time.sleep(0.01)
-        if k == 50:  # a quarter of the way: the tip should be near (1, 1, 0) cm off
-            time.sleep(0.1)
-            worst = np.linalg.norm(arm.measured_cp()[:3, 3] - T[:3, 3])
+        if k == 50:  # a quarter of the way: the tip should get near (1, 1, 0) cm off
+            # (waited for, up to 5 s: a busy machine runs the simulation slower than the
+            # wall clock this loop streams by)
+            deadline = time.monotonic() + 5.0
+            while True:
+                worst = np.linalg.norm(arm.measured_cp()[:3, 3] - T[:3, 3])
+                if worst < 0.003 or time.monotonic() > deadline:
+                    break
+                time.sleep(0.02)
     check(f"servo_cp circle followed (error at a quarter turn {1000 * worst:.1f} mm)",
           worst < 0.003)  # fmt: skip
 
