@@ -33,7 +33,7 @@ def test_the_live_tick_compiles_no_new_kernel_signature():
 
     # (and the kernels a live part calls itself: servo_cp's, the teleoperation's, the MTM's)
     direct = (cartesian_kernel.servo_cp_row, teleop_row.follow_tick, device_row.hand_read_row,
-              device_row.render_row, path_row.path_tick_rows)  # fmt: skip
+              device_row.render_row, path_row.path_tick_rows, path_row.live_path_row)  # fmt: skip
     before = {k.__qualname__: len(k.dispatcher.signatures) for k in jit.KERNELS}
     before.update({k.__name__: len(k.signatures) for k in direct})
     console = ConsoleDescription(

@@ -99,6 +99,52 @@ def path_tick_rows(
         )  # fmt: skip
 
 
+@numba.njit(cache=True, nogil=True)
+def live_path_row(
+    centre, basis, AE, AA, EE, starts, edges, cumulative, lengths, start, finish, start_tol,
+    finish_tol, min_arc, tube_radius, force_limit, marks, active, T_task_tip, p_camera, f_px,
+    half_baseline, width, height, has_force, force_in, has_master, master_in, t, clutch,
+    contacts, tool_force, phase, t_start, t_finish, progress, s_time, s_tip, s_force,
+    s_clutch, s_visible, s_master, s_contacts, s_tool_force, prev_time, prev_tip, prev_clutch,
+    prev_contacts, deviation, t_first, t_last, length, peak, force_sum, outside, presses,
+    collisions, excessive, unseen, low, high, reached, count, prev_in, closest, measured,
+):  # fmt: skip
+    """The live session's sample of its one path trial, then :func:`path_tick_rows` on it.
+
+    The sample (written into the ``s_*`` (1,)-row arrays, as
+    :func:`~davinci_sim.tasks.session.live_sample` builds it): the time ``t`` (s), the tip
+    ``T_task_tip[:3, 3]`` (m, task frame), the guidance force ``force_in[:3]`` (N; 0 without
+    one), the clutch, whether the tip ``p_camera[:3, 3]`` (m, camera frame) is in the left
+    endoscope image (:func:`~davinci_sim.model.cameras.project_left`'s pinhole: focal length
+    ``f_px`` px, the left camera ``half_baseline`` m towards +x, a ``width`` x ``height``
+    image), the master's position ``master_in`` (m, HRSV; ``has_master``), the instrument's
+    contacts and their force (N). The previous sample's arrays may be the ``s_*`` ones (the
+    first sample is its own previous one). The rest: :func:`path_tick_rows`' arguments."""
+    s_time[0] = t
+    s_clutch[0] = clutch
+    s_contacts[0] = contacts
+    s_tool_force[0] = tool_force
+    for i in range(3):
+        s_tip[0, i] = T_task_tip[i, 3]
+        s_force[0, i] = force_in[i] if has_force else 0.0
+        s_master[0, i] = master_in[i] if has_master else 0.0
+    x, y, z = p_camera[0, 3], p_camera[1, 3], p_camera[2, 3]
+    visible = False
+    if z > 1e-6:  # (project_left's arithmetic, in its order)
+        u = width / 2.0 - f_px * (x - half_baseline) / z
+        v = height / 2.0 - f_px * y / z
+        visible = 0 <= u < width and 0 <= v < height
+    s_visible[0] = visible
+    path_tick_rows(
+        centre, basis, AE, AA, EE, starts, edges, cumulative, lengths, start, finish,
+        start_tol, finish_tol, min_arc, tube_radius, force_limit, marks, active, phase, t_start,
+        t_finish, progress, s_time, s_tip, s_force, s_clutch, True, s_contacts, True,
+        s_tool_force, True, s_visible, has_master, s_master, prev_time, prev_tip, prev_clutch,
+        prev_contacts, deviation, t_first, t_last, length, peak, force_sum, outside, presses,
+        collisions, excessive, unseen, low, high, reached, count, prev_in, closest, measured,
+    )  # fmt: skip
+
+
 def _constants(task) -> tuple | None:
     """``task``'s constants of :func:`path_tick_rows` (cached on it: a task is a value), or
     None where the brute force does not serve its path."""

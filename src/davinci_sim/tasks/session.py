@@ -44,6 +44,7 @@ from davinci_sim.sim.channels import Channels
 from davinci_sim.sim.state import capture, restore
 from davinci_sim.sim.types import ACCEPTED, CommandResult
 from davinci_sim.tasks.base import Sample, Task
+from davinci_sim.tasks.live_path import LivePathTick
 from davinci_sim.tasks.metrics import MetricValues
 from davinci_sim.tasks.scoring import SCORE_COLUMNS
 from davinci_sim.tasks.state import Phase, TaskMonitor
@@ -141,6 +142,8 @@ class TaskSession:
         teleop.set_scale(task.teleop.scale)
         self.log = None if log is None else Path(log)
         self.monitor = TaskMonitor(task)
+        self._live_tick = LivePathTick.build(task, self.monitor, sim.endoscope)
+        """The path kind's one compiled call a tick (None: the Python path for this task)."""
         self.results: list[dict] = []
         self.repetition = 1
         self._distance = math.nan
@@ -257,10 +260,14 @@ class TaskSession:
                 self.repetition += 1
                 self._restart()  # (the objects stay: a Reset puts them back)
             return
-        sample = live_sample(task, T_task_camera, self.teleop, self.console, t)
-        self.monitor.observe(sample)
-        if sample.objects is not None:  # (what the console's page shows of them)
-            self._objects = tuple(tuple(float(x) for x in p) for p in sample.objects[0])
+        ticked = self._live_tick is not None and self._live_tick.tick(
+            T_task_camera, live_inputs(task, self.teleop, self.console), t
+        )
+        if not ticked:
+            sample = live_sample(task, T_task_camera, self.teleop, self.console, t)
+            self.monitor.observe(sample)
+            if sample.objects is not None:  # (what the console's page shows of them)
+                self._objects = tuple(tuple(float(x) for x in p) for p in sample.objects[0])
         self._distance = self.monitor.distance
         if self.monitor.phase == Phase.FINISHED and self.monitor.results is not None:
             self._record(self.monitor.results, t)
@@ -407,26 +414,29 @@ def live_sample(task: Task, T_task_camera, teleop: TeleopPSM, console: Console, 
     instrument's contacts and their force (MuJoCo's contacts of the last step,
     :class:`~davinci_sim.tasks.trainer.InstrumentContacts`); the camera's pose and the tool's
     orientation in the task's frame (for the exercises that score them)."""
+    sim = console.sim
+    extra = task.scene_fields(sim.model, sim.data, _SCENE_CACHE)  # (a kind's objects)
+    return sample_of(T_task_camera, live_inputs(task, teleop, console), sim.endoscope, t, extra)
+
+
+def sample_of(T_task_camera, inputs: tuple, camera, t: float, extra: dict) -> Sample:
+    """:func:`live_sample`'s sample of the console's ``inputs`` (:func:`live_inputs`), the
+    camera in the task's frame ``T_task_camera`` (4x4), the endoscope's ``camera``
+    (:class:`~davinci_sim.model.cameras.CameraConfig`), the time ``t`` (s) and the kind's
+    ``extra`` fields (:meth:`~davinci_sim.tasks.base.Task.scene_fields`)."""
     from davinci_sim.model.cameras import project_left
 
-    p_camera = teleop.psm._measured_T()  # (measured_cp().T)
+    p_camera, force, clutch, master, (count, contact_force) = inputs
     T_task_tip = np.asarray(T_task_camera) @ p_camera
     tip = T_task_tip[:3, 3]
-    requested = console.haptics.requested(task.teleop.mtm)
-    force = None if requested is None else requested[:3]
-    sim = console.sim
-    camera = sim.endoscope
     uv = project_left(p_camera[:3, 3], camera)  # (one point: the scalar form is cheaper)
     visible = uv is not None and 0 <= uv[0] < camera.width and 0 <= uv[1] < camera.height
-    count, contact_force = _contacts(sim, task).measure(sim.model, sim.data)
-    reading = teleop.device.input()
-    master = None if reading is None else reading.T_hrsv_tip[:3, 3].reshape(1, 3)
-    extra = task.scene_fields(sim.model, sim.data, _SCENE_CACHE)  # (a kind's objects)
+    master = None if master is None else master.reshape(1, 3)
     # One trial: the arrays built directly (Sample.of's conversions cost more, every tick).
     f = np.zeros((1, 3)) if force is None else np.asarray(force, dtype=float).reshape(1, 3)
     objects, grasp, tools = extra.get("objects"), extra.get("grasp"), extra.get("tools")
     return Sample(
-        np.array([float(t)]), tip.reshape(1, 3), f, np.array([bool(teleop.is_clutched())]),
+        np.array([float(t)]), tip.reshape(1, 3), f, np.array([clutch]),
         visible=np.array([visible]), master=master, contacts=np.array([count], dtype=np.int64),
         tool_force=np.array([contact_force]),
         objects=None if objects is None else np.asarray(objects, dtype=float).reshape(1, -1, 3),
@@ -435,6 +445,24 @@ def live_sample(task: Task, T_task_camera, teleop: TeleopPSM, console: Console, 
         R_task_tip=T_task_tip[:3, :3].reshape(1, 3, 3),
         tools=None if tools is None else np.asarray(tools, dtype=float).reshape(1, -1, 3),
     )  # fmt: skip
+
+
+def live_inputs(task: Task, teleop: TeleopPSM, console: Console) -> tuple:
+    """What :func:`live_sample` reads from the console now: the tip of ``teleop``'s PSM in
+    the camera frame (4x4, m, read-only), the guidance force the haptic loop requested for
+    the task's MTM ((3,) N, or None before it has run), the clutch, the master handle's
+    position ((3,) m, HRSV, or None before the device's first input) and the instrument's
+    contacts (their number and total normal force, N)."""
+    requested = console.haptics.requested(task.teleop.mtm)
+    reading = teleop.device.input()
+    sim = console.sim
+    return (
+        teleop.psm._measured_T(),  # (measured_cp().T)
+        None if requested is None else requested[:3],
+        bool(teleop.is_clutched()),
+        None if reading is None else reading.T_hrsv_tip[:3, 3],
+        _contacts(sim, task).measure(sim.model, sim.data),
+    )
 
 
 #: What kinds keep between ticks to read the scene (:meth:`Task.scene_fields`).

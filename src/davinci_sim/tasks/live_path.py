@@ -1,0 +1,197 @@
+"""The live session's tick of its one path trial in one compiled call.
+
+After every physics step the :class:`~davinci_sim.tasks.session.TaskSession` samples the
+console (:func:`~davinci_sim.tasks.session.live_sample`: the tip in the task's frame, its
+visibility, the guidance force, the clutch, the master, the contacts), then the
+:class:`~davinci_sim.tasks.state.TaskMonitor` runs the task's state machine and metrics on
+it (:func:`~davinci_sim.tasks.state.advance`). Built from numpy arrays and Python objects,
+that was some 190 µs of a 1 kHz tick. For a :class:`~davinci_sim.tasks.task.PathTask` scoring
+its own declaration (``seed_path`` and every path task file), :class:`LivePathTick` reads
+the same inputs (:func:`~davinci_sim.tasks.session.live_inputs`) and makes the sample and
+the tick one compiled call (:func:`~davinci_sim.tasks.path_row.live_path_row`: the
+projection's arithmetic, then :func:`~davinci_sim.tasks.path_row.path_tick_rows`), leaving
+the monitor (state, observations, metrics, previous sample, results) as the Python path
+leaves it, bit for bit (``tests/tasks/test_live_path.py``). The Python path stays the
+oracle and runs whatever this does not serve.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from davinci_sim.tasks import path_row
+from davinci_sim.tasks.base import Sample
+from davinci_sim.tasks.metrics_one import update_previous
+from davinci_sim.tasks.state import _FINISHED, TaskMonitor, TaskState
+
+ENABLED = True
+"""Whether sessions use :class:`LivePathTick` (off: the Python path, e.g. to compare)."""
+
+_ACTIVE = np.ones(1, dtype=bool)  # (the kernel only reads it)
+_NO_VECTOR = np.zeros(3)
+
+
+class LivePathTick:
+    """One path trial's sample and tick (see the module docstring) for ``monitor``, whose
+    task is ``task`` (the constants are built once; :meth:`build` says whether it applies).
+
+    Args:
+        task: the session's :class:`~davinci_sim.tasks.task.PathTask`.
+        monitor: the session's monitor of one trial (its state and metrics are updated).
+        camera: the endoscope's :class:`~davinci_sim.model.cameras.CameraConfig`.
+        constants: ``path_row``'s constants of the task.
+    """
+
+    def __init__(self, task, monitor: TaskMonitor, camera, constants: tuple) -> None:
+        self.task, self.monitor = task, monitor
+        self._constants = constants
+        f = 0.5 * camera.height / math.tan(math.radians(camera.fovy_deg) / 2.0)  # (project_left)
+        self._camera = (f, camera.baseline_m / 2.0, float(camera.width), float(camera.height))
+        self._own_prev: Sample | None = None
+        """The monitor's previous sample when it has live_sample's fields (:func:`_live_kind`):
+        the next one then takes its place, or it stays, without the general rules."""
+        self._own_master = False  # whether it has a master position
+
+    @classmethod
+    def build(cls, task, monitor: TaskMonitor, camera) -> LivePathTick | None:
+        """The tick for ``monitor`` of ``task``, or None where it does not apply: another
+        kind or declaration, more than one trial, a path the brute force does not serve, no
+        numba."""
+        from davinci_sim.tasks.task import PathTask
+
+        if not path_row.COMPILED or type(task) is not PathTask or monitor.n != 1:
+            return None
+        if not monitor.metrics.floats:
+            return None
+        constants = path_row._constants(task)
+        return None if constants is None else cls(task, monitor, camera, constants)
+
+    def tick(self, T_task_camera, inputs: tuple, t: float) -> bool:
+        """One sample at the simulated time ``t`` (s) of the console's ``inputs``
+        (:func:`~davinci_sim.tasks.session.live_inputs`), the camera in the task's frame
+        ``T_task_camera`` (4x4): the monitor's :meth:`~TaskMonitor.observe` of
+        :func:`~davinci_sim.tasks.session.live_sample`. False (nothing done) where the
+        previous sample has no contacts (the reducers' path decides then)."""
+        if not ENABLED:
+            return False
+        monitor = self.monitor
+        metrics = monitor.metrics
+        prev = metrics._prev
+        if prev is not None and prev.contacts is None:
+            return False
+        p_camera, force, clutch, master, (count, contact_force) = inputs
+        if master is not None:  # (a column of the device's pose: the kernel's one signature)
+            master = np.ascontiguousarray(master, dtype=float)
+        T_task_tip = np.asarray(T_task_camera) @ p_camera  # (numpy's product: live_sample's)
+        s_time, s_tip, s_force = np.empty(1), np.empty((1, 3)), np.empty((1, 3))
+        s_clutch, s_visible = np.empty(1, dtype=bool), np.empty(1, dtype=bool)
+        s_master, s_tool_force = np.empty((1, 3)), np.empty(1)
+        s_contacts = np.empty(1, dtype=np.int64)
+        state = monitor.state
+        new = TaskState(state.phase.copy(), state.t_start.astype(float),
+                        state.t_finish.astype(float), state.progress.astype(float))  # fmt: skip
+        closest, measured = np.empty((1, 8)), np.empty(1, dtype=bool)
+        if prev is None:  # (the first sample is its own previous one)
+            previous = (s_time, s_tip, s_clutch, s_contacts)
+        else:
+            previous = (_c(prev.time, float), _c(prev.tip, float), _c(prev.clutch, bool),
+                        _c(prev.contacts, np.int64))  # fmt: skip
+        a = metrics._acc
+        has_master = master is not None
+        args = (
+            *self._constants, _ACTIVE, T_task_tip, p_camera, *self._camera, force is not None,
+            _NO_VECTOR if force is None else force, has_master,
+            _NO_VECTOR if master is None else master, float(t), clutch, count,
+            float(contact_force), *new, s_time, s_tip, s_force, s_clutch, s_visible, s_master,
+            s_contacts, s_tool_force, *previous, a[0], a[1][0], a[1][1], a[2], a[4], a[5],
+            a[6], a[7], a[9], a[10], a[11], a[12][0], a[12][1], a[14], metrics._k,
+            metrics._prev_in, closest, measured,
+        )  # fmt: skip
+        path_row.live_path_row(*args)
+        monitor.state = new
+        monitor.observations = {"distance": closest[:, 6], "arc_length": closest[:, 7]}
+        if not has_master:  # (metrics_one.mark_missing: the one optional field it can lack)
+            metrics._missing.add("master_workspace")
+        sample = (s_time, s_tip, s_force, s_clutch, s_visible, s_master if has_master else None,
+                  s_contacts, s_tool_force, T_task_camera, T_task_tip)  # fmt: skip
+        if prev is not None and prev is self._own_prev and self._own_master == has_master:
+            if measured[0]:  # (update_previous: where() of every row, copies of new arrays)
+                metrics._prev = self._own_prev = self._sample(*sample)
+            # (else kept(): the same sample, every field of the same kind)
+            metrics._prev_in = measured
+        else:
+            update_previous(metrics, measured, self._sample(*sample))
+            kind = _live_kind(metrics._prev)
+            self._own_prev = None if kind is None else metrics._prev
+            self._own_master = bool(kind)
+        if monitor.results is None and new.phase[0] >= _FINISHED:
+            monitor.results = metrics.result()
+        return True
+
+    @staticmethod
+    def _sample(time, tip, force, clutch, visible, master, contacts, tool_force, T_task_camera,
+                T_task_tip) -> Sample:  # fmt: skip
+        """The sample :func:`~davinci_sim.tasks.session.live_sample` builds, from the
+        kernel's arrays (new ones each tick: nothing refills them)."""
+        return Sample(
+            time, tip, force, clutch, visible=visible, master=master, contacts=contacts,
+            tool_force=tool_force, T_task_camera=np.array(T_task_camera, dtype=float)[None],
+            R_task_tip=T_task_tip[None, :3, :3].copy(),
+        )  # fmt: skip
+
+
+#: The fields of live_sample's sample of a path task: (name, dtype, shape); None: absent.
+_LIVE_FIELDS = (("time", np.float64, (1,)), ("tip", np.float64, (1, 3)),
+                ("force", np.float64, (1, 3)), ("clutch", np.bool_, (1,)),
+                ("visible", np.bool_, (1,)), ("contacts", np.int64, (1,)),
+                ("tool_force", np.float64, (1,)), ("objects", None, None),
+                ("grasp", None, None), ("T_task_camera", np.float64, (1, 4, 4)),
+                ("R_task_tip", np.float64, (1, 3, 3)), ("tools", None, None))  # fmt: skip
+
+
+def _live_kind(sample: Sample | None) -> bool | None:
+    """Whether ``sample`` has a master position (bool), if its fields are otherwise those
+    of :func:`~davinci_sim.tasks.session.live_sample`'s samples of a path task, of their
+    dtypes and shapes; else None. For such a previous sample, ``update_previous`` keeps it
+    (an unmeasured sample with the same master field) or replaces it with the new one (a
+    measured one): ``Sample.kept``'s and ``Sample.where``'s rules when every field agrees."""
+    if sample is None:
+        return None
+    for name, dtype, shape in (*_LIVE_FIELDS, ("master", np.float64, (1, 3))):
+        a = getattr(sample, name)
+        if dtype is None or (name == "master" and a is None):
+            if a is not None:
+                return None
+        elif a is None or a.dtype != dtype or a.shape != shape:
+            return None
+    return sample.master is not None
+
+
+def _c(a, dtype) -> np.ndarray:
+    """``a`` as a C-ordered array of ``dtype`` (a copy only where it is not one)."""
+    return np.ascontiguousarray(a, dtype=dtype)
+
+
+def _warm_up() -> None:
+    """Compile (or load from numba's cache) at import with the session's one signature."""
+    from davinci_sim.model.cameras import CameraConfig
+    from davinci_sim.tasks import load_task
+
+    task = load_task("seed_path")
+    tick = LivePathTick.build(task, TaskMonitor(task), CameraConfig())
+    if tick is not None:
+        p = np.eye(4)
+        p[2, 3] = 0.1
+        p.setflags(write=False)  # (Arm._measured_T's)
+        for master in (None, np.zeros(3)):
+            tick.tick(np.eye(4), (p, np.zeros(3), False, master, (0, 0.0)), 0.0)
+            tick.tick(np.eye(4), (p, None, False, master, (0, 0.0)), 0.001)
+
+
+if path_row.COMPILED:
+    from davinci_sim.kinematics import jit
+
+    if not jit.warmed_up(_warm_up, "the live path tick cannot be compiled: Python runs"):
+        ENABLED = False
