@@ -26,14 +26,15 @@ def test_the_live_tick_compiles_no_new_kernel_signature():
         importlib.import_module(module.name)
     # Every kernel compiled at import: from here the build, the homing and the following
     # must call each with a signature it has.
-    from davinci_sim.console import teleop_row
+    from davinci_sim.console import haptic_row, teleop_row
     from davinci_sim.devices import device_row
     from davinci_sim.sim import cartesian_kernel
     from davinci_sim.tasks import path_row
 
     # (and the kernels a live part calls itself: servo_cp's, the teleoperation's, the MTM's)
     direct = (cartesian_kernel.servo_cp_row, teleop_row.follow_tick, device_row.hand_read_row,
-              device_row.render_row, path_row.path_tick_rows, path_row.live_path_row)  # fmt: skip
+              device_row.render_row, path_row.path_tick_rows, path_row.live_path_row,
+              haptic_row.fixture_render)  # fmt: skip
     before = {k.__qualname__: len(k.dispatcher.signatures) for k in jit.KERNELS}
     before.update({k.__name__: len(k.signatures) for k in direct})
     console = ConsoleDescription(

@@ -22,7 +22,9 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from davinci_sim.console import haptic_row
 from davinci_sim.haptics.field import HapticState, as_wrench
+from davinci_sim.haptics.fixture import FixtureField
 from davinci_sim.sim.channels import Channels
 from davinci_sim.sim.state import capture, restore
 from davinci_sim.sim.types import ACCEPTED, CommandResult
@@ -31,6 +33,10 @@ if TYPE_CHECKING:
     from davinci_sim.console.console import Console
     from davinci_sim.console.teleop_psm import TeleopPSM
     from davinci_sim.sim.simulation import Simulation
+
+ENABLED = haptic_row.COMPILED
+"""Whether the loop uses the compiled tick of :mod:`.haptic_row` where it applies (off: the
+Python path, e.g. to compare)."""
 
 #: Errors of one field are reported at most this often (s).
 FIELD_ERROR_INTERVAL = 1.0
@@ -124,6 +130,8 @@ class HapticLoop:
                 continue
             if T_world_camera is None:
                 T_world_camera = self._T_world_camera()
+            if len(entries) == 1 and self._fixture_render(teleop, entries[0], t, T_world_camera):
+                continue
             state = self.state(teleop, t, T_world_camera)
             total = np.zeros(6)
             for entry in entries:
@@ -136,6 +144,42 @@ class HapticLoop:
                 teleop.device._render_wrench(total)  # validated here: once, not three times
             else:
                 teleop.device.servo_cf(total)  # (refused with the device's message)
+
+    def _fixture_render(self, teleop: TeleopPSM, entry: _Entry, t: float, T_world_camera) -> bool:
+        """The tick of ``teleop``'s MTM in one compiled call (:mod:`.haptic_row`) when its
+        one field is a :class:`~davinci_sim.haptics.fixture.FixtureField` with a compiled row
+        and its device renders compiled; False (nothing done) otherwise."""
+        field_ = entry.field
+        if not ENABLED or type(field_) is not FixtureField:
+            return False
+        row = field_.compiled_row()
+        render = getattr(teleop.device, "render_args", None)
+        args = None if row is None or render is None else render()
+        if args is None:
+            return False
+        q, T_ref_base, J, previous, steps, ftmax = args
+        psm = teleop.psm
+        vf = field_.row_filter(psm.name)
+        _, path, B, G_max, transition, summed = row
+        requested, limited, tau = np.empty(6), np.empty(6), np.empty(len(q))
+        arguments = (
+            T_world_camera, psm._measured_T(), vf._p, vf._v, bool(vf._started), vf.dt, vf.alpha,
+            *path, B, G_max, transition, summed, previous, steps, T_ref_base, J, ftmax,
+            requested, limited, tau,
+        )  # fmt: skip
+        active = haptic_row.fixture_render(*arguments)
+        vf._started[...] = True
+        if active == haptic_row.NOT_FINITE:  # (the Python path's error and zero sum)
+            try:
+                as_wrench(requested[:3].copy())  # (the field's force: as_wrench's refusal)
+            except ValueError as e:
+                self._field_error(entry, e, t)
+            self._requested[teleop.mtm_name] = total = np.zeros(6)
+            teleop.device._render_wrench(total)
+            return True
+        self._requested[teleop.mtm_name] = requested
+        teleop.device.rendered(limited, tau, bool(active), q, T_ref_base)
+        return True
 
     def requested(self, mtm: str) -> np.ndarray | None:
         """The fields' summed wrench for ``mtm`` at the last tick it was computed (6,), HRSV

@@ -311,9 +311,22 @@ class SimulatedMTM(MasterDevice):
         state, the efforts the next step uses. (Between two ticks the Python path may still
         hold the last tick's efforts for a wrench equal to the last one; the arm's pre-step
         recomputes them at the new joints, which this call has done already.)"""
+        args = self.render_args()
+        if args is None:
+            return super()._render_wrench(w)
+        q, T_ref_base, J, previous, steps, ftmax = args
+        limited, tau = np.empty(6), np.empty(self.arm.dof)
+        active = _ROW.render_row(w, previous, steps, T_ref_base, J, ftmax, limited, tau)
+        return self.rendered(limited, tau, bool(active), q, T_ref_base)
+
+    def render_args(self) -> tuple | None:
+        """What the compiled render of a checked wrench needs now (``device_row.render_row``'s
+        inputs: the MTM's joints, base frame in HRSV, spatial Jacobian, the limiter's last
+        wrench, the clamp's steps, the joints' effort limits), or None where the Python path
+        must render (the first wrench, limits beyond the arm's bounds, a stale device, an arm
+        not ready, no numba). A caller that renders with them calls :meth:`rendered`."""
         arm = self.arm
         current = arm._wrench
-        limiter = self._limiter
         if (
             _ROW is None
             or current is None
@@ -322,17 +335,26 @@ class SimulatedMTM(MasterDevice):
             or self.is_stale()
             or arm._not_ready()
         ):
-            return super()._render_wrench(w)
+            return None
         q, _, J = arm._measured_kinematics()
-        T_ref_base = arm.base_frame()[0]
-        limited, tau = np.empty(6), np.empty(arm.dof)
-        steps = self._render_steps()
-        active = _ROW.render_row(w, limiter.previous, steps, T_ref_base, J, arm.chain.ftmax,
-                                 limited, tau)  # fmt: skip
-        limiter.active = bool(active)
+        return (
+            q,
+            arm.base_frame()[0],
+            J,
+            self._limiter.previous,
+            self._render_steps(),
+            arm.chain.ftmax,
+        )
+
+    def rendered(self, limited, tau, active: bool, q, T_ref_base) -> CommandResult:
+        """Keep a compiled render's result (:meth:`render_args`): the wrench let through
+        ``limited`` (6,) and whether the clamp changed it, as the limiter's state and the
+        device's wrench; the efforts ``tau`` at the joints ``q`` as the arm's hold."""
+        limiter = self._limiter
+        limiter.active = active
         limiter.previous = limited
         sent = self._wrench = limited.copy()  # (the device and the arm hold one object)
-        arm._hold_wrench_effort("spatial", sent, tau, q, T_ref_base)
+        self.arm._hold_wrench_effort("spatial", sent, tau, q, T_ref_base)
         return ACCEPTED
 
     def _limits_within_arm(self) -> bool:

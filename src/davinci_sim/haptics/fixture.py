@@ -108,23 +108,36 @@ class FixtureField:
         return f.update(state.p_camera_tip)
 
     def __call__(self, state: HapticState) -> np.ndarray:
-        if self._row is False:
-            self._row = _compiled_form(self)
-        if self._row is not None:
-            return self._compiled_force(state, self._row)
+        row = self.compiled_row()
+        if row is not None:
+            return self._compiled_force(state, row)
         p = np.asarray(state.p_camera_tip, dtype=float)
         v = self.tip_velocity_camera(state)
         T = None if self.frame == "camera" else np.asarray(state.T_world_camera, dtype=float)
         return fixture_force_camera(self.fixture, T, p, v)
 
+    def compiled_row(self) -> tuple | None:
+        """The field's compiled row and its constants (``fixture_row.viscous_fixture_force``,
+        the path's constants, ``B``, ``G_max``, ``transition``, whether summed), or None where
+        it has none (see :func:`_compiled_form`)."""
+        if self._row is False:
+            self._row = _compiled_form(self)
+        return self._row  # type: ignore[return-value]
+
+    def row_filter(self, psm: str) -> VelocityFilter:
+        """The velocity filter of ``psm`` with writable memory, for the compiled row to
+        update in place (created at the first call, as :meth:`tip_velocity_camera` does)."""
+        f = self._filters.get(psm)
+        if f is None:
+            f = self._filters[psm] = VelocityFilter(dt=self.dt, cutoff_hz=self.cutoff_hz)
+        if not (f._p.flags.writeable and f._v.flags.writeable):  # (e.g. restored views)
+            f._p, f._v = np.array(f._p, dtype=float), np.array(f._v, dtype=float)
+        return f
+
     def _compiled_force(self, state: HapticState, row: tuple) -> np.ndarray:
         """:meth:`__call__` by the compiled row (:mod:`~davinci_sim.haptics.fixture_row`):
         the same bits, the filter's memory updated in place."""
-        f = self._filters.get(state.psm)
-        if f is None:
-            f = self._filters[state.psm] = VelocityFilter(dt=self.dt, cutoff_hz=self.cutoff_hz)
-        if not (f._p.flags.writeable and f._v.flags.writeable):  # (e.g. restored views)
-            f._p, f._v = np.array(f._p, dtype=float), np.array(f._v, dtype=float)
+        f = self.row_filter(state.psm)
         out = np.empty(3)
         force, path, B, G_max, transition, summed = row
         force(
