@@ -103,6 +103,9 @@ def make_problem(start: EnvStart, config: EnvConfig, n: int):
     return TaskProblem(start.task, n, start.T_task_camera, start.sim.endoscope)
 
 
+_ONE = np.ones(1, dtype=bool)  # (the one row is active: after_tick only reads it)
+
+
 class DavinciEnv(gym.Env):
     """One environment (see the module docstring); ``**kwargs``: :class:`EnvConfig`."""
 
@@ -230,12 +233,14 @@ class DavinciEnv(gym.Env):
             self._q_goal = start + delta
 
     def _sample_task(self, task: TaskProblem) -> None:
+        """The task's sample of this tick (the tip's pose as ``measured_cp``, without the
+        message: ``Arm._measured_T``, the same bits)."""
         sim, t = self.sim, self.sim.time
         T_task_camera = self._T_task_camera()
         extra = task.task.scene_fields(sim.model, sim.data, self._scene_cache)
         contacts = self._contacts.measure(sim.model, sim.data) if sim.data.ncon else (0, 0.0)
         task.after_tick(
-            t, self._T_tip()[None], np.ones(1, dtype=bool), T_task_camera,
+            t, self.psm._measured_T()[None], _ONE, T_task_camera,
             contacts=contacts[0], tool_force=contacts[1], **extra,
         )  # fmt: skip
 

@@ -19,6 +19,7 @@ from gymnasium import spaces
 
 from davinci_sim.model.cameras import in_left_image
 from davinci_sim.tasks import Phase, Sample, advance
+from davinci_sim.tasks.live_path import LivePathTick
 
 #: Distances in rewards are in cm: 1 cm off costs 1 per action.
 REWARD_LENGTH = 0.01
@@ -100,6 +101,9 @@ class TaskProblem:
         self.camera = camera
         self.state = task.initial_state(n)
         self.metrics = task.metrics_accumulator(n)
+        self._tick = LivePathTick.build(task, self, camera)
+        """One row of the path kind: its sample and tick in one compiled call (None: the
+        Python path, :meth:`sample` then ``advance``)."""
         self.path = getattr(task, "path", None) if task.kind == "path" else None
         self._progress = np.zeros(n)
         self._phase = np.zeros(n, dtype=int)
@@ -139,6 +143,13 @@ class TaskProblem:
     def after_tick(self, t, T_camera_tip, active, T_task_camera=None, **extra) -> None:
         """One tick's sample of the rows ``active`` (n,) through the task and its metrics."""
         self.time_now = t
+        if self._tick is not None and active[0] and extra.keys() <= {"contacts", "tool_force"}:
+            T = self.T_task_camera if T_task_camera is None else T_task_camera
+            T_task_tip = (T @ T_camera_tip)[0]  # (sample's product)
+            count, force = extra.get("contacts", 0), extra.get("tool_force", 0.0)
+            inputs = (T_camera_tip[0], None, False, None, (int(count), float(force)))
+            if self._tick.tick(T, inputs, t, T_task_tip):
+                return
         sample = self.sample(t, T_camera_tip, T_task_camera, **extra)
         self.state, _ = advance(self.task, self.state, self.metrics, sample, active)
 

@@ -1,4 +1,5 @@
-"""The live session's tick of its one path trial in one compiled call.
+"""The live session's tick of its one path trial in one compiled call (and a single
+environment's, which samples its path task every tick the same way).
 
 After every physics step the :class:`~davinci_sim.tasks.session.TaskSession` samples the
 console (:func:`~davinci_sim.tasks.session.live_sample`: the tip in the task's frame, its
@@ -11,8 +12,10 @@ the same inputs (:func:`~davinci_sim.tasks.session.live_inputs`) and makes the s
 the tick one compiled call (:func:`~davinci_sim.tasks.path_row.live_path_row`: the
 projection's arithmetic, then :func:`~davinci_sim.tasks.path_row.path_tick_rows`), leaving
 the monitor (state, observations, metrics, previous sample, results) as the Python path
-leaves it, bit for bit (``tests/tasks/test_live_path.py``). The Python path stays the
-oracle and runs whatever this does not serve.
+leaves it, bit for bit (``tests/tasks/test_live_path.py``). The path-following environment's
+one row (``envs/problems.TaskProblem``: ``Sample.of`` then ``advance`` each tick) takes it
+too, bit for bit (``tests/envs/test_env_path_tick.py``). The Python path stays the oracle
+and runs whatever this does not serve.
 """
 
 from __future__ import annotations
@@ -34,62 +37,71 @@ _NO_VECTOR = np.zeros(3)
 
 
 class LivePathTick:
-    """One path trial's sample and tick (see the module docstring) for ``monitor``, whose
+    """One path trial's sample and tick (see the module docstring) for ``trial``, whose
     task is ``task`` (the constants are built once; :meth:`build` says whether it applies).
 
     Args:
-        task: the session's :class:`~davinci_sim.tasks.task.PathTask`.
-        monitor: the session's monitor of one trial (its state and metrics are updated).
+        task: the :class:`~davinci_sim.tasks.task.PathTask`.
+        trial: what holds the trial's ``state`` and ``metrics`` (updated): the session's
+            :class:`~davinci_sim.tasks.state.TaskMonitor` of one trial (its observations and
+            results too), or a single environment's task problem.
         camera: the endoscope's :class:`~davinci_sim.model.cameras.CameraConfig`.
         constants: ``path_row``'s constants of the task.
     """
 
-    def __init__(self, task, monitor: TaskMonitor, camera, constants: tuple) -> None:
-        self.task, self.monitor = task, monitor
+    def __init__(self, task, trial, camera, constants: tuple) -> None:
+        self.task, self.trial = task, trial
         self._constants = constants
         f = 0.5 * camera.height / math.tan(math.radians(camera.fovy_deg) / 2.0)  # (project_left)
         self._camera = (f, camera.baseline_m / 2.0, float(camera.width), float(camera.height))
         self._own_prev: Sample | None = None
-        """The monitor's previous sample when it has live_sample's fields (:func:`_live_kind`):
+        """The trial's previous sample when it has live_sample's fields (:func:`_live_kind`):
         the next one then takes its place, or it stays, without the general rules."""
         self._own_master = False  # whether it has a master position
 
     @classmethod
-    def build(cls, task, monitor: TaskMonitor, camera) -> LivePathTick | None:
-        """The tick for ``monitor`` of ``task``, or None where it does not apply: another
-        kind or declaration, more than one trial, a path the brute force does not serve, no
-        numba."""
+    def build(cls, task, trial, camera) -> LivePathTick | None:
+        """The tick for ``trial`` (its ``n``, ``state``, ``metrics``) of ``task``, or None
+        where it does not apply: another kind or declaration, more than one trial, a path
+        the brute force does not serve, no numba."""
         from davinci_sim.tasks.task import PathTask
 
-        if not path_row.COMPILED or type(task) is not PathTask or monitor.n != 1:
+        if not path_row.COMPILED or type(task) is not PathTask or trial.n != 1:
             return None
-        if not monitor.metrics.floats:
+        if not trial.metrics.floats:
             return None
         constants = path_row._constants(task)
-        return None if constants is None else cls(task, monitor, camera, constants)
+        return None if constants is None else cls(task, trial, camera, constants)
 
-    def tick(self, T_task_camera, inputs: tuple, t: float) -> bool:
+    def tick(self, T_task_camera, inputs: tuple, t: float, T_task_tip=None) -> bool:
         """One sample at the simulated time ``t`` (s) of the console's ``inputs``
         (:func:`~davinci_sim.tasks.session.live_inputs`), the camera in the task's frame
-        ``T_task_camera`` (4x4): the monitor's :meth:`~TaskMonitor.observe` of
-        :func:`~davinci_sim.tasks.session.live_sample`. False (nothing done) where the
-        previous sample has no contacts (the reducers' path decides then)."""
+        ``T_task_camera`` (4x4), the tip in it ``T_task_tip`` (None: ``T_task_camera`` times
+        the tip's pose in the camera frame, numpy's product, as ``live_sample`` has it): the
+        monitor's :meth:`~TaskMonitor.observe` of
+        :func:`~davinci_sim.tasks.session.live_sample`, or an environment's ``advance`` of
+        its sample. False (nothing done) where the previous sample has no contacts (the
+        reducers' path decides then)."""
         if not ENABLED:
             return False
-        monitor = self.monitor
-        metrics = monitor.metrics
+        trial = self.trial
+        metrics = trial.metrics
         prev = metrics._prev
         if prev is not None and prev.contacts is None:
             return False
         p_camera, force, clutch, master, (count, contact_force) = inputs
         if master is not None:  # (a column of the device's pose: the kernel's one signature)
             master = np.ascontiguousarray(master, dtype=float)
-        T_task_tip = np.asarray(T_task_camera) @ p_camera  # (numpy's product: live_sample's)
+        if p_camera.flags.writeable:  # (read-only as Arm._measured_T's: one signature)
+            p_camera = p_camera.view()
+            p_camera.setflags(write=False)
+        if T_task_tip is None:
+            T_task_tip = np.asarray(T_task_camera) @ p_camera  # (numpy's: live_sample's)
         s_time, s_tip, s_force = np.empty(1), np.empty((1, 3)), np.empty((1, 3))
         s_clutch, s_visible = np.empty(1, dtype=bool), np.empty(1, dtype=bool)
         s_master, s_tool_force = np.empty((1, 3)), np.empty(1)
         s_contacts = np.empty(1, dtype=np.int64)
-        state = monitor.state
+        state = trial.state
         new = TaskState(state.phase.copy(), state.t_start.astype(float),
                         state.t_finish.astype(float), state.progress.astype(float))  # fmt: skip
         closest, measured = np.empty((1, 8)), np.empty(1, dtype=bool)
@@ -110,8 +122,7 @@ class LivePathTick:
             metrics._prev_in, closest, measured,
         )  # fmt: skip
         path_row.live_path_row(*args)
-        monitor.state = new
-        monitor.observations = {"distance": closest[:, 6], "arc_length": closest[:, 7]}
+        trial.state = new
         if not has_master:  # (metrics_one.mark_missing: the one optional field it can lack)
             metrics._missing.add("master_workspace")
         sample = (s_time, s_tip, s_force, s_clutch, s_visible, s_master if has_master else None,
@@ -126,8 +137,10 @@ class LivePathTick:
             kind = _live_kind(metrics._prev)
             self._own_prev = None if kind is None else metrics._prev
             self._own_master = bool(kind)
-        if monitor.results is None and new.phase[0] >= _FINISHED:
-            monitor.results = metrics.result()
+        if isinstance(trial, TaskMonitor):  # (what observe leaves besides)
+            trial.observations = {"distance": closest[:, 6], "arc_length": closest[:, 7]}
+            if trial.results is None and new.phase[0] >= _FINISHED:
+                trial.results = metrics.result()
         return True
 
     @staticmethod

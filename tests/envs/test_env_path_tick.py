@@ -1,0 +1,79 @@
+"""The path-following environment samples its task each tick by the compiled tick of one path
+trial (``tasks/live_path.py``): an episode gives the same observations, rewards, infos, task
+state and metrics, bit for bit, as with the Python path (``TaskProblem.sample`` then
+``advance``)."""
+
+from __future__ import annotations
+
+import copy
+
+import numpy as np
+import pytest
+
+gym = pytest.importorskip("gymnasium")
+
+import davinci_sim.envs  # noqa: E402,F401 (registers the ids)
+from davinci_sim.tasks import Phase, live_path, path_row  # noqa: E402
+
+pytestmark = pytest.mark.skipif(not path_row.COMPILED, reason="numba is off: no compiled tick")
+
+
+def _same(a, b, where: str) -> None:
+    """The same bits through dicts, sequences and arrays (NaNs and signed zeros included)."""
+    if isinstance(a, dict):
+        assert isinstance(b, dict) and a.keys() == b.keys(), where
+        for k in a:
+            _same(a[k], b[k], f"{where}.{k}")
+    elif isinstance(a, tuple | list):
+        assert len(a) == len(b), where
+        for i, (x, y) in enumerate(zip(a, b, strict=True)):
+            _same(x, y, f"{where}[{i}]")
+    elif isinstance(a, np.ndarray | float | np.floating):
+        x, y = np.asarray(a), np.asarray(b)
+        assert x.dtype == y.dtype and x.shape == y.shape, (where, x, y)
+        assert np.array_equal(x, y, equal_nan=True), (where, x, y)
+        assert np.array_equal(np.signbit(x), np.signbit(y)), (where, x, y)
+    elif hasattr(a, "__dataclass_fields__"):
+        _same(vars(a), vars(b), where)
+    else:
+        assert a == b, (where, a, b)
+
+
+def _episode(env, actions) -> list:
+    """Each step's outcome and the task's state and metrics after it."""
+    env.reset(seed=5)
+    problem = env.problem
+    out = []
+    for a in actions:
+        obs, reward, terminated, truncated, info = env.step(a)
+        out.append((obs, reward, terminated, truncated, info,
+                    copy.deepcopy(problem.state), problem.metrics.get_state()))  # fmt: skip
+        if terminated or truncated:
+            break
+    return out
+
+
+def test_an_episode_is_the_python_paths_bit_for_bit(monkeypatch):
+    rng = np.random.default_rng(2)
+    actions = [rng.uniform(-1.0, 1.0, (4,)) for _ in range(150)]
+    calls = []
+    tick = live_path.LivePathTick.tick
+    monkeypatch.setattr(live_path.LivePathTick, "tick",
+                        lambda self, *a: calls.append(1) or tick(self, *a))  # fmt: skip
+    episodes = []
+    for enabled in (True, False):  # (a new environment each: the same start, the same clock)
+        monkeypatch.setattr(live_path, "ENABLED", enabled)
+        env = gym.make("DavinciSim/PathFollow-v0", max_episode_steps=150).unwrapped
+        try:
+            assert env.action_space.shape == (4,)
+            episodes.append(_episode(env, actions))
+            assert env.problem._tick is not None  # (one row of the path kind: it applies)
+        finally:
+            env.close()
+        if enabled:
+            assert len(calls) > 1000  # (every tick of the episode)
+    compiled, python = episodes
+    assert len(compiled) == len(python) > 20
+    assert {int(step[5].phase[0]) for step in compiled} >= {Phase.READY, Phase.RUNNING}
+    for k, (x, y) in enumerate(zip(compiled, python, strict=True)):
+        _same(x, y, f"step {k}")
