@@ -7,9 +7,11 @@ goal in the camera frame, orientation held, with the twist feed-forward) or ``se
 (joint goal with its velocity), moving along the period's ramp as the teleoperation does
 with the master's motion (:mod:`davinci_sim.envs.control`); the jaw's ``servo_jp`` once.
 Then the simulation ticks (:meth:`Simulation.tick`: the arm's laws, the servo, ``mj_step``).
-Without a task to sample every tick, the period's ticks run in one compiled call
-(:func:`~davinci_sim.sim.live_period.run_period`: the same laws, the same bits), each tick it
-has no compiled form of in Python.
+The period's ticks run in one compiled call (:func:`~davinci_sim.sim.live_period.run_period`:
+the same laws, the same bits), each tick it has no compiled form of in Python. A task samples
+every tick: the path kind (path following) from what the compiled call kept of each tick's
+state, through its one compiled tick (:mod:`davinci_sim.tasks.live_path`); other kinds tick
+by tick in Python.
 
 **Action** (``Box(-1, 1)``, float32): ``cartesian``, (dx, dy, dz, jaw): the goal's
 displacement in the camera frame in units of ``max_step`` (m), the jaw opening from closed
@@ -53,6 +55,7 @@ from davinci_sim.envs import control
 from davinci_sim.envs.control import orientation_features
 from davinci_sim.envs.problems import ReachProblem, TaskProblem
 from davinci_sim.envs.setup import EnvConfig, EnvStart, build_start
+from davinci_sim.kinematics import fk
 from davinci_sim.sim import live_period
 from davinci_sim.sim import operating_state as ops
 from davinci_sim.sim.live_period import ArmPeriod, run_period
@@ -219,12 +222,17 @@ class DavinciEnv(gym.Env):
             self.psm.jaw.servo_jp([float(jaw)])
         twist = np.concatenate([velocity, np.zeros(3)]) if cfg.action_space == "cartesian" else None
         task = self.problem if isinstance(self.problem, TaskProblem) else None
-        # Without a task to sample every tick, the ticks run compiled while they can
-        # (sim/live_period.py); the others, and a tick the kernel stops before, in Python.
+        # The ticks run compiled while they can (sim/live_period.py); the others, and a tick
+        # the kernel stops before, in Python. A task samples every tick: from the period's
+        # records where the kernel keeps them (the path kind's one compiled tick), else
+        # tick by tick in Python.
+        recorded = None
+        if task is not None and task._tick is not None and self.arm is self.psm:
+            recorded = lambda samples, ticks: self._sample_recorded(task, samples, ticks)  # noqa: E731
         run_period(
             self.sim, self.arm, K, cartesian=cfg.action_space == "cartesian", start=start,
             delta=delta, velocity=velocity, R_ref_goal=self._start.R_goal, twist_ref=twist,
-            period=self._period if task is None else None,
+            period=self._period, recorded=recorded,
             after_tick=None if task is None else lambda: self._sample_task(task),
         )  # fmt: skip
         if cfg.action_space == "cartesian":
@@ -243,6 +251,19 @@ class DavinciEnv(gym.Env):
             t, self.psm._measured_T()[None], _ONE, T_task_camera,
             contacts=contacts[0], tool_force=contacts[1], **extra,
         )  # fmt: skip
+
+    def _sample_recorded(self, task: TaskProblem, samples, ticks: range) -> None:
+        """:meth:`_sample_task` of ticks a compiled period ran, from what it kept of the
+        state after each (:class:`~davinci_sim.sim.live_period.PeriodSamples`; no contacts:
+        the kernel stops at a step that leaves some): the tip's pose by the arm's own laws
+        (forward kinematics, then its base frame's product), the camera's from the frames."""
+        rows = slice(ticks.start, ticks.stop)
+        T_base_tip, _ = fk.forward_kinematics_and_jacobian(self.psm.chain, samples.q[rows])
+        T_camera_tip = samples.frames[rows, 1] @ T_base_tip  # (Arm._measured_T's, row by row)
+        for j, tick in enumerate(ticks):
+            T_task_camera = self._start.task.T_task_camera(samples.frames[tick, 0])
+            task.after_tick(samples.t[tick], T_camera_tip[j : j + 1], _ONE, T_task_camera,
+                            contacts=0, tool_force=0.0)  # fmt: skip
 
     @property
     def _contacts(self):

@@ -56,7 +56,7 @@ def live_period(
     T_base_ref, R_ref_goal, start, delta, velocity, feedforward, twist_ref, qmin, qmax, bound,
     frames, plan_links, plan_modified, plan_tools, plan_tools_identity, plan_T_cart_sujbase,
     plan_reference, ref_links, ref_modified, ref_tool, ref_tool_identity, frame_adr, key, tol,
-    frames_out, arm_row, computed,
+    frames_out, arm_row, computed, record, camera_row, rec_t, rec_q, rec_frames,
 ):  # fmt: skip
     """Ticks ``first`` … ``K`` (see the module docstring); returns :data:`DONE` or the
     tick the caller must run in Python.
@@ -80,7 +80,14 @@ def live_period(
     it: recomputed (``suj.frames_row`` with the plan's constants into ``frames_out``, row
     ``arm_row`` the arm's; ``T_base_ref`` its inverse) when the joints differ from ``key``
     (the joints of the last frames, updated) by more than ``tol``, or at all with ``tol``
-    0; ``computed[0]`` then True."""
+    0; ``computed[0]`` then True.
+
+    ``record`` (with ``frames``): each tick k after ``first`` keeps what a sample of the
+    state after tick k − 1 reads, taken at tick k's start (nothing has moved since that
+    step): the time (``rec_t[k - 1]``, s), the arm's joints (``rec_q[k - 1]``) and the
+    frames (``rec_frames[k - 1]``: the camera, row ``camera_row`` of ``frames_out``, then
+    the arm's base frame); tick k stops there (returns k) if that step left contacts
+    (``address[6]``: ``mjData.ncon``), whose forces only the state itself can tell."""
     nu, nq, nv, nw = sizes[0], sizes[1], sizes[2], sizes[3]
     dof = arm_act.shape[0]
     q_arm = np.empty(dof)
@@ -165,6 +172,16 @@ def live_period(
         # --- the guard's save; the time of the tick is the state's first entry
         mj_get_state(model, data, sp, state_sig)
         t = state[0]
+        if record and k > first:  # (a sample of the state after tick k - 1: as it is now)
+            if numba.carray(i32_at(address[6]), (1,))[0] != 0:
+                return k  # contacts: the caller samples them from the state itself
+            rec_t[k - 1] = t
+            for i in range(dof):
+                rec_q[k - 1, i] = qp[arm_q[i]]
+            for i in range(4):
+                for m in range(4):
+                    rec_frames[k - 1, 0, i, m] = frames_out[camera_row, i, m]
+                    rec_frames[k - 1, 1, i, m] = frames_out[arm_row, i, m]
         # --- the tracking watch of every arm
         for i in range(since.shape[0]):
             since[i] = w_since[i]

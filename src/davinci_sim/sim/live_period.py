@@ -14,11 +14,20 @@ ticks' bit for bit (``tests/sim/test_live_period.py``): the same compiled laws o
 numbers — the arm's base frame recomputed from the setup and ECM joints whenever they move
 (``Simulation._frames``, with its tolerance), its inverse by the arm's own arithmetic
 (``Arm._T_base_reference``), MuJoCo's warning counters read after each step.
+
+A caller that samples the state after every tick (the path-following environment's task)
+can still run compiled: with ``record`` the kernel keeps, at each tick's start, what a sample
+of the state the tick before left reads (the time, the arm's joints, the camera's and the
+arm's base frames: :class:`PeriodSamples`), and stops at a step that leaves contacts (their
+forces are read from the state itself, ``mjData.ncon`` found by :func:`contact_count_address`);
+:func:`run_period` hands the kept samples to the caller, then lets it sample the last tick
+from the state.
 """
 
 from __future__ import annotations
 
 import ctypes
+from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
 import mujoco
@@ -73,6 +82,31 @@ def warning_address(data: mujoco.MjData) -> int | None:
     return address if seen == expected else None
 
 
+def contact_count_address(data: mujoco.MjData) -> int | None:
+    """The address of ``data``'s ``int ncon``, which follows the warning statistics and the
+    timers (``mjTimerStat timer[]``: ``mjtNum`` duration, ``int`` number, 16 bytes) in
+    ``mjData``; checked by writing distinct timer counts through the bindings and reading
+    them back (then restored), and by the six sizes from ``ncon`` on (``ncon``, ``ne``,
+    ``nf``, ``nl``, ``nefc``, ``nJ``) matching the bindings'. None if the layout differs."""
+    w = warning_address(data)
+    if w is None:
+        return None
+    timers = w + 8 * len(data.warning)
+    n = len(data.timer)
+    kept = [t.number for t in data.timer]
+    try:
+        for i in range(n):
+            data.timer[i].number = 5_000 + i
+        seen = [ctypes.c_int32.from_address(timers + 16 * i + 8).value for i in range(n)]
+    finally:
+        for t, number in zip(data.timer, kept, strict=True):
+            t.number = number
+    address = timers + 16 * n
+    sizes = list((ctypes.c_int32 * 6).from_address(address))
+    expected = [data.ncon, data.ne, data.nf, data.nl, data.nefc, data.nJ]
+    return address if seen == [5_000 + i for i in range(n)] and sizes == expected else None
+
+
 class ArmPeriod:
     """Control periods of ``arm`` in ``sim`` (see the module docstring). Build one per arm
     and keep it: it holds the simulation's buffer addresses (checked at every call)."""
@@ -86,9 +120,13 @@ class ArmPeriod:
         w = warning_address(data)
         self.available = w is not None
         """Whether the kernel can watch MuJoCo's warnings here (else :meth:`ready` is False)."""
+        ncon = contact_count_address(data)
+        self.records = ncon is not None
+        """Whether a period can keep its ticks' samples (:meth:`run`'s ``record``): the
+        kernel reads ``mjData.ncon`` here."""
         self._address = np.array(
             [x.ctypes.data for x in (data.ctrl, data.qpos, data.qvel, data.qfrc_bias,
-                                     data.qfrc_gravcomp)] + [w or 0], dtype=np.intp,
+                                     data.qfrc_gravcomp)] + [w or 0, ncon or 0], dtype=np.intp,
         )  # fmt: skip
         self._sizes = np.array([model.nu, model.nq, model.nv, len(data.warning)], dtype=np.intp)
         self._state = np.empty(mujoco.mj_stateSize(model, _SIG))
@@ -168,14 +206,25 @@ class ArmPeriod:
         # What every accepted servo_cp/servo_jp sets besides the references: set already.
         return not servo.effort_mode[idx].any() and not servo.tau_ff[idx].any()
 
+    def can_record(self, cartesian: bool) -> bool:
+        """Whether a period can keep its ticks' samples (:class:`PeriodSamples`): a
+        Cartesian one whose base frame follows the setup and ECM joints, where the kernel
+        can read ``mjData.ncon``."""
+        return self.records and cartesian and self.cartesian_ok and self._frames() is True
+
     def run(self, first: int, K: int, *, cartesian: bool, start, delta, velocity=None,
-            R_ref_goal=None, twist_ref=None) -> int:  # fmt: skip
+            R_ref_goal=None, twist_ref=None,
+            record: PeriodSamples | None = None) -> int:  # fmt: skip
         """Ticks ``first`` … ``K`` of a period whose tick k commands
         ``start + (k/K)·delta``: a Cartesian goal (the tip's position in the arm's reference,
         m, with the orientation ``R_ref_goal`` (3, 3) and the feed-forward ``twist_ref`` (6,
         m/s and rad/s; None: none)) through ``servo_cp``, or a joint goal (rad, m) with the
         velocity ``velocity`` through ``servo_jp``. Call only when :meth:`ready`. Returns
-        :data:`DONE`, or the tick k the caller must run in Python (ticks before it ran)."""
+        :data:`DONE`, or the tick k the caller must run in Python (ticks before it ran).
+
+        ``record`` (only where :meth:`can_record`): each tick's sample but the last one run
+        (``first`` … the last − 1: the state after each of them, as :class:`PeriodSamples`
+        has it) is kept in it; the last one's is the state as it is when this returns."""
         sim, arm = self.sim, self.arm
         servo, watch = sim.servo, sim._watch
         arms = watch.arms
@@ -189,6 +238,13 @@ class ArmPeriod:
         frames = bool(cartesian and self._frames())
         if frames:  # the joints of the simulation's current frames (just asked for)
             self._key[:] = np.frombuffer(sim._base_frames["frames"][0])
+        recording = record is not None and frames and self.records
+        camera_row = len(sim._frame_plan.arms) if recording else 0
+        if recording:  # (the kernel keeps them from the frames it holds: the current ones)
+            current = sim._base_frames["frames"][1]
+            self._frames_out[camera_row] = current["camera"]
+            self._frames_out[self._plan_row] = current[arm.name][0]
+        samples = record if recording else _NO_RECORD
         self._computed[0] = False
         n = 3 if cartesian else dof
         stop = _KERNEL(
@@ -201,7 +257,7 @@ class ArmPeriod:
             _f64(delta, (n,)), _f64(None if cartesian else velocity, (dof,)), feedforward,
             _f64(twist_ref, (6,)), *self._limits, frames, *self._plan, self._key,
             float(simulation.BASE_FRAME_TOLERANCE), self._frames_out, self._plan_row,
-            self._computed,
+            self._computed, recording, camera_row, samples.t, samples.q, samples.frames,
         )  # fmt: skip
         if self._computed[0]:  # the frames the kernel computed last: the simulation's now
             sim._keep_frames(self._key.tobytes(), self._frames_out.copy())
@@ -213,28 +269,67 @@ class ArmPeriod:
         return int(stop)
 
 
+@dataclass(frozen=True)
+class PeriodSamples:
+    """What a sample of the state after each tick of a period reads (rows by tick number,
+    1 … K; :meth:`ArmPeriod.run`'s ``record``)."""
+
+    t: np.ndarray
+    """(K + 1,) the time after the tick, s."""
+    q: np.ndarray
+    """(K + 1, dof) the arm's joints (rad, m)."""
+    frames: np.ndarray
+    """(K + 1, 2, 4, 4) the camera (ECM tip) in the cart, then the arm's base frame in its
+    reference (``Arm.base_frame``), m."""
+
+    @classmethod
+    def empty(cls, K: int, dof: int) -> PeriodSamples:
+        return cls(np.empty(K + 1), np.empty((K + 1, dof)), np.empty((K + 1, 2, 4, 4)))
+
+
+_NO_RECORD = PeriodSamples.empty(0, 0)
+
+
 def run_period(
     sim: Simulation, arm: Arm, K: int, *, cartesian: bool, start, delta, velocity=None,
     R_ref_goal=None, twist_ref=None, period: ArmPeriod | None = None, after_tick=None,
+    recorded=None,
 ) -> None:  # fmt: skip
     """The K ticks of a control period whose tick k commands ``start + (k/K)·delta`` to
     ``arm`` (the arguments of :meth:`ArmPeriod.run`): in ``period``'s compiled calls while
     it is :meth:`~ArmPeriod.ready`, else tick by tick in Python — ``arm.servo_cp`` (the goal
     with the orientation ``R_ref_goal`` and the twist) or ``arm.servo_jp`` (with
-    ``velocity``), :meth:`Simulation.tick`, then ``after_tick()`` if given (a caller that
-    samples every tick passes no ``period``). Without ``period``: the Python path, the
-    oracle of the compiled one."""
+    ``velocity``), :meth:`Simulation.tick`, then ``after_tick()`` if given. Without
+    ``period``: the Python path, the oracle of the compiled one.
+
+    A caller that samples every tick (``after_tick``) gets compiled calls only with
+    ``recorded(samples, ticks)`` where ``period`` :meth:`~ArmPeriod.can_record`: each call's
+    ticks but its last are given to it afterwards (``ticks``, a range of tick numbers, the
+    rows of ``samples``: :class:`PeriodSamples`, in order), then ``after_tick()`` samples the
+    last one from the state itself, before any later tick runs."""
     ramp = {"cartesian": cartesian, "start": start, "delta": delta, "velocity": velocity,
             "R_ref_goal": R_ref_goal, "twist_ref": twist_ref}  # fmt: skip
+    record = None
+    if after_tick is not None:
+        if recorded is not None and period is not None and period.can_record(cartesian):
+            record = PeriodSamples.empty(K, arm.dof)
+        else:
+            period = None  # (every tick sampled in Python)
     T_goal = np.eye(4)
     if cartesian:
         T_goal[:3, :3] = R_ref_goal
     k = 1
     while k <= K:
         if period is not None and period.ready(cartesian):
-            k = period.run(k, K, **ramp)
-            if k == DONE:
+            stop = period.run(k, K, record=record, **ramp)
+            last = K if stop == DONE else stop - 1
+            if record is not None and last >= k:
+                if last > k:
+                    recorded(record, range(k, last))
+                after_tick()
+            if stop == DONE:
                 return
+            k = stop
         g = start + (k / K) * delta  # (envs.control.ramp)
         if cartesian:
             T_goal[:3, 3] = g
@@ -268,11 +363,11 @@ def _warm_up() -> None:
     i, f, b = np.zeros(0, dtype=np.intp), np.zeros(0), np.zeros(0, dtype=bool)
     i64 = np.zeros(1, dtype=np.int64)
     _KERNEL(
-        0, 0, np.zeros(6, dtype=np.intp), np.zeros(4, dtype=np.intp), f, _SIG, i, 1, 0,
+        0, 0, np.zeros(7, dtype=np.intp), np.zeros(4, dtype=np.intp), f, _SIG, i, 1, 0,
         i, i, True, f, f, b, b, f, f, f, i64, i64, f, i64, b, f, i64, b, i, i, -1, 0.0, 0.0,
         np.zeros((6, 0)), True, np.eye(4), True, True, *_NO_IK, np.eye(4), np.eye(3), f, f, f,
         True, np.zeros(6), f, f, f, False, *_NO_PLAN, f, 0.0, np.empty((0, 4, 4)), -1,
-        np.zeros(1, dtype=bool),
+        np.zeros(1, dtype=bool), False, 0, _NO_RECORD.t, _NO_RECORD.q, _NO_RECORD.frames,
     )  # fmt: skip
 
 
