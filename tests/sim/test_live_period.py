@@ -201,3 +201,50 @@ def test_the_warning_counters_are_found_and_left_unchanged(psm_sim):
     before = [(w.lastinfo, w.number) for w in data.warning]
     assert live_period.warning_address(data) is not None
     assert [(w.lastinfo, w.number) for w in data.warning] == before
+
+
+@pytest.mark.parametrize("contacts", [True, False])
+def test_a_recorded_period_gives_each_ticks_sample_as_the_python_ticks(psm_sim, contacts):
+    """A caller that samples the state after every tick gets the same samples, bit for bit,
+    from a compiled period's records as from Python ticks: where steps leave contacts (the
+    scene's bead) the kernel stops at each and the caller samples the state itself."""
+    import mujoco
+
+    sim, psm = psm_sim, psm_sim.arms["PSM1"]
+    if not contacts:
+        sim.model.opt.disableflags |= mujoco.mjtDisableBit.mjDSBL_CONTACT
+        sim.tick()
+    period = ArmPeriod(sim, psm)
+    assert period.can_record(cartesian=True)
+    state = sim.get_state()
+    runs = []
+    for p in (period, None):
+        sim.set_state(state)
+        seen, recorded_ticks = [], []
+
+        def sample():  # what a sampler reads after a tick (the environment's task)
+            return (sim.time, psm._q().copy(), sim.T_cart_camera().copy(),
+                    psm.base_frame()[0].copy(), sim.data.ncon)  # fmt: skip
+
+        def recorded(samples, ticks, seen=seen, counted=recorded_ticks):
+            counted.append(len(ticks))
+            for k in ticks:
+                seen.append((samples.t[k], samples.q[k].copy(), samples.frames[k, 0].copy(),
+                             samples.frames[k, 1].copy(), 0))  # fmt: skip
+
+        rng = np.random.default_rng(4)
+        for _ in range(6):
+            ramp = _cartesian_ramp(psm, rng.uniform(-0.002, 0.002, 3))
+            run_period(sim, psm, K, period=p, after_tick=lambda seen=seen: seen.append(sample()),
+                       recorded=recorded, **ramp)  # fmt: skip
+        runs.append((seen, _snapshot(sim), sum(recorded_ticks)))
+    (compiled, after_c, from_records), (python, after_p, _) = runs
+    assert len(compiled) == len(python) == 6 * K
+    for k, (a, b) in enumerate(zip(compiled, python, strict=True)):
+        for x, y in zip(a, b, strict=True):
+            np.testing.assert_array_equal(x, y, err_msg=f"tick {k}")
+    _assert_same(after_c, after_p)
+    if contacts:
+        assert python[-1][4] > 0 and from_records == 0  # (each step left contacts)
+    else:
+        assert from_records >= 6 * (K - 1)  # (all but each period's last tick)
