@@ -58,10 +58,17 @@ def _episode(env, actions) -> list:
 def test_an_episode_is_the_python_paths_bit_for_bit(monkeypatch):
     rng = np.random.default_rng(2)
     actions = [rng.uniform(-1.0, 1.0, (4,)) for _ in range(150)]
-    calls, recorded = [], []
-    tick = live_path.LivePathTick.tick
-    monkeypatch.setattr(live_path.LivePathTick, "tick",
-                        lambda self, *a: calls.append(1) or tick(self, *a))  # fmt: skip
+    calls, recorded, in_turn = [], [], []  # (samples the compiled tick took; in turn)
+    tick, ticks = live_path.LivePathTick.tick, live_path.LivePathTick.ticks
+    monkeypatch.setattr(
+        live_path.LivePathTick,
+        "tick",
+        lambda self, *a: (took := tick(self, *a)) and calls.append(1) or took,
+    )
+    monkeypatch.setattr(live_path.LivePathTick, "ticks",
+                        lambda self, *a: (took := ticks(self, *a))
+                        and (calls.extend([1] * len(a[3])) or in_turn.append(len(a[3])))
+                        or took)  # fmt: skip
     sample_recorded = DavinciEnv._sample_recorded
     monkeypatch.setattr(DavinciEnv, "_sample_recorded",
                         lambda self, task, s, ticks: recorded.append(len(ticks))
@@ -82,6 +89,7 @@ def test_an_episode_is_the_python_paths_bit_for_bit(monkeypatch):
         if compiled:
             assert len(calls) > 1000  # (every tick of the episode)
             assert sum(recorded) > 0.8 * len(calls)  # (most from the compiled periods' records)
+            assert sum(in_turn) > 0.8 * len(calls)  # (most in one compiled call a period)
     compiled, python = episodes
     assert len(compiled) == len(python) > 20
     assert {int(step[5].phase[0]) for step in compiled} >= {Phase.READY, Phase.RUNNING}

@@ -195,3 +195,51 @@ def test_every_input_case_against_the_python_path():
         phases.add(monitor.phase)
     assert {Phase.IDLE, Phase.READY, Phase.RUNNING, Phase.FINISHED, Phase.RESULTS} <= phases
     assert len(path_row.live_path_row.signatures) == 1  # (non-contiguous master included)
+
+
+def test_samples_in_turn_are_the_samples_one_by_one():
+    """``ticks`` (an environment's samples of a compiled period, no force, clutch or master)
+    leaves the monitor as the Python path's samples one by one, period after period, through
+    a finished repetition."""
+    task = load_task("seed_path")
+    camera = CameraConfig()
+    monitor, shadow = TaskMonitor(task), TaskMonitor(task)
+    tick = live_path.LivePathTick.build(task, monitor, camera)
+    rng = np.random.default_rng(11)
+    arc = np.linspace(0.0, task.path.length, 1200)
+    there = np.array([task.path.point_at(s) for s in arc]) + rng.normal(0, 0.0005, (1200, 3))
+    tips = np.vstack([np.repeat([task.start], 40, axis=0), there,
+                      np.repeat([task.finish], 40, axis=0)])  # fmt: skip
+    T_task_camera = _rigid(rng)
+    T_task_tip = np.tile(np.eye(4), (len(tips), 1, 1))
+    T_task_tip[:, :3, 3] = tips
+    p_camera = np.linalg.inv(T_task_camera) @ T_task_tip
+    t = 0.001 * np.arange(len(tips))
+    contacts = (np.arange(len(tips)) % 50 < 5).astype(np.int64)
+
+    def python(j):
+        inputs = (p_camera[j], None, False, None, (int(contacts[j]), 0.5 * contacts[j]))
+        sample = sample_of(T_task_camera, inputs, camera, float(t[j]), {})
+        compiled, path_row.COMPILED = path_row.COMPILED, False
+        try:
+            shadow.observe(sample)
+        finally:
+            path_row.COMPILED = compiled
+
+    frozen = p_camera[0].copy()
+    frozen.setflags(write=False)
+    assert tick.tick(T_task_camera, (frozen, None, False, None, (1, 0.5)), 0.0)
+    python(0)
+    in_turn = 0
+    for first in range(1, len(tips), 20):
+        rows = slice(first, min(first + 20, len(tips)))
+        cameras = np.tile(T_task_camera, (rows.stop - rows.start, 1, 1))
+        took = tick.ticks(cameras, cameras @ p_camera[rows], p_camera[rows], t[rows],
+                          contacts[rows], 0.5 * contacts[rows])  # fmt: skip
+        assert took
+        in_turn += rows.stop - rows.start
+        for j in range(rows.start, rows.stop):
+            python(j)
+        _same(monitor.get_state(), shadow.get_state(), f"samples {rows}")
+    assert monitor.results is not None and monitor.phase == Phase.RESULTS
+    assert in_turn == len(tips) - 1

@@ -260,10 +260,9 @@ class DavinciEnv(gym.Env):
         rows = slice(ticks.start, ticks.stop)
         T_base_tip, _ = fk.forward_kinematics_and_jacobian(self.psm.chain, samples.q[rows])
         T_camera_tip = samples.frames[rows, 1] @ T_base_tip  # (Arm._measured_T's, row by row)
-        for j, tick in enumerate(ticks):
-            T_task_camera = self._start.task.T_task_camera(samples.frames[tick, 0])
-            task.after_tick(samples.t[tick], T_camera_tip[j : j + 1], _ONE, T_task_camera,
-                            contacts=0, tool_force=0.0)  # fmt: skip
+        task_of = self._start.task.T_task_camera
+        T_task_camera = np.array([task_of(T) for T in samples.frames[rows, 0]])
+        task.after_ticks(samples.t[rows], T_camera_tip, T_task_camera)
 
     @property
     def _contacts(self):

@@ -21,6 +21,8 @@ from davinci_sim.model.cameras import in_left_image
 from davinci_sim.tasks import Phase, Sample, advance
 from davinci_sim.tasks.live_path import LivePathTick
 
+_ONE = np.ones(1, dtype=bool)
+
 #: Distances in rewards are in cm: 1 cm off costs 1 per action.
 REWARD_LENGTH = 0.01
 #: Reward of a success (Reach) or of the exercise's finish.
@@ -152,6 +154,21 @@ class TaskProblem:
                 return
         sample = self.sample(t, T_camera_tip, T_task_camera, **extra)
         self.state, _ = advance(self.task, self.state, self.metrics, sample, active)
+
+    def after_ticks(self, t, T_camera_tip, T_task_camera) -> None:
+        """:meth:`after_tick` of m ticks in turn, the one row active, with no contacts: their
+        times (m,) s, tips (m, 4, 4) in the camera frame and cameras in the task's frame
+        (m, 4, 4) (an environment's samples of a compiled period's ticks)."""
+        T_task_tip = T_task_camera @ T_camera_tip  # (each row: sample's product)
+        zeros = np.zeros(len(t))
+        if self._tick is not None and self._tick.ticks(
+            T_task_camera, T_task_tip, T_camera_tip, t, zeros.astype(np.int64), zeros
+        ):
+            self.time_now = float(t[-1])
+            return
+        for j in range(len(t)):
+            self.after_tick(float(t[j]), T_camera_tip[j : j + 1], _ONE, T_task_camera[j],
+                            contacts=0, tool_force=0.0)  # fmt: skip
 
     # ------------------------------------------------------------ per action
     def features(self, T_camera_tip, T_task_camera=None) -> dict[str, np.ndarray]:

@@ -143,6 +143,58 @@ class LivePathTick:
                 trial.results = metrics.result()
         return True
 
+    def ticks(self, T_task_camera, T_task_tip, p_camera, t, contacts, tool_force) -> bool:
+        """m samples in turn, as m :meth:`tick` calls with no guidance force, clutch or
+        master would take them (an environment's samples after a compiled period's ticks):
+        the camera and the tip in the task's frame and the tip in the camera frame (m, 4, 4),
+        the times (m,) s, the instrument's contacts and their force (m,). False (nothing
+        done) where the samples must go one by one: the trial's previous sample is not
+        :meth:`tick`'s own kind (the first after a reset or a restored state), numba off."""
+        trial = self.trial
+        metrics = trial.metrics
+        prev = metrics._prev
+        if not ENABLED or prev is None or prev is not self._own_prev or self._own_master:
+            return False
+        m = len(t)
+        s_time, s_tip, s_force = np.empty(m), np.empty((m, 3)), np.empty((m, 3))
+        s_clutch, s_visible = np.empty(m, dtype=bool), np.empty(m, dtype=bool)
+        s_master, s_tool_force = np.empty((m, 3)), np.empty(m)
+        s_contacts = np.empty(m, dtype=np.int64)
+        state = trial.state
+        new = TaskState(state.phase.copy(), state.t_start.astype(float),
+                        state.t_finish.astype(float), state.progress.astype(float))  # fmt: skip
+        closest, measured = np.empty((1, 8)), np.empty(1, dtype=bool)
+        previous = (np.array(prev.time, dtype=float), np.array(prev.tip, dtype=float),
+                    np.array(prev.clutch, dtype=bool),
+                    np.array(prev.contacts, dtype=np.int64))  # fmt: skip
+        a = metrics._acc
+        args = (
+            *self._constants, _ACTIVE, _c(T_task_tip, float), _c(p_camera, float),
+            *self._camera, _c(t, float), _c(contacts, np.int64), _c(tool_force, float), *new,
+            s_time, s_tip, s_force, s_clutch, s_visible, s_master, s_contacts, s_tool_force,
+            *previous, a[0], a[1][0], a[1][1], a[2], a[4], a[5], a[6], a[7], a[9], a[10],
+            a[11], a[12][0], a[12][1], a[14], metrics._k, metrics._prev_in.copy(), closest,
+            measured,
+        )  # fmt: skip
+        last = path_row.live_path_rows(*args)
+        trial.state = new
+        metrics._missing.add("master_workspace")  # (no master: mark_missing)
+        metrics._prev_in = measured
+        if last >= 0:  # (the last measured sample: the metrics' previous one)
+            r = slice(last, last + 1)
+            metrics._prev = self._own_prev = Sample(
+                s_time[r].copy(), s_tip[r].copy(), s_force[r].copy(), s_clutch[r].copy(),
+                visible=s_visible[r].copy(), contacts=s_contacts[r].copy(),
+                tool_force=s_tool_force[r].copy(),
+                T_task_camera=np.array(T_task_camera[r], dtype=float),
+                R_task_tip=np.array(T_task_tip[r, :3, :3], dtype=float),
+            )  # fmt: skip
+        if isinstance(trial, TaskMonitor):
+            trial.observations = {"distance": closest[:, 6], "arc_length": closest[:, 7]}
+            if trial.results is None and new.phase[0] >= _FINISHED:
+                trial.results = metrics.result()
+        return True
+
     @staticmethod
     def _sample(time, tip, force, clutch, visible, master, contacts, tool_force, T_task_camera,
                 T_task_tip) -> Sample:  # fmt: skip
@@ -201,6 +253,10 @@ def _warm_up() -> None:
         for master in (None, np.zeros(3)):
             tick.tick(np.eye(4), (p, np.zeros(3), False, master, (0, 0.0)), 0.0)
             tick.tick(np.eye(4), (p, None, False, master, (0, 0.0)), 0.001)
+        tick.tick(np.eye(4), (p, None, False, None, (0, 0.0)), 0.002)
+        T = np.tile(np.eye(4), (2, 1, 1))
+        assert tick.ticks(T, T.copy(), T.copy(), np.array([0.003, 0.004]), np.zeros(2, int),
+                          np.zeros(2))  # fmt: skip
 
 
 if path_row.COMPILED:
