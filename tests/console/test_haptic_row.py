@@ -11,6 +11,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from bits import assert_same_bits
 from davinci_sim.console import haptic_loop, haptic_row
 from davinci_sim.operators.console import TraineeHand, hand_impedance
 from davinci_sim.study.trial import TrialSpec, build_setup, trial_inputs
@@ -51,16 +52,6 @@ def _bits(sim, haptics, field, device) -> dict:
     return {k: np.array(v, copy=True) for k, v in out.items() if v is not None}
 
 
-def _same(a: dict, b: dict, where: str) -> None:
-    assert a.keys() == b.keys(), where
-    for k in a:
-        x, y = a[k], b[k]
-        same = x.dtype == y.dtype and x.shape == y.shape and np.array_equal(x, y, equal_nan=True)
-        if same and x.dtype.kind == "f":
-            same = np.array_equal(np.signbit(x), np.signbit(y))
-        assert same, (where, k, x, y)
-
-
 def test_the_compiled_haptic_tick_is_the_python_loop_bit_for_bit(monkeypatch):
     compiled, python = _console(), _console()
     kernel = haptic_row.fixture_render
@@ -87,7 +78,7 @@ def test_the_compiled_haptic_tick_is_the_python_loop_bit_for_bit(monkeypatch):
                     f["v"] = np.full(3, np.nan)
                 sim.components["haptics"].set_state(state)
             sim.tick()
-        _same(_bits(*compiled), _bits(*python), f"tick {k}")
+        assert_same_bits(_bits(*compiled), _bits(*python), f"tick {k}")
         if k == 2000:
             assert errors[True] and errors[True] == errors[False]
             assert "finite" in errors[True][-1]

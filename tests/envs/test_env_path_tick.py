@@ -11,6 +11,8 @@ import copy
 import numpy as np
 import pytest
 
+from bits import assert_same_bits
+
 gym = pytest.importorskip("gymnasium")
 
 import davinci_sim.envs  # noqa: E402,F401 (registers the ids)
@@ -18,27 +20,6 @@ from davinci_sim.envs.base import DavinciEnv  # noqa: E402
 from davinci_sim.tasks import Phase, live_path, path_row  # noqa: E402
 
 pytestmark = pytest.mark.skipif(not path_row.COMPILED, reason="numba is off: no compiled tick")
-
-
-def _same(a, b, where: str) -> None:
-    """The same bits through dicts, sequences and arrays (NaNs and signed zeros included)."""
-    if isinstance(a, dict):
-        assert isinstance(b, dict) and a.keys() == b.keys(), where
-        for k in a:
-            _same(a[k], b[k], f"{where}.{k}")
-    elif isinstance(a, tuple | list):
-        assert len(a) == len(b), where
-        for i, (x, y) in enumerate(zip(a, b, strict=True)):
-            _same(x, y, f"{where}[{i}]")
-    elif isinstance(a, np.ndarray | float | np.floating):
-        x, y = np.asarray(a), np.asarray(b)
-        assert x.dtype == y.dtype and x.shape == y.shape, (where, x, y)
-        assert np.array_equal(x, y, equal_nan=True), (where, x, y)
-        assert np.array_equal(np.signbit(x), np.signbit(y)), (where, x, y)
-    elif hasattr(a, "__dataclass_fields__"):
-        _same(vars(a), vars(b), where)
-    else:
-        assert a == b, (where, a, b)
 
 
 def _episode(env, actions) -> list:
@@ -94,4 +75,4 @@ def test_an_episode_is_the_python_paths_bit_for_bit(monkeypatch):
     assert len(compiled) == len(python) > 20
     assert {int(step[5].phase[0]) for step in compiled} >= {Phase.READY, Phase.RUNNING}
     for k, (x, y) in enumerate(zip(compiled, python, strict=True)):
-        _same(x, y, f"step {k}")
+        assert_same_bits(x, y, f"step {k}")

@@ -6,53 +6,22 @@ restored state, the repetition's finish and the next one's start."""
 
 from __future__ import annotations
 
-import dataclasses
 from pathlib import Path
 
 import numpy as np
 import pytest
 
+from bits import assert_same_bits
 from davinci_sim.model.cameras import CameraConfig
 from davinci_sim.operators.console import TraineeHand, hand_impedance
 from davinci_sim.study.trial import TrialSpec, setup_trial, trial_inputs
 from davinci_sim.tasks import install_task, live_path, load_task, path_row
-from davinci_sim.tasks.base import Sample
-from davinci_sim.tasks.metrics import MetricValues
 from davinci_sim.tasks.session import live_sample, sample_of
 from davinci_sim.tasks.state import Phase, TaskMonitor
 
 SHORT_TASK = str(Path(__file__).resolve().parents[1] / "study" / "short_path.yaml")
 
 pytestmark = pytest.mark.skipif(not path_row.COMPILED, reason="numba is off: no compiled tick")
-
-
-def _same(a, b, where: str = "") -> None:
-    """``a`` and ``b`` hold the same bits (arrays: dtype, shape and values, NaNs where the
-    other has them), recursing through dicts, sequences, samples and metric values."""
-    if isinstance(a, np.ndarray) or isinstance(b, np.ndarray):
-        a, b = np.asarray(a), np.asarray(b)
-        assert a.dtype == b.dtype and a.shape == b.shape, (where, a, b)
-        assert np.array_equal(a, b, equal_nan=a.dtype.kind == "f"), (where, a, b)
-        if a.dtype.kind == "f":  # (signed zeros too)
-            assert np.array_equal(np.signbit(a), np.signbit(b)), (where, a, b)
-    elif isinstance(a, dict):
-        assert isinstance(b, dict) and a.keys() == b.keys(), (where, a, b)
-        for k in a:
-            _same(a[k], b[k], f"{where}.{k}")
-    elif isinstance(a, Sample):
-        assert isinstance(b, Sample), (where, b)
-        for f in dataclasses.fields(Sample):
-            _same(getattr(a, f.name), getattr(b, f.name), f"{where}.{f.name}")
-    elif isinstance(a, MetricValues):
-        assert isinstance(b, MetricValues) and a.metrics == b.metrics, where
-        for m in a.metrics:
-            _same(a[m.name], b[m.name], f"{where}.{m.name}")
-    elif isinstance(a, tuple | list):
-        assert type(a) is type(b) and len(a) == len(b), (where, a, b)
-        for i, (x, y) in enumerate(zip(a, b, strict=True)):
-            _same(x, y, f"{where}[{i}]")
-    else:
-        assert a == b or (a != a and b != b), (where, a, b)
 
 
 @pytest.fixture(scope="module")
@@ -89,7 +58,7 @@ def checked_run():
             shadow.observe(sample)
         finally:
             path_row.COMPILED = compiled
-        _same(session.monitor.get_state(), shadow.get_state(), f"t={t}")
+        assert_same_bits(session.monitor.get_state(), shadow.get_state(), f"t={t}")
         seen["checked"] += 1
         seen["measured"] += bool(session.monitor.metrics._prev_in[0])
         seen["phases"].add(session.monitor.phase)
@@ -191,7 +160,7 @@ def test_every_input_case_against_the_python_path():
             shadow.observe(sample_of(T_task_camera, inputs, camera, t, {}))
         finally:
             path_row.COMPILED = compiled
-        _same(monitor.get_state(), shadow.get_state(), f"sample {i}")
+        assert_same_bits(monitor.get_state(), shadow.get_state(), f"sample {i}")
         phases.add(monitor.phase)
     assert {Phase.IDLE, Phase.READY, Phase.RUNNING, Phase.FINISHED, Phase.RESULTS} <= phases
     assert len(path_row.live_path_row.signatures) == 1  # (non-contiguous master included)
@@ -240,6 +209,6 @@ def test_samples_in_turn_are_the_samples_one_by_one():
         in_turn += rows.stop - rows.start
         for j in range(rows.start, rows.stop):
             python(j)
-        _same(monitor.get_state(), shadow.get_state(), f"samples {rows}")
+        assert_same_bits(monitor.get_state(), shadow.get_state(), f"samples {rows}")
     assert monitor.results is not None and monitor.phase == Phase.RESULTS
     assert in_turn == len(tips) - 1
