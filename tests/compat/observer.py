@@ -12,11 +12,14 @@ import numpy as np
 
 class Observer:
     """Samples the simulated ``arms``' measured tip positions (m, in their reference frames:
-    HRSV for an MTM, the camera for a PSM, as their ``measured_cp``) with the sim time."""
+    HRSV for an MTM, the camera for a PSM, as their ``measured_cp``) with the sim time; with
+    ``pose="setpoint_cp"`` their setpoints instead (the goals as the arm took them, whatever
+    its tracking lag on a machine too busy for the simulation to keep the example's pace)."""
 
-    def __init__(self, handle, arms=("PSM1",)) -> None:
+    def __init__(self, handle, arms=("PSM1",), pose: str = "measured_cp") -> None:
         self._handle = handle
         self._arms = tuple(arms)
+        self._pose = pose
         self.samples: list[tuple[float, dict[str, np.ndarray]]] = []
         self._stop = threading.Event()
         self._thread = threading.Thread(target=self._run, daemon=True)
@@ -24,7 +27,7 @@ class Observer:
     def _run(self) -> None:
         while not self._stop.is_set():
             s = self._handle.snapshot()
-            poses = {a: s.arms[a].measured_cp.T[:3, 3].copy() for a in self._arms}
+            poses = {a: getattr(s.arms[a], self._pose).T[:3, 3].copy() for a in self._arms}
             self.samples.append((s.time, poses))
             time.sleep(0.002)
 

@@ -154,7 +154,11 @@ def test_dvrk_arm_test_servo_cp_draws_its_diagonal(system, PyKDL):
     arm = Device(r)
     r.check_connections()
     period, amplitude, duration = 0.01, 0.02, 5
-    with Observer(system.handle) as observer:
+    # The goals as PSM1 took them (its setpoints): the example streams them at 100 Hz of
+    # wall time, and on a busy machine the simulation runs slower than that, so the tip lags
+    # (the far end missed by 3.5 mm in a loaded run); whether it follows its setpoints is
+    # the servo's tests' to check.
+    with Observer(system.handle, pose="setpoint_cp") as observer:
         ts = 0.0
         while ts == 0.0:
             jp, ts = arm.setpoint_jp()
