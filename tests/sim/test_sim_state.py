@@ -3,7 +3,6 @@ in between; ``reset()`` is a new simulation; a state only fits its own scene."""
 
 from __future__ import annotations
 
-import dataclasses
 import sys
 from pathlib import Path
 
@@ -20,6 +19,8 @@ from davinci_sim.tasks import install_task, load_task
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "console"))
 from console_helpers import teleop_sim  # noqa: E402
+
+from bits import assert_same_bits  # noqa: E402
 
 NO_ALIGN = SIMULATED_SYSTEM.replace(align_mtm=False)
 GUIDANCE = {"type": "viscous", "B": 40.0, "G_max": 5.0}
@@ -137,38 +138,16 @@ def test_encoder_noise_and_the_random_generator_resume():
     assert np.array_equal(q1, q2) and np.array_equal(r1, r2)
 
 
-def _same(a, b, where="state") -> None:
-    """Recursive equality of two states' parts (arrays exactly, nan equal to nan)."""
-    if isinstance(a, np.ndarray):
-        assert isinstance(b, np.ndarray) and a.shape == b.shape, where
-        assert np.array_equal(a, b, equal_nan=a.dtype.kind == "f"), where
-    elif isinstance(a, dict):
-        assert a.keys() == b.keys(), where
-        for k in a:
-            _same(a[k], b[k], f"{where}[{k!r}]")
-    elif isinstance(a, tuple | list):
-        assert len(a) == len(b), where
-        for i, (x, y) in enumerate(zip(a, b, strict=True)):
-            _same(x, y, f"{where}[{i}]")
-    elif dataclasses.is_dataclass(a):
-        for f in dataclasses.fields(a):
-            _same(getattr(a, f.name), getattr(b, f.name), f"{where}.{f.name}")
-    elif isinstance(a, float) and np.isnan(a):
-        assert np.isnan(b), where
-    else:
-        assert a == b, f"{where}: {a!r} != {b!r}"
-
-
 def _assert_states_equal(a: SimState, b: SimState) -> None:
     assert a.signature == b.signature
-    _same(np.asarray(a.physics), np.asarray(b.physics), "physics")
+    assert_same_bits(np.asarray(a.physics), np.asarray(b.physics), "physics")
     for name in ("qfrc_bias", "xpos", "xipos", "actuator_force"):
-        _same(getattr(a.data, name), getattr(b.data, name), f"data.{name}")
-    _same(a.tick_count, b.tick_count, "tick_count")
-    _same(a.rng, b.rng, "rng")
-    _same(a.servo, b.servo, "servo")
-    _same(a.arms, b.arms, "arms")
-    _same(a.components, b.components, "components")
+        assert_same_bits(getattr(a.data, name), getattr(b.data, name), f"data.{name}")
+    assert_same_bits(a.tick_count, b.tick_count, "tick_count")
+    assert_same_bits(a.rng, b.rng, "rng")
+    assert_same_bits(a.servo, b.servo, "servo")
+    assert_same_bits(a.arms, b.arms, "arms")
+    assert_same_bits(a.components, b.components, "components")
 
 
 def test_reset_is_a_freshly_built_simulation():

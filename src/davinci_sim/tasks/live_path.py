@@ -26,7 +26,7 @@ import numpy as np
 
 from davinci_sim.tasks import path_row
 from davinci_sim.tasks.base import Sample
-from davinci_sim.tasks.metrics_one import update_previous
+from davinci_sim.tasks.metrics_one import running, update_previous
 from davinci_sim.tasks.state import _FINISHED, TaskMonitor, TaskState
 
 ENABLED = True
@@ -55,9 +55,8 @@ class LivePathTick:
         f = 0.5 * camera.height / math.tan(math.radians(camera.fovy_deg) / 2.0)  # (project_left)
         self._camera = (f, camera.baseline_m / 2.0, float(camera.width), float(camera.height))
         self._own_prev: Sample | None = None
-        """The trial's previous sample when it has live_sample's fields (:func:`_live_kind`):
+        """The trial's previous sample when it has live_sample's fields (:func:`_live_fields`):
         the next one then takes its place, or it stays, without the general rules."""
-        self._own_master = False  # whether it has a master position
 
     @classmethod
     def build(cls, task, trial, camera) -> LivePathTick | None:
@@ -97,51 +96,37 @@ class LivePathTick:
             p_camera.setflags(write=False)
         if T_task_tip is None:
             T_task_tip = np.asarray(T_task_camera) @ p_camera  # (numpy's: live_sample's)
-        s_time, s_tip, s_force = np.empty(1), np.empty((1, 3)), np.empty((1, 3))
-        s_clutch, s_visible = np.empty(1, dtype=bool), np.empty(1, dtype=bool)
-        s_master, s_tool_force = np.empty((1, 3)), np.empty(1)
-        s_contacts = np.empty(1, dtype=np.int64)
-        state = trial.state
-        new = TaskState(state.phase.copy(), state.t_start.astype(float),
-                        state.t_finish.astype(float), state.progress.astype(float))  # fmt: skip
+        arrays = _sample_arrays(1)
+        s_time, s_tip, s_force, s_clutch, s_visible, s_master, s_contacts, s_tool_force = arrays
+        new = path_row.next_state(trial.state)
         closest, measured = np.empty((1, 8)), np.empty(1, dtype=bool)
         if prev is None:  # (the first sample is its own previous one)
             previous = (s_time, s_tip, s_clutch, s_contacts)
         else:
             previous = (_c(prev.time, float), _c(prev.tip, float), _c(prev.clutch, bool),
                         _c(prev.contacts, np.int64))  # fmt: skip
-        a = metrics._acc
         has_master = master is not None
         args = (
             *self._constants, _ACTIVE, T_task_tip, p_camera, *self._camera, force is not None,
             _NO_VECTOR if force is None else force, has_master,
             _NO_VECTOR if master is None else master, float(t), clutch, count,
-            float(contact_force), *new, s_time, s_tip, s_force, s_clutch, s_visible, s_master,
-            s_contacts, s_tool_force, *previous, a[0], a[1][0], a[1][1], a[2], a[4], a[5],
-            a[6], a[7], a[9], a[10], a[11], a[12][0], a[12][1], a[14], metrics._k,
+            float(contact_force), *new, *arrays, *previous, *running(metrics),
             metrics._prev_in, closest, measured,
         )  # fmt: skip
         path_row.live_path_row(*args)
-        trial.state = new
         if not has_master:  # (metrics_one.mark_missing: the one optional field it can lack)
             metrics._missing.add("master_workspace")
         sample = (s_time, s_tip, s_force, s_clutch, s_visible, s_master if has_master else None,
                   s_contacts, s_tool_force, T_task_camera, T_task_tip)  # fmt: skip
-        if prev is not None and prev is self._own_prev and self._own_master == has_master:
+        if prev is not None and prev is self._own_prev and (prev.master is not None) == has_master:
             if measured[0]:  # (update_previous: where() of every row, copies of new arrays)
                 metrics._prev = self._own_prev = self._sample(*sample)
             # (else kept(): the same sample, every field of the same kind)
             metrics._prev_in = measured
         else:
             update_previous(metrics, measured, self._sample(*sample))
-            kind = _live_kind(metrics._prev)
-            self._own_prev = None if kind is None else metrics._prev
-            self._own_master = bool(kind)
-        if isinstance(trial, TaskMonitor):  # (what observe leaves besides)
-            trial.observations = {"distance": closest[:, 6], "arc_length": closest[:, 7]}
-            if trial.results is None and new.phase[0] >= _FINISHED:
-                trial.results = metrics.result()
-        return True
+            self._own_prev = metrics._prev if _live_fields(metrics._prev) else None
+        return self._done(new, closest)
 
     def ticks(self, T_task_camera, T_task_tip, p_camera, t, contacts, tool_force) -> bool:
         """m samples in turn, as m :meth:`tick` calls with no guidance force, clutch or
@@ -153,46 +138,40 @@ class LivePathTick:
         trial = self.trial
         metrics = trial.metrics
         prev = metrics._prev
-        if not ENABLED or prev is None or prev is not self._own_prev or self._own_master:
+        if not ENABLED or prev is None or prev is not self._own_prev or prev.master is not None:
             return False
-        m = len(t)
-        s_time, s_tip, s_force = np.empty(m), np.empty((m, 3)), np.empty((m, 3))
-        s_clutch, s_visible = np.empty(m, dtype=bool), np.empty(m, dtype=bool)
-        s_master, s_tool_force = np.empty((m, 3)), np.empty(m)
-        s_contacts = np.empty(m, dtype=np.int64)
-        state = trial.state
-        new = TaskState(state.phase.copy(), state.t_start.astype(float),
-                        state.t_finish.astype(float), state.progress.astype(float))  # fmt: skip
+        arrays = _sample_arrays(len(t))
+        new = path_row.next_state(trial.state)
         closest, measured = np.empty((1, 8)), np.empty(1, dtype=bool)
         previous = (np.array(prev.time, dtype=float), np.array(prev.tip, dtype=float),
                     np.array(prev.clutch, dtype=bool),
                     np.array(prev.contacts, dtype=np.int64))  # fmt: skip
-        a = metrics._acc
         args = (
             *self._constants, _ACTIVE, _c(T_task_tip, float), _c(p_camera, float),
             *self._camera, _c(t, float), _c(contacts, np.int64), _c(tool_force, float), *new,
-            s_time, s_tip, s_force, s_clutch, s_visible, s_master, s_contacts, s_tool_force,
-            *previous, a[0], a[1][0], a[1][1], a[2], a[4], a[5], a[6], a[7], a[9], a[10],
-            a[11], a[12][0], a[12][1], a[14], metrics._k, metrics._prev_in.copy(), closest,
-            measured,
+            *arrays, *previous, *running(metrics), metrics._prev_in.copy(), closest, measured,
         )  # fmt: skip
         last = path_row.live_path_rows(*args)
-        trial.state = new
         metrics._missing.add("master_workspace")  # (no master: mark_missing)
         metrics._prev_in = measured
         if last >= 0:  # (the last measured sample: the metrics' previous one)
-            r = slice(last, last + 1)
-            metrics._prev = self._own_prev = Sample(
-                s_time[r].copy(), s_tip[r].copy(), s_force[r].copy(), s_clutch[r].copy(),
-                visible=s_visible[r].copy(), contacts=s_contacts[r].copy(),
-                tool_force=s_tool_force[r].copy(),
-                T_task_camera=np.array(T_task_camera[r], dtype=float),
-                R_task_tip=np.array(T_task_tip[r, :3, :3], dtype=float),
+            row = tuple(a[last : last + 1].copy() for a in arrays)
+            time, tip, force, clutch, visible, _, count, tool = row
+            metrics._prev = self._own_prev = self._sample(
+                time, tip, force, clutch, visible, None, count, tool, T_task_camera[last],
+                T_task_tip[last],
             )  # fmt: skip
+        return self._done(new, closest)
+
+    def _done(self, new: TaskState, closest: np.ndarray) -> bool:
+        """The trial's new state; a monitor's observations (the last sample's distance and
+        arc length) and its results once the trial is finished, as ``observe`` leaves them."""
+        trial = self.trial
+        trial.state = new
         if isinstance(trial, TaskMonitor):
             trial.observations = {"distance": closest[:, 6], "arc_length": closest[:, 7]}
             if trial.results is None and new.phase[0] >= _FINISHED:
-                trial.results = metrics.result()
+                trial.results = trial.metrics.result()
         return True
 
     @staticmethod
@@ -216,22 +195,31 @@ _LIVE_FIELDS = (("time", np.float64, (1,)), ("tip", np.float64, (1, 3)),
                 ("R_task_tip", np.float64, (1, 3, 3)), ("tools", None, None))  # fmt: skip
 
 
-def _live_kind(sample: Sample | None) -> bool | None:
-    """Whether ``sample`` has a master position (bool), if its fields are otherwise those
-    of :func:`~davinci_sim.tasks.session.live_sample`'s samples of a path task, of their
-    dtypes and shapes; else None. For such a previous sample, ``update_previous`` keeps it
-    (an unmeasured sample with the same master field) or replaces it with the new one (a
-    measured one): ``Sample.kept``'s and ``Sample.where``'s rules when every field agrees."""
+def _live_fields(sample: Sample | None) -> bool:
+    """Whether ``sample``'s fields are those of
+    :func:`~davinci_sim.tasks.session.live_sample`'s samples of a path task (the master's
+    position optional), of their dtypes and shapes. For such a previous sample,
+    ``update_previous`` keeps it (an unmeasured sample with the same master field) or
+    replaces it with the new one (a measured one): ``Sample.kept``'s and ``Sample.where``'s
+    rules when every field agrees."""
     if sample is None:
-        return None
+        return False
     for name, dtype, shape in (*_LIVE_FIELDS, ("master", np.float64, (1, 3))):
         a = getattr(sample, name)
         if dtype is None or (name == "master" and a is None):
             if a is not None:
-                return None
+                return False
         elif a is None or a.dtype != dtype or a.shape != shape:
-            return None
-    return sample.master is not None
+            return False
+    return True
+
+
+def _sample_arrays(m: int) -> tuple:
+    """New arrays for m samples' time, tip, force, clutch, visibility, master, contacts and
+    tool force, as the kernels fill them (new each time: a sample kept holds its own)."""
+    return (np.empty(m), np.empty((m, 3)), np.empty((m, 3)), np.empty(m, dtype=bool),
+            np.empty(m, dtype=bool), np.empty((m, 3)), np.empty(m, dtype=np.int64),
+            np.empty(m))  # fmt: skip
 
 
 def _c(a, dtype) -> np.ndarray:

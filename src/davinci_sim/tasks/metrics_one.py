@@ -68,11 +68,9 @@ def update_one(acc, mask, sample, obs) -> bool:
     master, contacts, tool_force, visible = (sample.master, sample.contacts,
                                              sample.tool_force, sample.visible)  # fmt: skip
     tip, f, pt = sample.tip[0], sample.force[0], prev.tip[0]
-    a = acc._acc
     m = bool(mask[0])
     path_update(
-        a[0], a[1][0], a[1][1], a[2], a[4], a[5], a[6], a[7], a[9], a[10], a[11], a[12][0],
-        a[12][1], a[14], acc._k, m, bool(acc._prev_in[0]), float(sample.time[0]),
+        *running(acc), m, bool(acc._prev_in[0]), float(sample.time[0]),
         float(tip[0]), float(tip[1]), float(tip[2]), float(prev.time[0]), float(pt[0]),
         float(pt[1]), float(pt[2]), bool(sample.clutch[0]), bool(prev.clutch[0]),
         contacts is not None, 0 if contacts is None else int(contacts[0]),
@@ -88,6 +86,14 @@ def update_one(acc, mask, sample, obs) -> bool:
 
 
 _NO_MASTER = np.zeros(3)
+
+
+def running(acc) -> tuple:
+    """``acc``'s running arrays in :func:`path_update`'s order (from the mean deviation's
+    sum to the sample count), which it and the compiled path ticks update in place."""
+    a = acc._acc
+    return (a[0], a[1][0], a[1][1], a[2], a[4], a[5], a[6], a[7], a[9], a[10], a[11], a[12][0],
+            a[12][1], a[14], acc._k)  # fmt: skip
 
 
 def previous_of(acc, sample):

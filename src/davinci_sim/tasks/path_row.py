@@ -32,6 +32,7 @@ from davinci_sim.tasks.metrics_one import (
     mark_missing,
     path_update,
     previous_of,
+    running,
     targets,
     update_previous,
 )
@@ -207,6 +208,13 @@ def _constants(task) -> tuple | None:
     return cached
 
 
+def next_state(state: TaskState) -> TaskState:
+    """New arrays of ``state`` for a kernel to update in place (floats where the state may
+    hold the integers of a fresh one), as the Python step returns a new state."""
+    return TaskState(state.phase.copy(), state.t_start.astype(float),
+                     state.t_finish.astype(float), state.progress.astype(float))  # fmt: skip
+
+
 def _c(a, dtype, missing=None) -> np.ndarray:
     """``a`` as a C-ordered array of ``dtype`` (a copy only where it is not one): the
     kernel's one signature, whatever views the sample holds; for an optional field the
@@ -232,11 +240,9 @@ def advance_rows(task, state: TaskState, metrics, sample, active=None) -> tuple 
     constants = _constants(task)
     if prev is None or constants is None:
         return None
-    a = metrics._acc
     contacts, tool_force = sample.contacts, sample.tool_force
     visible, master = sample.visible, sample.master
-    new = TaskState(state.phase.copy(), state.t_start.astype(float), state.t_finish.astype(float),
-                    state.progress.astype(float))  # fmt: skip
+    new = next_state(state)
     closest, measured = np.empty((n, 8)), np.empty(n, dtype=bool)
     args = (
         *constants, np.ones(n, dtype=bool) if active is None else _c(active, bool), *new,
@@ -245,9 +251,8 @@ def advance_rows(task, state: TaskState, metrics, sample, active=None) -> tuple 
         tool_force is not None, _c(tool_force, float, n), visible is not None,
         _c(visible, bool, n), master is not None, _c(master, float, (n, 3)),
         _c(prev.time, float), _c(prev.tip, float), _c(prev.clutch, bool),
-        _c(prev.contacts, np.int64, n), a[0], a[1][0], a[1][1],
-        a[2], a[4], a[5], a[6], a[7], a[9], a[10], a[11], a[12][0], a[12][1], a[14],
-        metrics._k, metrics._prev_in.copy(), closest, measured,
+        _c(prev.contacts, np.int64, n), *running(metrics), metrics._prev_in.copy(), closest,
+        measured,
     )  # fmt: skip
     path_tick_rows(*args)
     mark_missing(metrics, sample)
