@@ -131,3 +131,35 @@ def test_the_compiled_render_is_the_python_render_bit_for_bit(monkeypatch, homed
     assert any(actives)  # (the clamp's branches were taken)
     assert all(actives) or not wrench.startswith("over")
     assert np.abs(compiled[-1][4][arm._idx]).sum() > 0
+
+
+def test_the_study_hands_are_the_python_hands_bit_for_bit():
+    """``device_row.hand_rows`` (the study's hands, every row) equals ``hand_wrenches`` with
+    the orientation held, plus the push, through ``handle_xfrc``: the same bits, rows
+    clamped and not."""
+    from davinci_sim.devices import device_row
+    from davinci_sim.devices.hand import HandImpedance, hand_wrenches, handle_xfrc
+
+    rng = np.random.default_rng(11)
+    n = 64
+    tip = np.tile(np.eye(4), (n, 1, 1))
+    target = tip.copy()
+    for i in range(n):
+        tip[i, :3, :3] = so3.rotation_from_vector(rng.normal(0, 0.5, 3))
+        target[i, :3, :3] = so3.rotation_from_vector(rng.normal(0, 0.5, 3))
+    tip[:, :3, 3] = rng.normal(0, 0.1, (n, 3))
+    target[:, :3, 3] = tip[:, :3, 3] + rng.normal(0, 0.03 * rng.uniform(0, 4, (n, 1)), (n, 3))
+    twist, push = rng.normal(0, 0.2, (n, 6)), rng.normal(0, 1.0, (n, 3))
+    K, D = rng.uniform(100, 400, n), rng.uniform(2, 20, n)
+    h = HandImpedance(max_force=8.0, max_torque=0.2)
+    R = so3.rotation_from_vector([0.3, -0.2, 1.1])
+    p, com = rng.normal(0, 1, 3), rng.normal(0, 1, (n, 3))
+    w = hand_wrenches(target, tip, twist, K, D, h)
+    w[:, :3] += push
+    expected = handle_xfrc(w, tip[:, :3, 3], R, p, com)
+    out = np.empty((n, 6))
+    device_row.hand_rows(target, tip, twist, K, D, np.array([h.rotational_stiffness,
+                         h.rotational_damping, h.max_force, h.max_torque]), push, R, p, com,
+                         out)  # fmt: skip
+    assert np.array_equal(out, expected)
+    assert (np.linalg.norm(w[:, :3] - push, axis=1) >= 8.0 - 1e-9).any()  # (some clamped)

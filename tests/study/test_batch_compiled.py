@@ -54,9 +54,10 @@ def test_compiled_ticks_are_the_python_ticks(short_task):
         assert moved > 0.01  # (the guidance pushed: the haptic half of the tick was exercised)
         assert np.array_equal(compiled.state.phase, python.state.phase)
         # the signature the module's warm-up compiled at import is the one the ticks use
-        assert [len(k.signatures) for k in (_KERNELS.teleop_rows, _KERNELS.physics_rows)] == [
-            1, 1,
-        ]  # fmt: skip
+        from davinci_sim.devices import device_row  # (numba only)
+
+        kernels = (_KERNELS.teleop_rows, _KERNELS.physics_rows, device_row.hand_rows)
+        assert [len(k.signatures) for k in kernels] == [1, 1, 1]
     finally:
         compiled._setup.sim.close()
         python._setup.sim.close()

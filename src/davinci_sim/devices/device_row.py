@@ -20,6 +20,7 @@ import numpy as np
 
 from davinci_sim.devices.hand import _hand_rows
 from davinci_sim.devices.safety import _clamp_rows
+from davinci_sim.kinematics.jit import helper
 from davinci_sim.sim.arm_laws import twist_row, wrench_effort_row
 
 _twist = twist_row.dispatcher
@@ -70,14 +71,20 @@ def hand_read_row(
               impedance[3], impedance[4], impedance[5], w)  # fmt: skip
         for i in range(6):
             wrench_out[i] = wrench_out[i] + w[0, i]
-    # handle_xfrc of one hand: the force and torque in world axes, the force's moment about
-    # the centre of mass (lever × f)
+    _xfrc_into(wrench_out, T_hrsv_tip, R_world_hrsv, p_world_hrsv, p_world_com, xfrc_out)
+    return True
+
+
+@helper
+def _xfrc_into(wrench, T_hrsv_tip, R_world_hrsv, p_world_hrsv, p_world_com, xfrc_out):
+    """``hand.handle_xfrc`` of one hand on floats: the wrench's force and torque in world
+    axes, the force's moment about the centre of mass ``p_world_com`` (lever × f) added."""
     R = R_world_hrsv
     f = np.empty(3)
     lever = np.empty(3)
-    x, y, z = wrench_out[0], wrench_out[1], wrench_out[2]
+    x, y, z = wrench[0], wrench[1], wrench[2]
     px, py, pz = T_hrsv_tip[0, 3], T_hrsv_tip[1, 3], T_hrsv_tip[2, 3]
-    u, v, s = wrench_out[3], wrench_out[4], wrench_out[5]
+    u, v, s = wrench[3], wrench[4], wrench[5]
     for i in range(3):
         f[i] = x * R[i, 0] + y * R[i, 1] + z * R[i, 2]
         lever[i] = (px * R[i, 0] + py * R[i, 1] + pz * R[i, 2]) + p_world_hrsv[i] - p_world_com[i]
@@ -86,7 +93,27 @@ def hand_read_row(
     xfrc_out[3] = xfrc_out[3] + (lever[1] * f[2] - lever[2] * f[1])
     xfrc_out[4] = xfrc_out[4] + (lever[2] * f[0] - lever[0] * f[2])
     xfrc_out[5] = xfrc_out[5] + (lever[0] * f[1] - lever[1] * f[0])
-    return True
+
+
+@numba.njit(cache=True, nogil=True)
+def hand_rows(
+    T_target, T_tip, twist, K, D, impedance, push, R_world_hrsv, p_world_hrsv, p_world_com,
+    xfrc_out,
+):  # fmt: skip
+    """The study's hands on their handles, every row: each hand's spring-damper towards its
+    target pose ``T_target`` (n, 4, 4) holding its orientation (``hand._hand_rows``, as
+    ``hand_wrenches``; ``K``, ``D`` (n,) the limbs' stiffness and damping, ``impedance``
+    (4,): rotational stiffness and damping, maximum force and torque), plus ``push`` (n, 3)
+    on the force, moved to the handle bodies' centres of mass (``p_world_com`` (n, 3)) as
+    ``xfrc_out`` (n, 6), world axes: ``handle_xfrc``'s floats, row by row."""
+    n = T_tip.shape[0]
+    w = np.empty((n, 6))
+    _hand(T_target, True, True, T_tip, twist, K, D, impedance[0], impedance[1], impedance[2],
+          impedance[3], w)  # fmt: skip
+    for r in range(n):
+        for i in range(3):
+            w[r, i] = w[r, i] + push[r, i]
+        _xfrc_into(w[r], T_tip[r], R_world_hrsv, p_world_hrsv, p_world_com[r], xfrc_out[r])
 
 
 @numba.njit(cache=True, nogil=True)
@@ -129,6 +156,9 @@ def _warm_up() -> None:
                       np.zeros(7), True, np.eye(4), True, True, False, np.ones(6),
                       np.zeros(6), np.eye(3), np.zeros(3), np.zeros(3), np.empty(6),
                       np.empty(6), np.empty(6))  # fmt: skip
+    e2, e3, e4 = np.zeros((0, 3)), np.zeros((0, 6)), np.zeros((0, 4, 4))
+    hand_rows(e4, e4, e3, np.zeros(0), np.zeros(0), np.ones(4), e2, np.eye(3), np.zeros(3), e2,
+              np.empty((0, 6)))  # fmt: skip
     # (the MTM's base frame and the chain's joint limits read-only or not)
     for T_ref_base in (readonly(np.eye(4)), np.eye(4)):
         for ftmax in (readonly(np.ones(7)), np.ones(7)):

@@ -61,12 +61,20 @@ from typing import NamedTuple
 import numpy as np
 
 from davinci_sim.geometry.path import Polyline
+from davinci_sim.kinematics import jit
 from davinci_sim.operators.noise import MotorNoise, Tremor, TrialNoise
 from davinci_sim.operators.params import TREMOR_BANDWIDTH_HZ, Mechanisms, SubjectParams
 from davinci_sim.operators.plan import path_plan, straight_plan, stroke_durations
 
 #: Shortest reach to point 1, s (a minimum-jerk reach of a few mm still takes a while).
 MIN_REACH_TIME = 0.3
+
+_ROW = None  # the compiled step (numba), else the numpy step runs
+if jit.ENABLED:
+    from davinci_sim.operators import trainee_row
+
+    _ROW = trainee_row if trainee_row.READY else None
+_NO_FORCE = np.zeros((0, 3))
 
 
 class HandState(NamedTuple):
@@ -184,6 +192,7 @@ class SyntheticTrainee:
         self.last_tremor_force = np.zeros((n, 3))
         self.feedforward_force = np.zeros((n, 3))
         self._v_plan = np.zeros((n, 3))
+        self._row_constants: tuple | None = None
 
     def set_hand_start(self, hand_start) -> None:
         """Where the hands are at the start, (n, 3), HRSV, m: only before the first step
@@ -291,6 +300,8 @@ class SyntheticTrainee:
         y = np.asarray(observed_tip, dtype=float)
         if y.shape != (self.n, 3):
             raise ValueError(f"observed_tip must be ({self.n}, 3), got {y.shape}")
+        if _ROW is not None and dt == self.dt:
+            return self._command_compiled(y, force_on_hand)
         if force_on_hand is not None:
             self.feel(dt, force_on_hand)
         k, t = self.k, self.time
@@ -332,6 +343,52 @@ class SyntheticTrainee:
         )
         self.x_eq = self.x_eq + u * dt
         self.v_eq = u
+        self.k += 1
+        return self.x_eq.copy()
+
+    def _command_compiled(self, y: np.ndarray, force_on_hand) -> np.ndarray:
+        """:meth:`command` in one compiled call (:func:`~davinci_sim.operators.trainee_row.
+        command_rows`): the same laws row by row, the same bits; the arrays it keeps are
+        written in place."""
+        n = self.n
+        c = self._row_constants
+        if c is None:
+            path, m = self.path, self.mechanisms
+            c = self._row_constants = (
+                self.p_start.astype(float), self.knots.copy(),
+                np.array(path.cumulative_length), np.array(path.segment_lengths),
+                np.array(path.starts), np.array(path.edges),
+                np.array([m.stiffening_gain, m.stiffening_threshold, m.stiffening_max,
+                          self.dt / m.stiffening_time if m.stiffening_gain > 0 else 0.0]),
+                np.array([self._motor.a, self._motor.b]),
+            )  # fmt: skip
+        feel = force_on_hand is not None and self.mechanisms.stiffening_gain > 0
+        force = _NO_FORCE if not feel else np.array(force_on_hand, dtype=float, order="C")
+        if feel and force.shape != (n, 3):
+            raise ValueError(f"force_on_hand must be ({n}, 3), got {force.shape}")
+        p = self.params
+        tremor, gain = self._tremor, np.asarray(self.tremor_gain, dtype=float)
+        # (the arrays the numpy step rebinds are written in place here: each is owned)
+        for name in ("co_contraction", "x_eq", "v_eq", "_v_plan", "feedforward_force",
+                     "last_tremor_force"):  # fmt: skip
+            a = getattr(self, name)
+            if not (a.flags.c_contiguous and a.flags.writeable and a.dtype == float):
+                setattr(self, name, np.array(a, dtype=float))
+        args = (
+            self.k, self.time, self.dt, self.scale, self.start_tolerance, MIN_REACH_TIME,
+            c[0], c[1], c[2], c[3], c[4], c[5], np.ascontiguousarray(y), force, feel, c[6],
+            self.co_contraction, self._obs, self.delay_steps, self.t_reach, self.reach_from,
+            self.reach_time, np.ascontiguousarray(self.speed), self.t_follow,
+            np.ascontiguousarray(p.reaction_time, dtype=float), self._v_plan,
+            np.ascontiguousarray(p.mass, dtype=float), self.feedforward_force,
+            np.ascontiguousarray(self.crossover), self.durations, self._noise.next(), c[7],
+            self._motor.state, np.ascontiguousarray(self.noise_k, dtype=float),
+            tremor.a1.reshape(-1), tremor.a2.reshape(-1), tremor.gain.reshape(-1),
+            tremor._x, tremor._y1, tremor._y2,
+            gain if gain.ndim else np.full(n, float(gain)),
+            self.last_tremor_force, self.x_eq, self.v_eq,
+        )  # fmt: skip
+        _ROW.command_rows(*args)
         self.k += 1
         return self.x_eq.copy()
 

@@ -32,25 +32,23 @@ runs n trials as arrays instead:
   (:meth:`TrialBatch.fixture_forces`). Only ``mj_step`` runs per trial (MuJoCo's C),
   and only for trials still running: every running trial's step in one compiled call
   (:class:`~davinci_sim.sim.rows_step.RowStepper`), the same bits as Python's calls.
-* With numba, everything after the trainee's hand runs compiled for the seed's viscous
-  conditions (:mod:`davinci_sim.study.batch_compiled`); this numpy tick is the fallback and
-  the oracle (``tests/study/test_batch_compiled.py``).
+* With numba, the trainees' step (:mod:`davinci_sim.operators.trainee_row`) and, for the
+  seed's viscous conditions, the hands and everything after them run compiled
+  (:mod:`davinci_sim.study.batch_compiled`); this numpy tick is the fallback and the oracle
+  (``tests/study/test_batch_compiled.py``).
 * The order within a tick is the live simulation's: trainee, hand, teleoperation, arms,
   servo, physics, then the haptic loop and the task on the new state.
-
 * Each trial's model carries its subject's hand mass on the MTM (what the live
   ``SimulatedMTM`` does when the hand takes the handle); trials of a subject share one model.
   When half the trials have ended, the arrays drop their rows.
 
 What the batch does not do: anything the study's trials never reach on the live path
 (clutch, a refused or faulted arm recovering, alignment, locks). It holds the camera and
-setup-joint frames as they are at the start (the ECM does not move in a trial); the live
-simulation follows every change of those joints exactly (the setup joints yield ~1e-5 rad/s
-under the arms' reaction forces: µm at the tool tip over a trial). A PSM
+setup-joint frames as at the start (the ECM does not move in a trial; the live simulation
+follows the setup joints' ~1e-5 rad/s yield under the arms' reaction forces). A PSM
 ``servo_cp`` whose IK fails keeps the previous setpoint, as the arm does; a PSM tracking
 fault (the arm would go to FAULT and the teleoperation stop) ends that trial, unfinished.
-``tests/study`` checks that a batch reproduces :func:`~davinci_sim.study.trial.run_trial`
-on the same trials.
+``tests/study`` checks that a batch reproduces :func:`~davinci_sim.study.trial.run_trial`.
 """
 
 from __future__ import annotations
@@ -280,6 +278,8 @@ class TrialBatch:
         x_eq = tr.command(self.dt, self.T_psm[:, :3, 3], self.wrench_sent[:, :3])
         self.T_hand[:, :3, 3] = x_eq
         K, D = tr.stiffness, tr.damping  # (the subject's, × (1 + co-contraction))
+        if self._compiled is not None:  # (the same floats in one compiled call)
+            return batch_compiled.hand_xfrc(self, K, D)
         w = hand_wrenches(self.T_hand, self.T_mtm, self.twist_mtm, K, D, self.impedance)
         w[:, :3] += tr.push_force()
         R, p = self.R_world_hrsv, self.p_world_hrsv

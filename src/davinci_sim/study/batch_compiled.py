@@ -31,6 +31,7 @@ if TYPE_CHECKING:
 
 _KERNELS = None
 if rows_step.COMPILED:  # (MuJoCo's library is loaded into LLVM's symbols by rows_step)
+    from davinci_sim.devices import device_row
     from davinci_sim.study import tick_kernel as _KERNELS
 
 
@@ -82,6 +83,28 @@ def constants(batch: TrialBatch, keys) -> dict | None:
     c["clamp"] = (float(lim.max_force), float(lim.max_torque),
                   float(lim.max_force_rate * dt), float(lim.max_torque_rate * dt))  # fmt: skip
     return c
+
+
+def hand_xfrc(batch: TrialBatch, K: np.ndarray, D: np.ndarray) -> np.ndarray:
+    """The hands' ``xfrc_applied`` (n, 6) of :meth:`TrialBatch._hand` after the trainees'
+    step (``K``, ``D`` (n,): their limbs' stiffness and damping now): the hand wrenches,
+    the push and ``handle_xfrc`` in one compiled call (``device_row.hand_rows``)."""
+    c = batch._compiled
+    if "hand" not in c:  # (constants of the batch's device and console frame)
+        h = batch.impedance
+        c["hand"] = (
+            np.array([h.rotational_stiffness, h.rotational_damping, h.max_force, h.max_torque]),
+            np.array(batch.R_world_hrsv, dtype=float), np.array(batch.p_world_hrsv, dtype=float),
+        )  # fmt: skip
+    impedance, R, p = c["hand"]
+    _contiguous(batch, "T_hand", "T_mtm", "twist_mtm", "xipos")
+    xfrc = np.empty((batch.n, 6))
+    device_row.hand_rows(
+        batch.T_hand, batch.T_mtm, batch.twist_mtm, np.ascontiguousarray(K, dtype=float),
+        np.ascontiguousarray(D, dtype=float), impedance, batch.trainee.push_force(), R, p,
+        batch.xipos, xfrc,
+    )  # fmt: skip
+    return xfrc
 
 
 def _contiguous(batch: TrialBatch, *names: str) -> None:
