@@ -89,6 +89,9 @@ def test_a_copy_steps_on_its_own():
     assert_same_bits(tr.command(DT, tool), a)
 
 
-def test_compiled_at_import():
-    assert trainee_module._ROW.command_rows in jit.KERNELS
-    assert trainee_module._ROW.command_rows.ready()
+def test_compiled_at_import_with_the_one_signature_the_trainees_use():
+    kernel = trainee_module._ROW.command_rows
+    assert kernel in jit.KERNELS and kernel.ready()
+    tr = trainee(subjects(2))
+    tr.command(DT, np.zeros((2, 3)), np.zeros((2, 3)))
+    assert len(kernel.dispatcher.signatures) == 1

@@ -55,13 +55,22 @@ class TrialNoise:
 
     def next(self) -> np.ndarray:
         """This step's normals, (n_trials, channels)."""
+        out = self.ahead(1)[:, 0]
+        self._k += 1
+        return out
+
+    def ahead(self, steps: int) -> np.ndarray:
+        """The normals of the next steps, at most ``steps`` and no further than the block
+        drawn (n_trials, ≤ steps, channels), without taking them (:meth:`skip` does)."""
         if self._k == self.block:
             for i, g in enumerate(self.generators):
                 self._buffer[i] = g.standard_normal((self.block, self.channels))
             self._k = 0
-        out = self._buffer[:, self._k]
-        self._k += 1
-        return out
+        return self._buffer[:, self._k : self._k + steps]
+
+    def skip(self, steps: int) -> None:
+        """Take ``steps`` steps' normals (those :meth:`ahead` gave)."""
+        self._k += steps
 
 
 def resonator_coefficients(frequency_hz, bandwidth_hz: float, dt: float):

@@ -77,6 +77,15 @@ if jit.ENABLED:
 _NO_FORCE = np.zeros((0, 3))
 
 
+def owned(a) -> np.ndarray:
+    """``a`` as a writable C-ordered float array (itself when it is one): the compiled
+    step's one signature, whatever flags a parameter array has (a subject's are read-only)."""
+    if isinstance(a, np.ndarray) and a.dtype == float and a.flags.c_contiguous:
+        if a.flags.writeable:
+            return a
+    return np.array(a, dtype=float)
+
+
 class HandState(NamedTuple):
     position: np.ndarray
     """Hand (MTM handle) positions, (n, 3), m, HRSV."""
@@ -350,6 +359,21 @@ class SyntheticTrainee:
         """:meth:`command` in one compiled call (:func:`~davinci_sim.operators.trainee_row.
         command_rows`): the same laws row by row, the same bits; the arrays it keeps are
         written in place."""
+        feel = force_on_hand is not None and self.mechanisms.stiffening_gain > 0
+        force = _NO_FORCE if not feel else np.array(force_on_hand, dtype=float, order="C")
+        if feel and force.shape != (self.n, 3):
+            raise ValueError(f"force_on_hand must be ({self.n}, 3), got {force.shape}")
+        white = np.ascontiguousarray(self._noise.next())  # (a column of the drawn block)
+        args = self.row_args(np.ascontiguousarray(y), force, feel, white)
+        _ROW.command_rows(self.k, self.time, *args)
+        self.k += 1
+        return self.x_eq.copy()
+
+    def row_args(self, y: np.ndarray, force: np.ndarray, feel: bool, white: np.ndarray) -> tuple:
+        """The arguments of :func:`~davinci_sim.operators.trainee_row.command_rows` after
+        ``k`` and ``t`` (:data:`~davinci_sim.operators.trainee_row.ARGS`) for the tips seen
+        ``y`` and the forces ``force`` (n, 3) (felt if ``feel``) and the normals ``white``
+        (n, 6): this trainee's arrays, which the kernel writes in place."""
         n = self.n
         c = self._row_constants
         if c is None:
@@ -362,10 +386,6 @@ class SyntheticTrainee:
                           self.dt / m.stiffening_time if m.stiffening_gain > 0 else 0.0]),
                 np.array([self._motor.a, self._motor.b]),
             )  # fmt: skip
-        feel = force_on_hand is not None and self.mechanisms.stiffening_gain > 0
-        force = _NO_FORCE if not feel else np.array(force_on_hand, dtype=float, order="C")
-        if feel and force.shape != (n, 3):
-            raise ValueError(f"force_on_hand must be ({n}, 3), got {force.shape}")
         p = self.params
         tremor, gain = self._tremor, np.asarray(self.tremor_gain, dtype=float)
         # (the arrays the numpy step rebinds are written in place here: each is owned)
@@ -374,23 +394,18 @@ class SyntheticTrainee:
             a = getattr(self, name)
             if not (a.flags.c_contiguous and a.flags.writeable and a.dtype == float):
                 setattr(self, name, np.array(a, dtype=float))
-        args = (
-            self.k, self.time, self.dt, self.scale, self.start_tolerance, MIN_REACH_TIME,
-            c[0], c[1], c[2], c[3], c[4], c[5], np.ascontiguousarray(y), force, feel, c[6],
+        return (
+            self.dt, self.scale, self.start_tolerance, MIN_REACH_TIME,
+            c[0], c[1], c[2], c[3], c[4], c[5], y, force, feel, c[6],
             self.co_contraction, self._obs, self.delay_steps, self.t_reach, self.reach_from,
-            self.reach_time, np.ascontiguousarray(self.speed), self.t_follow,
-            np.ascontiguousarray(p.reaction_time, dtype=float), self._v_plan,
-            np.ascontiguousarray(p.mass, dtype=float), self.feedforward_force,
-            np.ascontiguousarray(self.crossover), self.durations, self._noise.next(), c[7],
-            self._motor.state, np.ascontiguousarray(self.noise_k, dtype=float),
+            self.reach_time, owned(self.speed), self.t_follow, owned(p.reaction_time),
+            self._v_plan, owned(p.mass), self.feedforward_force, owned(self.crossover),
+            self.durations, white, c[7], self._motor.state, owned(self.noise_k),
             tremor.a1.reshape(-1), tremor.a2.reshape(-1), tremor.gain.reshape(-1),
             tremor._x, tremor._y1, tremor._y2,
             gain if gain.ndim else np.full(n, float(gain)),
             self.last_tremor_force, self.x_eq, self.v_eq,
         )  # fmt: skip
-        _ROW.command_rows(*args)
-        self.k += 1
-        return self.x_eq.copy()
 
     def push_force(self) -> np.ndarray:
         """The part of :meth:`hand_force` that does not depend on the handle (n, 3), HRSV,

@@ -107,6 +107,18 @@ def _plan_row(
     return valid
 
 
+#: The arguments of :func:`command_rows` after ``k`` and ``t``, in order (the chunked
+#: study passes them to :func:`command_row` as one tuple).
+ARGS = (
+    "dt", "scale", "start_tolerance", "min_reach_time", "p_start", "knots", "cum", "seglen",
+    "starts", "edges", "y", "force", "feel", "stiffening", "co_contraction", "obs",
+    "delay_steps", "t_reach", "reach_from", "reach_time", "speed", "t_follow", "reaction_time",
+    "v_plan", "mass", "feedforward", "crossover", "durations", "white", "motor_ab", "motor",
+    "noise_k", "tremor_a1", "tremor_a2", "tremor_norm", "tremor_x", "tremor_y1", "tremor_y2",
+    "tremor_gain", "last_tremor", "x_eq", "v_eq",
+)  # fmt: skip
+
+
 @jit
 def command_rows(
     k, t, dt, scale, start_tolerance, min_reach_time, p_start, knots, cum, seglen, starts,
@@ -127,70 +139,87 @@ def command_rows(
     ``tremor_a2``, ``tremor_norm`` its unit-variance gain, (n,); states ``tremor_x``,
     ``tremor_y1``, ``tremor_y2`` (2, n, 3)) and force gain ``tremor_gain`` (n,). Writes the
     state arrays and ``x_eq`` (n, 3), the equilibrium points (HRSV, m)."""
-    size = obs.shape[1]
-    p_now, v_now = np.empty(3), np.empty(3)
-    p_then, v_then = np.empty(3), np.empty(3)
-    u, ys = np.empty(3), np.empty(3)
-    gain, threshold, most, dt_over_tau = stiffening[0], stiffening[1], stiffening[2], stiffening[3]
-    a, b = motor_ab[0], motor_ab[1]
+    scratch = np.empty((6, 3))
+    args = (
+        dt, scale, start_tolerance, min_reach_time, p_start, knots, cum, seglen, starts, edges,
+        y, force, feel, stiffening, co_contraction, obs, delay_steps, t_reach, reach_from,
+        reach_time, speed, t_follow, reaction_time, v_plan, mass, feedforward, crossover,
+        durations, white, motor_ab, motor, noise_k, tremor_a1, tremor_a2, tremor_norm,
+        tremor_x, tremor_y1, tremor_y2, tremor_gain, last_tremor, x_eq, v_eq,
+    )  # fmt: skip
     for i in range(y.shape[0]):
-        if feel:  # SyntheticTrainee.feel
-            excess = _norm3(force[i, 0], force[i, 1], force[i, 2]) - threshold
-            target = min(gain * max(excess, 0.0), most)
-            c = co_contraction[i]
-            co_contraction[i] = c + (target - c) * dt_over_tau
-        for j in range(3):
-            obs[i, k % size, j] = y[i, j]
-        d = delay_steps[i]
-        seen = k >= d
-        slot = (k - d) % size
-        ys0, ys1, ys2 = obs[i, slot, 0], obs[i, slot, 1], obs[i, slot, 2]
-        ys[0], ys[1], ys[2] = ys0, ys1, ys2
-        t_seen = t - d * dt
-        if seen and math.isinf(t_reach[i]):  # first sight: reach for point 1
-            t_reach[i] = t
-            reach_from[i, 0], reach_from[i, 1], reach_from[i, 2] = ys0, ys1, ys2
-            distance = _norm3(p_start[0] - ys0, p_start[1] - ys1, p_start[2] - ys2)
-            reach_time[i] = max(min_reach_time, distance / speed[i])
-        if (
-            seen
-            and math.isinf(t_follow[i])
-            and t >= t_reach[i] + reach_time[i]
-            and _norm3(ys0 - p_start[0], ys1 - p_start[1], ys2 - p_start[2])
-            <= 0.5 * start_tolerance
-        ):
-            t_follow[i] = t + reaction_time[i]
-        T = durations[i]
-        valid_now = _plan_row(t, t_reach[i], reach_from[i], reach_time[i], p_start,
-                              t_follow[i], cum, seglen, starts, edges, knots, T, p_now,
-                              v_now)  # fmt: skip
-        valid_then = _plan_row(t_seen, t_reach[i], reach_from[i], reach_time[i], p_start,
-                               t_follow[i], cum, seglen, starts, edges, knots, T, p_then,
-                               v_then)  # fmt: skip
-        correct = seen and valid_then
-        for j in range(3):
-            v = v_now[j] if valid_now else 0.0
-            a_plan = (v - v_plan[i, j]) / (scale * dt)
-            v_plan[i, j] = v
-            feedforward[i, j] = mass[i] * a_plan
-            error = p_then[j] - ys[j] if correct else 0.0
-            u[j] = (v + crossover[i] * error) / scale
-        size_u = noise_k[i] * _norm3(u[0], u[1], u[2])
-        for j in range(3):
-            n_motor = a * motor[i, j] + b * white[i, 3 + j]
-            motor[i, j] = n_motor
-            uj = u[j] + size_u * n_motor
-            # Tremor: two resonator sections (noise.Tremor.step), shifted one sample.
-            w = white[i, j]
-            x2, y1_0, y1_1 = tremor_x[1, i, j], tremor_y1[0, i, j], tremor_y1[1, i, j]
-            y1 = tremor_a1[i] * y1_0 + tremor_a2[i] * y1_1 + w - x2
-            y2 = tremor_a1[i] * tremor_y2[0, i, j] + tremor_a2[i] * tremor_y2[1, i, j] + y1 - y1_1
-            tremor_x[1, i, j], tremor_x[0, i, j] = tremor_x[0, i, j], w
-            tremor_y1[1, i, j], tremor_y1[0, i, j] = y1_0, y1
-            tremor_y2[1, i, j], tremor_y2[0, i, j] = tremor_y2[0, i, j], y2
-            last_tremor[i, j] = tremor_gain[i] * (tremor_norm[i] * y2)
-            x_eq[i, j] = x_eq[i, j] + uj * dt
-            v_eq[i, j] = uj
+        command_row(i, k, t, white[i], args, scratch)
+
+
+@helper
+def command_row(i, k, t, white_i, args, scratch):
+    """:func:`command_rows` of row ``i`` (``args``: its arguments after ``t``, in
+    :data:`ARGS`' order; ``white_i`` (6,) the row's normals of this step, in place of
+    ``white``'s row; ``scratch`` (6, 3))."""
+    (dt, scale, start_tolerance, min_reach_time, p_start, knots, cum, seglen, starts, edges,
+     y, force, feel, stiffening, co_contraction, obs, delay_steps, t_reach, reach_from,
+     reach_time, speed, t_follow, reaction_time, v_plan, mass, feedforward, crossover,
+     durations, _, motor_ab, motor, noise_k, tremor_a1, tremor_a2, tremor_norm, tremor_x,
+     tremor_y1, tremor_y2, tremor_gain, last_tremor, x_eq, v_eq) = args  # fmt: skip
+    size = obs.shape[1]
+    p_now, v_now, p_then, v_then, u, ys = (scratch[0], scratch[1], scratch[2], scratch[3],
+                                           scratch[4], scratch[5])  # fmt: skip
+    a, b = motor_ab[0], motor_ab[1]
+    if feel:  # SyntheticTrainee.feel
+        excess = _norm3(force[i, 0], force[i, 1], force[i, 2]) - stiffening[1]
+        target = min(stiffening[0] * max(excess, 0.0), stiffening[2])
+        c = co_contraction[i]
+        co_contraction[i] = c + (target - c) * stiffening[3]
+    for j in range(3):
+        obs[i, k % size, j] = y[i, j]
+    d = delay_steps[i]
+    seen = k >= d
+    slot = (k - d) % size
+    ys0, ys1, ys2 = obs[i, slot, 0], obs[i, slot, 1], obs[i, slot, 2]
+    ys[0], ys[1], ys[2] = ys0, ys1, ys2
+    t_seen = t - d * dt
+    if seen and math.isinf(t_reach[i]):  # first sight: reach for point 1
+        t_reach[i] = t
+        reach_from[i, 0], reach_from[i, 1], reach_from[i, 2] = ys0, ys1, ys2
+        distance = _norm3(p_start[0] - ys0, p_start[1] - ys1, p_start[2] - ys2)
+        reach_time[i] = max(min_reach_time, distance / speed[i])
+    if (
+        seen
+        and math.isinf(t_follow[i])
+        and t >= t_reach[i] + reach_time[i]
+        and _norm3(ys0 - p_start[0], ys1 - p_start[1], ys2 - p_start[2]) <= 0.5 * start_tolerance
+    ):
+        t_follow[i] = t + reaction_time[i]
+    T = durations[i]
+    valid_now = _plan_row(t, t_reach[i], reach_from[i], reach_time[i], p_start, t_follow[i],
+                          cum, seglen, starts, edges, knots, T, p_now, v_now)  # fmt: skip
+    valid_then = _plan_row(t_seen, t_reach[i], reach_from[i], reach_time[i], p_start,
+                           t_follow[i], cum, seglen, starts, edges, knots, T, p_then,
+                           v_then)  # fmt: skip
+    correct = seen and valid_then
+    for j in range(3):
+        v = v_now[j] if valid_now else 0.0
+        a_plan = (v - v_plan[i, j]) / (scale * dt)
+        v_plan[i, j] = v
+        feedforward[i, j] = mass[i] * a_plan
+        error = p_then[j] - ys[j] if correct else 0.0
+        u[j] = (v + crossover[i] * error) / scale
+    size_u = noise_k[i] * _norm3(u[0], u[1], u[2])
+    for j in range(3):
+        n_motor = a * motor[i, j] + b * white_i[3 + j]
+        motor[i, j] = n_motor
+        uj = u[j] + size_u * n_motor
+        # Tremor: two resonator sections (noise.Tremor.step), shifted one sample.
+        w = white_i[j]
+        x2, y1_0, y1_1 = tremor_x[1, i, j], tremor_y1[0, i, j], tremor_y1[1, i, j]
+        y1 = tremor_a1[i] * y1_0 + tremor_a2[i] * y1_1 + w - x2
+        y2 = tremor_a1[i] * tremor_y2[0, i, j] + tremor_a2[i] * tremor_y2[1, i, j] + y1 - y1_1
+        tremor_x[1, i, j], tremor_x[0, i, j] = tremor_x[0, i, j], w
+        tremor_y1[1, i, j], tremor_y1[0, i, j] = y1_0, y1
+        tremor_y2[1, i, j], tremor_y2[0, i, j] = tremor_y2[0, i, j], y2
+        last_tremor[i, j] = tremor_gain[i] * (tremor_norm[i] * y2)
+        x_eq[i, j] = x_eq[i, j] + uj * dt
+        v_eq[i, j] = uj
 
 
 def _warm_up() -> None:

@@ -73,7 +73,7 @@ from davinci_sim.sim import arm_laws as laws
 from davinci_sim.sim.jaw import finger_setpoints
 from davinci_sim.sim.rows_step import RowStepper
 from davinci_sim.sim.servo import servo_ctrl
-from davinci_sim.study import batch_compiled
+from davinci_sim.study import batch_chunk, batch_compiled
 from davinci_sim.study.adaptive import fixture_keys
 from davinci_sim.study.trial import (
     METRICS,
@@ -425,25 +425,25 @@ class TrialBatch:
         on_row: Callable[[int, dict], None] | None = None,
         on_tick: Callable[[TrialBatch], None] | None = None,
     ) -> list[dict]:
-        """Tick until every trial has ended; returns the rows in ``specs`` order.
+        """Tick until every trial has ended (a chunk of ticks at a time, ``batch_chunk``,
+        unless ``on_tick``); returns the rows in ``specs`` order.
 
-        ``on_done(k)`` is called with the number of trials that ended at each tick (for a
-        progress bar); ``on_row(i, row)`` with each trial's row as soon as it ends (``i``:
-        its position in ``specs``; the same row object is in the returned list), so that a
-        caller can keep it before the batch ends. Row timings: ``sim_time`` is the trial's
-        own simulated time (from the handle taken to its end); ``wall_time`` is its share
-        of the batch's wall time: the set-up shared equally, each tick's wall time shared
-        among the trials running in it. ``on_tick(batch)``: after every tick (a recorder).
-        """
+        ``on_done(k)`` is called with the number of trials that ended (for a progress bar);
+        ``on_row(i, row)`` with each trial's row as soon as it ends (``i``: its position in
+        ``specs``; the same row object is in the returned list), so that a caller can keep
+        it before the batch ends. Row timings: ``sim_time`` is the trial's own simulated
+        time (from the handle taken to its end); ``wall_time`` its share of the batch's
+        wall time: the set-up shared equally, each chunk's shared among the trials running
+        in it. ``on_tick(batch)``: after every tick (a recorder)."""
         n = len(self.specs)
         rows: list[dict | None] = [None] * n
         wall = np.full(n, self.setup_wall / n)
-        running = self.n
-        clock = time.perf_counter
+        running, clock = self.n, time.perf_counter
         t_tick = clock()
         while running:
-            ran = self.index[self.active]  # the trials this tick runs
-            self.tick()
+            ran = self.index[self.active]  # the trials these ticks run
+            chunk = on_tick is None and batch_chunk.can_chunk(self)
+            batch_chunk.advance(self) if chunk else self.tick()  # (the same bits)
             if on_tick is not None:
                 on_tick(self)
             now = clock()
@@ -464,8 +464,7 @@ class TrialBatch:
 
     def _emit(self, rows: list, wall: np.ndarray, on_row) -> None:
         """Make the rows of the trials that have ended and have no row yet."""
-        ended = np.flatnonzero(~self.active)
-        new = [int(k) for k in ended if rows[self.index[k]] is None]
+        new = [int(k) for k in np.flatnonzero(~self.active) if rows[self.index[k]] is None]
         if not new:
             return
         self._retire(np.array(new))

@@ -32,7 +32,10 @@ if TYPE_CHECKING:
 _KERNELS = None
 if rows_step.COMPILED:  # (MuJoCo's library is loaded into LLVM's symbols by rows_step)
     from davinci_sim.devices import device_row
+    from davinci_sim.study import chunk_rows as CHUNK
     from davinci_sim.study import tick_kernel as _KERNELS
+else:
+    CHUNK = None
 
 
 def constants(batch: TrialBatch, keys) -> dict | None:
@@ -89,14 +92,7 @@ def hand_xfrc(batch: TrialBatch, K: np.ndarray, D: np.ndarray) -> np.ndarray:
     """The hands' ``xfrc_applied`` (n, 6) of :meth:`TrialBatch._hand` after the trainees'
     step (``K``, ``D`` (n,): their limbs' stiffness and damping now): the hand wrenches,
     the push and ``handle_xfrc`` in one compiled call (``device_row.hand_rows``)."""
-    c = batch._compiled
-    if "hand" not in c:  # (constants of the batch's device and console frame)
-        h = batch.impedance
-        c["hand"] = (
-            np.array([h.rotational_stiffness, h.rotational_damping, h.max_force, h.max_torque]),
-            np.array(batch.R_world_hrsv, dtype=float), np.array(batch.p_world_hrsv, dtype=float),
-        )  # fmt: skip
-    impedance, R, p = c["hand"]
+    impedance, R, p = hand_constants(batch)
     _contiguous(batch, "T_hand", "T_mtm", "twist_mtm", "xipos")
     xfrc = np.empty((batch.n, 6))
     device_row.hand_rows(
@@ -105,6 +101,19 @@ def hand_xfrc(batch: TrialBatch, K: np.ndarray, D: np.ndarray) -> np.ndarray:
         batch.xipos, xfrc,
     )  # fmt: skip
     return xfrc
+
+
+def hand_constants(batch: TrialBatch) -> tuple:
+    """The hands' constants: impedance (rotational stiffness and damping, maximum force and
+    torque), HRSV's rotation and origin in the world (kept in ``batch._compiled``)."""
+    c = batch._compiled
+    if "hand" not in c:
+        h = batch.impedance
+        c["hand"] = (
+            np.array([h.rotational_stiffness, h.rotational_damping, h.max_force, h.max_torque]),
+            np.array(batch.R_world_hrsv, dtype=float), np.array(batch.p_world_hrsv, dtype=float),
+        )  # fmt: skip
+    return c["hand"]
 
 
 def _contiguous(batch: TrialBatch, *names: str) -> None:
@@ -120,14 +129,28 @@ def tick(batch: TrialBatch, xfrc: np.ndarray) -> None:
     """``batch``'s tick after the hand in two compiled calls, the teleoperation in Python
     when a row needs it; the same laws in the same order as :meth:`TrialBatch.tick`'s numpy
     tick."""
-    c, k = batch._compiled, _KERNELS
+    if _KERNELS.teleop_rows(*teleop_args(batch)):
+        batch._teleop()
+        _contiguous(batch, "ghost", "jaw_catching_up", "jaw_sent")
+    _KERNELS.physics_rows(*physics_args(batch, np.ascontiguousarray(xfrc), with_time=True))
+    batch._contacts.measure_rows(batch.models, batch.datas, np.flatnonzero(batch.active),
+                                 batch.n_contacts, batch.contact_force)  # fmt: skip
+    batch.ticks += batch.active
+    batch.time += batch.dt
+    batch._task()
+
+
+def teleop_args(batch: TrialBatch) -> tuple:
+    """The arguments of ``tick_kernel.teleop_rows`` for ``batch`` (its arrays, written in
+    place, and new scratch rows)."""
+    c = batch._compiled
     _contiguous(batch, "T_psm", "J_psm", "T_mtm", "J_mtm", "twist_mtm", "requested",
                 "wrench_sent", "_bad_since")  # fmt: skip
     n, dof = batch.n, len(batch.psm_act)
     psm_act, psm_q, psm_tol, qmin, qmax = c["psm"]
     q_ik, ok, qd = np.empty((n, dof)), np.empty(n, dtype=bool), np.empty((n, dof))
     rate, rate_after_clutch = batch.jaw_rates
-    needs_python = k.teleop_rows(
+    return (
         batch.T_camera_psm0, batch.T_hrsv_mtm0, batch.T_mtm, batch.R_offset, float(batch.scale),
         bool(batch.use_linear), bool(batch.use_angular), batch.twist_mtm, batch.T_rcm_camera,
         batch.Q, psm_q, batch.J_psm, batch.q_ref, batch.qd_ref, psm_act,
@@ -137,31 +160,31 @@ def tick(batch: TrialBatch, xfrc: np.ndarray) -> None:
         float(batch.jaw_spec.qmin), float(batch.jaw_spec.qmax), tm.JAW_CATCH_UP_TOLERANCE,
         q_ik, ok, qd,
     )  # fmt: skip
-    if needs_python:
-        batch._teleop()
-        _contiguous(batch, "ghost", "jaw_catching_up", "jaw_sent")
+
+
+def physics_args(batch: TrialBatch, xfrc: np.ndarray, with_time: bool = False) -> tuple:
+    """The arguments of ``tick_kernel.physics_rows`` for ``batch`` and the hands'
+    ``xfrc`` (n, 6) (with the batch's time, or without it: the per-row kernels' tuple)."""
+    c = batch._compiled
     s = batch._stepper
+    psm_act, psm_q, psm_tol, qmin, qmax = c["psm"]
     mtm_q, mtm_v, mtm_act, ftmax = c["mtm"]
     qposadr, dofadr, minus_gravcomp, kp, kv = c["servo"]
     vf = batch.velocity
     qfrc_bias, qfrc_gravcomp = batch._qfrc
-    k.physics_rows(
-        s._model, s._data, s._address, batch._body, batch.active, batch.fault,
-        batch._bad_since, batch.time, psm_act, psm_q, psm_tol,
+    head = (s._model, s._data, s._address, batch._body, batch.active, batch.fault,
+            batch._bad_since)  # fmt: skip
+    return (
+        *head, *((batch.time,) if with_time else ()), psm_act, psm_q, psm_tol,
         qposadr, dofadr, minus_gravcomp, kp, kv, batch.effort_mode, batch.gravity,
         batch.Q, batch.V, qfrc_bias, qfrc_gravcomp, batch.xipos, batch.bias, batch.q_ref,
-        batch.qd_ref, batch.tau_ff, np.ascontiguousarray(xfrc),
+        batch.qd_ref, batch.tau_ff, xfrc,
         *c["psm_fk"], batch.T_camera_rcm, batch.T_psm, batch.J_psm,
         *c["mtm_fk"], batch.T_hrsv_mtmbase, mtm_q, mtm_v, batch.T_mtm, batch.J_mtm,
         batch.twist_mtm, vf._p, vf._v, vf._started, vf.dt, vf.alpha,
         batch.T_task_camera, batch._cond_index, c["B"], c["G_max"], c["transition"],
         *c["path"], batch.requested, batch.wrench_sent, *c["clamp"], mtm_act, ftmax,
     )  # fmt: skip
-    batch._contacts.measure_rows(batch.models, batch.datas, np.flatnonzero(batch.active),
-                                 batch.n_contacts, batch.contact_force)  # fmt: skip
-    batch.ticks += batch.active
-    batch.time += batch.dt
-    batch._task()
 
 
 def _warm_up() -> None:
@@ -177,17 +200,33 @@ def _warm_up() -> None:
     path = path_constants(Polyline(np.array([[0.0, 0.0, 0.0], [0.01, 0.0, 0.0]])))
     i, f, b = np.zeros(0, dtype=np.intp), np.zeros(0), np.zeros(0, dtype=bool)
     f2, f3, I4 = np.zeros((0, 6)), np.zeros((0, 4, 4)), np.eye(4)
-    _KERNELS.teleop_rows(
+    tp = (
         I4, I4, f3, np.eye(3), 1.0, True, False, f2, I4, f2, i, f3, f2, f2, i, psm.qmin,
         psm.qmax, ik.geometry, ik.tool, ik.revolute, ik.lim_lo, ik.lim_hi, *psm_fk,
         _DEFAULT_TOLERANCE, i, i, f, b, f, 1.0, 1.0, 0.001, 1.0, 0.0, 0.0, 1.0, 0.01, f2, b, f2,
     )  # fmt: skip
-    _KERNELS.physics_rows(
-        i, i, np.zeros((0, 7), dtype=np.intp), 0, b, b, f, 0.0, i, i, f, i, i, True, f, f,
-        b, b, f2, f2, f2, f2, f2, f2, f2, f2, f2, f2, *psm_fk, I4, f3, f3, *mtm_fk, I4, i, i,
-        f3, f3, f2, f2, f2, b, 0.001, 0.5, I4, i, f, f, f, *path, f2, f2, 1.0, 1.0, 1.0, 1.0,
-        i, f,
+    head = (i, i, np.zeros((0, 7), dtype=np.intp), 0, b, b, f)
+    rest = (
+        i, i, f, i, i, True, f, f, b, b, f2, f2, f2, f2, f2, f2, f2, f2, f2, f2, *psm_fk, I4, f3,
+        f3, *mtm_fk, I4, i, i, f3, f3, f2, f2, f2, b, 0.001, 0.5, I4, i, f, f, f, *path, f2, f2,
+        1.0, 1.0, 1.0, 1.0, i, f,
     )  # fmt: skip
+    _KERNELS.teleop_rows(*tp)
+    _KERNELS.physics_rows(*head, 0.0, *rest)
+    if CHUNK is not None:  # (the trainees' arrays of no rows, as SyntheticTrainee.row_args)
+        f3d, e3 = np.zeros((2, 0, 3)), np.zeros((0, 3))
+        trainee = (
+            0.001, 0.5, 0.002, 0.3, np.zeros(3), np.array([0.0, 0.01]), np.array([0.0, 0.01]),
+            np.array([0.01]), np.zeros((1, 3)), np.array([[0.01, 0.0, 0.0]]), e3, e3, False,
+            np.zeros(4), f, np.zeros((0, 2, 3)), np.zeros(0, dtype=np.int64), f, e3, f, f, f, f,
+            e3, f, e3, f, np.zeros((0, 1)), f2, np.zeros(2), e3, f, f, f, f, f3d, f3d.copy(),
+            f3d.copy(), f, e3, e3.copy(), e3.copy(),
+        )  # fmt: skip
+        hand = (f3, np.ones(4), np.eye(3), np.zeros(3), e3)
+        records = (np.zeros((1, 0, 3)), np.zeros((1, 0, 3)), np.zeros((1, 0, 3)),
+                   np.zeros((1, 0), dtype=bool))  # fmt: skip
+        CHUNK.chunk_rows(1, 0.0, 0.001, f, tp, (*head, *rest), trainee, 0, 0.001,
+                         np.zeros((0, 1, 6)), f, f, hand, i, *records)  # fmt: skip
 
 
 if not warmed_up(_warm_up, "the study's tick cannot be compiled: its numpy tick runs"):

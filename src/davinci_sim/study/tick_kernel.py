@@ -57,61 +57,98 @@ def teleop_rows(
 ):  # fmt: skip
     """The following tick of every row (module docstring); False when done, True (nothing
     written) when a row needs the Python tick."""
-    n, dof = Q.shape[0], psm_q.shape[0]
-    T_goal, seed, q1, success, status, info = ik_scratch(dof)
-    A = np.empty((dof, dof))
-    local = np.empty(6)
-    twist = np.empty(6)
-    G = np.empty((4, 4))
-    for r in range(n):
-        # --- follow_pose: p0 + s·(p_mtm − p_mtm0), R_mtm·R_offset (dvrk.md 4.2)
-        _follow_pose(T_camera_psm0, T_hrsv_mtm0, T_mtm[r], R_offset, scale, False, False, G)
-        for i in range(4):  # the goal in the RCM frame
-            for m in range(4):
-                t = 0.0
-                for h in range(4):
-                    t = t + T_rcm_camera[i, h] * G[h, m]
-                T_goal[0, i, m] = t
-        for i in range(dof):
-            seed[0, i] = Q[r, psm_q[i]]
-        # --- follow_twist, then the twist in the RCM axes (rotate_pairs)
-        _follow_twist(twist_mtm[r], scale, use_linear, use_angular, False, False, twist)
-        for h in range(2):
-            x, y, z = twist[3 * h], twist[3 * h + 1], twist[3 * h + 2]
-            for i in range(3):
-                local[3 * h + i] = (
-                    x * T_rcm_camera[i, 0] + y * T_rcm_camera[i, 1] + z * T_rcm_camera[i, 2]
-                )
-        # --- the IK and J⁻¹·twist (servo_cp's law, sim/cartesian_kernel.py)
-        if cartesian_setpoint_row(ik_geometry, ik_tool, ik_revolute, ik_lo, ik_hi, fk_links,
-                                  fk_modified, fk_tool, fk_identity, ik_tolerance, T_goal, seed,
-                                  J_psm[r], local, A, q1, success, status, info,
-                                  qd[r]) != OK:  # fmt: skip
+    tp = (
+        T_camera_psm0, T_hrsv_mtm0, T_mtm, R_offset, scale, use_linear, use_angular, twist_mtm,
+        T_rcm_camera, Q, psm_q, J_psm, q_ref, qd_ref, psm_act, qmin, qmax,
+        ik_geometry, ik_tool, ik_revolute, ik_lo, ik_hi, fk_links, fk_modified, fk_tool,
+        fk_identity, ik_tolerance,
+        gripper_q, jaw_act, ghost, catching_up, jaw_sent, rate, rate_after_clutch, dt, jaw_s,
+        jaw_o, jaw_min, jaw_max, catch_up_tolerance, q_ik, ok, qd,
+    )  # fmt: skip
+    scratch = teleop_scratch(psm_q.shape[0])
+    for r in range(Q.shape[0]):
+        if teleop_solve_row(r, tp, scratch):
             return True
-        good = success[0]
-        for i in range(dof):
-            q_ik[r, i] = q1[0, i]
-            good = good and q1[0, i] >= qmin[i] - LIMIT_SLACK and q1[0, i] <= qmax[i] + LIMIT_SLACK
-        ok[r] = good
-    for r in range(n):
-        if ok[r]:
-            for i in range(dof):
-                q_ref[r, psm_act[i]] = q_ik[r, i]
-                qd_ref[r, psm_act[i]] = qd[r, i]
-        # --- follow_jaw (dvrk.md 4.2), sent when it changes (finger_setpoints: half each)
-        gripper = Q[r, gripper_q[0]]  # (numpy's sum starts from the first element)
-        for i in range(1, gripper_q.shape[0]):
-            gripper = gripper + Q[r, gripper_q[i]]
-        ghost[r], catching_up[r], jaw = _follow_jaw(
-            ghost[r], gripper, catching_up[r], rate, rate_after_clutch, dt, jaw_s, jaw_o,
-            jaw_min, jaw_max, catch_up_tolerance,
-        )  # fmt: skip
-        if jaw != jaw_sent[r]:
-            jaw_sent[r] = jaw
-            for i in range(jaw_act.shape[0]):
-                q_ref[r, jaw_act[i]] = 0.5 * jaw
-                qd_ref[r, jaw_act[i]] = 0.0
+    for r in range(Q.shape[0]):
+        teleop_write_row(r, tp)
     return False
+
+
+@numba.njit(cache=True, nogil=True)
+def teleop_scratch(dof):
+    """The scratch arrays of :func:`teleop_solve_row` for a PSM of ``dof`` joints."""
+    T_goal, seed, q1, success, status, info = ik_scratch(dof)
+    return (T_goal, seed, q1, success, status, info, np.empty((dof, dof)), np.empty(6),
+            np.empty(6), np.empty((4, 4)))  # fmt: skip
+
+
+@numba.njit(cache=True, nogil=True)
+def teleop_solve_row(r, tp, scratch):
+    """Row ``r``'s goal, IK and feed-forward into ``q_ik[r]``, ``ok[r]``, ``qd[r]`` (``tp``:
+    :func:`teleop_rows`' arguments as a tuple): True (nothing written) when the row needs
+    the Python tick."""
+    (T_camera_psm0, T_hrsv_mtm0, T_mtm, R_offset, scale, use_linear, use_angular, twist_mtm,
+     T_rcm_camera, Q, psm_q, J_psm, _, _, _, qmin, qmax, ik_geometry, ik_tool, ik_revolute,
+     ik_lo, ik_hi, fk_links, fk_modified, fk_tool, fk_identity, ik_tolerance, _, _, _, _, _, _,
+     _, _, _, _, _, _, _, q_ik, ok, qd) = tp  # fmt: skip
+    T_goal, seed, q1, success, status, info, A, local, twist, G = scratch
+    dof = psm_q.shape[0]
+    # --- follow_pose: p0 + s·(p_mtm − p_mtm0), R_mtm·R_offset (dvrk.md 4.2)
+    _follow_pose(T_camera_psm0, T_hrsv_mtm0, T_mtm[r], R_offset, scale, False, False, G)
+    for i in range(4):  # the goal in the RCM frame
+        for m in range(4):
+            t = 0.0
+            for h in range(4):
+                t = t + T_rcm_camera[i, h] * G[h, m]
+            T_goal[0, i, m] = t
+    for i in range(dof):
+        seed[0, i] = Q[r, psm_q[i]]
+    # --- follow_twist, then the twist in the RCM axes (rotate_pairs)
+    _follow_twist(twist_mtm[r], scale, use_linear, use_angular, False, False, twist)
+    for h in range(2):
+        x, y, z = twist[3 * h], twist[3 * h + 1], twist[3 * h + 2]
+        for i in range(3):
+            local[3 * h + i] = (
+                x * T_rcm_camera[i, 0] + y * T_rcm_camera[i, 1] + z * T_rcm_camera[i, 2]
+            )
+    # --- the IK and J⁻¹·twist (servo_cp's law, sim/cartesian_kernel.py)
+    if cartesian_setpoint_row(ik_geometry, ik_tool, ik_revolute, ik_lo, ik_hi, fk_links,
+                              fk_modified, fk_tool, fk_identity, ik_tolerance, T_goal, seed,
+                              J_psm[r], local, A, q1, success, status, info,
+                              qd[r]) != OK:  # fmt: skip
+        return True
+    good = success[0]
+    for i in range(dof):
+        q_ik[r, i] = q1[0, i]
+        good = good and q1[0, i] >= qmin[i] - LIMIT_SLACK and q1[0, i] <= qmax[i] + LIMIT_SLACK
+    ok[r] = good
+    return False
+
+
+@numba.njit(cache=True, nogil=True)
+def teleop_write_row(r, tp):
+    """Row ``r``'s solved setpoints (:func:`teleop_solve_row`) into the servo's references,
+    then the jaw (``tp``: :func:`teleop_rows`' arguments as a tuple)."""
+    (_, _, _, _, _, _, _, _, _, Q, psm_q, _, q_ref, qd_ref, psm_act, _, _, _, _, _, _, _, _, _,
+     _, _, _, gripper_q, jaw_act, ghost, catching_up, jaw_sent, rate, rate_after_clutch, dt,
+     jaw_s, jaw_o, jaw_min, jaw_max, catch_up_tolerance, q_ik, ok, qd) = tp  # fmt: skip
+    if ok[r]:
+        for i in range(psm_q.shape[0]):
+            q_ref[r, psm_act[i]] = q_ik[r, i]
+            qd_ref[r, psm_act[i]] = qd[r, i]
+    # --- follow_jaw (dvrk.md 4.2), sent when it changes (finger_setpoints: half each)
+    gripper = Q[r, gripper_q[0]]  # (numpy's sum starts from the first element)
+    for i in range(1, gripper_q.shape[0]):
+        gripper = gripper + Q[r, gripper_q[i]]
+    ghost[r], catching_up[r], jaw = _follow_jaw(
+        ghost[r], gripper, catching_up[r], rate, rate_after_clutch, dt, jaw_s, jaw_o,
+        jaw_min, jaw_max, catch_up_tolerance,
+    )  # fmt: skip
+    if jaw != jaw_sent[r]:
+        jaw_sent[r] = jaw
+        for i in range(jaw_act.shape[0]):
+            q_ref[r, jaw_act[i]] = 0.5 * jaw
+            qd_ref[r, jaw_act[i]] = 0.0
 
 
 @numba.njit(cache=True, nogil=True)
@@ -131,70 +168,122 @@ def physics_rows(
     """Tracking, servo, physics, kinematics and haptics of every row (module docstring).
     ``active`` and ``fault`` (n,) are updated in place (a tracking fault ends the row's
     trial); only rows still active step."""
-    n, nu = Q.shape[0], kp.shape[0]
-    qadr, dadr, act = np.arange(Q.shape[1]), np.arange(V.shape[1]), np.arange(nu)
-    dof = psm_q.shape[0]
-    ctrl = np.empty(nu)
-    q = np.empty(dof)
-    qm = np.empty(mtm_q.shape[0])
-    qdm = np.empty(mtm_q.shape[0])
-    T = np.empty((4, 4))
-    F = np.empty((max(dof, mtm_q.shape[0]), 12))
-    cp = np.empty(8)
-    pt, vt, f = np.empty(3), np.empty(3), np.empty(3)
-    W = np.empty((n, 6))
-    R_base_hrsv = np.empty((3, 3))
+    pp = (
+        model, data, address, body, active, fault, bad_since,
+        psm_act, psm_q, tolerance, qposadr, dofadr, minus_gravcomp, kp, kv, effort, gravity,
+        Q, V, QB, QG, XI, bias, q_ref, qd_ref, tau_ff, xfrc,
+        psm_links, psm_modified, psm_tool, psm_identity, T_camera_rcm, T_psm, J_psm,
+        mtm_links, mtm_modified, mtm_tool, mtm_identity, T_hrsv_mtmbase, mtm_q, mtm_v, T_mtm,
+        J_mtm, twist_mtm,
+        vf_p, vf_v, vf_started, vf_dt, vf_alpha,
+        T_task_camera, cond, B, G_max, transition, centre, basis, AE, AA, EE, starts, edges,
+        cumulative, lengths,
+        requested, wrench_sent, max_force, max_torque, max_force_step, max_torque_step,
+        mtm_act, ftmax,
+    )  # fmt: skip
+    scratch = physics_scratch(pp)
+    n = Q.shape[0]
+    for r in range(n):  # the PSM's tracking watch first, for every row, as the numpy tick
+        tracking_row(r, t, pp)
+    for r in range(n):
+        if active[r]:
+            step_row(r, pp, scratch)
+        haptics_row(r, pp, scratch)
+
+
+@numba.njit(cache=True, nogil=True)
+def physics_scratch(pp):
+    """The scratch arrays of :func:`step_row` and :func:`haptics_row` (``pp``:
+    :func:`physics_rows`' arguments after ``t``, as a tuple)."""
+    psm_q, kp, T_hrsv_mtmbase, mtm_q, mtm_act = pp[8], pp[13], pp[38], pp[39], pp[69]
+    dof, nu = psm_q.shape[0], kp.shape[0]
+    Q, V = pp[17], pp[18]
+    R_base_hrsv = np.empty((3, 3))  # (the wrench's axes in the MTM's base)
     for i in range(3):
         for m in range(3):
             R_base_hrsv[i, m] = T_hrsv_mtmbase[m, i]
-    # --- the PSM's tracking watch (arm_laws.tracking_bad / tracking_fault): ends a trial
-    for r in range(n):
-        bad = False
-        for i in range(dof):
-            a = psm_act[i]
-            bad = bad or (abs(Q[r, psm_q[i]] - q_ref[r, a]) > tolerance[i] and not effort[a])
-        since, now = tracking_fault_scalar(bad, bad_since[r], t)
-        bad_since[r] = since
-        if now and active[r]:
-            fault[r] = True
-            active[r] = False
-    for r in range(n):
-        if active[r]:  # --- the servo, mj_step, the state read back, the bias forces
-            servo_step_row(
-                model[r], data[r], address[r], r, qadr, dadr, act, qposadr, dofadr, True,
-                minus_gravcomp, kp, kv, effort, gravity, Q, V, QB, QG, bias, q_ref, qd_ref,
-                tau_ff, ctrl, body, xfrc, XI,
-            )  # fmt: skip
-        # --- kinematics (tip_kinematics, pose_in_reference, twist_in_reference)
-        for i in range(dof):
-            q[i] = Q[r, psm_q[i]]
-        tip_pose_row(psm_links, psm_modified, psm_tool, psm_identity, q, T, J_psm[r], True, F)
-        pose_in_reference_into(T_camera_rcm, T, T_psm[r])
-        for i in range(qm.shape[0]):
-            qm[i] = Q[r, mtm_q[i]]
-            qdm[i] = V[r, mtm_v[i]]
-        tip_pose_row(mtm_links, mtm_modified, mtm_tool, mtm_identity, qm, T, J_mtm[r], True, F)
-        pose_in_reference_into(T_hrsv_mtmbase, T, T_mtm[r])
-        _twist(T_hrsv_mtmbase[:3, :3], J_mtm[r], qdm, twist_mtm[r])
-        # --- the velocity filter and the fixture in the task's frame (FixtureField of the
-        # viscous law: haptics/fixture_row.py, the live haptic loop's row)
-        k = cond[r]
-        viscous_fixture_row(
-            T_task_camera, T_psm[r, :3, 3], vf_p[r], vf_v[r], vf_started[r], vf_dt, vf_alpha,
-            centre, basis, AE, AA, EE, starts, edges, cumulative, lengths,
-            B[k], G_max[k], transition[k], True, cp, pt, vt, f, requested[r],
-        )  # fmt: skip
-        vf_started[r] = True
-        for i in range(3):
-            W[r, i] = requested[r, i]
-            W[r, 3 + i] = 0.0
-    # --- the safety clamp (clamp_wrenches), then Jᵀw on the MTM (wrench_effort)
-    out = np.empty((n, 6))
-    _clamp(W, wrench_sent, max_force, max_torque, max_force_step, max_torque_step, out)
-    tau = np.empty(mtm_act.shape[0])
-    for r in range(n):
-        for i in range(6):
-            wrench_sent[r, i] = out[r, i]
-        _effort(J_mtm[r], R_base_hrsv, wrench_sent[r], ftmax, tau)
-        for i in range(mtm_act.shape[0]):
-            tau_ff[r, mtm_act[i]] = tau[i]
+    return (np.arange(Q.shape[1]), np.arange(V.shape[1]), np.arange(nu), np.empty(nu),
+            np.empty(dof), np.empty(mtm_q.shape[0]), np.empty(mtm_q.shape[0]), np.empty((4, 4)),
+            np.empty((max(dof, mtm_q.shape[0]), 12)), np.empty(8), np.empty(3), np.empty(3),
+            np.empty(3), np.empty((1, 6)), np.empty((1, 6)), R_base_hrsv,
+            np.empty(mtm_act.shape[0]))  # fmt: skip
+
+
+@numba.njit(cache=True, nogil=True)
+def tracking_row(r, t, pp):
+    """The PSM's tracking watch of row ``r`` at ``t`` s (``arm_laws.tracking_bad`` /
+    ``tracking_fault``): a fault ends the row's trial (``active``, ``fault``)."""
+    active, fault, bad_since, psm_act, psm_q, tolerance, effort = (
+        pp[4],
+        pp[5],
+        pp[6],
+        pp[7],
+        pp[8],
+        pp[9],
+        pp[15],
+    )
+    Q, q_ref = pp[17], pp[23]
+    bad = False
+    for i in range(psm_q.shape[0]):
+        a = psm_act[i]
+        bad = bad or (abs(Q[r, psm_q[i]] - q_ref[r, a]) > tolerance[i] and not effort[a])
+    since, now = tracking_fault_scalar(bad, bad_since[r], t)
+    bad_since[r] = since
+    if now and active[r]:
+        fault[r] = True
+        active[r] = False
+
+
+@numba.njit(cache=True, nogil=True)
+def step_row(r, pp, scratch):
+    """Row ``r``'s servo, ``mj_step``, state read back and bias forces."""
+    (model, data, address, body, _, _, _, _, _, _, qposadr, dofadr, minus_gravcomp, kp, kv,
+     effort, gravity, Q, V, QB, QG, XI, bias, q_ref, qd_ref, tau_ff, xfrc) = pp[:27]  # fmt: skip
+    qadr, dadr, act, ctrl = scratch[0], scratch[1], scratch[2], scratch[3]
+    servo_step_row(
+        model[r], data[r], address[r], r, qadr, dadr, act, qposadr, dofadr, True,
+        minus_gravcomp, kp, kv, effort, gravity, Q, V, QB, QG, bias, q_ref, qd_ref,
+        tau_ff, ctrl, body, xfrc, XI,
+    )  # fmt: skip
+
+
+@numba.njit(cache=True, nogil=True)
+def haptics_row(r, pp, scratch):
+    """Row ``r``'s kinematics (``tip_kinematics``, ``pose_in_reference``,
+    ``twist_in_reference``), velocity filter and fixture in the task's frame (the live
+    haptic loop's row, ``haptics/fixture_row.py``), the safety clamp (``clamp_wrenches``)
+    and Jᵀw on the MTM (``wrench_effort``): elementwise, as the batch laws."""
+    (psm_q, Q, V, tau_ff, psm_links, psm_modified, psm_tool, psm_identity, T_camera_rcm, T_psm,
+     J_psm, mtm_links, mtm_modified, mtm_tool, mtm_identity, T_hrsv_mtmbase, mtm_q, mtm_v,
+     T_mtm, J_mtm, twist_mtm, vf_p, vf_v, vf_started, vf_dt, vf_alpha, T_task_camera, cond, B,
+     G_max, transition, centre, basis, AE, AA, EE, starts, edges, cumulative, lengths,
+     requested, wrench_sent, max_force, max_torque, max_force_step, max_torque_step, mtm_act,
+     ftmax) = (pp[8], pp[17], pp[18], pp[25], *pp[27:])  # fmt: skip
+    _, _, _, _, q, qm, qdm, T, F, cp, pt, vt, f, W, out, R_base_hrsv, tau = scratch
+    for i in range(psm_q.shape[0]):
+        q[i] = Q[r, psm_q[i]]
+    tip_pose_row(psm_links, psm_modified, psm_tool, psm_identity, q, T, J_psm[r], True, F)
+    pose_in_reference_into(T_camera_rcm, T, T_psm[r])
+    for i in range(qm.shape[0]):
+        qm[i] = Q[r, mtm_q[i]]
+        qdm[i] = V[r, mtm_v[i]]
+    tip_pose_row(mtm_links, mtm_modified, mtm_tool, mtm_identity, qm, T, J_mtm[r], True, F)
+    pose_in_reference_into(T_hrsv_mtmbase, T, T_mtm[r])
+    _twist(T_hrsv_mtmbase[:3, :3], J_mtm[r], qdm, twist_mtm[r])
+    k = cond[r]
+    viscous_fixture_row(
+        T_task_camera, T_psm[r, :3, 3], vf_p[r], vf_v[r], vf_started[r], vf_dt, vf_alpha,
+        centre, basis, AE, AA, EE, starts, edges, cumulative, lengths,
+        B[k], G_max[k], transition[k], True, cp, pt, vt, f, requested[r],
+    )  # fmt: skip
+    vf_started[r] = True
+    for i in range(3):
+        W[0, i] = requested[r, i]
+        W[0, 3 + i] = 0.0
+    _clamp(W, wrench_sent[r : r + 1], max_force, max_torque, max_force_step, max_torque_step,
+           out)  # fmt: skip
+    for i in range(6):
+        wrench_sent[r, i] = out[0, i]
+    _effort(J_mtm[r], R_base_hrsv, wrench_sent[r], ftmax, tau)
+    for i in range(mtm_act.shape[0]):
+        tau_ff[r, mtm_act[i]] = tau[i]
