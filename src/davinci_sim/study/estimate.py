@@ -80,23 +80,28 @@ def planned_durations(specs: list[TrialSpec]) -> np.ndarray:
     return np.minimum(t, [s.timeout for s in specs])
 
 
-def _mean_time(tick, ticks: int) -> float:
-    """Mean wall time of ``tick()``, s, over at least ``ticks`` calls and
-    :data:`CALIBRATION_S` (the mean, not the median: waiting for the core is part of it)."""
+def _mean_time(step, ticks: int) -> float:
+    """Mean wall time of a tick, s, ``step()`` running one (returning None) or several
+    (returning how many), over at least ``ticks`` ticks and :data:`CALIBRATION_S` (the
+    mean, not the median: waiting for the core is part of it)."""
     for _ in range(3):
-        tick()
+        step()
     n, t0 = 0, time.perf_counter()
     while n < ticks or time.perf_counter() - t0 < CALIBRATION_S:
-        tick()
-        n += 1
+        n += step() or 1
     return (time.perf_counter() - t0) / n
 
 
 def _tick_cost(specs: list[TrialSpec], ticks: int) -> float:
-    """Wall time of one tick of a batch of ``specs``, s."""
+    """Wall time of one tick of a batch of ``specs`` as the study runs it (a chunk of
+    ticks at a time where it can), s."""
+    from davinci_sim.study import batch_chunk
     from davinci_sim.study.batch import TrialBatch
 
-    return _mean_time(TrialBatch(specs).tick, ticks)
+    batch = TrialBatch(specs)
+    if batch_chunk.can_chunk(batch):
+        return _mean_time(lambda: batch_chunk.advance(batch), ticks)
+    return _mean_time(batch.tick, ticks)
 
 
 def _live_tick_cost(specs: list[TrialSpec], ticks: int) -> float:
