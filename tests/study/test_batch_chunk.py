@@ -35,7 +35,19 @@ def assert_same_batches(a: TrialBatch, b: TrialBatch, where: str) -> None:
     assert_same_bits(a.metrics.result(), b.metrics.result(), f"{where}: metrics")
 
 
-def test_chunks_are_the_ticks_bit_for_bit(short_task):
+@pytest.mark.parametrize("compiled_task", [True, False], ids=["task compiled", "task Python"])
+def test_chunks_are_the_ticks_bit_for_bit(short_task, monkeypatch, compiled_task):
+    """After every chunk the state equals the ticks', the task's samples run by its
+    compiled call (``chunk_rows.task_rows``) or by ``advance`` tick by tick."""
+    chosen = batch_chunk._tasks_python if compiled_task else batch_chunk._tasks_compiled
+
+    def unexpected(*args):
+        raise AssertionError(f"{chosen.__name__} ran")
+
+    if not compiled_task:
+        monkeypatch.setattr(batch_chunk, "_tasks_compiled", lambda *args: False)
+    else:
+        monkeypatch.setattr(batch_chunk, "_tasks_python", unexpected)
     chunked, ticked = TrialBatch(_specs(short_task)), TrialBatch(_specs(short_task))
     try:
         assert batch_chunk.can_chunk(chunked)
@@ -118,3 +130,4 @@ def test_the_chunk_compiles_one_signature(short_task):
     finally:
         batch._setup.sim.close()
     assert len(batch_compiled.CHUNK.chunk_rows.signatures) == 1
+    assert len(batch_compiled.CHUNK.task_rows.signatures) == 1

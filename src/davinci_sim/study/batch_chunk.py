@@ -15,6 +15,7 @@ tick, and that tick runs as :meth:`TrialBatch.tick`.
 
 from __future__ import annotations
 
+import math
 from typing import TYPE_CHECKING
 
 import mujoco
@@ -25,7 +26,8 @@ from davinci_sim.model.cameras import in_left_image
 from davinci_sim.operators.trainee import owned
 from davinci_sim.sim.live_period import contact_count_address
 from davinci_sim.study import batch_compiled
-from davinci_sim.tasks import Phase, Sample
+from davinci_sim.tasks import Phase, Sample, path_row
+from davinci_sim.tasks.metrics_one import running
 from davinci_sim.tasks.state import advance as advance_task
 
 if TYPE_CHECKING:
@@ -110,6 +112,58 @@ def _tasks(batch: TrialBatch, K: int, fault0, tip, force, master, alive) -> None
     T = batch.T_task_camera
     counted = np.zeros(batch.n, dtype=np.int64)
     ended = np.zeros(batch.n, dtype=bool)
+    if not _tasks_compiled(batch, K, tip, force, master, alive, counted, ended):
+        _tasks_python(batch, K, T, tip, force, master, alive, counted, ended)
+    batch.ticks += counted
+    # A trial that its task ended keeps no fault from the ticks the chunk ran after it.
+    batch.fault[ended & ~fault0] = False
+    batch.active &= ~ended
+
+
+def _tasks_compiled(batch: TrialBatch, K: int, tip, force, master, alive, counted,
+                    ended) -> bool:  # fmt: skip
+    """:func:`_tasks_python` in one compiled call (``chunk_rows.task_rows``) for a path
+    task scoring its own declaration; False (nothing done) for any other."""
+    from davinci_sim.tasks.task import PathTask
+
+    metrics, task, n = batch.metrics, batch.task, batch.n
+    if not path_row.COMPILED or type(task) is not PathTask or not metrics.floats:
+        return False
+    constants = path_row._constants(task)
+    prev = metrics._prev
+    fields = ("time", "tip", "force", "clutch", "visible", "master", "contacts", "tool_force")
+    if constants is None or (prev is not None and any(getattr(prev, k) is None for k in fields)):
+        return False
+    if prev is None:
+        kept = (np.empty(n), np.empty((n, 3)), np.empty((n, 3)), np.empty(n, dtype=bool),
+                np.empty(n, dtype=bool), np.empty((n, 3)), np.empty(n, dtype=np.int64),
+                np.empty(n))  # fmt: skip
+    else:
+        kept = tuple(np.array(getattr(prev, k)) for k in fields)
+    camera = batch.camera
+    focal = 0.5 * camera.height / math.tan(math.radians(camera.fovy_deg) / 2.0)
+    state = path_row.next_state(batch.state)
+    sample = (np.empty(n), np.empty((n, 3)), np.empty(n, dtype=bool), np.empty(n, dtype=bool))
+    prev_in = metrics._prev_in.copy()
+    batch.time = batch_compiled.CHUNK.task_rows(
+        K, float(batch.time), float(batch.dt), np.ascontiguousarray(batch.t_end, dtype=float),
+        np.ascontiguousarray(batch.T_task_camera, dtype=float),
+        np.array([focal, camera.baseline_m / 2.0, float(camera.width), float(camera.height)]),
+        constants, prev is not None, tuple(state), tip, force, master, alive,
+        np.ascontiguousarray(batch.n_contacts, dtype=np.int64),
+        np.ascontiguousarray(batch.contact_force, dtype=float), kept, running(metrics), prev_in,
+        ended, counted, sample,
+    )  # fmt: skip
+    batch.state = state
+    metrics._prev = Sample(*kept[:4], visible=kept[4], master=kept[5], contacts=kept[6],
+                           tool_force=kept[7])  # fmt: skip
+    metrics._prev_in = prev_in
+    return True
+
+
+def _tasks_python(batch: TrialBatch, K: int, T, tip, force, master, alive, counted,
+                  ended) -> None:  # fmt: skip
+    """The task on each tick's sample through :func:`~davinci_sim.tasks.state.advance`."""
     for j in range(K):
         batch.time += batch.dt
         mask = alive[j] & ~ended  # (the trials this tick ran, as the tick's active rows)
@@ -123,10 +177,6 @@ def _tasks(batch: TrialBatch, K: int, fault0, tip, force, master, alive) -> None
         batch.state, _ = advance_task(batch.task, batch.state, batch.metrics, sample, mask)
         done = (batch.state.phase >= Phase.FINISHED) | (batch.time >= batch.t_end - 1e-9)
         ended |= done & mask
-    batch.ticks += counted
-    # A trial that its task ended keeps no fault from the ticks the chunk ran after it.
-    batch.fault[ended & ~fault0] = False
-    batch.active &= ~ended
 
 
 def _save(batch: TrialBatch) -> dict:

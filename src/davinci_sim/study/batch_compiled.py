@@ -227,6 +227,31 @@ def _warm_up() -> None:
                    np.zeros((1, 0), dtype=bool))  # fmt: skip
         CHUNK.chunk_rows(1, 0.0, 0.001, f, tp, (*head, *rest), trainee, 0, 0.001,
                          np.zeros((0, 1, 6)), f, f, hand, i, *records)  # fmt: skip
+        _warm_up_task()
+
+
+def _warm_up_task() -> None:
+    """``chunk_rows.task_rows`` on no ticks of one trial of the seed's task: the types
+    ``batch_chunk`` calls it with."""
+    from davinci_sim.tasks import load_task, path_row
+    from davinci_sim.tasks.metrics_one import running
+    from davinci_sim.tasks.state import TaskMonitor
+
+    task = load_task("seed_path")
+    constants = path_row._constants(task)
+    if not path_row.COMPILED or constants is None:
+        return
+    monitor = TaskMonitor(task, 1)
+    f1, v3, b1 = np.zeros(1), np.zeros((1, 3)), np.zeros(1, dtype=bool)
+    kept = (f1, v3, v3.copy(), b1, b1.copy(), v3.copy(), np.zeros(1, dtype=np.int64), f1.copy())
+    records = np.zeros((0, 1, 3))
+    CHUNK.task_rows(
+        0, 0.0, 0.001, f1, np.eye(4), np.ones(4), constants, False,
+        tuple(path_row.next_state(monitor.state)), records, records, records,
+        np.zeros((0, 1), dtype=bool), np.zeros(1, dtype=np.int64), f1, kept,
+        running(monitor.metrics), monitor.metrics._prev_in.copy(), b1.copy(),
+        np.zeros(1, dtype=np.int64), (f1.copy(), v3.copy(), b1.copy(), b1.copy()),
+    )  # fmt: skip
 
 
 if not warmed_up(_warm_up, "the study's tick cannot be compiled: its numpy tick runs"):

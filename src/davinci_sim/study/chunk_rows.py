@@ -37,6 +37,8 @@ from davinci_sim.study.tick_kernel import (
     teleop_write_row,
     tracking_row,
 )
+from davinci_sim.tasks.path_row import path_tick_rows
+from davinci_sim.tasks.state import _FINISHED as FINISHED
 
 _hand = _hand_rows.dispatcher
 
@@ -124,3 +126,80 @@ def chunk_rows(K, t0, dt, t_end, tp, pp, tr_args, k0, tr_dt, white, stiffness, d
             if t >= t_end[r] - 1e-9:  # (its time is up: the task ends it at this tick)
                 break
     return -1, K
+
+
+@numba.njit(cache=True, nogil=True)
+def task_rows(
+    K, t, dt, t_end, T_task_camera, camera, constants, has_prev, state, tip, force, master,
+    alive, contacts, tool_force, prev, running, prev_in, ended, counted, sample,
+):  # fmt: skip
+    """The task on a chunk's K recorded ticks, in order, as ``TrialBatch._task`` and
+    :func:`~davinci_sim.tasks.state.advance` run it on each tick's sample: the tip into the
+    task's frame (``rotate_rows``, then the translation), whether the left image shows it
+    (``in_left_image``; ``camera``: focal length px, half baseline m, width, height), then
+    :func:`~davinci_sim.tasks.path_row.path_tick_rows` on the rows the tick ran (``alive``)
+    and the task has not ended, the previous sample as ``update_previous`` keeps it, and
+    the trials' ends (finished, or their time up).
+
+    ``t``: the batch's time before the chunk, s; ``constants``: the path task's
+    (``path_row._constants``); ``has_prev``: whether the metrics have a previous sample
+    (else the first sample is its own); ``state``: phase, start, finish, progress, (n,);
+    ``prev``, ``running``: the previous sample's fields (time, tip, force, clutch, visible,
+    master, contacts, tool force) and the metrics' running arrays, updated in place;
+    ``ended``, ``counted`` (n,): the trials this chunk ended, and the ticks each ran;
+    ``sample``: scratch for one tick's (time, tip, clutch, visible) (n,), (n, 3), (n,), (n,).
+    Returns the batch's time after the K ticks."""
+    f, half_baseline, width, height = camera[0], camera[1], camera[2], camera[3]
+    phase, t_start, t_finish, progress = state
+    p_time, p_tip, p_force, p_clutch, p_visible, p_master, p_contacts, p_tool = prev
+    s_time, s_tip, s_clutch, s_visible = sample
+    n = phase.shape[0]
+    mask = np.empty(n, dtype=np.bool_)
+    closest = np.empty((n, 8))
+    measured = np.empty(n, dtype=np.bool_)
+    R = T_task_camera
+    for j in range(K):
+        t = t + dt
+        for r in range(n):
+            mask[r] = alive[j, r] and not ended[r]
+            if mask[r]:
+                counted[r] += 1
+            x, y, z = tip[j, r, 0], tip[j, r, 1], tip[j, r, 2]
+            for i in range(3):
+                s_tip[r, i] = (x * R[i, 0] + y * R[i, 1]) + z * R[i, 2] + R[i, 3]
+            s_time[r] = t
+            s_clutch[r] = False
+            front = z > 1e-6
+            zs = z if front else 1.0
+            u = width / 2.0 - f * (x - half_baseline) / zs
+            v = height / 2.0 - f * y / zs
+            s_visible[r] = front and u >= 0 and u < width and v >= 0 and v < height
+        first = j == 0 and not has_prev
+        if first:  # (no previous sample yet: this one is its own)
+            _keep(n, None, s_time, s_tip, force[j], s_clutch, s_visible, master[j], contacts,
+                  tool_force, prev)  # fmt: skip
+        path_tick_rows(
+            *constants, mask, phase, t_start, t_finish, progress, s_time, s_tip, force[j],
+            s_clutch, True, contacts, True, tool_force, True, s_visible, True, master[j],
+            p_time, p_tip, p_clutch, p_contacts, *running, prev_in, closest, measured,
+        )  # fmt: skip
+        if not first:  # (update_previous: the measured rows' sample; else kept)
+            _keep(n, measured, s_time, s_tip, force[j], s_clutch, s_visible, master[j],
+                  contacts, tool_force, prev)  # fmt: skip
+        for r in range(n):
+            prev_in[r] = measured[r]
+            if mask[r] and (phase[r] >= FINISHED or t >= t_end[r] - 1e-9):
+                ended[r] = True
+    return t
+
+
+@numba.njit(cache=True, nogil=True)
+def _keep(n, rows, time, tip, force, clutch, visible, master, contacts, tool_force, prev):
+    """The sample's fields into ``prev``'s, for ``rows`` (n,) (None: every row)."""
+    p_time, p_tip, p_force, p_clutch, p_visible, p_master, p_contacts, p_tool = prev
+    for r in range(n):
+        if rows is None or rows[r]:
+            p_time[r], p_clutch[r], p_visible[r] = time[r], clutch[r], visible[r]
+            p_contacts[r], p_tool[r] = contacts[r], tool_force[r]
+            for i in range(3):
+                p_tip[r, i], p_force[r, i], p_master[r, i] = tip[r, i], force[r, i], master[r, i]
