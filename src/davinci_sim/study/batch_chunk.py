@@ -49,12 +49,14 @@ _TRAINEE = ("co_contraction", "_obs", "t_reach", "reach_from", "reach_time", "t_
 
 def can_chunk(batch: TrialBatch) -> bool:
     """Whether :func:`advance` can run ``batch``: its tick is compiled, numba has the chunk
-    and no trial has contacts to measure."""
+    and no trial has contacts (measured, or in its last step: a scene whose objects rest in
+    contact ticks one tick at a time rather than stopping every chunk at its first tick)."""
     return (
         batch_compiled.CHUNK is not None
         and batch._compiled is not None
         and not batch.n_contacts.any()
         and batch.trainee.dt == batch.dt
+        and not any(batch.datas[i].ncon for i in np.flatnonzero(batch.active).tolist())
     )
 
 
