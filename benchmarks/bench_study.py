@@ -2,7 +2,8 @@
 wall time against the ≤ 30 s target (issue 20; ≤ 60 s in issue 9) and against its trials'
 bare ``mj_step`` time shared by the workers; the per-tick cost of a batch (200 trials, and
 50: the per-trial-tick cost, measurable while the machine is otherwise busy) over as many
-bare ``mj_step`` calls.
+bare ``mj_step`` calls, one tick at a time and a chunk of ticks at a time (``_chunked_``:
+how the study runs, each trial's ticks in a row).
 
 ``python benchmarks/bench_study.py`` writes ``results/study.json``; ``--output DIR`` also
 keeps the study's outputs (CSV, figures, report) in DIR. ``--retention N`` (and
@@ -28,7 +29,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 import davinci_sim  # noqa: E402, F401  (sets MUJOCO_GL)
 from common import write  # noqa: E402
-from davinci_sim.study import StudyConfig, run_study, write_outputs  # noqa: E402
+from davinci_sim.study import StudyConfig, batch_chunk, run_study, write_outputs  # noqa: E402
 from davinci_sim.study.batch import TrialBatch  # noqa: E402
 from davinci_sim.study.config import plan_trials  # noqa: E402
 
@@ -49,11 +50,23 @@ def tick_cost(step_us: float, n: int = 200, ticks: int = 500) -> dict:
     per_tick = wall / ticks * 1e6
     compiled = batch._compiled is not None
     batch._setup.sim.close()
+    # The same ticks a chunk at a time (how the study runs them: each trial's ticks in a
+    # row, its data warm in the caches), from the same state.
+    batch = TrialBatch(specs)
+    for _ in range(50):
+        batch.tick()
+    done, t0 = 0, time.perf_counter()
+    while done < ticks:
+        done += batch_chunk.advance(batch, min(batch_chunk.CHUNK_TICKS, ticks - done))
+    chunked = (time.perf_counter() - t0) / done * 1e6
+    batch._setup.sim.close()
     return {
         f"batch_n{n}_tick_us": per_tick,
         f"batch_n{n}_trial_tick_us": per_tick / n,
         f"batch_n{n}_tick_over_mj_step": per_tick / (n * step_us),
         f"batch_n{n}_compiled_tick": compiled,
+        f"batch_n{n}_chunked_trial_tick_us": chunked / n,
+        f"batch_n{n}_chunked_over_mj_step": chunked / (n * step_us),
     }
 
 
