@@ -57,6 +57,7 @@ def can_chunk(batch: TrialBatch) -> bool:
         and not batch.n_contacts.any()
         and batch.trainee.dt == batch.dt
         and not any(batch.datas[i].ncon for i in np.flatnonzero(batch.active).tolist())
+        and _ncon_addresses(batch) is not None
     )
 
 
@@ -90,8 +91,7 @@ def _chunk(batch: TrialBatch, K: int, white: np.ndarray) -> tuple[int, tuple]:
     Y, F = np.empty((n, 3)), np.empty((n, 3))
     feel = tr.mechanisms.stiffening_gain > 0
     tr_args = tr.row_args(Y, F, feel, np.zeros((n, 6)))
-    batch_compiled.hand_constants(batch)
-    impedance, R, p = batch._compiled["hand"]
+    impedance, R, p = batch_compiled.hand_constants(batch)
     hand = (batch.T_hand, impedance, R, p, batch.xipos)
     xfrc = np.empty((n, 6))
     tip, force, master = np.empty((K, n, 3)), np.empty((K, n, 3)), np.empty((K, n, 3))
@@ -219,15 +219,16 @@ def _restore(batch: TrialBatch, saved: dict) -> None:
         mujoco.mj_setState(batch.models[i], batch.datas[i], state, _STATE_SPEC)
 
 
-def _ncon_addresses(batch: TrialBatch) -> np.ndarray:
-    """The address of each trial's contact count (cached by the data it belongs to)."""
+def _ncon_addresses(batch: TrialBatch) -> np.ndarray | None:
+    """The address of each trial's contact count (cached by the data it belongs to), or
+    None where MuJoCo's ``mjData`` layout is not the one known (no chunks then)."""
     cache = batch.__dict__.setdefault("_ncon_cache", {})
     out = np.empty(batch.n, dtype=np.intp)
     for i, d in enumerate(batch.datas):
-        a = cache.get(id(d))
+        if id(d) not in cache:
+            cache[id(d)] = contact_count_address(d)
+        a = cache[id(d)]
         if a is None:
-            a = cache[id(d)] = contact_count_address(d)
-            if a is None:
-                raise RuntimeError("this MuJoCo's mjData layout has no known contact count")
+            return None
         out[i] = a
     return out
