@@ -164,7 +164,8 @@ def teleop_args(batch: TrialBatch) -> tuple:
 
 def physics_args(batch: TrialBatch, xfrc: np.ndarray, with_time: bool = False) -> tuple:
     """The arguments of ``tick_kernel.physics_rows`` for ``batch`` and the hands'
-    ``xfrc`` (n, 6) (with the batch's time, or without it: the per-row kernels' tuple)."""
+    ``xfrc`` (n, 6): with the batch's time first, or without it (``PHYSICS_ARGS``, the
+    per-row kernels' tuple)."""
     c = batch._compiled
     s = batch._stepper
     psm_act, psm_q, psm_tol, qmin, qmax = c["psm"]
@@ -172,10 +173,9 @@ def physics_args(batch: TrialBatch, xfrc: np.ndarray, with_time: bool = False) -
     qposadr, dofadr, minus_gravcomp, kp, kv = c["servo"]
     vf = batch.velocity
     qfrc_bias, qfrc_gravcomp = batch._qfrc
-    head = (s._model, s._data, s._address, batch._body, batch.active, batch.fault,
-            batch._bad_since)  # fmt: skip
     return (
-        *head, *((batch.time,) if with_time else ()), psm_act, psm_q, psm_tol,
+        *((batch.time,) if with_time else ()), s._model, s._data, s._address, batch._body,
+        batch.active, batch.fault, batch._bad_since, psm_act, psm_q, psm_tol,
         qposadr, dofadr, minus_gravcomp, kp, kv, batch.effort_mode, batch.gravity,
         batch.Q, batch.V, qfrc_bias, qfrc_gravcomp, batch.xipos, batch.bias, batch.q_ref,
         batch.qd_ref, batch.tau_ff, xfrc,
@@ -212,7 +212,7 @@ def _warm_up() -> None:
         1.0, 1.0, 1.0, 1.0, i, f,
     )  # fmt: skip
     _KERNELS.teleop_rows(*tp)
-    _KERNELS.physics_rows(*head, 0.0, *rest)
+    _KERNELS.physics_rows(0.0, *head, *rest)
     if CHUNK is not None:  # (the trainees' arrays of no rows, as SyntheticTrainee.row_args)
         f3d, e3 = np.zeros((2, 0, 3)), np.zeros((0, 3))
         trainee = (

@@ -51,10 +51,10 @@ def chunk_rows(K, t0, dt, t_end, tp, pp, tr_args, k0, tr_dt, white, stiffness, d
     fault (``active``, ``fault`` in ``pp``).
 
     ``tp``, ``pp``: the tick's teleoperation and physics arguments
-    (:func:`~davinci_sim.study.tick_kernel.teleop_rows`' and ``physics_rows``' after its
-    time); ``tr_args``: the trainees' (:data:`~davinci_sim.operators.trainee_row.ARGS`, the
-    seen tips and felt forces there written here each tick), at step ``k0`` (steps of
-    ``tr_dt`` s), ``white`` (n, ≥ K, 6) their normals from this chunk's first step;
+    (:data:`~davinci_sim.study.tick_kernel.TELEOP_ARGS`, ``PHYSICS_ARGS``); ``tr_args``:
+    the trainees' (:data:`~davinci_sim.operators.trainee_row.ARGS`, the seen tips and felt
+    forces there written here each tick), at step ``k0`` (steps of ``tr_dt`` s), ``white``
+    (n, ≥ K, 6) their normals from this chunk's first step;
     ``stiffness``, ``damping`` (n,) the limbs' relaxed values; ``hand``: the hands' targets
     (n, 4, 4), impedance (4,), HRSV in the world (3, 3), (3,) and the handle bodies' centres
     (n, 3). ``ncon_at`` (n,): the address of each row's contact count.

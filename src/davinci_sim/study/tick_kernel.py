@@ -46,25 +46,41 @@ _twist = twist_row.dispatcher
 _effort = wrench_effort_row.dispatcher
 
 
+#: :func:`teleop_rows`' arguments (``tp``), in order: the anchors, the MTM's pose and
+#: twist, the scale and the twist's parts; the RCM in the camera, the joints, the PSM's
+#: Jacobian and the servo's references; the IK's and FK's constants; the jaw's mapping and
+#: state; scratch rows for the IK's answers.
+TELEOP_ARGS = (
+    "T_camera_psm0", "T_hrsv_mtm0", "T_mtm", "R_offset", "scale", "use_linear", "use_angular",
+    "twist_mtm", "T_rcm_camera", "Q", "psm_q", "J_psm", "q_ref", "qd_ref", "psm_act", "qmin",
+    "qmax", "ik_geometry", "ik_tool", "ik_revolute", "ik_lo", "ik_hi", "fk_links",
+    "fk_modified", "fk_tool", "fk_identity", "ik_tolerance", "gripper_q", "jaw_act", "ghost",
+    "catching_up", "jaw_sent", "rate", "rate_after_clutch", "dt", "jaw_s", "jaw_o", "jaw_min",
+    "jaw_max", "catch_up_tolerance", "q_ik", "ok", "qd",
+)  # fmt: skip
+
+#: :func:`physics_rows`' arguments after its time (``pp``), in order: the simulations
+#: (``rows_step``'s pointers), the trials' state, the tracking watch and the servo, the
+#: rows' state, both arms' kinematics, the velocity filter, the fixture and its path, the
+#: clamp and Jᵀw.
+PHYSICS_ARGS = (
+    "model", "data", "address", "body", "active", "fault", "bad_since", "psm_act", "psm_q",
+    "tolerance", "qposadr", "dofadr", "minus_gravcomp", "kp", "kv", "effort", "gravity", "Q",
+    "V", "QB", "QG", "XI", "bias", "q_ref", "qd_ref", "tau_ff", "xfrc", "psm_links",
+    "psm_modified", "psm_tool", "psm_identity", "T_camera_rcm", "T_psm", "J_psm", "mtm_links",
+    "mtm_modified", "mtm_tool", "mtm_identity", "T_hrsv_mtmbase", "mtm_q", "mtm_v", "T_mtm",
+    "J_mtm", "twist_mtm", "vf_p", "vf_v", "vf_started", "vf_dt", "vf_alpha", "T_task_camera",
+    "cond", "B", "G_max", "transition", "centre", "basis", "AE", "AA", "EE", "starts", "edges",
+    "cumulative", "lengths", "requested", "wrench_sent", "max_force", "max_torque",
+    "max_force_step", "max_torque_step", "mtm_act", "ftmax",
+)  # fmt: skip
+
+
 @numba.njit(cache=True, nogil=True)
-def teleop_rows(
-    T_camera_psm0, T_hrsv_mtm0, T_mtm, R_offset, scale, use_linear, use_angular, twist_mtm,
-    T_rcm_camera, Q, psm_q, J_psm, q_ref, qd_ref, psm_act, qmin, qmax,
-    ik_geometry, ik_tool, ik_revolute, ik_lo, ik_hi, fk_links, fk_modified, fk_tool,
-    fk_identity, ik_tolerance,
-    gripper_q, jaw_act, ghost, catching_up, jaw_sent, rate, rate_after_clutch, dt, jaw_s,
-    jaw_o, jaw_min, jaw_max, catch_up_tolerance, q_ik, ok, qd,
-):  # fmt: skip
+def teleop_rows(*tp):
     """The following tick of every row (module docstring); False when done, True (nothing
-    written) when a row needs the Python tick."""
-    tp = (
-        T_camera_psm0, T_hrsv_mtm0, T_mtm, R_offset, scale, use_linear, use_angular, twist_mtm,
-        T_rcm_camera, Q, psm_q, J_psm, q_ref, qd_ref, psm_act, qmin, qmax,
-        ik_geometry, ik_tool, ik_revolute, ik_lo, ik_hi, fk_links, fk_modified, fk_tool,
-        fk_identity, ik_tolerance,
-        gripper_q, jaw_act, ghost, catching_up, jaw_sent, rate, rate_after_clutch, dt, jaw_s,
-        jaw_o, jaw_min, jaw_max, catch_up_tolerance, q_ik, ok, qd,
-    )  # fmt: skip
+    written) when a row needs the Python tick. ``tp``: :data:`TELEOP_ARGS`."""
+    Q, psm_q = tp[9], tp[10]
     scratch = teleop_scratch(psm_q.shape[0])
     for r in range(Q.shape[0]):
         if teleop_solve_row(r, tp, scratch):
@@ -85,7 +101,7 @@ def teleop_scratch(dof):
 @numba.njit(cache=True, nogil=True)
 def teleop_solve_row(r, tp, scratch):
     """Row ``r``'s goal, IK and feed-forward into ``q_ik[r]``, ``ok[r]``, ``qd[r]`` (``tp``:
-    :func:`teleop_rows`' arguments as a tuple): True (nothing written) when the row needs
+    :data:`TELEOP_ARGS`): True (nothing written) when the row needs
     the Python tick."""
     (T_camera_psm0, T_hrsv_mtm0, T_mtm, R_offset, scale, use_linear, use_angular, twist_mtm,
      T_rcm_camera, Q, psm_q, J_psm, _, _, _, qmin, qmax, ik_geometry, ik_tool, ik_revolute,
@@ -128,7 +144,7 @@ def teleop_solve_row(r, tp, scratch):
 @numba.njit(cache=True, nogil=True)
 def teleop_write_row(r, tp):
     """Row ``r``'s solved setpoints (:func:`teleop_solve_row`) into the servo's references,
-    then the jaw (``tp``: :func:`teleop_rows`' arguments as a tuple)."""
+    then the jaw (``tp``: :data:`TELEOP_ARGS`)."""
     (_, _, _, _, _, _, _, _, _, Q, psm_q, _, q_ref, qd_ref, psm_act, _, _, _, _, _, _, _, _, _,
      _, _, _, gripper_q, jaw_act, ghost, catching_up, jaw_sent, rate, rate_after_clutch, dt,
      jaw_s, jaw_o, jaw_min, jaw_max, catch_up_tolerance, q_ik, ok, qd) = tp  # fmt: skip
@@ -152,40 +168,15 @@ def teleop_write_row(r, tp):
 
 
 @numba.njit(cache=True, nogil=True)
-def physics_rows(
-    model, data, address, body, active, fault, bad_since, t,
-    psm_act, psm_q, tolerance, qposadr, dofadr, minus_gravcomp, kp, kv, effort, gravity,
-    Q, V, QB, QG, XI, bias, q_ref, qd_ref, tau_ff, xfrc,
-    psm_links, psm_modified, psm_tool, psm_identity, T_camera_rcm, T_psm, J_psm,
-    mtm_links, mtm_modified, mtm_tool, mtm_identity, T_hrsv_mtmbase, mtm_q, mtm_v, T_mtm,
-    J_mtm, twist_mtm,
-    vf_p, vf_v, vf_started, vf_dt, vf_alpha,
-    T_task_camera, cond, B, G_max, transition, centre, basis, AE, AA, EE, starts, edges,
-    cumulative, lengths,
-    requested, wrench_sent, max_force, max_torque, max_force_step, max_torque_step,
-    mtm_act, ftmax,
-):  # fmt: skip
-    """Tracking, servo, physics, kinematics and haptics of every row (module docstring).
-    ``active`` and ``fault`` (n,) are updated in place (a tracking fault ends the row's
-    trial); only rows still active step."""
-    pp = (
-        model, data, address, body, active, fault, bad_since,
-        psm_act, psm_q, tolerance, qposadr, dofadr, minus_gravcomp, kp, kv, effort, gravity,
-        Q, V, QB, QG, XI, bias, q_ref, qd_ref, tau_ff, xfrc,
-        psm_links, psm_modified, psm_tool, psm_identity, T_camera_rcm, T_psm, J_psm,
-        mtm_links, mtm_modified, mtm_tool, mtm_identity, T_hrsv_mtmbase, mtm_q, mtm_v, T_mtm,
-        J_mtm, twist_mtm,
-        vf_p, vf_v, vf_started, vf_dt, vf_alpha,
-        T_task_camera, cond, B, G_max, transition, centre, basis, AE, AA, EE, starts, edges,
-        cumulative, lengths,
-        requested, wrench_sent, max_force, max_torque, max_force_step, max_torque_step,
-        mtm_act, ftmax,
-    )  # fmt: skip
+def physics_rows(t, *pp):
+    """Tracking at ``t`` (s), servo, physics, kinematics and haptics of every row (module
+    docstring). ``pp``: :data:`PHYSICS_ARGS`; ``active`` and ``fault`` (n,) are updated in
+    place (a tracking fault ends the row's trial); only rows still active step."""
+    active, Q = pp[4], pp[17]
     scratch = physics_scratch(pp)
-    n = Q.shape[0]
-    for r in range(n):  # the PSM's tracking watch first, for every row, as the numpy tick
+    for r in range(Q.shape[0]):  # the PSM's tracking watch first, for every row
         tracking_row(r, t, pp)
-    for r in range(n):
+    for r in range(Q.shape[0]):
         if active[r]:
             step_row(r, pp, scratch)
         haptics_row(r, pp, scratch)
@@ -194,7 +185,7 @@ def physics_rows(
 @numba.njit(cache=True, nogil=True)
 def physics_scratch(pp):
     """The scratch arrays of :func:`step_row` and :func:`haptics_row` (``pp``:
-    :func:`physics_rows`' arguments after ``t``, as a tuple)."""
+    :data:`PHYSICS_ARGS`)."""
     psm_q, kp, T_hrsv_mtmbase, mtm_q, mtm_act = pp[8], pp[13], pp[38], pp[39], pp[69]
     dof, nu = psm_q.shape[0], kp.shape[0]
     Q, V = pp[17], pp[18]
