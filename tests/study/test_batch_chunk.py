@@ -5,10 +5,13 @@ after every chunk; the same rows; and a tick that needs Python in the middle of 
 
 from __future__ import annotations
 
+import dataclasses
+
 import pytest
 from tests.bits import assert_same_bits
 from tests.study.test_batch_compiled import _specs
 
+from davinci_sim.operators.params import MECHANISMS
 from davinci_sim.study import batch_chunk, batch_compiled
 from davinci_sim.study.batch import TrialBatch
 
@@ -35,10 +38,15 @@ def assert_same_batches(a: TrialBatch, b: TrialBatch, where: str) -> None:
     assert_same_bits(a.metrics.result(), b.metrics.result(), f"{where}: metrics")
 
 
-@pytest.mark.parametrize("compiled_task", [True, False], ids=["task compiled", "task Python"])
-def test_chunks_are_the_ticks_bit_for_bit(short_task, monkeypatch, compiled_task):
+@pytest.mark.parametrize(
+    ("compiled_task", "mechanisms"),
+    [(True, ()), (False, ()), (True, MECHANISMS)],
+    ids=["task compiled", "task Python", "trainee mechanisms on"],
+)
+def test_chunks_are_the_ticks_bit_for_bit(short_task, monkeypatch, compiled_task, mechanisms):
     """After every chunk the state equals the ticks', the task's samples run by its
-    compiled call (``chunk_rows.task_rows``) or by ``advance`` tick by tick."""
+    compiled call (``chunk_rows.task_rows``) or by ``advance`` tick by tick; with the
+    trainees' reactions to guidance on (the force they feel, their own practice)."""
     chosen = batch_chunk._tasks_python if compiled_task else batch_chunk._tasks_compiled
 
     def unexpected(*args):
@@ -48,9 +56,11 @@ def test_chunks_are_the_ticks_bit_for_bit(short_task, monkeypatch, compiled_task
         monkeypatch.setattr(batch_chunk, "_tasks_compiled", lambda *args: False)
     else:
         monkeypatch.setattr(batch_chunk, "_tasks_python", unexpected)
-    chunked, ticked = TrialBatch(_specs(short_task)), TrialBatch(_specs(short_task))
+    specs = [dataclasses.replace(s, mechanisms=mechanisms) for s in _specs(short_task)]
+    chunked, ticked = TrialBatch(specs), TrialBatch(specs)
     try:
         assert batch_chunk.can_chunk(chunked)
+        assert chunked.trainee.mechanisms.stiffening_gain > 0 or not mechanisms
         sizes = []
         while chunked.active.any() and len(sizes) < 120:
             k = batch_chunk.advance(chunked)
