@@ -6,7 +6,7 @@ import math
 
 import numpy as np
 import pytest
-from hypothesis import assume, given, settings
+from hypothesis import assume, example, given, settings
 from hypothesis import strategies as st
 from scipy.spatial.transform import Rotation
 
@@ -91,15 +91,22 @@ def test_zero_on_the_path(v, B, G_max):
 
 @settings(max_examples=400, deadline=None)
 @given(vec, vec, vec, vec, B_values, G_values, st.floats(1e-9, 1e-6))
+@example(  # (moving straight at the path, φ turned by 0.04°: b grows from 0 as sin(δ/2))
+    v=np.array([0.0, 0.0, 1.0]), phi=np.array([0.0, 0.0, 0.0015]), dv=np.zeros(3),
+    dphi=np.array([0.0, 1.0, 0.0]), B=16.0, G_max=0.25, eps=9.928388996431655e-07,
+)  # fmt: skip
 def test_continuous_in_velocity_and_deviation(v, phi, dv, dphi, B, G_max, eps):
-    """A small change of v or φ changes the force a little: Lipschitz with a constant of
-    order B (in v) and G_max/transition (in φ), everywhere including v = 0, φ = 0, and
-    v̂ = ±φ̂ (a jump would break the bound by orders of magnitude)."""
+    """A small change of v or φ changes the force a little, everywhere including v = 0,
+    φ = 0 and v̂ = ±φ̂ (a jump would break the bound by orders of magnitude). The law's
+    slopes: B in v; G_max/transition from the ramp and from φ̂ turning; and from b = B·sin(δ/2)
+    (δ the angle between v̂ and φ̂, which a change of φ turns by up to ‖dφ‖/‖φ‖), a magnitude
+    slope of up to B‖v‖/(2·max(‖φ‖, transition)) where the cap does not hold G at G_max."""
     f0 = viscous_guidance(v, phi, B=B, G_max=G_max, transition=TRANSITION)
     dv = eps * dv / max(np.linalg.norm(dv), 1e-12)
     dphi = eps * dphi / max(np.linalg.norm(dphi), 1e-12)
     f1 = viscous_guidance(v + dv, phi + dphi, B=B, G_max=G_max, transition=TRANSITION)
-    bound = 10.0 * (B + G_max / TRANSITION) * eps + 1e-12
+    turning = B * np.linalg.norm(v) / (2.0 * max(np.linalg.norm(phi), TRANSITION))
+    bound = 10.0 * (B + G_max / TRANSITION + turning) * eps + 1e-12
     assert np.linalg.norm(f1 - f0) <= bound
 
 
