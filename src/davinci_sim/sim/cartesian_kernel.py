@@ -28,6 +28,18 @@ OK, NEEDS_POLISH, SINGULAR = 0, 1, 2
 
 
 @numba.njit(cache=True, nogil=True)
+def pose_in_reference_into(T_ref_base, T_base_tip, out):
+    """``out = T_ref_base · T_base_tip`` (4, 4) (``arm_laws.pose_in_reference`` of one
+    row), each entry summed in index order."""
+    for i in range(4):
+        for m in range(4):
+            t = 0.0
+            for h in range(4):
+                t = t + T_ref_base[i, h] * T_base_tip[h, m]
+            out[i, m] = t
+
+
+@numba.njit(cache=True, nogil=True)
 def ik_scratch(dof):
     """The arrays of one goal for ``closed_form_rows`` called on a single row from a kernel:
     goal (1, 4, 4), seed, answer (1, dof), success, status, info."""
@@ -70,12 +82,8 @@ def servo_cp_row(
     answers and the messages). ``T_base_ref``: the reference frame in the arm's base."""
     dof = q.shape[0]
     T_goal, seed, q_ik, success, status, info = ik_scratch(dof)
-    for i in range(4):  # T_base_ref · T_ref_goal (IK works in the base frame, dvrk.md 1.8)
-        for m in range(4):
-            t = 0.0
-            for h in range(4):
-                t = t + T_base_ref[i, h] * T_ref_goal[h, m]
-            T_goal[0, i, m] = t
+    # T_base_ref · T_ref_goal (IK works in the base frame, dvrk.md 1.8)
+    pose_in_reference_into(T_base_ref, T_ref_goal, T_goal[0])
     for i in range(dof):
         seed[0, i] = q[i]
     twist_base = np.empty(6)

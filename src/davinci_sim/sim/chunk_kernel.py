@@ -19,7 +19,12 @@ import numpy as np
 
 from davinci_sim.kinematics.fk_compiled import tip_pose_row
 from davinci_sim.sim.arm_laws import LIMIT_SLACK, tracking_fault_scalar
-from davinci_sim.sim.cartesian_kernel import OK, cartesian_setpoint_row, ik_scratch
+from davinci_sim.sim.cartesian_kernel import (
+    OK,
+    cartesian_setpoint_row,
+    ik_scratch,
+    pose_in_reference_into,
+)
 from davinci_sim.sim.rows_kernel import f64_at, mj_step
 from davinci_sim.sim.servo import servo_ctrl_scalar
 
@@ -175,15 +180,3 @@ def servo_step_row(
             bias[r, i] = QB[r, dofadr[i]] - QG[r, dofadr[i]]
         else:
             bias[r, i] = QB[r, dofadr[i]]
-
-
-@numba.njit(cache=True, nogil=True)
-def pose_in_reference_into(T_ref_base, T_base_tip, out):
-    """``out = T_ref_base · T_base_tip`` (4, 4) (``arm_laws.pose_in_reference`` of one
-    row), each entry summed in index order."""
-    for i in range(4):
-        for m in range(4):
-            t = 0.0
-            for h in range(4):
-                t = t + T_ref_base[i, h] * T_base_tip[h, m]
-            out[i, m] = t

@@ -38,8 +38,13 @@ from davinci_sim.sim.arm_laws import (
     twist_row,
     wrench_effort_row,
 )
-from davinci_sim.sim.cartesian_kernel import OK, cartesian_setpoint_row, ik_scratch
-from davinci_sim.sim.chunk_kernel import pose_in_reference_into, servo_step_row
+from davinci_sim.sim.cartesian_kernel import (
+    OK,
+    cartesian_setpoint_row,
+    ik_scratch,
+    pose_in_reference_into,
+)
+from davinci_sim.sim.chunk_kernel import servo_step_row
 
 _clamp = _clamp_rows.dispatcher
 _twist = twist_row.dispatcher
@@ -111,12 +116,7 @@ def teleop_solve_row(r, tp, scratch):
     dof = psm_q.shape[0]
     # --- follow_pose: p0 + s·(p_mtm − p_mtm0), R_mtm·R_offset (dvrk.md 4.2)
     _follow_pose(T_camera_psm0, T_hrsv_mtm0, T_mtm[r], R_offset, scale, False, False, G)
-    for i in range(4):  # the goal in the RCM frame
-        for m in range(4):
-            t = 0.0
-            for h in range(4):
-                t = t + T_rcm_camera[i, h] * G[h, m]
-            T_goal[0, i, m] = t
+    pose_in_reference_into(T_rcm_camera, G, T_goal[0])  # the goal in the RCM frame
     for i in range(dof):
         seed[0, i] = Q[r, psm_q[i]]
     # --- follow_twist, then the twist in the RCM axes (rotate_pairs)
