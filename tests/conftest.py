@@ -20,25 +20,16 @@ def _records_in_a_temporary_folder(tmp_path_factory):
         os.environ["DAVINCI_SIM_RECORDS"] = before
 
 
-#: Modules whose import compiles every numba kernel (each warms its kernels up at import).
-KERNEL_MODULES = (
-    "davinci_sim.sim.simulation",
-    "davinci_sim.console",
-    "davinci_sim.study.batch",
-    "davinci_sim.envs.vector",
-)
-
-
 def pytest_configure(config):
     """Under xdist, the controller compiles every kernel into numba's on-disk cache before
-    the workers start: on a clean clone the two workers, and the servers, studies and Ray
-    workers the tests start, then load the kernels instead of each compiling them at once
-    on the same two cores (a Ray test took 52 s instead of 7 that way)."""
+    the workers start, on every core (:mod:`davinci_sim.warm_up`): on a clean clone the two
+    workers, and the servers, studies and Ray workers the tests start, then load the
+    kernels instead of each compiling them at once on the same two cores (a Ray test took
+    52 s instead of 7 that way)."""
     if getattr(config.option, "numprocesses", None) and not hasattr(config, "workerinput"):
-        import importlib
+        from davinci_sim.warm_up import warm_up
 
-        for name in KERNEL_MODULES:
-            importlib.import_module(name)
+        warm_up()
 
 
 #: The test modules that drive the system's Chromium (each defines ``CHROMIUM``). Under

@@ -16,7 +16,7 @@ import numpy as np
 
 from davinci_sim.geometry import so3
 from davinci_sim.geometry.so3 import rotate_rows
-from davinci_sim.kinematics.jit import helper, jit
+from davinci_sim.kinematics.jit import helper, jit, warm
 
 
 @dataclass(frozen=True)
@@ -195,4 +195,4 @@ def _warm_up() -> None:
     hand_wrenches(None, np.eye(4)[None], np.zeros((1, 6)), one, one, HandImpedance())
 
 
-_warm_up()
+warm(_warm_up)

@@ -14,7 +14,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from davinci_sim.kinematics.jit import jit
+from davinci_sim.kinematics.jit import jit, warm
 
 
 @dataclass(frozen=True)
@@ -163,4 +163,4 @@ def _warm_up() -> None:
     clamp_wrench(np.zeros(6), np.zeros(6), WrenchLimits(), 0.001)
 
 
-_warm_up()
+warm(_warm_up)

@@ -19,7 +19,7 @@ import numpy as np
 from davinci_sim.geometry.path import BRUTE_FORCE_MAX_SEGMENTS, Polyline, brute_force_constants
 from davinci_sim.haptics.path_query import _closest_point_into
 from davinci_sim.haptics.viscous import _viscous_into
-from davinci_sim.kinematics.jit import helper, jit
+from davinci_sim.kinematics.jit import helper, jit, warm
 
 
 def path_constants(path: Polyline) -> tuple | None:
@@ -96,4 +96,4 @@ def _warm_up() -> None:
                           *path, 1.0, 1.0, 0.0, True, np.empty(3))  # fmt: skip
 
 
-_warm_up()
+warm(_warm_up)

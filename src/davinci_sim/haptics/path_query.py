@@ -133,4 +133,4 @@ def _warm_up() -> None:
     closest_point(path, np.zeros((2, 3)))
 
 
-_warm_up()
+jit.warm(_warm_up)

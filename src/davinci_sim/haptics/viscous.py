@@ -63,7 +63,7 @@ import numpy as np
 from davinci_sim.geometry.path import Polyline
 from davinci_sim.haptics.path_query import closest_point
 from davinci_sim.kinematics.jit import ENABLED as _COMPILED
-from davinci_sim.kinematics.jit import helper, jit
+from davinci_sim.kinematics.jit import helper, jit, warm
 
 #: Default width of the ramp that makes the force vanish on the path, m: 0, the seed's law
 #: as printed, in the study and on the live console alike (a ramp is an explicit option:
@@ -312,4 +312,4 @@ def _warm_up() -> None:
     viscous_force_rows(np.ones((2, 3)), np.ones((2, 3)), 1.0, 1.0, 0.0, np.empty((2, 3)))
 
 
-_warm_up()
+warm(_warm_up)

@@ -17,7 +17,7 @@ import math
 
 import numpy as np
 
-from davinci_sim.kinematics.jit import helper, jit
+from davinci_sim.kinematics.jit import helper, jit, warm
 
 
 def pack(links, modified: bool, R_tool, p_tool, tool_is_identity: bool) -> tuple:
@@ -154,4 +154,4 @@ def _warm_up() -> None:
     tip_poses(np.zeros((6, 1)), True, np.eye(4), True, np.zeros((1, 1)), T, J, True, F)
 
 
-_warm_up()
+warm(_warm_up)

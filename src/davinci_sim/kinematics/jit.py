@@ -89,11 +89,32 @@ def helper(fn):
 _HELPERS: set = set()  # the functions :func:`helper` registered
 
 
+DEFERRED = os.environ.get("DAVINCI_SIM_DEFER_WARM_UP") == "1"
+"""Whether the modules' warm-ups are only collected (:data:`WARM_UPS`), not run, at import:
+set by :mod:`davinci_sim.warm_up`'s processes, which run a share of them each, so that a
+clean checkout compiles its kernels on every core. Never set in a simulation's process."""
+
+WARM_UPS: list = []
+"""The warm-ups imported modules deferred (:data:`DEFERRED`), in import order."""
+
+
+def warm(warm_up) -> None:
+    """Run a module's ``warm_up()`` at import (its kernels compiled or loaded from numba's
+    cache), or collect it in :data:`WARM_UPS` when :data:`DEFERRED`."""
+    if DEFERRED:
+        WARM_UPS.append(warm_up)
+    else:
+        warm_up()
+
+
 def warmed_up(warm_up, fallback: str) -> bool:
     """Run a module's ``warm_up()`` (its kernels compiled or loaded from the cache at
     import); if numba cannot compile them, warn (``fallback``: what runs instead) and return
     False, so that the module's callers take their Python path instead of failing to
-    import."""
+    import. When :data:`DEFERRED`: collected (:func:`warm`) and True."""
+    if DEFERRED:
+        warm(warm_up)
+        return True
     try:
         warm_up()
     except Exception as e:  # pragma: no cover - a numba that cannot compile the kernel

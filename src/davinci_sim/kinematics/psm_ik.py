@@ -59,6 +59,7 @@ from davinci_sim.kinematics.ik_base import (
     make_result,
     pose_errors,
 )
+from davinci_sim.kinematics.jit import warm
 from davinci_sim.kinematics.psm_closed_form import (
     INSERTION,
     MIN_GOAL_DISTANCE_FROM_RCM,
@@ -483,7 +484,7 @@ def _warm_up() -> None:
     psm_ik_closed_form(chain, fk.forward_kinematics(chain, q), q)
 
 
-_warm_up()
+warm(_warm_up)
 
 
 __all__ = [

@@ -26,7 +26,7 @@ from davinci_sim.kinematics.arms import SUJArmKinematics, load_arm, load_suj
 from davinci_sim.kinematics.chain import DHChain
 from davinci_sim.kinematics.fk import _consts
 from davinci_sim.kinematics.fk_compiled import tip_pose_row
-from davinci_sim.kinematics.jit import helper, jit
+from davinci_sim.kinematics.jit import helper, jit, warm
 
 
 # --- the kernel ----------------------------------------------------------------------------
@@ -254,4 +254,4 @@ def _warm_up() -> None:
     invert_rigid(T, np.empty((4, 4)))
 
 
-_warm_up()
+warm(_warm_up)

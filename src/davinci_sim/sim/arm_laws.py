@@ -25,7 +25,7 @@ from davinci_sim.kinematics import fk
 from davinci_sim.kinematics.chain import DHChain
 from davinci_sim.kinematics.fk_compiled import tip_pose_row
 from davinci_sim.kinematics.jit import ENABLED as _COMPILED
-from davinci_sim.kinematics.jit import helper, jit
+from davinci_sim.kinematics.jit import helper, jit, warm
 from davinci_sim.sim.trajectory import step_towards_row
 
 try:  # the gufunc behind np.linalg.solve (see _solve)
@@ -374,4 +374,4 @@ def _warm_up() -> None:
     wrist_lock_step(*args)
 
 
-_warm_up()
+warm(_warm_up)

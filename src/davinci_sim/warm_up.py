@@ -1,0 +1,101 @@
+"""Compile every numba kernel into numba's on-disk cache, on every core:
+``python -m davinci_sim.warm_up [PROCESSES]``.
+
+Each module that has kernels warms them up at import (``kinematics.jit.warm``), one after
+the other: on a clean checkout, importing the study and the environments compiles for
+about 100 s on one core. This runs the same warm-ups in ``PROCESSES`` processes (default:
+the machine's cores). Each imports the kernel modules with the warm-ups deferred
+(``DAVINCI_SIM_DEFER_WARM_UP``: collected, not run, in the same order in every process),
+then takes the next one not yet taken, until none is left: the last imported first, so
+that the kernels that compose the others (the study's chunk, the longest) start at once. A
+warm-up whose callees another process compiled already loads them from the cache; a few
+are compiled twice. On the 2-core machine: 58 s instead of 106 s on a clean checkout. Afterwards
+every import loads its kernels from the cache: the test workers, servers and studies
+start in seconds.
+"""
+
+from __future__ import annotations
+
+import importlib
+import multiprocessing
+import os
+import sys
+
+#: The modules whose import compiles every kernel (each warms its own up at import).
+KERNEL_MODULES = (
+    "davinci_sim.sim.simulation",
+    "davinci_sim.console",
+    "davinci_sim.study.batch",
+    "davinci_sim.envs.vector",
+)
+
+_DEFER = "DAVINCI_SIM_DEFER_WARM_UP"
+
+
+def _worker(modules, counter, lock) -> None:
+    """One process: import ``modules`` (warm-ups deferred), then run the warm-ups, last
+    first, whose turn it takes from ``counter`` (shared by the processes)."""
+    for name in modules:
+        importlib.import_module(name)
+    from davinci_sim.kinematics import jit
+
+    if not jit.DEFERRED:  # (run as the parent wanted: the warm-ups ran at import)
+        return
+    while True:
+        with lock:
+            index = counter.value
+            counter.value += 1
+        if index >= len(jit.WARM_UPS):
+            return
+        try:
+            jit.WARM_UPS[-1 - index]()
+        except Exception:  # (the module's own import warns of it and takes its Python path)
+            continue
+
+
+def warm_up(processes: int | None = None, modules: tuple[str, ...] = KERNEL_MODULES) -> None:
+    """Compile (or find cached) every kernel that importing ``modules`` warms up, in
+    ``processes`` processes (default: ``os.cpu_count()``); returns when all are in the
+    cache.
+
+    Raises:
+        ValueError: if ``processes`` < 1.
+        RuntimeError: if a process failed (its traceback is on stderr).
+    """
+    n = (os.cpu_count() or 1) if processes is None else processes
+    if n < 1:
+        raise ValueError(f"processes must be >= 1, got {processes!r}")
+    context = multiprocessing.get_context("spawn")  # (fresh interpreters: nothing compiled)
+    counter, lock = context.Value("i", 0, lock=False), context.Lock()
+    before = os.environ.get(_DEFER)
+    os.environ[_DEFER] = "1"  # (the children's environment, copied at their start)
+    try:
+        workers = [context.Process(target=_worker, args=(modules, counter, lock)) for _ in range(n)]
+        for w in workers:
+            w.start()
+    finally:
+        if before is None:
+            os.environ.pop(_DEFER, None)
+        else:
+            os.environ[_DEFER] = before
+    for w in workers:
+        w.join()
+    failed = [w.exitcode for w in workers if w.exitcode != 0]
+    if failed:
+        raise RuntimeError(f"warming the kernels up failed in {len(failed)} of {n} processes")
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = sys.argv[1:] if argv is None else argv
+    try:
+        if args and not args[0].lstrip("-").isdigit():
+            raise ValueError(f"the number of processes must be a whole number, got {args[0]!r}")
+        warm_up(int(args[0]) if args else None)
+    except (ValueError, RuntimeError) as e:
+        print(f"davinci_sim.warm_up: {e}", file=sys.stderr)
+        return 2 if isinstance(e, ValueError) else 1
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
