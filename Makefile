@@ -11,13 +11,11 @@ export MUJOCO_GL ?= egl
 system-deps:
 	@bash scripts/system-deps.sh
 
-# --no-compile: Python compiles what is imported when first imported, not every module of
-# every package at install (24 s of the install on the 2-core machine).
 $(STAMP): pyproject.toml scripts/system-deps.sh
 	@$(MAKE) --no-print-directory system-deps
 	@test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
 	$(BIN)/python -m pip install --quiet --upgrade pip
-	$(BIN)/python -m pip install --quiet --no-compile -e '.[dev]'
+	$(BIN)/python -m pip install --quiet -e '.[dev]'
 	@touch $(STAMP)
 
 install: $(STAMP)
