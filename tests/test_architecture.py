@@ -37,6 +37,7 @@ LAYERS: dict[str, int] = {
     "web": 11,
     "compat": 11,
     "cli": 12,
+    "warm_up": 12,
 }
 MAX_MODULE_LINES = 500
 
