@@ -26,9 +26,17 @@ import numpy as np
 
 from davinci_sim.devices.device_row import _xfrc_into
 from davinci_sim.devices.hand import _hand_rows
-from davinci_sim.operators.trainee_row import command_row
+from davinci_sim.operators.trainee_row import ARGS, command_row
 from davinci_sim.sim.rows_kernel import i32_at
 from davinci_sim.study.tick_kernel import (
+    P_ACTIVE,
+    P_PSM_Q,
+    P_REQUESTED,
+    P_T_MTM,
+    P_T_PSM,
+    P_TWIST_MTM,
+    P_WRENCH_SENT,
+    P_XFRC,
     haptics_row,
     physics_scratch,
     step_row,
@@ -41,6 +49,12 @@ from davinci_sim.tasks.path_row import path_tick_rows
 from davinci_sim.tasks.state import _FINISHED as FINISHED
 
 _hand = _hand_rows.dispatcher
+
+# The trainees' arrays the chunk reads by name (:data:`~davinci_sim.operators.trainee_row.ARGS`
+# positions, constants to numba).
+A_Y, A_FORCE, A_FEEL = ARGS.index("y"), ARGS.index("force"), ARGS.index("feel")
+A_CO_CONTRACTION, A_FEEDFORWARD = ARGS.index("co_contraction"), ARGS.index("feedforward")
+A_LAST_TREMOR, A_X_EQ, A_V_EQ = ARGS.index("last_tremor"), ARGS.index("x_eq"), ARGS.index("v_eq")
 
 
 @numba.njit(cache=True, nogil=True)
@@ -64,19 +78,12 @@ def chunk_rows(K, t0, dt, t_end, tp, pp, tr_args, k0, tr_dt, white, stiffness, d
     ran the tick's task). Returns (-1, K) when done, or the row and tick a tick needs Python
     at (the state is then partly advanced: the caller restores it)."""
     (T_hand, impedance, R_world_hrsv, p_world_hrsv, xipos) = hand
-    active = pp[4]
-    T_psm, T_mtm, twist_mtm, requested, wrench_sent, xfrc = (
-        pp[32],
-        pp[41],
-        pp[43],
-        pp[63],
-        pp[64],
-        pp[26],
-    )
-    Y, F, co, v_eq, ff, tremor, x_eq = (tr_args[10], tr_args[11], tr_args[14], tr_args[41],
-                                        tr_args[25], tr_args[39], tr_args[40])  # fmt: skip
-    feel = tr_args[12]
-    tsc = teleop_scratch(pp[8].shape[0])
+    active, T_psm, T_mtm, xfrc = pp[P_ACTIVE], pp[P_T_PSM], pp[P_T_MTM], pp[P_XFRC]
+    twist_mtm, requested, wrench_sent = pp[P_TWIST_MTM], pp[P_REQUESTED], pp[P_WRENCH_SENT]
+    Y, F, feel, co = tr_args[A_Y], tr_args[A_FORCE], tr_args[A_FEEL], tr_args[A_CO_CONTRACTION]
+    ff, tremor = tr_args[A_FEEDFORWARD], tr_args[A_LAST_TREMOR]
+    x_eq, v_eq = tr_args[A_X_EQ], tr_args[A_V_EQ]
+    tsc = teleop_scratch(pp[P_PSM_Q].shape[0])
     psc = physics_scratch(pp)
     trs = np.empty((6, 3))
     Kh, Dh, w = np.empty(1), np.empty(1), np.empty((1, 6))

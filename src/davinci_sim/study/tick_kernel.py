@@ -80,12 +80,27 @@ PHYSICS_ARGS = (
     "max_force_step", "max_torque_step", "mtm_act", "ftmax",
 )  # fmt: skip
 
+# Where the kernels read one argument by name: its position in the tuple (numba takes a
+# module's integers as constants, so each item keeps its own type). The kernels that unpack
+# a whole tuple name every item in order (``tests/study/test_tick_kernel.py`` checks those
+# names against the tuples').
+T_Q, T_PSM_Q = TELEOP_ARGS.index("Q"), TELEOP_ARGS.index("psm_q")
+P_ACTIVE, P_FAULT, P_BAD_SINCE = (PHYSICS_ARGS.index(n) for n in ("active", "fault", "bad_since"))
+P_PSM_ACT, P_PSM_Q, P_TOLERANCE = (PHYSICS_ARGS.index(n) for n in ("psm_act", "psm_q", "tolerance"))
+P_KP, P_EFFORT, P_Q, P_V = (PHYSICS_ARGS.index(n) for n in ("kp", "effort", "Q", "V"))
+P_Q_REF, P_TAU_FF, P_XFRC = (PHYSICS_ARGS.index(n) for n in ("q_ref", "tau_ff", "xfrc"))
+P_PSM_LINKS, P_T_PSM = PHYSICS_ARGS.index("psm_links"), PHYSICS_ARGS.index("T_psm")
+P_T_HRSV_MTMBASE, P_MTM_Q = PHYSICS_ARGS.index("T_hrsv_mtmbase"), PHYSICS_ARGS.index("mtm_q")
+P_T_MTM, P_TWIST_MTM = PHYSICS_ARGS.index("T_mtm"), PHYSICS_ARGS.index("twist_mtm")
+P_REQUESTED, P_WRENCH_SENT = PHYSICS_ARGS.index("requested"), PHYSICS_ARGS.index("wrench_sent")
+P_MTM_ACT = PHYSICS_ARGS.index("mtm_act")
+
 
 @numba.njit(cache=True, nogil=True)
 def teleop_rows(*tp):
     """The following tick of every row (module docstring); False when done, True (nothing
     written) when a row needs the Python tick. ``tp``: :data:`TELEOP_ARGS`."""
-    Q, psm_q = tp[9], tp[10]
+    Q, psm_q = tp[T_Q], tp[T_PSM_Q]
     scratch = teleop_scratch(psm_q.shape[0])
     for r in range(Q.shape[0]):
         if teleop_solve_row(r, tp, scratch):
@@ -172,7 +187,7 @@ def physics_rows(t, *pp):
     """Tracking at ``t`` (s), servo, physics, kinematics and haptics of every row (module
     docstring). ``pp``: :data:`PHYSICS_ARGS`; ``active`` and ``fault`` (n,) are updated in
     place (a tracking fault ends the row's trial); only rows still active step."""
-    active, Q = pp[4], pp[17]
+    active, Q = pp[P_ACTIVE], pp[P_Q]
     scratch = physics_scratch(pp)
     for r in range(Q.shape[0]):  # the PSM's tracking watch first, for every row
         tracking_row(r, t, pp)
@@ -186,9 +201,10 @@ def physics_rows(t, *pp):
 def physics_scratch(pp):
     """The scratch arrays of :func:`step_row` and :func:`haptics_row` (``pp``:
     :data:`PHYSICS_ARGS`)."""
-    psm_q, kp, T_hrsv_mtmbase, mtm_q, mtm_act = pp[8], pp[13], pp[38], pp[39], pp[69]
+    psm_q, kp, mtm_q, mtm_act = pp[P_PSM_Q], pp[P_KP], pp[P_MTM_Q], pp[P_MTM_ACT]
+    T_hrsv_mtmbase = pp[P_T_HRSV_MTMBASE]
     dof, nu = psm_q.shape[0], kp.shape[0]
-    Q, V = pp[17], pp[18]
+    Q, V = pp[P_Q], pp[P_V]
     R_base_hrsv = np.empty((3, 3))  # (the wrench's axes in the MTM's base)
     for i in range(3):
         for m in range(3):
@@ -204,16 +220,9 @@ def physics_scratch(pp):
 def tracking_row(r, t, pp):
     """The PSM's tracking watch of row ``r`` at ``t`` s (``arm_laws.tracking_bad`` /
     ``tracking_fault``): a fault ends the row's trial (``active``, ``fault``)."""
-    active, fault, bad_since, psm_act, psm_q, tolerance, effort = (
-        pp[4],
-        pp[5],
-        pp[6],
-        pp[7],
-        pp[8],
-        pp[9],
-        pp[15],
-    )
-    Q, q_ref = pp[17], pp[23]
+    active, fault, bad_since = pp[P_ACTIVE], pp[P_FAULT], pp[P_BAD_SINCE]
+    psm_act, psm_q, tolerance, effort = pp[P_PSM_ACT], pp[P_PSM_Q], pp[P_TOLERANCE], pp[P_EFFORT]
+    Q, q_ref = pp[P_Q], pp[P_Q_REF]
     bad = False
     for i in range(psm_q.shape[0]):
         a = psm_act[i]
@@ -229,7 +238,8 @@ def tracking_row(r, t, pp):
 def step_row(r, pp, scratch):
     """Row ``r``'s servo, ``mj_step``, state read back and bias forces."""
     (model, data, address, body, _, _, _, _, _, _, qposadr, dofadr, minus_gravcomp, kp, kv,
-     effort, gravity, Q, V, QB, QG, XI, bias, q_ref, qd_ref, tau_ff, xfrc) = pp[:27]  # fmt: skip
+     effort, gravity, Q, V, QB, QG, XI, bias, q_ref, qd_ref, tau_ff,
+     xfrc) = pp[:P_PSM_LINKS]  # fmt: skip
     qadr, dadr, act, ctrl = scratch[0], scratch[1], scratch[2], scratch[3]
     servo_step_row(
         model[r], data[r], address[r], r, qadr, dadr, act, qposadr, dofadr, True,
@@ -249,7 +259,7 @@ def haptics_row(r, pp, scratch):
      T_mtm, J_mtm, twist_mtm, vf_p, vf_v, vf_started, vf_dt, vf_alpha, T_task_camera, cond, B,
      G_max, transition, centre, basis, AE, AA, EE, starts, edges, cumulative, lengths,
      requested, wrench_sent, max_force, max_torque, max_force_step, max_torque_step, mtm_act,
-     ftmax) = (pp[8], pp[17], pp[18], pp[25], *pp[27:])  # fmt: skip
+     ftmax) = (pp[P_PSM_Q], pp[P_Q], pp[P_V], pp[P_TAU_FF], *pp[P_PSM_LINKS:])  # fmt: skip
     _, _, _, _, q, qm, qdm, T, F, cp, pt, vt, f, W, out, R_base_hrsv, tau = scratch
     for i in range(psm_q.shape[0]):
         q[i] = Q[r, psm_q[i]]
