@@ -155,6 +155,35 @@ def test_path_following_ends_when_the_task_finishes():
         env.close()
 
 
+def test_the_step_computes_the_features_once_with_the_results_of_computing_them_twice():
+    """A step finds the path's closest point once for the reward and the observation
+    (``problem.features`` handed to ``outcome``): the same reward terms and features as
+    ``outcome`` computing its own, and the path kind's distance as the task states it."""
+    import copy
+
+    env = gym.make("DavinciSim/PathFollow-v0").unwrapped
+    try:
+        obs, _ = env.reset(seed=0)
+        for _ in range(30):
+            a = np.zeros(4, dtype=np.float32)
+            a[:3] = np.clip((obs["next_point"] - obs["setpoint"]) / env.config.max_step, -1, 1)
+            obs, _, _, _, _ = env.step(a)
+            T, T_task_camera = env._T_tip()[None], env._T_task_camera()
+            own, given = copy.deepcopy(env.problem), copy.deepcopy(env.problem)
+            feats = given.features(T, T_task_camera)
+            r1, d1, terms1 = own.outcome(T, T_task_camera)
+            r2, d2, terms2 = given.outcome(T, T_task_camera, feats)
+            assert r1 == r2 and d1 == d2 and terms1.keys() == terms2.keys()
+            for k in terms1:
+                np.testing.assert_array_equal(terms1[k], terms2[k])
+            for k in ("distance", "progress", "next_point", "phase"):
+                np.testing.assert_array_equal(obs[k], feats[k][0])
+            tip = T_task_camera[:3, :3] @ T[0, :3, 3] + T_task_camera[:3, 3]
+            assert feats["distance"][0, 0] == pytest.approx(env.problem.task.distance(tip)[0])
+    finally:
+        env.close()
+
+
 def test_bad_actions_and_settings_are_refused(reach):
     reach.reset(seed=0)
     with pytest.raises(ValueError, match="finite"):

@@ -155,8 +155,9 @@ class DavinciEnv(gym.Env):
         self.problem.reset([0], [self.np_random])
         self._episode_over = False
         T, T_task_camera = self._T_tip(), self._T_task_camera()
-        obs = self._observation(T, T_task_camera)
-        self.problem.outcome(T[None], T_task_camera)  # (the reward's baselines: progress, phase)
+        feats = self.problem.features(T[None], T_task_camera)
+        obs = self._observation(T, T_task_camera, feats)
+        self.problem.outcome(T[None], T_task_camera, feats)  # (the reward's baselines)
         return obs, {}
 
     def step(self, action):
@@ -167,7 +168,8 @@ class DavinciEnv(gym.Env):
             raise ValueError(f"the action must be finite, got {action!r}")
         self._apply(a)
         T, T_task_camera = self._T_tip(), self._T_task_camera()  # (the outcome's and the obs')
-        reward, done, terms = self.problem.outcome(T[None], T_task_camera)
+        feats = self.problem.features(T[None], T_task_camera)  # (the same for both)
+        reward, done, terms = self.problem.outcome(T[None], T_task_camera, feats)
         self._steps += 1
         fault = self.arm.operating_state().state == ops.FAULT
         terminated = bool(done[0]) or fault
@@ -180,7 +182,8 @@ class DavinciEnv(gym.Env):
             metrics = {k: float(v[0]) for k, v in self.problem.info().items()}
             info.update({k: v for k, v in metrics.items() if np.isfinite(v)})
             self._episode_over = True
-        return self._observation(T, T_task_camera), float(reward[0]), terminated, truncated, info
+        obs = self._observation(T, T_task_camera, feats)
+        return obs, float(reward[0]), terminated, truncated, info
 
     def render(self):
         if self.render_mode != "rgb_array":
@@ -202,7 +205,9 @@ class DavinciEnv(gym.Env):
         return self._start.task.T_task_camera(self.sim.T_cart_camera())
 
     def _T_tip(self) -> np.ndarray:
-        return np.asarray(self.psm.measured_cp().T)
+        """The tip in the camera frame (4, 4), read-only: ``measured_cp().T``, the same bits
+        without the message (``Arm._measured_T``)."""
+        return self.psm._measured_T()
 
     def _apply(self, a: np.ndarray) -> None:
         """One control period (see the module docstring)."""
@@ -276,22 +281,21 @@ class DavinciEnv(gym.Env):
             )
         return c
 
-    def _observation(self, T: np.ndarray, T_task_camera) -> dict[str, np.ndarray]:
+    def _observation(self, T: np.ndarray, T_task_camera, feats) -> dict[str, np.ndarray]:
         """The observation at the tip pose ``T`` (camera frame) and the camera's pose in the
-        task's frame ``T_task_camera`` (None for Reach), both as they are now."""
+        task's frame ``T_task_camera`` (None for Reach), both as they are now, with the
+        problem's ``feats`` there (``problem.features``)."""
         arm = self.arm
-        js = arm.measured_js()
-        obs = {
-            "joint_position": np.asarray(js.position, dtype=float).copy(),
-            "joint_velocity": np.asarray(js.velocity, dtype=float).copy(),
-            "jaw": np.array([self.psm.jaw.measured_js().position[0]], dtype=float),
+        obs = {  # (measured_js' position and velocity, without the messages)
+            "joint_position": arm._q(),
+            "joint_velocity": arm._qd(),
+            "jaw": np.array([self.psm.jaw.measured_jp()], dtype=float),
             "tip_position": T[:3, 3].copy(),
             "tip_orientation": orientation_features(T[:3, :3]),
             "setpoint": (
                 self._goal if self.config.action_space == "cartesian" else self._q_goal
             ).copy(),
         }
-        feats = self.problem.features(T[None], T_task_camera)
         if "objects" in self.observation_space.spaces:
             extra = self._start.task.scene_fields(self.sim.model, self.sim.data, self._scene_cache)
             T_camera_task = np.linalg.inv(T_task_camera)

@@ -18,7 +18,7 @@ import numpy as np
 from gymnasium import spaces
 
 from davinci_sim.model.cameras import in_left_image
-from davinci_sim.tasks import Phase, Sample, advance
+from davinci_sim.tasks import PathTask, Phase, Sample, advance
 from davinci_sim.tasks.live_path import LivePathTick
 
 _ONE = np.ones(1, dtype=bool)
@@ -75,9 +75,11 @@ class ReachProblem:
         tip = T_camera_tip[:, :3, 3]
         return {"target": self.target.copy(), "target_offset": self.target - tip}
 
-    def outcome(self, T_camera_tip: np.ndarray, T_task_camera=None):
-        """``(reward (n,), terminated (n,), terms: name → (n,))`` at the current state."""
-        d = np.linalg.norm(self.target - T_camera_tip[:, :3, 3], axis=1)
+    def outcome(self, T_camera_tip: np.ndarray, T_task_camera=None, features=None):
+        """``(reward (n,), terminated (n,), terms: name → (n,))`` at the current state
+        (``features``: :meth:`features` of the same state, if the caller has them)."""
+        offset = self.target - T_camera_tip[:, :3, 3] if features is None else None
+        d = np.linalg.norm(features["target_offset"] if offset is None else offset, axis=1)
         success = d <= self.tolerance
         terms = {
             "reward_distance": -d / REWARD_LENGTH,
@@ -107,6 +109,10 @@ class TaskProblem:
         """One row of the path kind: its sample and tick in one compiled call (None: the
         Python path, :meth:`sample` then ``advance``)."""
         self.path = getattr(task, "path", None) if task.kind == "path" else None
+        # The path kind's distance is its closest point's: found once for both features.
+        self._distance_of_closest = self.path is not None and (
+            type(task).distance is PathTask.distance and task.path is self.path
+        )
         self._progress = np.zeros(n)
         self._phase = np.zeros(n, dtype=int)
         self.time_now = 0.0
@@ -174,7 +180,8 @@ class TaskProblem:
     def features(self, T_camera_tip, T_task_camera=None) -> dict[str, np.ndarray]:
         T = self.T_task_camera if T_task_camera is None else T_task_camera
         tip = _transform(T, T_camera_tip[:, :3, 3])
-        distance = self.task.distance(tip)
+        cp = None if self.path is None else self.path.closest_point(tip)
+        distance = cp.distance if self._distance_of_closest else self.task.distance(tip)
         if self.task.kind == "camera_targeting":  # (about the camera, not the tip)
             _, seen = self.task.step(self.state, self.sample(self.time_now, T_camera_tip, T))
             distance = seen["distance"]
@@ -182,9 +189,8 @@ class TaskProblem:
             "phase": self.state.phase.astype(float)[:, None],
             "distance": np.reshape(distance, (-1, 1)),
         }
-        if self.path is not None:
+        if cp is not None:
             length = self.path.length
-            cp = self.path.closest_point(tip)
             ahead = self.path.point_at(np.minimum(cp.arc_length + LOOKAHEAD, length))
             out["progress"] = (self.state.progress / length)[:, None]
             out["next_point"] = _transform(np.linalg.inv(T), np.reshape(ahead, (-1, 3)))
@@ -193,12 +199,13 @@ class TaskProblem:
             out["target"] = _transform(np.linalg.inv(T), self.task.targets[k])
         return out
 
-    def outcome(self, T_camera_tip, T_task_camera=None):
+    def outcome(self, T_camera_tip, T_task_camera=None, features=None):
         """``(reward (n,), terminated (n,), terms)``: ``reward_distance`` −(the task's
         ``distance`` in cm), ``reward_progress`` (path: the share of the path newly
         covered × :data:`PROGRESS_REWARD`), ``reward_finish`` (:data:`SUCCESS_REWARD` at
-        the action the task finishes); terminated once the phase is FINISHED."""
-        feats = self.features(T_camera_tip, T_task_camera)
+        the action the task finishes); terminated once the phase is FINISHED.
+        ``features``: :meth:`features` of the same state, if the caller has them."""
+        feats = self.features(T_camera_tip, T_task_camera) if features is None else features
         phase = self.state.phase.astype(int)
         done = phase >= Phase.FINISHED
         finish = done & (self._phase < Phase.FINISHED)

@@ -203,8 +203,9 @@ class DavinciVectorEnv(VectorEnv):
         rows = np.arange(self.num_envs)
         self._reset_rows(rows)
         self._autoreset[:] = False
-        self.problem.outcome(self.T_psm)  # (the reward's baselines)
-        return self._observation(), {}
+        feats = self.problem.features(self.T_psm)
+        self.problem.outcome(self.T_psm, features=feats)  # (the reward's baselines)
+        return self._observation(feats), {}
 
     def step(self, actions):
         a = np.asarray(actions, dtype=float).reshape(self.action_space.shape)
@@ -215,7 +216,8 @@ class DavinciVectorEnv(VectorEnv):
             self._reset_rows(np.flatnonzero(resetting))
         active = ~resetting
         fault = self._control_period(a, active)
-        reward, done, terms = self.problem.outcome(self.T_psm)
+        feats = self.problem.features(self.T_psm)  # (the outcome's and the observation's)
+        reward, done, terms = self.problem.outcome(self.T_psm, features=feats)
         self.steps += active
         terminated = (done | fault) & active
         truncated = ~terminated & active & (self.steps >= self.config.max_episode_steps)
@@ -229,7 +231,7 @@ class DavinciVectorEnv(VectorEnv):
         if ended.any():
             for k, v in self.problem.info().items():
                 info[k], info[f"_{k}"] = np.where(ended, v, np.nan), ended.copy()
-        obs = self._observation()
+        obs = self._observation(feats)
         if self.metadata["autoreset_mode"] == AutoresetMode.SAME_STEP and ended.any():
             # The ended rows reset now: their last observation goes to info["final_obs"].
             rows = np.flatnonzero(ended)
@@ -242,8 +244,9 @@ class DavinciVectorEnv(VectorEnv):
             }
             info["_final_info"] = ended.copy()
             self._reset_rows(rows)
-            self.problem.outcome(self.T_psm)  # (the new episodes' baselines)
-            fresh = self._observation()
+            feats = self.problem.features(self.T_psm)
+            self.problem.outcome(self.T_psm, features=feats)  # (the new episodes' baselines)
+            fresh = self._observation(feats)
             for k in obs:
                 obs[k][rows] = fresh[k][rows]
             ended = np.zeros_like(ended)
@@ -463,7 +466,8 @@ class DavinciVectorEnv(VectorEnv):
         if gravcomp:
             self._qfrc[1][r, dadr] = fg
 
-    def _observation(self) -> dict[str, np.ndarray]:
+    def _observation(self, feats: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
+        """The rows' observations, with the problem's features ``feats`` of the same state."""
         T = self.T_psm
         cartesian = self.config.action_space == "cartesian"
         obs = {
@@ -474,5 +478,5 @@ class DavinciVectorEnv(VectorEnv):
             "tip_orientation": orientation_features(T[:, :3, :3]),
             "setpoint": (self.goal if cartesian else self.q_goal).copy(),
         }
-        obs.update(self.problem.features(T))
+        obs.update(feats)
         return obs
