@@ -78,8 +78,9 @@ class ReachProblem:
     def outcome(self, T_camera_tip: np.ndarray, T_task_camera=None, features=None):
         """``(reward (n,), terminated (n,), terms: name → (n,))`` at the current state
         (``features``: :meth:`features` of the same state, if the caller has them)."""
-        offset = self.target - T_camera_tip[:, :3, 3] if features is None else None
-        d = np.linalg.norm(features["target_offset"] if offset is None else offset, axis=1)
+        tip = T_camera_tip[:, :3, 3]
+        offset = self.target - tip if features is None else features["target_offset"]
+        d = np.linalg.norm(offset, axis=1)
         success = d <= self.tolerance
         terms = {
             "reward_distance": -d / REWARD_LENGTH,
