@@ -69,3 +69,21 @@ def test_a_bad_process_count_is_refused_in_one_line(argv, capsys):
     assert main(argv) == 2
     err = capsys.readouterr().err
     assert err.startswith("davinci_sim.warm_up: ") and err.count("\n") == 1
+
+
+def test_every_module_warms_its_kernels_up_through_jit():
+    """A module that called its ``_warm_up()`` itself at import would compile it in every
+    warm-up process (and before the others start): each goes through ``jit.warm`` or
+    ``jit.warmed_up``, which the warm-up processes defer."""
+    import pathlib
+
+    import davinci_sim
+
+    root = pathlib.Path(davinci_sim.__file__).parent
+    direct = [
+        f"{path.relative_to(root)}:{n}"
+        for path in sorted(root.rglob("*.py"))
+        for n, line in enumerate(path.read_text().splitlines(), 1)
+        if line.strip() == "_warm_up()" and not line.startswith(" ")
+    ]
+    assert not direct, f"call jit.warm(_warm_up) instead: {direct}"
