@@ -27,7 +27,6 @@ from __future__ import annotations
 
 import asyncio
 import logging
-import math
 import threading
 import time
 from collections.abc import Callable
@@ -37,6 +36,7 @@ from typing import TYPE_CHECKING, Any, Literal
 import numpy as np
 
 from davinci_sim.bridge.rosbridge.publisher import PeriodicTask
+from davinci_sim.model.cameras import focal_length_px
 from davinci_sim.sim.runtime.render import QposProbe, StereoFrames  # noqa: F401 (re-export)
 
 if TYPE_CHECKING:
@@ -59,7 +59,7 @@ def camera_info(
     ``fy = (h / 2) / tan(fovy / 2)``; the right camera's ``P[3] = -fx · baseline`` (the ROS
     stereo convention), the left one's 0.
     """
-    f = 0.5 * height / math.tan(math.radians(fovy_deg) / 2)
+    f = focal_length_px(height, fovy_deg)
     cx, cy = 0.5 * width, 0.5 * height
     K = [f, 0.0, cx, 0.0, f, cy, 0.0, 0.0, 1.0]
     R = [1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0]

@@ -8,6 +8,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from davinci_sim.geometry.se3 import look_at_rotation, rot_y, transform
+from davinci_sim.kinematics.jit import helper
 from davinci_sim.model.frames import set_pose
 
 #: Classic SD 12 mm stereo endoscope: a diagonal field of view of about 70° is typical for
@@ -32,6 +33,30 @@ class CameraConfig:
             raise ValueError(f"fovy_deg must be in (0, 180), got {self.fovy_deg!r}")
         if self.baseline_m < 0.0:
             raise ValueError(f"baseline_m must be >= 0, got {self.baseline_m!r}")
+
+    @property
+    def focal_px(self) -> float:
+        """The pinhole's focal length, px (:func:`focal_length_px` of this image)."""
+        return focal_length_px(self.height, self.fovy_deg)
+
+
+def focal_length_px(height: float, fovy_deg: float) -> float:
+    """MuJoCo's pinhole focal length, px, of an image ``height`` px high with a vertical
+    field of view of ``fovy_deg``: ``(h/2) / tan(fovy/2)`` (square pixels)."""
+    return 0.5 * height / math.tan(math.radians(fovy_deg) / 2.0)
+
+
+@helper
+def in_left_image_floats(x, y, z, f_px, half_baseline, width, height) -> bool:
+    """Whether the camera-frame point (``x``, ``y``, ``z``), m, projects inside the left
+    image (:func:`project_left`'s arithmetic, in its order): focal length ``f_px`` px, the
+    left camera ``half_baseline`` m towards +x, a ``width`` x ``height`` image. One point on
+    floats: the compiled task ticks call it."""
+    if not z > 1e-6:
+        return False
+    u = width / 2.0 - f_px * (x - half_baseline) / z
+    v = height / 2.0 - f_px * y / z
+    return 0 <= u < width and 0 <= v < height
 
 
 @dataclass(frozen=True)
@@ -83,7 +108,7 @@ def project_left(p_camera, camera: CameraConfig) -> tuple[float, float] | None:
     x, y, z = (float(c) for c in p_camera)
     if z <= 1e-6:
         return None
-    f = 0.5 * camera.height / math.tan(math.radians(camera.fovy_deg) / 2.0)
+    f = camera.focal_px
     x_left = x - camera.baseline_m / 2.0  # the left camera is half a baseline towards +x
     return (camera.width / 2.0 - f * x_left / z, camera.height / 2.0 - f * y / z)
 
@@ -95,7 +120,7 @@ def in_left_image(p_camera, camera: CameraConfig) -> np.ndarray:
     p = np.asarray(p_camera, dtype=float).reshape(-1, 3)
     x, y, z = p[:, 0], p[:, 1], p[:, 2]
     front = z > 1e-6
-    f = 0.5 * camera.height / math.tan(math.radians(camera.fovy_deg) / 2.0)
+    f = camera.focal_px
     zs = np.where(front, z, 1.0)
     u = camera.width / 2.0 - f * (x - camera.baseline_m / 2.0) / zs
     v = camera.height / 2.0 - f * y / zs

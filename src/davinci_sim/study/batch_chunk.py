@@ -15,7 +15,6 @@ tick, and that tick runs as :meth:`TrialBatch.tick`.
 
 from __future__ import annotations
 
-import math
 from typing import TYPE_CHECKING
 
 import mujoco
@@ -142,15 +141,15 @@ def _tasks_compiled(batch: TrialBatch, K: int, tip, force, master, alive, counte
                 np.empty(n))  # fmt: skip
     else:
         kept = tuple(np.array(getattr(prev, k)) for k in fields)
-    camera = batch.camera
-    focal = 0.5 * camera.height / math.tan(math.radians(camera.fovy_deg) / 2.0)
+    camera = batch.camera  # (path_row's pinhole: focal length, half baseline, image size)
+    lens = np.array([camera.focal_px, camera.baseline_m / 2.0, camera.width, camera.height], float)
     state = path_row.next_state(batch.state)
     sample = (np.empty(n), np.empty((n, 3)), np.empty(n, dtype=bool), np.empty(n, dtype=bool))
     prev_in = metrics._prev_in.copy()
     batch.time = batch_compiled.CHUNK.task_rows(
         K, float(batch.time), float(batch.dt), np.ascontiguousarray(batch.t_end, dtype=float),
         np.ascontiguousarray(batch.T_task_camera, dtype=float),
-        np.array([focal, camera.baseline_m / 2.0, float(camera.width), float(camera.height)]),
+        lens,
         constants, prev is not None, tuple(state), tip, force, master, alive,
         np.ascontiguousarray(batch.n_contacts, dtype=np.int64),
         np.ascontiguousarray(batch.contact_force, dtype=float), kept, running(metrics), prev_in,

@@ -26,6 +26,7 @@ import numpy as np
 
 from davinci_sim.devices.device_row import _xfrc_into
 from davinci_sim.devices.hand import _hand_rows
+from davinci_sim.model.cameras import in_left_image_floats
 from davinci_sim.operators.trainee_row import ARGS, command_row
 from davinci_sim.sim.rows_kernel import i32_at
 from davinci_sim.study.tick_kernel import (
@@ -176,11 +177,7 @@ def task_rows(
                 s_tip[r, i] = (x * R[i, 0] + y * R[i, 1]) + z * R[i, 2] + R[i, 3]
             s_time[r] = t
             s_clutch[r] = False
-            front = z > 1e-6
-            zs = z if front else 1.0
-            u = width / 2.0 - f * (x - half_baseline) / zs
-            v = height / 2.0 - f * y / zs
-            s_visible[r] = front and u >= 0 and u < width and v >= 0 and v < height
+            s_visible[r] = in_left_image_floats(x, y, z, f, half_baseline, width, height)
         first = j == 0 and not has_prev
         if first:  # (no previous sample yet: this one is its own)
             _keep(n, None, s_time, s_tip, force[j], s_clutch, s_visible, master[j], contacts,

@@ -20,8 +20,6 @@ and runs whatever this does not serve.
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
 
 from davinci_sim.tasks import path_row
@@ -52,8 +50,8 @@ class LivePathTick:
     def __init__(self, task, trial, camera, constants: tuple) -> None:
         self.task, self.trial = task, trial
         self._constants = constants
-        f = 0.5 * camera.height / math.tan(math.radians(camera.fovy_deg) / 2.0)  # (project_left)
-        self._camera = (f, camera.baseline_m / 2.0, float(camera.width), float(camera.height))
+        self._camera = (camera.focal_px, camera.baseline_m / 2.0, float(camera.width),
+                        float(camera.height))  # fmt: skip
         self._own_prev: Sample | None = None
         """The trial's previous sample when it has live_sample's fields (:func:`_live_fields`):
         the next one then takes its place, or it stays, without the general rules."""

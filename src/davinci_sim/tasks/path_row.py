@@ -28,6 +28,7 @@ from davinci_sim.haptics.path_query import (
     brute_force_constants,
 )
 from davinci_sim.kinematics import jit
+from davinci_sim.model.cameras import in_left_image_floats
 from davinci_sim.tasks.metrics_one import (
     mark_missing,
     path_update,
@@ -129,13 +130,9 @@ def live_path_row(
         s_tip[0, i] = T_task_tip[i, 3]
         s_force[0, i] = force_in[i] if has_force else 0.0
         s_master[0, i] = master_in[i] if has_master else 0.0
-    x, y, z = p_camera[0, 3], p_camera[1, 3], p_camera[2, 3]
-    visible = False
-    if z > 1e-6:  # (project_left's arithmetic, in its order)
-        u = width / 2.0 - f_px * (x - half_baseline) / z
-        v = height / 2.0 - f_px * y / z
-        visible = 0 <= u < width and 0 <= v < height
-    s_visible[0] = visible
+    s_visible[0] = in_left_image_floats(
+        p_camera[0, 3], p_camera[1, 3], p_camera[2, 3], f_px, half_baseline, width, height
+    )
     path_tick_rows(
         centre, basis, AE, AA, EE, starts, edges, cumulative, lengths, start, finish,
         start_tol, finish_tol, min_arc, tube_radius, force_limit, marks, active, phase, t_start,
