@@ -93,3 +93,33 @@ def test_a_task_draws_its_path_into_the_scene_before_compiling():
     left_plain, _ = plain.render_stereo()
     left_drawn, _ = drawn.render_stereo()
     assert np.abs(left_plain.astype(int) - left_drawn.astype(int)).sum() > 0
+
+
+def test_closing_a_renderer_survives_another_being_collected_meanwhile():
+    """An unclosed simulation's renderer, freed by the garbage collector while another
+    simulation closes its own, must not make that close fail: MuJoCo's close restores the
+    context current before it, which was the collected one's (EGL_BAD_CONTEXT in a CI run)."""
+    import gc
+
+    from davinci_sim.sim.simulation import Simulation
+
+    closing, left = Simulation("psm1"), Simulation("psm1")
+    camera = closing.camera_names()[0]
+    closing.render(camera, 64, 48)
+    left.render(camera, 64, 48)  # (its context is now the current one)
+    holder = [left]
+    del left
+
+    class CollectOnFree:  # the collector runs in the middle of the close
+        def __init__(self, context):
+            self.context = context
+
+        def free(self):
+            self.context.free()
+            holder.clear()
+            gc.collect()
+
+    (renderer,) = closing._cameras._renderers.values()
+    renderer._mjr_context = CollectOnFree(renderer._mjr_context)
+    closing.close()  # (raised EGLError before CameraRenderer.close made its context current)
+    assert closing._cameras is None and not holder

@@ -108,6 +108,13 @@ class CameraRenderer:
         return r.render()
 
     def close(self) -> None:
+        """Free the GL contexts. Each is made current first, so that MuJoCo's close does not
+        restore the context that was current before: that may be another renderer's, which
+        the garbage collector can free while this one closes (an unclosed simulation's), and
+        restoring a freed context fails (EGL_BAD_CONTEXT)."""
         for r in self._renderers.values():
+            context = getattr(r, "_gl_context", None)
+            if context is not None:
+                context.make_current()
             r.close()
         self._renderers.clear()
