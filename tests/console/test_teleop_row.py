@@ -92,6 +92,7 @@ def _tick_both_ways(monkeypatch, sim, ticks: int):
     then the same ticks from the same state with the Python one; each path's servo
     references and the teleoperation's jaw state, and the compiled answers."""
     teleop = sim.components["console"].psm_teleops["MTMR_PSM1"]
+    sim.set_chunker(None)  # (each tick in Python: the teleoperation's own compiled call)
     start = sim.get_state()
     counting = _Counting(ROW)
     out = []
@@ -140,6 +141,7 @@ def test_a_goal_with_no_compiled_answer_takes_the_python_path_and_its_message(mo
     # bound allows, a refusal with its message, then more.
     assert teleop.set_scale(1.0)
     device.move_hand(device.input().position + np.array([0.0, 0.0, 0.4]))
+    sim.set_chunker(None)  # (each tick in Python: the teleoperation's own compiled call)
     start = sim.get_state()
     counting = _Counting(ROW)
     seen = []

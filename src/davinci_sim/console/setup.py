@@ -100,6 +100,10 @@ def install_console(
     if ecm is not None:
         console.set_teleop_ecm(ecm)
     console.haptics = haptics
+    from davinci_sim.console import chunk
+
+    if chunk.COMPILED:
+        sim.set_chunker(chunk.ConsoleChunk(sim, console))
     if contact_feedback:
         haptics.add_field(ContactFeedback(dt=sim.dt), name="contact")
     if operator_present:

@@ -118,6 +118,13 @@ class SyntheticOperator:
             if t - self._done_at > DONE_WAIT:
                 self.stop()
 
+    def chunk_part(self):
+        """Idle for the console's compiled ticks (:mod:`davinci_sim.console.chunk`) while
+        no trainee's hand moves; None (Python's ticks) while one does."""
+        from davinci_sim.console.chunk import IDLE
+
+        return IDLE if self._hand is None else None
+
     def snapshot(self) -> dict:
         hand = self._hand
         phase = None

@@ -131,6 +131,7 @@ class Simulation:
         # the first tick (as assembled), and each component added later as it was added.
         self._built = self._capture(strict=True)
         self._initial_components: dict[str, object] | None = None
+        self._chunker = None
         self._added_states: dict[str, object] = {}
 
     # ------------------------------------------------------------ time
@@ -158,6 +159,10 @@ class Simulation:
         if self.encoder_noise_std > 0:
             noise = self.rng.normal(0.0, self.encoder_noise_std, self.data.qpos.shape)
             self._noisy_qpos = self.data.qpos + noise
+        self._post_steps()
+
+    def _post_steps(self) -> None:
+        """The components' post-steps of the tick whose step just ran."""
         t = self.data.time
         for component in self._components.values():
             if (post_step := getattr(component, "post_step", None)) is not None:
@@ -176,9 +181,32 @@ class Simulation:
         return self._guard.recoveries
 
     def step(self, n: int = 1) -> None:
-        """``n`` ticks."""
-        for _ in range(n):
+        """``n`` ticks (:meth:`advance`)."""
+        self.advance(n)
+
+    def advance(self, n: int) -> None:
+        """``n`` ticks: in the chunker's compiled calls where it has them (a console in its
+        steady state, :mod:`davinci_sim.console.chunk`: the same ticks, bit for bit), else
+        one :meth:`tick` at a time."""
+        done = 0
+        while done < n:
+            chunker = self._chunker
+            if chunker is not None:
+                ran, post = chunker(n - done)
+                done += ran
+                if post:  # (the next tick's step ran: its post-steps are Python's)
+                    self._post_steps()
+                    done += 1
+                if ran or post or done >= n:
+                    continue
             self.tick()
+            done += 1
+
+    def set_chunker(self, chunker) -> None:
+        """Run :meth:`advance`'s ticks through ``chunker`` (``chunker(n) -> (ticks, post)``:
+        at most n ticks run whole, and whether the next one's step ran too, its post-steps
+        left to the caller), or None: every tick in Python."""
+        self._chunker = chunker
 
     def run_for(self, seconds: float) -> None:
         """Tick for ``seconds`` of simulation time."""

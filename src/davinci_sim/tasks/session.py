@@ -254,16 +254,28 @@ class TaskSession:
         task = self.task
         T_task_camera = task.T_task_camera(self.sim.T_cart_camera())
         if self._recorded:
-            tip = (T_task_camera @ self.teleop.psm.measured_cp().T)[:3, 3]
-            self._distance = float(task.distance(tip)[0])
-            if task.at_start(tip)[0]:
-                self.repetition += 1
-                self._restart()  # (the objects stay: a Reset puts them back)
+            self._after_result(T_task_camera, self.teleop.psm.measured_cp().T)
             return
         ticked = self._live_tick is not None and self._live_tick.tick(
             T_task_camera, live_inputs(task, self.teleop, self.console), t
         )
+        self._sampled(ticked, T_task_camera, t)
+
+    def _after_result(self, T_task_camera: np.ndarray, T_camera_tip: np.ndarray) -> None:
+        """A tick once the repetition's result is in: the tool's distance to the path; back
+        to the start, the next repetition."""
+        task = self.task
+        tip = (T_task_camera @ T_camera_tip)[:3, 3]
+        self._distance = float(task.distance(tip)[0])
+        if task.at_start(tip)[0]:
+            self.repetition += 1
+            self._restart()  # (the objects stay: a Reset puts them back)
+
+    def _sampled(self, ticked: bool, T_task_camera: np.ndarray, t: float) -> None:
+        """The rest of :meth:`post_step` once the compiled tick has (``ticked``) or has not
+        taken the tick's sample: then the monitor observes it."""
         if not ticked:
+            task = self.task
             sample = live_sample(task, T_task_camera, self.teleop, self.console, t)
             self.monitor.observe(sample)
             if sample.objects is not None:  # (what the console's page shows of them)
@@ -271,6 +283,38 @@ class TaskSession:
         self._distance = self.monitor.distance
         if self.monitor.phase == Phase.FINISHED and self.monitor.results is not None:
             self._record(self.monitor.results, t)
+
+    def chunk_part(self):
+        """What the console's compiled ticks (:mod:`davinci_sim.console.chunk`) sample for
+        the session after each step, or None where its tick needs Python: framing the view,
+        an adaptive condition (a repetition's end changes the fixture for the next tick), a
+        sample the compiled tick does not take."""
+        from davinci_sim.console.chunk import SampleRequest
+
+        if self._frame_at is not None or self._bringing or self._adaptive is not None:
+            return None
+        if not self._recorded:
+            live = self._live_tick
+            if live is None:
+                return None
+            prev = live.trial.metrics._prev
+            if prev is not None and prev.contacts is None:
+                return None
+        contacts = _contacts(self.sim, self.task)
+        return SampleRequest(self.teleop.name, self._take, contacts.tool_geom,
+                             contacts.other_geom)  # fmt: skip
+
+    def _take(self, t: float, T_cart_camera, T_camera_tip, requested, master) -> None:
+        """:meth:`post_step` of a compiled tick at the time ``t`` (s): the camera in the cart
+        and the tip in the camera (4x4), the guidance force requested ((3,) N, or None) and
+        the master's position ((3,) m) as the tick left them, no clutch, no contact."""
+        task = self.task
+        T_task_camera = task.T_task_camera(T_cart_camera)
+        if self._recorded:
+            self._after_result(T_task_camera, T_camera_tip)
+            return
+        inputs = (T_camera_tip, requested, False, master, (0, 0.0))
+        self._sampled(self._live_tick.tick(T_task_camera, inputs, t), T_task_camera, t)
 
     def _framing(self) -> bool:
         """The session is framing the view: the ECM moves (homing, then to the task) or the

@@ -1,0 +1,164 @@
+"""The console's compiled ticks (``console/chunk.py``) are the Python ticks bit for bit: what
+``make run`` ticks (the full scene, the seed's path with its viscous fixture, both web-console
+hands holding the handles, both pairs following) run from one state both ways — the chunker's
+calls and one ``Simulation.tick`` at a time — leave the same physics, servo, arms' and
+components' states and the same events at the same times; ticks the kernel has no form of
+(a key held, a contact of the instrument, a repetition's end) go to Python in the middle."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from bits import assert_same_bits
+from davinci_sim.console import chunk
+from davinci_sim.system import (
+    ConsoleDescription,
+    SystemDescription,
+    TaskDescription,
+    build_simulation,
+)
+from davinci_sim.tasks.session import VIEW_DISTANCE
+from davinci_sim.tasks.state import Phase
+
+pytestmark = pytest.mark.skipif(not chunk.COMPILED, reason="numba is off")
+
+
+@pytest.fixture(scope="module")
+def served():
+    """What ``make run`` ticks, the person holding both handles after taking control."""
+    sim = build_simulation(
+        SystemDescription(
+            scene="full", keyframe="surgical",
+            console=ConsoleDescription(hand_inputs=("MTML", "MTMR")),
+            task=TaskDescription("seed_path", frame_view=VIEW_DISTANCE), home=True,
+            runner="none", real_time=False,
+        )
+    )  # fmt: skip
+    sim.run_for(8.0)  # homing, then the endoscope framed on the task
+    console = sim.components["console"]
+    console.press("operator_present")
+    console.teleop_enable(True)
+    sim.components["MTMR/hand"].grasp()
+    sim.components["MTML/hand"].grasp()
+    teleops = [t for t in console.psm_teleops.values() if t.selected]
+    assert sim.run_until(lambda: all(t.is_following() for t in teleops), 30)
+    sim.run_for(0.3)
+    return sim, sim._chunker, sim.get_state()
+
+
+class _Calls:
+    """The chunker with its calls counted: (ticks run whole, post-steps left)."""
+
+    def __init__(self, chunker) -> None:
+        self.chunker, self.answers = chunker, []
+
+    def __call__(self, n):
+        answer = self.chunker(n)
+        self.answers.append(answer)
+        return answer
+
+
+def _events(sim) -> tuple[list, list]:
+    """Every event and message of every component and arm from now on, in order (messages
+    carry their time), and the functions that end the subscriptions."""
+    seen: list = []
+    ends = []
+    for owner in (*sim.components.values(), *sim.arms.values()):
+        channels = getattr(owner, "channels", None)
+        if channels is not None:
+            ends.append(channels.subscribe(lambda event, payload, name=owner.name: seen.append(
+                (name, event, repr(payload)))))  # fmt: skip
+    return seen, ends
+
+
+def _both_ways(served, ticks: int, before=None):
+    """From the served state: ``ticks`` ticks one at a time in Python, then the same ticks
+    from the same state through the chunker; each run's state, events and the chunker's
+    answers."""
+    sim, chunker, start = served
+    out = []
+    calls = _Calls(chunker)
+    for use in (None, calls):
+        sim.set_state(start)
+        chunker._cooldown = 0
+        sim.set_chunker(use)
+        if before is not None:
+            before(sim)
+        events, ends = _events(sim)
+        sim.advance(ticks)
+        out.append((sim.get_state(), list(events), sim.data.qpos.copy()))
+        for end in ends:
+            end()
+    sim.set_chunker(chunker)
+    return out, calls.answers
+
+
+def _assert_same_run(a, b) -> None:
+    (sa, ea, qa), (sb, eb, qb) = a, b
+    assert_same_bits(qa, qb, "qpos")
+    assert_same_bits(np.asarray(sa.physics), np.asarray(sb.physics), "physics")
+    for name in ("qfrc_bias", "xfrc_applied", "ctrl", "actuator_force", "qacc_warmstart"):
+        assert_same_bits(getattr(sa.data, name), getattr(sb.data, name), f"data.{name}")
+    assert_same_bits(sa.tick_count, sb.tick_count, "tick_count")
+    assert_same_bits(sa.servo, sb.servo, "servo")
+    assert_same_bits(sa.base_frames["frames"][0], sb.base_frames["frames"][0], "frames key")
+    assert_same_bits(sa.arms, sb.arms, "arms")
+    assert_same_bits(sa.components, sb.components, "components")
+    assert ea == eb
+
+
+def test_the_steady_console_ticks_compiled_as_in_python(served):
+    runs, answers = _both_ways(served, 400)
+    _assert_same_run(*runs)
+    whole = sum(a[0] for a in answers)
+    assert whole >= 390, answers  # the kernel ran (nearly) every tick, in calls of at most 4
+    assert max(a[0] for a in answers) <= chunk.MAX_TICKS
+
+
+def test_a_repetition_runs_and_ends_in_the_compiled_ticks_as_in_python(served):
+    def move(sim):  # the tool off point 1: a repetition runs, its metrics every tick
+        device = sim.components["MTMR/device"]
+        T = device.input().T_hrsv_tip.copy()
+        T[2, 3] += 0.03
+        device.move_hand(T)
+
+    runs, answers = _both_ways(served, 1500, before=move)
+    _assert_same_run(*runs)
+    assert sum(a[0] for a in answers) > 1000
+    sim = served[0]
+    assert sim.components["task"].monitor.phase in (Phase.RUNNING, Phase.FINISHED)
+
+
+def test_a_key_held_ticks_in_python_then_the_kernel_takes_over(served):
+    def key(sim):  # the web console's D key for 50 ms: the hand moves, Python ticks
+        assert sim.components["MTMR/hand"].command([0.02, 0.0, 0.0])
+
+    runs, answers = _both_ways(served, 600, before=key)
+    _assert_same_run(*runs)
+    assert (0, False) in answers and any(a[0] for a in answers)
+
+
+def test_a_tracking_fault_in_a_call_is_the_python_fault(served):
+    def shove(sim):  # a steady shove on the instrument: the tracking error grows, FAULT
+        body = sim.model.body("PSM1/roll").id
+        sim.data.xfrc_applied[body, :3] = (0.0, 600.0, 0.0)
+
+    runs, answers = _both_ways(served, 400, before=shove)
+    _assert_same_run(*runs)
+    sim = served[0]
+    assert sim.arms["PSM1"].operating_state().state == "FAULT"
+    assert any("tracking error" in e[2] for e in runs[1][1])
+    assert any(a[0] for a in answers)
+
+
+def test_a_python_only_field_keeps_the_python_ticks(served):
+    sim, chunker, start = served
+    sim.set_state(start)
+    haptics = sim.components["console"].haptics
+    name = haptics.add_field(lambda state: np.zeros(6), mtm="MTML", name="user")
+    try:
+        assert chunker.plan() is None
+    finally:
+        haptics.remove_field(name)
+    assert chunker.plan() is not None
