@@ -13,8 +13,9 @@ session its samples, in tick order. Anything else — a key held, a command, a c
 component the kernel has no form of — ticks in Python (:meth:`Simulation.tick`), the oracle
 the chunk is tested against bit for bit (``tests/console/test_chunk.py``).
 
-A command sent between two calls takes effect at the next one; a call is at most
-:data:`MAX_TICKS` ticks (4 ms of simulated time), so a command waits at most that long.
+A command sent between two calls takes effect at the next one: the live runners' calls are
+at most ``runtime.loop.CHUNK_TICKS`` ticks (4 ms of simulated time), so a command waits at
+most that long.
 """
 
 from __future__ import annotations
@@ -63,8 +64,10 @@ if (
 COMPILED = _KERNEL is not None
 """Whether :class:`ConsoleChunk` can run (else the console ticks in Python)."""
 
-MAX_TICKS = 4
-"""The most ticks one call runs (4 ms: a command waits at most that long)."""
+MAX_TICKS = 32
+"""The most ticks one call runs. The live runners ask for at most
+``runtime.loop.CHUNK_TICKS`` (4 ms: a command from outside waits at most that long); a
+script's ``Simulation.step(n)``, which nothing interrupts, runs up to this many per call."""
 
 IDLE = "idle"
 """What a component's ``chunk_part()`` returns when its ticks do nothing in the chunk's
@@ -485,9 +488,9 @@ class ConsoleChunk:
             tel.device.rendered(limited, tau, bool(out[3][0]), dev[15].copy(), dev[4])
         rec = plan.rec
         if rec[0][0]:
-            for j in range(whole):
-                plan.request.take(float(rec[6][j]), rec[8][j].copy(), _ro(rec[7][j]),
-                                  rec[9][j].copy(), rec[10][j].copy())  # fmt: skip
+            plan.request.take(rec[6][:whole].copy(), rec[8][:whole].copy(),
+                              rec[7][:whole].copy(), rec[9][:whole].copy(),
+                              rec[10][:whole].copy())  # fmt: skip
 
 
 @dataclass

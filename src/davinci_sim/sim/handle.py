@@ -261,7 +261,10 @@ class ThreadedSimulation:
         sleep: Callable[[float], None] | None = None,
         speed: float = 1.0,
     ):
-        from davinci_sim.sim.runtime.loop import LoopRunner  # (runtime imports this module)
+        from davinci_sim.sim.runtime.loop import (  # (runtime imports this module)
+            CHUNK_TICKS,
+            LoopRunner,
+        )
 
         self.sim = sim
         self.real_time = real_time
@@ -274,6 +277,7 @@ class ThreadedSimulation:
             max_lag=math.inf,
             clock=clock,
             sleep=sleep,
+            chunk=CHUNK_TICKS,
         )
         self._calls: queue.SimpleQueue[_Call] = queue.SimpleQueue()
         self._subscribers: list[EventCallback] = []
@@ -409,5 +413,5 @@ class ThreadedSimulation:
         self._resume.wait()
         self._run_calls()  # (calls made while paused, e.g. call_at for the first ticks)
         self._runner.run(until=self._stop.is_set, before_tick=self._run_calls,
-                         after_tick=self._publish)  # fmt: skip
+                         after_tick=self._publish, every=self._snapshot_ticks)  # fmt: skip
         self._run_calls()

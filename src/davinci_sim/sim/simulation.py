@@ -202,6 +202,12 @@ class Simulation:
             self.tick()
             done += 1
 
+    @property
+    def chunker(self):
+        """What runs :meth:`advance`'s ticks in compiled calls, or None (see
+        :meth:`set_chunker`)."""
+        return self._chunker
+
     def set_chunker(self, chunker) -> None:
         """Run :meth:`advance`'s ticks through ``chunker`` (``chunker(n) -> (ticks, post)``:
         at most n ticks run whole, and whether the next one's step ran too, its post-steps

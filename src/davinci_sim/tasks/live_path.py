@@ -133,33 +133,64 @@ class LivePathTick:
         the times (m,) s, the instrument's contacts and their force (m,). False (nothing
         done) where the samples must go one by one: the trial's previous sample is not
         :meth:`tick`'s own kind (the first after a reset or a restored state), numba off."""
+        prev = self.trial.metrics._prev
+        if not ENABLED or prev is None or prev is not self._own_prev or prev.master is not None:
+            return False
+        self._samples(T_task_camera, T_task_tip, p_camera, t, contacts, tool_force, None, None,
+                      stop=False)  # fmt: skip
+        return True
+
+    def takes(self, T_task_camera, T_task_tip, p_camera, t, force, master) -> int:
+        """Samples in turn, as :meth:`tick` takes them with the guidance force ``force``
+        (m, 3) N (None: none), the master's position ``master`` (m, 3) m, no clutch and no
+        contact (the console's compiled ticks, :mod:`davinci_sim.console.chunk`), up to and
+        including the first that changes the trial's phase; the camera and the tip in the
+        task's frame and the tip in the camera frame (m, 4, 4), the times (m,) s. Returns how
+        many it took: 0 where they must go one by one (as :meth:`ticks`)."""
+        prev = self.trial.metrics._prev
+        if not ENABLED or prev is None or prev is not self._own_prev or prev.master is None:
+            return 0
+        m = len(t)
+        return self._samples(T_task_camera, T_task_tip, p_camera, t, np.zeros(m, np.int64),
+                             np.zeros(m), force, master, stop=True)  # fmt: skip
+
+    def _samples(self, T_task_camera, T_task_tip, p_camera, t, contacts, tool_force, force,
+                 master, *, stop: bool) -> int:  # fmt: skip
+        """:func:`~davinci_sim.tasks.path_row.live_path_rows` on the samples (arguments as
+        :meth:`ticks` and :meth:`takes`); the trial and its previous sample as the ticks
+        leave them. Returns the samples taken."""
         trial = self.trial
         metrics = trial.metrics
         prev = metrics._prev
-        if not ENABLED or prev is None or prev is not self._own_prev or prev.master is not None:
-            return False
-        arrays = _sample_arrays(len(t))
+        m = len(t)
+        arrays = _sample_arrays(m)
         new = path_row.next_state(trial.state)
         closest, measured = np.empty((1, 8)), np.empty(1, dtype=bool)
+        done = np.zeros(1, dtype=np.int64)
         previous = (np.array(prev.time, dtype=float), np.array(prev.tip, dtype=float),
                     np.array(prev.clutch, dtype=bool),
                     np.array(prev.contacts, dtype=np.int64))  # fmt: skip
+        has_force, has_master = force is not None, master is not None
         args = (
             *self._constants, _ACTIVE, _c(T_task_tip, float), _c(p_camera, float),
-            *self._camera, _c(t, float), _c(contacts, np.int64), _c(tool_force, float), *new,
-            *arrays, *previous, *running(metrics), metrics._prev_in.copy(), closest, measured,
+            *self._camera, has_force, _c(force, float) if has_force else np.zeros((m, 3)),
+            has_master, _c(master, float) if has_master else np.zeros((m, 3)), _c(t, float),
+            _c(contacts, np.int64), _c(tool_force, float), stop, *new, *arrays, *previous,
+            *running(metrics), metrics._prev_in.copy(), closest, measured, done,
         )  # fmt: skip
         last = path_row.live_path_rows(*args)
-        metrics._missing.add("master_workspace")  # (no master: mark_missing)
+        if not has_master:
+            metrics._missing.add("master_workspace")  # (no master: mark_missing)
         metrics._prev_in = measured
         if last >= 0:  # (the last measured sample: the metrics' previous one)
             row = tuple(a[last : last + 1].copy() for a in arrays)
-            time, tip, force, clutch, visible, _, count, tool = row
+            time, tip, force_row, clutch, visible, master_row, count, tool = row
             metrics._prev = self._own_prev = self._sample(
-                time, tip, force, clutch, visible, None, count, tool, T_task_camera[last],
-                T_task_tip[last],
+                time, tip, force_row, clutch, visible, master_row if has_master else None,
+                count, tool, T_task_camera[last], T_task_tip[last],
             )  # fmt: skip
-        return self._done(new, closest)
+        self._done(new, closest)
+        return int(done[0])
 
     def _done(self, new: TaskState, closest: np.ndarray) -> bool:
         """The trial's new state; a monitor's observations (the last sample's distance and

@@ -147,32 +147,36 @@ def live_path_row(
 def live_path_rows(
     centre, basis, AE, AA, EE, starts, edges, cumulative, lengths, start, finish, start_tol,
     finish_tol, min_arc, tube_radius, force_limit, marks, active, T_task_tip, p_camera, f_px,
-    half_baseline, width, height, t, contacts, tool_force, phase, t_start, t_finish, progress,
-    s_time, s_tip, s_force, s_clutch, s_visible, s_master, s_contacts, s_tool_force, prev_time,
-    prev_tip, prev_clutch, prev_contacts, deviation, t_first, t_last, length, peak, force_sum,
-    outside, presses, collisions, excessive, unseen, low, high, reached, count, prev_in,
-    closest, measured,
+    half_baseline, width, height, has_force, force, has_master, master, t, contacts,
+    tool_force, stop, phase, t_start, t_finish, progress, s_time, s_tip, s_force, s_clutch,
+    s_visible, s_master, s_contacts, s_tool_force, prev_time, prev_tip, prev_clutch,
+    prev_contacts, deviation, t_first, t_last, length, peak, force_sum, outside, presses,
+    collisions, excessive, unseen, low, high, reached, count, prev_in, closest, measured, done,
 ):  # fmt: skip
-    """m samples of one path trial in turn, each :func:`live_path_row` with no guidance
-    force, clutch or master (an environment's samples): row j of ``T_task_tip``,
-    ``p_camera`` (m, 4, 4), ``t``, ``contacts``, ``tool_force`` (m,) and of the ``s_*``
-    (m, ...) sample arrays it fills. The previous sample (``prev_*``, (1,)-row arrays) and
-    ``prev_in`` (1,) become each measured sample's, as the metrics' previous sample does;
-    ``closest`` and ``measured`` (1, 8), (1,) are the last sample's. Returns the last
-    measured sample's row (−1: none)."""
+    """m samples of one path trial in turn, each :func:`live_path_row` with no clutch: row j
+    of ``T_task_tip``, ``p_camera`` (m, 4, 4), ``t``, ``contacts``, ``tool_force`` (m,), of
+    the guidance force ``force`` and the master's position ``master`` (m, 3; zeros without
+    ``has_force``, ``has_master``) and of the ``s_*`` (m, ...) sample arrays it fills. The
+    previous sample (``prev_*``, (1,)-row arrays) and ``prev_in`` (1,) become each measured
+    sample's, as the metrics' previous sample does; ``closest`` and ``measured`` (1, 8),
+    (1,) are the last sample's. With ``stop``, the samples end after one that changes the
+    trial's phase. ``done[0]``: the samples taken. Returns the last measured sample's row
+    (−1: none)."""
     last = -1
-    no_vector = np.zeros(3)
+    done[0] = 0
     for j in range(t.shape[0]):
         q = j + 1
+        before = phase[0]
         live_path_row(
             centre, basis, AE, AA, EE, starts, edges, cumulative, lengths, start, finish,
             start_tol, finish_tol, min_arc, tube_radius, force_limit, marks, active,
-            T_task_tip[j], p_camera[j], f_px, half_baseline, width, height, False, no_vector,
-            False, no_vector, t[j], False, contacts[j], tool_force[j], phase, t_start, t_finish,
-            progress, s_time[j:q], s_tip[j:q], s_force[j:q], s_clutch[j:q], s_visible[j:q],
-            s_master[j:q], s_contacts[j:q], s_tool_force[j:q], prev_time, prev_tip, prev_clutch,
-            prev_contacts, deviation, t_first, t_last, length, peak, force_sum, outside, presses,
-            collisions, excessive, unseen, low, high, reached, count, prev_in, closest, measured,
+            T_task_tip[j], p_camera[j], f_px, half_baseline, width, height, has_force, force[j],
+            has_master, master[j], t[j], False, contacts[j], tool_force[j], phase, t_start,
+            t_finish, progress, s_time[j:q], s_tip[j:q], s_force[j:q], s_clutch[j:q],
+            s_visible[j:q], s_master[j:q], s_contacts[j:q], s_tool_force[j:q], prev_time,
+            prev_tip, prev_clutch, prev_contacts, deviation, t_first, t_last, length, peak,
+            force_sum, outside, presses, collisions, excessive, unseen, low, high, reached,
+            count, prev_in, closest, measured,
         )  # fmt: skip
         prev_in[0] = measured[0]
         if measured[0]:  # (the metrics' previous sample: this one)
@@ -182,6 +186,9 @@ def live_path_rows(
             prev_contacts[0] = s_contacts[j]
             for i in range(3):
                 prev_tip[0, i] = s_tip[j, i]
+        done[0] = q
+        if stop and phase[0] != before:
+            break
     return last
 
 

@@ -304,17 +304,32 @@ class TaskSession:
         return SampleRequest(self.teleop.name, self._take, contacts.tool_geom,
                              contacts.other_geom)  # fmt: skip
 
-    def _take(self, t: float, T_cart_camera, T_camera_tip, requested, master) -> None:
-        """:meth:`post_step` of a compiled tick at the time ``t`` (s): the camera in the cart
-        and the tip in the camera (4x4), the guidance force requested ((3,) N, or None) and
-        the master's position ((3,) m) as the tick left them, no clutch, no contact."""
-        task = self.task
-        T_task_camera = task.T_task_camera(T_cart_camera)
-        if self._recorded:
-            self._after_result(T_task_camera, T_camera_tip)
-            return
-        inputs = (T_camera_tip, requested, False, master, (0, 0.0))
-        self._sampled(self._live_tick.tick(T_task_camera, inputs, t), T_task_camera, t)
+    def _take(self, t, T_cart_camera, T_camera_tip, requested, master) -> None:
+        """:meth:`post_step` of m compiled ticks, in order: their times ``t`` (m,) s, the
+        camera in the cart and the tip in the camera (m, 4, 4), the guidance force requested
+        ((m, 3) N, or None) and the master's position ((m, 3) m) as each tick left them, no
+        clutch, no contact; the samples in compiled calls up to each change of phase
+        (``LivePathTick.takes``)."""
+        task, live = self.task, self._live_tick
+        T_task_camera = np.array([task.T_task_camera(T) for T in T_cart_camera])
+        T_task_tip = np.array([a @ b for a, b in zip(T_task_camera, T_camera_tip, strict=True)])
+        j, m = 0, len(t)
+        while j < m:
+            if self._recorded:
+                self._after_result(T_task_camera[j], T_camera_tip[j])
+                j += 1
+                continue
+            force = None if requested is None else requested[j:]
+            n = live.takes(T_task_camera[j:], T_task_tip[j:], T_camera_tip[j:], t[j:], force,
+                           master[j:])  # fmt: skip
+            if n == 0:  # (the first sample of a trial: one tick)
+                tip = T_camera_tip[j].copy()
+                tip.setflags(write=False)
+                inputs = (tip, None if force is None else force[0], False, master[j], (0, 0.0))
+                live.tick(T_task_camera[j], inputs, float(t[j]))
+                n = 1
+            j += n
+            self._sampled(True, T_task_camera[j - 1], float(t[j - 1]))
 
     def _framing(self) -> bool:
         """The session is framing the view: the ECM moves (homing, then to the task) or the

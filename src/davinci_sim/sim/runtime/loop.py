@@ -30,6 +30,9 @@ from davinci_sim.sim.runtime.stats import PeriodRecorder, PeriodStatistics
 if TYPE_CHECKING:
     from davinci_sim.sim.simulation import Simulation
 
+#: The most ticks a live runner's pass runs (``Simulation.advance``'s compiled calls): a
+#: call from outside waits at most 4 ms of simulated time for the next pass (issue 20).
+CHUNK_TICKS = 4
 #: Spin on the clock for the last 200 µs before a deadline (sleep overshoot on a VM).
 DEFAULT_SPIN = 200e-6
 #: Drop the backlog when more than 50 ms behind (a long stall: better to skip than to race).
@@ -161,6 +164,10 @@ class Pacer:
             pass
         return False
 
+    def skip(self, periods: int) -> None:
+        """The next deadline ``periods`` later than it would be (ticks run ahead)."""
+        self._n += periods
+
     def _keep_idle_share(self) -> None:
         now = self.clock()
         if now - self._window < IDLE_WINDOW:
@@ -188,6 +195,10 @@ class LoopRunner:
         spin, max_lag: see :class:`Pacer`.
         clock, sleep: the wall clock (s) and how to wait (tests pass a virtual clock).
         min_idle: see :class:`Pacer` (a real-time loop's :func:`realtime_idle_share`).
+        chunk: the most ticks one pass of the loop runs (``Simulation.advance``: the
+            simulation's compiled calls where it has them); between passes the loop serves
+            its calls and publishes, so a call waits at most ``chunk`` ticks. 1: every tick
+            on its own (``Simulation.tick``).
     """
 
     def __init__(
@@ -202,8 +213,12 @@ class LoopRunner:
         clock: Callable[[], float] = time.perf_counter,
         sleep: Callable[[float], None] | None = None,
         min_idle: float = 0.0,
+        chunk: int = 1,
     ) -> None:
+        if not (isinstance(chunk, int) and chunk >= 1):
+            raise ValueError(f"chunk must be a whole number of ticks >= 1, got {chunk!r}")
         self.sim = sim
+        self.chunk = chunk
         self.real_time = real_time
         self.clock = clock
         self.recorder = recorder or PeriodRecorder(sim.dt, real_time=real_time)
@@ -247,11 +262,15 @@ class LoopRunner:
         until: Callable[[], bool] | None = None,
         before_tick: Callable[[], None] | None = None,
         after_tick: Callable[[], None] | None = None,
+        every: int = 1,
     ) -> PeriodStatistics:
         """Tick ``ticks`` times (or until ``until()``; at least one must be given).
 
-        ``before_tick``/``after_tick`` run around every tick, inside the measured compute
-        time (the runners serve their calls and publish there).
+        ``before_tick``/``after_tick`` run around every pass of the loop (one tick, or up to
+        :attr:`chunk`), inside the measured compute time (the runners serve their calls and
+        publish there). A pass ends at every multiple of ``every`` ticks (a runner's snapshot
+        period) and before each tick a call is scheduled for; the period statistics count
+        each of its ticks, with its share of the pass's period and compute time.
         """
         if ticks is None and until is None:
             raise ValueError("run needs ticks or until")
@@ -270,9 +289,21 @@ class LoopRunner:
                 before_tick()  # (may schedule calls for this very tick)
             while scheduled and scheduled[0][0] <= sim.tick_count:
                 heapq.heappop(scheduled)[2]()
-            sim.tick()
+            k = 1
+            if self.chunk > 1 and sim.chunker is not None:
+                k = min(self.chunk, every - sim.tick_count % every)
+                if scheduled:
+                    k = min(k, max(1, scheduled[0][0] - sim.tick_count))
+                if ticks is not None:
+                    k = min(k, ticks - n)
+            if k == 1:
+                sim.tick()
+            else:
+                sim.advance(k)
+                if pacer is not None:
+                    pacer.skip(k - 1)  # (the next pass starts at the next tick's time)
             if after_tick is not None:
                 after_tick()
-            self.recorder.tick(start, clock())  # (the recorder may be replaced meanwhile)
-            n += 1
+            self.recorder.tick(start, clock(), k)  # (the recorder may be replaced meanwhile)
+            n += k
         return self.recorder.statistics()

@@ -56,6 +56,7 @@ from davinci_sim.sim.handle import (
     execute,
 )
 from davinci_sim.sim.runtime.loop import (
+    CHUNK_TICKS,
     DEFAULT_MAX_LAG,
     DEFAULT_SPIN,
     LoopRunner,
@@ -599,6 +600,8 @@ def _loop_main(factory, options: LoopOptions, conn, paths: dict) -> None:
             max_lag=options.max_lag,
             # (a FIFO loop that never sleeps is stopped by Linux for 50 ms a second)
             min_idle=realtime_idle_share() if applied["realtime_priority"] else 0.0,
+            # (ticks in compiled calls of up to CHUNK_TICKS; one at a time to stop at a tick)
+            chunk=CHUNK_TICKS if options.stop_at_tick is None else 1,
         )
         outgoing: deque = deque()
         dropped = [0]
@@ -689,7 +692,8 @@ def _loop_main(factory, options: LoopOptions, conn, paths: dict) -> None:
                 serve()
                 flush()
         with frozen_heap():  # no full collection over the model and system mid-run
-            stats = runner.run(until=done, before_tick=serve, after_tick=after)
+            stats = runner.run(until=done, before_tick=serve, after_tick=after,
+                               every=snapshot_ticks)  # fmt: skip
         state_slot.write(_published_state(sim))
         flush()
         if dropped[0]:

@@ -123,8 +123,19 @@ class PeriodRecorder:
             self.header[_FIRST_WALL] = math.nan
         self._last_start: float | None = None
 
-    def tick(self, start: float, end: float) -> None:
-        """Record one tick that started at ``start`` and finished at ``end`` (wall s)."""
+    def tick(self, start: float, end: float, ticks: int = 1) -> None:
+        """Record one tick that started at ``start`` and finished at ``end`` (wall s); or
+        ``ticks`` run together then, each with its share of the period since the last start
+        and of the compute time."""
+        if ticks > 1:
+            last = self._last_start
+            share = (end - start) / ticks
+            step = share if last is None else (start - last) / ticks
+            first = start if last is None else last + step
+            for i in range(ticks):
+                t0 = first + i * step
+                self.tick(t0, t0 + share)
+            return
         h = self.header
         nominal = h[_NOMINAL]
         compute = end - start
