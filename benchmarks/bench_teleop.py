@@ -16,7 +16,12 @@ task runs (the tool moved off point 1: the session's metrics accumulate every ti
 Beside each tick, ``<label>_mj_step_median_us`` is MuJoCo's own ``mj_step`` on the same
 model at the same state (the set-up's state restored before each step, not timed), and
 ``<label>_teleop_over_mj_step_ratio`` the tick over it: what the Python of the tick costs
-on top of the physics (issue 20's bar: ≤ 1.5 both pairs, ≤ 1.3 one pair).
+on top of the physics (issue 20's bar: ≤ 1.5 both pairs, ≤ 1.3 one pair). That tick is
+``Simulation.tick``, one at a time in Python (the oracle). ``<label>_live_tick`` is the tick
+as the live runners run it: passes of ``CHUNK_TICKS`` (4) ticks through
+``Simulation.advance``, the console's compiled calls wherever its state allows
+(``console/chunk.py``; ``<label>_compiled_share`` of the ticks), per tick;
+``<label>_chunk32_tick`` a script's passes of 32 ticks.
 
 Each set-up is also profiled (cProfile, 1000 ticks): the JSON keeps the top entries by own
 time, as shares of the profiled tick (proportions survive a busy machine better than times),
@@ -29,12 +34,14 @@ import cProfile
 import logging
 import os
 import pstats
+import statistics
 import time
 
 import mujoco
 import numpy as np
 
 from common import summary, time_each, write
+from davinci_sim.sim.runtime.loop import CHUNK_TICKS
 from davinci_sim.sim.simulation import Simulation
 from davinci_sim.system import (
     ConsoleDescription,
@@ -123,6 +130,37 @@ def mj_step_each(sim: Simulation, n: int, warmup: int = 50) -> list[float]:
     return out
 
 
+def live_ticks(sim: Simulation, label: str, n: int) -> dict:
+    """The tick as the live runners run it: passes of ``CHUNK_TICKS`` ticks through
+    ``Simulation.advance`` (the console's compiled calls where its state allows, else
+    Python's ticks), per tick; the same with a script's passes of 32 ticks; the share of
+    ticks the compiled calls ran; both over the set-up's ``mj_step``."""
+    chunker = sim.chunker
+    ran = [0, 0]
+
+    def counted(k: int, changed: bool = True) -> tuple[int, bool]:
+        whole, post = chunker(k, changed)
+        ran[0] += whole + int(post)
+        return whole, post
+
+    out: dict = {}
+    if chunker is not None:
+        sim.set_chunker(counted)
+    start = sim.tick_count
+    for name, k in (("live_tick", CHUNK_TICKS), ("chunk32_tick", 32)):
+        # (unchanged: nothing but the passes runs between them, as a live runner's idle loop)
+        passes = time_each(lambda k=k: sim.advance(k, unchanged=True), max(1, n // k),
+                           warmup=max(1, 200 // k))  # fmt: skip
+        out.update(summary([p / k for p in passes], f"{label}_{name}"))
+        out[f"{label}_{name}_over_mj_step_ratio"] = out[
+            f"{label}_{name}_median_us"
+        ] / statistics.median(mj_step_each(sim, 500))
+    if chunker is not None:
+        sim.set_chunker(chunker)
+    out[f"{label}_compiled_share"] = ran[0] / max(1, sim.tick_count - start)
+    return out
+
+
 def profile_top(tick, ticks: int = 1000, top: int = 12) -> list[dict]:
     """The ``top`` functions by own time over ``ticks`` calls of ``tick``: name, calls per
     tick, own and cumulative share of the (profiled) tick."""
@@ -168,6 +206,7 @@ def main(n: int = 5000) -> None:
         tick = figures[f"{label}_teleop_tick_median_us"]
         figures[f"{label}_teleop_over_bare_ratio"] = tick / figures[f"{label}_bare_tick_median_us"]
         figures[f"{label}_teleop_over_mj_step_ratio"] = tick / figures[f"{label}_mj_step_median_us"]
+        figures.update(live_ticks(sim, label, n))
         teleops = sim.components["console"].psm_teleops.values()
         following = [t.name for t in teleops if t.is_following()]
         figures[f"{label}_following"] = ",".join(following)

@@ -53,8 +53,8 @@ class _Calls:
     def __init__(self, chunker) -> None:
         self.chunker, self.answers = chunker, []
 
-    def __call__(self, n):
-        answer = self.chunker(n)
+    def __call__(self, n, changed=True):
+        answer = self.chunker(n, changed)
         self.answers.append(answer)
         return answer
 
@@ -150,6 +150,30 @@ def test_a_tracking_fault_in_a_call_is_the_python_fault(served):
     assert sim.arms["PSM1"].operating_state().state == "FAULT"
     assert any("tracking error" in e[2] for e in runs[1][1])
     assert any(a[0] for a in answers)
+
+
+def test_a_live_runners_passes_keep_their_plan_until_a_command(served):
+    """Passes of 4 ticks that tell the chunk nothing else ran (a live runner's idle loop:
+    the chunk keeps its plan) then a command between two passes (the scale: the next pass
+    plans again with it), as the same ticks and command in Python."""
+    sim, chunker, start = served
+    runs = []
+    for compiled in (False, True):
+        sim.set_state(start)
+        chunker._cooldown = 0
+        sim.set_chunker(chunker if compiled else None)
+        teleop = sim.components["console"].psm_teleops["MTMR_PSM1"]
+        device = sim.components["MTMR/device"]
+        T = device.input().T_hrsv_tip.copy()
+        T[0, 3] += 0.01
+        device.move_hand(T)  # (the handle moves: the new scale shows in the tool's motion)
+        for p in range(100):
+            if p == 40:
+                assert teleop.set_scale(0.5)
+            sim.advance(4, unchanged=compiled and p not in (0, 40))
+        runs.append((sim.get_state(), [], sim.data.qpos.copy()))
+    sim.set_chunker(chunker)
+    _assert_same_run(*runs)
 
 
 def test_a_python_only_field_keeps_the_python_ticks(served):

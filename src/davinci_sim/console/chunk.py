@@ -28,26 +28,35 @@ import numpy as np
 
 from davinci_sim.console import haptic_row
 from davinci_sim.console import teleop_psm as teleop_psm_module
+from davinci_sim.console.chunk_rows import (
+    IDLE,
+    SampleRequest,
+    copied,
+    device_row,
+    ecm_idle,
+    floats,
+    indices,
+    no_fixture,
+    teleop_role,
+    teleop_row,
+)
 from davinci_sim.console.haptic_loop import HapticLoop
 from davinci_sim.console.teleop_ecm import TeleopECM
-from davinci_sim.console.teleop_psm import ENABLED, TeleopPSM
+from davinci_sim.console.teleop_psm import TeleopPSM
 from davinci_sim.devices import simulated as simulated_module
 from davinci_sim.devices.hand_input import HandInput
 from davinci_sim.devices.simulated import SimulatedMTM
 from davinci_sim.devices.state import DeviceInput
-from davinci_sim.geometry.path import Polyline
-from davinci_sim.haptics.fixture import FixtureField
-from davinci_sim.haptics.fixture_row import path_constants
-from davinci_sim.kinematics import fk
 from davinci_sim.sim import live_period, rows_step
 from davinci_sim.sim import operating_state as ops
 from davinci_sim.sim import simulation as simulation_module
-from davinci_sim.sim.arms import MTM, MTM_WRIST_JOINTS, PSM, PSM_SAFE_CARTESIAN_DISTANCE
 from davinci_sim.sim.divergence import WARNINGS
 
 if TYPE_CHECKING:
     from davinci_sim.console.console import Console
     from davinci_sim.sim.simulation import Simulation
+
+__all__ = ["COMPILED", "IDLE", "MAX_TICKS", "ConsoleChunk", "SampleRequest"]
 
 _KERNEL: Any = None
 DONE = -1
@@ -69,43 +78,11 @@ MAX_TICKS = 32
 ``runtime.loop.CHUNK_TICKS`` (4 ms: a command from outside waits at most that long); a
 script's ``Simulation.step(n)``, which nothing interrupts, runs up to this many per call."""
 
-IDLE = "idle"
-"""What a component's ``chunk_part()`` returns when its ticks do nothing in the chunk's
-state (a trainee's operator with no hand to move)."""
+_COOLDOWN = 8
+"""Calls (about ticks) a chunker waits after finding a tick that needs Python before it
+asks again (asking costs about a Python tick's time)."""
 
 _SIG = int(mujoco.mjtState.mjSTATE_INTEGRATION)  # (the divergence guard's state)
-
-
-@dataclass(frozen=True)
-class SampleRequest:
-    """What a component samples after every step (``chunk_part()``'s answer of a task
-    session): the tool of ``teleop`` (its PSM's tip in the camera frame), the guidance force
-    its MTM's haptic loop requested and its master's position; the chunk calls
-    ``take(t, T_cart_camera, T_camera_tip, requested, master)`` for each tick, in order, after
-    the call (``requested`` None where the loop has not rendered for that MTM)."""
-
-    teleop: str
-    take: Any
-    tool_geom: np.ndarray
-    """(ngeom,) bool: the instrument's geoms (``InstrumentContacts.tool_geom``)."""
-    other_geom: np.ndarray
-    """(ngeom,) bool: the geoms whose contact with the instrument counts."""
-
-
-def _w(a) -> np.ndarray:
-    """A writable C-ordered float copy (the kernel's one signature)."""
-    return np.array(a, dtype=float, order="C")
-
-
-def _ints(*values) -> np.ndarray:
-    return np.array(values, dtype=np.intp)
-
-
-def _no_fixture() -> tuple:
-    """A fixture of the kernel's types for a teleoperation without one (never used)."""
-    path = path_constants(Polyline(np.array([[0.0, 0.0, 0.0], [0.01, 0.0, 0.0]])))
-    assert path is not None
-    return (*path, 0.0, 0.0, 0.0, False, 0.001, 0.5, np.zeros(4), np.zeros(7))
 
 
 class ConsoleChunk:
@@ -128,11 +105,11 @@ class ConsoleChunk:
                 data.qfrc_bias.ctypes.data, data.qfrc_gravcomp.ctypes.data, w, ncon,
                 data.xfrc_applied.ctypes.data, data.xipos.ctypes.data,
             ]  # fmt: skip
-        self._sizes = _ints(model.nu, model.nq, model.nv, len(data.warning), 0, model.nbody)
+        self._sizes = indices(model.nu, model.nq, model.nv, len(data.warning), 0, model.nbody)
         self._state = np.empty(mujoco.mj_stateSize(model, _SIG))
         self._times = np.zeros(3)
         servo = sim.servo
-        self._servo = (_ints(*servo.qposadr), _ints(*servo.dofadr), bool(servo._model_gravcomp))
+        self._servo = (indices(*servo.qposadr), indices(*servo.dofadr), bool(servo._model_gravcomp))
         plan = sim._frame_plan
         self._plan_ok = plan is not None
         self._frames = None
@@ -144,25 +121,37 @@ class ConsoleChunk:
             self._key = np.empty(len(sim._frame_adr))
             self._computed = np.zeros(1, dtype=bool)
             self._frames = (
-                *(_wc(a) for a in plan.args), plan.reference, *(_wc(a) for a in plan.ref_args),
-                _ints(*sim._frame_adr), self._key, float(simulation_module.BASE_FRAME_TOLERANCE),
-                self._frames_out, self._computed, _ints(k),
+                *(copied(a) for a in plan.args), plan.reference,
+                *(copied(a) for a in plan.ref_args),
+                indices(*sim._frame_adr), self._key, 0.0, self._frames_out, self._computed,
+                indices(k),
             )  # fmt: skip
         self._device_rows: dict[str, tuple] = {}
         self._teleop_rows: dict[str, tuple] = {}
-        self._no_fixture = _no_fixture()
+        self._no_fixture = no_fixture()
         self._cooldown = 0
+        self._last: _Plan | None = None
 
     # ------------------------------------------------------------ the call
-    def __call__(self, n: int) -> tuple[int, bool]:
-        if self._cooldown > 0:  # (not ready lately: do not ask at every tick)
-            self._cooldown -= 1
-            return 0, False
-        plan = self.plan()
+    def __call__(self, n: int, changed: bool = True) -> tuple[int, bool]:
+        """Up to ``min(n, MAX_TICKS)`` ticks; ``changed`` False when nothing but this
+        chunker's own calls has run since its last call (no Python tick, no command), which
+        then ran all its ticks: its plan still holds (the rows are what the objects hold)."""
+        plan = None if changed else self._last
+        self._last = None
         if plan is None:
-            self._cooldown = MAX_TICKS
-            return 0, False
-        return self._run(plan, min(int(n), MAX_TICKS))
+            if self._cooldown > 0:  # (not ready lately: do not ask at every tick)
+                self._cooldown -= 1
+                return 0, False
+            plan = self.plan()
+            if plan is None:
+                self._cooldown = _COOLDOWN
+                return 0, False
+        K = min(int(n), MAX_TICKS)
+        whole, post = self._run(plan, K)
+        if whole == K and not post:
+            self._last = plan
+        return whole, post
 
     def plan(self) -> _Plan | None:
         """The kernel's arguments for the state now, or None where a tick needs Python."""
@@ -193,13 +182,13 @@ class ConsoleChunk:
                 if any(d._buttons for d in console.devices()):
                     return None
             elif isinstance(c, TeleopPSM):
-                role = _teleop_role(c)
+                role = teleop_role(c)
                 if role is None:
                     return None
                 if role == "follow":
                     teleops.append(c)
             elif isinstance(c, TeleopECM):
-                if not _ecm_idle(c):
+                if not ecm_idle(c):
                     return None
             elif isinstance(c, HapticLoop) and c.console is console:
                 haptics = c
@@ -215,14 +204,20 @@ class ConsoleChunk:
         device_of = {d.name: i for i, d in enumerate(devices)}
         device_rows = []
         for d in devices:
-            row = self._device_row(d)
+            row = device_row(d, sim.servo, self._device_rows)
             if row is None:
                 return None
             device_rows.append(row)
         teleop_rows = []
         for tel in teleops:
             i = device_of.get(tel.device.name)
-            row = None if i is None else self._teleop_row(tel, i, haptics)
+            row = (
+                None
+                if i is None
+                else teleop_row(
+                    tel, i, haptics, sim.servo, self._rows, self._teleop_rows, self._no_fixture
+                )
+            )
             if row is None:
                 return None
             teleop_rows.append(row)
@@ -233,127 +228,6 @@ class ConsoleChunk:
                      tuple(teleop_rows), rec)  # fmt: skip
 
     # ------------------------------------------------------------ rows
-    def _device_row(self, d: SimulatedMTM) -> tuple | None:
-        """A simulated MTM's row: its hand, its read's outputs and its arm's lock, or None
-        where its tick needs Python."""
-        arm = d.arm
-        if not isinstance(arm, MTM) or d.watchdog is not None or d._was_stale:
-            return None
-        if arm._T_user_base is not None or arm._impedance is not None or arm._traj is not None:
-            return None
-        if arm.gripper._traj is not None or d._input is None:
-            return None
-        servo = self.sim.servo
-        effort = servo.effort_mode
-        lock_on = arm._R_lock is not None and bool(effort[arm._idx[0]])
-        if lock_on and arm._lock_traj is None:
-            return None  # (the lock's first tick starts its trajectory: Python's)
-        if not lock_on and (arm._lock_traj is not None or arm._lock_goal is not None):
-            return None
-        wrench = arm._wrench
-        if wrench is not None and wrench[1].any() and wrench[0] != "spatial":
-            return None
-        static = self._device_rows.get(d.name)
-        if static is None or static[0] is not arm:
-            static = self._device_rows[d.name] = (arm, *_device_static(d))
-        (_, fk_c, adr, vadr, grip_adr, T_ref_base, R_hrsv_base, R_world_hrsv, p_world_hrsv,
-         body, q, T, J, F, T_hrsv, twist, xfrc, gripper, lock_c, wrist_idx,
-         idx) = static  # fmt: skip
-        if d.arm.base_frame()[0] is not d.arm.kin.T_reference_base:
-            return None
-        hand = d.hand
-        target = d._hand_target
-        impedance = np.array([hand.stiffness, hand.damping, hand.rotational_stiffness,
-                              hand.rotational_damping, hand.max_force,
-                              hand.max_torque])  # fmt: skip
-        flags = np.array([d._hand_on, target is not None, d._hold_orientation])
-        m = MTM_WRIST_JOINTS.stop - MTM_WRIST_JOINTS.start
-        lock_flags = np.array([lock_on, arm._lock_goal is not None])
-        lock_traj = np.zeros(2 * m)
-        lock_goal = np.zeros(m)
-        R_base_goal = np.eye(3)
-        ratio = arm._trajectory_ratio
-        if lock_on:
-            lock_traj[:m], lock_traj[m:] = arm._lock_traj
-            if arm._lock_goal is not None:
-                lock_goal[:] = arm._lock_goal
-            R_base_goal = _w(arm.base_frame()[0][:3, :3].T @ arm._R_lock)  # (MTM._lock_seed)
-        lock = (*lock_c[:5], R_base_goal, *lock_c[5:], float(ratio))
-        return (
-            fk_c, adr, vadr, grip_adr, T_ref_base, R_hrsv_base, flags,
-            _w(np.eye(4) if target is None else target), impedance, _w(d._push), R_world_hrsv,
-            p_world_hrsv, body, np.array([d._hand_applied]), _w(d._hand_wrench), q, T, J, F,
-            T_hrsv, twist, xfrc, gripper, lock, lock_flags, lock_traj, lock_goal, wrist_idx, idx,
-        )  # fmt: skip
-
-    def _teleop_row(self, tel: TeleopPSM, device: int, haptics: HapticLoop | None) -> tuple | None:
-        """A following teleoperation's row (and its fixture's, if the haptic loop renders
-        one for its MTM), or None where its tick needs Python."""
-        psm = tel.psm
-        if not isinstance(psm, PSM) or getattr(psm, "_cp", None) is None:
-            return None
-        if psm._T_user_base is not None or psm.name not in self._rows:
-            return None
-        if psm._traj is not None or psm._wrench is not None or psm.jaw._traj is not None:
-            return None
-        if psm._refusals or psm._not_ready(cartesian=True):
-            return None
-        servo = self.sim.servo
-        if servo.effort_mode[psm._idx].any() or servo.tau_ff[psm._idx].any():
-            return None
-        static = self._teleop_rows.get(tel.name)
-        if static is None or static[0] is not psm:
-            static = self._teleop_rows[tel.name] = (psm, *_teleop_static(psm, self._rows))
-        _, cp, adr, idx, row, T_base_ref, shaft, limits, q, T, J, F, q_out, qd_out, jaw_idx = static
-        c, spec = tel.config, psm.jaw.spec
-        from davinci_sim.console import teleop_math as tm
-
-        flags = np.array([tel._scale, c.use_mtm_linear_velocity, c.use_mtm_angular_velocity,
-                          tel._translation_locked, tel._rotation_locked], dtype=float)  # fmt: skip
-        jaw = np.zeros(12)
-        jaw[:11] = (tel._ghost, 0.0, tel._jaw_catching_up, c.jaw_rate, c.jaw_rate_after_clutch,
-                    tel._dt, tel._jaw_s, tel._jaw_o, spec.qmin, spec.qmax,
-                    tm.JAW_CATCH_UP_TOLERANCE)  # fmt: skip
-        jaw_state = np.array([tel._jaw_sent, float(tel._ignore_jaw)])
-        anchors = (_w(tel._T_camera_psm0), _w(tel._T_hrsv_mtm0), _w(tel._R_offset))
-        fixture = self._fixture(tel, haptics)
-        if fixture is None:
-            return None
-        return (cp, adr, idx, row, T_base_ref, shaft, anchors, flags, jaw, jaw_state, limits,
-                _ints(device), q, T, J, F, q_out, qd_out, *fixture, jaw_idx)  # fmt: skip
-
-    def _fixture(self, tel: TeleopPSM, haptics: HapticLoop | None) -> tuple | None:
-        """The fixture part of ``tel``'s row: ``(constants, state, outputs)``, inactive where
-        the loop renders nothing for its MTM; None where it renders in Python."""
-        dof = tel.device.arm.dof
-        out = (np.zeros(6), np.zeros(6), np.zeros(dof), np.zeros(1, dtype=bool))
-        entries = [] if haptics is None or not haptics._fields else [
-            e for e in haptics._fields.values() if e.mtm in (None, tel.mtm_name)
-        ]  # fmt: skip
-        if not entries:
-            state = (np.zeros(2, dtype=bool), np.zeros(3), np.zeros(3), np.zeros(6))
-            return self._no_fixture_for(dof), state, out
-        if len(entries) != 1 or not haptic_row.COMPILED:
-            return None
-        field_ = entries[0].field
-        if type(field_) is not FixtureField:
-            return None
-        row = field_.compiled_row()
-        args = tel.device.render_args() if row is not None else None
-        if args is None:
-            return None
-        _, _, _, previous, steps, ftmax = args
-        vf = field_.row_filter(tel.psm.name)
-        _, path, B, G_max, transition, summed = row
-        constants = (*path, float(B), float(G_max), float(transition), bool(summed),
-                     float(vf.dt), float(vf.alpha), _w(steps), _w(ftmax))  # fmt: skip
-        state = (np.array([True, bool(vf._started)]), vf._p, vf._v, _w(previous))
-        return constants, state, out
-
-    def _no_fixture_for(self, dof: int) -> tuple:
-        nf = self._no_fixture
-        return (*nf[:-1], np.zeros(dof))
-
     def _request_row(self, request: SampleRequest | None, teleops: list[TeleopPSM],
                      haptics: HapticLoop | None) -> tuple | None:  # fmt: skip
         """The session's sample part: ``(on, teleop, fixture_teleop, watch, tool_geom,
@@ -361,7 +235,7 @@ class ConsoleChunk:
         K = MAX_TICKS
         names = [t.name for t in teleops]
         if request is None:
-            return (np.zeros(1, dtype=bool), _ints(0), _ints(-1), np.zeros(1, dtype=bool),
+            return (np.zeros(1, dtype=bool), indices(0), indices(-1), np.zeros(1, dtype=bool),
                     np.zeros(1, dtype=bool), np.zeros(1, dtype=bool), np.empty(K),
                     np.empty((K, 4, 4)), np.empty((K, 4, 4)), np.empty((K, 3)),
                     np.empty((K, 3)), np.zeros(3))  # fmt: skip
@@ -382,12 +256,12 @@ class ConsoleChunk:
             return None  # (None every tick: rare, and Python's)
         if not self._contact_layout():
             return None
-        return (np.ones(1, dtype=bool), _ints(names.index(request.teleop)),
-                _ints(fixture_teleop), np.ones(1, dtype=bool),
+        return (np.ones(1, dtype=bool), indices(names.index(request.teleop)),
+                indices(fixture_teleop), np.ones(1, dtype=bool),
                 np.ascontiguousarray(request.tool_geom, dtype=bool),
                 np.ascontiguousarray(request.other_geom, dtype=bool), np.empty(K),
                 np.empty((K, 4, 4)), np.empty((K, 4, 4)), np.empty((K, 3)), np.empty((K, 3)),
-                np.zeros(3) if now is None else _w(now[:3]))  # fmt: skip
+                np.zeros(3) if now is None else floats(now[:3]))  # fmt: skip
 
     def _contact_layout(self) -> bool:
         """Whether the kernel can read the contacts' geoms: the address of
@@ -433,7 +307,9 @@ class ConsoleChunk:
         )  # fmt: skip
         wt = (watch._adr, watch._idx, watch._tol, watch._starts, watched, since,
               watch._first_bad, watch._fault)  # fmt: skip
-        code = int(_KERNEL(phys, wt, self._frames, plan.device_rows, plan.teleop_rows,
+        fr = self._frames  # (the tolerance as it is now: tests and the study's engine set it)
+        fr = (*fr[:12], float(simulation_module.BASE_FRAME_TOLERANCE), *fr[13:])
+        code = int(_KERNEL(phys, wt, fr, plan.device_rows, plan.teleop_rows,
                            plan.rec, K))  # fmt: skip
         if code == DONE:
             whole, post = K, False
@@ -509,74 +385,3 @@ def _ro(a: np.ndarray) -> np.ndarray:
     a = a.copy()
     a.setflags(write=False)
     return a
-
-
-def _wc(a):
-    return a.copy() if isinstance(a, np.ndarray) else a
-
-
-def _teleop_role(tel: TeleopPSM) -> str | None:
-    """``"follow"``, ``"idle"`` (its tick does nothing now) or None (its tick needs Python)."""
-    from davinci_sim.console.teleop_psm import DISABLED
-
-    current, desired = tel._current, tel._desired
-    if current == DISABLED:
-        return "idle" if desired == DISABLED else None
-    if current != ENABLED or desired == DISABLED:
-        return None
-    psm = tel.psm.operating_state()
-    if psm.state != "ENABLED" or not psm.is_homed or not tel.device.is_ready():
-        return None
-    if tel.device.is_stale():
-        return None
-    if not tel._following:
-        return "idle"
-    if tel._clutched or tel.device.input() is None:
-        return None
-    return "follow"
-
-
-def _ecm_idle(tel: TeleopECM) -> bool:
-    from davinci_sim.console.teleop_ecm import DISABLED
-
-    if tel._current == DISABLED:
-        return tel._desired == DISABLED
-    if tel._current != ENABLED or tel._desired == DISABLED or tel._following:
-        return False
-    ecm = tel.ecm.operating_state()
-    return ecm.state == "ENABLED" and ecm.is_homed and tel._devices_ready()
-
-
-def _device_static(d: SimulatedMTM) -> tuple:
-    arm = d.arm
-    dof = arm.dof
-    T_ref_base = _w(arm.kin.T_reference_base)
-    m = MTM_WRIST_JOINTS.stop - MTM_WRIST_JOINTS.start
-    lo, hi = arm._wrist_limits
-    v_max, a_max = arm._wrist_v_a
-    from davinci_sim.sim.arms import _LOCK_DAMPING, _LOCK_STEPS
-
-    consts = tuple(_wc(a) for a in fk._consts(arm.chain).packed)
-    scratch2 = tuple(np.empty_like(a) for a in arm._lock_scratch2)
-    lock_c = (*consts, MTM_WRIST_JOINTS.start, _LOCK_STEPS, float(_LOCK_DAMPING), _w(lo),
-              _w(hi), *scratch2, _w(v_max), _w(a_max))  # fmt: skip
-    del m
-    return (
-        consts, _ints(*arm._qposadr), _ints(*arm._dofadr), _ints(*arm.gripper._qposadr),
-        T_ref_base, _w(T_ref_base[:3, :3]), _w(d._R_world_hrsv), _w(d._p_world_hrsv),
-        _ints(d._body), np.empty(dof), np.empty((4, 4)), np.empty((6, dof)),
-        np.empty((dof, 12)), np.empty((4, 4)), np.empty(6), np.empty(6), np.empty(1), lock_c,
-        _ints(*arm._wrist_idx), _ints(*arm._idx),
-    )  # fmt: skip
-
-
-def _teleop_static(psm: PSM, rows: dict) -> tuple:
-    constants, bound = psm._cp[0], psm._cp[1]
-    dof = psm.dof
-    cp = tuple(_wc(a) for a in constants)
-    shaft = np.array([float(psm._qposadr[2]), float(psm._shaft_offset),
-                      PSM_SAFE_CARTESIAN_DISTANCE])  # fmt: skip
-    limits = (_w(psm._qmin), _w(psm._qmax), _w(bound))
-    return (cp, _ints(*psm._qposadr), _ints(*psm._idx), _ints(rows[psm.name]), np.empty((4, 4)),
-            shaft, limits, np.empty(dof), np.empty((4, 4)), np.empty((6, dof)),
-            np.empty((dof, 12)), np.empty(dof), np.empty(dof), _ints(*psm.jaw._idx))  # fmt: skip

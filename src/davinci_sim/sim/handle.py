@@ -386,12 +386,15 @@ class ThreadedSimulation:
         except Exception as e:  # the caller gets the error; the loop carries on
             c.future.set_exception(e)
 
-    def _run_calls(self) -> None:
+    def _run_calls(self) -> bool:
+        """Run the calls queued since the last pass; False when there were none."""
+        served = False
         while True:
             try:
                 c = self._calls.get_nowait()
             except queue.Empty:
-                return
+                return served
+            served = True
             if not c.future.set_running_or_notify_cancel():
                 continue
             if c.tick is None:

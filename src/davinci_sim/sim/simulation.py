@@ -9,6 +9,12 @@ Components are registered with :meth:`Simulation.add_component` (the contract an
 order: :mod:`davinci_sim.sim.component`). :meth:`Simulation.get_state` /
 :meth:`Simulation.set_state` save and restore everything that changes while ticking, and
 :meth:`Simulation.reset` returns to the start (:mod:`davinci_sim.sim.state`).
+:meth:`Simulation.advance` runs ticks through a chunker's compiled calls where one is set
+(the console's, :mod:`davinci_sim.console.chunk`), the same ticks bit for bit.
+
+Size: over 500 lines because :class:`Simulation` is the one face of the simulation (ticks and
+their chunks, the setup-joint frames, sensors, components, state); each part delegates to its
+own module, and splitting the class would scatter its small methods.
 """
 
 from __future__ import annotations
@@ -184,16 +190,18 @@ class Simulation:
         """``n`` ticks (:meth:`advance`)."""
         self.advance(n)
 
-    def advance(self, n: int) -> None:
+    def advance(self, n: int, *, unchanged: bool = False) -> None:
         """``n`` ticks: in the chunker's compiled calls where it has them (a console in its
         steady state, :mod:`davinci_sim.console.chunk`: the same ticks, bit for bit), else
-        one :meth:`tick` at a time."""
-        done = 0
+        one :meth:`tick` at a time. ``unchanged``: nothing has touched the simulation since
+        the last ``advance`` (the live runners know: no call served in between)."""
+        done, changed = 0, not unchanged
         while done < n:
             chunker = self._chunker
             if chunker is not None:
-                ran, post = chunker(n - done)
+                ran, post = chunker(n - done, changed)
                 done += ran
+                changed = post or not ran
                 if post:  # (the next tick's step ran: its post-steps are Python's)
                     self._post_steps()
                     done += 1
@@ -201,6 +209,7 @@ class Simulation:
                     continue
             self.tick()
             done += 1
+            changed = True
 
     @property
     def chunker(self):
@@ -209,9 +218,10 @@ class Simulation:
         return self._chunker
 
     def set_chunker(self, chunker) -> None:
-        """Run :meth:`advance`'s ticks through ``chunker`` (``chunker(n) -> (ticks, post)``:
-        at most n ticks run whole, and whether the next one's step ran too, its post-steps
-        left to the caller), or None: every tick in Python."""
+        """Run :meth:`advance`'s ticks through ``chunker`` (``chunker(n, changed) ->
+        (ticks, post)``: at most n ticks run whole, and whether the next one's step ran too,
+        its post-steps left to the caller; ``changed`` False when nothing but its own calls
+        ran since its last one), or None: every tick in Python."""
         self._chunker = chunker
 
     def run_for(self, seconds: float) -> None:

@@ -268,7 +268,8 @@ class LoopRunner:
 
         ``before_tick``/``after_tick`` run around every pass of the loop (one tick, or up to
         :attr:`chunk`), inside the measured compute time (the runners serve their calls and
-        publish there). A pass ends at every multiple of ``every`` ticks (a runner's snapshot
+        publish there); ``before_tick`` returns False when it served nothing (then the
+        simulation's chunker may keep its plan). A pass ends at every multiple of ``every`` ticks (a runner's snapshot
         period) and before each tick a call is scheduled for; the period statistics count
         each of its ticks, with its share of the pass's period and compute time.
         """
@@ -285,10 +286,12 @@ class LoopRunner:
             if pacer is not None and pacer.wait():
                 self.recorder.resynced()
             start = clock()
+            served = True
             if before_tick is not None:
-                before_tick()  # (may schedule calls for this very tick)
+                served = before_tick() is not False  # (may schedule calls for this very tick)
             while scheduled and scheduled[0][0] <= sim.tick_count:
                 heapq.heappop(scheduled)[2]()
+                served = True
             k = 1
             if self.chunk > 1 and sim.chunker is not None:
                 k = min(self.chunk, every - sim.tick_count % every)
@@ -299,7 +302,7 @@ class LoopRunner:
             if k == 1:
                 sim.tick()
             else:
-                sim.advance(k)
+                sim.advance(k, unchanged=not served)
                 if pacer is not None:
                     pacer.skip(k - 1)  # (the next pass starts at the next tick's time)
             if after_tick is not None:

@@ -641,8 +641,10 @@ def _loop_main(factory, options: LoopOptions, conn, paths: dict) -> None:
             except Exception as e:  # the caller gets the error; the loop carries on
                 outgoing.append(("result", call_id, False, e))
 
-        def serve() -> None:
+        def serve() -> bool:
+            served = False
             while conn.poll():
+                served = True
                 message = conn.recv()
                 kind = message[0]
                 if kind == "call":
@@ -663,6 +665,7 @@ def _loop_main(factory, options: LoopOptions, conn, paths: dict) -> None:
                     paused[0] = False
                 elif kind == "stop":
                     stop[0] = True
+            return served
 
         def flush() -> None:
             while outgoing:

@@ -1,0 +1,269 @@
+"""The rows of :class:`~davinci_sim.console.chunk.ConsoleChunk`'s kernel
+(:func:`~davinci_sim.console.chunk_kernel.console_chunk`): what each kind of component
+gives it — a simulated MTM (its hand, its read, its arm's orientation lock), a following
+teleoperation (its anchors, its jaw, its PSM's servo_cp constants, the fixture the haptic
+loop renders for its MTM) — built from the live objects as their Python ticks read them, or
+None where such a tick needs Python; and which components are idle (their ticks do nothing
+in the chunk's state). Arrays the kernel updates in place are the objects' own where they
+are arrays (the velocity filters), copies otherwise (written back by the chunk).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from davinci_sim.console import haptic_row
+from davinci_sim.console import teleop_math as tm
+from davinci_sim.console.haptic_loop import HapticLoop
+from davinci_sim.console.teleop_ecm import TeleopECM
+from davinci_sim.console.teleop_psm import DISABLED, ENABLED, TeleopPSM
+from davinci_sim.devices.simulated import SimulatedMTM
+from davinci_sim.geometry.path import Polyline
+from davinci_sim.haptics.fixture import FixtureField
+from davinci_sim.haptics.fixture_row import path_constants
+from davinci_sim.kinematics import fk
+from davinci_sim.sim.arms import (
+    _LOCK_DAMPING,
+    _LOCK_STEPS,
+    MTM,
+    MTM_WRIST_JOINTS,
+    PSM,
+    PSM_SAFE_CARTESIAN_DISTANCE,
+)
+
+IDLE = "idle"
+"""What a component's ``chunk_part()`` returns when its ticks do nothing in the chunk's
+state (a trainee's operator with no hand to move)."""
+
+
+@dataclass(frozen=True)
+class SampleRequest:
+    """What a component samples after every step (``chunk_part()``'s answer of a task
+    session): the tool of ``teleop`` (its PSM's tip in the camera frame), the guidance force
+    its MTM's haptic loop requested and its master's position; the chunk calls
+    ``take(t, T_cart_camera, T_camera_tip, requested, master)`` after each call with its m
+    whole ticks' samples in order: (m,) s, (m, 4, 4), (m, 4, 4), (m, 3) N, (m, 3) m. A tick
+    whose step leaves a contact of the instrument with something it counts ends the call
+    before its post-steps (the session measures it in Python)."""
+
+    teleop: str
+    take: Any
+    tool_geom: np.ndarray
+    """(ngeom,) bool: the instrument's geoms (``InstrumentContacts.tool_geom``)."""
+    other_geom: np.ndarray
+    """(ngeom,) bool: the geoms whose contact with the instrument counts."""
+
+
+def floats(a) -> np.ndarray:
+    """A writable C-ordered float copy (the kernel's one signature)."""
+    return np.array(a, dtype=float, order="C")
+
+
+def indices(*values) -> np.ndarray:
+    """Indices (addresses, rows) as the kernel's ``intp`` array."""
+    return np.array(values, dtype=np.intp)
+
+
+def no_fixture() -> tuple:
+    """A fixture of the kernel's types for a teleoperation without one (never used)."""
+    path = path_constants(Polyline(np.array([[0.0, 0.0, 0.0], [0.01, 0.0, 0.0]])))
+    assert path is not None
+    return (*path, 0.0, 0.0, 0.0, False, 0.001, 0.5, np.zeros(4), np.zeros(7))
+
+
+def device_row(d: SimulatedMTM, servo, cache: dict) -> tuple | None:
+    """A simulated MTM's row: its hand, its read's outputs and its arm's lock, or None
+    where its tick needs Python."""
+    arm = d.arm
+    if not isinstance(arm, MTM) or d.watchdog is not None or d._was_stale:
+        return None
+    if arm._T_user_base is not None or arm._impedance is not None or arm._traj is not None:
+        return None
+    if arm.gripper._traj is not None or d._input is None:
+        return None
+    effort = servo.effort_mode
+    lock_on = arm._R_lock is not None and bool(effort[arm._idx[0]])
+    if lock_on and arm._lock_traj is None:
+        return None  # (the lock's first tick starts its trajectory: Python's)
+    if not lock_on and (arm._lock_traj is not None or arm._lock_goal is not None):
+        return None
+    wrench = arm._wrench
+    if wrench is not None and wrench[1].any() and wrench[0] != "spatial":
+        return None
+    static = cache.get(d.name)
+    if static is None or static[0] is not arm:
+        static = cache[d.name] = (arm, *_device_static(d))
+    (_, fk_c, adr, vadr, grip_adr, T_ref_base, R_hrsv_base, R_world_hrsv, p_world_hrsv,
+     body, q, T, J, F, T_hrsv, twist, xfrc, gripper, lock_c, wrist_idx,
+     idx) = static  # fmt: skip
+    if d.arm.base_frame()[0] is not d.arm.kin.T_reference_base:
+        return None
+    hand = d.hand
+    target = d._hand_target
+    impedance = np.array([hand.stiffness, hand.damping, hand.rotational_stiffness,
+                          hand.rotational_damping, hand.max_force,
+                          hand.max_torque])  # fmt: skip
+    flags = np.array([d._hand_on, target is not None, d._hold_orientation])
+    m = MTM_WRIST_JOINTS.stop - MTM_WRIST_JOINTS.start
+    lock_flags = np.array([lock_on, arm._lock_goal is not None])
+    lock_traj = np.zeros(2 * m)
+    lock_goal = np.zeros(m)
+    R_base_goal = np.eye(3)
+    ratio = arm._trajectory_ratio
+    if lock_on:
+        lock_traj[:m], lock_traj[m:] = arm._lock_traj
+        if arm._lock_goal is not None:
+            lock_goal[:] = arm._lock_goal
+        R_base_goal = floats(arm.base_frame()[0][:3, :3].T @ arm._R_lock)  # (MTM._lock_seed)
+    lock = (*lock_c[:5], R_base_goal, *lock_c[5:], float(ratio))
+    return (
+        fk_c, adr, vadr, grip_adr, T_ref_base, R_hrsv_base, flags,
+        floats(np.eye(4) if target is None else target), impedance, floats(d._push), R_world_hrsv,
+        p_world_hrsv, body, np.array([d._hand_applied]), floats(d._hand_wrench), q, T, J, F,
+        T_hrsv, twist, xfrc, gripper, lock, lock_flags, lock_traj, lock_goal, wrist_idx, idx,
+    )  # fmt: skip
+
+
+def teleop_row(
+    tel: TeleopPSM,
+    device: int,
+    haptics: HapticLoop | None,
+    servo,
+    rows: dict,
+    cache: dict,
+    no_fixture: tuple,
+) -> tuple | None:
+    """A following teleoperation's row (and its fixture's, if the haptic loop renders
+    one for its MTM), or None where its tick needs Python."""
+    psm = tel.psm
+    if not isinstance(psm, PSM) or getattr(psm, "_cp", None) is None:
+        return None
+    if psm._T_user_base is not None or psm.name not in rows:
+        return None
+    if psm._traj is not None or psm._wrench is not None or psm.jaw._traj is not None:
+        return None
+    if psm._refusals or psm._not_ready(cartesian=True):
+        return None
+    if servo.effort_mode[psm._idx].any() or servo.tau_ff[psm._idx].any():
+        return None
+    static = cache.get(tel.name)
+    if static is None or static[0] is not psm:
+        static = cache[tel.name] = (psm, *_teleop_static(psm, rows))
+    _, cp, adr, idx, row, T_base_ref, shaft, limits, q, T, J, F, q_out, qd_out, jaw_idx = static
+    c, spec = tel.config, psm.jaw.spec
+
+    flags = np.array([tel._scale, c.use_mtm_linear_velocity, c.use_mtm_angular_velocity,
+                      tel._translation_locked, tel._rotation_locked], dtype=float)  # fmt: skip
+    jaw = np.zeros(12)
+    jaw[:11] = (tel._ghost, 0.0, tel._jaw_catching_up, c.jaw_rate, c.jaw_rate_after_clutch,
+                tel._dt, tel._jaw_s, tel._jaw_o, spec.qmin, spec.qmax,
+                tm.JAW_CATCH_UP_TOLERANCE)  # fmt: skip
+    jaw_state = np.array([tel._jaw_sent, float(tel._ignore_jaw)])
+    anchors = (floats(tel._T_camera_psm0), floats(tel._T_hrsv_mtm0), floats(tel._R_offset))
+    fixture = fixture_part(tel, haptics, no_fixture)
+    if fixture is None:
+        return None
+    return (cp, adr, idx, row, T_base_ref, shaft, anchors, flags, jaw, jaw_state, limits,
+            indices(device), q, T, J, F, q_out, qd_out, *fixture, jaw_idx)  # fmt: skip
+
+
+def fixture_part(tel: TeleopPSM, haptics: HapticLoop | None, no_fixture: tuple) -> tuple | None:
+    """The fixture part of ``tel``'s row: ``(constants, state, outputs)``, inactive where
+    the loop renders nothing for its MTM; None where it renders in Python."""
+    dof = tel.device.arm.dof
+    out = (np.zeros(6), np.zeros(6), np.zeros(dof), np.zeros(1, dtype=bool))
+    entries = [] if haptics is None or not haptics._fields else [
+        e for e in haptics._fields.values() if e.mtm in (None, tel.mtm_name)
+    ]  # fmt: skip
+    if not entries:
+        state = (np.zeros(2, dtype=bool), np.zeros(3), np.zeros(3), np.zeros(6))
+        return (*no_fixture[:-1], np.zeros(dof)), state, out
+    if len(entries) != 1 or not haptic_row.COMPILED:
+        return None
+    field_ = entries[0].field
+    if type(field_) is not FixtureField:
+        return None
+    row = field_.compiled_row()
+    args = tel.device.render_args() if row is not None else None
+    if args is None:
+        return None
+    _, _, _, previous, steps, ftmax = args
+    vf = field_.row_filter(tel.psm.name)
+    _, path, B, G_max, transition, summed = row
+    constants = (*path, float(B), float(G_max), float(transition), bool(summed),
+                 float(vf.dt), float(vf.alpha), floats(steps), floats(ftmax))  # fmt: skip
+    state = (np.array([True, bool(vf._started)]), vf._p, vf._v, floats(previous))
+    return constants, state, out
+
+
+def copied(a):
+    """A copy of an array (a constant the kernel must not share), anything else as it is."""
+    return a.copy() if isinstance(a, np.ndarray) else a
+
+
+def teleop_role(tel: TeleopPSM) -> str | None:
+    """``"follow"``, ``"idle"`` (its tick does nothing now) or None (its tick needs Python)."""
+    current, desired = tel._current, tel._desired
+    if current == DISABLED:
+        return "idle" if desired == DISABLED else None
+    if current != ENABLED or desired == DISABLED:
+        return None
+    psm = tel.psm.operating_state()
+    if psm.state != "ENABLED" or not psm.is_homed or not tel.device.is_ready():
+        return None
+    if tel.device.is_stale():
+        return None
+    if not tel._following:
+        return "idle"
+    if tel._clutched or tel.device.input() is None:
+        return None
+    return "follow"
+
+
+def ecm_idle(tel: TeleopECM) -> bool:
+    """Whether the camera teleoperation's tick does nothing now (disabled, or enabled and
+    not following, its arms ready)."""
+    if tel._current == DISABLED:
+        return tel._desired == DISABLED
+    if tel._current != ENABLED or tel._desired == DISABLED or tel._following:
+        return False
+    ecm = tel.ecm.operating_state()
+    return ecm.state == "ENABLED" and ecm.is_homed and tel._devices_ready()
+
+
+def _device_static(d: SimulatedMTM) -> tuple:
+    """A simulated MTM's constants and the kernel's scratch for it."""
+    arm = d.arm
+    dof = arm.dof
+    T_ref_base = floats(arm.kin.T_reference_base)
+    m = MTM_WRIST_JOINTS.stop - MTM_WRIST_JOINTS.start
+    lo, hi = arm._wrist_limits
+    v_max, a_max = arm._wrist_v_a
+    consts = tuple(copied(a) for a in fk._consts(arm.chain).packed)
+    scratch2 = tuple(np.empty_like(a) for a in arm._lock_scratch2)
+    lock_c = (*consts, MTM_WRIST_JOINTS.start, _LOCK_STEPS, float(_LOCK_DAMPING), floats(lo),
+              floats(hi), *scratch2, floats(v_max), floats(a_max))  # fmt: skip
+    del m
+    return (
+        consts, indices(*arm._qposadr), indices(*arm._dofadr), indices(*arm.gripper._qposadr),
+        T_ref_base, floats(T_ref_base[:3, :3]), floats(d._R_world_hrsv), floats(d._p_world_hrsv),
+        indices(d._body), np.empty(dof), np.empty((4, 4)), np.empty((6, dof)),
+        np.empty((dof, 12)), np.empty((4, 4)), np.empty(6), np.empty(6), np.empty(1), lock_c,
+        indices(*arm._wrist_idx), indices(*arm._idx),
+    )  # fmt: skip
+
+
+def _teleop_static(psm: PSM, rows: dict) -> tuple:
+    """A PSM's servo_cp constants, addresses, limits and the kernel's scratch for it."""
+    constants, bound = psm._cp[0], psm._cp[1]
+    dof = psm.dof
+    cp = tuple(copied(a) for a in constants)
+    shaft = np.array([float(psm._qposadr[2]), float(psm._shaft_offset),
+                      PSM_SAFE_CARTESIAN_DISTANCE])  # fmt: skip
+    limits = (floats(psm._qmin), floats(psm._qmax), floats(bound))
+    return (cp, indices(*psm._qposadr), indices(*psm._idx), indices(rows[psm.name]),
+            np.empty((4, 4)), shaft, limits, np.empty(dof), np.empty((4, 4)), np.empty((6, dof)),
+            np.empty((dof, 12)), np.empty(dof), np.empty(dof), indices(*psm.jaw._idx))  # fmt: skip
