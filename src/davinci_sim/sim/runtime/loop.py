@@ -269,9 +269,10 @@ class LoopRunner:
         ``before_tick``/``after_tick`` run around every pass of the loop (one tick, or up to
         :attr:`chunk`), inside the measured compute time (the runners serve their calls and
         publish there); ``before_tick`` returns False when it served nothing (then the
-        simulation's chunker may keep its plan). A pass ends at every multiple of ``every`` ticks (a runner's snapshot
-        period) and before each tick a call is scheduled for; the period statistics count
-        each of its ticks, with its share of the pass's period and compute time.
+        simulation's chunker may keep its plan). A pass ends at every multiple of ``every``
+        ticks (a runner's snapshot period) and before each tick a call is scheduled for; the
+        period statistics count each of its ticks, with its share of the pass's period and
+        compute time.
         """
         if ticks is None and until is None:
             raise ValueError("run needs ticks or until")
