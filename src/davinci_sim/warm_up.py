@@ -29,6 +29,20 @@ KERNEL_MODULES = (
     "davinci_sim.envs.vector",
 )
 
+
+def _console_chunk() -> None:
+    """The console's compiled ticks (``console/chunk_kernel.py``, about a minute to compile):
+    a console's install compiles them (``ConsoleChunk._warm``), so install one."""
+    from davinci_sim.system import ConsoleDescription, SystemDescription, build_simulation
+
+    console = ConsoleDescription(hand_inputs=("MTML", "MTMR"))
+    build_simulation(SystemDescription("full", console=console, runner="none"))
+
+
+#: Warm-ups of kernels no module compiles at import, run after the modules' (taken first:
+#: the console's is the longest).
+EXTRA_WARM_UPS = (_console_chunk,)
+
 _DEFER = "DAVINCI_SIM_DEFER_WARM_UP"
 
 
@@ -41,6 +55,7 @@ def _worker(modules, counter, lock) -> None:
 
     if not jit.DEFERRED:  # (run as the parent wanted: the warm-ups ran at import)
         return
+    jit.WARM_UPS.extend(EXTRA_WARM_UPS)
     while True:
         with lock:
             index = counter.value

@@ -24,9 +24,14 @@ from davinci_sim.tasks.state import Phase
 pytestmark = pytest.mark.skipif(not chunk.COMPILED, reason="numba is off")
 
 
+SIGNATURES: list = []
+
+
 @pytest.fixture(scope="module")
 def served():
     """What ``make run`` ticks, the person holding both handles after taking control."""
+    from davinci_sim.console.chunk_kernel import console_chunk
+
     sim = build_simulation(
         SystemDescription(
             scene="full", keyframe="surgical",
@@ -35,6 +40,7 @@ def served():
             runner="none", real_time=False,
         )
     )  # fmt: skip
+    SIGNATURES.append(list(console_chunk.signatures))  # (the install compiled or loaded it)
     sim.run_for(8.0)  # homing, then the endoscope framed on the task
     console = sim.components["console"]
     console.press("operator_present")
@@ -174,6 +180,17 @@ def test_a_live_runners_passes_keep_their_plan_until_a_command(served):
         runs.append((sim.get_state(), [], sim.data.qpos.copy()))
     sim.set_chunker(chunker)
     _assert_same_run(*runs)
+
+
+def test_the_install_compiles_the_one_signature_the_ticks_use(served):
+    """The console's install compiled (or loaded) the kernel with the signature its calls
+    use: none is compiled inside the 1 kHz loop (a minute's stall on a clean checkout)."""
+    from davinci_sim.console.chunk_kernel import console_chunk
+
+    sim = served[0]
+    sim.advance(50)
+    assert len(SIGNATURES[0]) == 1
+    assert list(console_chunk.signatures) == SIGNATURES[0]
 
 
 def test_a_python_only_field_keeps_the_python_ticks(served):

@@ -29,11 +29,11 @@ import numpy as np
 from davinci_sim.console import haptic_row
 from davinci_sim.console import teleop_psm as teleop_psm_module
 from davinci_sim.console.chunk_rows import (
-    IDLE,
     SampleRequest,
     copied,
     device_row,
     ecm_idle,
+    filled,
     floats,
     indices,
     no_fixture,
@@ -50,6 +50,7 @@ from davinci_sim.devices.state import DeviceInput
 from davinci_sim.sim import live_period, rows_step
 from davinci_sim.sim import operating_state as ops
 from davinci_sim.sim import simulation as simulation_module
+from davinci_sim.sim.component import IDLE
 from davinci_sim.sim.divergence import WARNINGS
 
 if TYPE_CHECKING:
@@ -72,6 +73,7 @@ if (
 
 COMPILED = _KERNEL is not None
 """Whether :class:`ConsoleChunk` can run (else the console ticks in Python)."""
+
 
 MAX_TICKS = 32
 """The most ticks one call runs. The live runners ask for at most
@@ -131,6 +133,30 @@ class ConsoleChunk:
         self._no_fixture = no_fixture()
         self._cooldown = 0
         self._last: _Plan | None = None
+        if self.available and self._plan_ok:
+            self._warm()
+
+    def _warm(self) -> None:
+        """The kernel compiled (or loaded from numba's cache) now, with this console's rows
+        as they are: a call of no tick. (Its first call in the loop would otherwise compile
+        it there: about a minute on a clean checkout.)"""
+        sim, console = self.sim, self.console
+        servo = sim.servo
+        devices = [c for c in sim._components.values() if isinstance(c, SimulatedMTM)][:2]
+        device_rows = [device_row(d, servo, self._device_rows, check=False) for d in devices]
+        teleop_rows = []
+        for tel in console.psm_teleops.values():
+            if tel.device in devices:
+                teleop_rows.append(teleop_row(
+                    tel, devices.index(tel.device), None, servo, self._rows, self._teleop_rows,
+                    self._no_fixture, check=False,
+                ))  # fmt: skip
+        slots_d = filled([r for r in device_rows if r is not None])
+        slots_t = filled([r for r in teleop_rows if r is not None][:2])
+        if slots_d is not None and slots_t is not None:
+            rec = self._request_row(None, [], None)
+            assert rec is not None
+            self._run(_Plan([], [], [], None, None, slots_d, slots_t, rec), 0)
 
     # ------------------------------------------------------------ the call
     def __call__(self, n: int, changed: bool = True) -> tuple[int, bool]:
@@ -222,10 +248,10 @@ class ConsoleChunk:
                 return None
             teleop_rows.append(row)
         rec = self._request_row(request, teleops, haptics)
-        if rec is None:
+        slots_d, slots_t = filled(device_rows), filled(teleop_rows)
+        if rec is None or slots_d is None or slots_t is None:
             return None
-        return _Plan(devices, hands, teleops, haptics, request, tuple(device_rows),
-                     tuple(teleop_rows), rec)  # fmt: skip
+        return _Plan(devices, hands, teleops, haptics, request, slots_d, slots_t, rec)
 
     # ------------------------------------------------------------ rows
     def _request_row(self, request: SampleRequest | None, teleops: list[TeleopPSM],
@@ -332,7 +358,7 @@ class ConsoleChunk:
         t_pre = float(self._times[0])
         for h in plan.hands:
             h._time = t_pre
-        for d, row in zip(plan.devices, plan.device_rows, strict=True):
+        for d, row in zip(plan.devices, plan.device_rows, strict=False):  # (not the fillers)
             T, twist = row[19].copy(), row[20].copy()
             T.setflags(write=False)
             twist.setflags(write=False)
@@ -345,14 +371,14 @@ class ConsoleChunk:
                 m = row[26].shape[0]
                 arm._lock_traj = (row[25][:m].copy(), row[25][m:].copy())
                 arm._lock_goal = row[26].copy()
-        for tel, row in zip(plan.teleops, plan.teleop_rows, strict=True):
-            if not tel._ignore_jaw:
+        for tel, row in zip(plan.teleops, plan.teleop_rows, strict=False):
+            if not tel._ignore_jaw:  # (zip: not the fillers)
                 tel._ghost, tel._jaw_catching_up = float(row[8][0]), bool(row[8][2])
                 tel._jaw_sent = float(row[9][0])
         if whole == 0:
             return
         haptics = plan.haptics
-        for tel, row in zip(plan.teleops, plan.teleop_rows, strict=True):
+        for tel, row in zip(plan.teleops, plan.teleop_rows, strict=False):
             state, out = row[19], row[20]
             if not state[0][0]:
                 continue

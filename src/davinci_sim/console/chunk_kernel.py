@@ -119,12 +119,13 @@ def console_chunk(phys, watch, fr, devices, teleops, rec, K):
     ``devices``: per simulated MTM, ``(fk, adr, vadr, grip_adr, T_ref_base, R_hrsv_base,
     flags, target, impedance, push, R_world_hrsv, p_world_hrsv, body, applied, wrench, q,
     T, J, F, T_hrsv, twist, xfrc, gripper, lock, lock_flags, lock_traj, lock_goal,
-    wrist_idx, idx)``: its constants, the hand's state (updated), the last read (``T_hrsv``,
-    ``twist``, ``gripper``) and the orientation lock.
+    wrist_idx, idx, on)``: its constants, the hand's state (updated), the last read
+    (``T_hrsv``, ``twist``, ``gripper``), the orientation lock and whether the row is a
+    device (``on[0]``) or a filler of its slot (the kernel has two: one compiled signature).
 
     ``teleops``: per following teleoperation, ``(cp, adr, idx, row, T_base_ref, shaft,
     anchors, flags, jaw, jaw_state, limits, device, q, T, J, F, q_out, qd_out, fixture,
-    fx_state, fx_out, jaw_idx)``.
+    fx_state, fx_out, jaw_idx, on)``, two slots as the devices'.
 
     ``rec``: ``(on, teleop, fixture_teleop, ncon_watch, tool_geom, other_geom, t, T_tip,
     T_camera, requested, master, req_now)``: the task session's samples of each tick
@@ -178,8 +179,8 @@ def console_chunk(phys, watch, fr, devices, teleops, rec, K):
         for dev in devices:
             (fk, adr, vadr, grip_adr, T_ref_base, R_hrsv_base, flags, target, impedance,
              push, R_world_hrsv, p_world_hrsv, body, applied, wrench, q, T, J, F, T_hrsv,
-             twist, xfrc, gripper, lock, lock_flags, lock_traj, lock_goal, wrist_idx,
-             idx) = dev  # fmt: skip
+             twist, xfrc, gripper, lock, lock_flags, lock_traj, lock_goal, wrist_idx, idx,
+             on) = dev  # fmt: skip
             keep_applied[d] = applied[0]
             for i in range(6):
                 keep_wrench[d, i] = wrench[i]
@@ -189,6 +190,8 @@ def console_chunk(phys, watch, fr, devices, teleops, rec, K):
                 keep_lock[d, 2 * m_lock + i] = lock_goal[i]
             keep_goal[d] = lock_flags[1]
             d += 1
+            if not on[0]:
+                continue
             _kinematics(fk, adr, qp, q, T, J, F)
             T_hrsv[:, :] = T_ref_base @ T  # (Arm._measured_T: numpy's product)
             qd = np.empty(vadr.shape[0])
@@ -214,11 +217,14 @@ def console_chunk(phys, watch, fr, devices, teleops, rec, K):
         t_i = 0
         for tel in teleops:
             (cp, adr, idx, row, T_base_ref, shaft, anchors, flags, jaw, jaw_state, limits,
-             device, q, T, J, F, q_out, qd_out, fixture, fx_state, fx_out, _) = tel  # fmt: skip
+             device, q, T, J, F, q_out, qd_out, fixture, fx_state, fx_out, _,
+             on) = tel  # fmt: skip
             for i in range(12):
                 keep_jaw[t_i, i] = jaw[i]
             keep_jaw[t_i, 12] = tel[9][0]
             t_i += 1
+            if not on[0]:
+                continue
             if abs(qp[int(shaft[0])] + shaft[1]) < shaft[2]:
                 times[2] = STOP_CANNULA
                 return _undo(2 * k, devices, teleops, keep_applied, keep_wrench, keep_lock,
@@ -259,7 +265,7 @@ def console_chunk(phys, watch, fr, devices, teleops, rec, K):
         for dev in devices:
             fk, adr, lock, lock_flags, lock_traj = dev[0], dev[1], dev[23], dev[24], dev[25]
             lock_goal, wrist_idx = dev[26], dev[27]
-            if not lock_flags[0]:
+            if not (dev[29][0] and lock_flags[0]):
                 continue
             (links, modified, tool, identity, first, R_base_goal, steps, damping, lo, hi, Tl,
              Jl, Fl, A, x, v_max, a_max, ratio) = lock  # fmt: skip
@@ -344,7 +350,7 @@ def console_chunk(phys, watch, fr, devices, teleops, rec, K):
             tel = teleops[m]
             fixture, fx_state, fx_out = tel[18], tel[19], tel[20]
             on, vf_p, vf_v, previous = fx_state[0], fx_state[1], fx_state[2], fx_state[3]
-            if not on[0]:
+            if not (tel[22][0] and on[0]):
                 continue
             dv = devices[tel[11][0]]
             _kinematics(dv[0], dv[1], qp, dv[15], dv[16], dv[17], dv[18])  # the MTM's
@@ -366,7 +372,7 @@ def console_chunk(phys, watch, fr, devices, teleops, rec, K):
             if result == NOT_FINITE:  # (the Python path's error and zero sum)
                 for j in range(m + 1):
                     fs = teleops[j][19]
-                    if fs[0][0]:
+                    if teleops[j][22][0] and fs[0][0]:
                         for i in range(3):
                             fs[1][i] = keep_fx[j, i]
                             fs[2][i] = keep_fx[j, 3 + i]
@@ -376,7 +382,7 @@ def console_chunk(phys, watch, fr, devices, teleops, rec, K):
         for tel in teleops:  # (HapticLoop._fixture_render: the device's rendered)
             fx_state, fx_out = tel[19], tel[20]
             on, previous, limited, tau = fx_state[0], fx_state[3], fx_out[1], fx_out[2]
-            if not on[0]:
+            if not (tel[22][0] and on[0]):
                 continue
             on[1] = True  # (the filter has started)
             for i in range(6):
@@ -426,6 +432,9 @@ def _undo(code, devices, teleops, keep_applied, keep_wrench, keep_lock, keep_goa
     for dev in devices:
         applied, wrench, lock_flags = dev[13], dev[14], dev[24]
         lock_traj, lock_goal = dev[25], dev[26]
+        if not dev[29][0]:  # (a slot's filler shares its arrays with a real row)
+            d += 1
+            continue
         applied[0] = keep_applied[d]
         for i in range(6):
             wrench[i] = keep_wrench[d, i]
@@ -438,6 +447,9 @@ def _undo(code, devices, teleops, keep_applied, keep_wrench, keep_lock, keep_goa
     t_i = 0
     for tel in teleops:
         jaw = tel[8]
+        if not tel[22][0]:
+            t_i += 1
+            continue
         for i in range(12):
             jaw[i] = keep_jaw[t_i, i]
         tel[9][0] = keep_jaw[t_i, 12]

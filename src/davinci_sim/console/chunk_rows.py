@@ -34,10 +34,6 @@ from davinci_sim.sim.arms import (
     PSM_SAFE_CARTESIAN_DISTANCE,
 )
 
-IDLE = "idle"
-"""What a component's ``chunk_part()`` returns when its ticks do nothing in the chunk's
-state (a trainee's operator with no hand to move)."""
-
 
 @dataclass(frozen=True)
 class SampleRequest:
@@ -62,6 +58,21 @@ def floats(a) -> np.ndarray:
     return np.array(a, dtype=float, order="C")
 
 
+SLOTS = 2
+"""The kernel's slots for devices and for following teleoperations (a console has two MTMs,
+each following at most one PSM): fewer fill theirs with a filler, more keep Python's
+ticks. One compiled signature whatever the console's state."""
+
+
+def filled(rows: list) -> tuple | None:
+    """``rows`` in the kernel's :data:`SLOTS` slots: each slot left holds a filler (the first
+    row marked off: its arrays shared, never written); None for none or more than fit."""
+    if not rows or len(rows) > SLOTS:
+        return None
+    filler = (*rows[0][:-1], np.zeros(1, dtype=bool))
+    return (*rows, *((filler,) * (SLOTS - len(rows))))
+
+
 def indices(*values) -> np.ndarray:
     """Indices (addresses, rows) as the kernel's ``intp`` array."""
     return np.array(values, dtype=np.intp)
@@ -74,33 +85,41 @@ def no_fixture() -> tuple:
     return (*path, 0.0, 0.0, 0.0, False, 0.001, 0.5, np.zeros(4), np.zeros(7))
 
 
-def device_row(d: SimulatedMTM, servo, cache: dict) -> tuple | None:
-    """A simulated MTM's row: its hand, its read's outputs and its arm's lock, or None
-    where its tick needs Python."""
+def _device_ready(d: SimulatedMTM, servo) -> bool:
+    """Whether a simulated MTM's tick has the kernel's form now: no watchdog, its arm in
+    effort mode or holding (no trajectory, impedance or user base frame), the orientation
+    lock driving the wrist already or off, a spatial wrench if any."""
     arm = d.arm
-    if not isinstance(arm, MTM) or d.watchdog is not None or d._was_stale:
-        return None
+    if d.watchdog is not None or d._was_stale or d._input is None:
+        return False
     if arm._T_user_base is not None or arm._impedance is not None or arm._traj is not None:
-        return None
-    if arm.gripper._traj is not None or d._input is None:
-        return None
-    effort = servo.effort_mode
-    lock_on = arm._R_lock is not None and bool(effort[arm._idx[0]])
+        return False
+    if arm.gripper._traj is not None or arm.base_frame()[0] is not arm.kin.T_reference_base:
+        return False
+    lock_on = arm._R_lock is not None and bool(servo.effort_mode[arm._idx[0]])
     if lock_on and arm._lock_traj is None:
-        return None  # (the lock's first tick starts its trajectory: Python's)
+        return False  # (the lock's first tick starts its trajectory: Python's)
     if not lock_on and (arm._lock_traj is not None or arm._lock_goal is not None):
-        return None
+        return False
     wrench = arm._wrench
-    if wrench is not None and wrench[1].any() and wrench[0] != "spatial":
+    return wrench is None or not wrench[1].any() or wrench[0] == "spatial"
+
+
+def device_row(d: SimulatedMTM, servo, cache: dict, check: bool = True) -> tuple | None:
+    """A simulated MTM's row: its hand, its read's outputs and its arm's lock, or None
+    where its tick needs Python (without ``check``: the row as it is, for the kernel's
+    types)."""
+    arm = d.arm
+    if not isinstance(arm, MTM) or (check and not _device_ready(d, servo)):
         return None
+    lock_on = (arm._R_lock is not None and bool(servo.effort_mode[arm._idx[0]])
+               and arm._lock_traj is not None)  # fmt: skip
     static = cache.get(d.name)
     if static is None or static[0] is not arm:
         static = cache[d.name] = (arm, *_device_static(d))
     (_, fk_c, adr, vadr, grip_adr, T_ref_base, R_hrsv_base, R_world_hrsv, p_world_hrsv,
      body, q, T, J, F, T_hrsv, twist, xfrc, gripper, lock_c, wrist_idx,
      idx) = static  # fmt: skip
-    if d.arm.base_frame()[0] is not d.arm.kin.T_reference_base:
-        return None
     hand = d.hand
     target = d._hand_target
     impedance = np.array([hand.stiffness, hand.damping, hand.rotational_stiffness,
@@ -124,7 +143,19 @@ def device_row(d: SimulatedMTM, servo, cache: dict) -> tuple | None:
         floats(np.eye(4) if target is None else target), impedance, floats(d._push), R_world_hrsv,
         p_world_hrsv, body, np.array([d._hand_applied]), floats(d._hand_wrench), q, T, J, F,
         T_hrsv, twist, xfrc, gripper, lock, lock_flags, lock_traj, lock_goal, wrist_idx, idx,
+        np.ones(1, dtype=bool),
     )  # fmt: skip
+
+
+def _teleop_ready(tel: TeleopPSM, servo) -> bool:
+    """Whether a following teleoperation's PSM takes its goal by the compiled law now:
+    ready for Cartesian control, no trajectory or wrench, nothing but the references set."""
+    psm = tel.psm
+    if psm._T_user_base is not None or psm._refusals or psm._not_ready(cartesian=True):
+        return False
+    if psm._traj is not None or psm._wrench is not None or psm.jaw._traj is not None:
+        return False
+    return not (servo.effort_mode[psm._idx].any() or servo.tau_ff[psm._idx].any())
 
 
 def teleop_row(
@@ -135,19 +166,15 @@ def teleop_row(
     rows: dict,
     cache: dict,
     no_fixture: tuple,
+    check: bool = True,
 ) -> tuple | None:
     """A following teleoperation's row (and its fixture's, if the haptic loop renders
-    one for its MTM), or None where its tick needs Python."""
+    one for its MTM), or None where its tick needs Python (without ``check``: the row as it
+    is, no fixture, for the kernel's types)."""
     psm = tel.psm
-    if not isinstance(psm, PSM) or getattr(psm, "_cp", None) is None:
+    if not isinstance(psm, PSM) or getattr(psm, "_cp", None) is None or psm.name not in rows:
         return None
-    if psm._T_user_base is not None or psm.name not in rows:
-        return None
-    if psm._traj is not None or psm._wrench is not None or psm.jaw._traj is not None:
-        return None
-    if psm._refusals or psm._not_ready(cartesian=True):
-        return None
-    if servo.effort_mode[psm._idx].any() or servo.tau_ff[psm._idx].any():
+    if check and not _teleop_ready(tel, servo):
         return None
     static = cache.get(tel.name)
     if static is None or static[0] is not psm:
@@ -163,11 +190,12 @@ def teleop_row(
                 tm.JAW_CATCH_UP_TOLERANCE)  # fmt: skip
     jaw_state = np.array([tel._jaw_sent, float(tel._ignore_jaw)])
     anchors = (floats(tel._T_camera_psm0), floats(tel._T_hrsv_mtm0), floats(tel._R_offset))
-    fixture = fixture_part(tel, haptics, no_fixture)
+    fixture = fixture_part(tel, haptics if check else None, no_fixture)
     if fixture is None:
         return None
     return (cp, adr, idx, row, T_base_ref, shaft, anchors, flags, jaw, jaw_state, limits,
-            indices(device), q, T, J, F, q_out, qd_out, *fixture, jaw_idx)  # fmt: skip
+            indices(device), q, T, J, F, q_out, qd_out, *fixture, jaw_idx,
+            np.ones(1, dtype=bool))  # fmt: skip
 
 
 def fixture_part(tel: TeleopPSM, haptics: HapticLoop | None, no_fixture: tuple) -> tuple | None:

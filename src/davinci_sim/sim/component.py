@@ -26,6 +26,11 @@ from __future__ import annotations
 
 from typing import Any, Protocol, runtime_checkable
 
+IDLE = "idle"
+"""What a component's optional ``chunk_part()`` returns when its ticks do nothing in the
+state the simulation's chunker runs compiled (:mod:`davinci_sim.console.chunk`); a component
+without ``chunk_part`` keeps every tick in Python while it is in the simulation."""
+
 
 @runtime_checkable
 class Component(Protocol):

@@ -32,6 +32,7 @@ from typing import Any
 
 import numpy as np
 
+from davinci_sim.sim.component import IDLE
 from davinci_sim.sim.runtime.loop import frozen_heap
 from davinci_sim.sim.runtime.shm import LatestSlot, SharedBuffer
 
@@ -113,6 +114,10 @@ class QposProbe:
 
     def pre_step(self, t: float) -> None:
         pass
+
+    def chunk_part(self) -> str:
+        """Idle in the console's compiled ticks: the probe reads ``qpos`` only when asked."""
+        return IDLE
 
     def snapshot(self) -> np.ndarray:
         q = self._sim.data.qpos.copy()
