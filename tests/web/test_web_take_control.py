@@ -43,15 +43,24 @@ def console():
 
 def wait_state(page: Page, where, seconds: float, errors: list | None = None) -> dict:
     """The first state within ``seconds`` of simulated time that satisfies ``where``
-    (AssertionError if none); the error messages on the way are added to ``errors``."""
-    t0 = page.latest_state()["time"]
+    (AssertionError if none), those that arrived while the test was not reading included;
+    the error messages on the way (those too) are added to ``errors``."""
+    t0 = None
+    backlog = True
     while True:
-        s = page.receive(timeout=300.0)
+        try:
+            s = page.receive(timeout=0 if backlog else 300.0)
+        except TimeoutError:  # (the backlog read: from now on, wait for what comes)
+            backlog = False
+            continue
         if isinstance(s, bytes):
             continue
         if s["op"] == "error" and errors is not None:
             errors.append(s["message"])
-        if s["op"] == "state" and (where(s) or s["time"] > t0 + seconds):
+        if s["op"] != "state":
+            continue
+        t0 = s["time"] if t0 is None else t0
+        if where(s) or s["time"] > t0 + seconds:
             break
     assert where(s), f"not within {seconds} s of simulated time: {s['arms']} {s['teleops']}"
     return s
