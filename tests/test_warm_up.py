@@ -48,7 +48,7 @@ def test_after_the_warm_up_a_new_process_loads_every_kernel_and_compiles_none(
     misses, hits = map(int, _python(_COUNT, *SMALL).split())
     assert misses >= 1 and hits == 0
     monkeypatch.setenv("NUMBA_CACHE_DIR", str(tmp_path / "warmed"))
-    warm_up(2, SMALL)
+    warm_up(2, SMALL, extra=())
     misses, hits = map(int, _python(_COUNT, *SMALL).split())
     assert misses == 0 and hits >= 1
 

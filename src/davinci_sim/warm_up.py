@@ -46,16 +46,17 @@ EXTRA_WARM_UPS = (_console_chunk,)
 _DEFER = "DAVINCI_SIM_DEFER_WARM_UP"
 
 
-def _worker(modules, counter, lock) -> None:
-    """One process: import ``modules`` (warm-ups deferred), then run the warm-ups, last
-    first, whose turn it takes from ``counter`` (shared by the processes)."""
+def _worker(modules, extra, counter, lock) -> None:
+    """One process: import ``modules`` (warm-ups deferred), then run their warm-ups and
+    ``extra``, last first, whose turn it takes from ``counter`` (shared by the
+    processes)."""
     for name in modules:
         importlib.import_module(name)
     from davinci_sim.kinematics import jit
 
     if not jit.DEFERRED:  # (run as the parent wanted: the warm-ups ran at import)
         return
-    jit.WARM_UPS.extend(EXTRA_WARM_UPS)
+    jit.WARM_UPS.extend(extra)
     while True:
         with lock:
             index = counter.value
@@ -68,10 +69,14 @@ def _worker(modules, counter, lock) -> None:
             continue
 
 
-def warm_up(processes: int | None = None, modules: tuple[str, ...] = KERNEL_MODULES) -> None:
-    """Compile (or find cached) every kernel that importing ``modules`` warms up, in
-    ``processes`` processes (default: ``os.cpu_count()``); returns when all are in the
-    cache.
+def warm_up(
+    processes: int | None = None,
+    modules: tuple[str, ...] = KERNEL_MODULES,
+    extra: tuple = EXTRA_WARM_UPS,
+) -> None:
+    """Compile (or find cached) every kernel that importing ``modules`` warms up, and those
+    the ``extra`` warm-ups compile, in ``processes`` processes (default:
+    ``os.cpu_count()``); returns when all are in the cache.
 
     Raises:
         ValueError: if ``processes`` < 1.
@@ -85,7 +90,9 @@ def warm_up(processes: int | None = None, modules: tuple[str, ...] = KERNEL_MODU
     before = os.environ.get(_DEFER)
     os.environ[_DEFER] = "1"  # (the children's environment, copied at their start)
     try:
-        workers = [context.Process(target=_worker, args=(modules, counter, lock)) for _ in range(n)]
+        workers = [
+            context.Process(target=_worker, args=(modules, extra, counter, lock)) for _ in range(n)
+        ]
         for w in workers:
             w.start()
     finally:
