@@ -35,6 +35,7 @@ from davinci_sim.console.chunk_rows import (
     ecm_idle,
     filled,
     floats,
+    hand_movable,
     indices,
     no_fixture,
     teleop_role,
@@ -109,7 +110,7 @@ class ConsoleChunk:
             ]  # fmt: skip
         self._sizes = indices(model.nu, model.nq, model.nv, len(data.warning), 0, model.nbody)
         self._state = np.empty(mujoco.mj_stateSize(model, _SIG))
-        self._times = np.zeros(3)
+        self._times = np.zeros(4)
         servo = sim.servo
         self._servo = (indices(*servo.qposadr), indices(*servo.dofadr), bool(servo._model_gravcomp))
         plan = sim._frame_plan
@@ -156,7 +157,7 @@ class ConsoleChunk:
         if slots_d is not None and slots_t is not None:
             rec = self._request_row(None, [], None)
             assert rec is not None
-            self._run(_Plan([], [], [], None, None, slots_d, slots_t, rec), 0)
+            self._run(_Plan([], [], [], None, None, slots_d, slots_t, rec, {}), 0)
 
     # ------------------------------------------------------------ the call
     def __call__(self, n: int, changed: bool = True) -> tuple[int, bool]:
@@ -197,7 +198,7 @@ class ConsoleChunk:
         console = self.console
         for c in sim._components.values():
             if isinstance(c, HandInput):
-                if c._holding and (t < c._v_until or c._gripper is not None):
+                if not hand_movable(c, t):
                     return None
                 hands.append(c)
             elif isinstance(c, SimulatedMTM):
@@ -228,9 +229,12 @@ class ConsoleChunk:
         if not teleops:
             return None
         device_of = {d.name: i for i, d in enumerate(devices)}
+        moved = {h.device.name: h for h in hands if h._holding}
+        if any(name not in device_of for name in moved):
+            return None
         device_rows = []
         for d in devices:
-            row = device_row(d, sim.servo, self._device_rows)
+            row = device_row(d, sim.servo, self._device_rows, rate=moved.get(d.name))
             if row is None:
                 return None
             device_rows.append(row)
@@ -251,7 +255,7 @@ class ConsoleChunk:
         slots_d, slots_t = filled(device_rows), filled(teleop_rows)
         if rec is None or slots_d is None or slots_t is None:
             return None
-        return _Plan(devices, hands, teleops, haptics, request, slots_d, slots_t, rec)
+        return _Plan(devices, hands, teleops, haptics, request, slots_d, slots_t, rec, moved)
 
     # ------------------------------------------------------------ rows
     def _request_row(self, request: SampleRequest | None, teleops: list[TeleopPSM],
@@ -325,6 +329,7 @@ class ConsoleChunk:
         for name, row in self._rows.items():
             self._frames_out[row] = current[name][0]
         self._computed[0] = False
+        self._times[3] = sim.data.time
         phys = (
             self._model._address, self._data._address, self._address, self._sizes,
             self._state, _SIG, np.array(list(WARNINGS), dtype=np.intp), *self._servo,
@@ -359,6 +364,10 @@ class ConsoleChunk:
         for h in plan.hands:
             h._time = t_pre
         for d, row in zip(plan.devices, plan.device_rows, strict=False):  # (not the fillers)
+            hand = plan.moved.get(d.name)
+            if hand is not None:  # (the rate input's target and the device's pose target)
+                hand._target = row[29][1][:3].copy()
+                d._hand_target = row[7].copy()
             T, twist = row[19].copy(), row[20].copy()
             T.setflags(write=False)
             twist.setflags(write=False)
@@ -405,6 +414,7 @@ class _Plan:
     device_rows: tuple
     teleop_rows: tuple
     rec: tuple
+    moved: dict
 
 
 def _ro(a: np.ndarray) -> np.ndarray:

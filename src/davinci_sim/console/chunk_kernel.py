@@ -119,9 +119,12 @@ def console_chunk(phys, watch, fr, devices, teleops, rec, K):
     ``devices``: per simulated MTM, ``(fk, adr, vadr, grip_adr, T_ref_base, R_hrsv_base,
     flags, target, impedance, push, R_world_hrsv, p_world_hrsv, body, applied, wrench, q,
     T, J, F, T_hrsv, twist, xfrc, gripper, lock, lock_flags, lock_traj, lock_goal,
-    wrist_idx, idx, on)``: its constants, the hand's state (updated), the last read
-    (``T_hrsv``, ``twist``, ``gripper``), the orientation lock and whether the row is a
-    device (``on[0]``) or a filler of its slot (the kernel has two: one compiled signature).
+    wrist_idx, idx, hand, on)``: its constants, the hand's state (updated), the last read
+    (``T_hrsv``, ``twist``, ``gripper``), the orientation lock, the web console's rate input
+    on its hand (``hand``: ``(on, state, params)``: whether one moves it, its target, origin
+    and velocity (m, m/s, HRSV), and max lead, workspace (m) and the time its velocity holds
+    until (s)) and whether the row is a device (``on[0]``) or a filler of its slot (the
+    kernel has two: one compiled signature).
 
     ``teleops``: per following teleoperation, ``(cp, adr, idx, row, T_base_ref, shaft,
     anchors, flags, jaw, jaw_state, limits, device, q, T, J, F, q_out, qd_out, fixture,
@@ -163,6 +166,8 @@ def console_chunk(phys, watch, fr, devices, teleops, rec, K):
     keep_lock = np.empty((nd, 3 * devices[0][26].shape[0]))
     keep_goal = np.empty(nd, dtype=np.bool_)
     keep_jaw = np.empty((nt, 13))
+    keep_hand = np.empty((nd, 3))
+    t_pre = times[3]  # (the tick's time before its step: the state's, then + dt per step)
     keep_fx = np.empty((nt, 6))
     m_lock = devices[0][26].shape[0]
     xfrc_all = numba.carray(f64_at(address[7]), (6 * (sizes[5]),))
@@ -180,7 +185,7 @@ def console_chunk(phys, watch, fr, devices, teleops, rec, K):
             (fk, adr, vadr, grip_adr, T_ref_base, R_hrsv_base, flags, target, impedance,
              push, R_world_hrsv, p_world_hrsv, body, applied, wrench, q, T, J, F, T_hrsv,
              twist, xfrc, gripper, lock, lock_flags, lock_traj, lock_goal, wrist_idx, idx,
-             on) = dev  # fmt: skip
+             hand, on) = dev  # fmt: skip
             keep_applied[d] = applied[0]
             for i in range(6):
                 keep_wrench[d, i] = wrench[i]
@@ -189,9 +194,13 @@ def console_chunk(phys, watch, fr, devices, teleops, rec, K):
             for i in range(m_lock):
                 keep_lock[d, 2 * m_lock + i] = lock_goal[i]
             keep_goal[d] = lock_flags[1]
+            for i in range(3):
+                keep_hand[d, i] = hand[1][i]
             d += 1
             if not on[0]:
                 continue
+            if hand[0][0] and t_pre < hand[2][2]:  # the hand moves (HandInput.pre_step)
+                _hand_rate(hand, T_hrsv, target, dt)
             _kinematics(fk, adr, qp, q, T, J, F)
             T_hrsv[:, :] = T_ref_base @ T  # (Arm._measured_T: numpy's product)
             qd = np.empty(vadr.shape[0])
@@ -228,7 +237,7 @@ def console_chunk(phys, watch, fr, devices, teleops, rec, K):
             if abs(qp[int(shaft[0])] + shaft[1]) < shaft[2]:
                 times[2] = STOP_CANNULA
                 return _undo(2 * k, devices, teleops, keep_applied, keep_wrench, keep_lock,
-                             keep_goal, keep_jaw)  # fmt: skip
+                             keep_goal, keep_jaw, keep_hand)  # fmt: skip
             invert_rigid_row(frames_out[row[0]], T_base_ref)  # (Arm._T_base_reference)
             _kinematics((cp[5], cp[6], cp[7], cp[8]), adr, qp, q, T, J, F)
             dv = devices[device[0]]
@@ -241,14 +250,14 @@ def console_chunk(phys, watch, fr, devices, teleops, rec, K):
             ):  # fmt: skip
                 times[2] = STOP_GOAL
                 return _undo(2 * k, devices, teleops, keep_applied, keep_wrench, keep_lock,
-                             keep_goal, keep_jaw)  # fmt: skip
+                             keep_goal, keep_jaw, keep_hand)  # fmt: skip
             if jaw_state[1] == 0.0:  # (the jaw followed: TeleopPSM._ignore_jaw off)
                 angle = jaw_now[11]
                 if angle != jaw_state[0]:  # sent when it changes (Jaw._servo_jp_checked)
                     if not np.isfinite(angle):  # (refused, with the jaw's message)
                         times[2] = STOP_JAW
                         return _undo(2 * k, devices, teleops, keep_applied, keep_wrench,
-                                     keep_lock, keep_goal, keep_jaw)  # fmt: skip
+                                     keep_lock, keep_goal, keep_jaw, keep_hand)  # fmt: skip
                     jaw_state[0] = angle
                     jaw_idx = tel[21]
                     for i in range(jaw_idx.shape[0]):  # (Jaw._set: finger_setpoints)
@@ -265,7 +274,7 @@ def console_chunk(phys, watch, fr, devices, teleops, rec, K):
         for dev in devices:
             fk, adr, lock, lock_flags, lock_traj = dev[0], dev[1], dev[23], dev[24], dev[25]
             lock_goal, wrist_idx = dev[26], dev[27]
-            if not (dev[29][0] and lock_flags[0]):
+            if not (dev[30][0] and lock_flags[0]):
                 continue
             (links, modified, tool, identity, first, R_base_goal, steps, damping, lo, hi, Tl,
              Jl, Fl, A, x, v_max, a_max, ratio) = lock  # fmt: skip
@@ -286,7 +295,7 @@ def console_chunk(phys, watch, fr, devices, teleops, rec, K):
             ):  # fmt: skip
                 times[2] = STOP_WRIST
                 return _undo(2 * k, devices, teleops, keep_applied, keep_wrench, keep_lock,
-                             keep_goal, keep_jaw)  # fmt: skip
+                             keep_goal, keep_jaw, keep_hand)  # fmt: skip
             for i in range(m):
                 lock_goal[i] = goal[i]
                 lock_traj[i] = q_l[i]
@@ -308,7 +317,7 @@ def console_chunk(phys, watch, fr, devices, teleops, rec, K):
                 w_since[i] = since[i]
             times[2] = STOP_FAULT
             return _undo(2 * k, devices, teleops, keep_applied, keep_wrench, keep_lock,
-                         keep_goal, keep_jaw)  # fmt: skip
+                         keep_goal, keep_jaw, keep_hand)  # fmt: skip
         # --- the servo (JointServo.apply: the bias forces of the last step)
         for i in range(nu):
             bb = qb[dofadr[i]] - qg[dofadr[i]] if minus_gravcomp else qb[dofadr[i]]
@@ -337,10 +346,11 @@ def console_chunk(phys, watch, fr, devices, teleops, rec, K):
                     w_since[m] = since[m]
                 times[2] = STOP_DIVERGED
                 return _undo(2 * k, devices, teleops, keep_applied, keep_wrench, keep_lock,
-                             keep_goal, keep_jaw)  # fmt: skip
+                             keep_goal, keep_jaw, keep_hand)  # fmt: skip
         # --- after the step: the frames, the haptic loop, the session's sample
         t_after = t + dt  # (mj_step's time += timestep)
         times[1] = t_after
+        t_pre = t_after
         qp = numba.carray(f64_at(address[1]), (nq,))
         if rec[0][0] and _tool_contacts(address, stride, rec[3], rec[4], rec[5]):
             times[2] = STOP_CONTACT
@@ -409,6 +419,38 @@ def console_chunk(phys, watch, fr, devices, teleops, rec, K):
 
 
 @numba.njit(cache=True, nogil=True)
+def _hand_rate(hand, T_hrsv, target, dt):
+    """One tick of the web console's rate input on its hand (``HandInput.pre_step`` while a
+    velocity holds, no turn): the hand's target ``hand[1][:3]`` moves ``v·dt``, held within
+    ``max_lead`` of the handle (the device's last read, ``T_hrsv``) and ``workspace`` of where
+    the hand took it; the device's target pose ``target`` follows. numpy's norm of a
+    3-vector is ``sqrt(x·x)`` by BLAS's dot, as ``np.dot`` is here (the same bits)."""
+    state, params = hand[1], hand[2]
+    tgt = np.empty(3)
+    handle = np.empty(3)
+    for i in range(3):
+        tgt[i] = state[i] + state[6 + i] * dt
+        handle[i] = T_hrsv[i, 3]
+    lead = tgt - handle
+    d = np.sqrt(np.dot(lead, lead))
+    if d > params[0]:  # the handle is held back: the hand waits for it
+        s = params[0] / d
+        for i in range(3):
+            tgt[i] = handle[i] + lead[i] * s
+    reach = np.empty(3)
+    for i in range(3):
+        reach[i] = tgt[i] - state[3 + i]
+    r = np.sqrt(np.dot(reach, reach))
+    if r > params[1]:
+        s = params[1] / r
+        for i in range(3):
+            tgt[i] = state[3 + i] + reach[i] * s
+    for i in range(3):
+        state[i] = tgt[i]
+        target[i, 3] = tgt[i]
+
+
+@numba.njit(cache=True, nogil=True)
 def _tool_contacts(address, stride, watch, tool_geom, other_geom) -> bool:
     """Whether a contact of the state now involves the instrument and something it may
     collide with (``InstrumentContacts.measure`` would count it): the contacts' geom pairs
@@ -425,14 +467,15 @@ def _tool_contacts(address, stride, watch, tool_geom, other_geom) -> bool:
 
 
 @numba.njit(cache=True, nogil=True)
-def _undo(code, devices, teleops, keep_applied, keep_wrench, keep_lock, keep_goal, keep_jaw):
+def _undo(code, devices, teleops, keep_applied, keep_wrench, keep_lock, keep_goal, keep_jaw,
+          keep_hand):  # fmt: skip
     """Put the hands', the locks' and the jaws' state back as they were at the tick's start
     (for the Python tick to run it); returns ``code``."""
     d = 0
     for dev in devices:
         applied, wrench, lock_flags = dev[13], dev[14], dev[24]
         lock_traj, lock_goal = dev[25], dev[26]
-        if not dev[29][0]:  # (a slot's filler shares its arrays with a real row)
+        if not dev[30][0]:  # (a slot's filler shares its arrays with a real row)
             d += 1
             continue
         applied[0] = keep_applied[d]
@@ -443,6 +486,11 @@ def _undo(code, devices, teleops, keep_applied, keep_wrench, keep_lock, keep_goa
         for i in range(lock_goal.shape[0]):
             lock_goal[i] = keep_lock[d, lock_traj.shape[0] + i]
         lock_flags[1] = keep_goal[d]
+        hand, target = dev[29], dev[7]
+        for i in range(3):  # (the hand's target: HandInput._target and the device's)
+            hand[1][i] = keep_hand[d, i]
+            if hand[0][0]:
+                target[i, 3] = keep_hand[d, i]
         d += 1
     t_i = 0
     for tel in teleops:

@@ -20,6 +20,7 @@ from davinci_sim.console import teleop_math as tm
 from davinci_sim.console.haptic_loop import HapticLoop
 from davinci_sim.console.teleop_ecm import TeleopECM
 from davinci_sim.console.teleop_psm import DISABLED, ENABLED, TeleopPSM
+from davinci_sim.devices.hand_input import HandInput
 from davinci_sim.devices.simulated import SimulatedMTM
 from davinci_sim.geometry.path import Polyline
 from davinci_sim.haptics.fixture import FixtureField
@@ -105,10 +106,12 @@ def _device_ready(d: SimulatedMTM, servo) -> bool:
     return wrench is None or not wrench[1].any() or wrench[0] == "spatial"
 
 
-def device_row(d: SimulatedMTM, servo, cache: dict, check: bool = True) -> tuple | None:
-    """A simulated MTM's row: its hand, its read's outputs and its arm's lock, or None
-    where its tick needs Python (without ``check``: the row as it is, for the kernel's
-    types)."""
+def device_row(
+    d: SimulatedMTM, servo, cache: dict, check: bool = True, rate: HandInput | None = None
+) -> tuple | None:
+    """A simulated MTM's row: its hand, its read's outputs, its arm's lock and the rate
+    input ``rate`` that moves its hand (if any), or None where its tick needs Python
+    (without ``check``: the row as it is, for the kernel's types)."""
     arm = d.arm
     if not isinstance(arm, MTM) or (check and not _device_ready(d, servo)):
         return None
@@ -138,13 +141,42 @@ def device_row(d: SimulatedMTM, servo, cache: dict, check: bool = True) -> tuple
             lock_goal[:] = arm._lock_goal
         R_base_goal = floats(arm.base_frame()[0][:3, :3].T @ arm._R_lock)  # (MTM._lock_seed)
     lock = (*lock_c[:5], R_base_goal, *lock_c[5:], float(ratio))
+    if check:  # (the handle where the last read left it: the rate input's lead)
+        T_hrsv[:, :] = d._input.T_hrsv_tip
     return (
         fk_c, adr, vadr, grip_adr, T_ref_base, R_hrsv_base, flags,
         floats(np.eye(4) if target is None else target), impedance, floats(d._push), R_world_hrsv,
         p_world_hrsv, body, np.array([d._hand_applied]), floats(d._hand_wrench), q, T, J, F,
         T_hrsv, twist, xfrc, gripper, lock, lock_flags, lock_traj, lock_goal, wrist_idx, idx,
-        np.ones(1, dtype=bool),
+        hand_part(rate), np.ones(1, dtype=bool),
     )  # fmt: skip
+
+
+def hand_part(hand: HandInput | None) -> tuple:
+    """The rate input's part of its device's row: ``(on, state, params)``: whether it holds
+    the handle, its target, origin and velocity (m, m/s, HRSV) and its max lead, workspace
+    (m) and the time its velocity holds until (s)."""
+    on = np.array([hand is not None and hand._holding])
+    state, params = np.zeros(9), np.zeros(3)
+    if hand is not None:
+        state[:3], state[3:6], state[6:] = hand._target, hand._origin, hand._v
+        params[:] = hand.max_lead, hand.workspace, hand._v_until
+    return on, state, params
+
+
+def hand_movable(hand: HandInput, t: float) -> bool:
+    """Whether a rate input's tick has the kernel's form from time ``t`` (s) on: no gripper
+    squeeze pending, no turn while its velocity holds, its device's target a pose whose
+    orientation it keeps."""
+    if not hand._holding:
+        return True
+    if hand._gripper is not None or (t < hand._v_until and hand._w.any()):
+        return False
+    d = hand.device
+    if not isinstance(d, SimulatedMTM) or not d._hand_on or d._hand_target is None:
+        return False
+    R = hand._R_target
+    return R is None or bool(np.array_equal(d._hand_target[:3, :3], R))
 
 
 def _teleop_ready(tel: TeleopPSM, servo) -> bool:
