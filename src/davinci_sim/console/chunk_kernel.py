@@ -40,11 +40,11 @@ from davinci_sim.console.haptic_row import NOT_FINITE, fixture_render
 from davinci_sim.console.teleop_row import follow_tick
 from davinci_sim.devices.device_row import hand_read_row
 from davinci_sim.kinematics.fk_compiled import tip_pose_row
-from davinci_sim.kinematics.suj import frames_row, invert_rigid_row
+from davinci_sim.kinematics.suj import invert_rigid_row
 from davinci_sim.sim.arm_laws import tracking_watch_row
 from davinci_sim.sim.arm_laws import wrist_lock_step as _wrist_lock_step
-from davinci_sim.sim.rows_kernel import f64_at, i32_at, mj_get_state, mj_set_state, mj_step
-from davinci_sim.sim.servo import servo_ctrl_scalar
+from davinci_sim.sim.live_kernel import frames_at, servo_and_step
+from davinci_sim.sim.rows_kernel import f64_at, i32_at, mj_get_state
 
 #: Why a call stopped before its K ticks (``times[2]``).
 (STOP_NONE, STOP_CANNULA, STOP_GOAL, STOP_JAW, STOP_WRIST, STOP_FAULT, STOP_DIVERGED,
@@ -68,29 +68,14 @@ DONE = -1
 
 @numba.njit(cache=True, nogil=True)
 def _frames_at(qp, fr, Q_suj, q_frame_ref, T1, J_none, F_suj):
-    """``Simulation._frames`` at the joints ``qp``: the frames recomputed into ``fr``'s
-    ``frames_out`` when a setup or ECM joint differs from ``fr``'s key by more than its
-    tolerance (then ``computed[0]`` set); returns whether they were."""
-    frame_adr, key, tol, computed = fr[10], fr[11], fr[12], fr[14]
-    same, close = True, tol > 0
-    for i in range(frame_adr.shape[0]):
-        v = qp[frame_adr[i]]
-        same = same and v == key[i]
-        close = close and abs(v - key[i]) <= tol
-    if same or close:
+    """``Simulation._frames`` at the joints ``qp`` (:func:`frames_at` with ``fr``'s plan,
+    key, tolerance and ``frames_out``; then ``computed[0]`` set); returns whether the frames
+    were recomputed."""
+    plan = (fr[0], fr[1], fr[2], fr[3], fr[4], fr[5], fr[6], fr[7], fr[8], fr[9])
+    if not frames_at(qp, fr[10], fr[11], fr[12], plan, fr[13], Q_suj, q_frame_ref, T1, J_none,
+                     F_suj):  # fmt: skip
         return False
-    n_suj, n_ref = Q_suj.shape[0], q_frame_ref.shape[0]
-    n_joints = Q_suj.shape[1]
-    for i in range(frame_adr.shape[0]):
-        key[i] = qp[frame_adr[i]]
-    for i in range(n_suj):
-        for m in range(n_joints):
-            Q_suj[i, m] = key[i * n_joints + m]
-    for m in range(n_ref):
-        q_frame_ref[m] = key[n_suj * n_joints + m]
-    frames_row(fr[0], fr[1], fr[2], fr[3], fr[4], Q_suj, fr[5], fr[6], fr[7], fr[8], fr[9],
-               q_frame_ref, fr[13], T1, J_none, F_suj)  # fmt: skip
-    computed[0] = True
+    fr[14][0] = True
     return True
 
 
@@ -318,35 +303,15 @@ def console_chunk(phys, watch, fr, devices, teleops, rec, K):
             times[2] = STOP_FAULT
             return _undo(2 * k, devices, teleops, keep_applied, keep_wrench, keep_lock,
                          keep_goal, keep_jaw, keep_hand)  # fmt: skip
-        # --- the servo (JointServo.apply: the bias forces of the last step)
-        for i in range(nu):
-            bb = qb[dofadr[i]] - qg[dofadr[i]] if minus_gravcomp else qb[dofadr[i]]
-            ctrl[i] = servo_ctrl_scalar(
-                qp[qposadr[i]], qv[dofadr[i]], bb, q_ref[i], qd_ref[i], tau_ff[i], effort[i],
-                gravity[i], kp[i], kv[i],
-            )  # fmt: skip
-        for i in range(nv):
-            bias_before[i] = qb[i]
-            gravcomp_before[i] = qg[i]
-        c = numba.carray(f64_at(address[0]), (nu,))
-        for i in range(nu):
-            c[i] = ctrl[i]
-        for i in range(warnings.shape[0]):
-            counts[i] = w[2 * warnings[i] + 1]  # mjWarningStat: (lastinfo, number)
-        mj_step(model, data)
-        for i in range(warnings.shape[0]):
-            counts_after[i] = w[2 * warnings[i] + 1]
-        for i in range(counts.shape[0]):
-            if counts_after[i] != counts[i]:  # diverged: undo, for the Python tick's guard
-                mj_set_state(model, data, sp, sig)
-                for m in range(nv):
-                    qb[m] = bias_before[m]
-                    qg[m] = gravcomp_before[m]
-                for m in range(since.shape[0]):
-                    w_since[m] = since[m]
-                times[2] = STOP_DIVERGED
-                return _undo(2 * k, devices, teleops, keep_applied, keep_wrench, keep_lock,
-                             keep_goal, keep_jaw, keep_hand)  # fmt: skip
+        # --- the servo (the bias forces of the last step) and the step
+        if not servo_and_step(
+            model, data, address, qp, qv, qb, qg, qposadr, dofadr, minus_gravcomp, q_ref,
+            qd_ref, tau_ff, effort, gravity, kp, kv, w, warnings, sp, sig, since, w_since, ctrl,
+            bias_before, gravcomp_before, counts, counts_after,
+        ):  # fmt: skip
+            times[2] = STOP_DIVERGED  # (undone, for the Python tick's guard)
+            return _undo(2 * k, devices, teleops, keep_applied, keep_wrench, keep_lock,
+                         keep_goal, keep_jaw, keep_hand)  # fmt: skip
         # --- after the step: the frames, the haptic loop, the session's sample
         t_after = t + dt  # (mj_step's time += timestep)
         times[1] = t_after

@@ -120,27 +120,13 @@ def live_period(
         w = numba.carray(i32_at(address[5]), (2 * nw,))
         s = k / K  # (envs.control.ramp's arithmetic)
         # --- the arm's setpoint: servo_cp or servo_jp, as the Python path accepts it
-        if frames:  # the base frame at the joints now (Simulation._frames)
-            same, close = True, tol > 0
-            for i in range(frame_adr.shape[0]):
-                v = qp[frame_adr[i]]
-                same = same and v == key[i]
-                close = close and abs(v - key[i]) <= tol
-            if not (same or close):
-                for i in range(frame_adr.shape[0]):
-                    key[i] = qp[frame_adr[i]]
-                for i in range(n_suj):
-                    for m in range(n_joints):
-                        Q_suj[i, m] = key[i * n_joints + m]
-                for m in range(n_ref):
-                    q_frame_ref[m] = key[n_suj * n_joints + m]
-                frames_row(
-                    plan_links, plan_modified, plan_tools, plan_tools_identity,
-                    plan_T_cart_sujbase, Q_suj, plan_reference, ref_links, ref_modified,
-                    ref_tool, ref_tool_identity, q_frame_ref, frames_out, T1, J_none, F_suj,
-                )  # fmt: skip
-                invert_rigid_row(frames_out[arm_row], T_base_ref)  # (Arm._T_base_reference)
-                computed[0] = True
+        if frames and frames_at(  # the base frame at the joints now (Simulation._frames)
+            qp, frame_adr, key, tol, (plan_links, plan_modified, plan_tools,
+            plan_tools_identity, plan_T_cart_sujbase, plan_reference, ref_links, ref_modified,
+            ref_tool, ref_tool_identity), frames_out, Q_suj, q_frame_ref, T1, J_none, F_suj,
+        ):  # fmt: skip
+            invert_rigid_row(frames_out[arm_row], T_base_ref)  # (Arm._T_base_reference)
+            computed[0] = True
         if cartesian:
             if shaft_q >= 0 and abs(qp[shaft_q] + shaft_offset) < shaft_min:
                 return k  # in the cannula: servo_cp refuses, with its message
@@ -190,29 +176,80 @@ def live_period(
             for i in range(since.shape[0]):
                 w_since[i] = since[i]
             return k  # an arm faults: the Python tick faults it, with the reason
-        # --- the servo (JointServo.apply: the bias forces of the last step)
-        for i in range(nu):
-            b = qb[dofadr[i]] - qg[dofadr[i]] if minus_gravcomp else qb[dofadr[i]]
-            ctrl[i] = servo_ctrl_scalar(
-                qp[qposadr[i]], qv[dofadr[i]], b, q_ref[i], qd_ref[i], tau_ff[i], effort[i],
-                gravity[i], kp[i], kv[i],
-            )  # fmt: skip
-        for i in range(nv):
-            bias_before[i] = qb[i]
-            gravcomp_before[i] = qg[i]
-        c = numba.carray(f64_at(address[0]), (nu,))
-        for i in range(nu):
-            c[i] = ctrl[i]
-        _warning_counts(w, warnings, counts)
-        mj_step(model, data)
-        _warning_counts(w, warnings, counts_after)
-        for i in range(counts.shape[0]):
-            if counts_after[i] != counts[i]:  # diverged: undo, for the Python tick's guard
-                mj_set_state(model, data, sp, state_sig)
-                for m in range(nv):
-                    qb[m] = bias_before[m]
-                    qg[m] = gravcomp_before[m]
-                for m in range(since.shape[0]):
-                    w_since[m] = since[m]
-                return k
+        # --- the servo (the bias forces of the last step) and the step
+        if not servo_and_step(
+            model, data, address, qp, qv, qb, qg, qposadr, dofadr, minus_gravcomp, q_ref,
+            qd_ref, tau_ff, effort, gravity, kp, kv, w, warnings, sp, state_sig, since, w_since,
+            ctrl, bias_before, gravcomp_before, counts, counts_after,
+        ):  # fmt: skip
+            return k  # diverged: undone, for the Python tick's guard
     return DONE
+
+
+@numba.njit(cache=True, nogil=True)
+def frames_at(qp, frame_adr, key, tol, plan, frames_out, Q_suj, q_frame_ref, T1, J_none, F_suj):
+    """``Simulation._frames`` at the joints ``qp``: the setup-joint frames recomputed into
+    ``frames_out`` (``suj.frames_row`` with the plan's constants ``plan``: its ``args``, its
+    reference, its ``ref_args``) when a setup or ECM joint (``qpos`` addresses ``frame_adr``)
+    differs from ``key`` (the joints of the frames held, updated) by more than ``tol``, or
+    at all with ``tol`` 0; returns whether they were. ``Q_suj`` (k, n), ``q_frame_ref``,
+    ``T1``, ``J_none``, ``F_suj``: scratch."""
+    same, close = True, tol > 0
+    for i in range(frame_adr.shape[0]):
+        v = qp[frame_adr[i]]
+        same = same and v == key[i]
+        close = close and abs(v - key[i]) <= tol
+    if same or close:
+        return False
+    n_suj, n_joints, n_ref = Q_suj.shape[0], Q_suj.shape[1], q_frame_ref.shape[0]
+    for i in range(frame_adr.shape[0]):
+        key[i] = qp[frame_adr[i]]
+    for i in range(n_suj):
+        for m in range(n_joints):
+            Q_suj[i, m] = key[i * n_joints + m]
+    for m in range(n_ref):
+        q_frame_ref[m] = key[n_suj * n_joints + m]
+    frames_row(plan[0], plan[1], plan[2], plan[3], plan[4], Q_suj, plan[5], plan[6], plan[7],
+               plan[8], plan[9], q_frame_ref, frames_out, T1, J_none, F_suj)  # fmt: skip
+    return True
+
+
+@numba.njit(cache=True, nogil=True)
+def servo_and_step(
+    model, data, address, qp, qv, qb, qg, qposadr, dofadr, minus_gravcomp, q_ref, qd_ref,
+    tau_ff, effort, gravity, kp, kv, w, warnings, sp, sig, since, w_since, ctrl, bias_before,
+    gravcomp_before, counts, counts_after,
+) -> bool:  # fmt: skip
+    """The servo's controls (``JointServo.apply``: ``servo_ctrl_scalar`` of each actuator
+    with the bias forces ``qb`` less ``qg`` of the last step) into ``mjData.ctrl``
+    (``address[0]``), then ``mj_step`` with MuJoCo's warning counters ``w`` read around it.
+    A step that raised one of ``warnings`` is undone: the integration state saved at ``sp``
+    (signature ``sig``) restored, the bias forces and the watch's ``w_since`` (from
+    ``since``) put back; returns False then. ``ctrl``, ``bias_before``, ``gravcomp_before``,
+    ``counts``, ``counts_after``: scratch."""
+    nu, nv = ctrl.shape[0], qb.shape[0]
+    for i in range(nu):
+        b = qb[dofadr[i]] - qg[dofadr[i]] if minus_gravcomp else qb[dofadr[i]]
+        ctrl[i] = servo_ctrl_scalar(
+            qp[qposadr[i]], qv[dofadr[i]], b, q_ref[i], qd_ref[i], tau_ff[i], effort[i],
+            gravity[i], kp[i], kv[i],
+        )  # fmt: skip
+    for i in range(nv):
+        bias_before[i] = qb[i]
+        gravcomp_before[i] = qg[i]
+    c = numba.carray(f64_at(address[0]), (nu,))
+    for i in range(nu):
+        c[i] = ctrl[i]
+    _warning_counts(w, warnings, counts)
+    mj_step(model, data)
+    _warning_counts(w, warnings, counts_after)
+    for i in range(counts.shape[0]):
+        if counts_after[i] != counts[i]:
+            mj_set_state(model, data, sp, sig)
+            for m in range(nv):
+                qb[m] = bias_before[m]
+                qg[m] = gravcomp_before[m]
+            for m in range(since.shape[0]):
+                w_since[m] = since[m]
+            return False
+    return True
