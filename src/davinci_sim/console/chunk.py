@@ -86,6 +86,7 @@ _COOLDOWN = 8
 asks again (asking costs about a Python tick's time)."""
 
 _SIG = int(mujoco.mjtState.mjSTATE_INTEGRATION)  # (the divergence guard's state)
+_WARNINGS = np.array(list(WARNINGS), dtype=np.intp)  # (the guard's warnings, by index)
 
 
 class ConsoleChunk:
@@ -273,14 +274,9 @@ class ConsoleChunk:
             return None
         tel = teleops[names.index(request.teleop)]
         mtm = tel.mtm_name
-        fixture_teleop = -1
-        for i, other in enumerate(teleops):
-            entries = [] if haptics is None else [
-                e for e in haptics._fields.values() if e.mtm in (None, other.mtm_name)
-            ]  # fmt: skip
-            if entries and other.mtm_name == mtm:
-                fixture_teleop = i
-                break
+        fixture_teleop = -1  # (the teleoperation whose fixture renders on the session's MTM)
+        if haptics is not None and haptics.entries_for(mtm):
+            fixture_teleop = next(i for i, o in enumerate(teleops) if o.mtm_name == mtm)
         now = None if haptics is None else haptics.requested(mtm)
         if now is None and fixture_teleop < 0:
             return None  # (None every tick: rare, and Python's)
@@ -332,7 +328,7 @@ class ConsoleChunk:
         self._times[3] = sim.data.time
         phys = (
             self._model._address, self._data._address, self._address, self._sizes,
-            self._state, _SIG, np.array(list(WARNINGS), dtype=np.intp), *self._servo,
+            self._state, _SIG, _WARNINGS, *self._servo,
             servo.kp, servo.kv, servo.effort_mode, servo.gravity_compensation, servo.q_ref,
             servo.qd_ref, servo.tau_ff, float(sim.model.opt.timestep), self._times,
         )  # fmt: skip
@@ -391,8 +387,7 @@ class ConsoleChunk:
             state, out = row[19], row[20]
             if not state[0][0]:
                 continue
-            field_ = [e for e in haptics._fields.values() if e.mtm in (None, tel.mtm_name)][0]
-            field_.field.row_filter(tel.psm.name)._started[...] = True
+            haptics.entries_for(tel.mtm_name)[0].field.row_filter(tel.psm.name)._started[...] = True
             requested, limited, tau = out[0].copy(), out[1].copy(), out[2].copy()
             haptics._requested[tel.mtm_name] = requested
             dev = plan.device_rows[row[11][0]]

@@ -41,9 +41,8 @@ from davinci_sim.console.teleop_row import follow_tick
 from davinci_sim.devices.device_row import hand_read_row
 from davinci_sim.kinematics.fk_compiled import tip_pose_row
 from davinci_sim.kinematics.suj import invert_rigid_row
-from davinci_sim.sim.arm_laws import tracking_watch_row
 from davinci_sim.sim.arm_laws import wrist_lock_step as _wrist_lock_step
-from davinci_sim.sim.live_kernel import frames_at, servo_and_step
+from davinci_sim.sim.live_kernel import frames_at, servo_and_step, step_scratch, watch_passes
 from davinci_sim.sim.rows_kernel import f64_at, i32_at, mj_get_state
 
 #: Why a call stopped before its K ticks (``times[2]``).
@@ -127,12 +126,9 @@ def console_chunk(phys, watch, fr, devices, teleops, rec, K):
     times[2] = STOP_NONE
     w_adr, w_idx, w_tol, w_starts, w_watched, w_since, w_first_bad, w_fault = watch
     nu, nq, nv, nw, stride = sizes[0], sizes[1], sizes[2], sizes[3], sizes[4]
-    ctrl = np.empty(nu)
-    since = np.empty(w_since.shape[0])
-    bias_before = np.empty(nv)
-    gravcomp_before = np.empty(nv)
-    counts = np.empty(warnings.shape[0], dtype=np.int32)
-    counts_after = np.empty(warnings.shape[0], dtype=np.int32)
+    ctrl, since, bias_before, gravcomp_before, counts, counts_after = step_scratch(
+        nu, nv, warnings.shape[0], w_since.shape[0]
+    )
     sp = state.ctypes.data
     # the frames' scratch (Simulation._frames)
     plan_links, ref_links, frame_adr = fr[0], fr[6], fr[10]
@@ -294,12 +290,8 @@ def console_chunk(phys, watch, fr, devices, teleops, rec, K):
         t = state[0]
         times[0] = t
         # --- the tracking watch of every arm
-        for i in range(since.shape[0]):
-            since[i] = w_since[i]
-        if tracking_watch_row(qp, w_adr, q_ref, w_idx, w_tol, effort, w_starts, w_watched,
-                              w_since, t, w_first_bad, w_fault):  # fmt: skip
-            for i in range(since.shape[0]):
-                w_since[i] = since[i]
+        if not watch_passes(qp, w_adr, q_ref, w_idx, w_tol, effort, w_starts, w_watched,
+                            w_since, t, w_first_bad, w_fault, since):  # fmt: skip
             times[2] = STOP_FAULT
             return _undo(2 * k, devices, teleops, keep_applied, keep_wrench, keep_lock,
                          keep_goal, keep_jaw, keep_hand)  # fmt: skip

@@ -235,9 +235,7 @@ def fixture_part(tel: TeleopPSM, haptics: HapticLoop | None, no_fixture: tuple) 
     the loop renders nothing for its MTM; None where it renders in Python."""
     dof = tel.device.arm.dof
     out = (np.zeros(6), np.zeros(6), np.zeros(dof), np.zeros(1, dtype=bool))
-    entries = [] if haptics is None or not haptics._fields else [
-        e for e in haptics._fields.values() if e.mtm in (None, tel.mtm_name)
-    ]  # fmt: skip
+    entries = [] if haptics is None else haptics.entries_for(tel.mtm_name)
     if not entries:
         state = (np.zeros(2, dtype=bool), np.zeros(3), np.zeros(3), np.zeros(6))
         return (*no_fixture[:-1], np.zeros(dof)), state, out

@@ -125,7 +125,7 @@ class HapticLoop:
         for teleop in self.console.psm_teleops.values():
             if not teleop.is_following():
                 continue
-            entries = [e for e in self._fields.values() if e.mtm in (None, teleop.mtm_name)]
+            entries = self.entries_for(teleop.mtm_name)
             if not entries:
                 continue
             if T_world_camera is None:
@@ -180,6 +180,11 @@ class HapticLoop:
         self._requested[teleop.mtm_name] = requested
         teleop.device.rendered(limited, tau, bool(active), q, T_ref_base)
         return True
+
+    def entries_for(self, mtm: str) -> list:
+        """The fields rendered on ``mtm`` (those added for it and those for every MTM), in
+        the order they were added."""
+        return [e for e in self._fields.values() if e.mtm in (None, mtm)]
 
     def requested(self, mtm: str) -> np.ndarray | None:
         """The fields' summed wrench for ``mtm`` at the last tick it was computed (6,), HRSV

@@ -97,12 +97,9 @@ def live_period(
     J = np.empty((6, dof))
     F = np.empty((dof, 12))
     T_goal = np.eye(4)
-    ctrl = np.empty(nu)
-    since = np.empty(w_since.shape[0])
-    bias_before = np.empty(nv)
-    gravcomp_before = np.empty(nv)
-    counts = np.empty(warnings.shape[0], dtype=np.int32)
-    counts_after = np.empty(warnings.shape[0], dtype=np.int32)
+    ctrl, since, bias_before, gravcomp_before, counts, counts_after = step_scratch(
+        nu, nv, warnings.shape[0], w_since.shape[0]
+    )
     sp = state.ctypes.data
     n_suj = plan_links.shape[0]
     n_ref = ref_links.shape[1]
@@ -169,12 +166,8 @@ def live_period(
                     rec_frames[k - 1, 0, i, m] = frames_out[camera_row, i, m]
                     rec_frames[k - 1, 1, i, m] = frames_out[arm_row, i, m]
         # --- the tracking watch of every arm
-        for i in range(since.shape[0]):
-            since[i] = w_since[i]
-        if tracking_watch_row(qp, w_adr, q_ref, w_idx, w_tol, effort, w_starts, w_watched,
-                              w_since, t, w_first_bad, w_fault):  # fmt: skip
-            for i in range(since.shape[0]):
-                w_since[i] = since[i]
+        if not watch_passes(qp, w_adr, q_ref, w_idx, w_tol, effort, w_starts, w_watched,
+                            w_since, t, w_first_bad, w_fault, since):  # fmt: skip
             return k  # an arm faults: the Python tick faults it, with the reason
         # --- the servo (the bias forces of the last step) and the step
         if not servo_and_step(
@@ -212,6 +205,31 @@ def frames_at(qp, frame_adr, key, tol, plan, frames_out, Q_suj, q_frame_ref, T1,
     frames_row(plan[0], plan[1], plan[2], plan[3], plan[4], Q_suj, plan[5], plan[6], plan[7],
                plan[8], plan[9], q_frame_ref, frames_out, T1, J_none, F_suj)  # fmt: skip
     return True
+
+
+@numba.njit(cache=True, nogil=True)
+def watch_passes(qp, w_adr, q_ref, w_idx, w_tol, effort, w_starts, w_watched, w_since, t,
+                 w_first_bad, w_fault, since) -> bool:  # fmt: skip
+    """The tracking watch of every arm at time ``t`` (``tracking_watch_row``, its state
+    ``w_since`` kept in ``since`` first); False where an arm faults, with ``w_since`` put
+    back (the Python tick faults it, with the reason)."""
+    for i in range(since.shape[0]):
+        since[i] = w_since[i]
+    if tracking_watch_row(qp, w_adr, q_ref, w_idx, w_tol, effort, w_starts, w_watched,
+                          w_since, t, w_first_bad, w_fault):  # fmt: skip
+        for i in range(since.shape[0]):
+            w_since[i] = since[i]
+        return False
+    return True
+
+
+@numba.njit(cache=True, nogil=True)
+def step_scratch(nu, nv, n_warnings, n_arms):
+    """The scratch of :func:`servo_and_step` and of the watch's undo: ``ctrl`` (nu,),
+    ``since`` (n_arms,), ``bias_before``, ``gravcomp_before`` (nv,), ``counts``,
+    ``counts_after`` (n_warnings,) int32."""
+    return (np.empty(nu), np.empty(n_arms), np.empty(nv), np.empty(nv),
+            np.empty(n_warnings, dtype=np.int32), np.empty(n_warnings, dtype=np.int32))  # fmt: skip
 
 
 @numba.njit(cache=True, nogil=True)
