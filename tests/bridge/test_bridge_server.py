@@ -456,6 +456,51 @@ def test_stop_frees_the_port(make_server, make_ros):
     s.close()
 
 
+def test_a_slow_client_gets_its_messages_in_the_order_they_were_published(make_server, make_raw):
+    """A client behind on a busy topic still sees an event after the samples published
+    before it (a move's end after the joints of its last tick), not ahead of them."""
+    from websockets.sync.client import connect
+
+    server = make_server(send_queue_length=20)
+    s = socket.socket()
+    s.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, 4096)
+    s.connect(("127.0.0.1", server.port))
+    with connect(server.url, sock=s, compression=None, max_size=None) as slow:
+        slow.send(json.dumps({"op": "subscribe", "topic": "/samples", "type": "std_msgs/String"}))
+        slow.send(json.dumps({"op": "subscribe", "topic": "/event", "type": "std_msgs/Int32"}))
+        pub = make_raw(server, level=None)
+        pub.send({"op": "advertise", "topic": "/samples", "type": "std_msgs/String"})
+        pub.send({"op": "advertise", "topic": "/event", "type": "std_msgs/Int32"})
+        assert wait_for(lambda: len(server.stats()["sessions"]) == 2)
+        time.sleep(0.2)  # (the subscriptions are in place)
+
+        def behind():
+            return any(x["dropped"] > 0 for x in server.stats()["sessions"])
+
+        k = 0
+        while not behind() and k < 5000:  # until the slow client's queue overflows
+            pub.send({"op": "publish", "topic": "/samples",
+                      "msg": {"data": f"{k:06d}" + "x" * 10_000}})  # fmt: skip
+            k += 1
+            if k % 50 == 0:
+                time.sleep(0.05)
+        assert wait_for(behind), server.stats()
+        pub.send({"op": "publish", "topic": "/event", "msg": {"data": k}})
+        time.sleep(0.3)  # (routed: the publisher's messages are handled in order)
+        got = []
+        while True:
+            try:
+                msg = json.loads(slow.recv(2.0))
+            except TimeoutError:
+                break
+            if msg.get("op") == "publish":
+                got.append(msg)
+    topics = [m["topic"] for m in got]
+    assert topics[-1] == "/event" and topics.count("/event") == 1, topics[-5:]
+    samples = [int(m["msg"]["data"][:6]) for m in got[:-1]]
+    assert samples == sorted(samples) and samples[-1] == k - 1  # the oldest were dropped
+
+
 def test_thirty_concurrent_clients(make_server, make_ros):
     server = make_server()
     clients = []

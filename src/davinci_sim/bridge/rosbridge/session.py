@@ -6,9 +6,11 @@ fragments reassembled) and parsed into typed ops; anything wrong is reported wit
 with ``set_level``, rosbridge.md §1.2) and the connection carries on.
 
 Outgoing messages wait in bounded queues: one per subscription (``queue_length`` or the
-server default; the oldest is dropped when full) and one for replies. A writer task sends
-them round-robin, so a slow client only loses its own oldest messages and never blocks the
-loop or other clients (rosbridge.md §5 "Slow consumers").
+server default; the oldest is dropped when full) and one for replies. A slow client only
+loses its own oldest messages and never blocks the loop or other clients (rosbridge.md §5
+"Slow consumers"). A writer task sends the queued messages in the order they were published,
+across topics: a client that sees a move end on ``operating_state`` has by then been sent
+every ``measured_js`` published before it, however far behind it reads.
 """
 
 from __future__ import annotations
@@ -85,7 +87,9 @@ class Session:
         self.services: set[str] = set()
         self.actions: set[str] = set()
         self._control: deque[str | bytes] = deque(maxlen=cfg.control_queue_length)
-        self._ready: deque[Subscription] = deque()
+        self._ready: set[Subscription] = set()
+        self._published = itertools.count()
+        """Order of the messages queued for this client, across subscriptions."""
         self._frames: deque[str | bytes] = deque()
         self._wake = asyncio.Event()
         self._fragments: dict[Any, tuple[float, dict[int, str], int]] = {}
@@ -295,10 +299,10 @@ class Session:
         if len(q) == q.maxlen:
             sub.dropped += 1
             self.dropped += 1
-        q.append(out)
+        q.append((next(self._published), out))
         if not sub.in_ready:
             sub.in_ready = True
-            self._ready.append(sub)
+            self._ready.add(sub)
         self._wake.set()
 
     def _encode(self, sub: Subscription, out: OutMessage) -> list[str | bytes]:
@@ -317,25 +321,28 @@ class Session:
             return self._control.popleft()
         if self._frames:
             return self._frames.popleft()
+        # The oldest message queued of a subscription that may send now (a throttled
+        # subscription's next message waits for its time).
         now = time.monotonic()
-        for _ in range(len(self._ready)):
-            sub = self._ready.popleft()
+        first: Subscription | None = None
+        for sub in list(self._ready):
             if sub.closed or not sub.queue:
                 sub.in_ready = False
-                continue
-            if sub.queue_length and sub.throttle and now < sub.next_send:
-                self._ready.append(sub)
-                continue
-            out = sub.queue.popleft()
-            sub.next_send = now + sub.throttle
-            if sub.queue:
-                self._ready.append(sub)
-            else:
-                sub.in_ready = False
-            frames = self._encode(sub, out)
-            self._frames.extend(frames[1:])
-            return frames[0]
-        return None
+                self._ready.discard(sub)
+            elif not (sub.queue_length and sub.throttle and now < sub.next_send) and (
+                first is None or sub.queue[0][0] < first.queue[0][0]
+            ):
+                first = sub
+        if first is None:
+            return None
+        out = first.queue.popleft()[1]
+        first.next_send = now + first.throttle
+        if not first.queue:
+            first.in_ready = False
+            self._ready.discard(first)
+        frames = self._encode(first, out)
+        self._frames.extend(frames[1:])
+        return frames[0]
 
     def _next_delay(self) -> float | None:
         waits = [s.next_send for s in self._ready if s.queue and not s.closed]
