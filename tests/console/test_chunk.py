@@ -25,6 +25,7 @@ pytestmark = pytest.mark.skipif(not chunk.COMPILED, reason="numba is off")
 
 
 SIGNATURES: list = []
+BEFORE_CONTROL: list = []
 
 
 @pytest.fixture(scope="module")
@@ -42,6 +43,7 @@ def served():
     )  # fmt: skip
     SIGNATURES.append(list(console_chunk.signatures))  # (the install compiled or loaded it)
     sim.run_for(8.0)  # homing, then the endoscope framed on the task
+    BEFORE_CONTROL.append(sim.get_state())
     console = sim.components["console"]
     console.press("operator_present")
     console.teleop_enable(True)
@@ -112,6 +114,20 @@ def _assert_same_run(a, b) -> None:
     assert_same_bits(sa.arms, sb.arms, "arms")
     assert_same_bits(sa.components, sb.components, "components")
     assert ea == eb
+
+
+def test_the_console_before_anyone_takes_control_ticks_compiled_as_in_python(served):
+    """``make run`` before the page takes control: no teleoperation follows, the session
+    samples the idle PSM1 (no guidance force requested yet), the MTMs hold their handles."""
+    sim, chunker, _ = served
+    runs, answers = _both_ways((sim, chunker, BEFORE_CONTROL[0]), 300)
+    _assert_same_run(*runs)
+    whole = sum(a[0] for a in answers)
+    assert whole >= 290, answers[:20]  # (compiled, not Python ticks)
+    sim.set_state(BEFORE_CONTROL[0])
+    plan = chunker.plan()
+    assert plan is not None and plan.teleops == []
+    assert not any(row[-1][0] for row in plan.teleop_rows)  # (none followed)
 
 
 def test_the_steady_console_ticks_compiled_as_in_python(served):

@@ -156,7 +156,7 @@ class ConsoleChunk:
         slots_d = filled([r for r in device_rows if r is not None])
         slots_t = filled([r for r in teleop_rows if r is not None][:2])
         if slots_d is not None and slots_t is not None:
-            rec = self._request_row(None, [], None)
+            rec = self._request_row(None, [], 0, None)
             assert rec is not None
             self._run(_Plan([], [], [], None, None, slots_d, slots_t, rec, {}), 0)
 
@@ -193,6 +193,7 @@ class ConsoleChunk:
         t = sim.data.time
         devices: list[SimulatedMTM] = []
         teleops: list[TeleopPSM] = []
+        idle: dict[str, TeleopPSM] = {}
         hands: list[HandInput] = []
         haptics: HapticLoop | None = None
         request: SampleRequest | None = None
@@ -215,6 +216,8 @@ class ConsoleChunk:
                     return None
                 if role == "follow":
                     teleops.append(c)
+                else:
+                    idle[c.name] = c
             elif isinstance(c, TeleopECM):
                 if not ecm_idle(c):
                     return None
@@ -227,8 +230,6 @@ class ConsoleChunk:
                     request = answer
                 elif answer != IDLE:
                     return None
-        if not teleops:
-            return None
         device_of = {d.name: i for i, d in enumerate(devices)}
         moved = {h.device.name: h for h in hands if h._holding}
         if any(name not in device_of for name in moved):
@@ -252,19 +253,42 @@ class ConsoleChunk:
             if row is None:
                 return None
             teleop_rows.append(row)
-        rec = self._request_row(request, teleops, haptics)
+        # Idle teleoperations' rows marked off (not followed): the session's, whose PSM it
+        # samples, or any one for the kernel's types when none follows.
+        rows_of = list(teleops)
+        names = [t.name for t in teleops]
+        off = [] if request is None or request.teleop in names else [request.teleop]
+        if not teleop_rows and not off and idle:
+            off = [next(iter(idle))]
+        for name in off:
+            tel = idle.get(name)
+            if tel is None or tel._clutched:  # (the session samples the clutch: Python's)
+                return None
+            i = device_of.get(tel.device.name)
+            row = None if i is None else teleop_row(
+                tel, i, None, sim.servo, self._rows, self._teleop_rows, self._no_fixture,
+                check=False,
+            )  # fmt: skip
+            if row is None:
+                return None
+            teleop_rows.append((*row[:-1], np.zeros(1, dtype=bool)))
+            rows_of.append(tel)
+        rec = self._request_row(request, rows_of, len(teleops), haptics)
         slots_d, slots_t = filled(device_rows), filled(teleop_rows)
         if rec is None or slots_d is None or slots_t is None:
             return None
         return _Plan(devices, hands, teleops, haptics, request, slots_d, slots_t, rec, moved)
 
     # ------------------------------------------------------------ rows
-    def _request_row(self, request: SampleRequest | None, teleops: list[TeleopPSM],
-                     haptics: HapticLoop | None) -> tuple | None:  # fmt: skip
+    def _request_row(self, request: SampleRequest | None, rows_of: list[TeleopPSM],
+                     following: int, haptics: HapticLoop | None) -> tuple | None:  # fmt: skip
         """The session's sample part: ``(on, teleop, fixture_teleop, watch, tool_geom,
-        other_geom, t, T_tip, T_camera, requested, master, req_now)``."""
+        other_geom, t, T_tip, T_camera, requested, master, req_now)``. ``rows_of``: the
+        teleoperations of the kernel's rows, the first ``following`` of them followed. The
+        guidance force requested for the session's MTM is the fixture's, or the last one
+        while none renders on it (zero before any: ``live_sample``'s)."""
         K = MAX_TICKS
-        names = [t.name for t in teleops]
+        names = [t.name for t in rows_of]
         if request is None:
             return (np.zeros(1, dtype=bool), indices(0), indices(-1), np.zeros(1, dtype=bool),
                     np.zeros(1, dtype=bool), np.zeros(1, dtype=bool), np.empty(K),
@@ -272,14 +296,13 @@ class ConsoleChunk:
                     np.empty((K, 3)), np.zeros(3))  # fmt: skip
         if request.teleop not in names:
             return None
-        tel = teleops[names.index(request.teleop)]
-        mtm = tel.mtm_name
+        mtm = rows_of[names.index(request.teleop)].mtm_name
         fixture_teleop = -1  # (the teleoperation whose fixture renders on the session's MTM)
         if haptics is not None and haptics.entries_for(mtm):
-            fixture_teleop = next(i for i, o in enumerate(teleops) if o.mtm_name == mtm)
+            fixture_teleop = next(
+                (i for i, o in enumerate(rows_of[:following]) if o.mtm_name == mtm), -1
+            )
         now = None if haptics is None else haptics.requested(mtm)
-        if now is None and fixture_teleop < 0:
-            return None  # (None every tick: rare, and Python's)
         if not self._contact_layout():
             return None
         return (np.ones(1, dtype=bool), indices(names.index(request.teleop)),

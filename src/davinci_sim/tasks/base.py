@@ -385,6 +385,13 @@ class Task(ABC):
             return np.eye(4)
         return np.asarray(T_world_camera, dtype=float).copy()
 
+    def T_task_cameras(self, T_world_cameras) -> np.ndarray:
+        """:meth:`T_task_camera` of m cameras ``T_world_cameras`` (m, 4, 4): (m, 4, 4)."""
+        T = np.asarray(T_world_cameras, dtype=float)
+        if self.frame == "camera":
+            return np.broadcast_to(np.eye(4), T.shape).copy()
+        return T.copy()
+
     # ------------------------------------------------------------ fixtures
     def guidance(self, spec: dict):
         """The guidance field of a fixture entry in the task's frame (None: no force). The

@@ -311,8 +311,8 @@ class TaskSession:
         clutch, no contact; the samples in compiled calls up to each change of phase
         (``LivePathTick.takes``)."""
         task, live = self.task, self._live_tick
-        T_task_camera = np.array([task.T_task_camera(T) for T in T_cart_camera])
-        T_task_tip = np.array([a @ b for a, b in zip(T_task_camera, T_camera_tip, strict=True)])
+        T_task_camera = task.T_task_cameras(T_cart_camera)
+        T_task_tip = T_task_camera @ T_camera_tip  # (each product as the tick's own @)
         j, m = 0, len(t)
         while j < m:
             if self._recorded:

@@ -37,6 +37,27 @@ def test_statistics_of_known_periods():
     assert d["period_max_ms"] == pytest.approx(7.0) and d["periods_over_5ms"] == 1
 
 
+def test_ticks_in_passes_share_the_time_to_the_next_pass():
+    """Passes of 4, 4 and 2 ticks paced at 1 kHz (a snapshot every 10 ticks): every period
+    is 1 ms, not 2 ms for the ticks of a short pass after a long one."""
+    recorder = PeriodRecorder(0.001)
+    t, sizes = 5.0, [4, 4, 2] * 30
+    for k in sizes:
+        recorder.tick(t, t + 0.0002 * k, k)
+        t += 0.001 * k
+    s = recorder.statistics()
+    assert s.ticks == sum(sizes)
+    assert s.period_max == pytest.approx(0.001) and s.periods_over[0.002] == 0
+    assert s.period_p99 <= 0.001 + BIN_WIDTH and s.late_periods == 0
+    assert s.achieved_rate_hz == pytest.approx(1000.0)  # (the last pass's ticks: no period yet)
+    assert s.compute_max == pytest.approx(0.0002) and s.overruns == 0
+    late = PeriodRecorder(0.001)
+    late.tick(0.0, 0.001, 4)
+    late.tick(0.010, 0.011, 4)  # 6 ms late: each of the first pass's ticks took 2.5 ms
+    assert late.statistics().period_max == pytest.approx(0.0025)
+    assert late.statistics().late_periods == 4
+
+
 def test_empty_and_overflow():
     recorder = PeriodRecorder(0.001, real_time=False)
     s = recorder.statistics()

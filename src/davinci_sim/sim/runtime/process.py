@@ -89,8 +89,16 @@ class LoopOptions:
     cpu: int | None = None
     realtime_priority: int | None = None
     start_paused: bool = False
-    spin: float = DEFAULT_SPIN
+    spin: float | None = None
+    """s; None: :func:`_default_spin`."""
     max_lag: float = DEFAULT_MAX_LAG
+
+
+def _default_spin(chunk: int, sim, realtime_priority: bool) -> float:
+    """The pacer's spin (s) when none is given; see :class:`ProcessSimulation`."""
+    if chunk > 1 and sim.chunker is not None:  # (passes of several ticks)
+        return 0.0
+    return 50e-6 if realtime_priority else DEFAULT_SPIN
 
 
 class LoopProcessError(RuntimeError):
@@ -124,9 +132,13 @@ class ProcessSimulation:
             per core also uses the loop core's idle time without delaying the loop.
         realtime_priority: SCHED_FIFO priority for the loop process (needs the privilege;
             :attr:`info` tells whether it was applied).
-        spin: the pacer busy-waits this long before each deadline, s (default: 200 µs, or
-            50 µs with ``realtime_priority``: a real-time thread wakes up on time, and its
-            spinning counts against the kernel's real-time budget of 95% of a core).
+        spin: the pacer busy-waits this long before each deadline, s. Default: none when
+            the loop runs its ticks in passes (a console's simulation, no ``stop_at_tick``:
+            a pass of up to 4 ticks woken a sleep's overshoot late, tens of µs, still ends
+            in time, and spinning before each of its 300 passes a second costs a few % of a
+            core); else 200 µs, or 50 µs with ``realtime_priority`` (a real-time thread
+            wakes up on time, and its spinning counts against the kernel's real-time budget
+            of 95% of a core).
         state_capacity: bytes for one published state.
         start_timeout: s to wait for the child to build the simulation.
     """
@@ -164,7 +176,7 @@ class ProcessSimulation:
             start_paused=start_paused,
             cpu=loop_cpu,
             realtime_priority=realtime_priority,
-            spin=spin if spin is not None else (50e-6 if realtime_priority else DEFAULT_SPIN),
+            spin=spin,
         )
         self._render_hz = render_hz
         self._render_model = render_model
@@ -592,16 +604,20 @@ def _loop_main(factory, options: LoopOptions, conn, paths: dict) -> None:
         recorder = PeriodRecorder(sim.dt, real_time=options.real_time, buffer=buffers["stats"].mm)
         state_slot = LatestSlot(buffers["state"])
         qpos_slot = LatestSlot(buffers["qpos"])
+        # (ticks in compiled calls of up to CHUNK_TICKS; one at a time to stop at a tick)
+        chunk = CHUNK_TICKS if options.stop_at_tick is None else 1
+        spin = options.spin
+        if spin is None:
+            spin = _default_spin(chunk, sim, bool(applied["realtime_priority"]))
         runner = LoopRunner(
             sim,
             real_time=options.real_time,
             recorder=recorder,
-            spin=options.spin,
+            spin=spin,
             max_lag=options.max_lag,
             # (a FIFO loop that never sleeps is stopped by Linux for 50 ms a second)
             min_idle=realtime_idle_share() if applied["realtime_priority"] else 0.0,
-            # (ticks in compiled calls of up to CHUNK_TICKS; one at a time to stop at a tick)
-            chunk=CHUNK_TICKS if options.stop_at_tick is None else 1,
+            chunk=chunk,
         )
         outgoing: deque = deque()
         dropped = [0]

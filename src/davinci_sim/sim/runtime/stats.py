@@ -5,7 +5,9 @@ consecutive ticks) and the *compute time* (wall time the tick's work took) into 
 histograms (10 µs bins up to 50 ms, plus one overflow bin), exact maxima and counters. Its
 storage is one flat ``int64``/``float64`` layout, so it can live in shared memory: the loop
 process writes, any process reads with :func:`period_statistics` at any time. Recording costs
-a few µs per tick, whatever the run length.
+a few µs per tick, whatever the run length. Ticks run in passes (several ticks in one
+compiled call, ``LoopRunner(chunk=)``) share the time from their pass's start to the next
+pass's start: their periods.
 
 Definitions (as the cisst/dVRK interval statistics): an *overrun* is a tick whose compute
 time exceeded the nominal period (the loop could not keep up during that tick); a *late*
@@ -122,44 +124,39 @@ class PeriodRecorder:
             self.header[_REAL_TIME] = 1.0 if real_time else 0.0
             self.header[_FIRST_WALL] = math.nan
         self._last_start: float | None = None
+        self._last_ticks = 1
 
     def tick(self, start: float, end: float, ticks: int = 1) -> None:
-        """Record one tick that started at ``start`` and finished at ``end`` (wall s); or
-        ``ticks`` run together then, each with its share of the period since the last start
-        and of the compute time."""
-        if ticks > 1:
-            last = self._last_start
-            share = (end - start) / ticks
-            step = share if last is None else (start - last) / ticks
-            first = start if last is None else last + step
-            for i in range(ticks):
-                t0 = first + i * step
-                self.tick(t0, t0 + share)
-            return
+        """Record one tick that started at ``start`` and finished at ``end`` (wall s); or a
+        pass of ``ticks`` run together then, each with its share of the compute time. A
+        pass's ticks get their periods when the next pass starts: the time between the two
+        starts shared by the ticks of the first (a pass of 2 ticks after one of 4 does not
+        make the 4 ms between them two periods of 2 ms)."""
         h = self.header
         nominal = h[_NOMINAL]
-        compute = end - start
-        self.compute_hist[min(int(compute / BIN_WIDTH), N_BINS)] += 1
-        h[_N_COMPUTE] += 1
-        h[_SUM_COMPUTE] += compute
+        compute = (end - start) / ticks
+        self.compute_hist[min(int(compute / BIN_WIDTH), N_BINS)] += ticks
+        h[_N_COMPUTE] += ticks
+        h[_SUM_COMPUTE] += end - start
         if compute > h[_MAX_COMPUTE]:
             h[_MAX_COMPUTE] = compute
         if compute > nominal:
-            h[_OVERRUNS] += 1
-        if self._last_start is None:
+            h[_OVERRUNS] += ticks
+        last, n = self._last_start, self._last_ticks
+        if last is None:
             h[_FIRST_WALL] = start
         else:
-            period = start - self._last_start
-            self.period_hist[min(int(period / BIN_WIDTH), N_BINS)] += 1
-            h[_N_PERIODS] += 1
-            h[_SUM_PERIOD] += period
+            period = (start - last) / n
+            self.period_hist[min(int(period / BIN_WIDTH), N_BINS)] += n
+            h[_N_PERIODS] += n
+            h[_SUM_PERIOD] += start - last
             if period > h[_MAX_PERIOD]:
                 h[_MAX_PERIOD] = period
             if period > LATE_FACTOR * nominal:
-                h[_LATE] += 1
-        self._last_start = start
+                h[_LATE] += n
+        self._last_start, self._last_ticks = start, ticks
         h[_LAST_WALL] = start
-        h[_TICKS] += 1
+        h[_TICKS] += ticks
 
     def resynced(self) -> None:
         """Count a real-time resynchronisation (the backlog was dropped)."""
