@@ -130,6 +130,29 @@ def test_the_console_before_anyone_takes_control_ticks_compiled_as_in_python(ser
     assert not any(row[-1][0] for row in plan.teleop_rows)  # (none followed)
 
 
+@pytest.mark.parametrize("start", ["following", "before control"])
+def test_another_arm_moving_is_sampled_in_python(served, start):
+    """A script's ``move_jp`` of an arm no teleoperation drives (PSM3) while the console
+    ticks: its trajectory is sampled every tick, as in Python (the kernel has no form of
+    it), and the arm gets there."""
+    sim, chunker, state = served
+    if start == "before control":
+        state = BEFORE_CONTROL[0]
+    goal = {}
+
+    def move(sim):
+        arm = sim.arms["PSM3"]
+        q = arm.setpoint_js().position.copy()
+        q[0] += 0.05
+        goal["q"] = q
+        assert arm.move_jp(q)
+
+    runs, _ = _both_ways((sim, chunker, state), 1500, before=move)
+    _assert_same_run(*runs)
+    assert not sim.arms["PSM3"].is_busy()
+    assert abs(sim.arms["PSM3"].measured_js().position[0] - goal["q"][0]) < 2e-3
+
+
 def test_the_steady_console_ticks_compiled_as_in_python(served):
     runs, answers = _both_ways(served, 400)
     _assert_same_run(*runs)

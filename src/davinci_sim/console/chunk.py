@@ -273,11 +273,30 @@ class ConsoleChunk:
                 return None
             teleop_rows.append((*row[:-1], np.zeros(1, dtype=bool)))
             rows_of.append(tel)
+        if not self._arms_idle(devices, teleops, teleop_rows[: len(teleops)]):
+            return None
         rec = self._request_row(request, rows_of, len(teleops), haptics)
         slots_d, slots_t = filled(device_rows), filled(teleop_rows)
         if rec is None or slots_d is None or slots_t is None:
             return None
         return _Plan(devices, hands, teleops, haptics, request, slots_d, slots_t, rec, moved)
+
+    def _arms_idle(self, devices: list[SimulatedMTM], teleops: list[TeleopPSM],
+                   rows: list[tuple]) -> bool:  # fmt: skip
+        """Whether the arms' pre-steps are the kernel's: an arm no row drives (an idle
+        teleoperation's PSM, the ECM, a setup arm, another script's arm) has nothing to do
+        (no trajectory or wrench: a move, say a script's ``move_jp``, samples its
+        trajectory in Python), and an MTM's wrench is the one its fixture renders in the
+        kernel every tick, or none."""
+        driven = {d.arm.name for d in devices} | {t.psm.name for t in teleops}
+        if not all(a._pre_step_idle() for n, a in self.sim.arms.items() if n not in driven):
+            return False
+        rendered = {row[11][0] for row in rows if row[19][0][0]}  # (devices with a fixture)
+        for i, d in enumerate(devices):
+            wrench = d.arm._wrench
+            if wrench is not None and wrench[1].any() and i not in rendered:
+                return False
+        return True
 
     # ------------------------------------------------------------ rows
     def _request_row(self, request: SampleRequest | None, rows_of: list[TeleopPSM],
