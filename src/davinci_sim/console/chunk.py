@@ -20,7 +20,7 @@ most that long.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
 
 import mujoco
@@ -351,35 +351,23 @@ class ConsoleChunk:
     # ------------------------------------------------------------ run
     def _run(self, plan: _Plan, K: int) -> tuple[int, bool]:
         sim = self.sim
-        servo, watch = sim.servo, sim._watch
+        watch = sim._watch
         watched, since = watch._watched, watch._bad_since
-        for k, a in enumerate(watch.arms):
-            watched[k] = a._state == ops.ENABLED
-            since[k] = a._tracking_bad_since
-        # the frames the simulation holds now (the kernel compares its joints with theirs)
-        frames = sim._base_frames.get("frames")
-        if frames is None:
-            sim._frames()
-            frames = sim._base_frames["frames"]
-        self._key[:] = np.frombuffer(frames[0])
-        current = frames[1]
-        self._frames_out[self._camera_row] = current["camera"]
-        for name, row in self._rows.items():
-            self._frames_out[row] = current[name][0]
+        kernel = plan.kernel
+        if kernel is None:  # (a plan's first call: else the objects hold what it left)
+            for k, a in enumerate(watch.arms):
+                watched[k] = a._state == ops.ENABLED
+                since[k] = a._tracking_bad_since
+            self._sync_frames()
+            plan.args = self._args(plan)
+            kernel = _KERNEL
         self._computed[0] = False
         self._times[3] = sim.data.time
-        phys = (
-            self._model._address, self._data._address, self._address, self._sizes,
-            self._state, _SIG, _WARNINGS, *self._servo,
-            servo.kp, servo.kv, servo.effort_mode, servo.gravity_compensation, servo.q_ref,
-            servo.qd_ref, servo.tau_ff, float(sim.model.opt.timestep), self._times,
-        )  # fmt: skip
-        wt = (watch._adr, watch._idx, watch._tol, watch._starts, watched, since,
-              watch._first_bad, watch._fault)  # fmt: skip
-        fr = self._frames  # (the tolerance as it is now: tests and the study's engine set it)
-        fr = (*fr[:12], float(simulation_module.BASE_FRAME_TOLERANCE), *fr[13:])
-        code = int(_KERNEL(phys, wt, fr, plan.device_rows, plan.teleop_rows,
-                           plan.rec, K))  # fmt: skip
+        code = int(kernel(*plan.args, K))
+        if plan.kernel is None and len(_KERNEL.overloads) == 1:
+            # The plan's next calls pass the same objects: the compiled function itself,
+            # without the dispatcher's typing of its 236 arrays (half the call's cost).
+            plan.kernel = next(iter(_KERNEL.overloads.values())).entry_point
         if code == DONE:
             whole, post = K, False
         else:
@@ -394,6 +382,36 @@ class ConsoleChunk:
             sim.tick_count += pre
             self._store(plan, whole)
         return whole, post
+
+    def _sync_frames(self) -> None:
+        """The frames the simulation holds now into the kernel's (it compares its joints
+        with theirs)."""
+        sim = self.sim
+        frames = sim._base_frames.get("frames")
+        if frames is None:
+            sim._frames()
+            frames = sim._base_frames["frames"]
+        self._key[:] = np.frombuffer(frames[0])
+        current = frames[1]
+        self._frames_out[self._camera_row] = current["camera"]
+        for name, row in self._rows.items():
+            self._frames_out[row] = current[name][0]
+
+    def _args(self, plan: _Plan) -> tuple:
+        """The kernel's arguments but the number of ticks."""
+        sim = self.sim
+        servo, watch = sim.servo, sim._watch
+        phys = (
+            self._model._address, self._data._address, self._address, self._sizes,
+            self._state, _SIG, _WARNINGS, *self._servo,
+            servo.kp, servo.kv, servo.effort_mode, servo.gravity_compensation, servo.q_ref,
+            servo.qd_ref, servo.tau_ff, float(sim.model.opt.timestep), self._times,
+        )  # fmt: skip
+        wt = (watch._adr, watch._idx, watch._tol, watch._starts, watch._watched,
+              watch._bad_since, watch._first_bad, watch._fault)  # fmt: skip
+        fr = self._frames  # (the tolerance as it is now: tests and the study's engine set it)
+        fr = (*fr[:12], float(simulation_module.BASE_FRAME_TOLERANCE), *fr[13:])
+        return phys, wt, fr, plan.device_rows, plan.teleop_rows, plan.rec
 
     def _store(self, plan: _Plan, whole: int) -> None:
         """What the Python ticks leave in the objects: the last tick's reads, the hands', the
@@ -429,7 +447,11 @@ class ConsoleChunk:
             state, out = row[19], row[20]
             if not state[0][0]:
                 continue
-            haptics.entries_for(tel.mtm_name)[0].field.row_filter(tel.psm.name)._started[...] = True
+            started = plan.started.get(tel.name)
+            if started is None:  # (the fixture's velocity filter: it has started)
+                fixture = haptics.entries_for(tel.mtm_name)[0].field
+                started = plan.started[tel.name] = fixture.row_filter(tel.psm.name)._started
+            started[...] = True
             requested, limited, tau = out[0].copy(), out[1].copy(), out[2].copy()
             haptics._requested[tel.mtm_name] = requested
             dev = plan.device_rows[row[11][0]]
@@ -452,6 +474,12 @@ class _Plan:
     teleop_rows: tuple
     rec: tuple
     moved: dict
+    args: tuple = ()
+    """The kernel's arguments but the number of ticks (set at the plan's first call)."""
+    kernel: Any = None
+    """What the plan's next calls call (the compiled function, once its first call ran)."""
+    started: dict = field(default_factory=dict)
+    """Each following teleoperation's fixture filter's ``_started`` (found once)."""
 
 
 def _ro(a: np.ndarray) -> np.ndarray:
