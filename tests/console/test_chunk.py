@@ -193,6 +193,27 @@ def test_a_key_held_moves_the_hand_in_the_compiled_ticks_as_in_python(served, sp
     assert np.linalg.norm(moved) > 0.5 * speed * 0.3  # (the hand did move)
 
 
+@pytest.mark.parametrize("turn", [0.8, 3.0])
+def test_a_turn_key_held_turns_the_wrist_in_the_compiled_ticks_as_in_python(served, turn):
+    """The web console's turn keys (an angular velocity with a translation, 0.3 s): the
+    first turn grasps the wrist (Python's tick), then the wrist's target turns every tick,
+    held within its lead of the handle (the fast turn: the handle lags), in the compiled
+    calls as in Python."""
+
+    def key(sim):
+        hand = sim.components["MTMR/hand"]
+        assert hand.command([0.02, 0.0, 0.0], angular=[0.0, 0.0, min(turn, hand.max_turn)])
+
+    runs, answers = _both_ways(served, 600, before=key)
+    _assert_same_run(*runs)
+    assert sum(a[0] for a in answers) >= 580, answers[:10]
+    hand = served[0].components["MTMR/hand"]
+    R_handle = served[0].components["MTMR/device"].input().T_hrsv_tip[:3, :3]
+    assert hand._R_target is not None
+    turned = np.degrees(np.arccos(np.clip((np.trace(hand._R_target.T @ R_handle) - 1) / 2, -1, 1)))
+    assert turned < np.degrees(hand.max_turn_lead) + 1.0  # (held within its lead)
+
+
 def test_a_tracking_fault_in_a_call_is_the_python_fault(served):
     def shove(sim):  # a steady shove on the instrument: the tracking error grows, FAULT
         body = sim.model.body("PSM1/roll").id

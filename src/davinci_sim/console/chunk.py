@@ -421,8 +421,11 @@ class ConsoleChunk:
             h._time = t_pre
         for d, row in zip(plan.devices, plan.device_rows, strict=False):  # (not the fillers)
             hand = plan.moved.get(d.name)
-            if hand is not None:  # (the rate input's target and the device's pose target)
-                hand._target = row[29][1][:3].copy()
+            if hand is not None:  # (the rate input's targets and the device's pose target)
+                state = row[29][1]
+                hand._target = state[:3].copy()
+                if hand._R_target is not None:
+                    hand._R_target = state[12:].reshape(3, 3).copy()
                 d._hand_target = row[7].copy()
             T, twist = row[19].copy(), row[20].copy()
             T.setflags(write=False)

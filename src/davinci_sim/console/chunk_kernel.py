@@ -22,11 +22,11 @@ Python ticks' bit for bit (``tests/console/test_chunk.py``); products numpy comp
 Where a tick would do something the kernel has no form of — a teleoperation goal
 ``servo_cp`` has no compiled answer for, a jaw angle to send, the tool in the cannula, a
 failed wrist solve, a tracking fault, a step that raises one of the divergence guard's
-warnings — the call returns ``2·k`` with tick k not run (its pre-step's writes are the
-Python tick's own, equal, or put back); where the tick's step ran but a post-step has no
-compiled form (the instrument touches something: the session measures its contacts; a
-guidance force that is not finite), ``2·k + 1``: the caller runs tick k's post-steps in
-Python. :data:`DONE` when all K ran.
+warnings, a turned wrist target the device would refuse — the call returns ``2·k`` with
+tick k not run (its pre-step's writes are the Python tick's own, equal, or put back);
+where the tick's step ran but a post-step has no compiled form (the instrument touches
+something: the session measures its contacts; a guidance force that is not finite),
+``2·k + 1``: the caller runs tick k's post-steps in Python. :data:`DONE` when all K ran.
 
 Module-level functions, so that numba's on-disk cache keeps them between processes.
 """
@@ -39,6 +39,7 @@ import numpy as np
 from davinci_sim.console.haptic_row import NOT_FINITE, fixture_render
 from davinci_sim.console.teleop_row import follow_tick
 from davinci_sim.devices.device_row import hand_read_row
+from davinci_sim.devices.hand_input_row import hand_rate_row
 from davinci_sim.kinematics.fk_compiled import tip_pose_row
 from davinci_sim.kinematics.suj import invert_rigid_row
 from davinci_sim.sim.arm_laws import wrist_lock_step as _wrist_lock_step
@@ -47,11 +48,11 @@ from davinci_sim.sim.rows_kernel import f64_at, i32_at, mj_get_state
 
 #: Why a call stopped before its K ticks (``times[2]``).
 (STOP_NONE, STOP_CANNULA, STOP_GOAL, STOP_JAW, STOP_WRIST, STOP_FAULT, STOP_DIVERGED,
- STOP_CONTACT, STOP_FORCE) = range(9)  # fmt: skip
+ STOP_CONTACT, STOP_FORCE, STOP_TURN) = range(10)  # fmt: skip
 STOP_REASONS = (
     "", "the tool in the cannula", "a goal servo_cp has no compiled answer for",
     "a jaw angle to send", "a failed wrist solve", "a tracking fault", "a diverged step",
-    "an instrument contact", "a guidance force not finite",
+    "an instrument contact", "a guidance force not finite", "a turned wrist target off",
 )  # fmt: skip
 
 wrist_lock_step = getattr(_wrist_lock_step, "dispatcher", _wrist_lock_step)
@@ -105,10 +106,11 @@ def console_chunk(phys, watch, fr, devices, teleops, rec, K):
     T, J, F, T_hrsv, twist, xfrc, gripper, lock, lock_flags, lock_traj, lock_goal,
     wrist_idx, idx, hand, on)``: its constants, the hand's state (updated), the last read
     (``T_hrsv``, ``twist``, ``gripper``), the orientation lock, the web console's rate input
-    on its hand (``hand``: ``(on, state, params)``: whether one moves it, its target, origin
-    and velocity (m, m/s, HRSV), and max lead, workspace (m) and the time its velocity holds
-    until (s)) and whether the row is a device (``on[0]``) or a filler of its slot (the
-    kernel has two: one compiled signature).
+    on its hand (``hand``: ``(on, state, params)``, see
+    :mod:`~davinci_sim.devices.hand_input_row`: its target, origin, velocities and the
+    wrist's target orientation, its leads, workspace and the time its velocities hold until)
+    and whether the row is a device (``on[0]``) or a filler of its slot (the kernel has two:
+    one compiled signature).
 
     ``teleops``: per following teleoperation, ``(cp, adr, idx, row, T_base_ref, shaft,
     anchors, flags, jaw, jaw_state, limits, device, q, T, J, F, q_out, qd_out, fixture,
@@ -147,7 +149,7 @@ def console_chunk(phys, watch, fr, devices, teleops, rec, K):
     keep_lock = np.empty((nd, 3 * devices[0][26].shape[0]))
     keep_goal = np.empty(nd, dtype=np.bool_)
     keep_jaw = np.empty((nt, 13))
-    keep_hand = np.empty((nd, 3))
+    keep_hand = np.empty((nd, 12))
     t_pre = times[3]  # (the tick's time before its step: the state's, then + dt per step)
     keep_fx = np.empty((nt, 6))
     m_lock = devices[0][26].shape[0]
@@ -177,11 +179,16 @@ def console_chunk(phys, watch, fr, devices, teleops, rec, K):
             keep_goal[d] = lock_flags[1]
             for i in range(3):
                 keep_hand[d, i] = hand[1][i]
+            for i in range(9):
+                keep_hand[d, 3 + i] = hand[1][12 + i]
             d += 1
             if not on[0]:
                 continue
             if hand[0][0] and t_pre < hand[2][2]:  # the hand moves (HandInput.pre_step)
-                _hand_rate(hand, T_hrsv, target, dt)
+                if not hand_rate_row(hand, T_hrsv, target, dt):
+                    times[2] = STOP_TURN
+                    return _undo(2 * k, devices, teleops, keep_applied, keep_wrench, keep_lock,
+                                 keep_goal, keep_jaw, keep_hand)  # fmt: skip
             _kinematics(fk, adr, qp, q, T, J, F)
             T_hrsv[:, :] = T_ref_base @ T  # (Arm._measured_T: numpy's product)
             qd = np.empty(vadr.shape[0])
@@ -376,38 +383,6 @@ def console_chunk(phys, watch, fr, devices, teleops, rec, K):
 
 
 @numba.njit(cache=True, nogil=True)
-def _hand_rate(hand, T_hrsv, target, dt):
-    """One tick of the web console's rate input on its hand (``HandInput.pre_step`` while a
-    velocity holds, no turn): the hand's target ``hand[1][:3]`` moves ``v·dt``, held within
-    ``max_lead`` of the handle (the device's last read, ``T_hrsv``) and ``workspace`` of where
-    the hand took it; the device's target pose ``target`` follows. numpy's norm of a
-    3-vector is ``sqrt(x·x)`` by BLAS's dot, as ``np.dot`` is here (the same bits)."""
-    state, params = hand[1], hand[2]
-    tgt = np.empty(3)
-    handle = np.empty(3)
-    for i in range(3):
-        tgt[i] = state[i] + state[6 + i] * dt
-        handle[i] = T_hrsv[i, 3]
-    lead = tgt - handle
-    d = np.sqrt(np.dot(lead, lead))
-    if d > params[0]:  # the handle is held back: the hand waits for it
-        s = params[0] / d
-        for i in range(3):
-            tgt[i] = handle[i] + lead[i] * s
-    reach = np.empty(3)
-    for i in range(3):
-        reach[i] = tgt[i] - state[3 + i]
-    r = np.sqrt(np.dot(reach, reach))
-    if r > params[1]:
-        s = params[1] / r
-        for i in range(3):
-            tgt[i] = state[3 + i] + reach[i] * s
-    for i in range(3):
-        state[i] = tgt[i]
-        target[i, 3] = tgt[i]
-
-
-@numba.njit(cache=True, nogil=True)
 def _tool_contacts(address, stride, watch, tool_geom, other_geom) -> bool:
     """Whether a contact of the state now involves the instrument and something it may
     collide with (``InstrumentContacts.measure`` would count it): the contacts' geom pairs
@@ -448,6 +423,10 @@ def _undo(code, devices, teleops, keep_applied, keep_wrench, keep_lock, keep_goa
             hand[1][i] = keep_hand[d, i]
             if hand[0][0]:
                 target[i, 3] = keep_hand[d, i]
+        for i in range(9):  # (and the wrist's, when it holds one)
+            hand[1][12 + i] = keep_hand[d, 3 + i]
+            if hand[0][0] and hand[2][4] != 0.0:
+                target[i // 3, i % 3] = keep_hand[d, 3 + i]
         d += 1
     t_i = 0
     for tel in teleops:

@@ -20,6 +20,7 @@ from davinci_sim.console import teleop_math as tm
 from davinci_sim.console.haptic_loop import HapticLoop
 from davinci_sim.console.teleop_ecm import TeleopECM
 from davinci_sim.console.teleop_psm import DISABLED, ENABLED, TeleopPSM
+from davinci_sim.devices import hand_input_row
 from davinci_sim.devices.hand_input import HandInput
 from davinci_sim.devices.simulated import SimulatedMTM
 from davinci_sim.geometry.path import Polyline
@@ -154,23 +155,28 @@ def device_row(
 
 def hand_part(hand: HandInput | None) -> tuple:
     """The rate input's part of its device's row: ``(on, state, params)``: whether it holds
-    the handle, its target, origin and velocity (m, m/s, HRSV) and its max lead, workspace
-    (m) and the time its velocity holds until (s)."""
+    the handle, and its state and parameters as
+    :func:`~davinci_sim.devices.hand_input_row.hand_rate_row` takes them."""
     on = np.array([hand is not None and hand._holding])
-    state, params = np.zeros(9), np.zeros(3)
+    state, params = np.zeros(hand_input_row.STATE_SIZE), np.zeros(hand_input_row.PARAMS_SIZE)
     if hand is not None:
-        state[:3], state[3:6], state[6:] = hand._target, hand._origin, hand._v
-        params[:] = hand.max_lead, hand.workspace, hand._v_until
+        state[:3], state[3:6], state[6:9], state[9:12] = (
+            hand._target, hand._origin, hand._v, hand._w)  # fmt: skip
+        params[:4] = hand.max_lead, hand.workspace, hand._v_until, hand.max_turn_lead
+        if hand._R_target is not None:
+            state[12:] = hand._R_target.ravel()
+            params[4] = 1.0
     return on, state, params
 
 
 def hand_movable(hand: HandInput, t: float) -> bool:
     """Whether a rate input's tick has the kernel's form from time ``t`` (s) on: no gripper
-    squeeze pending, no turn while its velocity holds, its device's target a pose whose
-    orientation it keeps."""
+    squeeze pending, no first turn (it grasps the wrist: a turn while the wrist's target is
+    held has the kernel's form), its device's target a pose whose orientation it keeps."""
     if not hand._holding:
         return True
-    if hand._gripper is not None or (t < hand._v_until and hand._w.any()):
+    turning = t < hand._v_until and hand._w.any()
+    if hand._gripper is not None or (turning and hand._R_target is None):
         return False
     d = hand.device
     if not isinstance(d, SimulatedMTM) or not d._hand_on or d._hand_target is None:

@@ -20,10 +20,19 @@ def rotation_angle(R) -> float:
 
 def angle_between(R_a, R_b) -> float:
     """Angle (rad) of ``R_aᵀ·R_b``: how far orientation ``b`` is from ``a``."""
-    # trace(AᵀB) = Σ A_ij B_ij
-    a = np.asarray(R_a, dtype=float)
-    b = np.asarray(R_b, dtype=float)
-    c = 0.5 * (float(np.einsum("ij,ij->", a, b)) - 1.0)
+    a = np.asarray(R_a, dtype=float).ravel().tolist()
+    b = np.asarray(R_b, dtype=float).ravel().tolist()
+    return angle_between_entries(a, b)
+
+
+def angle_between_entries(a, b) -> float:
+    """:func:`angle_between` of two rotations given by their 9 entries, row-major (lists
+    or 1-D arrays): plain arithmetic in numba's subset of Python, so that a compiled law
+    (the web console's wrist turn, ``console/chunk_kernel.py``) gets the same bits."""
+    s = 0.0  # trace(AᵀB) = Σ A_ij B_ij, summed in order
+    for i in range(9):
+        s += a[i] * b[i]
+    c = 0.5 * (s - 1.0)
     return math.acos(max(-1.0, min(1.0, c)))
 
 

@@ -1,0 +1,100 @@
+"""The web console's rate input on a hand, one tick, compiled: :func:`hand_rate_row`.
+
+:meth:`HandInput.pre_step <davinci_sim.devices.hand_input.HandInput.pre_step>` while a key
+holds a velocity: the hand's target moves ``v·dt`` within its lead of the handle and its
+workspace, and, while a turn key holds an angular velocity, the wrist's target orientation
+turns by ``w·dt`` unless it already leads the handle by ``max_turn_lead``. The console's
+compiled ticks (:mod:`davinci_sim.console.chunk_kernel`) call it; the Python method stays the
+oracle, and the two give the same bits (``tests/console/test_chunk.py``): numpy's norm of a
+3-vector is ``sqrt`` of BLAS's dot, as ``np.dot`` is here; numpy's and numba's ``@`` call the
+same BLAS; the angle between two rotations is :func:`~davinci_sim.geometry.so3.angle_between`'s
+own plain sum.
+
+The hand's part of its device's row (``console/chunk_rows.hand_part``) is ``(on, state,
+params)``: ``state`` = target (3, m), origin (3, m), velocity (3, m/s), angular velocity
+(3, rad/s), the wrist's target orientation (9, row-major; HRSV); ``params`` = max lead (m),
+workspace (m), the time the velocities hold until (s), max turn lead (rad), and 1.0 when the
+wrist's target orientation is held (0.0: none yet, the first turn is Python's: it grasps).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numba
+import numpy as np
+
+from davinci_sim.geometry.so3 import angle_between_entries
+from davinci_sim.kinematics.jit import helper
+
+__all__ = ["STATE_SIZE", "PARAMS_SIZE", "hand_rate_row"]
+
+STATE_SIZE = 21
+PARAMS_SIZE = 5
+
+_angle = helper(angle_between_entries)
+
+#: Rotations the device takes as a target without a message: ``as_transform``'s check is
+#: 1e-6 on the Gram matrix; a turned target further than this from orthonormal is left to
+#: Python (never in practice: a turn's product drifts ~1e-16 a tick).
+_ORTHONORMAL = 1e-9
+
+
+@numba.njit(cache=True, nogil=True)
+def hand_rate_row(hand, T_hrsv, target, dt) -> bool:
+    """One tick of the rate input on its hand (see the module docstring): the hand's target
+    ``hand[1][:3]`` moves, within ``max_lead`` of the handle (the device's last read,
+    ``T_hrsv``, 4x4 HRSV) and ``workspace`` of where the hand took it; a turn turns
+    ``hand[1][12:21]``; the device's target pose ``target`` (4x4) follows. False (nothing
+    written) where the tick is Python's: a turn whose result is not a proper rotation to the
+    device's check."""
+    state, params = hand[1], hand[2]
+    tgt = np.empty(3)
+    handle = np.empty(3)
+    for i in range(3):
+        tgt[i] = state[i] + state[6 + i] * dt
+        handle[i] = T_hrsv[i, 3]
+    lead = tgt - handle
+    d = np.sqrt(np.dot(lead, lead))
+    if d > params[0]:  # the handle is held back: the hand waits for it
+        s = params[0] / d
+        for i in range(3):
+            tgt[i] = handle[i] + lead[i] * s
+    reach = np.empty(3)
+    for i in range(3):
+        reach[i] = tgt[i] - state[3 + i]
+    r = np.sqrt(np.dot(reach, reach))
+    if r > params[1]:
+        s = params[1] / r
+        for i in range(3):
+            tgt[i] = state[3 + i] + reach[i] * s
+    turning = state[9] != 0.0 or state[10] != 0.0 or state[11] != 0.0
+    R_target = state[12:21].copy().reshape(3, 3)
+    if turning:  # (HandInput._turn)
+        w = state[9:12] * dt
+        angle = np.sqrt(np.dot(w, w))
+        if angle < 1e-12:  # (so3.rotation_from_vector)
+            R_w = np.eye(3)
+        else:
+            k = w / angle
+            K = np.array([[0.0, -k[2], k[1]], [k[2], 0.0, -k[0]], [-k[1], k[0], 0.0]])
+            R_w = np.eye(3) + math.sin(angle) * K + (1.0 - math.cos(angle)) * (K @ K)
+        R = R_w @ R_target
+        R_handle = T_hrsv[:3, :3].copy()
+        lead_now = _angle(R.ravel(), R_handle.ravel())
+        if lead_now <= max(params[3], _angle(R_target.ravel(), R_handle.ravel())):
+            for i in range(3):  # (the device's check of the pose it is given, stricter)
+                for j in range(3):
+                    g = R[0, i] * R[0, j] + R[1, i] * R[1, j] + R[2, i] * R[2, j]
+                    if abs(g - (1.0 if i == j else 0.0)) > _ORTHONORMAL:
+                        return False
+            R_target = R
+    for i in range(3):
+        state[i] = tgt[i]
+        target[i, 3] = tgt[i]
+    if params[4] != 0.0:  # (the wrist's target held: the device's target takes it)
+        for i in range(3):
+            for j in range(3):
+                state[12 + 3 * i + j] = R_target[i, j]
+                target[i, j] = R_target[i, j]
+    return True
