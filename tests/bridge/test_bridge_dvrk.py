@@ -168,6 +168,40 @@ def test_an_operating_state_goes_out_after_the_snapshot_of_its_tick(handle, make
     assert reply() == ("ENABLED", True, False)
 
 
+def test_after_a_stall_of_the_bridge_a_move_end_still_follows_its_joints(handle, make_server,
+                                                                          make_ros):  # fmt: skip
+    """The bridge's loop stalls while the simulation runs on (a busy machine): an event of a
+    tick the simulation's latest snapshot covers, but whose joints the clients were not sent
+    yet, waits for the state topics of a snapshot that covers it. (It went out at once, ahead
+    of them: a script that waited for a move's end read the joints from before the move.)"""
+    node = DvrkNode(handle)
+    server = make_server(nodes=[node], stamp_clock="sim")
+    ros = make_ros(server)
+    got: list = []  # (the client's callbacks run in arrival order)
+    for name, type_name in (("operating_state", "crtk_msgs/OperatingState"),
+                            ("measured_js", "sensor_msgs/JointState")):  # fmt: skip
+        roslibpy.Topic(ros, f"/PSM1/{name}", type_name).subscribe(
+            lambda msg, name=name: got.append((name, msg)))  # fmt: skip
+    assert wait_for(lambda: {n for n, _ in got} == {"operating_state", "measured_js"})
+
+    def on_loop() -> tuple[float, bool]:
+        time.sleep(0.05)  # (this loop stalls; the simulation runs on, 50 ms ahead)
+        t = handle.snapshot().time - 0.002  # (covered by the latest snapshot, not yet sent)
+        assert t > node.state_time
+        node._on_event("PSM1", "operating_state", OperatingState("DISABLED", False, True, t))
+        return t, bool(node.arms["PSM1"].pending)
+
+    done: Future = Future()
+    node.loop.call_soon_threadsafe(lambda: done.set_result(on_loop()))
+    t_event, held = done.result(10)
+    assert held
+    assert wait_for(lambda: any(n == "operating_state" and m["is_busy"] for n, m in got))
+    i = next(k for k, (n, m) in enumerate(got) if n == "operating_state" and m["is_busy"])
+    before = [m for n, m in got[:i] if n == "measured_js"][-1]  # the joints the client holds
+    stamp = before["header"]["stamp"]
+    assert stamp["sec"] + 1e-9 * stamp["nanosec"] >= t_event - 1e-9
+
+
 def test_enable_home_and_operating_state(handle, make_server, make_ros):
     server = make_server(handle)
     ros = make_ros(server)

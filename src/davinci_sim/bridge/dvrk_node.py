@@ -26,6 +26,7 @@ from __future__ import annotations
 
 import asyncio
 import logging
+import math
 import time
 from collections.abc import Callable
 from typing import TYPE_CHECKING, Any
@@ -120,6 +121,8 @@ class DvrkNode:
         self.event_sinks: list[Callable[[str, str, object], bool]] = []
         """Handlers for events of non-arm sources (console, teleops): return True if used."""
         self.published = 0
+        self.state_time = -math.inf
+        """Simulation time (s) of the snapshot whose state topics went out last."""
 
     # ------------------------------------------------------------------ setup
     def attach(self, bridge: Bridge) -> None:
@@ -198,6 +201,7 @@ class DvrkNode:
         self._check_grippers(snap)
         try:
             self._publish_state_topics(snap)
+            self.state_time = snap.time
         finally:
             # the events this snapshot covers, after its state; then the safety net (which
             # must not publish the snapshot's state ahead of events still held)
@@ -272,8 +276,10 @@ class DvrkNode:
             # from before the end (a thread runner behind a busy loop: 100s of ms).
             arm.last_event_time = payload.timestamp  # (the safety net: this state came)
             # (a snapshot of time t was taken before the tick that starts at t: it covers
-            # events of earlier ticks only)
-            if not arm.pending and payload.timestamp < self.handle.snapshot().time:
+            # events of earlier ticks only. The snapshot whose state topics went out, not
+            # the latest: after a stall of this loop the simulation's snapshots are ahead of
+            # what the clients were sent, and the events would overtake their joints.)
+            if not arm.pending and payload.timestamp < self.state_time:
                 self._publish_operating_state(arm, payload)
             else:
                 arm.pending.append((payload, time.monotonic()))
