@@ -87,6 +87,12 @@ def no_fixture() -> tuple:
     return (*path, 0.0, 0.0, 0.0, False, 0.001, 0.5, np.zeros(4), np.zeros(7))
 
 
+def _lock_on(arm: MTM, servo) -> bool:
+    """Whether the MTM's orientation lock drives its wrist (``MTM._pre_step``: a lock goal
+    while the arm is in effort mode)."""
+    return arm._R_lock is not None and bool(servo.effort_mode[arm._idx[0]])
+
+
 def _device_ready(d: SimulatedMTM, servo) -> bool:
     """Whether a simulated MTM's tick has the kernel's form now: no watchdog, its arm in
     effort mode or holding (no trajectory, impedance or user base frame), the orientation
@@ -98,7 +104,7 @@ def _device_ready(d: SimulatedMTM, servo) -> bool:
         return False
     if arm.gripper._traj is not None or arm.base_frame()[0] is not arm.kin.T_reference_base:
         return False
-    lock_on = arm._R_lock is not None and bool(servo.effort_mode[arm._idx[0]])
+    lock_on = _lock_on(arm, servo)
     if lock_on and arm._lock_traj is None:
         return False  # (the lock's first tick starts its trajectory: Python's)
     if not lock_on and (arm._lock_traj is not None or arm._lock_goal is not None):
@@ -116,8 +122,7 @@ def device_row(
     arm = d.arm
     if not isinstance(arm, MTM) or (check and not _device_ready(d, servo)):
         return None
-    lock_on = (arm._R_lock is not None and bool(servo.effort_mode[arm._idx[0]])
-               and arm._lock_traj is not None)  # fmt: skip
+    lock_on = _lock_on(arm, servo) and arm._lock_traj is not None
     static = cache.get(d.name)
     if static is None or static[0] is not arm:
         static = cache[d.name] = (arm, *_device_static(d))

@@ -19,12 +19,10 @@ wrist's target orientation is held (0.0: none yet, the first turn is Python's: i
 
 from __future__ import annotations
 
-import math
-
 import numba
 import numpy as np
 
-from davinci_sim.geometry.so3 import angle_between_entries
+from davinci_sim.geometry.so3 import angle_between_entries, rotation_from_array
 from davinci_sim.kinematics.jit import helper
 
 __all__ = ["STATE_SIZE", "PARAMS_SIZE", "hand_rate_row"]
@@ -33,6 +31,7 @@ STATE_SIZE = 21
 PARAMS_SIZE = 5
 
 _angle = helper(angle_between_entries)
+_rotation = helper(rotation_from_array)
 
 #: Rotations the device takes as a target without a message: ``as_transform``'s check is
 #: 1e-6 on the Gram matrix; a turned target further than this from orthonormal is left to
@@ -71,15 +70,7 @@ def hand_rate_row(hand, T_hrsv, target, dt) -> bool:
     turning = state[9] != 0.0 or state[10] != 0.0 or state[11] != 0.0
     R_target = state[12:21].copy().reshape(3, 3)
     if turning:  # (HandInput._turn)
-        w = state[9:12] * dt
-        angle = np.sqrt(np.dot(w, w))
-        if angle < 1e-12:  # (so3.rotation_from_vector)
-            R_w = np.eye(3)
-        else:
-            k = w / angle
-            K = np.array([[0.0, -k[2], k[1]], [k[2], 0.0, -k[0]], [-k[1], k[0], 0.0]])
-            R_w = np.eye(3) + math.sin(angle) * K + (1.0 - math.cos(angle)) * (K @ K)
-        R = R_w @ R_target
+        R = _rotation(state[9:12] * dt) @ R_target
         R_handle = T_hrsv[:3, :3].copy()
         lead_now = _angle(R.ravel(), R_handle.ravel())
         if lead_now <= max(params[3], _angle(R_target.ravel(), R_handle.ravel())):

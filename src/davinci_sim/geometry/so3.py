@@ -75,8 +75,15 @@ def rotation_vector_floats(
 
 def rotation_from_vector(w) -> np.ndarray:
     """Rotation matrix of the rotation vector ``w`` (axis·angle, rad), by Rodrigues' formula."""
-    w = np.asarray(w, dtype=float)
-    angle = float(np.linalg.norm(w))
+    return rotation_from_array(np.asarray(w, dtype=float))
+
+
+def rotation_from_array(w) -> np.ndarray:
+    """:func:`rotation_from_vector` of a float array ``w`` (3,), in numba's subset of
+    Python, so that a compiled law (the web console's wrist turn,
+    ``devices/hand_input_row.py``) gets the same bits: the norm is ``sqrt`` of BLAS's dot,
+    as numpy's ``norm`` of a vector is, and the products ``@``."""
+    angle = math.sqrt(np.dot(w, w))
     if angle < 1e-12:
         return np.eye(3)
     k = w / angle
