@@ -11,11 +11,14 @@ export MUJOCO_GL ?= egl
 system-deps:
 	@bash scripts/system-deps.sh
 
-$(STAMP): pyproject.toml scripts/system-deps.sh
+# three.js (the page draws the endoscope with it) is fetched from the npm registry and
+# checked against its pinned SHA-512 by davinci_sim.web.vendor, into the virtual environment.
+$(STAMP): pyproject.toml scripts/system-deps.sh src/davinci_sim/web/vendor.py
 	@$(MAKE) --no-print-directory system-deps
 	@test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
 	$(BIN)/python -m pip install --quiet --upgrade pip
 	$(BIN)/python -m pip install --quiet -e '.[dev]'
+	$(BIN)/python -m davinci_sim.web.vendor
 	@touch $(STAMP)
 
 install: $(STAMP)

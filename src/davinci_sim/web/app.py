@@ -74,6 +74,7 @@ def web_part(
             hand_mtms=hands,
             study_task=None if description.task is None else description.task.task,
             records=records,
+            model=system.model_source,
         )
         try:
             console.start()

@@ -28,8 +28,10 @@ Ops (fields; units):
   int ≥ 1, optional): watch a synthetic trainee do the task on the live console.
 - ``study`` (``action``: start; ``subjects``: 1 … 10; ``repetitions``: 1 … 5): a small
   study of the task with the study's synthetic trainees (progress, then the report).
-- ``view`` (``stereo``: bool): whether this page shows both eyes (side by side, anaglyph);
-  the right image is encoded and sent only while some page does.
+- ``view`` (``stereo``: bool; ``source``: ``server`` or ``page``, optional, default
+  ``server``): whether this page shows both eyes (side by side, anaglyph; the right image
+  is encoded and sent only while some page does), and who draws its endoscope: the server
+  (JPEG frames) or the page itself (the scene once, then pose messages).
 - ``ping`` (``t``: number, the page's clock, ms): answered with ``pong`` (latency).
 """
 
@@ -49,6 +51,8 @@ GRIPPER_MAX = math.radians(60.0)
 #: Buttons the page may press.
 BUTTONS = ("clutch", "camera", "operator_present")
 MTMS = ("MTML", "MTMR")
+#: Who draws a page's endoscope (the ``view`` op's ``source``).
+VIEW_SOURCES = ("server", "page")
 
 
 class ProtocolError(ValueError):
@@ -188,7 +192,10 @@ OPS: dict[str, dict[str, tuple[Any, bool]]] = {
         "subjects": (_integer("subjects", 1), True),
         "repetitions": (_integer("repetitions", 1), True),
     },
-    "view": {"stereo": (_boolean("stereo"), True)},
+    "view": {
+        "stereo": (_boolean("stereo"), True),
+        "source": (_choice("source", VIEW_SOURCES), False),
+    },
     "ping": {"t": (_number("t"), True)},
 }
 

@@ -6,9 +6,18 @@
 thread or its own process, is never waited on. What it streams to every page:
 
 - the page's state (:func:`~davinci_sim.web.view.console_view`) at ``state_rate``;
-- the stereo endoscope as JPEG pairs, binary messages (:data:`FRAME_HEADER`, then the left
-  and right JPEG; the right one only while some page shows both eyes, else empty), from the
-  one render pipeline (``System.frames()``), each pair encoded once for all pages;
+- the endoscope, in one of two ways, as each page asks (``view``'s ``source``):
+
+  * ``page``: the page draws it with three.js (``static/endoscope.js``) from the scene
+    (:func:`~davinci_sim.web.endoscope_stream.scene_message`, once) and the bodies', cameras'
+    and lights' poses of each new snapshot (binary pose messages,
+    :class:`~davinci_sim.web.endoscope_stream.PoseStream`, up to ``pose_rate``); offered
+    when the console has the system's model and three.js is installed
+    (:mod:`davinci_sim.web.vendor`, served at ``/vendor/``);
+  * ``server``: JPEG pairs, binary messages (:data:`FRAME_HEADER`, then the left and right
+    JPEG; the right one only while some page shows both eyes, else empty), from the one
+    render pipeline (``System.frames()``), each pair encoded once for all pages; asked from
+    the pipeline only while a page shows them (the render process then rests);
 - each finished repetition's row, tagged with the trainee's name (``rows``), also offered
   as CSV at ``/results.csv``; with the trainee records, the trainee's learning curves at
   ``/records/curve.png``.
@@ -44,7 +53,9 @@ import numpy as np
 
 from davinci_sim.model.cameras import CameraConfig
 from davinci_sim.sim.runtime.service import AsyncService
+from davinci_sim.web.endoscope_stream import PoseStream
 from davinci_sim.web.protocol import OPERATOR_OPS, Command, ProtocolError, parse_message
+from davinci_sim.web.vendor import three_dir, vendor_file
 from davinci_sim.web.view import console_view, problems
 
 _log = logging.getLogger("davinci_sim.web")
@@ -77,6 +88,8 @@ class WebOptions:
     """Page state messages per second."""
     frame_rate: float = 30.0
     """Endoscope frames per second sent (the renderer's rate caps it)."""
+    pose_rate: float = 60.0
+    """Pose messages per second at most, for pages that draw the endoscope themselves."""
     jpeg_quality: int = 80
     hand_speed: float = 0.05
     """Hand speed at full input (an axis at ±1), m/s in HRSV."""
@@ -86,7 +99,7 @@ class WebOptions:
     """Port of the 3-D bedside view (viser) the page embeds; None: no 3-D view."""
 
     def __post_init__(self) -> None:
-        for name in ("state_rate", "frame_rate", "hand_speed", "turn_speed"):
+        for name in ("state_rate", "frame_rate", "pose_rate", "hand_speed", "turn_speed"):
             v = getattr(self, name)
             if not (math.isfinite(v) and v > 0):
                 raise ValueError(f"{name} must be > 0, got {v!r}")
@@ -129,6 +142,8 @@ class _Client:
     skipped_frames: int = 0
     stereo: bool = False
     """The page shows both eyes (it asked with the ``view`` op)."""
+    source: str = "server"
+    """Who draws the page's endoscope: ``server`` (JPEG frames) or ``page`` (poses)."""
 
 
 class WebConsole(AsyncService):
@@ -143,6 +158,9 @@ class WebConsole(AsyncService):
         camera: the endoscope's camera (image size, field of view, baseline).
         hand_mtms: MTMs whose hand the page steers (``<MTM>/hand`` components).
         study_task: the task (name or file) the study tab runs studies of; None: no study tab.
+        model: the system's model (``System.model_source``: a callable returning the compiled
+            model the server renders, the task's drawing included) for pages that draw the
+            endoscope themselves; None: only the server's images.
         records: the trainee records' ``serve`` part
             (:class:`~davinci_sim.records.console.RecordsPart`): the page's trainee field
             sets whose attempts are recorded; None: the name only tags the rows.
@@ -159,6 +177,7 @@ class WebConsole(AsyncService):
         hand_mtms: tuple[str, ...] = (),
         study_task: str | None = None,
         records=None,
+        model=None,
     ) -> None:
         from davinci_sim.web.study_job import StudyJob
 
@@ -187,7 +206,12 @@ class WebConsole(AsyncService):
         self._ids = itertools.count(1)
         self._port: int | None = None
         self._completed = 0
-        self._stats = {"frames_encoded": 0, "encode_time": 0.0, "states": 0}
+        self._stats = {"frames_encoded": 0, "encode_time": 0.0, "states": 0, "poses": 0,
+                       "pose_time": 0.0}  # fmt: skip
+        self._model_source = model
+        self.poses: PoseStream | None = None
+        """The :class:`~davinci_sim.web.endoscope_stream.PoseStream` (None: not offered)."""
+        self._scene_text: str | None = None
 
     # ------------------------------------------------------------ lifecycle
     thread_name = "web-console"
@@ -269,6 +293,8 @@ class WebConsole(AsyncService):
                 tasks.append(asyncio.create_task(asyncio.to_thread(self._warm_curve)))
             if self.frames is not None:
                 tasks.append(asyncio.create_task(self._frame_loop()))
+            if self._model_source is not None:
+                tasks.append(asyncio.create_task(self._pose_loop()))
             loop = asyncio.get_running_loop()
             unsubscribe = self.handle.subscribe(
                 lambda source, event, payload: self._on_sim_event(loop, source, event, payload)
@@ -384,6 +410,13 @@ class WebConsole(AsyncService):
                 ]
             )
             return Response(200, "OK", headers, body)
+        if path.startswith("/vendor/"):
+            body = vendor_file(path[len("/vendor/") :])
+            if body is None:
+                return connection.respond(404, f"not found: {path}\n")
+            kind = _CONTENT_TYPES.get(path[path.rfind(".") :], "text/plain; charset=utf-8")
+            headers = Headers([("Content-Type", kind), ("Cache-Control", "max-age=86400")])
+            return Response(200, "OK", headers, body)
         if path.startswith("/study/"):
             name = path[len("/study/") :]
             body = None if self.study is None else self.study.file(name)
@@ -442,6 +475,7 @@ class WebConsole(AsyncService):
             "trainee": self.trainee,
             "study": self.study is not None,
             "records": self.records is not None,
+            "page_view": self._model_source is not None and three_dir() is not None,
         }
         task = self.task
         if task is not None:
@@ -488,7 +522,7 @@ class WebConsole(AsyncService):
             client.wake.clear()
             while client.queue:
                 await ws.send(client.queue.pop(0))
-            for kind in ("state", "frame"):
+            for kind in ("state", "frame", "poses"):
                 message = client.latest.pop(kind, None)
                 if message is not None:
                     await ws.send(message)
@@ -516,6 +550,18 @@ class WebConsole(AsyncService):
             return
         if command.op == "view":
             client.stereo = command.args["stereo"]
+            source = command.args.get("source", "server")
+            if source == "page" and self._scene_text is None:
+                why = ("this server has no model for the page" if self._model_source is None
+                       else "the page's scene is not ready yet")  # fmt: skip
+                if self._model_source is not None and three_dir() is None:
+                    why = "three.js is not installed (python -m davinci_sim.web.vendor)"
+                self._push(client, {"op": "error", "message": f"view: {why}"})
+                source = "server"
+            if source == "page" and client.source != "page":
+                client.queue.append(self._scene_text)
+                client.wake.set()
+            client.source = source
             return
         if command.op == "ping":
             self._push(client, {"op": "pong", "t": command.args["t"], "server": time.time()})
@@ -742,7 +788,7 @@ class WebConsole(AsyncService):
         while True:
             t0 = loop.time()
             frame = None
-            if any(c.authed for c in self._clients.values()):
+            if any(c.authed and c.source == "server" for c in self._clients.values()):
                 try:
                     frame = self.frames.latest()
                 except Exception:
@@ -755,12 +801,51 @@ class WebConsole(AsyncService):
                 self._stats["encode_time"] += time.perf_counter() - start
                 self._stats["frames_encoded"] += 1
                 for client in list(self._clients.values()):
-                    if client.authed:
+                    if client.authed and client.source == "server":
                         if "frame" in client.latest:
                             client.skipped_frames += 1
                         client.latest["frame"] = message
                         client.wake.set()
             await asyncio.sleep(max(0.0, period - (loop.time() - t0)))
+
+    async def _pose_loop(self) -> None:
+        """The pose messages of pages that draw the endoscope: the model is built first (in
+        a worker thread: a second or so), then each new snapshot's ``qpos`` goes out."""
+        try:
+            poses = await asyncio.to_thread(lambda: PoseStream(_compiled(self._model_source)))
+            scene = poses.scene(self.camera.baseline_m)
+            self.poses = poses
+            self._scene_text = _dumps(scene)
+        except Exception:
+            _log.exception("the page cannot draw the endoscope: no scene")
+            return
+        period = 1.0 / self.options.pose_rate
+        last_tick = None
+        while True:
+            await asyncio.sleep(period)
+            clients = [c for c in self._clients.values() if c.authed and c.source == "page"]
+            if not clients:
+                continue
+            try:
+                snap = self.handle.snapshot()
+            except Exception as e:  # not started yet, or stopping
+                _log.debug("no snapshot: %s", e)
+                continue
+            qpos = (snap.extras or {}).get("qpos")
+            if qpos is None or snap.tick == last_tick:
+                continue
+            last_tick = snap.tick
+            start = time.perf_counter()
+            try:
+                message = poses.message(qpos, snap.tick, snap.time)
+            except ValueError:
+                _log.exception("no pose message")
+                continue
+            self._stats["pose_time"] += time.perf_counter() - start
+            self._stats["poses"] += 1
+            for client in clients:
+                client.latest["poses"] = message
+                client.wake.set()
 
     def _encode(self, frame, stereo: bool = True) -> bytes:
         from PIL import Image
@@ -770,12 +855,18 @@ class WebConsole(AsyncService):
             out = io.BytesIO()
             Image.fromarray(image).save(out, format="JPEG", quality=self.options.jpeg_quality)
             parts[k] = out.getvalue()
-        header = FRAME_HEADER.pack(frame.frame & 0xFFFFFFFF, frame.time, len(parts[0]))
+        # (frame numbers take 31 bits: a first field of all ones is a pose message's)
+        header = FRAME_HEADER.pack(frame.frame & 0x7FFFFFFF, frame.time, len(parts[0]))
         return header + parts[0] + parts[1]
 
 
 class CommandRefused(Exception):
     """A command the simulation (or the console's rules) refused; shown in the page."""
+
+
+def _compiled(model_source):
+    """The compiled model of ``model_source`` (a model, or a callable returning one)."""
+    return model_source() if callable(model_source) else model_source
 
 
 def _static(name: str) -> bytes | None:

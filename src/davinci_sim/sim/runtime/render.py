@@ -7,8 +7,9 @@ does not re-import the caller's main module, so any script can render): it build
 scene, or a picklable model factory such as :func:`davinci_sim.system.build.scene_model`
 that also draws the task), reads the latest ``qpos`` from shared memory
 (:class:`~davinci_sim.sim.runtime.shm.LatestSlot`), runs MuJoCo's kinematics and renders
-both endoscope cameras at the requested rate, whenever the joint positions are new; the
-frames come back through shared memory (:meth:`StereoRenderer.frame`).
+both endoscope cameras at the requested rate, whenever the joint positions are new and
+someone asked for a frame in the last second (:data:`ON_DEMAND_S`); the frames come back
+through shared memory (:meth:`StereoRenderer.frame`).
 
 The ``qpos`` comes from whoever owns the simulation: the process runner's loop writes it
 every tick into the renderer's slot (1 µs), the thread runner likewise, and a renderer fed
@@ -42,10 +43,16 @@ _log = logging.getLogger("davinci_sim.render")
 QPOS_HEADER = struct.Struct("<qdq")
 #: Header of a frame message: tick, time, frame number, width, height, render time (s).
 FRAME_HEADER = struct.Struct("<qdqqqd")
-#: Render statistics block (float64): frames, sum of render times, max, first/last wall;
-#: the last field is the stop request (set by the owner).
+#: Render statistics block (float64): frames, sum of render times, max, first/last wall,
+#: (unused), when a frame was last asked for (``time.monotonic``, set by the owner's
+#: :meth:`StereoRenderer.frame`); the last field is the stop request (set by the owner).
 STATS_FIELDS = 8
+_ASKED = 6
 _STOP = STATS_FIELDS - 1
+#: The render process renders only while frames are asked for: after the first frame, a
+#: new state is drawn only if :meth:`StereoRenderer.frame` was called within this many s
+#: (a page that draws the endoscope itself, no image subscriber: no core spent rendering).
+ON_DEMAND_S = 1.0
 STATS_BYTES = 8 * STATS_FIELDS
 
 
@@ -208,7 +215,9 @@ class StereoRenderer:
         self._qslot.write(QPOS_HEADER.pack(tick, t, q.size), q)
 
     def frame(self) -> StereoFrame | None:
-        """The latest rendered pair, or None yet."""
+        """The latest rendered pair, or None yet; asking keeps the process rendering
+        (:data:`ON_DEMAND_S`)."""
+        self._stats[_ASKED] = time.monotonic()
         data = self._fslot.read()
         return None if data is None else decode_frame(data)
 
@@ -383,6 +392,9 @@ def render_main(model_source, qpos_path: str, frames_path: str, rate_hz: float, 
                 msg = qslot.read()
                 if msg is None or QPOS_HEADER.unpack_from(msg)[0] == last_tick:
                     next_time = now + min(period, 0.005)  # nothing new: look again soon
+                    continue
+                if frame > 0 and time.monotonic() - stats[_ASKED] > ON_DEMAND_S:
+                    next_time = now + min(period, 0.02)  # nobody looks: draw nothing
                     continue
                 next_time = max(next_time + period, now - period)
                 tick, t, nq = QPOS_HEADER.unpack_from(msg)

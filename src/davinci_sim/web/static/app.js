@@ -6,6 +6,7 @@ import {
   KEYMAP, GRIPPER_KEY_OPEN, GRIPPER_CLOSED, keyAxes, keyTurn, isMappedKey, buttonOfKey, toggleOfKey,
   gamepadInput, rumble, rumbleIntensity, sameAxes,
 } from "./input.js";
+import { EndoscopeView, isPoseMessage, loadThree } from "./endoscope.js";
 
 const $ = (id) => document.getElementById(id);
 const params = new URLSearchParams(location.search);
@@ -13,6 +14,9 @@ const state = {
   ws: null, client: null, operator: null, hello: null, last: null,
   frames: 0, framesAt: performance.now(), fps: 0,
   left: null, right: null, frameTime: 0,
+  // Who draws the endoscope: "page" (three.js, from the server's scene and poses) or
+  // "server" (its JPEG frames); ?view=server asks for the server's images.
+  source: "server", THREE: null, view: null, viewDirty: false, drawn: 0,
   pressed: new Set(), axes: [0, 0, 0], turn: [0, 0, 0], gripper: GRIPPER_KEY_OPEN, jawOpen: true,
   hand: null, grippers: {}, inputTargets: [],
   buttons: { clutch: false, camera: false }, gamepadButtons: { clutch: false, camera: false },
@@ -29,7 +33,7 @@ function connect() {
   ws.onopen = () => {
     setConnection("connected", "ok");
     send({ op: "hello", ...(params.get("token") ? { token: params.get("token") } : {}) });
-    send({ op: "view", stereo: $("mode").value !== "left" });
+    send(viewMessage());
   };
   ws.onclose = () => {
     setConnection("disconnected — retrying", "bad");
@@ -37,8 +41,13 @@ function connect() {
   };
   ws.onmessage = (event) => {
     if (typeof event.data === "string") onMessage(JSON.parse(event.data));
+    else if (isPoseMessage(event.data)) state.view?.applyPoses(event.data);
     else onFrame(event.data);
   };
+}
+
+function viewMessage() {
+  return { op: "view", stereo: $("mode").value !== "left", source: state.source };
 }
 
 function send(message) {
@@ -77,7 +86,10 @@ function onMessage(m) {
       if (document.activeElement !== $("trainee")) $("trainee").value = m.name;
       refreshCurve();
       break;
-    case "error": showMessage(m.message, "error"); break;
+    case "error":
+      if (m.message.startsWith("view:")) useServerImages(m.message.slice(6));
+      showMessage(m.message, "error"); break;
+    case "scene": onScene(m); break;
     case "pong": state.rtt = performance.now() - m.t; break;
     case "study": onStudy(m); break;
     default: break;
@@ -105,6 +117,8 @@ function onHello(m) {
   }
   state.hello = m;
   state.operator = m.operator;
+  if (m.page_view && params.get("view") !== "server") startPageView();
+  else useServerImages(m.page_view ? "asked for with ?view=server" : "this server offers no scene");
   $("trainee").value = m.trainee || "";
   refreshCurve();
   const cam = m.camera;
@@ -359,6 +373,13 @@ async function onFrame(buffer) {
   state.left?.close?.();
   if (r) { state.right?.close?.(); state.right = r; }
   state.left = l; state.frameNumber = number; state.frameTime = time;
+  if (state.view) return;  // (a frame sent before the page drew itself)
+  countFrame();
+  drawEndoscope();
+}
+
+// Frames drawn per second, shown in #fps (both ways of drawing count here).
+function countFrame() {
   state.frames += 1;
   const now = performance.now();
   if (now - state.framesAt > 1000) {
@@ -366,7 +387,62 @@ async function onFrame(buffer) {
     state.frames = 0; state.framesAt = now;
     $("fps").textContent = `${state.fps.toFixed(1)} frames/s`;
   }
-  drawEndoscope();
+}
+
+// ------------------------------------------------------------------ the endoscope, drawn here
+async function startPageView() {
+  if (state.source === "page") return;
+  try {
+    state.THREE = state.THREE || await loadThree();
+  } catch (e) {
+    useServerImages(`the page cannot draw it: ${e.message}`);
+    return;
+  }
+  state.source = "page";
+  send(viewMessage());  // the server answers with the scene, then poses
+}
+
+function useServerImages(why) {
+  state.source = "server";
+  state.view?.dispose(); state.view = null;
+  $("endoscope3d").hidden = true; $("endoscope").hidden = false;
+  $("view-source").textContent = `server images (${why})`;
+  send(viewMessage());
+}
+
+function onScene(m) {
+  state.view?.dispose(); state.view = null;
+  const canvas = $("endoscope3d");
+  try {
+    state.view = new EndoscopeView(state.THREE, canvas, m);
+  } catch (e) {
+    useServerImages(`the page cannot draw it: ${e.message}`);
+    return;
+  }
+  canvas.hidden = false; $("endoscope").hidden = true;
+  $("view-source").textContent = "drawn in the page (WebGL)";
+  state.viewDirty = true;
+  requestAnimationFrame(drawPageView);
+}
+
+// Each display frame: draw when new poses came (or the view mode changed), then the HUD.
+function drawPageView() {
+  const view = state.view;
+  if (!view) return;
+  if (view.fresh || state.viewDirty) {
+    const mode = $("mode").value;
+    view.draw(mode);
+    state.viewDirty = false;
+    state.drawn += 1; state.frameTime = view.time;
+    const overlay = $("overlay");
+    const width = mode === "sbs" ? 2 * view.width : view.width;
+    if (overlay.width !== width || overlay.height !== view.height) {
+      overlay.width = width; overlay.height = view.height;
+    }
+    countFrame();
+    drawOverlay();
+  }
+  requestAnimationFrame(drawPageView);
 }
 
 function drawEndoscope() {
@@ -408,7 +484,7 @@ function drawOverlay() {
   ctx.clearRect(0, 0, overlay.width, overlay.height);
   const s = state.last;
   if (!s || !$("hud").checked) return;
-  const w = state.left ? state.left.width : overlay.width;
+  const w = state.view ? state.view.width : state.left ? state.left.width : overlay.width;
   const copies = $("mode").value === "sbs" ? [0, w] : [0];
   for (const dx of copies) {
     ctx.save();
@@ -637,8 +713,9 @@ function setupPanels() {
   $("recover").onclick = () => send({ op: "recover" });
   for (const b of document.querySelectorAll("[data-arms]")) b.onclick = () => send({ op: "arms", action: b.dataset.arms });
   $("mode").onchange = () => {
-    send({ op: "view", stereo: $("mode").value !== "left" });
-    if (state.left) drawEndoscope();
+    send(viewMessage());
+    state.viewDirty = true;
+    if (state.left && !state.view) drawEndoscope();
   };
   $("hud").onchange = drawOverlay;
   const body = $("keymap").querySelector("tbody");
