@@ -73,7 +73,9 @@ def browser():
 class Console:
     """One page of the console, with its console errors collected."""
 
-    def __init__(self, browser, url: str, *, init_script: str | None = None):
+    def __init__(
+        self, browser, url: str, *, init_script: str | None = None, query: str = ""
+    ) -> None:
         self.context = browser.new_context(viewport={"width": 1280, "height": 860})
         if init_script:
             self.context.add_init_script(init_script)
@@ -81,7 +83,7 @@ class Console:
         self.errors: list[str] = []
         self.page.on("pageerror", lambda e: self.errors.append(str(e)))
         self.page.on("console", lambda m: self.errors.append(m.text) if m.type == "error" else None)
-        self.page.goto(url)
+        self.page.goto(url + query)
         self.wait("window.davinci.last !== null && window.davinci.client !== null")
 
     def js(self, expression: str):
@@ -147,8 +149,35 @@ def canvas_std(page: Console, selector: str) -> float:
     )
 
 
-def test_the_page_loads_and_the_endoscope_streams_in_three_modes(console, tmp_path):
+def test_the_page_draws_the_endoscope_itself_in_three_modes(console, tmp_path):
+    """The default: three.js in the page, from the server's scene and poses."""
     page = console()
+    page.wait("window.davinci.view !== null && window.davinci.drawn > 0")
+    assert page.js("document.getElementById('view-source').textContent").startswith("drawn in")
+    assert page.js("document.getElementById('endoscope').hidden")  # (the images' canvas)
+    shots = {}
+    for mode, width in (("left", 640), ("sbs", 1280), ("anaglyph", 640)):
+        page.page.select_option("#mode", mode)
+        n = page.js("window.davinci.drawn")
+        page.wait(f"window.davinci.drawn > {n + 2}")  # new poses keep being drawn
+        assert page.js("document.getElementById('endoscope3d').width") == width
+        box = page.page.locator("#endoscope3d").bounding_box()
+        shots[mode] = page.page.screenshot(path=tmp_path / f"page_{mode}.png", clip=box)
+    from io import BytesIO
+
+    from PIL import Image
+
+    left = np.asarray(Image.open(BytesIO(shots["left"])).convert("RGB"), dtype=float)
+    assert left.std() > 10  # a picture, not a blank
+    anaglyph = np.asarray(Image.open(BytesIO(shots["anaglyph"])).convert("RGB"), dtype=float)
+    assert (np.abs(anaglyph[..., 0] - anaglyph[..., 1]) > 40).sum() > 1000  # red and cyan
+    assert page.errors == []
+
+
+def test_the_page_loads_and_the_endoscope_streams_in_three_modes(console, tmp_path):
+    """The server's images (``?view=server``; also where the page cannot draw)."""
+    page = console(query="?view=server")
+    assert "server images" in page.js("document.getElementById('view-source').textContent")
     page.wait("window.davinci.frameNumber !== undefined")
     first = page.js("window.davinci.frameNumber")
     page.wait(f"window.davinci.frameNumber > {first}")  # frames keep coming

@@ -12,6 +12,7 @@ import urllib.error
 import urllib.request
 from pathlib import Path
 
+import mujoco
 import numpy as np
 import pytest
 from PIL import Image
@@ -24,6 +25,7 @@ from davinci_sim.system import (
     build_system,
 )
 from davinci_sim.system.build import load_description_task
+from davinci_sim.web.endoscope_stream import POSE_MAGIC, decode_poses
 from davinci_sim.web.server import FRAME_HEADER, WebConsole, WebOptions
 
 SHORT_TASK = str(Path(__file__).resolve().parents[1] / "study" / "short_path.yaml")
@@ -48,6 +50,7 @@ def console():
         frames=frames,
         task=load_description_task(description),
         hand_mtms=("MTMR",),
+        model=system.model_source,
     ).start()
     yield web, system
     web.stop()
@@ -75,11 +78,15 @@ class Page:
         return data if isinstance(data, bytes) else json.loads(data)
 
     def next(self, op: str, timeout: float = 20.0, where=lambda m: True):
-        """The next message of ``op`` (``"frame"``: a binary frame) that satisfies ``where``."""
+        """The next message of ``op`` (``"frame"``: a binary JPEG frame, ``"poses"``: a pose
+        message) that satisfies ``where``."""
         end = time.monotonic() + timeout
         while time.monotonic() < end:
             m = self.receive(timeout=max(0.01, end - time.monotonic()))
-            kind = "frame" if isinstance(m, bytes) else m.get("op")
+            if isinstance(m, bytes):
+                kind = "poses" if struct.unpack_from("<I", m)[0] == POSE_MAGIC else "frame"
+            else:
+                kind = m.get("op")
             if kind == op and where(m):
                 return m
         raise AssertionError(f"no {op!r} message in {timeout} s")
@@ -154,6 +161,41 @@ def test_hello_describes_the_task_and_state_and_frames_stream(console):
 
 
 # (before the tests that move the tool: the trainee starts from PSM1's home pose)
+def test_a_page_that_draws_the_endoscope_gets_the_scene_then_poses_and_no_images(console):
+    web, system = console
+    page = Page(web)
+    try:
+        page.send(op="view", stereo=True, source="page")
+        scene = page.next("scene", 60.0)  # (the model may still be building: it comes after)
+        assert [c["name"] for c in scene["cameras"]] == ["ECM/left", "ECM/right"]
+        layout = web.poses.layout
+        assert scene["layout"]["bodies"] == list(layout.bodies)
+        raw = page.next("poses", 20.0)
+        first = decode_poses(raw, layout)
+        later = decode_poses(page.next("poses", 20.0, lambda m: m[4:8] != raw[4:8]), layout)
+        assert later["time"] > first["time"]  # a pose message per new snapshot
+        # The simulation's camera: where the snapshot's joint positions put it.
+        data = mujoco.MjData(system.model_source())
+        snap = system.handle.snapshot()
+        data.qpos[:] = snap.extras["qpos"]
+        mujoco.mj_kinematics(data.model, data)
+        mujoco.mj_camlight(data.model, data)
+        left = layout.cameras[0]
+        np.testing.assert_allclose(later["cameras"][0, :3], data.cam_xpos[left], atol=1e-3)
+        # No JPEG frame for this page while it draws the endoscope itself.
+        end = time.monotonic() + 2.0
+        while time.monotonic() < end:
+            try:
+                m = page.receive(timeout=0.2)
+            except TimeoutError:
+                continue
+            assert not (isinstance(m, bytes) and m[:4] != struct.pack("<I", POSE_MAGIC))
+        page.send(op="view", stereo=False, source="server")  # and back to the images
+        page.next("frame", 30.0)
+    finally:
+        page.close()
+
+
 def test_a_synthetic_trainees_repetition_becomes_a_tagged_row_and_csv(console):
     web, _ = console
     page = Page(web)

@@ -144,6 +144,8 @@ class _Client:
     """The page shows both eyes (it asked with the ``view`` op)."""
     source: str = "server"
     """Who draws the page's endoscope: ``server`` (JPEG frames) or ``page`` (poses)."""
+    scene_sent: bool = False
+    """The page that draws the endoscope has had the scene."""
 
 
 class WebConsole(AsyncService):
@@ -212,6 +214,7 @@ class WebConsole(AsyncService):
         self.poses: PoseStream | None = None
         """The :class:`~davinci_sim.web.endoscope_stream.PoseStream` (None: not offered)."""
         self._scene_text: str | None = None
+        self._scene_error: str | None = None
 
     # ------------------------------------------------------------ lifecycle
     thread_name = "web-console"
@@ -551,17 +554,14 @@ class WebConsole(AsyncService):
         if command.op == "view":
             client.stereo = command.args["stereo"]
             source = command.args.get("source", "server")
-            if source == "page" and self._scene_text is None:
-                why = ("this server has no model for the page" if self._model_source is None
-                       else "the page's scene is not ready yet")  # fmt: skip
-                if self._model_source is not None and three_dir() is None:
-                    why = "three.js is not installed (python -m davinci_sim.web.vendor)"
+            why = self._no_page_view()
+            if source == "page" and why is not None:
                 self._push(client, {"op": "error", "message": f"view: {why}"})
                 source = "server"
             if source == "page" and client.source != "page":
-                client.queue.append(self._scene_text)
-                client.wake.set()
+                client.scene_sent = False
             client.source = source
+            self._send_scene()
             return
         if command.op == "ping":
             self._push(client, {"op": "pong", "t": command.args["t"], "server": time.time()})
@@ -808,6 +808,23 @@ class WebConsole(AsyncService):
                         client.wake.set()
             await asyncio.sleep(max(0.0, period - (loop.time() - t0)))
 
+    def _no_page_view(self) -> str | None:
+        """Why a page cannot draw the endoscope itself here (None: it can)."""
+        if self._model_source is None:
+            return "this server has no model for the page"
+        return self._scene_error
+
+    def _send_scene(self) -> None:
+        """The scene to every page that draws the endoscope and has not had it (a page that
+        asked before the model was built gets it when it is)."""
+        if self._scene_text is None:
+            return
+        for client in self._clients.values():
+            if client.authed and client.source == "page" and not client.scene_sent:
+                client.queue.append(self._scene_text)
+                client.scene_sent = True
+                client.wake.set()
+
     async def _pose_loop(self) -> None:
         """The pose messages of pages that draw the endoscope: the model is built first (in
         a worker thread: a second or so), then each new snapshot's ``qpos`` goes out."""
@@ -816,9 +833,15 @@ class WebConsole(AsyncService):
             scene = poses.scene(self.camera.baseline_m)
             self.poses = poses
             self._scene_text = _dumps(scene)
-        except Exception:
+        except Exception as e:
             _log.exception("the page cannot draw the endoscope: no scene")
+            self._scene_error = f"the page's scene could not be built ({type(e).__name__})"
+            for client in self._clients.values():
+                if client.source == "page":
+                    client.source = "server"
+                    self._push(client, {"op": "error", "message": f"view: {self._scene_error}"})
             return
+        self._send_scene()
         period = 1.0 / self.options.pose_rate
         last_tick = None
         while True:

@@ -75,17 +75,25 @@ def check_integrity(data: bytes, integrity: str = THREE_INTEGRITY) -> None:
         raise ValueError(f"three.js tarball: SHA-512 {got} is not the pinned {expected}")
 
 
-def unpack(data: bytes, target: Path) -> Path:
-    """Write :data:`THREE_FILES` of the checked tarball ``data`` into ``target``, atomically
-    (a half-written directory is never found)."""
-    check_integrity(data)
+def unpack(data: bytes, target: Path, integrity: str = THREE_INTEGRITY) -> Path:
+    """Write :data:`THREE_FILES` of the tarball ``data``, checked against ``integrity``,
+    into ``target``, atomically (a half-written directory is never found).
+
+    Raises:
+        ValueError: the tarball does not match ``integrity``, or lacks one of the files
+            (nothing is written).
+    """
+    check_integrity(data, integrity)
     target.parent.mkdir(parents=True, exist_ok=True)
     staging = Path(tempfile.mkdtemp(prefix=".three-", dir=target.parent))
     staging.chmod(0o755)  # (mkdtemp's is the owner's only; the files are public)
     try:
         with tarfile.open(fileobj=io.BytesIO(data), mode="r:gz") as tar:
             for name, member in THREE_FILES.items():
-                extracted = tar.extractfile(member)
+                try:
+                    extracted = tar.extractfile(member)
+                except KeyError:
+                    extracted = None
                 if extracted is None:
                     raise ValueError(f"three.js tarball: {member} is not a file")
                 (staging / name).write_bytes(extracted.read())
