@@ -62,6 +62,17 @@ const FRAGMENT_GLSL = `
 varying vec4 shade;
 void main() { gl_FragColor = shade; }`;
 
+// Segmentation (the fidelity test's): each pixel the id + 1 of the geom drawn there, in red
+// (low byte) and green (high byte); 0 where nothing is.
+const SEGMENT_VERTEX_GLSL = `
+attribute float geomId;
+varying vec4 shade;
+void main() {
+  float id = geomId + 1.0;
+  shade = vec4(mod(id, 256.0) / 255.0, floor(id / 256.0) / 255.0, 0.0, 1.0);
+  gl_Position = projectionMatrix * modelViewMatrix * vec4(position, 1.0);
+}`;
+
 const POSE_MAGIC = 0xFFFFFFFF;
 const POSE_HEADER_BYTES = 16;
 
@@ -107,6 +118,7 @@ function mergeGeoms(THREE, items) {
   }
   const position = new Float32Array(3 * nv), normal = new Float32Array(3 * nv);
   const rgba = new Float32Array(4 * nv), material = new Float32Array(2 * nv);
+  const geomId = new Float32Array(nv);
   const index = new Uint32Array(ni);
   let v0 = 0, i0 = 0;
   for (const { geometry, g } of items) {
@@ -116,6 +128,7 @@ function mergeGeoms(THREE, items) {
     for (let k = 0; k < n; k++) {
       rgba.set(g.rgba, 4 * (v0 + k));
       material[2 * (v0 + k)] = g.specular; material[2 * (v0 + k) + 1] = 128 * g.shininess;
+      geomId[v0 + k] = g.id;
     }
     const idx = geometry.index ? geometry.index.array : Array.from({ length: n }, (_, k) => k);
     for (let k = 0; k < idx.length; k++) index[i0 + k] = idx[k] + v0;
@@ -127,6 +140,7 @@ function mergeGeoms(THREE, items) {
   merged.setAttribute("normal", new THREE.BufferAttribute(normal, 3));
   merged.setAttribute("rgba", new THREE.BufferAttribute(rgba, 4));
   merged.setAttribute("material", new THREE.BufferAttribute(material, 2));
+  merged.setAttribute("geomId", new THREE.BufferAttribute(geomId, 1));
   merged.setIndex(new THREE.BufferAttribute(index, 1));
   merged.computeBoundingSphere();
   return merged;
@@ -292,6 +306,34 @@ export class EndoscopeView {
     renderer.setViewport(0, 0, w, h);
     renderer.clear();
     renderer.render(this.quadScene, this.quadCamera);
+  }
+
+  // The geom id drawn at each pixel of eye (0 left, 1 right), -1 where none: an Int32Array,
+  // rows from the image's top, as MuJoCo's segmentation render gives them.
+  segmentation(eye = 0) {
+    const THREE = this.THREE, { renderer, width: w, height: h } = this;
+    const target = new THREE.WebGLRenderTarget(w, h);
+    const material = new THREE.ShaderMaterial({ vertexShader: SEGMENT_VERTEX_GLSL, fragmentShader: FRAGMENT_GLSL });
+    const background = this.scene.background;
+    this.scene.background = new THREE.Color(0, 0, 0);
+    this.scene.overrideMaterial = material;
+    renderer.setRenderTarget(target);
+    renderer.setViewport(0, 0, w, h);
+    this.renderEye(eye);
+    const pixels = new Uint8Array(4 * w * h);
+    renderer.readRenderTargetPixels(target, 0, 0, w, h, pixels);
+    renderer.setRenderTarget(null);
+    this.scene.overrideMaterial = null; this.scene.background = background;
+    target.dispose(); material.dispose();
+    const ids = new Int32Array(w * h);
+    for (let y = 0; y < h; y++) {
+      const row = (h - 1 - y) * w;  // (GL's rows start at the bottom)
+      for (let x = 0; x < w; x++) {
+        const i = 4 * (row + x);
+        ids[y * w + x] = pixels[i] + 256 * pixels[i + 1] - 1;
+      }
+    }
+    return ids;
   }
 
   dispose() {
