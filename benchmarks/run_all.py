@@ -42,4 +42,4 @@ if __name__ == "__main__":
     bench_study.main()  # the 400-trial study, about 2 min
     bench_study_small.main()  # 1 and 16 trials of the seed task, ~2 min (cold compile incl.)
     bench_realtime.main()  # 60 s of real time (plus warm-up)
-    bench_web.main()  # the web console with two pages, 20 s
+    bench_web.main()  # the web console, one page drawing the endoscope, 2 x 10 s

@@ -44,6 +44,7 @@ def pytest_configure(config):
 #: pytest-xdist they are one unit of work: one worker runs them one after the other, first
 #: (together the longest unit), so that two browsers never share the cores.
 BROWSER_MODULES = (
+    "tests/web/test_endoscope_fidelity.py",
     "tests/web/test_scene3d_browser.py",
     "tests/web/test_web_browser.py",
     "tests/web/test_web_exercises.py",

@@ -16,7 +16,8 @@ const state = {
   left: null, right: null, frameTime: 0,
   // Who draws the endoscope: "page" (three.js, from the server's scene and poses) or
   // "server" (its JPEG frames); ?view=server asks for the server's images.
-  source: "server", THREE: null, view: null, viewDirty: false, drawn: 0,
+  source: "server", THREE: null, view: null, viewDirty: false,
+  drawn: 0, drawLog: [],  // frames drawn, and the last ones' [wall ms, sim time s] (benchmarks)
   pressed: new Set(), axes: [0, 0, 0], turn: [0, 0, 0], gripper: GRIPPER_KEY_OPEN, jawOpen: true,
   hand: null, grippers: {}, inputTargets: [],
   buttons: { clutch: false, camera: false }, gamepadButtons: { clutch: false, camera: false },
@@ -374,12 +375,16 @@ async function onFrame(buffer) {
   if (r) { state.right?.close?.(); state.right = r; }
   state.left = l; state.frameNumber = number; state.frameTime = time;
   if (state.view) return;  // (a frame sent before the page drew itself)
-  countFrame();
+  countFrame(time);
   drawEndoscope();
 }
 
-// Frames drawn per second, shown in #fps (both ways of drawing count here).
-function countFrame() {
+// Frames drawn per second, shown in #fps (both ways of drawing count here); simTime: the
+// simulation time of what was drawn, s.
+function countFrame(simTime) {
+  state.drawn += 1;
+  state.drawLog.push([Date.now(), simTime]);
+  if (state.drawLog.length > 2000) state.drawLog.splice(0, 1000);
   state.frames += 1;
   const now = performance.now();
   if (now - state.framesAt > 1000) {
@@ -433,13 +438,13 @@ function drawPageView() {
     const mode = $("mode").value;
     view.draw(mode);
     state.viewDirty = false;
-    state.drawn += 1; state.frameTime = view.time;
+    state.frameTime = view.time;
     const overlay = $("overlay");
     const width = mode === "sbs" ? 2 * view.width : view.width;
     if (overlay.width !== width || overlay.height !== view.height) {
       overlay.width = width; overlay.height = view.height;
     }
-    countFrame();
+    countFrame(view.time);
     drawOverlay();
   }
   requestAnimationFrame(drawPageView);

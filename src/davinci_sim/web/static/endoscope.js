@@ -87,15 +87,25 @@ export async function loadThree() {
   return THREE;
 }
 
+// Round shapes as polygons: thin ones (the task's wire and labels, under THIN_M of radius)
+// with fewer sides, since a software WebGL's time goes with the triangles (the seed path's
+// 79 wire capsules were two thirds of a frame's). A polygon of n sides drawn with its
+// radius times n_radius(n) has the circle's mean width (perimeter / pi), so silhouettes
+// keep their area.
+const THIN_M = 0.0015;
+const sides = (r) => (r < THIN_M ? 8 : 12);
+const nRadius = (n) => Math.PI / (n * Math.sin(Math.PI / n));
+
 function geometryOf(THREE, g) {
   const s = g.size;
+  const n = sides(s[0]), r = s[0] * nRadius(n);
   switch (g.shape) {
     case "box": return new THREE.BoxGeometry(2 * s[0], 2 * s[1], 2 * s[2]);
-    case "sphere": return new THREE.SphereGeometry(s[0], 12, 8);
-    case "ellipsoid": return new THREE.SphereGeometry(1, 12, 8).scale(s[0], s[1], s[2]);
+    case "sphere": return new THREE.SphereGeometry(r, n, n - 4);
+    case "ellipsoid": return new THREE.SphereGeometry(nRadius(12), 12, 8).scale(s[0], s[1], s[2]);
     // three.js's cylinders and capsules run along y, MuJoCo's along z: +90 deg about x.
-    case "cylinder": return new THREE.CylinderGeometry(s[0], s[0], 2 * s[1], 12).rotateX(Math.PI / 2);
-    case "capsule": return new THREE.CapsuleGeometry(s[0], 2 * s[1], 3, 12).rotateX(Math.PI / 2);
+    case "cylinder": return new THREE.CylinderGeometry(r, r, 2 * s[1], n).rotateX(Math.PI / 2);
+    case "capsule": return new THREE.CapsuleGeometry(r, 2 * s[1], n / 4, n).rotateX(Math.PI / 2);
     case "plane": return new THREE.PlaneGeometry(2 * s[0], 2 * s[1]);
     case "mesh": {
       const geometry = new THREE.BufferGeometry();
