@@ -93,7 +93,7 @@ export async function loadThree() {
 // radius times n_radius(n) has the circle's mean width (perimeter / pi), so silhouettes
 // keep their area.
 const THIN_M = 0.0015;
-const sides = (r) => (r < THIN_M ? 8 : 12);
+const sides = (r) => (r < THIN_M ? 10 : 12);
 const nRadius = (n) => Math.PI / (n * Math.sin(Math.PI / n));
 
 function geometryOf(THREE, g) {
@@ -105,7 +105,7 @@ function geometryOf(THREE, g) {
     case "ellipsoid": return new THREE.SphereGeometry(nRadius(12), 12, 8).scale(s[0], s[1], s[2]);
     // three.js's cylinders and capsules run along y, MuJoCo's along z: +90 deg about x.
     case "cylinder": return new THREE.CylinderGeometry(r, r, 2 * s[1], n).rotateX(Math.PI / 2);
-    case "capsule": return new THREE.CapsuleGeometry(r, 2 * s[1], n / 4, n).rotateX(Math.PI / 2);
+    case "capsule": return new THREE.CapsuleGeometry(r, 2 * s[1], n < 12 ? 2 : 3, n).rotateX(Math.PI / 2);
     case "plane": return new THREE.PlaneGeometry(2 * s[0], 2 * s[1]);
     case "mesh": {
       const geometry = new THREE.BufferGeometry();
