@@ -443,9 +443,9 @@ function drawPageView() {
     const width = mode === "sbs" ? 2 * view.width : view.width;
     if (overlay.width !== width || overlay.height !== view.height) {
       overlay.width = width; overlay.height = view.height;
+      drawOverlay();  // (resizing cleared it; otherwise each state message redraws it)
     }
     countFrame(view.time);
-    drawOverlay();
   }
   requestAnimationFrame(drawPageView);
 }
