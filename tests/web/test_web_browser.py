@@ -393,3 +393,120 @@ def test_the_input_module_maps_keys_sticks_spacemouse_and_rumble(console):
     assert r["rumble"] == [0.5, 1, 0, 0]
     assert r["gripperOpen"] == pytest.approx(np.radians(60))
     assert r["gripperClosed"] == pytest.approx(np.radians(-15))
+
+
+def test_the_headset_module_maps_controller_motion_buttons_and_pulses(console):
+    page = console()
+    r = page.page.evaluate(
+        """async () => { const m = await import('/xr.js');
+        const pose = (x, y, z, q = [0, 0, 0, 1]) => ({ position: [x, y, z], orientation: q });
+        const opt = { scale: 0.5, handSpeed: 0.05, turnSpeed: 0.6 };
+        const half = (a) => [0, Math.sin(a / 2), 0, Math.cos(a / 2)];  // about y
+        const buttons = (values) => Array.from({ length: 6 }, (_, i) =>
+            ({ pressed: (values[i] ?? 0) > 0.5, value: values[i] ?? 0 }));
+        return {
+          right: m.xrRate(pose(0, 0, 0), pose(0.05, 0, 0), 1, opt),
+          fast: m.xrRate(pose(0, 0, 0), pose(0.5, 0, -0.5), 1, opt),
+          ahead: m.xrRate(pose(0, 0, 0), pose(0, 0, -0.02), 0.5, opt),
+          turn: m.xrRate(pose(0, 0, 0, half(0.2)), pose(0, 0, 0, half(0.3)), 1, opt),
+          first: m.xrRate(null, pose(1, 1, 1), 1, opt),
+          trigger: m.xrButtons({ buttons: buttons({ 0: 1 }) }),
+          idle: m.xrButtons({ buttons: buttons({}) }),
+          clutch: m.xrButtons({ buttons: buttons({ 4: 1 }) }),
+          camera: m.xrButtons({ buttons: buttons({ 5: 1 }) }),
+          hands: [m.mtmOfHand('left'), m.mtmOfHand('right'), m.mtmOfHand('none')],
+          pulses: [m.hapticPulse(2.5, 5), m.hapticPulse(0, 5)],
+        }; }"""
+    )
+    # 5 cm/s of the controller, halved: 2.5 cm/s of the hand = half the hand's top speed.
+    assert r["right"]["axes"] == pytest.approx([0.5, 0, 0]) and r["right"]["turn"] == [0, 0, 0]
+    assert r["fast"]["axes"] == pytest.approx([1, 0, 1])  # capped; -z ahead is "in"
+    assert r["ahead"]["axes"] == pytest.approx([0, 0, 0.4])
+    assert r["turn"]["turn"] == pytest.approx([0, 0.1 / 0.6, 0], abs=1e-9)
+    assert r["first"] == {"axes": [0, 0, 0], "turn": [0, 0, 0]}
+    assert r["trigger"]["gripper"] == pytest.approx(np.radians(-15))
+    assert r["idle"] == {"gripper": pytest.approx(np.radians(60)), "clutch": False,
+                         "camera": False}  # fmt: skip
+    assert r["clutch"]["clutch"] and not r["clutch"]["camera"] and r["camera"]["camera"]
+    assert r["hands"] == ["MTML", "MTMR", None]
+    assert r["pulses"] == [[0.5, 30], None]
+
+
+# A headset as the WebXR API presents one: two eye views a few cm apart, a right controller
+# whose grip pose the test moves (window.fakeGrip), the session's frames on a timer. Its
+# layer draws into the page's canvas (framebuffer null, as the WebXR emulators do).
+FAKE_XR = """
+window.xrLog = { sessions: 0, pulses: 0, ended: 0 };
+(() => {
+  const mat = (tx) => { const m = new Float32Array(16); m[0] = m[5] = m[10] = m[15] = 1;
+                        m[12] = tx; return m; };
+  const n = 0.05, f = 100, proj = new Float32Array(16);
+  proj[0] = 1; proj[5] = 1; proj[10] = -(f + n) / (f - n); proj[11] = -1;
+  proj[14] = -2 * f * n / (f - n);
+  const views = ["left", "right"].map((eye, k) => ({ eye, projectionMatrix: proj,
+    transform: { matrix: mat(k ? 0.032 : -0.032),
+                 inverse: { matrix: mat(k ? -0.032 : 0.032) } } }));
+  window.fakeGrip = { position: { x: 0, y: 0, z: -0.3 }, orientation: { x: 0, y: 0, z: 0, w: 1 } };
+  const source = { handedness: "right", gripSpace: { grip: true }, targetRaySpace: {},
+    profiles: ["fake"], gamepad: { mapping: "xr-standard", axes: [0, 0, 0, 0],
+      buttons: Array.from({ length: 6 }, () => ({ pressed: false, touched: false, value: 0 })),
+      hapticActuators: [{ pulse: () => { window.xrLog.pulses++;
+                                         return Promise.resolve(true); } }] } };
+  const frame = { getViewerPose: () => ({ views, transform: { matrix: mat(0) } }),
+                  getPose: (space) => (space.grip ? { transform: window.fakeGrip } : null) };
+  class FakeSession extends EventTarget {
+    constructor() { super(); this.inputSources = [source]; this.visibilityState = "visible";
+                    this.renderState = {}; this.running = true; }
+    updateRenderState(s) { Object.assign(this.renderState, s); }
+    requestReferenceSpace() { return Promise.resolve({ local: true }); }
+    requestAnimationFrame(cb) {
+      return setTimeout(() => { if (this.running) cb(performance.now(), frame); }, 14); }
+    cancelAnimationFrame(id) { clearTimeout(id); }
+    end() { this.running = false; window.xrLog.ended++; this.dispatchEvent(new Event("end"));
+            return Promise.resolve(); }
+  }
+  window.XRWebGLLayer = class {
+    constructor(session, gl) { this.gl = gl; this.framebuffer = null; }
+    getViewport(v) { const w = this.gl.drawingBufferWidth / 2, h = this.gl.drawingBufferHeight;
+                     return { x: v.eye === "right" ? w : 0, y: 0, width: w, height: h }; } };
+  // (headless Chromium has no XR device for its own to wait on)
+  WebGL2RenderingContext.prototype.makeXRCompatible = () => Promise.resolve();
+  Object.defineProperty(navigator, "xr", { configurable: true, value: {
+    isSessionSupported: () => Promise.resolve(true),
+    requestSession: () => { window.xrLog.sessions++; window.xrSession = new FakeSession();
+                            return Promise.resolve(window.xrSession); } } });
+})();
+"""
+
+
+def test_a_scripted_headset_moves_the_tool_through_teleoperation(console):
+    page = console(init_script=FAKE_XR)
+    page.wait("window.davinci.view !== null && !document.getElementById('xr').hidden")
+    page.take_control()
+    page.page.click("#xr")
+    page.wait("window.davinci.xr && window.davinci.xr.frames > 5")
+    assert page.js("document.getElementById('xr').textContent") == "Exit headset"
+    before = page.wait_following()  # (the headset's presence is the head sensor)
+    # The right controller moves right at ~10 cm/s (wall time) while 1 s of simulation passes.
+    page.js(
+        """window.moving = setInterval(() => {
+             window.fakeGrip = { ...window.fakeGrip, position: { ...window.fakeGrip.position,
+               x: window.fakeGrip.position.x + 0.001 } }; }, 10)"""
+    )
+    page.wait_sim(1.0)
+    page.js("clearInterval(window.moving)")
+    after = page.wait_sim(0.8)
+    tool = np.subtract(after["tips"]["PSM1"]["p_camera"], before["tips"]["PSM1"]["p_camera"])
+    mtm = np.subtract(
+        after["teleops"]["MTMR_PSM1"]["p_mtm_hrsv"], before["teleops"]["MTMR_PSM1"]["p_mtm_hrsv"]
+    )
+    # The master moved right (HRSV's -x, dvrk.md 4.2) and the tool with it, scaled: right in
+    # the image is the camera's -x (dvrk.md 1.6).
+    assert mtm[0] < -0.005 and abs(mtm[1]) < 0.3 * abs(mtm[0])
+    scale = before["teleops"]["MTMR_PSM1"]["scale"]
+    assert tool[0] == pytest.approx(scale * mtm[0], rel=0.15)
+    page.page.click("#xr")  # exit: the head leaves the viewer
+    page.wait("window.davinci.xr === null")
+    page.wait("!window.davinci.last.console.buttons.operator_present")
+    assert page.js("window.xrLog.ended") == 1
+    assert page.errors == []

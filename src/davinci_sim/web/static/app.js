@@ -7,6 +7,7 @@ import {
   gamepadInput, rumble, rumbleIntensity, sameAxes,
 } from "./input.js";
 import { EndoscopeView, isPoseMessage, loadThree } from "./endoscope.js";
+import { XrConsole } from "./xr.js";
 
 const $ = (id) => document.getElementById(id);
 const params = new URLSearchParams(location.search);
@@ -428,6 +429,34 @@ function onScene(m) {
   $("view-source").textContent = "drawn in the page (WebGL)";
   state.viewDirty = true;
   requestAnimationFrame(drawPageView);
+  XrConsole.supported().then((yes) => { $("xr").hidden = !yes; });
+}
+
+// ------------------------------------------------------------------ the headset (WebXR)
+async function toggleHeadset() {
+  if (state.xr) { await state.xr.stop(); return; }
+  if (!state.view) return;
+  if (!isOperator()) { showMessage("take control first: the headset drives the masters"); return; }
+  const io = {
+    handSpeed: state.hello.hand_speed, turnSpeed: state.hello.turn_speed,
+    get forceMax() { return state.forceMax; },
+    input: (mtm, axes, turn, gripper) => {
+      if (isOperator()) send({ op: "input", mtm, axes, turn, ...(gripper == null ? {} : { gripper }) });
+    },
+    button: (name, pressed) => { if (isOperator()) send({ op: "button", name, pressed }); },
+    force: (mtm) => {  // the guidance force on the tool this master drives, N
+      const tip = Object.values(state.last?.tips || {}).find((t) => t.mtm === mtm);
+      return tip ? Math.hypot(...tip.force) : 0;
+    },
+    onEnd: () => { state.xr = null; $("xr").textContent = "Enter headset"; },
+  };
+  try {
+    state.xr = await new XrConsole(state.view, io).start();
+    $("xr").textContent = "Exit headset";
+  } catch (e) {
+    state.xr = null;
+    showMessage(`the headset did not start: ${e.message}`);
+  }
 }
 
 // Each display frame: draw when new poses came (or the view mode changed), then the HUD.
@@ -723,6 +752,7 @@ function setupPanels() {
     if (state.left && !state.view) drawEndoscope();
   };
   $("hud").onchange = drawOverlay;
+  $("xr").onclick = toggleHeadset;
   const body = $("keymap").querySelector("tbody");
   for (const k of KEYMAP) {
     const tr = document.createElement("tr");
