@@ -463,7 +463,8 @@ async function toggleHeadset() {
 function drawPageView() {
   const view = state.view;
   if (!view) return;
-  if (view.fresh || state.viewDirty) {
+  // (while the headset shows the view, its session draws the frames: not the page too)
+  if ((view.fresh || state.viewDirty) && !state.xr) {
     const mode = $("mode").value;
     view.draw(mode);
     state.viewDirty = false;
