@@ -59,3 +59,50 @@ def test_a_study_of_an_unknown_task_fails_with_a_message():
         assert messages[-1]["state"] == "failed" and "no_such_task" in messages[-1]["message"]
     else:
         assert "no_such_task" in why
+
+
+def run_job(job: StudyJob, subjects: int = 1, repetitions: int = 1) -> list[dict]:
+    messages: list[dict] = []
+    done = threading.Event()
+
+    def notify(m):
+        messages.append(m)
+        if m["state"] in ("done", "failed"):
+            done.set()
+
+    job.notify = notify
+    assert job.start(subjects=subjects, repetitions=repetitions) is None
+    assert done.wait(300), "the study did not end"
+    return messages
+
+
+def test_a_kept_study_writes_its_rows_through_the_studys_store(tmp_path):
+    job = StudyJob(SHORT_TASK, lambda m: None, root=tmp_path / "studies")
+    final = run_job(job)[-1]
+    assert final["state"] == "done", final
+    folder = Path(final["folder"])
+    assert folder.parent == tmp_path / "studies" and folder.name.startswith("short_path-")
+    assert (folder / "trials.csv").is_file() and not (folder / "trials.partial.jsonl").exists()
+    job.close()
+    assert (folder / "trials.csv").is_file()  # (kept: not a temporary folder)
+
+
+def test_a_study_cut_short_keeps_its_rows_and_says_how_to_resume(tmp_path, monkeypatch):
+    import davinci_sim.study as study
+    from davinci_sim.study import StudyConfig
+    from davinci_sim.study.store import StudyRows
+
+    def broken(result, folder):
+        raise OSError("the disk is full")
+
+    monkeypatch.setattr(study, "write_outputs", broken)  # (after every trial's row)
+    job = StudyJob(SHORT_TASK, lambda m: None, root=tmp_path)
+    final = run_job(job)[-1]
+    assert final["state"] == "failed" and "the disk is full" in final["message"]
+    assert "4 of 4 trials are kept" in final["message"] and "--resume" in final["message"]
+    folder = job.folder
+    assert folder is not None and str(folder) in final["message"]
+    config = StudyConfig(n_subjects=1, n_repetitions=1, task=SHORT_TASK, seed=0, workers=1)
+    kept = StudyRows.resume(folder, config)  # what `davinci-sim study --resume` reads
+    assert sorted(kept.rows) == [0, 1, 2, 3]
+    kept.close()

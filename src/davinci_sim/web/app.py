@@ -13,6 +13,7 @@ import logging
 from collections.abc import Callable
 from typing import Any
 
+from davinci_sim.records.db import default_path
 from davinci_sim.web.server import WebConsole, WebOptions
 
 _log = logging.getLogger("davinci_sim.web")
@@ -75,6 +76,7 @@ def web_part(
             study_task=None if description.task is None else description.task.task,
             records=records,
             model=system.model_source,
+            study_root=default_path().parent / "studies",  # (beside the trainee records)
         )
         try:
             console.start()

@@ -163,6 +163,8 @@ class WebConsole(AsyncService):
         model: the system's model (``System.model_source``: a callable returning the compiled
             model the server renders, the task's drawing included) for pages that draw the
             endoscope themselves; None: only the server's images.
+        study_root: the folder the study tab's studies keep their folders in (rows as they
+            finish, resumable with ``davinci-sim study --resume``); None: temporary folders.
         records: the trainee records' ``serve`` part
             (:class:`~davinci_sim.records.console.RecordsPart`): the page's trainee field
             sets whose attempts are recorded; None: the name only tags the rows.
@@ -180,12 +182,14 @@ class WebConsole(AsyncService):
         study_task: str | None = None,
         records=None,
         model=None,
+        study_root=None,
     ) -> None:
         from davinci_sim.web.study_job import StudyJob
 
         super().__init__()
         self.handle = handle
-        self.study = None if study_task is None else StudyJob(study_task, self._notify)
+        self.study = (None if study_task is None
+                      else StudyJob(study_task, self._notify, root=study_root))  # fmt: skip
         self.options = options or WebOptions()
         self.frames = frames
         self.task = task

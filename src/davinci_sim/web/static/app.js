@@ -681,7 +681,7 @@ function onStudy(m) {
   if (m.state === "running") $("study-status").textContent = `${m.done} of ${m.total} trials`;
   if (m.state === "failed") $("study-status").textContent = `failed: ${m.message}`;
   if (m.state === "done") {
-    $("study-status").textContent = `${m.total} trials in ${m.seconds} s — `;
+    $("study-status").textContent = `${m.total} trials in ${m.seconds} s${m.folder ? `, kept in ${m.folder}` : ""} — `;
     const csv = document.createElement("a");
     csv.href = "study/trials.csv"; csv.textContent = "trials.csv"; csv.download = "trials.csv";
     $("study-status").appendChild(csv);
