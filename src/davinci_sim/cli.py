@@ -330,6 +330,75 @@ def serve_setup(args: argparse.Namespace, web: bool) -> tuple:
     return options, parts
 
 
+def _class_parser(sub) -> None:
+    p = sub.add_parser(
+        "class",
+        help="a class on one server: a system and a web console per trainee, and a lobby page",
+    )
+    who = p.add_mutually_exclusive_group(required=True)
+    who.add_argument("--trainees", type=int, help="this many trainees (trainee-1, trainee-2 …)")
+    who.add_argument("--names", help="the trainees' names, comma-separated")
+    p.add_argument("--task", default="seed_path", help="the exercise (name or task file)")
+    p.add_argument("--host", default="127.0.0.1", help="interface of the lobby and consoles")
+    p.add_argument("--port", type=int, default=8080,
+                   help="the lobby's port; trainee k's console is on port + k")  # fmt: skip
+    p.add_argument("--token", default=None, help="required beyond loopback (or $DAVINCI_SIM_TOKEN)")
+    p.add_argument("--realtime-priority", type=int, default=None, metavar="N",
+                   help="SCHED_FIFO priority N of every loop process (as serve's)")  # fmt: skip
+    p.add_argument("--records", default=None, metavar="FILE", help=_RECORDS_HELP)
+    p.add_argument("--duration", type=float, default=None, help="stop after this many seconds")
+    p.set_defaults(func=cmd_class)
+
+
+def cmd_class(args: argparse.Namespace) -> int:
+    """``davinci-sim class``: start the systems and the lobby; Ctrl-C stops them all."""
+    import signal
+    import threading
+
+    from davinci_sim.web.classroom import ClassOptions, Classroom
+
+    if args.names is not None:
+        names = tuple(n.strip() for n in args.names.split(",") if n.strip())
+    else:
+        names = tuple(f"trainee-{k + 1}" for k in range(max(0, args.trainees)))
+    token = args.token or os.environ.get("DAVINCI_SIM_TOKEN") or None
+    try:
+        options = ClassOptions(names, task=args.task, host=args.host, port=args.port,
+                               token=token, realtime_priority=args.realtime_priority,
+                               records=args.records)  # fmt: skip
+        from davinci_sim.web.server import WebOptions
+
+        WebOptions(host=args.host, token=token)  # (the same rule as serve's: a token off loopback)
+    except ValueError as e:
+        print(f"davinci-sim class: {e}", file=sys.stderr)
+        return 2
+    stop = threading.Event()
+    signal.signal(signal.SIGINT, lambda *_: stop.set())
+    signal.signal(signal.SIGTERM, lambda *_: stop.set())
+    try:
+        room = Classroom(options).start()
+    except OSError as e:
+        print(f"davinci-sim class: the lobby cannot serve on port {args.port}: {e}",
+              file=sys.stderr)  # fmt: skip
+        return 2
+    print(f"class lobby: {room.url}  <- the trainees open this", flush=True)
+    announced: set[str] = set()
+    end = None if args.duration is None else time.monotonic() + args.duration
+    while not stop.is_set() and (end is None or time.monotonic() < end):
+        for s in room.systems:
+            if s.url and s.name not in announced:
+                announced.add(s.name)
+                print(f"{s.name}: {s.url}", flush=True)
+        if all(s.process.poll() is not None for s in room.systems):
+            break
+        stop.wait(0.5)
+    print("stopping the class …", flush=True)
+    for s in room.stop():
+        last = s["notes"][-1] if s["notes"] else ""
+        print(f"{s['name']}: {s['state']}; {last}", flush=True)
+    return 0
+
+
 def cmd_serve(args: argparse.Namespace) -> int:
     """The simulation with its ROS interfaces (rosbridge server, UDP, client mode)."""
     import logging
@@ -1059,6 +1128,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("-v", "--verbose", action="store_true")
     p.set_defaults(func=cmd_serve)
     _replay_parser(sub)
+    _class_parser(sub)
     p = sub.add_parser("task", help="check a training task (reachability, view)")
     task_sub = p.add_subparsers(dest="task_command", required=True)
     p = task_sub.add_parser(
