@@ -8,6 +8,7 @@ from pathlib import Path
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 import bench_bridge  # noqa: E402
+import bench_class  # noqa: E402
 import bench_client_robot  # noqa: E402
 import bench_collisions  # noqa: E402
 import bench_compat  # noqa: E402
@@ -43,3 +44,4 @@ if __name__ == "__main__":
     bench_study_small.main()  # 1 and 16 trials of the seed task, ~2 min (cold compile incl.)
     bench_realtime.main()  # 60 s of real time (plus warm-up)
     bench_web.main()  # the web console, one page drawing the endoscope, 2 x 10 s
+    bench_class.main()  # davinci-sim class: 1, 2, ... trainees until one falls behind, ~8 min
