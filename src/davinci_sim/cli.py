@@ -286,10 +286,11 @@ def _serve_token(args: argparse.Namespace) -> str | None:
     return args.token or os.environ.get("DAVINCI_SIM_TOKEN") or None
 
 
-def serve_setup(args: argparse.Namespace, web: bool) -> tuple:
+def serve_setup(args: argparse.Namespace, web: bool, on_exercise=None) -> tuple:
     """``serve``'s options (:func:`serve_options`) and its parts (trainee records, the web
     console, a recording) from its parsed ``args``, every input checked before anything
-    starts; the browser test of ``make run`` serves exactly these.
+    starts; the browser test of ``make run`` serves exactly these. ``on_exercise``: the
+    call with which the page switches to another shipped exercise (None: it cannot).
 
     Raises:
         ValueError: a bad task, condition or records file (TaskError and RecordsError).
@@ -303,9 +304,12 @@ def serve_setup(args: argparse.Namespace, web: bool) -> tuple:
         records = records_part(args.trainee or DEFAULT_TRAINEE, path=args.records,
                                task=args.task, condition=args.condition)  # fmt: skip
     if web:
+        from davinci_sim.tasks.base import available_tasks
         from davinci_sim.web.app import web_part
 
-        parts.append(web_part(web_options(args), bedside=not args.no_bedside, records=records))
+        exercises = tuple(available_tasks()) if on_exercise is not None else ()
+        parts.append(web_part(web_options(args), bedside=not args.no_bedside, records=records,
+                              exercises=exercises, on_exercise=on_exercise))  # fmt: skip
     options = serve_options(args, web)
     if args.record is not None:  # (a file that cannot be created: say so now)
         from davinci_sim.records.recording import recording_part
@@ -405,8 +409,6 @@ def cmd_serve(args: argparse.Namespace) -> int:
     import signal
     import threading
 
-    from davinci_sim.bridge.app import serve
-
     logging.basicConfig(level=logging.INFO if args.verbose else logging.WARNING,
                         format="%(asctime)s %(levelname)s %(name)s: %(message)s")  # fmt: skip
     problem = _serve_option_problem(args)
@@ -418,14 +420,43 @@ def cmd_serve(args: argparse.Namespace) -> int:
     if problem is not None:  # before the scene is built
         print(f"davinci-sim serve: {problem}", file=sys.stderr)
         return 2
+    stop = threading.Event()
+    # A page may switch the exercise (--task): serve stops, then starts again with it on the
+    # same ports (the pages reconnect). Ctrl-C or SIGTERM stop for good.
+    switch: dict = {}
+
+    def on_exercise(name: str) -> str | None:
+        if stop.is_set():
+            return "the server is stopping"
+        switch["task"] = name
+        stop.set()
+        return None
+
+    def quit_(*_) -> None:
+        switch["quit"] = True
+        stop.set()
+
+    signal.signal(signal.SIGINT, quit_)
+    signal.signal(signal.SIGTERM, quit_)
+    while True:
+        code = _serve_once(args, web, stop, on_exercise if args.task is not None else None)
+        task = switch.pop("task", None)
+        if code != 0 or task is None or switch.get("quit"):
+            return code
+        print(f"switching to the exercise {task} …", flush=True)
+        args.task, args.condition = task, None
+        stop.clear()
+
+
+def _serve_once(args: argparse.Namespace, web: bool, stop, on_exercise) -> int:
+    """One run of ``serve`` until ``stop`` is set (by a signal, or a page's exercise)."""
+    from davinci_sim.bridge.app import serve
+
     try:
-        options, parts = serve_setup(args, web)
+        options, parts = serve_setup(args, web, on_exercise)
     except (ValueError, OSError) as e:  # TaskError and RecordsError are ValueErrors
         print(f"davinci-sim serve: {e}", file=sys.stderr)
         return 2
-    stop = threading.Event()
-    signal.signal(signal.SIGINT, lambda *_: stop.set())
-    signal.signal(signal.SIGTERM, lambda *_: stop.set())
 
     def ready(info: dict) -> None:
         if "url" in info:

@@ -502,9 +502,9 @@ def test_a_scripted_headset_moves_the_tool_through_teleoperation(console):
     )
     # The master moved right (HRSV's -x, dvrk.md 4.2) and the tool with it, scaled: right in
     # the image is the camera's -x (dvrk.md 1.6).
-    assert mtm[0] < -0.005 and abs(mtm[1]) < 0.3 * abs(mtm[0])
+    assert mtm[0] < -0.005 and abs(mtm[1]) < 0.3 * abs(mtm[0]), (mtm, tool)
     scale = before["teleops"]["MTMR_PSM1"]["scale"]
-    assert tool[0] == pytest.approx(scale * mtm[0], rel=0.15)
+    assert tool[0] == pytest.approx(scale * mtm[0], rel=0.15), (mtm, tool)
     page.page.click("#xr")  # exit: the head leaves the viewer
     page.wait("window.davinci.xr === null")
     page.wait("!window.davinci.last.console.buttons.operator_present")

@@ -78,7 +78,8 @@ def test_every_op_accepts_its_required_fields_only_message():
     samples = {
         "hello": {}, "control": {"take": False}, "input": {"mtm": "MTML", "axes": [0, 0, 0]},
         "button": {"name": "camera", "pressed": False}, "condition": {"condition": "x"},
-        "task": {"action": "reset"}, "trainee": {"name": ""}, "teleop": {},
+        "task": {"action": "reset"}, "exercise": {"task": "ring_walk"},
+        "trainee": {"name": ""}, "teleop": {},
         "arms": {"action": "home"}, "recover": {}, "synthetic": {"action": "stop"},
         "ping": {"t": 1.5},
         "study": {"action": "start", "subjects": 1, "repetitions": 1}, "view": {"stereo": True},

@@ -42,13 +42,19 @@ class WebPart:
 
 
 def web_part(
-    options: WebOptions, *, bedside: bool = True, records=None
+    options: WebOptions,
+    *,
+    bedside: bool = True,
+    records=None,
+    exercises: tuple[str, ...] = (),
+    on_exercise: Callable[[str], str | None] | None = None,
 ) -> Callable[[Any, dict], WebPart]:
     """A ``serve`` part that starts the web console on the running system: the page at
     ``options.host:options.port``, the 3-D view on the next free port if ``bedside``. Adds
     ``info["web"]`` (the page's URL) and ``info["bedside"]`` (the 3-D view's). ``records``:
     the trainee records' part (:class:`~davinci_sim.records.console.RecordsPart`) the page's
-    trainee field sets the trainee of."""
+    trainee field sets the trainee of. ``exercises`` and ``on_exercise``: what the page may
+    switch to and the call that switches (:class:`~davinci_sim.web.server.WebConsole`)."""
 
     def make(system, info: dict) -> WebPart:
         from davinci_sim.model import resolve_scene
@@ -77,6 +83,8 @@ def web_part(
             records=records,
             model=system.model_source,
             study_root=default_path().parent / "studies",  # (beside the trainee records)
+            exercises=exercises,
+            on_exercise=on_exercise,
         )
         try:
             console.start()

@@ -28,6 +28,8 @@ Ops (fields; units):
   int ≥ 1, optional): watch a synthetic trainee do the task on the live console.
 - ``study`` (``action``: start; ``subjects``: 1 … 10; ``repetitions``: 1 … 5): a small
   study of the task with the study's synthetic trainees (progress, then the report).
+- ``exercise`` (``task``: a name the server offers in ``hello``'s ``exercises``): switch the
+  console to that exercise; the server restarts its system with it (the pages reconnect).
 - ``view`` (``stereo``: bool; ``source``: ``server`` or ``page``, optional, default
   ``server``): whether this page shows both eyes (side by side, anaglyph; the right image
   is encoded and sent only while some page does), and who draws its endoscope: the server
@@ -173,6 +175,7 @@ OPS: dict[str, dict[str, tuple[Any, bool]]] = {
     "button": {"name": (_choice("name", BUTTONS), True), "pressed": (_boolean("pressed"), True)},
     "condition": {"condition": (_condition, True)},
     "task": {"action": (_choice("action", ("reset",)), True)},
+    "exercise": {"task": (_text("task", 64), True)},
     "trainee": {"name": (_text("name", 64), True)},
     "teleop": {
         "enable": (_boolean("enable"), False),
@@ -201,7 +204,18 @@ OPS: dict[str, dict[str, tuple[Any, bool]]] = {
 
 #: Ops that act on the simulation: only the operator may send them.
 OPERATOR_OPS = frozenset(
-    {"input", "button", "condition", "task", "teleop", "arms", "recover", "synthetic", "study"}
+    {
+        "input",
+        "button",
+        "condition",
+        "task",
+        "exercise",
+        "teleop",
+        "arms",
+        "recover",
+        "synthetic",
+        "study",
+    }
 )
 
 

@@ -165,6 +165,9 @@ class WebConsole(AsyncService):
             endoscope themselves; None: only the server's images.
         study_root: the folder the study tab's studies keep their folders in (rows as they
             finish, resumable with ``davinci-sim study --resume``); None: temporary folders.
+        exercises: the exercises a page may switch to (``exercise`` op), with
+        on_exercise: ``on_exercise(name) -> None or why not``, called to switch (``serve``
+            restarts its system with that task); None: no switching.
         records: the trainee records' ``serve`` part
             (:class:`~davinci_sim.records.console.RecordsPart`): the page's trainee field
             sets whose attempts are recorded; None: the name only tags the rows.
@@ -183,6 +186,8 @@ class WebConsole(AsyncService):
         records=None,
         model=None,
         study_root=None,
+        exercises: tuple[str, ...] = (),
+        on_exercise=None,
     ) -> None:
         from davinci_sim.web.study_job import StudyJob
 
@@ -215,6 +220,8 @@ class WebConsole(AsyncService):
         self._stats = {"frames_encoded": 0, "encode_time": 0.0, "states": 0, "poses": 0,
                        "pose_time": 0.0}  # fmt: skip
         self._model_source = model
+        self.exercises = tuple(exercises) if on_exercise is not None else ()
+        self._on_exercise = on_exercise
         self.poses: PoseStream | None = None
         """The :class:`~davinci_sim.web.endoscope_stream.PoseStream` (None: not offered)."""
         self._scene_text: str | None = None
@@ -483,6 +490,7 @@ class WebConsole(AsyncService):
             "study": self.study is not None,
             "records": self.records is not None,
             "page_view": self._model_source is not None and three_dir() is not None,
+            "exercises": list(self.exercises),
         }
         task = self.task
         if task is not None:
@@ -650,6 +658,15 @@ class WebConsole(AsyncService):
             await self._call("task", "set_condition", a["condition"])
         elif op == "task":
             await self._call("task", "reset")
+        elif op == "exercise":
+            name = a["task"]
+            if name not in self.exercises or self._on_exercise is None:
+                offered = ", ".join(self.exercises) or "none on this server"
+                raise CommandRefused(f"exercise: {name!r} is not offered ({offered})")
+            why = self._on_exercise(name)
+            if why is not None:
+                raise CommandRefused(f"exercise: {why}")
+            self._broadcast({"op": "exercise", "task": name})
         elif op == "teleop":
             if "enable" in a:
                 await self._call("console", "teleop_enable", a["enable"])

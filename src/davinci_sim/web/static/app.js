@@ -92,6 +92,9 @@ function onMessage(m) {
       if (m.message.startsWith("view:")) useServerImages(m.message.slice(6));
       showMessage(m.message, "error"); break;
     case "scene": onScene(m); break;
+    case "exercise":
+      showMessage(`switching to ${m.task}: the console restarts with it (a few seconds), then take control again`, "info");
+      break;
     case "pong": state.rtt = performance.now() - m.t; break;
     case "study": onStudy(m); break;
     default: break;
@@ -158,6 +161,15 @@ function onHello(m) {
     state.forceMax = Math.max(1, ...task.conditions.map((c) => c.G_max || 0), task.fixture.G_max || 0);
     buildRowsHeader(task.metrics);
   }
+  // Switching the exercise restarts the server's system with it (the page reconnects).
+  const exercises = m.exercises || [];
+  $("exercise-row").hidden = exercises.length === 0;
+  $("exercise").innerHTML = "";
+  for (const name of exercises) {
+    const o = document.createElement("option"); o.value = name; o.textContent = name;
+    $("exercise").appendChild(o);
+  }
+  if (task && exercises.includes(task.name)) $("exercise").value = task.name;
   const hands = $("hand");
   hands.innerHTML = "";
   for (const mtm of handChoices()) {
@@ -449,7 +461,15 @@ async function toggleHeadset() {
       return tip ? Math.hypot(...tip.force) : 0;
     },
     onEnd: () => { state.xr = null; $("xr").textContent = "Enter headset"; },
+    overlay: $("overlay"),
   };
+  if ($("mode").value !== "left") {  // (the headset's screens take the left eye's display)
+    $("mode").value = "left";
+    send(viewMessage());
+  }
+  const overlay = $("overlay");
+  overlay.width = state.view.width; overlay.height = state.view.height;
+  drawOverlay();
   try {
     state.xr = await new XrConsole(state.view, io).start();
     $("xr").textContent = "Exit headset";
@@ -754,6 +774,10 @@ function setupPanels() {
   };
   $("hud").onchange = drawOverlay;
   $("xr").onclick = toggleHeadset;
+  $("exercise").onchange = () => {
+    const name = $("exercise").value;
+    if (name && name !== state.hello?.task?.name) send({ op: "exercise", task: name });
+  };
   const body = $("keymap").querySelector("tbody");
   for (const k of KEYMAP) {
     const tr = document.createElement("tr");

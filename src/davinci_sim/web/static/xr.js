@@ -77,7 +77,7 @@ function poseOf(xrPose) {
 
 // The immersive session: `view` is the page's EndoscopeView; `io` the page's side:
 // input(mtm, axes, turn, gripper), button(name, pressed), force(mtm) -> N, forceMax,
-// handSpeed, turnSpeed, onEnd().
+// handSpeed, turnSpeed, onEnd(), and overlay: the heads-up display's canvas (or null).
 export class XrConsole {
   constructor(view, io) {
     this.view = view; this.io = io;
@@ -114,6 +114,10 @@ export class XrConsole {
     this.session = session;
     const { width: w, height: h } = this.view;
     this.targets = [0, 1].map(() => new THREE.WebGLRenderTarget(w, h));
+    // The heads-up display (the page's overlay canvas: text, tool marks, guidance arrow)
+    // on both screens, just in front of the image; its marks are the left image's pixels,
+    // so in the right eye they sit a disparity's few pixels off the tool.
+    this.hud = this.io.overlay ? new THREE.CanvasTexture(this.io.overlay) : null;
     this.eyes = this.targets.map((t) => {
       const scene = new THREE.Scene();
       const height = SCREEN_HEIGHT_M, width = (height * w) / h;
@@ -121,6 +125,12 @@ export class XrConsole {
         new THREE.MeshBasicMaterial({ map: t.texture }));
       screen.position.set(0, 0, -SCREEN_DISTANCE_M);
       scene.add(screen);
+      if (this.hud) {
+        const hud = new THREE.Mesh(new THREE.PlaneGeometry(width, height),
+          new THREE.MeshBasicMaterial({ map: this.hud, transparent: true, depthTest: false }));
+        hud.position.set(0, 0, -SCREEN_DISTANCE_M + 0.001);
+        scene.add(hud);
+      }
       return scene;
     });
     this.camera = new THREE.PerspectiveCamera();  // (each XR view's matrices as given)
@@ -148,6 +158,7 @@ export class XrConsole {
       renderer.setViewport(0, 0, this.view.width, this.view.height);
       this.view.renderEye(eye);
     }
+    if (this.hud) this.hud.needsUpdate = true;
     const layer = this.layer;
     if (layer.framebuffer) {
       if (!this.output) {
@@ -210,6 +221,7 @@ export class XrConsole {
     if (!this.session) return;
     this.session = null;
     for (const t of this.targets || []) t.dispose();
+    if (this.hud) this.hud.dispose();
     if (this.output) this.output.dispose();
     this.io.button("operator_present", false);
     for (const mtm of new Set([...this.last.keys()].map((s) => mtmOfHand(s.handedness)))) {
