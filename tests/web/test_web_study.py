@@ -11,7 +11,8 @@ from davinci_sim.web.study_job import StudyJob
 SHORT_TASK = str(Path(__file__).resolve().parents[1] / "study" / "short_path.yaml")
 
 
-def test_a_small_study_reports_progress_and_its_outputs():
+def collector():
+    """(messages, done, notify): a job's messages, set done when it ends."""
     messages: list[dict] = []
     done = threading.Event()
 
@@ -20,6 +21,11 @@ def test_a_small_study_reports_progress_and_its_outputs():
         if m["state"] in ("done", "failed"):
             done.set()
 
+    return messages, done, notify
+
+
+def test_a_small_study_reports_progress_and_its_outputs():
+    messages, done, notify = collector()
     job = StudyJob(SHORT_TASK, notify)
     assert job.start(subjects=1, repetitions=1) is None
     assert job.start(subjects=1, repetitions=1) == "a study is already running"
@@ -62,15 +68,7 @@ def test_a_study_of_an_unknown_task_fails_with_a_message():
 
 
 def run_job(job: StudyJob, subjects: int = 1, repetitions: int = 1) -> list[dict]:
-    messages: list[dict] = []
-    done = threading.Event()
-
-    def notify(m):
-        messages.append(m)
-        if m["state"] in ("done", "failed"):
-            done.set()
-
-    job.notify = notify
+    messages, done, job.notify = collector()
     assert job.start(subjects=subjects, repetitions=repetitions) is None
     assert done.wait(300), "the study did not end"
     return messages

@@ -765,6 +765,14 @@ class WebConsole(AsyncService):
                 _log.warning("releasing the console: %s", e)
 
     # ------------------------------------------------------------ streams
+    def _snapshot(self):
+        """The simulation's latest snapshot, or None (not started yet, or stopping)."""
+        try:
+            return self.handle.snapshot()
+        except Exception as e:
+            _log.debug("no snapshot: %s", e)
+            return None
+
     async def _state_loop(self) -> None:
         period = 1.0 / self.options.state_rate
         last_tick = None
@@ -772,10 +780,8 @@ class WebConsole(AsyncService):
             await asyncio.sleep(period)
             if not self._clients:
                 continue
-            try:
-                snap = self.handle.snapshot()
-            except Exception as e:  # not started yet, or stopping
-                _log.debug("no snapshot: %s", e)
+            snap = self._snapshot()
+            if snap is None:
                 continue
             self._collect_rows(snap)
             if snap.tick == last_tick:
@@ -870,13 +876,9 @@ class WebConsole(AsyncService):
             clients = [c for c in self._clients.values() if c.authed and c.source == "page"]
             if not clients:
                 continue
-            try:
-                snap = self.handle.snapshot()
-            except Exception as e:  # not started yet, or stopping
-                _log.debug("no snapshot: %s", e)
-                continue
-            qpos = (snap.extras or {}).get("qpos")
-            if qpos is None or snap.tick == last_tick:
+            snap = self._snapshot()
+            qpos = None if snap is None else (snap.extras or {}).get("qpos")
+            if snap is None or qpos is None or snap.tick == last_tick:
                 continue
             last_tick = snap.tick
             start = time.perf_counter()

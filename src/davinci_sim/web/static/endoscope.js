@@ -6,13 +6,14 @@
 // field of view, the image's aspect and MuJoCo's clip planes. Colours are used as linear
 // values and written without an sRGB transfer, as MuJoCo's renderer does.
 //
-// Lighting is MuJoCo's: its renderer uses OpenGL's fixed-function lighting, per vertex, with
-// the geom's colour as the material's ambient and diffuse colour, the material's specular
-// and shininess (x 128), MuJoCo's headlight (a directional light from the eye along its
-// view, with its ambient) and the model's lights (spot: the cosine to the axis raised to
-// the exponent inside the cutoff, attenuation 1/(a0 + a1 d + a2 d^2)). The same law here
-// runs in the vertex shader (LIGHTING_GLSL): also the cheap way on a software WebGL, where
-// three.js's per-pixel Phong with three spot lights took 230 ms a frame.
+// Lighting follows the law of MuJoCo's renderer (OpenGL's classic lighting model): the
+// geom's colour as the material's ambient and diffuse colour, the material's specular and
+// shininess (x 128), MuJoCo's headlight (a directional light from the eye along its view,
+// with its ambient) and the model's lights (spot: the cosine to the axis raised to the
+// exponent inside the cutoff, attenuation 1/(a0 + a1 d + a2 d^2)). It is evaluated per
+// vertex here (VERTEX_GLSL), the cheap way on a software WebGL, where three.js's per-pixel
+// Phong with the scene's three spot lights took 230 ms a frame; so a large flat face (a
+// box's: four corners) lacks the spot's highlight the server's image shows in its middle.
 
 const MAX_LIGHTS = 4;  // the headlight and the model's lights (the scene has three)
 
