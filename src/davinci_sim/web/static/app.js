@@ -17,7 +17,7 @@ const state = {
   left: null, right: null, frameTime: 0,
   // Who draws the endoscope: "page" (three.js, from the server's scene and poses) or
   // "server" (its JPEG frames); ?view=server asks for the server's images.
-  source: "server", THREE: null, view: null, viewDirty: false,
+  source: "server", THREE: null, view: null, viewDirty: false, drawing: false,
   drawn: 0, drawLog: [],  // frames drawn, and the last ones' [wall ms, sim time s] (benchmarks)
   pressed: new Set(), axes: [0, 0, 0], turn: [0, 0, 0], gripper: GRIPPER_KEY_OPEN, jawOpen: true,
   hand: null, grippers: {}, inputTargets: [],
@@ -429,6 +429,7 @@ function useServerImages(why) {
 }
 
 function onScene(m) {
+  if (state.xr) state.xr.stop();  // (a new scene after a reconnect: the headset's view is gone)
   state.view?.dispose(); state.view = null;
   const canvas = $("endoscope3d");
   try {
@@ -440,7 +441,7 @@ function onScene(m) {
   canvas.hidden = false; $("endoscope").hidden = true;
   $("view-source").textContent = "drawn in the page (WebGL)";
   state.viewDirty = true;
-  requestAnimationFrame(drawPageView);
+  if (!state.drawing) { state.drawing = true; requestAnimationFrame(drawPageView); }
   XrConsole.supported().then((yes) => { $("xr").hidden = !yes; });
 }
 
@@ -482,7 +483,7 @@ async function toggleHeadset() {
 // Each display frame: draw when new poses came (or the view mode changed), then the HUD.
 function drawPageView() {
   const view = state.view;
-  if (!view) return;
+  if (!view) { state.drawing = false; return; }
   // (while the headset shows the view, its session draws the frames: not the page too)
   if ((view.fresh || state.viewDirty) && !state.xr) {
     const mode = $("mode").value;
