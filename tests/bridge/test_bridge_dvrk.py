@@ -230,16 +230,22 @@ def test_enable_home_and_operating_state(handle, make_server, make_ros):
 def test_move_jp_then_servo_cp_move_the_arm(handle, make_server, make_ros):
     server = make_server(handle)
     ros = make_ros(server)
-    enable_and_home(handle)
     js = subscribe(ros, "/PSM1/measured_js", "sensor_msgs/JointState")
     states = subscribe(ros, "/PSM1/operating_state", "crtk_msgs/OperatingState")
     reached = subscribe(ros, "/PSM1/goal_reached", "std_msgs/Bool")
     time.sleep(0.2)
+    enable_and_home(handle)
+    # The homing's own end reaches the client first (it follows the simulation's by up to a
+    # snapshot, more on a loaded machine): subscribed after homing, a test took it for the
+    # move's end and read the joints from before the move.
+    assert wait_for(lambda: reached and not states[-1]["is_busy"], 10)
+    time.sleep(0.2)
+    n_states, n_reached = len(states), len(reached)
     goal = [0.2, -0.1, 0.1, 0.3, 0.0, 0.0]
     publish(ros, "/PSM1/move_jp", "sensor_msgs/JointState", {"position": goal})
-    assert wait_for(lambda: any(s["is_busy"] for s in states[1:]), 2)
-    assert wait_for(lambda: not states[-1]["is_busy"], 10)
-    assert wait_for(lambda: reached == [{"data": True}])
+    assert wait_for(lambda: any(s["is_busy"] for s in states[n_states:]), 2)
+    assert wait_for(lambda: len(reached) == n_reached + 1, 10)  # the move's end
+    assert not states[-1]["is_busy"] and reached[-1] == {"data": True}
     assert np.allclose(js[-1]["position"], goal, atol=2e-3)
     # servo_cp: 1 cm along the camera's x, in the reference frame of measured_cp
     cp = subscribe(ros, "/PSM1/measured_cp", "geometry_msgs/PoseStamped")
