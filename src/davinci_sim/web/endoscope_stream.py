@@ -91,11 +91,14 @@ def _floats(a) -> list[float]:
     return [float(x) for x in np.asarray(a, dtype=float).reshape(-1)]
 
 
-def scene_message(model: mujoco.MjModel, data: mujoco.MjData, baseline_m: float) -> dict:
+def scene_message(
+    model: mujoco.MjModel, data: mujoco.MjData, baseline_m: float, layout: PoseLayout | None = None
+) -> dict:
     """The page's scene (JSON-ready), with the static bodies' poses from ``data`` (after
     ``mj_kinematics``). ``baseline_m``: the endoscope's stereo baseline (the cameras'
-    distance, also in their poses; the page shows it)."""
-    layout = pose_layout(model)
+    distance, also in their poses; the page shows it). ``layout``: the model's
+    :func:`pose_layout`, when the caller has it."""
+    layout = pose_layout(model) if layout is None else layout
     geoms = []
     for g in visible_geoms(model):
         size = np.asarray(g.size, dtype=float)
@@ -184,7 +187,7 @@ class PoseStream:
 
     def scene(self, baseline_m: float) -> dict:
         """:func:`scene_message` of this model at the last joint positions given."""
-        return scene_message(self.model, self.data, baseline_m)
+        return scene_message(self.model, self.data, baseline_m, self.layout)
 
     def message(self, qpos, tick: int, t: float) -> bytes:
         """The pose message of joint positions ``qpos`` (nq,) at tick ``tick``, time ``t`` s.

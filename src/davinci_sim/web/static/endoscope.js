@@ -182,7 +182,6 @@ export class EndoscopeView {
     this.bodies = new Map();
     for (const [id, pose] of Object.entries(sceneMessage.bodies)) {
       const group = new THREE.Group();
-      group.matrixAutoUpdate = true;
       setPose(group, pose, 0);
       this.scene.add(group);
       this.bodies.set(Number(id), group);
