@@ -493,7 +493,10 @@ def test_a_scripted_headset_moves_the_tool_through_teleoperation(console):
              window.fakeGrip = { ...window.fakeGrip, position: { ...window.fakeGrip.position,
                x: window.fakeGrip.position.x + 0.001 } }; }, 10)"""
     )
-    page.wait_sim(1.0)
+    # (until the master has moved 6 mm: how far a wall-clock motion goes in simulated time
+    # depends on the machine's load)
+    x0 = before["teleops"]["MTMR_PSM1"]["p_mtm_hrsv"][0]
+    page.wait(f"window.davinci.last.teleops.MTMR_PSM1.p_mtm_hrsv[0] < {x0 - 0.006}")
     page.js("clearInterval(window.moving)")
     after = page.wait_sim(0.8)
     tool = np.subtract(after["tips"]["PSM1"]["p_camera"], before["tips"]["PSM1"]["p_camera"])
