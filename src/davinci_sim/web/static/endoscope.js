@@ -89,10 +89,11 @@ export async function loadThree() {
 }
 
 // Round shapes as polygons: thin ones (the task's wire and labels, under THIN_M of radius)
-// with fewer sides, since a software WebGL's time goes with the triangles (the seed path's
-// 79 wire capsules were two thirds of a frame's). A polygon of n sides drawn with its
-// radius times n_radius(n) has the circle's mean width (perimeter / pi), so silhouettes
-// keep their area.
+// with fewer sides, and thin capsules with one ring per cap, since a software WebGL's time
+// goes with the triangles (about 1 us each on the 2-core machine; the seed path's wire at
+// two rings per cap took 6.9 ms of a 22 ms left-eye frame, at one ring 4.1 ms). Its caps
+// mostly sit inside the next segment's. A polygon of n sides drawn with its radius times
+// n_radius(n) has the circle's mean width (perimeter / pi), so silhouettes keep their area.
 const THIN_M = 0.0015;
 const sides = (r) => (r < THIN_M ? 10 : 12);
 const nRadius = (n) => Math.PI / (n * Math.sin(Math.PI / n));
@@ -106,7 +107,7 @@ function geometryOf(THREE, g) {
     case "ellipsoid": return new THREE.SphereGeometry(nRadius(12), 12, 8).scale(s[0], s[1], s[2]);
     // three.js's cylinders and capsules run along y, MuJoCo's along z: +90 deg about x.
     case "cylinder": return new THREE.CylinderGeometry(r, r, 2 * s[1], n).rotateX(Math.PI / 2);
-    case "capsule": return new THREE.CapsuleGeometry(r, 2 * s[1], n < 12 ? 2 : 3, n).rotateX(Math.PI / 2);
+    case "capsule": return new THREE.CapsuleGeometry(r, 2 * s[1], n < 12 ? 1 : 3, n).rotateX(Math.PI / 2);
     case "plane": return new THREE.PlaneGeometry(2 * s[0], 2 * s[1]);
     case "mesh": {
       const geometry = new THREE.BufferGeometry();
