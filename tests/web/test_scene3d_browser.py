@@ -71,3 +71,30 @@ def test_the_page_draws_the_system_and_a_preset_moves_the_view(tmp_path):
                 assert errors == []
             finally:
                 browser.close()
+
+
+def test_behind_the_token_gate_the_page_loads_and_connects():
+    from davinci_sim.web.token_gate import TokenGate
+
+    description = SystemDescription("psm1_ecm_mtmr")
+    with (
+        BedsideView(lambda: scene_model(description)) as view,
+        TokenGate(view.port, "class-token", "0.0.0.0") as gate,
+    ):
+        with playwright.sync_playwright() as p:
+            browser = p.chromium.launch(executable_path=CHROMIUM, args=SOFTWARE_GL)
+            try:
+                page = browser.new_page(viewport={"width": 320, "height": 240})
+                refused = page.goto(f"http://127.0.0.1:{gate.port}/")
+                assert refused.status == 403
+                assert view.server.get_clients() == {}
+                page.goto(f"http://127.0.0.1:{gate.port}/?token=class-token")
+                assert "token" not in page.url  # (the gate took it once: a cookie holds it)
+                page.wait_for_selector("canvas", timeout=SLOW_FRAME_MS)
+                # viser's client opens its websocket at the page's address: through the gate
+                deadline = time.monotonic() + SLOW_FRAME_MS / 1000
+                while not view.server.get_clients() and time.monotonic() < deadline:
+                    time.sleep(0.2)
+                assert view.server.get_clients()
+            finally:
+                browser.close()

@@ -14,7 +14,7 @@ from collections.abc import Callable
 from typing import Any
 
 from davinci_sim.records.db import default_path
-from davinci_sim.web.server import WebConsole, WebOptions
+from davinci_sim.web.server import WebConsole, WebOptions, is_loopback
 
 _log = logging.getLogger("davinci_sim.web")
 
@@ -22,17 +22,18 @@ _log = logging.getLogger("davinci_sim.web")
 class WebPart:
     """The started web console of a system (what :func:`web_part` returns to ``serve``)."""
 
-    def __init__(self, console: WebConsole, frames, bedside) -> None:
+    def __init__(self, console: WebConsole, frames, bedside, gate=None) -> None:
         self.console = console
         self.frames = frames
         self.bedside = bedside
+        self.gate = gate
 
     @property
     def url(self) -> str:
         return self.console.url
 
     def stop(self) -> None:
-        for part in (self.console, self.bedside, self.frames):
+        for part in (self.console, self.gate, self.bedside, self.frames):
             if part is None:
                 continue
             try:
@@ -65,13 +66,14 @@ def web_part(
         console_description = description.console_description
         hands = () if console_description is None else console_description.hand_inputs
         frames = system.frames(options.frame_rate)
-        view = None
+        view = gate = None
         web_options = options
         if bedside:
-            view = start_bedside(system)
+            view, gate = start_bedside(system, options)
             if view is not None:
-                web_options = dataclasses.replace(options, bedside_port=view.port)
-                info["bedside"] = view.url
+                port = view.port if gate is None else gate.port
+                web_options = dataclasses.replace(options, bedside_port=port)
+                info["bedside"] = view.url if gate is None else _gate_url(options.host, port)
         console = WebConsole(
             system.handle,
             web_options,
@@ -89,28 +91,44 @@ def web_part(
         try:
             console.start()
         except BaseException:
-            for part in (view, frames):
+            for part in (gate, view, frames):
                 if part is not None:
                     part.stop()
             raise
         info["web"] = console.url
-        return WebPart(console, frames, view)
+        return WebPart(console, frames, view, gate)
 
     return make
 
 
-def start_bedside(system):
-    """The 3-D bedside view of ``system`` started on a free port next to the page's (None
-    if it cannot start: the console works without it)."""
+def start_bedside(system, options: WebOptions):
+    """The 3-D bedside view of ``system`` started on a free loopback port, and where the page
+    is served beyond loopback, the :class:`~davinci_sim.web.token_gate.TokenGate` that serves
+    it there behind the page's token (viser has no authentication of its own): ``(view,
+    gate)``, gate None on loopback, both None if the view cannot start (the console works
+    without it)."""
     try:
         from davinci_sim.web.scene3d import BedsideView
     except ImportError as e:
         _log.warning("no 3-D view: %s", e)
-        return None
-    # viser has no authentication: the view stays on loopback even when the page is served
-    # further (with a token); a remote page then says the 3-D view is not reachable.
+        return None, None
     try:
-        return BedsideView(system.model_source, system.handle, host="127.0.0.1", port=0).start()
+        view = BedsideView(system.model_source, system.handle, host="127.0.0.1", port=0).start()
     except Exception:
         _log.exception("the 3-D view did not start; the console goes on without it")
-        return None
+        return None, None
+    if is_loopback(options.host) or options.token is None:
+        return view, None
+    from davinci_sim.web.token_gate import TokenGate
+
+    try:
+        return view, TokenGate(view.port, options.token, options.host).start()
+    except OSError:
+        _log.exception("the 3-D view's gate did not start; the console goes on without it")
+        view.stop()
+        return None, None
+
+
+def _gate_url(host: str, port: int) -> str:
+    shown = "127.0.0.1" if host in ("0.0.0.0", "") else host
+    return f"http://{shown}:{port}/"

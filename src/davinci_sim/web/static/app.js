@@ -129,7 +129,9 @@ function onHello(m) {
   const cam = m.camera;
   for (const id of ["endoscope", "overlay"]) { $(id).width = cam.width; $(id).height = cam.height; }
   if (m.bedside_port) {
-    $("bedside").src = `${location.protocol}//${location.hostname}:${m.bedside_port}/`;
+    // (served beyond loopback, the view is behind the page's token: its gate takes it once)
+    const token = params.get("token") ? `?token=${encodeURIComponent(params.get("token"))}` : "";
+    $("bedside").src = `${location.protocol}//${location.hostname}:${m.bedside_port}/${token}`;
   } else {
     $("bedside-note").textContent = "No 3-D view on this server (started with --no-bedside).";
     $("bedside").remove();
