@@ -81,7 +81,7 @@ def run(n: int, seconds: float, settle: float, task: str, priority: int | None) 
     try:
         if not room.wait_ready(600):
             raise RuntimeError(f"the class of {n} did not start: {room.status()}")
-        pages = [_Page(s.port) for s in room.systems]
+        pages = [_Page(s["port"]) for s in room.status()]
         time.sleep(settle)
         start = [p.last for p in pages]
         bytes0 = [p.bytes for p in pages]

@@ -351,6 +351,16 @@ def _class_parser(sub) -> None:
                    help="SCHED_FIFO priority N of every loop process (as serve's)")  # fmt: skip
     p.add_argument("--records", default=None, metavar="FILE", help=_RECORDS_HELP)
     p.add_argument("--duration", type=float, default=None, help="stop after this many seconds")
+    p.add_argument("--ray", default=None, metavar="ADDRESS",
+                   help="run the systems on this Ray cluster ('auto': the one this machine "
+                   "is in), spread over its nodes")  # fmt: skip
+    p.add_argument(
+        "--cpus-per-trainee",
+        type=float,
+        default=1.0,
+        metavar="N",
+        help="CPUs Ray reserves per system (with --ray; default 1)",
+    )
     p.set_defaults(func=cmd_class)
 
 
@@ -369,7 +379,8 @@ def cmd_class(args: argparse.Namespace) -> int:
     try:
         options = ClassOptions(names, task=args.task, host=args.host, port=args.port,
                                token=token, realtime_priority=args.realtime_priority,
-                               records=args.records)  # fmt: skip
+                               records=args.records, ray_address=args.ray,
+                               cpus_per_trainee=args.cpus_per_trainee)  # fmt: skip
         from davinci_sim.web.server import WebOptions
 
         WebOptions(host=args.host, token=token)  # (the same rule as serve's: a token off loopback)
@@ -385,15 +396,20 @@ def cmd_class(args: argparse.Namespace) -> int:
         print(f"davinci-sim class: the lobby cannot serve on port {args.port}: {e}",
               file=sys.stderr)  # fmt: skip
         return 2
+    except (ImportError, ConnectionError, RuntimeError) as e:  # (Ray missing or unreachable)
+        print(f"davinci-sim class: {e}", file=sys.stderr)
+        return 2
     print(f"class lobby: {room.url}  <- the trainees open this", flush=True)
     announced: set[str] = set()
     end = None if args.duration is None else time.monotonic() + args.duration
     while not stop.is_set() and (end is None or time.monotonic() < end):
-        for s in room.systems:
-            if s.url and s.name not in announced:
-                announced.add(s.name)
-                print(f"{s.name}: {s.url}", flush=True)
-        if all(s.process.poll() is not None for s in room.systems):
+        status = room.status()
+        for s in status:
+            if s["url"] and s["name"] not in announced:
+                announced.add(s["name"])
+                where = f" (Ray node {s['node'][:8]})" if s["node"] else ""
+                print(f"{s['name']}: {s['url']}{where}", flush=True)
+        if all(s["state"].startswith("exited") for s in status):
             break
         stop.wait(0.5)
     print("stopping the class …", flush=True)

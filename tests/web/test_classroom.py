@@ -79,3 +79,53 @@ def test_the_lobby_needs_the_token_when_one_is_set():
         assert urllib.request.urlopen(room.url + "?token=t0k").status == 200
     finally:
         room.stop()
+
+
+@pytest.fixture
+def two_node_cluster():
+    """A local Ray cluster of two nodes with one CPU each."""
+    ray = pytest.importorskip("ray")
+    from ray.cluster_utils import Cluster
+
+    node = {"num_cpus": 1, "object_store_memory": 80 * 2**20}
+    cluster = Cluster(initialize_head=True, head_node_args={**node, "include_dashboard": False})
+    cluster.add_node(**node)
+    cluster.wait_for_nodes()
+    yield cluster
+    ray.shutdown()
+    cluster.shutdown()
+
+
+def test_on_a_ray_cluster_each_trainee_gets_a_system_on_a_node_of_its_own(two_node_cluster):
+    options = ClassOptions(("Ada", "Grace"), task=SHORT_TASK, port=free_port(),
+                           ray_address=two_node_cluster.address)  # fmt: skip
+    room = Classroom(options).start()
+    try:
+        assert room.wait_ready(240), room.status()
+        status = json.loads(urllib.request.urlopen(room.url + "status.json").read())
+        assert [(s["name"], s["state"]) for s in status] == [("Ada", "ready"), ("Grace", "ready")]
+        nodes = {s["node"] for s in status}
+        assert len(nodes) == 2 and None not in nodes  # one system per node (1 CPU each)
+        lobby = urllib.request.urlopen(room.url).read().decode()
+        for s in status:
+            assert f'href="{s["url"]}"' in lobby
+            with connect(s["url"].replace("http", "ws", 1) + "ws", open_timeout=10) as ws:
+                assert json.loads(ws.recv(timeout=20))["trainee"] == s["name"]
+    finally:
+        final = room.stop()
+    for s in final:
+        assert s["state"] == "exited (0)"
+        assert any(n.startswith("loop: ") for n in s["notes"])
+
+
+def test_a_trainee_without_a_node_with_room_waits_and_says_so(two_node_cluster):
+    options = ClassOptions(("Ada", "Grace"), task=SHORT_TASK, port=free_port(),
+                           ray_address=two_node_cluster.address, cpus_per_trainee=2,
+                           extra=("--duration", "60"))  # fmt: skip
+    room = Classroom(options).start()
+    try:
+        assert not room.wait_ready(8)
+        assert {s["state"] for s in room.status()} == {"waiting for a Ray node with room"}
+    finally:
+        final = room.stop(timeout=1)
+    assert len(final) == 2

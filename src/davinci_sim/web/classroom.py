@@ -9,6 +9,9 @@ other. The lobby (:class:`Classroom`, its own HTTP server on the lobby's port) l
 trainees with a link to each console and how their system is doing (starting, ready, the
 last warning it printed, exited); ``/status.json`` gives the same as JSON.
 
+With ``ray_address`` the systems are Ray actors spread over a Ray cluster's nodes instead
+(:mod:`~davinci_sim.web.class_ray`); the lobby stays here and links to each node.
+
 Served beyond loopback, every console and the lobby need the token (``$DAVINCI_SIM_TOKEN``,
 passed to the children in their environment, never on a command line that ``ps`` shows).
 """
@@ -27,7 +30,11 @@ import threading
 import time
 from dataclasses import dataclass, field
 from http.server import BaseHTTPRequestHandler, ThreadingHTTPServer
+from typing import TYPE_CHECKING
 from urllib.parse import parse_qs, urlsplit
+
+if TYPE_CHECKING:
+    from davinci_sim.web.class_ray import RaySystems
 
 _log = logging.getLogger("davinci_sim.web")
 
@@ -54,6 +61,12 @@ class ClassOptions:
     """The trainee records file all systems record in (None: the default)."""
     extra: tuple[str, ...] = field(default_factory=tuple)
     """More ``serve`` arguments for every system (e.g. ``--fast``)."""
+    ray_address: str | None = None
+    """Run the systems as Ray actors on the Ray cluster at this address (``"auto"``: the
+    one this machine belongs to), spread over its nodes (:mod:`~davinci_sim.web.class_ray`);
+    None: processes of this machine."""
+    cpus_per_trainee: float = 1.0
+    """CPUs Ray reserves for each system (its loop takes about one core)."""
 
     def __post_init__(self) -> None:
         names = list(self.trainees)
@@ -64,6 +77,8 @@ class ClassOptions:
         for name in names:
             if not name.strip() or len(name) > 64:
                 raise ValueError(f"bad trainee name {name!r} (1-64 characters)")
+        if not self.cpus_per_trainee > 0:
+            raise ValueError(f"cpus_per_trainee must be > 0, got {self.cpus_per_trainee}")
         if not 0 <= self.port or self.port + len(names) > 65535:
             raise ValueError(f"ports {self.port}..{self.port + len(names)} are not all valid")
 
@@ -83,7 +98,7 @@ def serve_command(options: ClassOptions, k: int) -> list[str]:
 
 @dataclass
 class TraineeSystem:
-    """One trainee's running system, as the lobby sees it."""
+    """One trainee's running system (a ``serve`` process of this machine)."""
 
     name: str
     port: int
@@ -92,6 +107,8 @@ class TraineeSystem:
     """The console's URL once it is up."""
     notes: list[str] = field(default_factory=list)
     """The last notable lines it printed (warnings, the loop's figures)."""
+    node: str | None = None
+    """Where it runs (a Ray node's id; None: this machine)."""
 
     @property
     def state(self) -> str:
@@ -100,33 +117,109 @@ class TraineeSystem:
             return f"exited ({code})"
         return "ready" if self.url else "starting"
 
+    def status(self) -> dict:
+        """What the lobby shows of it (JSON-ready)."""
+        return {"name": self.name, "port": self.port, "url": self.url, "state": self.state,
+                "notes": self.notes[-5:], "node": self.node}  # fmt: skip
+
+
+def class_environment(options: ClassOptions) -> dict[str, str]:
+    """The systems' environment: this process's, with the class's token."""
+    env = dict(os.environ)
+    if options.token is not None:
+        env["DAVINCI_SIM_TOKEN"] = options.token
+    return env
+
+
+def start_system(options: ClassOptions, k: int, env: dict[str, str], *,
+                 shown_host: str | None = None) -> TraineeSystem:  # fmt: skip
+    """Start trainee ``k``'s ``serve`` process here, and a thread following its output (the
+    console's URL, with ``shown_host`` as its host if given; notable lines)."""
+    process = subprocess.Popen(
+        serve_command(options, k), env=env, stdout=subprocess.PIPE,
+        stderr=subprocess.STDOUT, text=True, bufsize=1, start_new_session=True,
+    )  # fmt: skip
+    system = TraineeSystem(options.trainees[k], options.port + 1 + k, process)
+    threading.Thread(target=_follow, args=(system, shown_host), daemon=True,
+                     name=f"class-{system.name}").start()  # fmt: skip
+    return system
+
+
+def _follow(system: TraineeSystem, shown_host: str | None) -> None:
+    assert system.process.stdout is not None
+    for line in system.process.stdout:
+        line = line.rstrip()
+        found = _READY.search(line)
+        if found and system.url is None:
+            url = found.group(1)
+            if shown_host is not None:
+                parts = urlsplit(url)
+                url = parts._replace(netloc=f"{shown_host}:{parts.port}").geturl()
+            system.url = url
+        elif _NOTABLE.search(line):
+            system.notes.append(line)
+            del system.notes[:-20]
+
+
+def interrupt(systems: list[TraineeSystem]) -> None:
+    """Ask every system to stop as Ctrl-C does (each prints its loop's figures)."""
+    for s in systems:
+        if s.process.poll() is None:
+            try:
+                os.killpg(s.process.pid, signal.SIGINT)
+            except ProcessLookupError:
+                pass
+
+
+def wait_stopped(systems: list[TraineeSystem], timeout: float) -> None:
+    """Wait for the interrupted systems; kill what is still running after ``timeout`` s."""
+    end = time.monotonic() + timeout
+    for s in systems:
+        try:
+            s.process.wait(max(0.1, end - time.monotonic()))
+        except subprocess.TimeoutExpired:
+            os.killpg(s.process.pid, signal.SIGKILL)
+            s.process.wait()
+    time.sleep(0.2)  # (their last lines reach the followers)
+
+
+class LocalSystems:
+    """The class's systems as processes of this machine."""
+
+    def __init__(self, options: ClassOptions) -> None:
+        self.options = options
+        self.systems: list[TraineeSystem] = []
+
+    def start(self) -> None:
+        env = class_environment(self.options)
+        for k in range(len(self.options.trainees)):
+            self.systems.append(start_system(self.options, k, env))
+
+    def status(self) -> list[dict]:
+        return [s.status() for s in self.systems]
+
+    def stop(self, timeout: float) -> None:
+        interrupt(self.systems)
+        wait_stopped(self.systems, timeout)
+
 
 class Classroom:
     """The systems of a class and their lobby; see the module docstring."""
 
     def __init__(self, options: ClassOptions) -> None:
         self.options = options
-        self.systems: list[TraineeSystem] = []
+        if options.ray_address is None:
+            self.systems: LocalSystems | RaySystems = LocalSystems(options)
+        else:
+            from davinci_sim.web.class_ray import RaySystems
+
+            self.systems = RaySystems(options)
         self._lobby: ThreadingHTTPServer | None = None
-        self._threads: list[threading.Thread] = []
 
     def start(self) -> Classroom:
         """Start every system (at once) and the lobby; returns when the lobby serves."""
-        env = dict(os.environ)
-        if self.options.token is not None:
-            env["DAVINCI_SIM_TOKEN"] = self.options.token
         try:
-            for k, name in enumerate(self.options.trainees):
-                process = subprocess.Popen(
-                    serve_command(self.options, k), env=env, stdout=subprocess.PIPE,
-                    stderr=subprocess.STDOUT, text=True, bufsize=1, start_new_session=True,
-                )  # fmt: skip
-                system = TraineeSystem(name, self.options.port + 1 + k, process)
-                self.systems.append(system)
-                reader = threading.Thread(target=self._read, args=(system,), daemon=True,
-                                          name=f"class-{name}")  # fmt: skip
-                reader.start()
-                self._threads.append(reader)
+            self.systems.start()
             self._lobby = ThreadingHTTPServer((self.options.host, self.options.port),
                                               _handler(self))  # fmt: skip
         except BaseException:
@@ -145,51 +238,29 @@ class Classroom:
         """Wait until every system's console is up (False: one exited or the time ran out)."""
         end = time.monotonic() + timeout
         while time.monotonic() < end:
-            if any(s.process.poll() is not None for s in self.systems):
+            status = self.status()
+            if any(s["state"].startswith("exited") for s in status):
                 return False
-            if all(s.url for s in self.systems):
+            if all(s["state"] == "ready" for s in status):
                 return True
             time.sleep(0.2)
         return False
 
     def status(self) -> list[dict]:
-        return [{"name": s.name, "port": s.port, "url": s.url, "state": s.state,
-                 "notes": s.notes[-5:]} for s in self.systems]  # fmt: skip
+        return self.systems.status()
 
     def stop(self, timeout: float = 30.0) -> list[dict]:
         """Stop every system as Ctrl-C does (each prints its loop's figures) and the lobby;
         returns the final :meth:`status`."""
-        for s in self.systems:
-            if s.process.poll() is None:
-                try:
-                    os.killpg(s.process.pid, signal.SIGINT)
-                except ProcessLookupError:
-                    pass
-        end = time.monotonic() + timeout
-        for s in self.systems:
-            try:
-                s.process.wait(max(0.1, end - time.monotonic()))
-            except subprocess.TimeoutExpired:
-                os.killpg(s.process.pid, signal.SIGKILL)
-                s.process.wait()
-        for t in self._threads:
-            t.join(5)
+        self.systems.stop(timeout)
+        final = self.status()
         if self._lobby is not None:
             self._lobby.shutdown()
             self._lobby.server_close()
             self._lobby = None
-        return self.status()
-
-    def _read(self, system: TraineeSystem) -> None:
-        assert system.process.stdout is not None
-        for line in system.process.stdout:
-            line = line.rstrip()
-            found = _READY.search(line)
-            if found and system.url is None:
-                system.url = found.group(1)
-            elif _NOTABLE.search(line):
-                system.notes.append(line)
-                del system.notes[:-20]
+        if hasattr(self.systems, "close"):
+            self.systems.close()
+        return final
 
 
 def _handler(room: Classroom):
@@ -230,7 +301,8 @@ def _lobby_html(room: Classroom) -> str:
         name = html.escape(s["name"])
         cell = f'<a href="{html.escape(link)}">{name}</a>' if link else name
         notes = "<br>".join(html.escape(n) for n in s["notes"]) or ""
-        rows.append(f"<tr><td>{cell}</td><td>{html.escape(s['state'])}</td>"
+        where = html.escape(s["node"][:8]) if s["node"] else "here"
+        rows.append(f"<tr><td>{cell}</td><td>{html.escape(s['state'])}</td><td>{where}</td>"
                     f"<td>{s['port']}</td><td class=n>{notes}</td></tr>")  # fmt: skip
     return (
         "<!doctype html><html><head><meta charset=utf-8><meta http-equiv=refresh content=5>"
@@ -240,7 +312,6 @@ def _lobby_html(room: Classroom) -> str:
         f"<h1>davinci-sim class: {html.escape(room.options.task)}</h1>"
         "<p>Each trainee opens their own console (the name is the link); every system "
         "has its own 1 kHz loop and records the attempts under the trainee's name.</p>"
-        "<table><tr><th>trainee</th><th>system</th><th>port</th><th>last notes</th></tr>"
-        + "".join(rows)
-        + "</table></body></html>"
+        "<table><tr><th>trainee</th><th>system</th><th>node</th><th>port</th>"
+        "<th>last notes</th></tr>" + "".join(rows) + "</table></body></html>"
     )
