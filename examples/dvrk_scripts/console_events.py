@@ -10,8 +10,10 @@ Prints ``name: value`` lines.
 """
 
 import argparse
+import queue
 import sys
 import threading
+import time
 
 import crtk
 import dvrk
@@ -29,6 +31,18 @@ def joy(value):
     msg = Joy()
     msg.buttons = [value]
     return msg
+
+
+def next_event(events, value, timeout=5.0):
+    """True once an event with ``value`` came through ``events`` within ``timeout`` s."""
+    end = time.monotonic() + timeout
+    while (left := end - time.monotonic()) > 0:
+        try:
+            if events.get(timeout=left) == value:
+                return True
+        except queue.Empty:
+            break
+    return False
 
 
 def run(ral, args):
@@ -62,13 +76,21 @@ def run(ral, args):
     print(f"teleop_scale: {teleop.get_scale():.2f}")
 
     for name in ("operator_present", "clutch", "camera"):
+        # (the events through a callback set before publishing: wait() waits for the next
+        # event, and in one process the console's answer can come before wait() is called)
+        events = queue.Queue()
+        buttons[name].set_callback(events.put)
         emulate[name].publish(joy(1))
-        pressed = buttons[name].wait(timeout=5, value=1)
+        pressed = next_event(events, 1)
         emulate[name].publish(joy(0))
-        released = buttons[name].wait(timeout=5, value=0)
+        released = next_event(events, 0)
+        buttons[name].set_callback(None)
         print(f"{name}_pressed_released: {pressed} {released}")
+    events = queue.Queue()
+    buttons["operator_present"].set_callback(events.put)
     emulate["operator_present"].publish(joy(1))
-    buttons["operator_present"].wait(timeout=5, value=1)
+    next_event(events, 1)
+    buttons["operator_present"].set_callback(None)
 
     console.teleop_start()
     print(f"teleop_enabled: {enabled.wait(5)}")
