@@ -11,6 +11,10 @@ batch engine with one row per trial of the condition. Kinds offered:
   G_max, transition. ``transition`` defaults to 0, the law as printed; a positive value is
   the width of an on-path ramp (m), an explicit option that the study reports.
 * ``spring`` — :class:`~davinci_sim.haptics.spring.SpringGuidance`.
+* ``viscous_elastic`` — Rota's dVRK-console study's fixture
+  (:class:`~davinci_sim.haptics.viscous_elastic.ViscousElasticGuidance`): the seed's viscous
+  law uncapped plus a logistic elastic pull, the sum capped (``max_force``, 3 N) and scaled
+  by ``assistance``.
 * ``adaptive`` — the seed's viscous law with a B that follows the trainee between
   repetitions (``mode: assist_as_needed`` or ``fading``, :mod:`davinci_sim.haptics.adaptive`);
   the entry's ``B`` is the B of the repetition that runs (absent: B0).
@@ -38,6 +42,7 @@ from davinci_sim.haptics import adaptive
 from davinci_sim.haptics.fixture import Fixture
 from davinci_sim.haptics.spring import SpringGuidance
 from davinci_sim.haptics.viscous import ViscousGuidance
+from davinci_sim.haptics.viscous_elastic import ViscousElasticGuidance, describe_viscous_elastic
 
 
 @dataclass(frozen=True)
@@ -207,6 +212,13 @@ register_fixture_kind(
     params={"stiffness", "damping", "max_force", "transition"},
     defaults={"damping": 0.0, "max_force": 5.0, "transition": 0.0005},
     describe=_describe_spring,
+)
+register_fixture_kind(
+    "viscous_elastic",
+    ViscousElasticGuidance,
+    params={"B", "elastic_gain", "threshold", "half", "slope", "max_force", "assistance"},
+    defaults={"max_force": 3.0, "assistance": 1.0},
+    describe=describe_viscous_elastic,
 )
 register_fixture_kind("none", lambda path: None, params=set(), describe=lambda p: "no guidance")
 register_fixture_kind(
