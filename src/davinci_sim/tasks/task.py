@@ -96,6 +96,7 @@ class PathTask(Task, kind="path"):
         **dict.fromkeys(("corner_radius", "start_tolerance", "finish_tolerance",
                          "tube_radius"), NONNEGATIVE),
         "min_progress": Number(minimum=0.0, maximum=1.0),
+        "numbered": ListOf(Number(minimum=0.0), min_items=2, what="waypoint indices"),
         "visual": Record({"tube_radius": NONNEGATIVE, "marker_radius": NONNEGATIVE,
                           "path_rgba": Vector(4, "r, g, b, a", Number(minimum=0.0, maximum=1.0)),
                           "marker_rgba": Vector(4, "r, g, b, a",
@@ -109,6 +110,15 @@ class PathTask(Task, kind="path"):
         "viscous": {"B", "G_max", "transition"},
         "spring": {"stiffness", "damping", "max_force", "transition"},
         "adaptive": set(ADAPTIVE_PARAMS),
+        "viscous_elastic": {
+            "B",
+            "elastic_gain",
+            "threshold",
+            "half",
+            "slope",
+            "max_force",
+            "assistance",
+        },  # fmt: skip
         "none": set(),
     }
     #: The adaptive entry's parameters that are not numbers (for the file schema).
@@ -128,6 +138,11 @@ class PathTask(Task, kind="path"):
     """... once the tip has been past this fraction of the path's length."""
     tube_radius: float = 0.003
     """Tolerance tube of the *time outside* metric, m."""
+    numbered: tuple[int, ...] | None = None
+    """Indices of the waypoints that are numbered points (drawn as markers, the ends of the
+    trainee's strokes, the missed-targets metric's targets), the first and last included;
+    None: every waypoint. A dense curve (a trajectory taken from elsewhere) numbers its
+    ends only."""
     teleop: TeleopSpec = field(default_factory=TeleopSpec)
     fixture_spec: dict = field(default_factory=lambda: {"type": "none"})
     conditions: tuple[dict, ...] = ()
@@ -146,6 +161,17 @@ class PathTask(Task, kind="path"):
             check_number(self.name, name, getattr(self, name))
         if not 0.0 <= self.min_progress <= 1.0:
             raise TaskError(f"task {self.name!r}: min_progress must be in [0, 1]")
+        if self.numbered is not None:
+            numbered = list(self.numbered)
+            whole = all(float(i) == int(i) for i in numbered)
+            ints = [int(i) for i in numbered] if whole else []
+            if not (whole and ints[0] == 0 and ints[-1] == len(w) - 1
+                    and all(a < b for a, b in zip(ints, ints[1:], strict=False))):  # fmt: skip
+                raise TaskError(
+                    f"task {self.name!r}: numbered must be increasing waypoint indices from 0 "
+                    f"to {len(w) - 1}, got {numbered}"
+                )
+            object.__setattr__(self, "numbered", tuple(ints))
         self.check()
         try:
             self.path  # noqa: B018 (builds and checks the corners)
@@ -175,7 +201,10 @@ class PathTask(Task, kind="path"):
                 "excessive_force": {"weight": 1.0, "fail": 5.0},
                 "out_of_view": {"weight": 1.0, "fail": L},
                 "master_workspace": {"weight": 1.0, "fail": 2.0 * span},
-                "missed_targets": {"weight": 1.0, "fail": float(max(len(self.waypoints) - 2, 1))},
+                "missed_targets": {
+                    "weight": 1.0,
+                    "fail": float(max(len(self.marker_arc_lengths) - 2, 1)),
+                },  # fmt: skip
             }
         }
 
@@ -216,7 +245,8 @@ class PathTask(Task, kind="path"):
     @property
     def marker_arc_lengths(self) -> np.ndarray:
         """Arc length of each numbered point's place on the path (N,), m."""
-        return self._rounded[1]
+        at = self._rounded[1]
+        return at if self.numbered is None else at[list(self.numbered)]
 
     @cached_property
     def markers(self) -> np.ndarray:
@@ -228,8 +258,11 @@ class PathTask(Task, kind="path"):
 
     @property
     def view_points(self) -> np.ndarray:
-        """The numbered points: framing them shows the whole path."""
-        return self.markers
+        """The waypoints' places on the path: framing them shows the whole path (and
+        ``task check`` checks each)."""
+        if self.numbered is None:
+            return self.markers
+        return self.path.point_at(self._rounded[1])
 
     @property
     def start(self) -> np.ndarray:
@@ -344,6 +377,7 @@ class PathTask(Task, kind="path"):
             "finish_tolerance",
             "min_progress",
             "tube_radius",
+            "numbered",
             "teleop",
             "fixture",
             "conditions",
@@ -374,6 +408,7 @@ class PathTask(Task, kind="path"):
             "finish_tolerance": self.finish_tolerance,
             "min_progress": self.min_progress,
             "tube_radius": self.tube_radius,
+            **({} if self.numbered is None else {"numbered": list(self.numbered)}),
             "visual": {
                 k: list(v) if isinstance(v, tuple) else v for k, v in vars(self.visual).items()
             },
