@@ -1248,9 +1248,11 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument(
         "--design",
         default="within",
-        choices=["within", "between"],
+        choices=["within", "between", "rota"],
         help="within: every subject does every condition (counterbalanced); between: "
-        "subject s does condition s mod C only",
+        "subject s does condition s mod C only; rota: Rota's protocol, a control group "
+        "(the first condition) and an assisted group (the others, one a day), --repetitions "
+        "trials a day",
     )
     p.add_argument(
         "--mechanisms",

@@ -30,6 +30,12 @@ subject design (``design="between"``: subject s practises only condition s mod C
 its retention block) is the design of the guidance-hypothesis literature, each subject's
 retention measuring one condition's training.
 
+Rota's protocol (``design="rota"``, training.md §4): two groups over days, the first
+condition the control group's, the others the assisted group's days in order (``rota_path``:
+control, then the guidance at 1.0, 0.75, 0.5, 0.25 of its force). Subject s is in the
+control group if s is even, else in the assisted group; each does ``n_repetitions`` trials
+a day for C − 1 days (block = day), its practice count running on through the days.
+
 Mechanisms (``mechanisms``): the trainee reactions to guidance switched on
 (:class:`~davinci_sim.operators.params.Mechanisms`): ``reliance`` (a guided trial counts
 less for the trainee's own correction: each trial's ``own_practice``) and ``stiffening``
@@ -48,7 +54,7 @@ from davinci_sim.study.trial import TrialSpec
 #: The seed's Table I: (B in N·s/m, G_max in N).
 TABLE_I: tuple[tuple[float, float], ...] = ((0.0, 0.0), (20.0, 2.0), (40.0, 5.0), (60.0, 8.0))
 ORDERS = ("latin", "fixed")
-DESIGNS = ("within", "between")
+DESIGNS = ("within", "between", "rota")
 BACKENDS = ("local", "ray")
 ENGINES = ("batch", "live")
 
@@ -88,8 +94,8 @@ class StudyConfig:
     retention: int = 0
     """Repetitions with the fixture off after each condition's practice block (0: none)."""
     design: str = "within"
-    """``within`` (every subject does every condition) or ``between`` (subject s does
-    condition s mod C only)."""
+    """``within`` (every subject does every condition), ``between`` (subject s does
+    condition s mod C only) or ``rota`` (two groups over C − 1 days; module docstring)."""
     mechanisms: tuple[str, ...] = ()
     """Trainee mechanisms on (:data:`~davinci_sim.operators.params.MECHANISMS`)."""
 
@@ -123,12 +129,23 @@ class StudyConfig:
             raise StudyError(f"transition must be a number >= 0 (m), got {t!r}")
         conditions = resolve_conditions(self.conditions, self.task, transition=t)
         object.__setattr__(self, "conditions", conditions)
+        if self.design == "rota" and (len(conditions) < 2 or self.retention):
+            raise StudyError(
+                "the rota design needs two or more conditions (the control group's, then the "
+                "assisted group's days) and no retention blocks"
+            )
+
+    @property
+    def days(self) -> int:
+        """Blocks of a subject's trials: the rota design's days (C − 1), else 1 (between)
+        or C (within)."""
+        C = len(self.conditions)
+        return {"between": 1, "rota": C - 1}.get(self.design, C)
 
     @property
     def n_trials(self) -> int:
         per_block = self.n_repetitions + self.retention
-        blocks = 1 if self.design == "between" else len(self.conditions)
-        return self.n_subjects * blocks * per_block
+        return self.n_subjects * self.days * per_block
 
 
 def study_task(task: str):
@@ -267,10 +284,12 @@ def williams_row(row: int, n: int) -> list[int]:
 
 def condition_order(config: StudyConfig, subject: int) -> list[int]:
     """Indices of the conditions in the order subject ``subject`` does them (one condition,
-    s mod C, in the between-subject design)."""
+    s mod C, in the between-subject design; a condition per day in the rota design)."""
     n = len(config.conditions)
     if config.design == "between":
         return [subject % n]
+    if config.design == "rota":  # (control: the first condition every day; assisted: the rest)
+        return [0] * (n - 1) if subject % 2 == 0 else list(range(1, n))
     return williams_row(subject, n) if config.order == "latin" else list(range(n))
 
 

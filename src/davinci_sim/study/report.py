@@ -19,6 +19,7 @@ from davinci_sim.haptics.kinds import describe_fixture, viscous_law
 from davinci_sim.operators.params import TRAINEE_METHOD
 from davinci_sim.study.compare import comparison
 from davinci_sim.study.config import pair_labels
+from davinci_sim.study.days import days_section
 from davinci_sim.study.retention import (
     block_rows,
     mechanisms_text,
@@ -315,7 +316,7 @@ def write_report(
     C, n = len(cfg.conditions), cfg.n_subjects
     sim_time = sum(r["sim_time"] for r in all_rows)
     trial_wall = sum(r["wall_time"] for r in all_rows)
-    blocks = 1 if cfg.design == "between" else C
+    blocks = cfg.days
     retention = (
         f" + {cfg.retention} retention repetitions (fixture off) after each practice block"
         if cfg.retention else ""
@@ -323,8 +324,11 @@ def write_report(
     L = [
         "# Simulated user study",
         "",
-        f"Task `{cfg.task}`, {cfg.design}-subject design: {n} subjects × {blocks} condition "
-        f"block(s) × ({cfg.n_repetitions} practice repetitions{retention}) "
+        f"Task `{cfg.task}`, "
+        f"{'Rota' + chr(39) + 's two-group' if cfg.design == 'rota' else cfg.design + '-subject'} "
+        f"design: {n} subjects × {blocks} "
+        f"{'day' if cfg.design == 'rota' else 'condition block'}(s) × "
+        f"({cfg.n_repetitions} practice repetitions{retention}) "
         f"= {len(all_rows)} trials ({len(rows)} practice); seed {cfg.seed}; condition order "
         f"`{cfg.order}`; "
         f"`{cfg.engine}` engine, backend `{cfg.backend}` with {cfg.workers} worker(s); trial "
@@ -385,8 +389,14 @@ def write_report(
         tot = sum(1 for r in rows if r["condition"] == c)
         cells = "".join(f"{cell(m.name, m.report[1])} | " for m in SUMMARY)
         L.append(f"| {_label(cfg.conditions[c])} | {cells}{fin}/{tot} |")
+    L.append("")
+    if cfg.design == "rota":  # (groups over days: not the conditions' tests below)
+        L += days_section(rows, cfg.conditions)
+        L += retention_section(result, short_labels(cfg.conditions))
+        _report_end(L, result)
+        write_text_atomic(path, "\n".join(L))
+        return
     L += [
-        "",
         "## Statistical tests",
         "",
         "Per-subject means; Friedman test across the conditions, then two-sided Wilcoxon "
@@ -421,6 +431,13 @@ def write_report(
             "",
         ]
     L += retention_section(result, labels)
+    _report_end(L, result)
+    write_text_atomic(path, "\n".join(L))
+
+
+def _report_end(L: list[str], result: StudyResult) -> None:
+    """The report's last sections (the seed's claims, the trainees' limits, the files)."""
+    cfg = result.config
     L += ["## The seed's claims", ""]
     found = claims(result)
     if not found:
@@ -460,7 +477,6 @@ def write_report(
         "`fig9_completion_time.png`" + (", `fig10_retention.png`" if cfg.retention else ""),
         "",
     ]
-    write_text_atomic(path, "\n".join(L))
 
 
 def write_outputs(result: StudyResult, folder) -> list[Path]:

@@ -1,0 +1,60 @@
+"""Rota's protocol as a study design: a control group on the first condition every day, an
+assisted group on one condition a day, the practice count running on through the days; and
+the report's groups-by-day figures."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from davinci_sim.study.config import StudyConfig, StudyError, plan_trials
+from davinci_sim.study.days import day_figures, days_section
+
+
+def test_the_groups_do_their_conditions_day_by_day():
+    config = StudyConfig(task="rota_path", design="rota", n_subjects=4, n_repetitions=3)
+    assert [c["name"] for c in config.conditions][:2] == ["control", "assisted x1"]
+    specs = plan_trials(config)
+    assert len(specs) == config.n_trials == 4 * 4 * 3
+    for s in range(4):
+        mine = [t for t in specs if t.subject == s]
+        assert [t.order for t in mine] == [d for d in (1, 2, 3, 4) for _ in range(3)]
+        assert [t.practice for t in mine] == list(range(1, 13))  # (practice runs on)
+        days = [t.condition for t in mine]
+        assert days == ([0] * 12 if s % 2 == 0 else [d for d in (1, 2, 3, 4) for _ in range(3)])
+    assisted = [t for t in specs if t.subject == 1 and t.order == 4]
+    assert {t.fixture.get("assistance") for t in assisted} == {0.25}
+
+
+@pytest.mark.parametrize("kwargs", [{"conditions": [{"type": "none", "name": "control"}]},
+                                    {"retention": 2}])  # fmt: skip
+def test_the_design_needs_days_and_no_retention(kwargs):
+    with pytest.raises(StudyError, match="rota design"):
+        StudyConfig(task="rota_path", design="rota", n_subjects=2, n_repetitions=1, **kwargs)
+
+
+def rows():
+    """Two subjects a group, two days, two trials a day: deviation = subject + day (mm)."""
+    out = []
+    for s in range(4):
+        for day in (1, 2):
+            for k in range(2):
+                out.append({"subject": s, "condition": 0 if s % 2 == 0 else day,
+                            "condition_name": "control" if s % 2 == 0 else f"day {day}",
+                            "order": day, "completion_time": 10.0 * day + k,
+                            "deviation_error": 1e-3 * (s + day)})  # fmt: skip
+    out[-1]["completion_time"] = float("nan")  # (a trial without the metric is left out)
+    return out
+
+
+def test_each_group_per_day_is_the_mean_and_sd_of_its_subjects_means():
+    figures = {(f.group, f.day): f for f in day_figures(rows(), "deviation_error")}
+    control = figures[("control", 1)]  # subjects 0 and 2: 1 and 3 mm
+    assert (control.mean, control.sd, control.subjects) == pytest.approx(
+        (2e-3, np.sqrt(2) * 1e-3, 2)
+    )
+    assert figures[("assisted", 2)].mean == pytest.approx(4e-3)  # subjects 1 and 3: 3, 5 mm
+    time = {(f.group, f.day): f for f in day_figures(rows(), "completion_time")}
+    assert time[("assisted", 2)].mean == pytest.approx((20.5 + 20.0) / 2)  # (3's nan left out)
+    text = "\n".join(days_section(rows(), None))
+    assert "| 1 | 2.00 ± 1.41 (2) | 10.50 ± 0.00 (2) | day 1 | 3.00 ± 1.41 (2) |" in text
