@@ -712,6 +712,7 @@ def cmd_study(args: argparse.Namespace) -> int:
             retention=args.retention,
             design=args.design,
             mechanisms=tuple(m for m in (args.mechanisms or "").split(",") if m.strip()),
+            population=args.population,
         )
     except StudyError as e:
         print(f"davinci-sim study: {e}", file=sys.stderr)
@@ -1244,6 +1245,12 @@ def build_parser() -> argparse.ArgumentParser:
         metavar="N",
         help="N repetitions with the fixture off after each condition's practice block "
         "(rows with block=retention; the report compares the conditions on them)",
+    )
+    p.add_argument(
+        "--population",
+        default="trainee",
+        help="the synthetic trainees: trainee (the parameter table's novices), expert, or a "
+        "fitted profile (rota2023: fitted to Rota's dVRK-console control group)",
     )
     p.add_argument(
         "--design",

@@ -58,3 +58,11 @@ def test_each_group_per_day_is_the_mean_and_sd_of_its_subjects_means():
     assert time[("assisted", 2)].mean == pytest.approx((20.5 + 20.0) / 2)  # (3's nan left out)
     text = "\n".join(days_section(rows(), None))
     assert "| 1 | 2.00 ± 1.41 (2) | 10.50 ± 0.00 (2) | day 1 | 3.00 ± 1.41 (2) |" in text
+
+
+def test_a_study_names_its_population_and_the_trials_carry_it():
+    config = StudyConfig(task="rota_path", design="rota", n_subjects=2, n_repetitions=1,
+                         population="expert")  # fmt: skip
+    assert {t.population for t in plan_trials(config)} == {"expert"}
+    with pytest.raises(StudyError, match="unknown population"):
+        StudyConfig(task="rota_path", n_subjects=2, n_repetitions=1, population="nobody")

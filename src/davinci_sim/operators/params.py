@@ -183,8 +183,28 @@ def _normal(rng: np.random.Generator, mean: float, sd: float) -> float:
     return float(np.clip(rng.normal(mean, sd), mean - 3 * sd, mean + 3 * sd))
 
 
-def sample_subject(seed: int, index: int) -> dict[str, float]:
-    """The parameters of subject ``index`` of population ``seed`` (see the module table)."""
+@dataclass(frozen=True)
+class Profile:
+    """The medians and spreads of the draws that a fit may change (the module table's
+    defaults: :data:`NOVICE`); every other draw is the table's."""
+
+    noise_median: float = NOISE_MEDIAN
+    """Median of the signal-dependent noise coefficient k."""
+    noise_spread: float = 1.3
+    """Its lognormal spread (×/÷): the subjects' differences in k."""
+    speed_median: float = 0.015
+    """Median practised tool speed, m/s."""
+    excess_median: float = 1.0
+    """Median novice excess E."""
+
+
+#: The module table's trainees (the default population ``trainee``).
+NOVICE = Profile()
+
+
+def sample_subject(seed: int, index: int, profile: Profile = NOVICE) -> dict[str, float]:
+    """The parameters of subject ``index`` of population ``seed`` (see the module table),
+    with ``profile``'s medians and spread where it differs from the table."""
     rng = np.random.default_rng([int(seed), int(index), 0x5EED])
     stiffness = _lognormal(rng, 300.0, 1.4)
     return {
@@ -193,21 +213,21 @@ def sample_subject(seed: int, index: int) -> dict[str, float]:
         "damping": DAMPING_PER_STIFFNESS * stiffness,
         "delay": _normal(rng, 0.150, 0.020),
         "crossover": _normal(rng, 4.0, 0.5),
-        "noise": _lognormal(rng, NOISE_MEDIAN, 1.3),
+        "noise": _lognormal(rng, profile.noise_median, profile.noise_spread),
         "tremor_amplitude": _lognormal(rng, 60e-6, 1.5),
         "tremor_frequency": float(rng.uniform(8.0, 12.0)),
         "reaction_time": _normal(rng, 0.250, 0.030),
-        "speed": _lognormal(rng, 0.015, 1.3),
-        "novice_excess": _lognormal(rng, 1.0, 1.3),
+        "speed": _lognormal(rng, profile.speed_median, 1.3),
+        "novice_excess": _lognormal(rng, profile.excess_median, 1.3),
         "learning_exponent": float(rng.uniform(0.2, 0.6)),
     }
 
 
-def sample_subjects(n: int, seed: int = 0) -> SubjectParams:
-    """``n`` subjects of population ``seed``."""
+def sample_subjects(n: int, seed: int = 0, profile: Profile = NOVICE) -> SubjectParams:
+    """``n`` subjects of population ``seed`` (with ``profile``'s medians)."""
     if n < 1:
         raise ValueError(f"need at least one subject, got {n}")
-    draws = [sample_subject(seed, i) for i in range(n)]
+    draws = [sample_subject(seed, i, profile) for i in range(n)]
     return SubjectParams(**{k: np.array([d[k] for d in draws]) for k in draws[0]})
 
 

@@ -98,9 +98,17 @@ class StudyConfig:
     condition s mod C only) or ``rota`` (two groups over C − 1 days; module docstring)."""
     mechanisms: tuple[str, ...] = ()
     """Trainee mechanisms on (:data:`~davinci_sim.operators.params.MECHANISMS`)."""
+    population: str = "trainee"
+    """The synthetic trainees' population (:data:`~davinci_sim.operators.params.POPULATIONS`:
+    the module table's ``trainee``, or a fitted profile)."""
 
     def __post_init__(self) -> None:
-        from davinci_sim.operators.params import MECHANISMS
+        from davinci_sim.operators.params import MECHANISMS, POPULATIONS
+
+        if self.population not in POPULATIONS:
+            raise StudyError(
+                f"unknown population {self.population!r}; populations: {list(POPULATIONS)}"
+            )
 
         if not isinstance(self.retention, int) or self.retention < 0:
             raise StudyError(f"retention must be an integer >= 0, got {self.retention!r}")
@@ -332,6 +340,7 @@ def plan_trials(config: StudyConfig) -> list[TrialSpec]:
                             condition_name=config.conditions[c]["name"],
                             own_practice=own if reliance else None,
                             mechanisms=config.mechanisms,
+                            population=config.population,
                         )
                     )
                     own += step

@@ -94,6 +94,8 @@ def config_record(config: StudyConfig) -> dict:
     """What decides a study's rows, as JSON values: the configuration's fields but
     :data:`RUN_ONLY`, and ``task_sha256`` (the task file's digest, None for a named task)."""
     record = {k: v for k, v in dataclasses.asdict(config).items() if k not in RUN_ONLY}
+    if record.get("population") == "trainee":  # (the default: as studies stored it before)
+        del record["population"]
     task = Path(config.task)
     digest = hashlib.sha256(task.read_bytes()).hexdigest() if task.is_file() else None
     record["task_sha256"] = digest
