@@ -69,3 +69,20 @@ def test_path_plan_strokes_stop_at_the_knots():
     ts = np.arange(0, 5.0, 0.001)
     traj = np.stack([path_plan(path, knots, T[:1], np.array([tk]))[0][0] for tk in ts[::50]])
     assert np.max(np.linalg.norm(np.diff(traj, axis=0), axis=1)) < 0.05 * 1.875 * 0.01 * 1.01
+
+
+def test_a_profile_changes_its_medians_draws_only():
+    from davinci_sim.operators.params import NOVICE, Profile, sample_subjects
+
+    base = sample_subjects(6, seed=4)
+    same = sample_subjects(6, seed=4, profile=NOVICE)
+    fitted = sample_subjects(6, seed=4, profile=Profile(noise_median=2 * NOVICE.noise_median,
+                                                        speed_median=0.0075))  # fmt: skip
+    for name in base.__dataclass_fields__:
+        np.testing.assert_array_equal(getattr(base, name), getattr(same, name))
+        if name == "noise":  # (the same standard normal draws, the median scaled)
+            np.testing.assert_allclose(fitted.noise, 2 * base.noise, rtol=1e-12)
+        elif name == "speed":
+            np.testing.assert_allclose(fitted.speed, base.speed / 2, rtol=1e-12)
+        else:
+            np.testing.assert_array_equal(getattr(fitted, name), getattr(base, name))
