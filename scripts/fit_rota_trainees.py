@@ -68,7 +68,7 @@ def simulated(profile: params.Profile, subjects: int, workers: int) -> dict:
 FITS = (("noise_median", "deviation"), ("speed_median", "time_4"), ("excess_median", "time_1"))
 
 
-def newton(profile, got, target, subjects: int, workers: int, steps: int):
+def newton(profile, got, target, subjects: int, workers: int, steps: int, limit: float = 0.7):
     """Newton steps on the three medians at once, in log space: the Jacobian of the three
     figures' logs by forward differences (+10 % on each median), then the step that zeroes
     the linearised residual (the figures interact: a slower trainee is also more accurate)."""
@@ -81,7 +81,7 @@ def newton(profile, got, target, subjects: int, workers: int, steps: int):
             other = simulated(moved, subjects, workers)
             J[:, i] = (np.log([other[f] for _, f in FITS]) - y0) / math.log(1.1)
         step = np.linalg.solve(J, np.log([target[f] for _, f in FITS]) - y0)
-        step = np.clip(step, -0.7, 0.7)  # (at most x2 per step: the model is not linear)
+        step = np.clip(step, -limit, limit)  # (the model is not linear: bounded steps)
         profile = dataclasses.replace(
             profile,
             **{n: getattr(profile, n) * math.exp(d) for n, d in zip(names, step, strict=True)},
@@ -98,6 +98,7 @@ def main() -> None:
     parser.add_argument("--rounds", type=int, default=2, help="coordinate rounds first")
     parser.add_argument("--newton", type=int, default=0, help="then this many Newton steps")
     parser.add_argument("--start", default=None, help="noise,speed,excess medians to start from")
+    parser.add_argument("--max-step", type=float, default=0.7, help="largest log step")
     args = parser.parse_args()
     target = measured()
     profile = params.NOVICE
@@ -106,7 +107,8 @@ def main() -> None:
         profile = dataclasses.replace(profile, noise_median=k, speed_median=v, excess_median=e)
     got = simulated(profile, args.subjects, args.workers)
     print("start", profile, {k: round(float(v), 3) for k, v in got.items()}, flush=True)
-    profile, got = newton(profile, got, target, args.subjects, args.workers, args.newton)
+    profile, got = newton(profile, got, target, args.subjects, args.workers, args.newton,
+                          args.max_step)  # fmt: skip
     for _ in range(args.rounds):
         for name, figure in FITS:
             # (deviation grows with k; time falls with speed, grows with E)

@@ -86,3 +86,13 @@ def test_a_profile_changes_its_medians_draws_only():
             np.testing.assert_allclose(fitted.speed, base.speed / 2, rtol=1e-12)
         else:
             np.testing.assert_array_equal(getattr(fitted, name), getattr(base, name))
+
+
+def test_the_fitted_population_is_the_table_with_its_profile():
+    from davinci_sim.operators.params import ROTA2023, sample_population, sample_subjects
+
+    fitted = sample_population("rota2023", 4, seed=2)
+    same = sample_subjects(4, seed=2, profile=ROTA2023)
+    for name in fitted.__dataclass_fields__:
+        np.testing.assert_array_equal(getattr(fitted, name), getattr(same, name))
+    assert ROTA2023.noise_median > 0 and ROTA2023.speed_median > 0.015  # (faster than the table's)
