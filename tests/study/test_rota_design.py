@@ -66,3 +66,25 @@ def test_a_study_names_its_population_and_the_trials_carry_it():
     assert {t.population for t in plan_trials(config)} == {"expert"}
     with pytest.raises(StudyError, match="unknown population"):
         StudyConfig(task="rota_path", n_subjects=2, n_repetitions=1, population="nobody")
+
+
+def test_the_report_of_a_rota_study_tabulates_the_groups_by_day(tmp_path):
+    from davinci_sim.study.report import write_outputs
+    from davinci_sim.study.runner import StudyResult
+    from davinci_sim.tasks.metrics import PATH_METRICS
+    from davinci_sim.tasks.trainer import trainer_metrics
+
+    config = StudyConfig(task="rota_path", design="rota", n_subjects=4, n_repetitions=2)
+    rng = np.random.default_rng(0)
+    metrics = [m.name for m in (*PATH_METRICS, *trainer_metrics())]
+    rows = [{"subject": t.subject, "condition": t.condition, "condition_name": t.condition_name,
+             "order": t.order, "repetition": t.repetition, "practice": t.practice,
+             "block": t.block, "finished": True, "sim_time": 20.0, "wall_time": 0.5,
+             **{m: float(rng.uniform(1e-3, 3e-3)) for m in metrics},
+             "completion_time": 20.0 - t.practice} for t in plan_trials(config)]  # fmt: skip
+    paths = write_outputs(StudyResult(config, rows, 1.0), tmp_path)
+    report = (tmp_path / "report.md").read_text()
+    assert "Rota's two-group design: 4 subjects × 4 day(s)" in report
+    assert "## Groups by day" in report and "## Statistical tests" not in report
+    assert "| 4 | " in report and "assisted x0.25" in report
+    assert all(p.exists() for p in paths)

@@ -317,6 +317,9 @@ def write_report(
     sim_time = sum(r["sim_time"] for r in all_rows)
     trial_wall = sum(r["wall_time"] for r in all_rows)
     blocks = cfg.days
+    rota = cfg.design == "rota"
+    design = "Rota's two-group" if rota else f"{cfg.design}-subject"
+    block = "day" if rota else "condition block"
     retention = (
         f" + {cfg.retention} retention repetitions (fixture off) after each practice block"
         if cfg.retention else ""
@@ -324,10 +327,7 @@ def write_report(
     L = [
         "# Simulated user study",
         "",
-        f"Task `{cfg.task}`, "
-        f"{'Rota' + chr(39) + 's two-group' if cfg.design == 'rota' else cfg.design + '-subject'} "
-        f"design: {n} subjects × {blocks} "
-        f"{'day' if cfg.design == 'rota' else 'condition block'}(s) × "
+        f"Task `{cfg.task}`, {design} design: {n} subjects × {blocks} {block}(s) × "
         f"({cfg.n_repetitions} practice repetitions{retention}) "
         f"= {len(all_rows)} trials ({len(rows)} practice); seed {cfg.seed}; condition order "
         f"`{cfg.order}`; "
@@ -390,9 +390,8 @@ def write_report(
         cells = "".join(f"{cell(m.name, m.report[1])} | " for m in SUMMARY)
         L.append(f"| {_label(cfg.conditions[c])} | {cells}{fin}/{tot} |")
     L.append("")
-    if cfg.design == "rota":  # (groups over days: not the conditions' tests below)
+    if rota:  # (groups over days, no retention: not the conditions' tests below)
         L += days_section(rows, cfg.conditions)
-        L += retention_section(result, short_labels(cfg.conditions))
         _report_end(L, result)
         write_text_atomic(path, "\n".join(L))
         return
