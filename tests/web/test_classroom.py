@@ -81,9 +81,9 @@ def test_the_lobby_needs_the_token_when_one_is_set():
         room.stop()
 
 
-@pytest.fixture
+@pytest.fixture(scope="module")
 def two_node_cluster():
-    """A local Ray cluster of two nodes with one CPU each."""
+    """A local Ray cluster of two nodes with one CPU each (one for the module's tests)."""
     ray = pytest.importorskip("ray")
     from ray.cluster_utils import Cluster
 
@@ -124,7 +124,7 @@ def test_a_trainee_without_a_node_with_room_waits_and_says_so(two_node_cluster):
                            extra=("--duration", "60"))  # fmt: skip
     room = Classroom(options).start()
     try:
-        assert not room.wait_ready(8)
+        assert not room.wait_ready(3)
         assert {s["state"] for s in room.status()} == {"waiting for a Ray node with room"}
     finally:
         final = room.stop(timeout=1)

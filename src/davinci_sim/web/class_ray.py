@@ -102,8 +102,12 @@ class RaySystems:
     def stop(self, timeout: float) -> None:
         import ray
 
-        refs = [a.stop.remote(timeout) for a in self.actors]
-        done, _ = ray.wait(refs, num_returns=len(refs), timeout=timeout + 10)
+        # (an actor never placed runs no system: nothing to wait for, it is killed at close)
+        placed = [s["node"] is not None for s in self.status()]
+        refs = [a.stop.remote(timeout) if up else a.status.remote()
+                for a, up in zip(self.actors, placed, strict=True)]  # fmt: skip
+        waited = [r for r, up in zip(refs, placed, strict=True) if up]
+        done, _ = ray.wait(waited, num_returns=len(waited), timeout=timeout + 10)
         self._final = [self._answer(k, ref, ref in done) for k, ref in enumerate(refs)]
 
     def close(self) -> None:
