@@ -301,6 +301,19 @@ def test_a_fixture_set_in_the_page_reaches_the_running_task(console):
     page.page.click("#apply")
     page.wait("window.davinci.last.task.condition === 'viscous(B=70, G_max=6)'")
     assert page.page.inner_text("#repetition").endswith("viscous(B=70, G_max=6)")
+    # Rota's fixture: the sliders are its viscous gain and its cap; the elastic term, theirs
+    page.page.select_option("#fixture-type", "viscous_elastic")
+    assert page.page.inner_text("#G-label") == "Fmax"
+    page.js(
+        """for (const [id, v] of [['B', 20], ['G', 2]]) {
+          const el = document.getElementById(id); el.value = v;
+          el.dispatchEvent(new Event('input')); }"""
+    )
+    page.page.click("#apply")
+    page.wait("window.davinci.last.task.condition.startsWith('viscous_elastic(B=20,')")
+    law = page.js("window.davinci.last.task.condition")
+    for part in ("elastic_gain=0.8", "threshold=0.002", "half=0.002", "slope=500", "max_force=2"):
+        assert part in law
 
 
 def test_bad_input_from_the_page_is_refused_with_a_message(console):

@@ -158,9 +158,11 @@ function onHello(m) {
       const o = document.createElement("option"); o.value = t; o.textContent = t; types.appendChild(o);
     }
     if (task.fixture.type) types.value = task.fixture.type;
+    showFixtureType(types.value);
     if (task.fixture.B !== undefined) setSlider("B", task.fixture.B);
-    if (task.fixture.G_max !== undefined) setSlider("G", task.fixture.G_max);
-    state.forceMax = Math.max(1, ...task.conditions.map((c) => c.G_max || 0), task.fixture.G_max || 0);
+    const cap = task.fixture.G_max ?? task.fixture.max_force;
+    if (cap !== undefined) setSlider("G", cap);
+    state.forceMax = Math.max(1, ...task.conditions.map((c) => c.G_max || c.max_force || 0), cap || 0);
     buildRowsHeader(task.metrics);
   }
   // Switching the exercise restarts the server's system with it (the page reconnects).
@@ -215,7 +217,10 @@ const FIXTURE_SLIDERS = {
   viscous: { label: "B", unit: "N·s/m", max: 100, step: 1, value: 40, cap: "G<sub>max</sub>" },
   spring: { label: "K", unit: "N/m", max: 500, step: 10, value: 200, cap: "F<sub>max</sub>" },
   adaptive: { label: "B₀", unit: "N·s/m", max: 60, step: 1, value: 40, cap: "G<sub>max</sub>" },
+  viscous_elastic: { label: "B", unit: "N·s/m", max: 100, step: 1, value: 15, cap: "F<sub>max</sub>" },
 };
+// Rota's elastic term when the task's own fixture is of another kind (training.md §4).
+const ELASTIC_DEFAULTS = { elastic_gain: 0.8, threshold: 0.002, half: 0.002, slope: 500 };
 
 function showFixtureType(type) {
   const spec = FIXTURE_SLIDERS[type];
@@ -752,6 +757,12 @@ function setupPanels() {
     if (type === "viscous") { entry.B = Number($("B").value); entry.G_max = Number($("G").value); }
     if (type === "spring") { entry.stiffness = Number($("B").value); entry.max_force = Number($("G").value); }
     if (type === "adaptive") { entry.B0 = Number($("B").value); entry.G_max = Number($("G").value); }
+    if (type === "viscous_elastic") {  // (the elastic term and assistance: the task's, or Rota's)
+      const own = state.hello.task.fixture;
+      const { name: _, ...rest } = own.type === type ? own : ELASTIC_DEFAULTS;
+      entry.B = Number($("B").value);
+      Object.assign(entry, rest, { type, B: entry.B, max_force: Number($("G").value) });
+    }
     $("condition").value = "__custom";
     send({ op: "condition", condition: entry });
   };
