@@ -89,7 +89,9 @@ class ViscousTerms(NamedTuple):
     """v̂·φ̂ (0 when v or φ is zero)."""
 
 
-def _unit(x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def unit_rows(x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The unit vectors of the rows of ``x`` (..., 3) (0 for a row of norm <= 1e-12) and the
+    rows' norms (...)."""
     n = np.linalg.norm(x, axis=-1)
     safe = np.where(n > _EPS, n, 1.0)
     return np.where((n > _EPS)[..., None], x / safe[..., None], 0.0), n
@@ -120,8 +122,8 @@ def viscous_guidance_terms(
         raise ValueError(
             f"B, G_max and transition must be >= 0, got {B!r}, {G_max!r}, {transition!r}"
         )
-    v_hat, speed = _unit(v)
-    phi_hat, dist = _unit(phi)
+    v_hat, speed = unit_rows(v)
+    phi_hat, dist = unit_rows(phi)
     c = np.clip(np.einsum("...j,...j->...", v_hat, phi_hat), -1.0, 1.0)
     b = B * np.sqrt((1.0 - c) / 2.0)  # (3)
     G = np.minimum(G_max, b * speed)  # (1)-(2), with G_max as the cap (erratum)

@@ -34,7 +34,7 @@ import numpy as np
 
 from davinci_sim.geometry.path import Polyline
 from davinci_sim.haptics.path_query import closest_point
-from davinci_sim.haptics.viscous import viscous_guidance_terms
+from davinci_sim.haptics.viscous import unit_rows, viscous_guidance_terms
 
 #: The logistic's scale of their ``DistMapAttraction``: exp(−slope / 0.2 · (d − ...)).
 SLOPE_DIVISOR = 0.2
@@ -89,8 +89,7 @@ def viscous_elastic_guidance(
         raise ValueError(f"assistance must be in [0, 1], got {assistance!r}")
     phi = np.asarray(deviation, dtype=float)
     viscous = viscous_guidance_terms(velocity, phi, B=B, G_max=math.inf).force
-    dist = np.linalg.norm(phi, axis=-1)
-    phi_hat = np.where((dist > _EPS)[..., None], phi / np.maximum(dist, _EPS)[..., None], 0.0)
+    phi_hat, dist = unit_rows(phi)
     share = elastic_share(dist, threshold=threshold, half=half, slope=slope)
     total = viscous + (elastic_gain * share)[..., None] * phi_hat
     norm = np.linalg.norm(total, axis=-1)

@@ -202,6 +202,9 @@ class LocalSystems:
         interrupt(self.systems)
         wait_stopped(self.systems, timeout)
 
+    def close(self) -> None:
+        """Nothing left to release (the processes have ended)."""
+
 
 class Classroom:
     """The systems of a class and their lobby; see the module docstring."""
@@ -258,8 +261,7 @@ class Classroom:
             self._lobby.shutdown()
             self._lobby.server_close()
             self._lobby = None
-        if hasattr(self.systems, "close"):
-            self.systems.close()
+        self.systems.close()
         return final
 
 
