@@ -131,6 +131,7 @@ def test_the_3d_view_is_gated_beyond_loopback_only():
     try:
         assert view.host == "127.0.0.1"  # (viser itself stays on loopback)
         assert gate is not None and gate.port != view.port
+        assert gate.url == f"http://127.0.0.1:{gate.port}/"  # (bound everywhere: shown here)
         response, _ = get(gate, "/")
         assert response.status == 403
         response, body = get(gate, "/", cookie=session_cookie(gate))

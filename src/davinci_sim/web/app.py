@@ -73,7 +73,7 @@ def web_part(
             if view is not None:
                 port = view.port if gate is None else gate.port
                 web_options = dataclasses.replace(options, bedside_port=port)
-                info["bedside"] = view.url if gate is None else _gate_url(options.host, port)
+                info["bedside"] = view.url if gate is None else gate.url
         console = WebConsole(
             system.handle,
             web_options,
@@ -127,8 +127,3 @@ def start_bedside(system, options: WebOptions):
         _log.exception("the 3-D view's gate did not start; the console goes on without it")
         view.stop()
         return None, None
-
-
-def _gate_url(host: str, port: int) -> str:
-    shown = "127.0.0.1" if host in ("0.0.0.0", "") else host
-    return f"http://{shown}:{port}/"

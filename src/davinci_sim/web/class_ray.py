@@ -25,6 +25,7 @@ from davinci_sim.web.classroom import (
     start_system,
     wait_stopped,
 )
+from davinci_sim.web.hosts import binds_everywhere
 
 #: How long the lobby waits for an actor's status before showing it as not yet placed, s.
 STATUS_WAIT_S = 5.0
@@ -40,8 +41,7 @@ class TraineeActor:
         if token is not None:
             env["DAVINCI_SIM_TOKEN"] = token
         # Bound to every interface, the console is reached at the node's address.
-        everywhere = options.host in ("0.0.0.0", "", "::")
-        shown = ray.util.get_node_ip_address() if everywhere else None
+        shown = ray.util.get_node_ip_address() if binds_everywhere(options.host) else None
         self.system: TraineeSystem = start_system(options, k, env, shown_host=shown)
         self.system.node = ray.get_runtime_context().get_node_id()
 

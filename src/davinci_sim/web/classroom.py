@@ -33,6 +33,8 @@ from http.server import BaseHTTPRequestHandler, ThreadingHTTPServer
 from typing import TYPE_CHECKING
 from urllib.parse import parse_qs, urlsplit
 
+from davinci_sim.web.hosts import shown_host
+
 if TYPE_CHECKING:
     from davinci_sim.web.class_ray import RaySystems
 
@@ -234,8 +236,7 @@ class Classroom:
 
     @property
     def url(self) -> str:
-        host = "127.0.0.1" if self.options.host in ("0.0.0.0", "", "::") else self.options.host
-        return f"http://{host}:{self.options.port}/"
+        return f"http://{shown_host(self.options.host)}:{self.options.port}/"
 
     def wait_ready(self, timeout: float) -> bool:
         """Wait until every system's console is up (False: one exited or the time ran out)."""

@@ -52,6 +52,7 @@ import mujoco
 import numpy as np
 
 from davinci_sim.web import viser_compat
+from davinci_sim.web.hosts import shown_host
 from davinci_sim.web.scene3d_model import (
     INFINITE_PLANE_HALF_EXTENT,
     CameraPreset,
@@ -161,9 +162,7 @@ class BedsideView:
         """The page's address (after :meth:`start`)."""
         if self.server is None:
             raise RuntimeError("the bedside view is not started")
-        host = self.server.get_host()
-        shown = "127.0.0.1" if host in ("0.0.0.0", "") else host
-        return f"http://{shown}:{self.server.get_port()}"
+        return f"http://{shown_host(self.server.get_host())}:{self.server.get_port()}"
 
     @property
     def port(self) -> int:

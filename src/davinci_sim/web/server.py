@@ -54,6 +54,7 @@ import numpy as np
 from davinci_sim.model.cameras import CameraConfig
 from davinci_sim.sim.runtime.service import AsyncService
 from davinci_sim.web.endoscope_stream import PoseStream
+from davinci_sim.web.hosts import shown_host
 from davinci_sim.web.protocol import OPERATOR_OPS, Command, ProtocolError, parse_message
 from davinci_sim.web.vendor import three_dir, vendor_file
 from davinci_sim.web.view import console_view, problems
@@ -258,9 +259,7 @@ class WebConsole(AsyncService):
 
     @property
     def url(self) -> str:
-        host = self.options.host
-        shown = "127.0.0.1" if host in ("0.0.0.0", "", "::") else host
-        return f"http://{shown}:{self.port}/"
+        return f"http://{shown_host(self.options.host)}:{self.port}/"
 
     def statistics(self) -> dict:
         """Pages connected, frames encoded and mean encode time (s), state messages sent, and

@@ -25,6 +25,8 @@ import threading
 from http.cookies import CookieError, SimpleCookie
 from urllib.parse import parse_qsl, urlencode, urlsplit, urlunsplit
 
+from davinci_sim.web.hosts import shown_host
+
 log = logging.getLogger("davinci_sim.web")
 
 HEAD_LIMIT_BYTES = 64 * 1024
@@ -51,6 +53,11 @@ class TokenGate:
         self.port: int | None = None
         self.refused = 0
         """Requests refused so far (wrong or missing token or cookie)."""
+
+    @property
+    def url(self) -> str:
+        """The gate's address (after :meth:`start`)."""
+        return f"http://{shown_host(self.host)}:{self.port}/"
 
     @property
     def cookie_name(self) -> str:
