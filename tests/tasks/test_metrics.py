@@ -15,6 +15,8 @@ from davinci_sim.tasks.metrics import (
     clutch_count,
     completion_time,
     deviation_error,
+    deviation_max,
+    deviation_rms,
     force_mean,
     force_peak,
     mean_speed,
@@ -52,6 +54,12 @@ def test_sinusoidal_deviation():
     d = A * np.abs(np.sin(2 * np.pi * 1.0 * t))
     m = np.ones(len(t), dtype=bool)
     assert deviation_error(d, m)[0] == pytest.approx(2 * A / np.pi, rel=1e-3)
+    # (Rota's RMS: A/√2 over whole periods; Enayati's maximum: the amplitude)
+    assert deviation_rms(d, m)[0] == pytest.approx(A / np.sqrt(2), rel=1e-3)
+    assert deviation_max(d, m)[0] == pytest.approx(A, rel=1e-6)
+    half = t < 2.0  # (the mask: the first two periods only)
+    assert deviation_rms(d * (1 + (~half)), half)[0] == pytest.approx(A / np.sqrt(2), rel=1e-3)
+    assert deviation_max(d * (1 + (~half)), half)[0] == pytest.approx(A, rel=1e-6)
     frac = 1 - 2 / np.pi * np.arcsin(r / A)
     T = completion_time(t, m)[0]
     assert time_outside(d, t, m, tube_radius=r)[0] == pytest.approx(frac * T, rel=2e-3)

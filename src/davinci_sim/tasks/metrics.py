@@ -10,10 +10,11 @@ kind is one more entry in its list.
 **The computation.** A metric reduces the :class:`~davinci_sim.tasks.base.Sample` records of
 a repetition (one per tick while the task is RUNNING, up to the one where it is FINISHED)
 and the task's per-sample observations (e.g. ``distance``, the tip's distance to the path)
-with one of the reducers :class:`Mean`, :class:`Peak`, :class:`PairSum`, :class:`Elapsed`,
-:class:`Count` or :class:`Ratio`. :class:`MetricsAccumulator` runs the reducers of a list of
-metrics for n trials, sample by sample, without storing the trajectories (O(n) memory
-whatever the duration); its :meth:`~MetricsAccumulator.result` is a :class:`MetricValues`.
+with one of the reducers :class:`Mean`, :class:`RootMeanSquare`, :class:`Peak`,
+:class:`PairSum`, :class:`Elapsed`, :class:`Count` or :class:`Ratio`.
+:class:`MetricsAccumulator` runs the reducers of a list of metrics for n trials, sample by
+sample, without storing the trajectories (O(n) memory whatever the duration); its
+:meth:`~MetricsAccumulator.result` is a :class:`MetricValues`.
 Reducers: ``init(n, task)``, ``add``, ``final``; a metric reading an optional sample field
 (``Metric.needs``) is nan when a sample lacks it (:mod:`davinci_sim.tasks.trainer`).
 
@@ -24,6 +25,10 @@ to the path ‖φ_i‖ (m), forces on the hand F_i (N) and the clutch pedal c_i:
 * **deviation error** e_jn = (1/K)·Σ ‖φ_i‖, m — equation (8) of the seed: the mean over the
   time steps of the distance to the path (a time average when the rate is constant, as the
   1 kHz haptic loop's is);
+* **RMS deviation** √((1/K)·Σ ‖φ_i‖²), m — the metric of Rota's dVRK-console study
+  (training.md §4: the RMS over their 30 Hz frames of the distance to the nearest vertex of
+  a trajectory whose vertices are 44 µm apart; here over the 1 kHz samples, to the polyline);
+* **maximum deviation** max ‖φ_i‖, m — Enayati et al. 2016's Table II (0 without samples);
 * **completion time** T = t_K − t_1, s;
 * **path length** of the tip Σ_{i≥2} ‖p_i − p_{i−1}‖, m — economy of motion, as commercial
   trainers score it (the shortest possible is about the path's length). It depends on the
@@ -44,7 +49,7 @@ samples of each repetition (one contiguous run per trial; a 1-D (K,) input is on
 sums over pairs use the pairs of consecutive samples that are both in the mask. They are
 the independent reference the accumulator is tested against.
 
-Size: just over 500 lines because the declaration, the reducers and the accumulator that
+Size: about 600 lines because the declaration, the reducers and the accumulator that
 runs them are one contract (each reducer also says whether a sample no trial measures
 leaves it unchanged, which the live session's every tick relies on); the path task's
 reference functions are the tests' oracle for the same metrics.
@@ -69,6 +74,8 @@ class RepetitionMetrics(NamedTuple):
     :func:`repetition_metrics` computes them (the reference of :data:`PATH_METRICS`)."""
 
     deviation_error: np.ndarray
+    deviation_rms: np.ndarray
+    deviation_max: np.ndarray
     completion_time: np.ndarray
     path_length: np.ndarray
     mean_speed: np.ndarray
@@ -106,6 +113,18 @@ def deviation_error(distance, mask) -> np.ndarray:
     """e_jn of equation (8): mean distance to the path over the samples, m."""
     d, m = _2d(distance, mask)
     return _mean(d.astype(float), m)
+
+
+def deviation_rms(distance, mask) -> np.ndarray:
+    """Root mean square of the distance to the path over the samples, m."""
+    d, m = _2d(distance, mask)
+    return np.sqrt(_mean(d.astype(float) ** 2, m))
+
+
+def deviation_max(distance, mask) -> np.ndarray:
+    """Largest distance to the path over the samples, m (0 without samples)."""
+    d, m = _2d(distance, mask)
+    return np.where(m, d.astype(float), 0.0).max(axis=1, initial=0.0)
 
 
 def completion_time(time, mask) -> np.ndarray:
@@ -167,6 +186,8 @@ def repetition_metrics(
     m = np.asarray(mask, dtype=bool)
     return RepetitionMetrics(
         deviation_error(distance, m),
+        deviation_rms(distance, m),
+        deviation_max(distance, m),
         completion_time(time, m),
         path_length(position, m),
         mean_speed(position, time, m),
@@ -214,6 +235,25 @@ class Mean:
 
     def final(self, acc, k, done):
         return np.where(k > 0, acc / np.maximum(k, 1), np.nan)
+
+
+@dataclass(frozen=True)
+class RootMeanSquare:
+    """√((1/K)·Σ value_i²) over the repetition's samples (nan without samples)."""
+
+    value: Value
+
+    unchanged_unmeasured = staticmethod(_always)  # (MetricsAccumulator.update)
+
+    def init(self, n: int, task=None):
+        return np.zeros(n)
+
+    def add(self, acc, m, pair, task, prev, s, obs):
+        v = self.value(task, s, obs)
+        return acc + np.where(m, v * v, 0.0)
+
+    def final(self, acc, k, done):
+        return np.where(k > 0, np.sqrt(acc / np.maximum(k, 1)), np.nan)
 
 
 @dataclass(frozen=True)
@@ -308,7 +348,7 @@ class Ratio:
         return np.where(b > 0, a / np.where(b > 0, b, 1.0), np.nan)
 
 
-Reducer = Mean | Peak | PairSum | Elapsed | Count | Ratio
+Reducer = Mean | RootMeanSquare | Peak | PairSum | Elapsed | Count | Ratio
 
 
 @dataclass(frozen=True)
@@ -539,6 +579,11 @@ def _press(task, prev, s, obs):
 PATH_METRICS: tuple[Metric, ...] = (
     Metric("deviation_error", "m", "lower", "mean distance of the tool tip to the path "
            "(the seed's eq. 8)", Mean(_distance), label="deviation e", report=("mm", 1e3)),
+    Metric("deviation_rms", "m", "lower", "root mean square distance of the tool tip to the "
+           "path (Rota's metric)", RootMeanSquare(_distance), label="RMS deviation",
+           report=("mm", 1e3)),
+    Metric("deviation_max", "m", "lower", "largest distance of the tool tip to the path "
+           "(Enayati 2016's)", Peak(_distance), label="max deviation", report=("mm", 1e3)),
     Metric("completion_time", "s", "lower", "time from leaving point 1 to reaching the last "
            "point", Elapsed(), report=("s", 1.0)),
     Metric("path_length", "m", "lower", "length of the tool tip's trajectory (economy of "

@@ -28,6 +28,8 @@ PATH_KIND_METRICS = (*PATH_METRICS, *trainer_metrics(replace=(PATH_MISSED_TARGET
 _NAMES = tuple(m.name for m in PATH_KIND_METRICS)
 assert _NAMES == (
     "deviation_error",
+    "deviation_rms",
+    "deviation_max",
     "completion_time",
     "path_length",
     "mean_speed",
@@ -92,8 +94,8 @@ def running(acc) -> tuple:
     """``acc``'s running arrays in :func:`path_update`'s order (from the mean deviation's
     sum to the sample count), which it and the compiled path ticks update in place."""
     a = acc._acc
-    return (a[0], a[1][0], a[1][1], a[2], a[4], a[5], a[6], a[7], a[9], a[10], a[11], a[12][0],
-            a[12][1], a[14], acc._k)  # fmt: skip
+    return (a[0], a[1], a[2], a[3][0], a[3][1], a[4], a[6], a[7], a[8], a[9], a[11], a[12],
+            a[13], a[14][0], a[14][1], a[16], acc._k)  # fmt: skip
 
 
 def previous_of(acc, sample):
@@ -138,18 +140,19 @@ def targets(task) -> np.ndarray:
 
 @jit.helper
 def path_update(
-    deviation, t_first, t_last, length, peak, force_sum, outside, presses, collisions,
-    excessive, unseen, low, high, reached, count, m, prev_in, t, x, y, z, prev_t, px, py, pz,
-    clutch, prev_clutch, has_contacts, contacts, prev_contacts, has_tool_force, tool_force,
-    has_visible, visible, has_master, p_master, fx, fy, fz, distance, tube_radius,
+    deviation, squares, farthest, t_first, t_last, length, peak, force_sum, outside, presses,
+    collisions, excessive, unseen, low, high, reached, count, m, prev_in, t, x, y, z, prev_t,
+    px, py, pz, clutch, prev_clutch, has_contacts, contacts, prev_contacts, has_tool_force,
+    tool_force, has_visible, visible, has_master, p_master, fx, fy, fz, distance, tube_radius,
     force_limit, marks,
 ):  # fmt: skip
     """One sample of one trial into the path kind's running reductions, in place: each
     argument up to ``count`` is the (1,)-row (or (1, 3) extent, (1, k) reached marks)
     array of :data:`PATH_KIND_METRICS`' reducers in order (the mean deviation's sum, the
-    elapsed time's first and last times, the path length, the peak and summed force, the
-    time outside the tube, clutch presses, instrument collisions, time over the force
-    limit, distance out of view, the master's extent, the targets reached) and the sample
+    sum of its squares and its peak, the elapsed time's first and last times, the path
+    length, the peak and summed force, the time outside the tube, clutch presses,
+    instrument collisions, time over the force limit, distance out of view, the master's
+    extent, the targets reached) and the sample
     count; ``m``: this sample is measured, ``prev_in``: the previous one was; then the
     sample (time s, tip m, clutch, the optional contacts, tool force N, visibility and
     master position m, each with whether the sample has it; the guidance force N), the
@@ -168,6 +171,8 @@ def path_update(
         return
     force = norm3(fx, fy, fz)
     deviation[0] = deviation[0] + distance
+    squares[0] = squares[0] + distance * distance
+    farthest[0] = np_maximum(farthest[0], distance)
     if t_first[0] != t_first[0]:
         t_first[0] = t
     t_last[0] = t

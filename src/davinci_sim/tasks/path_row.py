@@ -49,8 +49,8 @@ def path_tick_rows(
     finish_tol, min_arc, tube_radius, force_limit, marks, active, phase, t_start, t_finish,
     progress, time, tip, force, clutch, has_contacts, contacts, has_tool_force, tool_force,
     has_visible, visible, has_master, master, prev_time, prev_tip, prev_clutch, prev_contacts,
-    deviation, t_first, t_last, length, peak, force_sum, outside, presses, collisions,
-    excessive, unseen, low, high, reached, count, prev_in, closest, measured,
+    deviation, squares, farthest, t_first, t_last, length, peak, force_sum, outside, presses,
+    collisions, excessive, unseen, low, high, reached, count, prev_in, closest, measured,
 ):  # fmt: skip
     """One sample of n path trials.
 
@@ -90,8 +90,8 @@ def path_tick_rows(
         measured[r] = m
         q = r + 1
         path_update(
-            deviation[r:q], t_first[r:q], t_last[r:q], length[r:q], peak[r:q],
-            force_sum[r:q], outside[r:q], presses[r:q], collisions[r:q], excessive[r:q],
+            deviation[r:q], squares[r:q], farthest[r:q], t_first[r:q], t_last[r:q], length[r:q],
+            peak[r:q], force_sum[r:q], outside[r:q], presses[r:q], collisions[r:q], excessive[r:q],
             unseen[r:q], low[r:q], high[r:q], reached[r:q], count[r:q], m, prev_in[r],
             time[r], x, y, z, prev_time[r], prev_tip[r, 0], prev_tip[r, 1], prev_tip[r, 2],
             clutch[r], prev_clutch[r], has_contacts, contacts[r], prev_contacts[r],
@@ -108,8 +108,9 @@ def live_path_row(
     half_baseline, width, height, has_force, force_in, has_master, master_in, t, clutch,
     contacts, tool_force, phase, t_start, t_finish, progress, s_time, s_tip, s_force,
     s_clutch, s_visible, s_master, s_contacts, s_tool_force, prev_time, prev_tip, prev_clutch,
-    prev_contacts, deviation, t_first, t_last, length, peak, force_sum, outside, presses,
-    collisions, excessive, unseen, low, high, reached, count, prev_in, closest, measured,
+    prev_contacts, deviation, squares, farthest, t_first, t_last, length, peak, force_sum,
+    outside, presses, collisions, excessive, unseen, low, high, reached, count, prev_in, closest,
+    measured,
 ):  # fmt: skip
     """The live session's sample of its one path trial, then :func:`path_tick_rows` on it.
 
@@ -138,8 +139,9 @@ def live_path_row(
         start_tol, finish_tol, min_arc, tube_radius, force_limit, marks, active, phase, t_start,
         t_finish, progress, s_time, s_tip, s_force, s_clutch, True, s_contacts, True,
         s_tool_force, True, s_visible, has_master, s_master, prev_time, prev_tip, prev_clutch,
-        prev_contacts, deviation, t_first, t_last, length, peak, force_sum, outside, presses,
-        collisions, excessive, unseen, low, high, reached, count, prev_in, closest, measured,
+        prev_contacts, deviation, squares, farthest, t_first, t_last, length, peak, force_sum,
+        outside, presses, collisions, excessive, unseen, low, high, reached, count, prev_in,
+        closest, measured,
     )  # fmt: skip
 
 
@@ -150,8 +152,9 @@ def live_path_rows(
     half_baseline, width, height, has_force, force, has_master, master, t, contacts,
     tool_force, stop, phase, t_start, t_finish, progress, s_time, s_tip, s_force, s_clutch,
     s_visible, s_master, s_contacts, s_tool_force, prev_time, prev_tip, prev_clutch,
-    prev_contacts, deviation, t_first, t_last, length, peak, force_sum, outside, presses,
-    collisions, excessive, unseen, low, high, reached, count, prev_in, closest, measured, done,
+    prev_contacts, deviation, squares, farthest, t_first, t_last, length, peak, force_sum,
+    outside, presses, collisions, excessive, unseen, low, high, reached, count, prev_in, closest,
+    measured, done,
 ):  # fmt: skip
     """m samples of one path trial in turn, each :func:`live_path_row` with no clutch: row j
     of ``T_task_tip``, ``p_camera`` (m, 4, 4), ``t``, ``contacts``, ``tool_force`` (m,), of
@@ -174,9 +177,9 @@ def live_path_rows(
             has_master, master[j], t[j], False, contacts[j], tool_force[j], phase, t_start,
             t_finish, progress, s_time[j:q], s_tip[j:q], s_force[j:q], s_clutch[j:q],
             s_visible[j:q], s_master[j:q], s_contacts[j:q], s_tool_force[j:q], prev_time,
-            prev_tip, prev_clutch, prev_contacts, deviation, t_first, t_last, length, peak,
-            force_sum, outside, presses, collisions, excessive, unseen, low, high, reached,
-            count, prev_in, closest, measured,
+            prev_tip, prev_clutch, prev_contacts, deviation, squares, farthest, t_first, t_last,
+            length, peak, force_sum, outside, presses, collisions, excessive, unseen, low, high,
+            reached, count, prev_in, closest, measured,
         )  # fmt: skip
         prev_in[0] = measured[0]
         if measured[0]:  # (the metrics' previous sample: this one)
