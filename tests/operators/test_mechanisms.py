@@ -61,6 +61,10 @@ def test_guidance_strength_of_fixture_entries():
     assert guidance_strength({"type": "spring", "stiffness": 200.0, "max_force": 3.0}) == 3.0
     assert guidance_strength({"type": "spring", "stiffness": 0.0, "max_force": 3.0}) == 0
     assert guidance_strength({"type": "mine:Law", "k": 1.0}) == math.inf
+    # Rota's fixture: the capped sum scaled by the day's assistance
+    rota = {"type": "viscous_elastic", "B": 15.0, "elastic_gain": 0.8, "max_force": 3.0}
+    assert guidance_strength(rota) == 3.0
+    assert guidance_strength({**rota, "assistance": 0.25}) == 0.75
 
 
 def test_own_practice_step_known_values():

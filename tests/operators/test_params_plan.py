@@ -86,6 +86,25 @@ def test_a_profile_changes_its_medians_draws_only():
             np.testing.assert_allclose(fitted.speed, base.speed / 2, rtol=1e-12)
         else:
             np.testing.assert_array_equal(getattr(fitted, name), getattr(base, name))
+    faster = sample_subjects(6, seed=4, profile=Profile(exponent_range=(0.4, 1.2)))
+    np.testing.assert_allclose(faster.learning_exponent, 2 * base.learning_exponent, rtol=1e-12)
+    assert np.all((faster.learning_exponent >= 0.4) & (faster.learning_exponent <= 1.2))
+    with pytest.raises(ValueError, match="exponent_range"):
+        Profile(exponent_range=(0.6, 0.2))
+
+
+def test_the_noise_carries_its_share_of_the_novice_excess():
+    from davinci_sim.operators.params import Profile, sample_subjects
+
+    table = sample_subjects(5, seed=1)
+    f = table.practice_factor(1)
+    np.testing.assert_array_equal(table.noise_factor(f), f)  # (the table: the whole factor)
+    half = sample_subjects(5, seed=1, profile=Profile(noise_learning=0.5))
+    np.testing.assert_allclose(half.noise_factor(f), 1 + 0.5 * table.novice_excess, rtol=1e-12)
+    flat = sample_subjects(5, seed=1, profile=Profile(noise_learning=0.0))
+    np.testing.assert_array_equal(flat.noise_factor(flat.practice_factor(3)), 1.0)
+    with pytest.raises(ValueError, match="noise_learning"):
+        Profile(noise_learning=1.5)
 
 
 def test_the_fitted_population_is_the_table_with_its_profile():
@@ -95,4 +114,6 @@ def test_the_fitted_population_is_the_table_with_its_profile():
     same = sample_subjects(4, seed=2, profile=ROTA2023)
     for name in fitted.__dataclass_fields__:
         np.testing.assert_array_equal(getattr(fitted, name), getattr(same, name))
-    assert ROTA2023.noise_median > 0 and ROTA2023.speed_median > 0.015  # (faster than the table's)
+    # (noisier than the table's, a larger novice excess, noise learning less than speed)
+    assert ROTA2023.noise_median > 0.23 and ROTA2023.excess_median > 1
+    assert 0 < ROTA2023.noise_learning < 1

@@ -74,7 +74,8 @@ def test_the_report_of_a_rota_study_tabulates_the_groups_by_day(tmp_path):
     from davinci_sim.tasks.metrics import PATH_METRICS
     from davinci_sim.tasks.trainer import trainer_metrics
 
-    config = StudyConfig(task="rota_path", design="rota", n_subjects=4, n_repetitions=2)
+    config = StudyConfig(task="rota_path", design="rota", n_subjects=4, n_repetitions=2,
+                         population="rota2023")  # fmt: skip
     rng = np.random.default_rng(0)
     metrics = [m.name for m in (*PATH_METRICS, *trainer_metrics())]
     rows = [{"subject": t.subject, "condition": t.condition, "condition_name": t.condition_name,
@@ -87,4 +88,7 @@ def test_the_report_of_a_rota_study_tabulates_the_groups_by_day(tmp_path):
     assert "Rota's two-group design: 4 subjects × 4 day(s)" in report
     assert "## Groups by day" in report and "## Statistical tests" not in report
     assert "| 4 | " in report and "assisted x0.25" in report
+    # (the method section says which trainees ran and how they were made: here the fitted)
+    assert "Population `rota2023`" in report and "fitted to the control group" in report
+    assert "1.0 mm" not in report.split("## Synthetic trainees")[1].split("##")[0]
     assert all(p.exists() for p in paths)

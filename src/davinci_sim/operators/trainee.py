@@ -170,7 +170,7 @@ class SyntheticTrainee:
                 raise ValueError(f"own_practice must be >= 1, got {own_practice!r}")
             factor = params.practice_factor(own)
         self.own_practice_factor = factor
-        self.noise_k = params.noise * factor if motor_noise else np.zeros(n)
+        self.noise_k = params.noise * params.noise_factor(factor) if motor_noise else np.zeros(n)
         self.crossover = params.crossover / factor
         self.mechanisms = mechanisms or Mechanisms()
         self.co_contraction = np.zeros(n)

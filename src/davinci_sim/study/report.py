@@ -16,7 +16,7 @@ from pathlib import Path
 import numpy as np
 
 from davinci_sim.haptics.kinds import describe_fixture, viscous_law
-from davinci_sim.operators.params import TRAINEE_METHOD
+from davinci_sim.operators.params import population_method
 from davinci_sim.study.compare import comparison
 from davinci_sim.study.config import pair_labels
 from davinci_sim.study.days import days_section
@@ -348,7 +348,7 @@ def write_report(
         "",
         "## Synthetic trainees",
         "",
-        TRAINEE_METHOD,
+        f"Population `{cfg.population}`. " + population_method(cfg.population),
         "",
         mechanisms_text(cfg),
         "",
