@@ -67,6 +67,7 @@ def derive(log_csv: str) -> dict:
     t = np.array([float(r["Time"]) for r in rows])
     clutch = np.array([r["Clutch"].strip() == "True" for r in rows])
     assisted = np.array([r["Assisted"].strip() == "True" for r in rows])
+    assistance = np.array([float(r["Assistance"]) for r in rows])
     return {
         "mean_deviation_mm": 1000.0 * float(np.mean(d)),
         # (as Training1_post.py computes avg_dist: sqrt(mean(d**2)), metres)
@@ -75,6 +76,8 @@ def derive(log_csv: str) -> dict:
         "frames": len(rows),
         "clutch_share": float(np.mean(clutch)),
         "assisted_share": float(np.mean(assisted)),
+        # (the day's force factor as logged: the protocol's 1, 0.75, 0.5, 0.25 when assisted)
+        "assistance": float(np.mean(assistance)),
     }
 
 
@@ -149,6 +152,8 @@ def main() -> None:
             "frames": "logged frames (30 Hz)",
             "clutch_share": "share of frames with the clutch pressed",
             "assisted_share": "share of frames with the guidance on",
+            "assistance": "the logged force factor, mean over the frames (the day's, "
+                          "logged for both groups; the force acts only when assisted)",
         },
         "trials": rows,
     }  # fmt: skip
