@@ -91,4 +91,9 @@ def test_the_report_of_a_rota_study_tabulates_the_groups_by_day(tmp_path):
     # (the method section says which trainees ran and how they were made: here the fitted)
     assert "Population `rota2023`" in report and "fitted to the control group" in report
     assert "1.0 mm" not in report.split("## Synthetic trainees")[1].split("##")[0]
+    # (the real groups' table beside the simulated one: their control group's day 1 as
+    # training.md §4 gives it, 2.80 mm and 29.4 s; the assisted group's days 1 and 4)
+    measured = report.split("Measured (Rota's dVRK-console study")[1]
+    assert "| 1 | 2.80 ± 0.76 (3) | 29.37 ± 7.98 (3) | their day 1 | 2.70 ± 0.42 (3) |" in measured
+    assert "| their day 4 | 1.99 ± 0.14 (3) | 27.81 ± 5.24 (3) |" in measured
     assert all(p.exists() for p in paths)

@@ -9,6 +9,7 @@ subject's mean over that day's trials, the SD over those subject means, and the 
 
 from __future__ import annotations
 
+import json
 from dataclasses import dataclass
 
 import numpy as np
@@ -51,12 +52,29 @@ def day_figures(rows: list[dict], metric: str) -> list[DayFigure]:
     return out
 
 
-def days_section(rows: list[dict], conditions) -> list[str]:
+def measured_rows() -> list[dict]:
+    """The trials of Rota's real groups (``operators/data/rota2023_path.json``) as study
+    rows: the subject's letter's index, condition 0 for the control group and the day's
+    for the assisted group, the day as ``order``, the deviation (eq. 8) in m and the time
+    in s."""
+    from importlib.resources import files
+
+    data = json.loads(
+        files("davinci_sim.operators").joinpath("data/rota2023_path.json").read_text()
+    )
+    return [
+        {"subject": "ADIPSV".index(t["subject"]), "order": t["day"],
+         "condition_name": f"their day {t['day']}",
+         "condition": 0 if t["group"] == "control" else t["day"],
+         "deviation_error": t["mean_deviation_mm"] / 1e3, "completion_time": t["time_s"]}
+        for t in data["trials"]
+    ]  # fmt: skip
+
+
+def days_section(rows: list[dict], conditions, measured: list[dict] | None = None) -> list[str]:
     """The report's section: deviation and time per group and day, and the assisted
-    group's condition each day."""
-    dev = {(f.group, f.day): f for f in day_figures(rows, "deviation_error")}
-    time = {(f.group, f.day): f for f in day_figures(rows, "completion_time")}
-    assisted_condition = {int(r["order"]): r["condition_name"] for r in rows if r["condition"]}
+    group's condition each day; then the same table of ``measured`` rows (the real groups,
+    :func:`measured_rows`) where given."""
     L = [
         "## Groups by day (Rota's protocol)",
         "",
@@ -64,6 +82,23 @@ def days_section(rows: list[dict], conditions) -> list[str]:
         "mean over the group's subjects of each subject's mean over the day's trials, ± the "
         "SD over those subject means (n subjects).",
         "",
+        *_day_table(rows),
+    ]
+    if measured:
+        L += [
+            "Measured (Rota's dVRK-console study, `operators/data/rota2023_path.json`; the "
+            "seed's eq. 8 deviation):",
+            "",
+            *_day_table(measured),
+        ]
+    return L
+
+
+def _day_table(rows: list[dict]) -> list[str]:
+    dev = {(f.group, f.day): f for f in day_figures(rows, "deviation_error")}
+    time = {(f.group, f.day): f for f in day_figures(rows, "completion_time")}
+    assisted_condition = {int(r["order"]): r["condition_name"] for r in rows if r["condition"]}
+    L = [
         "| day | control deviation (mm) | control time (s) | assisted condition | "
         "assisted deviation (mm) | assisted time (s) |",
         "|---|---|---|---|---|---|",

@@ -19,7 +19,7 @@ from davinci_sim.haptics.kinds import describe_fixture, viscous_law
 from davinci_sim.operators.params import population_method
 from davinci_sim.study.compare import comparison
 from davinci_sim.study.config import pair_labels
-from davinci_sim.study.days import days_section
+from davinci_sim.study.days import days_section, measured_rows
 from davinci_sim.study.retention import (
     block_rows,
     mechanisms_text,
@@ -391,7 +391,8 @@ def write_report(
         L.append(f"| {_label(cfg.conditions[c])} | {cells}{fin}/{tot} |")
     L.append("")
     if rota:  # (groups over days, no retention: not the conditions' tests below)
-        L += days_section(rows, cfg.conditions)
+        measured = measured_rows() if cfg.task == "rota_path" else None  # (theirs beside)
+        L += days_section(rows, cfg.conditions, measured)
         _report_end(L, result)
         write_text_atomic(path, "\n".join(L))
         return
