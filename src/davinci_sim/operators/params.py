@@ -62,7 +62,9 @@ learning exponent α    uniform 0.2-0.6                power law of practice
                                                      assumption
 =====================  ============================  =================================
 
-Nothing here is fitted to the seed's results.
+Nothing here is fitted to the seed's results. A profile fitted to data (:class:`Profile`)
+may change the medians of k, speed and E, the exponent's range, and the noise's share of the
+novice excess (1 in this table: the noise practises as the speed does).
 
 Calibration (issue 11): one parameter, the median of k (:data:`NOISE_MEDIAN`), is set so that
 the trainees' unassisted deviation on the seed's task matches a target; see
@@ -321,8 +323,10 @@ POPULATION_METHODS = {
     "dVRK-console study** (36 unassisted trials of 3 novices at a real dVRK surgeon console, "
     "training.md §4; `scripts/fit_rota_trainees.py`): the noise median k to their mean "
     "deviation, the practised speed, the novice excess E and the learning exponent's range "
-    "to their four day-mean times. Its validation on held-out data is "
-    "`docs/study/rota_path/validation.md`.",
+    "to their four day-mean times, the noise's share of the novice excess to the fall of "
+    "their deviation over the days. Its validation on their held-out assisted group "
+    "(`docs/study/rota_path/README.md`): the guidance's effect on the deviation predicted, "
+    "its effect on speed missed (the guided trainees did not speed up; these do).",
 }
 
 
