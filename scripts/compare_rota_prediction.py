@@ -20,9 +20,13 @@ from pathlib import Path
 
 import numpy as np
 
+from davinci_sim.study.days import day_figures, measured_rows
+
 FOLDER = Path(__file__).resolve().parent.parent / "docs" / "study" / "rota_path"
 DAYS = 4
-FIELDS = {"deviation_mm": "mean_deviation_mm", "rms_mm": "rms_deviation_mm", "time_s": "time_s"}
+#: The prediction's figures: the study rows' metric and its scale to the figure's unit.
+METRICS = {"deviation_mm": ("deviation_error", 1e3), "rms_mm": ("deviation_rms", 1e3),
+           "time_s": ("completion_time", 1.0)}  # fmt: skip
 LABELS = {
     "deviation_mm": ("deviation", "mm"),
     "rms_mm": ("RMS deviation", "mm"),
@@ -32,27 +36,16 @@ LABELS = {
 
 def measured() -> dict:
     """{metric: {"control": (DAYS,), "assisted": (DAYS,), "assisted_minus_control": ...}}."""
-    data = json.loads(
-        files("davinci_sim.operators").joinpath("data/rota2023_path.json").read_text()
-    )
-    if "assisted" not in data["groups"]:
+    rows = measured_rows()
+    if not any(r["condition"] for r in rows):
         raise SystemExit(
             "the assisted group is not derived yet (derive_rota_reference --groups all)"
         )
     out: dict = {}
-    for name, field in FIELDS.items():
-        out[name] = {}
-        for group, subjects in data["groups"].items():
-            days = []
-            for d in range(1, DAYS + 1):
-                means = [
-                    np.mean(
-                        [t[field] for t in data["trials"] if t["subject"] == s and t["day"] == d]
-                    )
-                    for s in subjects
-                ]
-                days.append(float(np.mean(means)))
-            out[name][group] = np.array(days)
+    for name, (metric, scale) in METRICS.items():
+        figures = day_figures(rows, metric)
+        out[name] = {g: np.array([scale * f.mean for f in figures if f.group == g])
+                     for g in ("control", "assisted")}  # fmt: skip
         out[name]["assisted_minus_control"] = out[name]["assisted"] - out[name]["control"]
     return out
 

@@ -55,8 +55,8 @@ def day_figures(rows: list[dict], metric: str) -> list[DayFigure]:
 def measured_rows() -> list[dict]:
     """The trials of Rota's real groups (``operators/data/rota2023_path.json``) as study
     rows: the subject's letter's index, condition 0 for the control group and the day's
-    for the assisted group, the day as ``order``, the deviation (eq. 8) in m and the time
-    in s."""
+    for the assisted group, the day as ``order``, the deviation (eq. 8) and its RMS in m and the
+    time in s."""
     from importlib.resources import files
 
     data = json.loads(
@@ -66,7 +66,8 @@ def measured_rows() -> list[dict]:
         {"subject": "ADIPSV".index(t["subject"]), "order": t["day"],
          "condition_name": f"their day {t['day']}",
          "condition": 0 if t["group"] == "control" else t["day"],
-         "deviation_error": t["mean_deviation_mm"] / 1e3, "completion_time": t["time_s"]}
+         "deviation_error": t["mean_deviation_mm"] / 1e3,
+         "deviation_rms": t["rms_deviation_mm"] / 1e3, "completion_time": t["time_s"]}
         for t in data["trials"]
     ]  # fmt: skip
 

@@ -238,22 +238,16 @@ class Mean:
 
 
 @dataclass(frozen=True)
-class RootMeanSquare:
-    """√((1/K)·Σ value_i²) over the repetition's samples (nan without samples)."""
-
-    value: Value
-
-    unchanged_unmeasured = staticmethod(_always)  # (MetricsAccumulator.update)
-
-    def init(self, n: int, task=None):
-        return np.zeros(n)
+class RootMeanSquare(Mean):
+    """√((1/K)·Σ value_i²) over the repetition's samples (nan without samples): the
+    :class:`Mean` of the squared value, its root."""
 
     def add(self, acc, m, pair, task, prev, s, obs):
         v = self.value(task, s, obs)
         return acc + np.where(m, v * v, 0.0)
 
     def final(self, acc, k, done):
-        return np.where(k > 0, np.sqrt(acc / np.maximum(k, 1)), np.nan)
+        return np.sqrt(super().final(acc, k, done))
 
 
 @dataclass(frozen=True)
