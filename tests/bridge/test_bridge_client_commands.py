@@ -262,7 +262,7 @@ def test_serve_in_client_mode_takes_the_remote_commands(make_server, make_ros):
     remote_server = make_server()
     options = ServeOptions(scene="psm1", images="none", ros_connect=remote_server.url,
                            namespace="/", bridge=BridgeConfig(port=0))  # fmt: skip
-    with serving(options, timeout=30):
+    with serving(options):
         remote = Remote(make_ros(remote_server))
         remote.listen("/PSM1/operating_state", "crtk_msgs/OperatingState")
         remote.listen("/PSM1/measured_js", "sensor_msgs/JointState")

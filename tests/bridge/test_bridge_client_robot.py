@@ -260,7 +260,7 @@ def test_serve_in_client_mode_publishes_the_robot(make_server, make_ros):
     remote_server = make_server()
     options = ServeOptions(scene="psm1", images="none", ros_connect=remote_server.url,
                            bridge=BridgeConfig(port=0))  # fmt: skip
-    with serving(options, timeout=30):
+    with serving(options):
         viewer = make_ros(remote_server)
         description = subscribe(viewer, "/sim/robot_description", "std_msgs/String")
         states = subscribe(viewer, "/sim/joint_states", "sensor_msgs/JointState")

@@ -167,7 +167,7 @@ def test_serve_images_show_the_task_path(make_ros, runner):
 
     options = ServeOptions(scene="psm1_ecm_mtmr", task="seed_path", runner=runner,
                            images="raw", bridge=BridgeConfig(port=0))  # fmt: skip
-    with serving(options, timeout=60) as server:
+    with serving(options) as server:
         ros = make_ros(server)
         raw = []
         roslibpy.Topic(ros, "/jhu_daVinci/left/image_raw", "sensor_msgs/Image").subscribe(

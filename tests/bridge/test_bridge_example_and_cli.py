@@ -50,7 +50,7 @@ def test_serve_runs_server_udp_and_stops(make_ros):
                            udp_ports={"PSM1": udp_port, "ECM": free_port()},
                            bridge=BridgeConfig(port=0, ros_version=1))  # fmt: skip
     try:
-        with serving(options, timeout=20) as server:
+        with serving(options) as server:
             ros = make_ros(server)
             states = []
             roslibpy.Topic(ros, "/PSM1/operating_state", "crtk_msgs/OperatingState").subscribe(

@@ -58,7 +58,7 @@ def server():
         frame_task=True,
     )
     parts = [web_part(WebOptions(port=0, frame_rate=10.0), bedside=True)]
-    with serving(options, parts, start_timeout=60) as info:
+    with serving(options, parts) as info:
         yield info
 
 
