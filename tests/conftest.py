@@ -1,8 +1,31 @@
 """Settings of every test."""
 
+import ast
 import os
+import threading
 
 import pytest
+
+
+def _serialised(parse):
+    """``ast.parse`` one thread at a time. CPython 3.11's ``ast`` keeps the depth of the tree
+    it builds in state that threads share (CPython issue 106905, pytest issue 10763): two
+    threads parsing at once raise ``SystemError: AST constructor recursion depth mismatch``
+    (seen here as "before=147, after=99": the other thread's parse ended inside ours). pytest
+    parses a failing test's source to report it while a client library's thread prints a
+    traceback (3.11's tracebacks parse each line for their carets); the SystemError then
+    crashed the worker and hid which test had failed."""
+
+    lock = threading.RLock()  # re-entrant: a finalizer run inside a parse may parse
+
+    def parse_alone(*args, **kwargs):
+        with lock:
+            return parse(*args, **kwargs)
+
+    return parse_alone
+
+
+ast.parse = _serialised(ast.parse)
 
 
 @pytest.fixture(autouse=True, scope="session")
