@@ -710,6 +710,7 @@ def cmd_study(args: argparse.Namespace) -> int:
             engine=args.engine,
             transition=args.transition,
             retention=args.retention,
+            prior_practice=args.prior_practice,
             design=args.design,
             mechanisms=tuple(m for m in (args.mechanisms or "").split(",") if m.strip()),
             population=args.population,
@@ -1245,6 +1246,14 @@ def build_parser() -> argparse.ArgumentParser:
         metavar="N",
         help="N repetitions with the fixture off after each condition's practice block "
         "(rows with block=retention; the report compares the conditions on them)",
+    )
+    p.add_argument(
+        "--prior-practice",
+        type=int,
+        default=0,
+        metavar="N",
+        help="trials of practice each subject had before the study (their practice count "
+        "starts at N: subjects who trained first, as Enayati et al.'s did for 23 min)",
     )
     p.add_argument(
         "--population",

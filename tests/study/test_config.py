@@ -50,6 +50,22 @@ def test_plan_practice_carries_across_conditions():
     assert condition_order(fixed, 1) == [0, 1, 2, 3]
 
 
+def test_practice_before_the_study_starts_the_count_there():
+    """Subjects who trained before the study (Enayati et al.'s 23 min): the practice count
+    of their first trial is prior_practice + 1, and the trainee's practice factor is that
+    of a practised subject (lower than a first trial's)."""
+    from davinci_sim.operators.params import sample_population
+
+    cfg = StudyConfig(n_subjects=2, n_repetitions=2, prior_practice=40)
+    s1 = [s for s in plan_trials(cfg) if s.subject == 1]
+    assert [s.practice for s in s1] == list(range(41, 49))
+    params = sample_population("trainee", 1)
+    assert params.practice_factor(41)[0] < params.practice_factor(1)[0]
+    for bad in (-1, 1.5, True, "40"):
+        with pytest.raises(StudyError, match="prior_practice"):
+            StudyConfig(prior_practice=bad)
+
+
 def test_bad_configs_fail_early():
     assert parse_conditions("0:0, 20:2") == ((0, 0), (20, 2))
     with pytest.raises(StudyError, match="B:G_max"):

@@ -17,8 +17,10 @@ every trial's row says which law ran.
 
 Practice carries across conditions: the practice count j of the trainee's power law of
 practice (:class:`~davinci_sim.operators.SubjectParams`) counts all the subject's trials so
-far, j = (block − 1)·n_repetitions + repetition, so a later block is done by a more practised
-trainee; the counterbalancing spreads this over the conditions.
+far, j = prior_practice + (block − 1)·n_repetitions + repetition, so a later block is done by
+a more practised trainee; the counterbalancing spreads this over the conditions.
+``prior_practice`` (default 0) is the trials a subject practised before the study: Enayati
+et al.'s subjects trained for 23 min before their first recorded trial.
 
 Retention (``retention`` = N > 0): right after each condition's practice block, N
 repetitions of the same task with the fixture off (rows with ``block`` = ``retention`` and
@@ -98,6 +100,9 @@ class StudyConfig:
     condition s mod C only) or ``rota`` (two groups over C − 1 days; module docstring)."""
     mechanisms: tuple[str, ...] = ()
     """Trainee mechanisms on (:data:`~davinci_sim.operators.params.MECHANISMS`)."""
+    prior_practice: int = 0
+    """Trials of practice each subject had before the study's first trial (its practice count
+    j starts there)."""
     population: str = "trainee"
     """The synthetic trainees' population (:data:`~davinci_sim.operators.params.POPULATIONS`:
     the module table's ``trainee``, or a fitted profile)."""
@@ -110,8 +115,10 @@ class StudyConfig:
                 f"unknown population {self.population!r}; populations: {list(POPULATIONS)}"
             )
 
-        if not isinstance(self.retention, int) or self.retention < 0:
-            raise StudyError(f"retention must be an integer >= 0, got {self.retention!r}")
+        for name in ("retention", "prior_practice"):
+            value = getattr(self, name)
+            if not isinstance(value, int) or isinstance(value, bool) or value < 0:
+                raise StudyError(f"{name} must be an integer >= 0, got {value!r}")
         if self.design not in DESIGNS:
             raise StudyError(f"unknown design {self.design!r}; designs: {DESIGNS}")
         mechanisms = (self.mechanisms,) if isinstance(self.mechanisms, str) else self.mechanisms
@@ -317,7 +324,7 @@ def plan_trials(config: StudyConfig) -> list[TrialSpec]:
     reliance = mechanisms.reliance > 0
     specs = []
     for s in range(config.n_subjects):
-        j, own = 0, 1.0
+        j, own = config.prior_practice, 1.0
         for block, c in enumerate(condition_order(config, s), start=1):
             runs = [("practice", config.conditions[c], config.n_repetitions),
                     ("retention", NO_FIXTURE, config.retention)]  # fmt: skip

@@ -324,11 +324,15 @@ def write_report(
         f" + {cfg.retention} retention repetitions (fixture off) after each practice block"
         if cfg.retention else ""
     )  # fmt: skip
+    prior = (
+        f", after {cfg.prior_practice} trials of practice before the study"
+        if cfg.prior_practice else ""
+    )  # fmt: skip
     L = [
         "# Simulated user study",
         "",
         f"Task `{cfg.task}`, {design} design: {n} subjects × {blocks} {block}(s) × "
-        f"({cfg.n_repetitions} practice repetitions{retention}) "
+        f"({cfg.n_repetitions} practice repetitions{retention}{prior}) "
         f"= {len(all_rows)} trials ({len(rows)} practice); seed {cfg.seed}; condition order "
         f"`{cfg.order}`; "
         f"`{cfg.engine}` engine, backend `{cfg.backend}` with {cfg.workers} worker(s); trial "
