@@ -98,13 +98,22 @@ def serving(options):
     from davinci_sim.bridge.app import serve
 
     ready, stop = {}, threading.Event()
-    thread = threading.Thread(
-        target=lambda: ready.update(done=serve(options, stop=stop, on_ready=ready.update))
-    )
+
+    def run():
+        try:
+            ready.update(done=serve(options, stop=stop, on_ready=ready.update))
+        except BaseException as e:  # (the test fails at once with it, not at the deadline)
+            ready["error"] = e
+            raise
+
+    thread = threading.Thread(target=run)
     thread.start()
     server = SimpleNamespace(url=None, port=None, result=ready)
     try:
-        assert wait_for(lambda: "url" in ready, START_DEADLINE), "serve did not start"
+        assert wait_for(lambda: "url" in ready or "error" in ready, START_DEADLINE), (
+            "serve did not start"
+        )
+        assert "error" not in ready, f"serve failed to start: {ready['error']!r}"
         server.url = ready["url"]
         server.port = int(ready["url"].rsplit(":", 1)[1])
         yield server

@@ -5,7 +5,7 @@ the built-in server gives the refusals a command gets there."""
 import numpy as np
 import pytest
 import roslibpy
-from bridge_helpers import wait_for
+from bridge_helpers import ROS_CONNECT_TIMEOUT, wait_for
 
 from davinci_sim.bridge import dvrk_messages as m
 from davinci_sim.bridge.client_mode import ClientModeConfig, RosClientMode
@@ -68,7 +68,7 @@ def test_a_remote_script_commands_the_simulated_psm(make_server, make_ros, sim_p
     config = ClientModeConfig(remote_server.url, namespace="/", mtms=(), ros_version=ros_version)
     client = RosClientMode(handle, config)
     try:
-        client.start()
+        client.start(ROS_CONNECT_TIMEOUT)
         remote.listen("/PSM1/operating_state", "crtk_msgs/OperatingState")
         remote.listen("/PSM1/measured_js", "sensor_msgs/JointState")
         remote.pub("/PSM1/state_command", "crtk_msgs/StringStamped", {"string": "enable"})
@@ -146,7 +146,7 @@ def test_bad_commands_get_the_built_in_servers_refusals(make_server, make_ros, s
     local = Remote(make_ros(local_server))
     client = RosClientMode(sim_remote, ClientModeConfig(remote_server.url, mtms=()))
     try:
-        client.start()
+        client.start(ROS_CONNECT_TIMEOUT)
         for event in ("error", "warning"):
             remote.listen(f"/sim/PSM1/{event}", "std_msgs/String")
             local.listen(f"/PSM1/{event}", "std_msgs/String")
@@ -203,7 +203,7 @@ def test_remote_console_and_system_commands(make_server, make_ros):
     remote = Remote(make_ros(remote_server))
     client = RosClientMode(handle, ClientModeConfig(remote_server.url, mtms=("MTMR",)))
     try:
-        client.start()
+        client.start(ROS_CONNECT_TIMEOUT)
         assert "/sim/console/teleop/enable" in client._plan
         remote.listen("/sim/PSM1/measured_js", "sensor_msgs/JointState")
         assert wait_for(lambda: remote.got["/sim/PSM1/measured_js"], 5)  # subscriptions ready
@@ -231,7 +231,7 @@ def test_a_remote_wrench_on_a_simulated_mtm(make_server, make_ros):
     client = RosClientMode(handle, ClientModeConfig(remote_server.url, mtms=()))
     try:
         assert "MTMR" in client.arms
-        client.start()
+        client.start(ROS_CONNECT_TIMEOUT)
         remote.listen("/sim/MTMR/operating_state", "crtk_msgs/OperatingState")
         assert wait_for(lambda: remote.got["/sim/MTMR/operating_state"], 5)  # latched
         remote.pub("/sim/MTMR/state_command", "crtk_msgs/StringStamped", {"string": "enable"})
@@ -261,7 +261,8 @@ def test_serve_in_client_mode_takes_the_remote_commands(make_server, make_ros):
 
     remote_server = make_server()
     options = ServeOptions(scene="psm1", images="none", ros_connect=remote_server.url,
-                           namespace="/", bridge=BridgeConfig(port=0))  # fmt: skip
+                           ros_connect_timeout=ROS_CONNECT_TIMEOUT, namespace="/",
+                           bridge=BridgeConfig(port=0))  # fmt: skip
     with serving(options):
         remote = Remote(make_ros(remote_server))
         remote.listen("/PSM1/operating_state", "crtk_msgs/OperatingState")

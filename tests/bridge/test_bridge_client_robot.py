@@ -42,7 +42,7 @@ def remote(robot_handle, request):
     ros_version, namespace = request.param
     server = RosbridgeServer(BridgeConfig(port=0, ros_version=ros_version)).start()
     config = ClientModeConfig(server.url, namespace=namespace, mtms=(), ros_version=ros_version)
-    client = RosClientMode(robot_handle, config).start()
+    client = RosClientMode(robot_handle, config).start(ROS_CONNECT_TIMEOUT)
     viewer = roslibpy.Ros("127.0.0.1", server.port)
     viewer.run(ROS_CONNECT_TIMEOUT)
     yield client, server, viewer
@@ -207,7 +207,7 @@ def test_no_robot_description_publishes_none_of_it(make_server, make_ros, robot_
     viewer = make_ros(server)
     js = subscribe(viewer, "/sim/PSM1/measured_js", "sensor_msgs/JointState")
     try:
-        client.start()
+        client.start(ROS_CONNECT_TIMEOUT)
         assert wait_for(lambda: len(js) > 2, 10)
         topics = server.call(lambda: set(server.bridge.topics))
         assert not {"/sim/robot_description", "/tf_static", "/sim/joint_states"} & topics
@@ -222,7 +222,7 @@ def test_a_remote_that_refuses_the_parameter_gets_a_warning(make_server, robot_h
     server.call(lambda: server.bridge.services.pop("/rosapi/set_param"))
     config = ClientModeConfig(server.url, namespace="/", mtms=(), ros_version=1)
     with caplog.at_level(logging.WARNING, "davinci_sim.bridge.client"):
-        client = RosClientMode(robot_handle, config).start()
+        client = RosClientMode(robot_handle, config).start(ROS_CONNECT_TIMEOUT)
     try:
         assert "refused the robot_description parameters" in caplog.text
         assert "/robot_description" in server.call(lambda: set(server.bridge.topics))
@@ -259,6 +259,7 @@ def test_serve_in_client_mode_publishes_the_robot(make_server, make_ros):
 
     remote_server = make_server()
     options = ServeOptions(scene="psm1", images="none", ros_connect=remote_server.url,
+                           ros_connect_timeout=ROS_CONNECT_TIMEOUT,
                            bridge=BridgeConfig(port=0))  # fmt: skip
     with serving(options):
         viewer = make_ros(remote_server)

@@ -50,6 +50,9 @@ class ServeOptions:
     ros_connect: str | None = None
     namespace: str = "/sim"
     remote_ros_version: Literal[1, 2] = 2
+    ros_connect_timeout: float = 10.0
+    """Client mode: the longest wait, s, for the remote to accept the connection and to
+    answer at start (``serve`` fails with ``RosTimeoutError`` after it)."""
     robot_description: bool = True
     """Client mode: also publish the robot on the remote (``{ns}/robot_description``,
     ``/tf``, ``/tf_static``, ``{ns}/joint_states`` at ``tf_rate``; off to save bandwidth)."""
@@ -277,7 +280,7 @@ def serve(
                     tf_rate=options.tf_rate,
                 ),
                 model=system.model_source,
-            ).start()
+            ).start(options.ros_connect_timeout)
             started.append(client)
             info["ros_connect"] = options.ros_connect
         for make in parts:
