@@ -6,7 +6,7 @@ import time
 import numpy as np
 import pytest
 import roslibpy
-from bridge_helpers import wait_for
+from bridge_helpers import ROS_CONNECT_TIMEOUT, wait_for
 
 from davinci_sim.bridge import dvrk_messages as m
 from davinci_sim.bridge.client_mode import ClientModeConfig, RosClientMode
@@ -61,11 +61,28 @@ def remote(make_server, make_ros):
     return server, make_ros(server)
 
 
-def test_client_mode_drives_the_simulated_mtm_and_publishes_states(remote):
+@pytest.fixture
+def fake_console(remote):
+    """``fake_console(names)`` → a :class:`FakeConsole` on the remote, stopped after the
+    test even when it fails (before, a failure between its start and the test's ``try``
+    left it publishing 300 messages a second for the rest of the worker's session), and
+    before the remote's client closes."""
+    fakes = []
+
+    def make(names):
+        fakes.append(FakeConsole(remote[1], names))
+        return fakes[-1]
+
+    yield make
+    for fake in fakes:
+        fake.stop()
+
+
+def test_client_mode_drives_the_simulated_mtm_and_publishes_states(remote, fake_console):
     server, remote_ros = remote
     handle = ThreadedSimulation(Simulation("psm1_ecm_mtmr"), real_time=True).start()
     names = list(handle.snapshot().arms["MTMR"].measured_js.name)
-    fake = FakeConsole(remote_ros, names)
+    fake = fake_console(names)
     wrench = np.array([1.0, 0.0, -2.0, 0.0, 0.0, 0.0])
     client = RosClientMode(
         handle,
@@ -73,7 +90,7 @@ def test_client_mode_drives_the_simulated_mtm_and_publishes_states(remote):
         wrench_source=lambda snap: {"MTMR": wrench},
     )
     try:
-        client.start()
+        client.start(ROS_CONNECT_TIMEOUT)
         assert client.mode == {"MTMR": "joints"}  # no network device in this simulation
         assert wait_for(lambda: handle.snapshot().arms["MTMR"].operating_state.is_homed, 10)
         fake.q = np.array([0.1, 0.2, -0.1, 0.3, 0.2, 0.1, 0.4])
@@ -107,21 +124,21 @@ def test_client_mode_drives_the_simulated_mtm_and_publishes_states(remote):
         assert len(fake.wrenches) == n
         assert client.received.get("/MTMR/measured_js", 0) > 10 and client.errors == 0
     finally:
-        client.stop()
         fake.stop()
+        client.stop()
         handle.stop()
 
 
-def test_client_mode_pushes_into_a_network_device(remote):
+def test_client_mode_pushes_into_a_network_device(remote, fake_console):
     network = pytest.importorskip("davinci_sim.devices.network")
     server, remote_ros = remote
     sim = Simulation("psm1_ecm_mtmr")
     sim.add_component(network.NetworkDevice("MTMR/device", watchdog=None))
     handle = ThreadedSimulation(sim, real_time=True).start()
-    fake = FakeConsole(remote_ros, list(handle.snapshot().arms["MTMR"].measured_js.name))
+    fake = fake_console(list(handle.snapshot().arms["MTMR"].measured_js.name))
     client = RosClientMode(handle, ClientModeConfig(server.url, mtms=("MTMR",)))
     try:
-        client.start()
+        client.start(ROS_CONNECT_TIMEOUT)
         assert client.mode == {"MTMR": "device"}
 
         def device_input():
@@ -140,8 +157,8 @@ def test_client_mode_pushes_into_a_network_device(remote):
         assert 0 < sent[2] <= 1.5
         assert fake.wrenches[-1]["wrench"]["force"]["z"] == pytest.approx(sent[2])
     finally:
-        client.stop()
         fake.stop()
+        client.stop()
         handle.stop()
 
 
@@ -152,7 +169,9 @@ def test_config_is_checked():
         ClientModeConfig("ws://localhost:9090", namespace="sim")
 
 
-def test_a_remote_console_teleoperates_the_simulated_psm(remote, make_server, make_ros):
+def test_a_remote_console_teleoperates_the_simulated_psm(
+    remote, fake_console, make_server, make_ros
+):
     """The whole chain: real MTM pose (remote topics) → client mode → network device →
     simulated teleoperation (enabled through the local console topics) → PSM motion, seen
     on the local bridge's dVRK topics."""
@@ -168,10 +187,10 @@ def test_a_remote_console_teleoperates_the_simulated_psm(remote, make_server, ma
     handle = ThreadedSimulation(sim, real_time=True).start()
     local = make_server(nodes=[DvrkNode(handle), ConsoleNode(handle)])
     ros = make_ros(local)
-    fake = FakeConsole(remote_ros, list(handle.snapshot().arms["MTMR"].measured_js.name))
+    fake = fake_console(list(handle.snapshot().arms["MTMR"].measured_js.name))
     client = RosClientMode(handle, ClientModeConfig(remote_server.url, mtms=("MTMR",)))
     try:
-        client.start()
+        client.start(ROS_CONNECT_TIMEOUT)
         assert client.mode == {"MTMR": "device"}
         following, cp, clutch = [], [], []
         roslibpy.Topic(ros, "/MTMR_PSM1/following", "std_msgs/Bool").subscribe(following.append)
@@ -221,6 +240,6 @@ def test_a_remote_console_teleoperates_the_simulated_psm(remote, make_server, ma
         fake.clutch.publish(roslibpy.Message({"buttons": [1]}))  # the real clutch pedal
         assert wait_for(lambda: clutch and clutch[-1]["buttons"] == [1], 5)
     finally:
-        client.stop()
         fake.stop()
+        client.stop()
         handle.stop()
