@@ -17,9 +17,9 @@ ROS_CONNECT_TIMEOUT = 60.0
 #: (a busy machine must not fail a passing one); no test asserts how fast a condition comes.
 FAIL_AFTER = 30.0
 
-#: Longest wait for ``davinci-sim serve`` to come up, s: a failure deadline. A clean clone
-#: compiles its kernels on first use, which took 16 s on an idle 2-core machine for one
-#: ``serve`` and more than 30 s under ``make test``'s two workers (a CI run failed there).
+#: Longest wait for ``davinci-sim serve`` to come up, s: a failure deadline for a start that
+#: hangs (a start that raises fails at once with its error). A clean clone compiles its
+#: kernels on first use: 16 s for one ``serve`` on an idle 2-core machine, more under load.
 START_DEADLINE = 180.0
 
 
