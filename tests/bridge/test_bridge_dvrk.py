@@ -7,7 +7,7 @@ from concurrent.futures import Future
 import numpy as np
 import pytest
 import roslibpy
-from bridge_helpers import enable_and_home, wait_for
+from bridge_helpers import FAIL_AFTER, enable_and_home, wait_for
 
 from davinci_sim.bridge import dvrk_messages as m
 from davinci_sim.bridge.dvrk_node import DvrkNode
@@ -185,7 +185,12 @@ def test_after_a_stall_of_the_bridge_a_move_end_still_follows_its_joints(handle,
     assert wait_for(lambda: {n for n, _ in got} == {"operating_state", "measured_js"})
 
     def on_loop() -> tuple[float, bool]:
-        time.sleep(0.05)  # (this loop stalls; the simulation runs on, 50 ms ahead)
+        # This loop stalls until the simulation, running on, is 5 ms of simulated time past
+        # the states it sent (a fixed 50 ms of wall time was not enough on a loaded machine,
+        # where the simulation ran at 0.17x real time).
+        deadline = time.monotonic() + FAIL_AFTER
+        while handle.snapshot().time < node.state_time + 0.005 and time.monotonic() < deadline:
+            time.sleep(0.001)
         t = handle.snapshot().time - 0.002  # (covered by the latest snapshot, not yet sent)
         assert t > node.state_time
         node._on_event("PSM1", "operating_state", OperatingState("DISABLED", False, True, t))
