@@ -3,11 +3,13 @@ kinds when imported (:func:`davinci_sim.tasks.base.task_kinds` imports this modu
 
 * ``camera_targeting`` — :class:`~davinci_sim.tasks.camera_targeting.CameraTargetingTask`;
 * ``ring_walk`` — :class:`~davinci_sim.tasks.ring_walk.RingWalkTask`;
-* ``needle_targeting`` — :class:`~davinci_sim.tasks.needle_targeting.NeedleTargetingTask`.
+* ``needle_targeting`` — :class:`~davinci_sim.tasks.needle_targeting.NeedleTargetingTask`;
+* ``needle_pickup`` — :class:`~davinci_sim.tasks.needle_pickup.NeedlePickupTask`.
 """
 
 from davinci_sim.tasks.camera_targeting import CameraTargetingTask
+from davinci_sim.tasks.needle_pickup import NeedlePickupTask
 from davinci_sim.tasks.needle_targeting import NeedleTargetingTask
 from davinci_sim.tasks.ring_walk import RingWalkTask
 
-__all__ = ["CameraTargetingTask", "NeedleTargetingTask", "RingWalkTask"]
+__all__ = ["CameraTargetingTask", "NeedlePickupTask", "NeedleTargetingTask", "RingWalkTask"]
