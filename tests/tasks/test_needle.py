@@ -13,7 +13,7 @@ from scripted_operator import Operator
 from davinci_sim.tasks import TaskError, load_task, task_from_dict, task_to_dict
 from davinci_sim.tasks.base import Sample
 from davinci_sim.tasks.check import check_task
-from davinci_sim.tasks.needle_scene import NeedleSpec
+from davinci_sim.tasks.needle_scene import NeedleSpec, grasp_pose
 from davinci_sim.tasks.state import Phase, TaskMonitor
 
 PSM2_JAWS, PSM1_JAWS = 0b0011, 0b1100  # (instruments [PSM2, PSM1]: PSM2 is bit pair 0)
@@ -52,6 +52,27 @@ def test_the_default_needle_is_a_half_circle_26_mm_along_the_curve():
 def test_a_bad_needle_is_refused_with_the_field_named(change, words):
     with pytest.raises(ValueError, match=words):
         NeedleSpec(**change)
+
+
+def test_a_grasp_closes_the_jaws_across_the_needles_plane_at_the_fraction_asked():
+    needle = NeedleSpec()
+    rng = np.random.default_rng(3)
+    for _ in range(20):
+        T = np.eye(4)
+        T[:3, :3] = np.linalg.qr(rng.normal(size=(3, 3)))[0] * [1, 1, 1]
+        T[:3, :3] *= np.sign(np.linalg.det(T[:3, :3]))
+        T[:3, 3] = rng.normal(size=3)
+        R_tip = np.linalg.qr(rng.normal(size=(3, 3)))[0]
+        R_tip *= np.sign(np.linalg.det(R_tip))
+        s = rng.uniform()
+        R, pivot = grasp_pose(T, needle, R_tip, s, depth=0.005)
+        assert np.allclose(R.T @ R, np.eye(3)) and np.linalg.det(R) == pytest.approx(1.0)
+        assert abs(np.dot(R[:, 1], T[:3, 2])) == pytest.approx(1.0)  # closing ⟂ plane
+        assert np.dot(R[:, 1], R_tip[:, 1]) >= 0  # the nearer sign
+        wire = T[:3, :3] @ needle.points(s) + T[:3, 3]
+        assert np.allclose(pivot + 0.005 * R[:, 2], wire)
+    with pytest.raises(ValueError, match="normal"):
+        grasp_pose(np.eye(4), needle, np.eye(3), 0.5)  # jaws (z) along the normal (z)
 
 
 # ================================================================ the state machine
@@ -181,9 +202,8 @@ def test_bad_task_files_are_refused_with_the_field_named(task, change, words):
 
 # ================================================================ physics
 class NeedleOperator(Operator):
-    """The :class:`Operator` with the needle: its frame, the jaws on it, and the tip pose
-    that grasps it at a fraction ``s`` of its length with the jaws closing across its
-    plane."""
+    """The :class:`Operator` with the needle: its frame, the jaws on it, and a grasp at a
+    fraction ``s`` of its length (:func:`grasp_pose`)."""
 
     def needle(self):
         return self.probe.frame(self.sim.data)
@@ -191,22 +211,8 @@ class NeedleOperator(Operator):
     def bits(self):
         return self.probe.grasp(self.sim.data)
 
-    def grasp_pose(self, n, s, depth=0.006):
-        """(R, pivot): the tip's orientation (its y, the jaws' closing direction, along the
-        needle plane's normal; its z, the jaws' direction, the current one turned into the
-        needle's plane) and the pivot ``depth`` behind the wire along the jaws."""
-        T = self.needle()
-        normal = T[:3, 2]
-        R = self.tip(n)[:3, :3]
-        y = normal if np.dot(normal, R[:, 1]) > 0 else -normal
-        z = R[:, 2] - y * np.dot(y, R[:, 2])
-        z /= np.linalg.norm(z)
-        R_grasp = np.column_stack([np.cross(y, z), y, z])
-        g = T[:3, :3] @ self.task.needle.points(s) + T[:3, 3]
-        return R_grasp, g - depth * z
-
     def grasp(self, n, s, approach=0.015):
-        R, pivot = self.grasp_pose(n, s)
+        R, pivot = grasp_pose(self.needle(), self.task.needle, self.tip(n)[:3, :3], s)
         self.R[n] = R
         self.jaw(n, 0.8)  # open: 46° (dVRK jaw range −40°…80°)
         self.move(n, pivot - approach * R[:, 2])

@@ -14,6 +14,9 @@ task's teleoperation clutched:
 * ``ring_walk``: carry the ring along the wire from its start to its end;
 * ``camera_targeting``: bring the endoscope, on the line from its RCM through each target, to
   the task's depth (ECM ``move_cp``), hold for the dwell;
+* ``needle_pickup``: PSM2 lifts the needle out of its park by the top of its arc, PSM1
+  grasps it near its point (both with the jaws closing across the needle's plane), PSM2
+  lets go and moves away, PSM1 holds it;
 * ``peg_transfer`` (and its ICRA variant): PSM2 lifts each ring off its start peg, carries it
   to the middle (over the wall), hands it to PSM1, which threads it on a target peg. **Not
   yet reliable**: in a checked attempt it transferred two rings and lost the third at the
@@ -71,7 +74,9 @@ ANGULAR_SPEED = 1.0
 #: Corrective reaches after the first, at most.
 MAX_CORRECTIONS = 4
 #: The kinds these operators do.
-EXERCISES = ("needle_targeting", "ring_walk", "camera_targeting", "peg_transfer")
+EXERCISES = ("needle_targeting", "ring_walk", "camera_targeting", "peg_transfer", "needle_pickup")
+#: The kinds whose attempts use both PSMs (the console's system, both homed).
+TWO_HANDED = ("peg_transfer", "needle_pickup")
 #: Metrics a scripted expert does not exercise, and why (left out of its reference).
 NOT_MEASURED = {
     "master_workspace": "the scripted experts drive the arms (teleoperation clutched): the "
@@ -427,6 +432,55 @@ def do_peg(stream: Streamer, session, task, done) -> None:
     stream.wait(0.5, until=done)
 
 
+def do_needle_pickup(stream: Streamer, session, task, done) -> None:
+    """PSM2 picks the needle out of its park by the top of its arc and lifts it 2 cm, PSM1
+    grasps it near its point, PSM2 lets go and moves away; PSM1 holds it (the session
+    finishes the attempt after the task's hold time). A grasp that does not hold is tried
+    again from the needle's pose then."""
+    from davinci_sim.tasks.needle_scene import grasp_pose
+
+    sim = stream.sim
+    probe = task.probe(sim.model)
+    giver, taker = task.instruments
+
+    def jaw(n, angle):
+        sim.arms[n].jaw.servo_jp(angle)
+        return stream.wait(0.1, until=done)
+
+    def held(n) -> bool:  # both of n's jaws touch the needle (the expert looks)
+        return (probe.grasp(sim.data) >> (2 * task.instruments.index(n))) & 3 == 3
+
+    def grasp(n, s) -> bool | None:
+        """n's open jaws to the needle at fraction s, closed: True if held, None if the
+        attempt ended."""
+        for _ in range(3):
+            R, pivot = grasp_pose(probe.frame(sim.data), task.needle, stream.goal[n][:3, :3], s)
+            if jaw(n, JAW_OPEN):
+                return None
+            if stream.reach(n, pivot - 0.012 * R[:, 2], 0.002, R_goal=R, until=done):
+                return None
+            if stream.reach(n, pivot, 0.0007, until=done) or jaw(n, JAW_CLOSED):
+                return None
+            if held(n):
+                return True
+            if stream.reach(n, stream.goal[n][:3, 3] - 0.012 * R[:, 2], 0.002, until=done):
+                return None
+        return False
+
+    if not grasp(giver, 0.5):
+        return
+    if stream.reach(giver, stream.goal[giver][:3, 3] + [0, 0, 0.02], 0.003, until=done):
+        return
+    if not grasp(taker, 0.85):
+        return
+    if stream.wait(0.2, until=done) or jaw(giver, JAW_OPEN):
+        return
+    away = stream.goal[giver][:3, 3] - 0.012 * stream.goal[giver][:3, 2] + [0, 0, 0.01]
+    if stream.reach(giver, away, 0.003, until=done):
+        return
+    stream.wait(task.hold_time + 1.0, until=done)
+
+
 # ---------------------------------------------------------------- attempts
 @dataclass
 class Stage:
@@ -441,11 +495,11 @@ class Stage:
 
 def build_stage(task) -> Stage:
     """The stage of ``task``: the study's set-up (the task's PSM at the start, its
-    teleoperation clutched) and a session, the ECM homed for camera targeting; for peg
-    transfer the console's system with both PSMs homed and the board drawn."""
+    teleoperation clutched) and a session, the ECM homed for camera targeting; for the
+    two-handed kinds the console's system with both PSMs homed and their objects drawn."""
     from davinci_sim.tasks import install_task
 
-    if task.kind == "peg_transfer":
+    if task.kind in TWO_HANDED:
         from davinci_sim.model import SceneConfig
         from davinci_sim.system import ConsoleDescription, SystemDescription, build_simulation
         from davinci_sim.system.description import TaskDescription
@@ -488,6 +542,8 @@ def _time_budget(task, motor: Motor) -> float:
         return 3.0 * task.path.length / motor.speed + 10.0
     if task.kind == "peg_transfer":
         return 40.0 * task.n_rings
+    if task.kind == "needle_pickup":
+        return 30.0
     return 15.0 * len(task.targets) + 5.0
 
 
@@ -513,7 +569,7 @@ def attempt(stage: Stage, task, motor: Motor) -> dict:
     else:
         stream = Streamer(sim, motor, T_camera_task, stage.arms)
         script = {"needle_targeting": do_needle, "ring_walk": do_ring_walk,
-                  "peg_transfer": do_peg}[task.kind]  # fmt: skip
+                  "peg_transfer": do_peg, "needle_pickup": do_needle_pickup}[task.kind]  # fmt: skip
         script(stream, session, task, done)
     sim.run_until(done, 2.0)
     if len(session.results) > before:

@@ -140,6 +140,29 @@ class NeedlePark:
         return transform(R, [self.center[0], self.center[1], z])
 
 
+def grasp_pose(T_world_needle: np.ndarray, needle: NeedleSpec, R_world_tip: np.ndarray,
+               s: float, depth: float = 0.006) -> tuple[np.ndarray, np.ndarray]:  # fmt: skip
+    """Where a tip goes to grasp the needle at fraction ``s`` of its length (0 swage, 1
+    point) with the jaws closing across the needle's plane: ``(R_world_tip, p_world_pivot)``.
+
+    The tip frame of the dVRK PSM has the jaws along z and their closing direction along y
+    (x the hinge axis). The grasp keeps the tip's current orientation ``R_world_tip`` as far
+    as it can: its y turned onto the needle plane's normal (the sign nearer the current
+    y), its z the current one turned into the needle's plane; the pivot (the tip point, on
+    the wrist-yaw axis) lies ``depth`` m behind the wire along the jaws.
+    """
+    normal = T_world_needle[:3, 2]
+    R = np.asarray(R_world_tip, dtype=float)
+    y = normal if np.dot(normal, R[:, 1]) >= 0 else -normal
+    z = R[:, 2] - y * np.dot(y, R[:, 2])
+    norm = np.linalg.norm(z)
+    if norm < 1e-6:
+        raise ValueError("the jaws point along the needle plane's normal: no grasp across it")
+    z /= norm
+    p = T_world_needle[:3, :3] @ needle.points(s) + T_world_needle[:3, 3]
+    return np.column_stack([np.cross(y, z), y, z]), p - depth * z
+
+
 def add_needle(spec: mujoco.MjSpec, needle: NeedleSpec, park: NeedlePark | None,
                prefix: str = "task/") -> mujoco.MjsBody:  # fmt: skip
     """Add ``needle`` (a free body, ``<prefix>needle``, standing in ``park`` if given,
