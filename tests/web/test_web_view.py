@@ -86,6 +86,22 @@ def test_task_marks_of_a_wire_sample_it_every_2_mm_and_skip_the_seeds_path():
     assert task_marks(load_task("seed_path"), T_world_camera, CameraConfig()) is None
 
 
+def test_task_marks_number_the_peg_rings_but_not_the_needles_centre():
+    import numpy as np
+
+    from davinci_sim.model.cameras import CameraConfig
+    from davinci_sim.tasks import load_task
+    from davinci_sim.web.view import task_marks
+
+    T_world_camera = np.array([[-1.0, 0, 0, 0.06], [0, 1, 0, 1.2], [0, 0, -1, 1.0], [0, 0, 0, 1]])
+    centres = np.array([[0.10, 1.19, 0.80], [0.12, 1.17, 0.80], [0.12, 1.21, 0.80]])
+    peg = task_marks(load_task("peg_transfer"), T_world_camera, CameraConfig(), objects=centres)
+    assert [m["label"] for m in peg["rings"]] == ["1", "2", "3"]
+    needle = task_marks(load_task("needle_pickup"), T_world_camera, CameraConfig(),
+                        objects=centres[:1])  # fmt: skip
+    assert needle is None or "rings" not in needle
+
+
 def _view(arms=None, teleop_state="ENABLED", on=True, t=10.0) -> dict:
     return {
         "time": t,

@@ -96,7 +96,7 @@ def task_marks(
         tops = [[x, y, task.board_top + task.peg_height] for x, y in np.asarray(pegs)]
         out["pegs"] = [_mark(str(i + 1), p, camera, target=i in targets)
                        for i, p in enumerate(to_camera(tops))]  # fmt: skip
-    if len(objects):
+    if len(objects) and pegs is not None:  # (a needle's centre is off its wire: unmarked)
         out["rings"] = [_mark(str(i + 1), p, camera) for i, p in enumerate(to_camera(objects))]
     return out or None
 
