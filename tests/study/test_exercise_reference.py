@@ -19,7 +19,7 @@ from davinci_sim.tasks.scoring import reference_dir
 
 #: The exercises with a shipped expert reference (peg transfer's scripted expert does not
 #: yet finish its attempts reliably: no reference is shipped for it).
-EXERCISES = ("camera_targeting", "ring_walk", "needle_targeting")
+EXERCISES = ("camera_targeting", "ring_walk", "needle_targeting", "needle_pickup")
 
 
 @pytest.mark.parametrize("name", EXERCISES)

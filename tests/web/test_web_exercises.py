@@ -464,6 +464,79 @@ def test_a_person_picks_a_ring_off_its_peg_and_drops_it_on_the_target_peg(
     assert p.panel("result-score").startswith("attempt 1: score")
 
 
+def test_a_person_picks_the_needle_out_of_its_park(browser, person):
+    """Looking at the needle standing in its foam block, the person turns the wrist (the
+    wrist keys) until the jaws open across the needle's plane (the tip's y along its
+    normal) while bringing the open jaws above the top of its arc, goes down along the
+    jaws until the wire is 6 mm into them, closes them (E) and lifts it 12 mm: the needle
+    comes up with the jaws and the attempt is running (the hand-off is the other hand's)."""
+    scene = SceneConfig(arms=("PSM1", "PSM2", "ECM", "MTMR"))
+    with served("needle_pickup", scene) as url:
+        p = person(url)
+        p.wait("window.davinci.last.task.phase === 'READY'")
+        p.take_control()
+        p.shot("needle_pickup_start")
+        marks = p.state()["task"]["marks"]["needle"]
+        swage, top, point = (np.array(m["p_camera"]) for m in marks["start"])
+        normal = np.array(marks["normal"])
+        up = _unit(top - (swage + point) / 2)  # (the needle stands on its ends)
+
+        def centre(s):
+            return np.array(s["task"]["marks"]["needle"]["centre"]["p_camera"])
+
+        def frame(s):
+            t = s["tips"]["PSM1"]
+            return np.array(t["p_camera"]), np.array(t["z_camera"]), np.array(t["y_camera"])
+
+        def turn_of(s):
+            _, _, y = frame(s)
+            n = normal if y @ normal >= 0 else -normal
+            return np.cross(y, n)  # turns y onto the normal (sin of the angle)
+
+        def go(goal_of, tolerance=0.001, turn=False):
+            def error(s):
+                return goal_of(s) - frame(s)[0]
+
+            def aligned(s):
+                return np.linalg.norm(turn_of(s)) < math.sin(math.radians(6))
+
+            def step(s):
+                e = error(s)
+                keys = keys_toward(screen(e), dead=0.5 * tolerance)
+                if turn and not aligned(s):
+                    keys |= keys_toward(screen(turn_of(s)), TURN_KEYS, dead=0.03, share=0.5)
+                if np.linalg.norm(e) < 0.006:
+                    keys.add("ShiftLeft")
+                return keys
+
+            done = lambda s: (
+                np.linalg.norm(error(s)) < tolerance
+                and (  # noqa: E731
+                    not turn or aligned(s)
+                )
+            )
+            return steer(p, done, step)
+
+        def wait(seconds: float):
+            p.hold(())
+            t0 = p.state()["time"]
+            return steer(p, lambda s: s["time"] - t0 > seconds, lambda s: set())
+
+        # Above the top, turned; then down along the jaws until the wire is 6 mm into them.
+        go(lambda s: top - 0.018 * frame(s)[1], tolerance=0.002, turn=True)
+        go(lambda s: top - 0.006 * frame(s)[1], tolerance=0.0012, turn=True)
+        p.tap("KeyE")  # close: the gripper squeezed, the jaw's goal -20°
+        s = wait(0.5)
+        assert s["tips"]["PSM1"]["jaw"] > 0.0  # stopped on the wire, not shut
+        c0, lift_from = centre(s), frame(s)[0]
+        s = go(lambda s: lift_from + 0.012 * up, tolerance=0.002)
+        s = wait(0.3)
+        p.shot("needle_pickup_lifted")
+        assert (centre(s) - c0) @ up > 0.008  # it came up with the jaws
+        assert s["task"]["phase"] == "RUNNING"
+        assert p.panel("progress") == "hand the needle to the other instrument"
+
+
 def test_the_peg_board_is_served_with_its_rings_and_target_pegs_marked(browser, person):
     """``serve --task peg_transfer`` with the web console (the loop in its own process,
     whose state mirror must have the board's free rings): the page shows the three rings

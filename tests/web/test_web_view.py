@@ -86,7 +86,7 @@ def test_task_marks_of_a_wire_sample_it_every_2_mm_and_skip_the_seeds_path():
     assert task_marks(load_task("seed_path"), T_world_camera, CameraConfig()) is None
 
 
-def test_task_marks_number_the_peg_rings_but_not_the_needles_centre():
+def test_task_marks_number_the_peg_rings_and_give_the_needles_pose():
     import numpy as np
 
     from davinci_sim.model.cameras import CameraConfig
@@ -97,9 +97,15 @@ def test_task_marks_number_the_peg_rings_but_not_the_needles_centre():
     centres = np.array([[0.10, 1.19, 0.80], [0.12, 1.17, 0.80], [0.12, 1.21, 0.80]])
     peg = task_marks(load_task("peg_transfer"), T_world_camera, CameraConfig(), objects=centres)
     assert [m["label"] for m in peg["rings"]] == ["1", "2", "3"]
-    needle = task_marks(load_task("needle_pickup"), T_world_camera, CameraConfig(),
-                        objects=centres[:1])  # fmt: skip
-    assert needle is None or "rings" not in needle
+    task = load_task("needle_pickup")
+    needle = task_marks(task, T_world_camera, CameraConfig(), objects=centres[:1])
+    assert "rings" not in needle  # (the needle's centre is off its wire)
+    T_camera_world = np.linalg.inv(T_world_camera)
+    top = T_camera_world[:3, :3] @ task.view_points[1] + T_camera_world[:3, 3]
+    assert needle["needle"]["start"][1]["p_camera"] == pytest.approx(top)
+    assert needle["needle"]["normal"] == pytest.approx([0.0, -1.0, 0.0])  # (x flipped: 0, −1)
+    centre = T_camera_world[:3, :3] @ centres[0] + T_camera_world[:3, 3]
+    assert needle["needle"]["centre"]["p_camera"] == pytest.approx(centre)
 
 
 def _view(arms=None, teleop_state="ENABLED", on=True, t=10.0) -> dict:

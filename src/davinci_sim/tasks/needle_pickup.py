@@ -193,9 +193,10 @@ class NeedlePickupTask(Task, kind="needle_pickup"):
     # ------------------------------------------------------------ geometry
     @property
     def start(self) -> np.ndarray:
-        """Above the needle's top, where a repetition starts (m, world)."""
+        """25 mm above the needle's top, where a repetition starts (m, world): the jaws,
+        10.5 mm long, clear it."""
         top = self.T_world_start @ np.append(self.needle.points(0.5), 1.0)
-        return top[:3] + [0.0, 0.0, 0.01]
+        return top[:3] + [0.0, 0.0, 0.025]
 
     @property
     def view_points(self) -> np.ndarray:

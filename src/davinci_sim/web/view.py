@@ -51,8 +51,10 @@ def task_marks(
     from the task's progress text "… target k of K"; None when it names none), and a path
     task's ``wire`` (its path every 2 mm; the seed's path has its own depth cue,
     :func:`path_guide`), a peg board's ``pegs`` (their tops; ``target``: a peg to put a
-    ring on) and ``rings`` (``objects``: their centres in the task's frame, m). None for a
-    task in the camera frame or with nothing to mark."""
+    ring on) and ``rings`` (``objects``: their centres in the task's frame, m), a needle
+    exercise's ``needle`` (its ``start`` pose's swage, top and point, its plane's
+    ``normal``, and its ``centre`` now, from ``objects``). None for a task in the camera
+    frame or with nothing to mark."""
     if task is None or getattr(task, "frame", "world") != "world":
         return None
     T = np.asarray(T_world_camera, dtype=float)
@@ -96,8 +98,18 @@ def task_marks(
         tops = [[x, y, task.board_top + task.peg_height] for x, y in np.asarray(pegs)]
         out["pegs"] = [_mark(str(i + 1), p, camera, target=i in targets)
                        for i, p in enumerate(to_camera(tops))]  # fmt: skip
-    if len(objects) and pegs is not None:  # (a needle's centre is off its wire: unmarked)
+    if len(objects) and pegs is not None:
         out["rings"] = [_mark(str(i + 1), p, camera) for i, p in enumerate(to_camera(objects))]
+    T_start = getattr(task, "T_world_start", None)
+    needle = getattr(task, "needle", None)
+    if T_start is not None and needle is not None:  # (not drawn: the needle is in the view)
+        ends = T_start[:3, :3] @ needle.points(np.array([0.0, 0.5, 1.0])).T + T_start[:3, 3:4]
+        out["needle"] = {
+            "start": [_mark(k, p, camera) for k, p in zip(("swage", "top", "point"),
+                                                          to_camera(ends.T), strict=True)],
+            "normal": _vector(R.T @ T_start[:3, 2]),
+            "centre": _mark("centre", to_camera(objects)[0], camera) if len(objects) else None,
+        }  # fmt: skip
     return out or None
 
 
