@@ -1,11 +1,14 @@
-"""Peg transfer's tick cost (:mod:`davinci_sim.tasks.peg`): the physics step of a scene with
-the board and three rings (PSM1, PSM2 and the ECM) against the same scene without them and
-with the board but without the noslip solver, the task's reading of the scene
-(``scene_fields``: ring centres and jaw contacts), one monitored sample (state machine and
+"""The tick cost of the exercises with free objects: peg transfer
+(:mod:`davinci_sim.tasks.peg`) and needle pick-up (:mod:`davinci_sim.tasks.needle_pickup`).
+For each, the physics step of a scene with the task's objects (the board and three rings;
+the foam park and the needle; PSM1, PSM2 and the ECM) against the same scene without them
+and with them but without the noslip solver, the task's reading of the scene
+(``scene_fields``: object centres and jaw contacts), one monitored sample (state machine and
 metrics) for one trial, and the pure step for 100 trials at once.
 
-The rings rest on their pegs (contacts with pegs and board every step) while the arms hold
-their homed pose. ``python benchmarks/bench_peg.py`` writes ``results/peg.json``.
+The objects rest where they start (contacts every step) while the arms hold their homed
+pose. ``python benchmarks/bench_peg.py`` writes ``results/peg.json`` and
+``results/needle.json``.
 """
 
 from __future__ import annotations
@@ -38,17 +41,19 @@ def _tick_us(edit, n: int) -> list[float]:
         sim.close()
 
 
-def main(n: int = 2000) -> None:
-    task = load_task("peg_transfer_icra")
+def measure(task, objects: str, n: int) -> dict:
+    """The figures of ``task`` (see the module docstring); ``objects`` names them in the
+    keys (``board``, ``needle``)."""
 
     def without_noslip(spec):
         task.draw(spec)
         spec.option.noslip_iterations = 0
 
-    figures = {"rings": task.n_rings, "load_average_1min": os.getloadavg()[0]}
-    figures.update(summary(_tick_us(None, n), "tick_without_board"))
-    figures.update(summary(_tick_us(task.draw, n), "tick_with_board"))
-    figures.update(summary(_tick_us(without_noslip, n), "tick_with_board_no_noslip"))
+    k = getattr(task, "n_rings", 1)
+    figures = {"objects": k, "load_average_1min": os.getloadavg()[0]}
+    figures.update(summary(_tick_us(None, n), f"tick_without_{objects}"))
+    figures.update(summary(_tick_us(task.draw, n), f"tick_with_{objects}"))
+    figures.update(summary(_tick_us(without_noslip, n), f"tick_with_{objects}_no_noslip"))
 
     sim = Simulation(SCENE, keyframe="surgical", edit_spec=task.draw)
     sim.run_for(0.2)
@@ -66,19 +71,25 @@ def main(n: int = 2000) -> None:
 
     trials = 100
     fields = task.scene_fields(m, d, cache)
-    objects = np.broadcast_to(fields["objects"], (trials, task.n_rings, 3))
-    grasp = np.broadcast_to(fields["grasp"], (trials, task.n_rings))
+    centres = np.broadcast_to(fields["objects"], (trials, k, 3))
+    grasp = np.broadcast_to(fields["grasp"], (trials, k))
+    tools = np.broadcast_to(fields["tools"], (trials, *fields["tools"].shape))
     state = task.initial_state(trials)
     times = iter(np.arange(10 * n) * 0.001)
 
     def batch():
         nonlocal state
-        s = Sample.of(np.full(trials, next(times)), np.tile(tip, (trials, 1)), objects=objects,
-                      grasp=grasp)  # fmt: skip
+        s = Sample.of(np.full(trials, next(times)), np.tile(tip, (trials, 1)), objects=centres,
+                      grasp=grasp, tools=tools)  # fmt: skip
         state, _ = task.step(state, s)
 
     figures.update(summary(time_each(batch, n), f"step_{trials}_trials"))
-    write("peg", figures)
+    return figures
+
+
+def main(n: int = 2000) -> None:
+    write("peg", measure(load_task("peg_transfer_icra"), "board", n))
+    write("needle", measure(load_task("needle_pickup"), "needle", n))
 
 
 if __name__ == "__main__":

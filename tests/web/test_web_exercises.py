@@ -509,12 +509,9 @@ def test_a_person_picks_the_needle_out_of_its_park(browser, person):
                     keys.add("ShiftLeft")
                 return keys
 
-            done = lambda s: (
-                np.linalg.norm(error(s)) < tolerance
-                and (  # noqa: E731
-                    not turn or aligned(s)
-                )
-            )
+            def done(s):
+                return np.linalg.norm(error(s)) < tolerance and (not turn or aligned(s))
+
             return steer(p, done, step)
 
         def wait(seconds: float):

@@ -8,7 +8,8 @@ either instrument, hands it to the other, and holds it there, lifted clear of th
 
 **What is observed each tick** (the :class:`~davinci_sim.tasks.base.Sample`'s ``objects``,
 the needle's centre (n, 1, 3) (the centre of its circle, world frame, m), ``grasp``, the
-bit mask of the jaws touching it, and ``tools``, every instrument's tip):
+bit mask of the jaws touching it, and ``tools``, every instrument's tip; holding, resting,
+hand-offs and drops are the law :mod:`davinci_sim.tasks.handling` shares with peg transfer):
 
 * the needle is *held* by an instrument when both its jaws touch it;
 * it *rests* when no jaw touches it and its centre has moved slower than ``rest_speed``
@@ -48,6 +49,7 @@ from davinci_sim.tasks.base import (
     common_to_dict,
 )
 from davinci_sim.tasks.exercise_parts import positive
+from davinci_sim.tasks.handling import Events, Handling, handling_step
 from davinci_sim.tasks.needle_scene import NeedlePark, NeedleSpec
 from davinci_sim.tasks.peg import ECONOMY_ALL, HANDOFFS, _AnyMapping
 from davinci_sim.tasks.schema import NONNEGATIVE, ListOf, Number, Text, Vector
@@ -258,11 +260,6 @@ class NeedlePickupTask(Task, kind="needle_pickup"):
         return NeedleState(*(np.where(m.reshape(-1, *([1] * (f.ndim - 1))), f, s)
                              for f, s in zip(fresh, state, strict=True)))  # fmt: skip
 
-    def holders(self, grasp) -> np.ndarray:
-        """(n, A) bool: instrument a holds the needle (both its jaws touch it)."""
-        g = np.asarray(grasp, dtype=np.int64).reshape(-1, 1)
-        return ((g >> (2 * np.arange(len(self.instruments)))) & 3) == 3
-
     def step(self, state: NeedleState, sample: Sample):
         """One sample of n trials (pure; see the module docstring). Observations:
         ``distance`` (tip to the needle's centre, m), ``handoffs``, ``dropped`` (events at
@@ -272,42 +269,28 @@ class NeedlePickupTask(Task, kind="needle_pickup"):
             raise ValueError(f"task {self.name!r} needs the sample's objects and grasp "
                              "(NeedlePickupTask.scene_fields)")  # fmt: skip
         n, t = sample.n, sample.time
-        p = np.asarray(sample.objects, dtype=float).reshape(n, 3)
-        grasp = np.asarray(sample.grasp, dtype=np.int64).reshape(n)
-        hold = self.holders(grasp)
-        held = hold.any(axis=1)
-        alone = hold.sum(axis=1) == 1
-        who = np.argmax(hold, axis=1) + 1
-        dt = t - state.t_prev
-        step = p - state.p_prev
-        slow = (grasp == 0) & (np.einsum("ij,ij->i", step, step) < (self.rest_speed * dt) ** 2)
-        slow &= dt > 0
-        t_still = np.where(slow, np.where(np.isnan(state.t_still), t, state.t_still), np.nan)
-        with np.errstate(invalid="ignore"):
-            resting = slow & (t - t_still >= self.rest_time)
+        p = np.asarray(sample.objects, dtype=float).reshape(n, 1, 3)
         start = self.T_world_start[:3, 3]
-        parked = np.linalg.norm(p - start, axis=1) <= self.park_tolerance
-
-        handoff = state.carried & alone & (state.owner > 0) & (state.owner != who)
-        owner = np.where(alone, who, state.owner)
-        handed = state.handed | handoff
-        carried = state.carried | held
-        land = carried & resting
-        drop = resting & ~parked & ~state.loose
-        loose = np.where(resting, ~parked, state.loose & ~held)
-        carried &= ~land
-        handed &= ~land
-        owner = np.where(land, 0, owner)
+        parked = np.linalg.norm(p - start, axis=2) <= self.park_tolerance
+        carry, e = handling_step(
+            Handling(*(a[:, None] for a in (state.t_still, state.owner, state.carried,
+                                            state.handed, state.loose))),
+            grasp=np.asarray(sample.grasp).reshape(n, 1), p=p, p_prev=state.p_prev[:, None],
+            t=t, t_prev=state.t_prev, placed=parked, instruments=len(self.instruments),
+            rest_speed=self.rest_speed, rest_time=self.rest_time,
+        )  # fmt: skip
+        carry, e = Handling(*(a[:, 0] for a in carry)), Events(*(a[:, 0] for a in e))
+        p = p[:, 0]
         lifted = p[:, 2] >= start[2] + self.lift_height
-        holding = handed & alone & lifted
+        holding = carry.handed & e.alone & lifted
         t_held = np.where(holding, np.where(np.isnan(state.t_held), t, state.t_held), np.nan)
         with np.errstate(invalid="ignore"):
             delivered = holding & (t - t_held >= self.hold_time)
 
         phase = state.phase
         new = phase.copy()
-        new[(phase == _IDLE) & resting & parked] = _READY
-        begin = (phase == _READY) & held
+        new[(phase == _IDLE) & e.resting & parked[:, 0]] = _READY
+        begin = (phase == _READY) & e.held
         new[begin] = _RUNNING
         t_start = np.where(begin, t, state.t_start)
         running = (phase == _RUNNING) | begin
@@ -323,13 +306,13 @@ class NeedlePickupTask(Task, kind="needle_pickup"):
 
         obs = {
             "distance": np.linalg.norm(p - sample.tip, axis=1),
-            "handoffs": handoff.astype(np.int64),
-            "dropped": drop.astype(np.int64),
+            "handoffs": e.handoff.astype(np.int64),
+            "dropped": e.drop.astype(np.int64),
             "missed": (finish & ~delivered).astype(np.int64),
-            "held": np.where(held, np.where(alone, who, 3), 0),
+            "held": np.where(e.held, np.where(e.alone, e.who, 3), 0),
         }
-        new_state = NeedleState(new, t_start, t_finish, t.astype(float), p.copy(), t_still,
-                                owner, carried, handed, loose, t_held)  # fmt: skip
+        new_state = NeedleState(new, t_start, t_finish, t.astype(float), p.copy(), *carry,
+                                t_held)  # fmt: skip
         return new_state, obs
 
     def at_start(self, tip) -> np.ndarray:

@@ -10,7 +10,8 @@ peg).
 
 **What is observed each tick** (the :class:`~davinci_sim.tasks.base.Sample`'s ``objects``,
 ring centres (n, k, 3), m, and ``grasp``, the bit mask of the jaws touching each ring,
-:class:`~davinci_sim.tasks.peg_scene.PegProbe`):
+:class:`~davinci_sim.tasks.peg_scene.PegProbe`; holding, resting, hand-offs and drops are
+the law :mod:`davinci_sim.tasks.handling` shares with the needle):
 
 * a ring is *held* by an instrument when both its jaws touch it;
 * it is *resting* when no jaw touches it and its centre has moved slower than
@@ -63,6 +64,7 @@ from davinci_sim.tasks.base import (
     common_fields,
     common_to_dict,
 )
+from davinci_sim.tasks.handling import Handling, handling_step, holders
 from davinci_sim.tasks.metrics import Metric, PairSum
 from davinci_sim.tasks.schema import (
     NONNEGATIVE,
@@ -369,7 +371,7 @@ class PegTransferTask(Task, kind="peg_transfer"):
         start, target = np.zeros(P + 1, bool), np.zeros(P + 1, bool)
         start[list(self.start_pegs)] = True
         target[list(self.target_pegs)] = True
-        return start, target, 2 * np.arange(len(self.instruments))
+        return start, target
 
     def peg_of(self, objects) -> np.ndarray:
         """(n, k) index of the peg each ring (centres (n, k, 3), m) is on, −1: none."""
@@ -384,8 +386,7 @@ class PegTransferTask(Task, kind="peg_transfer"):
 
     def holders(self, grasp) -> np.ndarray:
         """(n, k, A) bool: instrument a holds ring k (both its jaws touch it)."""
-        g = np.asarray(grasp, dtype=np.int64)
-        return ((g[..., None] >> self._lookups[2]) & 3) == 3
+        return holders(grasp, len(self.instruments))
 
     def step(self, state: PegState, sample: Sample):
         """One sample of n trials (pure; see the module docstring). Observations:
@@ -399,39 +400,18 @@ class PegTransferTask(Task, kind="peg_transfer"):
         n, k = sample.n, self.n_rings
         p = np.asarray(sample.objects, dtype=float).reshape(n, k, 3)
         t = sample.time
-        grasp = sample.grasp.reshape(n, k)
-        hold = self.holders(grasp)
-        held = hold.any(axis=-1)
-        alone = hold.sum(axis=-1) == 1
-        who = np.argmax(hold, axis=-1) + 1
-        dt = (t - state.t_prev)[:, None]
-        step = p - state.p_prev
-        v2 = np.einsum("...i,...i->...", step, step)
-        # Resting: no jaw touches it (a ring held still, or touched by one jaw of a grasp
-        # being changed, is not resting) and slower than rest_speed for rest_time (a ring
-        # just let go is still at the first sample without contact).
-        slow = (grasp == 0) & (v2 < (self.rest_speed * dt) ** 2) & (dt > 0)
-        t_still = np.where(slow, np.where(np.isnan(state.t_still), t[:, None], state.t_still),
-                           np.nan)  # fmt: skip
-        with np.errstate(invalid="ignore"):
-            resting = slow & (t[:, None] - t_still >= self.rest_time)
         peg = self.peg_of(p)
-        is_start, is_target, _ = self._lookups
+        is_start, is_target = self._lookups
         on_target = is_target[peg]
-
-        handoff = state.carried & alone & (state.owner > 0) & (state.owner != who)
-        owner = np.where(alone, who, state.owner)
-        handed = state.handed | handoff
-        carried = state.carried | held
-        land = carried & resting
-        transfer = land & on_target & ~state.done & (handed | (not self.wall))
-        off = resting & (peg < 0)
-        drop = off & ~state.loose  # landed off the pegs, or knocked off
+        carry, e = handling_step(
+            Handling(state.t_still, state.owner, state.carried, state.handed, state.loose),
+            grasp=sample.grasp.reshape(n, k), p=p, p_prev=state.p_prev, t=t,
+            t_prev=state.t_prev, placed=peg >= 0, instruments=len(self.instruments),
+            rest_speed=self.rest_speed, rest_time=self.rest_time,
+        )  # fmt: skip
+        held, resting, who = e.held, e.resting, e.who
+        transfer = e.land & on_target & ~state.done & (e.handed | (not self.wall))
         done = state.done | transfer
-        loose = np.where(resting, peg < 0, state.loose & ~held)
-        carried = carried & ~land
-        handed = handed & ~land
-        owner = np.where(land, 0, owner)
 
         phase = state.phase
         new = phase.copy()
@@ -456,14 +436,13 @@ class PegTransferTask(Task, kind="peg_transfer"):
         obs = {
             "distance": np.where(np.isfinite(d), d, 0.0),
             "transferred": transfer.sum(axis=1),
-            "handoffs": handoff.sum(axis=1),
-            "dropped": drop.sum(axis=1),
+            "handoffs": e.handoff.sum(axis=1),
+            "dropped": e.drop.sum(axis=1),
             "missed": np.where(finish, self.n_rings - done.sum(axis=1), 0),
             "held": np.where(held, who, 0),
             "peg": peg,
         }
-        new_state = PegState(new, t_start, t_finish, t.astype(float), p.copy(), t_still, owner,
-                             carried, handed, loose, done)  # fmt: skip
+        new_state = PegState(new, t_start, t_finish, t.astype(float), p.copy(), *carry, done)
         return new_state, obs
 
     def at_start(self, tip) -> np.ndarray:
