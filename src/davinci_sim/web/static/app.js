@@ -134,7 +134,7 @@ function onHello(m) {
     $("bedside").src = `${location.protocol}//${location.hostname}:${m.bedside_port}/${token}`;
   } else {
     $("bedside-note").textContent = "No 3-D view on this server (started with --no-bedside).";
-    $("bedside").remove();
+    $("bedside")?.remove();  // (gone already when the page hears the server again)
   }
   const task = m.task;
   if (task) {
