@@ -474,6 +474,7 @@ def test_a_person_picks_the_needle_out_of_its_park(browser, person):
     with served("needle_pickup", scene) as url:
         p = person(url)
         p.wait("window.davinci.last.task.phase === 'READY'")
+        assert p.panel("progress") == "pick up the needle to start"
         p.take_control()
         p.shot("needle_pickup_start")
         marks = p.state()["task"]["marks"]["needle"]
@@ -531,7 +532,7 @@ def test_a_person_picks_the_needle_out_of_its_park(browser, person):
         p.shot("needle_pickup_lifted")
         assert (centre(s) - c0) @ up > 0.008  # it came up with the jaws
         assert s["task"]["phase"] == "RUNNING"
-        assert p.panel("progress") == "hand the needle to the other instrument"
+        assert p.panel("progress").startswith("hand the needle to the other instrument: the jaws")
 
 
 def test_the_peg_board_is_served_with_its_rings_and_target_pegs_marked(browser, person):

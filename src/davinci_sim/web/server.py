@@ -495,6 +495,7 @@ class WebConsole(AsyncService):
         if task is not None:
             info["task"] = {
                 "name": task.name,
+                "kind": task.kind,
                 "description": getattr(task, "description", ""),
                 "psm": task.teleop.psm,
                 "mtm": task.teleop.mtm,

@@ -291,13 +291,15 @@ function onState(s) {
 // What the trainee is to do now: the exercise's own words while it runs.
 function toDo(task) {
   if (task.phase === "FINISHED" || task.phase === "RESULTS") return "done: the attempt is scored below; back to the start for the next";
-  const name = state.hello?.task?.name || "";
+  const kind = state.hello?.task?.kind || "";
   // (the keys each exercise needs beyond moving the tool, in its words)
-  if (task.progress && /camera/.test(name)) return `${task.progress}: hold C (camera pedal) and drag the view with the keys`;
-  if (task.progress && /needle/.test(name)) return `${task.progress}, the tool along its stem (turn it with I/K, J/L, U/O)`;
+  if (task.progress && kind === "camera_targeting") return `${task.progress}: hold C (camera pedal) and drag the view with the keys`;
+  if (task.progress && kind === "needle_targeting") return `${task.progress}, the tool along its stem (turn it with I/K, J/L, U/O)`;
+  if (task.progress && kind === "needle_pickup") return `${task.progress}: the jaws across the needle (turn them with I/K, J/L, U/O; E closes and opens them)`;
   if (task.progress) return task.progress;
-  if (/peg/.test(name) && (task.phase === "IDLE" || task.phase === "READY")) return "pick up a ring to start";
-  if (/camera/.test(name)) return task.phase === "READY" ? "ready: hold C (camera pedal) and move the view to start" : "hold the camera still to start";
+  if (kind === "peg_transfer" && (task.phase === "IDLE" || task.phase === "READY")) return "pick up a ring to start";
+  if (kind === "needle_pickup" && (task.phase === "IDLE" || task.phase === "READY")) return "pick up the needle to start";
+  if (kind === "camera_targeting") return task.phase === "READY" ? "ready: hold C (camera pedal) and move the view to start" : "hold the camera still to start";
   if (task.phase === "IDLE") return "bring the tool to the start to begin";
   if (task.phase === "READY") return "ready: go";
   return "–";
@@ -597,9 +599,8 @@ function drawHud(ctx, s, w) {
 // An exercise's targets, numbered, the current one ringed with its required tool direction
 // (a line from it, the way the tool must point); a camera exercise's crosshair.
 function drawMarks(ctx, marks, w) {
-  const name = state.hello?.task?.name || "";
   ctx.save();
-  if (/camera/.test(name)) {
+  if (state.hello?.task?.kind === "camera_targeting") {
     const h = $("overlay").height;
     ctx.strokeStyle = "rgba(255,255,255,0.7)";
     ctx.lineWidth = 1;
