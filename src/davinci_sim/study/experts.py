@@ -14,9 +14,9 @@ task's teleoperation clutched:
 * ``ring_walk``: carry the ring along the wire from its start to its end;
 * ``camera_targeting``: bring the endoscope, on the line from its RCM through each target, to
   the task's depth (ECM ``move_cp``), hold for the dwell;
-* ``needle_pickup``: PSM2 lifts the needle out of its park by the top of its arc, PSM1
-  grasps it near its point (both with the jaws closing across the needle's plane), PSM2
-  lets go and moves away, PSM1 holds it;
+* ``needle_pickup``: PSM2 lifts the needle out of its park a third of the way from its
+  swage, PSM1 grasps it near its point (both with the jaws closing across the needle's
+  plane), PSM2 lets go and moves away, PSM1 holds it;
 * ``peg_transfer`` (and its ICRA variant): PSM2 lifts each ring off its start peg, carries it
   to the middle (over the wall), hands it to PSM1, which threads it on a target peg. **Not
   yet reliable**: in a checked attempt it transferred two rings and lost the third at the
@@ -433,10 +433,12 @@ def do_peg(stream: Streamer, session, task, done) -> None:
 
 
 def do_needle_pickup(stream: Streamer, session, task, done) -> None:
-    """PSM2 picks the needle out of its park by the top of its arc and lifts it 2 cm, PSM1
-    grasps it near its point, PSM2 lets go and moves away; PSM1 holds it (the session
-    finishes the attempt after the task's hold time). A grasp that does not hold is tried
-    again from the needle's pose then."""
+    """The first instrument (PSM2) picks the needle out of its park a third of the way
+    from the swage and lifts it 2 cm, the second (PSM1) grasps it near its point, the first
+    lets go and moves away; the second holds it (the session finishes the attempt after the
+    task's hold time). The grasps are half the needle apart: closer, the two instruments'
+    jaws touched at the hand-off (counted as collisions). A grasp that does not hold is
+    tried again from the needle's pose then."""
     from davinci_sim.tasks.needle_scene import grasp_pose
 
     sim = stream.sim
@@ -450,11 +452,12 @@ def do_needle_pickup(stream: Streamer, session, task, done) -> None:
     def held(n) -> bool:  # both of n's jaws touch the needle (the expert looks)
         return (probe.grasp(sim.data) >> (2 * task.instruments.index(n))) & 3 == 3
 
-    def grasp(n, s) -> bool | None:
-        """n's open jaws to the needle at fraction s, closed: True if held, None if the
-        attempt ended."""
+    def grasp(n, s, depth) -> bool | None:
+        """n's open jaws to the needle at fraction s, the wire ``depth`` m into them,
+        closed: True if held, None if the attempt ended."""
         for _ in range(3):
-            R, pivot = grasp_pose(probe.frame(sim.data), task.needle, stream.goal[n][:3, :3], s)
+            T = probe.frame(sim.data)
+            R, pivot = grasp_pose(T, task.needle, stream.goal[n][:3, :3], s, depth)
             if jaw(n, JAW_OPEN):
                 return None
             if stream.reach(n, pivot - 0.012 * R[:, 2], 0.002, R_goal=R, until=done):
@@ -467,11 +470,12 @@ def do_needle_pickup(stream: Streamer, session, task, done) -> None:
                 return None
         return False
 
-    if not grasp(giver, 0.5):
+    # (8 mm into the jaws a third of the way along: their tips clear the park's foam)
+    if not grasp(giver, 0.35, 0.008):
         return
     if stream.reach(giver, stream.goal[giver][:3, 3] + [0, 0, 0.02], 0.003, until=done):
         return
-    if not grasp(taker, 0.85):
+    if not grasp(taker, 0.85, 0.006):
         return
     if stream.wait(0.2, until=done) or jaw(giver, JAW_OPEN):
         return
