@@ -352,25 +352,7 @@ def test_a_person_centres_the_targets_with_the_camera_pedal(task_files, browser,
                 keys.add("ShiftLeft")
             return clutching(s, keys)
 
-        stall = {"since": None, "target": None, "until": None, "back": set()}
-
-        def clutching(s, keys):
-            """When the hands stop at the edge of their reach (their target no longer
-            moves), a person presses the clutch and brings the hands back towards the
-            middle, the camera held, then lets go and carries on."""
-            t = s["time"]
-            hand = np.array(s["hands"]["MTMR"]["target"])
-            if stall["until"] is not None:
-                if t < stall["until"]:
-                    return {"KeyC", "Space", *stall["back"]}
-                stall.update(until=None, since=None, target=None)
-            moving = keys - {"KeyC", "ShiftLeft"}
-            if stall["target"] is None or np.linalg.norm(hand - stall["target"]) > 0.002:
-                stall.update(since=t, target=hand)
-            elif moving and t - stall["since"] > 0.4:
-                opposite = {a: b for pair in MOVE_KEYS for a, b in (pair, pair[::-1])}
-                stall.update(until=t + 1.5, back={opposite[k] for k in moving})
-            return keys
+        clutching = Clutch("MTMR", held={"KeyC"})
 
         steer(p, _done, step)
         p.shot("camera_targeting_scored")
@@ -378,6 +360,34 @@ def test_a_person_centres_the_targets_with_the_camera_pedal(task_files, browser,
     assert row["targets_acquired"] == 2
     assert row["path_length"] < 0.005  # the instrument stayed where it was
     assert row["score"] is not None and row["score"] > 0
+
+
+class Clutch:
+    """A person at the edge of a hand's reach: when the hand's target stops moving while
+    move keys are held, they press the clutch (Space) and bring the hand back the opposite
+    way for 1.5 s, the tool (or, with the camera pedal among ``held``, the camera) held
+    still, then let go and carry on. Called with the state and the keys a step would
+    hold; returns the keys to hold."""
+
+    def __init__(self, hand: str, held=()) -> None:
+        self.hand, self.held = hand, set(held)
+        self.since = self.target = self.until = None
+        self.back: set[str] = set()
+
+    def __call__(self, s: dict, keys: set[str]) -> set[str]:
+        t = s["time"]
+        hand = np.array(s["hands"][self.hand]["target"])
+        if self.until is not None:
+            if t < self.until:
+                return {*self.held, "Space", *self.back}
+            self.until = self.since = self.target = None
+        moving = {k for k in keys if any(k in pair for pair in MOVE_KEYS)}
+        if self.target is None or np.linalg.norm(hand - self.target) > 0.002:
+            self.since, self.target = t, hand
+        elif moving and t - self.since > 0.4:
+            opposite = {a: b for pair in MOVE_KEYS for a, b in (pair, pair[::-1])}
+            self.until, self.back = t + 1.5, {opposite[k] for k in moving}
+        return keys
 
 
 def _unit(v) -> np.ndarray:
@@ -464,14 +474,17 @@ def test_a_person_picks_a_ring_off_its_peg_and_drops_it_on_the_target_peg(
     assert p.panel("result-score").startswith("attempt 1: score")
 
 
-def test_a_person_picks_the_needle_out_of_its_park(browser, person):
-    """Looking at the needle standing in its foam block, the person turns the wrist (the
-    wrist keys) until the jaws open across the needle's plane (the tip's y along its
-    normal) while bringing the open jaws above the top of its arc, goes down along the
+def test_a_person_picks_the_needle_up_and_hands_it_over(browser, person):
+    """Looking at the needle standing in its foam block, the person turns the right hand's
+    wrist (the wrist keys) until PSM1's jaws open across the needle's plane (the tip's y
+    along its normal) while bringing them above the top of its arc, goes down along the
     jaws until the wire is 6 mm into them, closes them (E) and lifts it 12 mm: the needle
-    comes up with the jaws and the attempt is running (the hand-off is the other hand's)."""
-    scene = SceneConfig(arms=("PSM1", "PSM2", "ECM", "MTMR"))
-    with served("needle_pickup", scene) as url:
+    comes up with the jaws. Then the left hand (H): PSM2's jaws turned across the needle
+    the same way, onto its wire near the swage, closed; the right hand again (H) opens
+    PSM1's jaws (E) and backs off. PSM2 holds the needle alone: the attempt is scored with
+    one hand-off and no drop."""
+    scene = SceneConfig(arms=("PSM1", "PSM2", "ECM", "MTML", "MTMR"))
+    with served("needle_pickup", scene, hands=("MTML", "MTMR")) as url:
         p = person(url)
         p.wait("window.davinci.last.task.phase === 'READY'")
         assert p.panel("progress") == "pick up the needle to start"
@@ -480,59 +493,93 @@ def test_a_person_picks_the_needle_out_of_its_park(browser, person):
         marks = p.state()["task"]["marks"]["needle"]
         swage, top, point = (np.array(m["p_camera"]) for m in marks["start"])
         normal = np.array(marks["normal"])
-        up = _unit(top - (swage + point) / 2)  # (the needle stands on its ends)
+        c_start = (swage + point) / 2  # (a half circle stands on its diameter's ends)
+        radius = float(np.linalg.norm(swage - c_start))
+        up, along = _unit(top - c_start), _unit(swage - c_start)
 
         def centre(s):
             return np.array(s["task"]["marks"]["needle"]["centre"]["p_camera"])
 
-        def frame(s):
-            t = s["tips"]["PSM1"]
+        def wire(s, fraction):
+            """A point of the needle now (it keeps its start orientation while held)."""
+            phi = math.pi * (0.5 - fraction)
+            return centre(s) + radius * (math.sin(phi) * along + math.cos(phi) * up)
+
+        def frame(s, psm):
+            t = s["tips"][psm]
             return np.array(t["p_camera"]), np.array(t["z_camera"]), np.array(t["y_camera"])
 
-        def turn_of(s):
-            _, _, y = frame(s)
+        def turn_of(s, psm):
+            _, _, y = frame(s, psm)
             n = normal if y @ normal >= 0 else -normal
             return np.cross(y, n)  # turns y onto the normal (sin of the angle)
 
-        def go(goal_of, tolerance=0.001, turn=False):
+        clutch = {"PSM1": Clutch("MTMR"), "PSM2": Clutch("MTML")}
+
+        def go(psm, goal_of, tolerance=0.001, turn=False):
             def error(s):
-                return goal_of(s) - frame(s)[0]
+                return goal_of(s) - frame(s, psm)[0]
 
             def aligned(s):
-                return np.linalg.norm(turn_of(s)) < math.sin(math.radians(6))
+                return np.linalg.norm(turn_of(s, psm)) < math.sin(math.radians(6))
 
             def step(s):
                 e = error(s)
                 keys = keys_toward(screen(e), dead=0.5 * tolerance)
                 if turn and not aligned(s):
-                    keys |= keys_toward(screen(turn_of(s)), TURN_KEYS, dead=0.03, share=0.5)
+                    keys |= keys_toward(screen(turn_of(s, psm)), TURN_KEYS, dead=0.03, share=0.5)
                 if np.linalg.norm(e) < 0.006:
                     keys.add("ShiftLeft")
-                return keys
+                return clutch[psm](s, keys)  # (the hand's reach ends: clutch, come back)
 
             def done(s):
                 return np.linalg.norm(error(s)) < tolerance and (not turn or aligned(s))
 
-            return steer(p, done, step)
+            try:
+                return steer(p, done, step)
+            except AssertionError:
+                s = p.state()
+                turned = math.degrees(math.asin(min(1.0, np.linalg.norm(turn_of(s, psm)))))
+                raise AssertionError(f"{psm} {1e3 * error(s)} mm off, {turned:.1f}° to turn, "
+                                     f"{s['task']['progress']}") from None  # fmt: skip
 
         def wait(seconds: float):
             p.hold(())
             t0 = p.state()["time"]
             return steer(p, lambda s: s["time"] - t0 > seconds, lambda s: set())
 
-        # Above the top, turned; then down along the jaws until the wire is 6 mm into them.
-        go(lambda s: top - 0.018 * frame(s)[1], tolerance=0.002, turn=True)
-        go(lambda s: top - 0.006 * frame(s)[1], tolerance=0.0012, turn=True)
-        p.tap("KeyE")  # close: the gripper squeezed, the jaw's goal -20°
-        s = wait(0.5)
-        assert s["tips"]["PSM1"]["jaw"] > 0.0  # stopped on the wire, not shut
-        c0, lift_from = centre(s), frame(s)[0]
-        s = go(lambda s: lift_from + 0.012 * up, tolerance=0.002)
+        def grasp(psm, fraction):
+            """Above the wire along the jaws, turned; in until it is 6 mm into them; E."""
+            go(psm, lambda s: wire(s, fraction) - 0.018 * frame(s, psm)[1], 0.002, turn=True)
+            go(psm, lambda s: wire(s, fraction) - 0.006 * frame(s, psm)[1], 0.0012, turn=True)
+            p.tap("KeyE")  # close: the gripper squeezed, the jaw's goal -20°
+            s = wait(0.5)
+            assert s["tips"][psm]["jaw"] > 0.0  # stopped on the wire, not shut
+            return s
+
+        s = grasp("PSM1", 0.5)
+        c0, lift_from = centre(s), frame(s, "PSM1")[0]
+        go("PSM1", lambda s: lift_from + 0.012 * up, tolerance=0.002)
         s = wait(0.3)
         p.shot("needle_pickup_lifted")
         assert (centre(s) - c0) @ up > 0.008  # it came up with the jaws
         assert s["task"]["phase"] == "RUNNING"
         assert p.panel("progress").startswith("hand the needle to the other instrument: the jaws")
+
+        p.tap("KeyH")  # the left hand: MTML -> PSM2
+        assert p.page.input_value("#hand") == "MTML"
+        grasp("PSM2", 0.15)
+        p.shot("needle_pickup_both")
+        p.tap("KeyH")  # the right hand again: open PSM1's jaws, back off along them
+        p.tap("KeyE")
+        p_tip, z, _ = frame(wait(0.3), "PSM1")
+        go("PSM1", lambda s: p_tip - 0.012 * z, 0.002)
+        s = steer(p, _done, lambda s: set())
+        p.shot("needle_pickup_scored")
+        row = p.scored()
+    assert (row["handoffs"], row["drops"], row["missed_targets"]) == (1, 0, 0)
+    assert row["score"] is not None and row["score"] > 0
+    assert p.panel("result-score").startswith("attempt 1: score")
 
 
 def test_the_peg_board_is_served_with_its_rings_and_target_pegs_marked(browser, person):
