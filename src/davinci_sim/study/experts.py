@@ -52,7 +52,7 @@ instrument's economy and out-of-view distance in camera targeting, where the scr
 expert leaves the instrument alone): no reference value, so no default pass mark for them
 (their score still uses the task's ``expert``/``fail`` scale).
 
-Size: the motion model, the four scripts and the attempt driver are one unit (~500 lines):
+Size: the motion model, the five scripts and the attempt driver are one unit (~600 lines):
 the scripts share the motion model's primitives and nothing else uses them.
 """
 

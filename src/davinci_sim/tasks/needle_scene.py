@@ -15,7 +15,9 @@ hold, and a contact's penetration grows with the held body's mobility. On a 0.6 
 jaw) and the needle turned under 1 mN·m. The simulated needle's wire is 1.0 mm thick and
 it weighs 0.3 g, and its contacts are stiffer than the scene's (:data:`NEEDLE_SOLIMP`, a
 0.3 mm transition width, which dominates the mix with the jaws' by :data:`NEEDLE_SOLMIX`):
-measured ≈ 0.25 mm penetration per jaw and a grasp that holds more than 16 mN·m.
+measured ≈ 0.25 mm penetration per jaw; the grasp holds a 0.5 N push and 5 mN·m about any
+axis, and the needle slips about the wire's own axis under 60 mN·m
+(``tests/tasks/test_needle.py``; about its plane's normal it held 200 mN·m).
 
 **The park** is where a needle exercise starts: a foam block on the tissue pad with a slit
 across its top; the needle stands upright in the slit on its two ends (its plane vertical,
