@@ -19,9 +19,12 @@ task's teleoperation clutched:
   plane), PSM2 lets go and moves away, PSM1 holds it;
 * ``peg_transfer`` (and its ICRA variant): PSM2 lifts each ring off its start peg, carries it
   to the middle (over the wall), hands it to PSM1, which threads it on a target peg. **Not
-  yet reliable**: in a checked attempt it transferred two rings and lost the third at the
-  hand-off (PSM1's jaws touching but not holding it when PSM2 let go); the attempts made
-  for a reference (2 per variant) did not finish within :func:`_time_budget`, so no peg
+  yet reliable**: the open jaw inside a ring's hole reached its peg and the arm stalled
+  against it (the third ring of the board, measured: the tip 10 mm off its setpoint);
+  PSM2 now opens less around a ring on its peg (:data:`JAW_OPEN_AT_PEG`). Of two attempts
+  since (experts 1 and 2 of seed 9001), one transferred all three rings with three
+  hand-offs in 60 s, the other still lost the third ring (its jaw touched the peg on the
+  approach) and PSM1 faulted pressing on the peg while picking it up again: no peg
   reference is shipped.
 
 **The expert's variability** (:class:`Motor`): each attempt draws from the expert's
@@ -337,6 +340,11 @@ def _acquired(session, i: int) -> bool:
 #: Jaw angles of the peg script, rad: open (46°, in the dVRK's −40°…80° range) and the
 #: dVRK's close (−20°: the jaw effort saturates on the ring).
 JAW_OPEN, JAW_CLOSED = 0.8, -0.35
+#: The jaw opening for a ring around its peg, rad (34°): the jaw inside the ring's hole
+#: stays clear of the peg (at 46° its tip and 2.2 mm thickness reached 6.3 mm into the
+#: 6 mm between the ring's wall and the peg, and the arm stalled against the peg), and the
+#: jaws still clear the 3 mm tube by 0.9 mm a side 8 mm along them.
+JAW_OPEN_AT_PEG = 0.6
 
 
 def do_peg(stream: Streamer, session, task, done) -> None:
@@ -372,14 +380,14 @@ def do_peg(stream: Streamer, session, task, done) -> None:
         a = task.instruments.index(n)
         return (int(probe.measure(d)[1][i]) >> (2 * a)) & 3 == 3
 
-    def grasp(n, i, far_from=None) -> bool | None:
+    def grasp(n, i, far_from=None, opening=JAW_OPEN) -> bool | None:
         """Reach ring i's wall with n's open jaws and close them, again (from the
         ring's pose now) while the jaws do not both hold it: True if held, None if the
         attempt ended."""
         for _ in range(3):
             p = pivot(n, i, far_from)
             a = stream.goal[n][:3, 2]
-            if jaw(n, JAW_OPEN) or stream.reach(n, p - 0.006 * a, 0.002, until=done):
+            if jaw(n, opening) or stream.reach(n, p - 0.006 * a, 0.002, until=done):
                 return None
             if stream.reach(n, p, 0.0007, until=done) or jaw(n, JAW_CLOSED):
                 return None
@@ -397,7 +405,7 @@ def do_peg(stream: Streamer, session, task, done) -> None:
             return
         if stream.reach("PSM1", hand_off + [-0.01, 0, 0.02], 0.003, until=done):
             return
-        if not grasp("PSM2", i):
+        if not grasp("PSM2", i, opening=JAW_OPEN_AT_PEG):
             return
         steps = [
             lambda: stream.reach("PSM2", tip("PSM2") + [0, 0, 0.02], 0.003, until=done),
