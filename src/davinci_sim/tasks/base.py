@@ -328,12 +328,26 @@ class Task(ABC):
         """``n`` trials in IDLE: a NamedTuple of (n,)-leading arrays with a ``phase`` field."""
 
     def reset_state(self, state, mask=None):
-        """Back to IDLE, all trials or those where ``mask`` (n,) is true."""
+        """Back to IDLE, all trials or those where ``mask`` (n,) is true (a state's fields
+        are (n, ...) arrays)."""
         fresh = self.initial_state(len(state.phase))
         if mask is None:
             return fresh
         m = np.asarray(mask, dtype=bool)
-        return type(state)(*(np.where(m, f, s) for f, s in zip(fresh, state, strict=True)))
+        return type(state)(*(np.where(m.reshape(-1, *([1] * (f.ndim - 1))), f, s)
+                             for f, s in zip(fresh, state, strict=True)))  # fmt: skip
+
+    def cached_probe(self, model, cache: dict):
+        """``self.probe(model)`` (a kind with objects reads the scene through a probe) kept
+        in the caller's ``cache`` (:meth:`scene_fields`'s) for this model and task; the
+        cache keeps at most four."""
+        key = ("probe", id(model), id(self))
+        entry = cache.get(key)
+        if entry is None or entry[0] is not model or entry[1] is not self:
+            entry = cache[key] = (model, self, self.probe(model))
+            while len(cache) > 4:
+                del cache[next(iter(cache))]
+        return entry[2]
 
     @abstractmethod
     def step(self, state, sample: Sample) -> tuple[Any, dict[str, np.ndarray]]:

@@ -234,16 +234,9 @@ class NeedlePickupTask(Task, kind="needle_pickup"):
 
     def scene_fields(self, model, data, cache: dict) -> dict:
         """The sample's ``objects`` (the needle's centre), ``grasp`` and ``tools``."""
-        key = ("needle_probe", id(model), id(self))
-        probe = cache.get(key)
-        if probe is None or probe[0] is not model or probe[1] is not self:
-            probe = (model, self, self.probe(model))
-            cache[key] = probe
-            while len(cache) > 4:
-                del cache[next(iter(cache))]
-        T = probe[2].frame(data)
-        return {"objects": T[None, :3, 3].copy(), "grasp": np.array([probe[2].grasp(data)]),
-                "tools": probe[2].tool_tips(data)}  # fmt: skip
+        probe = self.cached_probe(model, cache)
+        return {"objects": probe.frame(data)[None, :3, 3].copy(),
+                "grasp": np.array([probe.grasp(data)]), "tools": probe.tool_tips(data)}  # fmt: skip
 
     def initial_state(self, n: int) -> NeedleState:
         nan = np.full(n, np.nan)
@@ -251,14 +244,6 @@ class NeedlePickupTask(Task, kind="needle_pickup"):
         return NeedleState(np.full(n, Phase.IDLE, dtype=np.int8), nan, nan.copy(), nan.copy(),
                            np.full((n, 3), np.nan), nan.copy(), np.zeros(n, dtype=np.int64),
                            off, off.copy(), off.copy(), nan.copy())  # fmt: skip
-
-    def reset_state(self, state, mask=None):
-        fresh = self.initial_state(len(state.phase))
-        if mask is None:
-            return fresh
-        m = np.asarray(mask, dtype=bool)
-        return NeedleState(*(np.where(m.reshape(-1, *([1] * (f.ndim - 1))), f, s)
-                             for f, s in zip(fresh, state, strict=True)))  # fmt: skip
 
     def step(self, state: NeedleState, sample: Sample):
         """One sample of n trials (pure; see the module docstring). Observations:

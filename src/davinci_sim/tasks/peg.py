@@ -336,15 +336,9 @@ class PegTransferTask(Task, kind="peg_transfer"):
     def scene_fields(self, model, data, cache: dict) -> dict:
         """The sample's ``objects``, ``grasp`` and ``tools`` (the instruments' tips) at
         ``data``'s state (the probe kept in ``cache`` per model)."""
-        key = ("peg_probe", id(model), id(self))
-        probe = cache.get(key)
-        if probe is None or probe[0] is not model or probe[1] is not self:
-            probe = (model, self, self.probe(model))
-            cache[key] = probe
-            while len(cache) > 4:
-                del cache[next(iter(cache))]
-        objects, grasp = probe[2].measure(data)
-        return {"objects": objects, "grasp": grasp, "tools": probe[2].tool_tips(data)}
+        probe = self.cached_probe(model, cache)
+        objects, grasp = probe.measure(data)
+        return {"objects": objects, "grasp": grasp, "tools": probe.tool_tips(data)}
 
     def initial_state(self, n: int) -> PegState:
         k = self.n_rings
@@ -355,14 +349,6 @@ class PegTransferTask(Task, kind="peg_transfer"):
             np.zeros((n, k), bool), np.zeros((n, k), bool), np.zeros((n, k), bool),
             np.zeros((n, k), bool),
         )  # fmt: skip
-
-    def reset_state(self, state, mask=None):
-        fresh = self.initial_state(len(state.phase))
-        if mask is None:
-            return fresh
-        m = np.asarray(mask, dtype=bool)
-        return PegState(*(np.where(m.reshape(-1, *([1] * (f.ndim - 1))), f, s)
-                          for f, s in zip(fresh, state, strict=True)))  # fmt: skip
 
     @cached_property
     def _lookups(self):
