@@ -55,20 +55,26 @@ def test_a_bad_needle_is_refused_with_the_field_named(change, words):
 
 
 def test_a_grasp_closes_the_jaws_across_the_needles_plane_at_the_fraction_asked():
+    """Random needle and tip poses: the grasp's closing direction (y) is the plane's normal
+    (the sign nearer the tip's), its jaws (z) lie in the plane, as near the tip's as the
+    plane allows, and the wire is ``depth`` along them from the pivot."""
+    from scipy.spatial.transform import Rotation
+
     needle = NeedleSpec()
     rng = np.random.default_rng(3)
-    for _ in range(20):
+    for R_needle, R_tip in zip(Rotation.random(20, rng), Rotation.random(20, rng), strict=True):
         T = np.eye(4)
-        T[:3, :3] = np.linalg.qr(rng.normal(size=(3, 3)))[0] * [1, 1, 1]
-        T[:3, :3] *= np.sign(np.linalg.det(T[:3, :3]))
-        T[:3, 3] = rng.normal(size=3)
-        R_tip = np.linalg.qr(rng.normal(size=(3, 3)))[0]
-        R_tip *= np.sign(np.linalg.det(R_tip))
+        T[:3, :3], T[:3, 3] = R_needle.as_matrix(), rng.normal(size=3)
+        R_tip = R_tip.as_matrix()
         s = rng.uniform()
         R, pivot = grasp_pose(T, needle, R_tip, s, depth=0.005)
         assert np.allclose(R.T @ R, np.eye(3)) and np.linalg.det(R) == pytest.approx(1.0)
-        assert abs(np.dot(R[:, 1], T[:3, 2])) == pytest.approx(1.0)  # closing ⟂ plane
-        assert np.dot(R[:, 1], R_tip[:, 1]) >= 0  # the nearer sign
+        normal = T[:3, 2]
+        assert abs(R[:, 1] @ normal) == pytest.approx(1.0)  # closing across the plane
+        assert R[:, 1] @ R_tip[:, 1] >= 0  # the nearer sign
+        assert R[:, 2] @ normal == pytest.approx(0.0, abs=1e-12)  # the jaws in the plane
+        in_plane = R_tip[:, 2] - (R_tip[:, 2] @ normal) * normal
+        assert np.allclose(R[:, 2], in_plane / np.linalg.norm(in_plane))
         wire = T[:3, :3] @ needle.points(s) + T[:3, 3]
         assert np.allclose(pivot + 0.005 * R[:, 2], wire)
     with pytest.raises(ValueError, match="normal"):
