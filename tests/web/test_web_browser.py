@@ -213,8 +213,9 @@ def test_the_bedside_view_renders_the_system_in_3d(console, server, tmp_path):
     page.page.wait_for_timeout(3000)  # the scene arrives and draws
     # The page's screenshot clipped to the view: an element screenshot first waits for the
     # element to be still over two animation frames, which a software-rendered 3-D view on a
-    # loaded machine may not give within the default wait (a CI run timed out there).
-    box = page.page.locator("#bedside").bounding_box()
+    # loaded machine may not give within the default wait (a CI run timed out there). Even
+    # the box alone waited past the default 30 s once in CI, the page busy drawing in software.
+    box = page.page.locator("#bedside").bounding_box(timeout=180_000)
     assert box is not None
     shot = page.page.screenshot(path=tmp_path / "bedside.png", clip=box, timeout=180_000)
     from io import BytesIO
