@@ -1,14 +1,15 @@
 """The tick cost of the exercises with free objects: peg transfer
-(:mod:`davinci_sim.tasks.peg`) and needle pick-up (:mod:`davinci_sim.tasks.needle_pickup`).
+(:mod:`davinci_sim.tasks.peg`), needle pick-up (:mod:`davinci_sim.tasks.needle_pickup`) and
+needle driving (:mod:`davinci_sim.tasks.needle_drive`: the needle and the suture pad's skin).
 For each, the physics step of a scene with the task's objects (the board and three rings;
-the foam park and the needle; PSM1, PSM2 and the ECM) against the same scene without them
-and with them but without the noslip solver, the task's reading of the scene
-(``scene_fields``: object centres and jaw contacts), one monitored sample (state machine and
-metrics) for one trial, and the pure step for 100 trials at once.
+the foam park and the needle; the park, the needle and the pad; PSM1, PSM2 and the ECM)
+against the same scene without them and with them but without the noslip solver, the task's
+reading of the scene (``scene_fields``: object centres and jaw contacts), one monitored
+sample (state machine and metrics) for one trial, and the pure step for 100 trials at once.
 
 The objects rest where they start (contacts every step) while the arms hold their homed
-pose. ``python benchmarks/bench_peg.py`` writes ``results/peg.json`` and
-``results/needle.json``.
+pose. ``python benchmarks/bench_peg.py`` writes ``results/peg.json``,
+``results/needle.json`` and ``results/needle_drive.json``.
 """
 
 from __future__ import annotations
@@ -70,17 +71,14 @@ def measure(task, objects: str, n: int) -> dict:
     sim.close()
 
     trials = 100
-    fields = task.scene_fields(m, d, cache)
-    centres = np.broadcast_to(fields["objects"], (trials, k, 3))
-    grasp = np.broadcast_to(fields["grasp"], (trials, k))
-    tools = np.broadcast_to(fields["tools"], (trials, *fields["tools"].shape))
+    fields = {key: np.broadcast_to(v, (trials, *np.shape(v)))
+              for key, v in task.scene_fields(m, d, cache).items()}  # fmt: skip
     state = task.initial_state(trials)
     times = iter(np.arange(10 * n) * 0.001)
 
     def batch():
         nonlocal state
-        s = Sample.of(np.full(trials, next(times)), np.tile(tip, (trials, 1)), objects=centres,
-                      grasp=grasp, tools=tools)  # fmt: skip
+        s = Sample.of(np.full(trials, next(times)), np.tile(tip, (trials, 1)), **fields)
         state, _ = task.step(state, s)
 
     figures.update(summary(time_each(batch, n), f"step_{trials}_trials"))
@@ -90,6 +88,7 @@ def measure(task, objects: str, n: int) -> dict:
 def main(n: int = 2000) -> None:
     write("peg", measure(load_task("peg_transfer_icra"), "board", n))
     write("needle", measure(load_task("needle_pickup"), "needle", n))
+    write("needle_drive", measure(load_task("needle_drive"), "pad_and_needle", n))
 
 
 if __name__ == "__main__":

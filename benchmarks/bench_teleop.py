@@ -72,17 +72,17 @@ def teleop_sim(scene: str) -> Simulation:
     return sim
 
 
-def serve_sim(trial: bool = False) -> Simulation:
+def serve_sim(trial: bool = False, task: str = "seed_path") -> Simulation:
     """What ``make run`` (``serve --task seed_path --home``) ticks, with the person at the
     web console holding both handles still after taking control; with ``trial``, the
     handle moved 3 cm so that the tool left point 1 and a repetition runs (its metrics
-    accumulate every tick)."""
+    accumulate every tick); ``task`` another exercise in its place."""
     sim = build_simulation(
         SystemDescription(
             scene="full",
             keyframe="surgical",
             console=ConsoleDescription(hand_inputs=("MTML", "MTMR")),
-            task=TaskDescription("seed_path", frame_view=VIEW_DISTANCE),
+            task=TaskDescription(task, frame_view=VIEW_DISTANCE),
             home=True,
             runner="none",
             real_time=False,

@@ -15,6 +15,7 @@ import bench_compat  # noqa: E402
 import bench_envs  # noqa: E402
 import bench_exercises  # noqa: E402
 import bench_kinematics  # noqa: E402
+import bench_peg  # noqa: E402
 import bench_realtime  # noqa: E402
 import bench_recording  # noqa: E402
 import bench_records  # noqa: E402
@@ -22,6 +23,7 @@ import bench_render  # noqa: E402
 import bench_state  # noqa: E402
 import bench_study  # noqa: E402
 import bench_study_small  # noqa: E402
+import bench_suture  # noqa: E402
 import bench_teleop  # noqa: E402
 import bench_tick  # noqa: E402
 import bench_web  # noqa: E402
@@ -32,6 +34,8 @@ if __name__ == "__main__":
     bench_collisions.main()  # instruments colliding vs apart, ~1 min
     bench_state.main()
     bench_exercises.main()
+    bench_peg.main()  # peg transfer, needle pick-up, needle driving: objects' tick, ~2 min
+    bench_suture.main()  # the suture pad's cost, both pairs following, ~2 min
     bench_render.main()
     bench_bridge.main()
     bench_client_robot.main()  # client mode's robot on the remote, ~20 s

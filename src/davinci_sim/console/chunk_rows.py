@@ -50,9 +50,10 @@ class SampleRequest:
     teleop: str
     take: Any
     tool_geom: np.ndarray
-    """(ngeom,) bool: the instrument's geoms (``InstrumentContacts.tool_geom``)."""
+    """(ngeom + 1,) bool: the instrument's geoms (``InstrumentContacts.tool_geom``; the
+    last, false: a flex's side of a contact, geom −1)."""
     other_geom: np.ndarray
-    """(ngeom,) bool: the geoms whose contact with the instrument counts."""
+    """(ngeom + 1,) bool: the geoms whose contact with the instrument counts."""
 
 
 def floats(a) -> np.ndarray:

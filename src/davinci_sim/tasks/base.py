@@ -115,18 +115,23 @@ class Sample:
     """(n, A, 3) tool tips of every instrument the task uses, task frame, m (a kind with
     several instruments fills it, :meth:`Task.scene_fields`: peg transfer's economy of
     motion sums their paths)."""
+    T_task_object: np.ndarray | None = None
+    """(n, 4, 4) the frame of the task's first object in the task's frame, m (the needle:
+    its passage through the tissue is read from its pose)."""
+    tissue_force: np.ndarray | None = None
+    """(n,) total normal force of the instruments on the deformable tissue, N."""
 
     @classmethod
     def of(
         cls, time, tip, force=None, clutch=None, *, visible=None, master=None, contacts=None,
         tool_force=None, objects=None, grasp=None, T_task_camera=None, R_task_tip=None,
-        tools=None,
+        tools=None, T_task_object=None, tissue_force=None,
     ) -> Sample:  # fmt: skip
         """A sample of n trials: ``tip`` (n, 3) or (3,) for one; ``time`` scalar or (n,);
         ``force`` (n, 3) (None: 0); ``clutch`` (n,) or scalar (None: released); the
         optional fields (n,) or scalar, ``master`` (n, 3) or (3,), ``T_task_camera``
         (n, 4, 4) or (4, 4), ``R_task_tip`` (n, 3, 3) or (3, 3), ``tools`` (n, A, 3) or
-        (A, 3) (None: not sampled)."""
+        (A, 3), ``T_task_object`` (n, 4, 4) or (4, 4) (None: not sampled)."""
         p = np.asarray(tip, dtype=float).reshape(-1, 3)
         n = len(p)
         f = np.zeros((n, 3)) if force is None else np.asarray(force, dtype=float).reshape(n, 3)
@@ -139,7 +144,7 @@ class Sample:
             c = np.asarray(clutch, dtype=bool)
             c = np.full(n, bool(c)) if c.ndim == 0 else c.reshape(n)
         optional = (visible, master, contacts, tool_force, objects, grasp, T_task_camera,
-                    R_task_tip, tools)  # fmt: skip
+                    R_task_tip, tools, T_task_object, tissue_force)  # fmt: skip
         if all(o is None for o in optional):
             return cls(t, p, f, c)
         x = None if master is None else np.asarray(master, dtype=float).reshape(n, 3)
@@ -149,8 +154,10 @@ class Sample:
         cam = None if T_task_camera is None else _matrices(T_task_camera, n, 4)
         rot = None if R_task_tip is None else _matrices(R_task_tip, n, 3)
         a = None if tools is None else np.asarray(tools, dtype=float).reshape(n, -1, 3)
+        obj = None if T_task_object is None else _matrices(T_task_object, n, 4)
         return cls(t, p, f, c, visible=v, master=x, contacts=k, tool_force=g, objects=o,
-                   grasp=j, T_task_camera=cam, R_task_tip=rot, tools=a)  # fmt: skip
+                   grasp=j, T_task_camera=cam, R_task_tip=rot, tools=a, T_task_object=obj,
+                   tissue_force=_rows(tissue_force, n, float))  # fmt: skip
 
     @cached_property
     def force_magnitude(self) -> np.ndarray:
@@ -201,7 +208,16 @@ class Sample:
 
 
 _FIELDS = ("time", "tip", "force", "clutch", "visible", "master", "contacts", "tool_force",
-           "objects", "grasp", "T_task_camera", "R_task_tip", "tools")  # fmt: skip
+           "objects", "grasp", "T_task_camera", "R_task_tip", "tools", "T_task_object",
+           "tissue_force")  # fmt: skip
+
+
+def _rows_where(mask: np.ndarray, a, b):
+    """Rows of ``a`` where ``mask`` (n,), of ``b`` elsewhere: (n, ...) arrays, or tuples of
+    them (a state's fields, a field itself a NamedTuple of arrays)."""
+    if isinstance(b, tuple):
+        return type(b)(*(_rows_where(mask, x, y) for x, y in zip(a, b, strict=True)))
+    return np.where(mask.reshape(-1, *([1] * (a.ndim - 1))), a, b)
 
 
 def _matrices(value, n: int, k: int) -> np.ndarray:
@@ -333,9 +349,7 @@ class Task(ABC):
         fresh = self.initial_state(len(state.phase))
         if mask is None:
             return fresh
-        m = np.asarray(mask, dtype=bool)
-        return type(state)(*(np.where(m.reshape(-1, *([1] * (f.ndim - 1))), f, s)
-                             for f, s in zip(fresh, state, strict=True)))  # fmt: skip
+        return _rows_where(np.asarray(mask, dtype=bool), fresh, state)
 
     def cached_probe(self, model, cache: dict):
         """``self.probe(model)`` (a kind with objects reads the scene through a probe) kept

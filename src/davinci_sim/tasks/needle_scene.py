@@ -249,8 +249,9 @@ class NeedleProbe:
         self.body = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, f"{prefix}needle")
         if self.body < 0:
             raise ValueError("the scene has no needle (draw the task first)")
-        self.is_needle = model.geom_bodyid == self.body
-        self.jaw_bit = np.zeros(model.ngeom, dtype=np.int64)
+        # (one more entry for a contact's geom −1, a flex's side: neither)
+        self.is_needle = np.append(model.geom_bodyid == self.body, False)
+        self.jaw_bit = np.zeros(model.ngeom + 1, dtype=np.int64)
         for a, psm in enumerate(instruments):
             for j in (0, 1):
                 gid = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_GEOM, f"{psm}/jaw_{j + 1}")

@@ -171,12 +171,13 @@ class PegProbe:
              for i in range(k)], dtype=np.int64)  # fmt: skip
         if np.any(self.bodies < 0):
             raise ValueError(f"task {task.name!r}: the scene has no rings (draw the task first)")
-        # geom -> ring index (or -1); geom -> jaw bit (or 0)
-        self.ring_of = np.full(model.ngeom, -1, dtype=np.int64)
+        # geom -> ring index (or -1); geom -> jaw bit (or 0); one more entry for a contact's
+        # geom −1 (a flex's side)
+        self.ring_of = np.full(model.ngeom + 1, -1, dtype=np.int64)
         ring_index = {int(b): i for i, b in enumerate(self.bodies)}
         for g in range(model.ngeom):
             self.ring_of[g] = ring_index.get(int(model.geom_bodyid[g]), -1)
-        self.jaw_bit = np.zeros(model.ngeom, dtype=np.int64)
+        self.jaw_bit = np.zeros(model.ngeom + 1, dtype=np.int64)
         for a, psm in enumerate(task.instruments):
             for j in (0, 1):
                 gid = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_GEOM, f"{psm}/jaw_{j + 1}")

@@ -503,6 +503,10 @@ def sample_of(T_task_camera, inputs: tuple, camera, t: float, extra: dict) -> Sa
         T_task_camera=np.asarray(T_task_camera, dtype=float).reshape(1, 4, 4),
         R_task_tip=T_task_tip[:3, :3].reshape(1, 3, 3),
         tools=None if tools is None else np.asarray(tools, dtype=float).reshape(1, -1, 3),
+        T_task_object=None if (obj := extra.get("T_task_object")) is None
+        else np.asarray(obj, dtype=float).reshape(1, 4, 4),
+        tissue_force=None if (tf := extra.get("tissue_force")) is None
+        else np.asarray(tf, dtype=float).reshape(1),
     )  # fmt: skip
 
 

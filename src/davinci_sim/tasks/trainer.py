@@ -240,10 +240,12 @@ class InstrumentContacts:
                 tool[i] = i == root or (i > 0 and tool[model.body_parentid[i]])
         ignored = np.array([bool(ignore) and n.startswith(tuple(ignore)) for n in names])
         skip = arm | ignored
-        self.tool_geom = tool[model.geom_bodyid]
-        """(ngeom,) geoms of the instrument."""
-        self.other_geom = ~skip[model.geom_bodyid]
-        """(ngeom,) geoms whose contact with the instrument counts."""
+        # One more entry, false, for a contact's geom −1: a flex's side of a contact (the
+        # suture pad's skin is what the instruments work on, not a collision).
+        self.tool_geom = np.append(tool[model.geom_bodyid], False)
+        """(ngeom + 1,) geoms of the instrument (the last: no geom, a flex)."""
+        self.other_geom = np.append(~skip[model.geom_bodyid], False)
+        """(ngeom + 1,) geoms whose contact with the instrument counts (the last: a flex)."""
         self._force = np.zeros(6)
         self._contact_force = mujoco.mj_contactForce
 

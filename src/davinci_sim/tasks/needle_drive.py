@@ -1,0 +1,313 @@
+"""Needle driving and the running suture: pick the curved needle out of its park and
+drive it through the suture pad's entry and exit marks in order (kind ``needle_drive``).
+
+A task file with one pair of marks is the needle-driving exercise; with four, the running
+suture. The scene is needle pick-up's (:mod:`davinci_sim.tasks.needle_pickup`) with a
+suture pad beside the park (:mod:`davinci_sim.tasks.suture_pad`): a skin that the jaws
+dent, marks on it, and the needle's passage read from geometry.
+
+**What is observed each tick**: the needle's centre and grasp (as for pick-up), its frame
+(``Sample.T_task_object``), every instrument's tip, and the instruments' normal force on
+the skin (``Sample.tissue_force``, N). A *pass* of a pair is the needle's point entering
+the skin within ``mark_radius`` of the pair's entry mark and coming out within it of the
+exit mark (:func:`~davinci_sim.tasks.suture_pad.passage_step`); the pairs are passed in
+order (a pass of another pair does not count).
+
+**States**: IDLE → READY when the needle rests in its park; READY → RUNNING when it is
+first held; RUNNING → FINISHED when every pair is passed or ``time_limit`` has run out
+(each pair not passed a missed target); then RESULTS.
+
+**Metrics**: time, economy over every instrument, passes, the worst entry and exit errors
+(m, shown in mm), tissue trauma (the peak distance of an entry point from the needle's
+circle while the point is in the tissue, m, shown in mm), the peak force of the
+instruments on the tissue (N), and the trainer metrics (drops, missed pairs, collisions,
+excessive force, out of view, master workspace).
+
+What the simulation does not do yet: the tissue does not hold the needle (the needle does
+not collide with the skin), so a needle let go in the tissue falls through it (a drop).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from functools import cached_property
+from typing import Any, ClassVar, NamedTuple
+
+import numpy as np
+
+from davinci_sim.tasks.base import Sample, TaskError
+from davinci_sim.tasks.handling import Events, Handling, handling_step
+from davinci_sim.tasks.metrics import Metric, Peak
+from davinci_sim.tasks.needle_pickup import NeedlePickupTask
+from davinci_sim.tasks.peg import ECONOMY_ALL
+from davinci_sim.tasks.schema import ListOf, Number, Vector
+from davinci_sim.tasks.state import Phase
+from davinci_sim.tasks.suture_pad import Passage, SuturePad, no_passage, passage_step
+from davinci_sim.tasks.trainer import TIME, Sum, trainer_metrics
+
+_IDLE, _READY, _RUNNING, _FINISHED, _RESULTS = (int(p) for p in Phase)
+
+
+def _obs(key: str, dtype=float):
+    def value(task, s, obs):
+        return np.asarray(obs[key], dtype=dtype)
+
+    value.__name__ = f"observed_{key}"
+    return value
+
+
+def _tissue_force(task, s, obs):
+    return np.asarray(s.tissue_force, dtype=float)
+
+
+MM = ("mm", 1e3)
+PASSES = Metric(
+    "passes", "1", "higher", "pairs of marks the needle was driven through, in order",
+    Sum(_obs("passes", np.int64), True), integer=True,
+)  # fmt: skip
+ENTRY_ERROR = Metric(
+    "entry_error", "m", "lower", "largest distance of an entry of the needle's point from its mark",
+    Peak(_obs("entry_error")), report=MM, display=MM,
+)  # fmt: skip
+EXIT_ERROR = Metric(
+    "exit_error", "m", "lower", "largest distance of an exit of the needle's point from its mark",
+    Peak(_obs("exit_error")), report=MM, display=MM,
+)  # fmt: skip
+TRAUMA = Metric(
+    "tissue_trauma", "m", "lower",
+    "peak distance of an entry point from the needle's circle while in the tissue",
+    Peak(_obs("trauma")), report=MM, display=MM,
+)  # fmt: skip
+TISSUE_FORCE = Metric(
+    "tissue_force", "N", "lower", "peak normal force of the instruments on the tissue",
+    Peak(_tissue_force), needs=("tissue_force",), report=("N", 1.0),
+)  # fmt: skip
+
+
+class DriveState(NamedTuple):
+    """n trials: (n,) arrays (``p_prev`` (n, 3)); ``passage`` the needle's passage."""
+
+    phase: np.ndarray
+    t_start: np.ndarray
+    t_finish: np.ndarray
+    t_prev: np.ndarray
+    p_prev: np.ndarray
+    t_still: np.ndarray
+    owner: np.ndarray
+    carried: np.ndarray
+    handed: np.ndarray
+    loose: np.ndarray
+    next_pair: np.ndarray
+    """The pair to pass next (= pairs passed)."""
+    passage: Passage
+
+
+@dataclass(frozen=True, eq=False)
+class NeedleDriveTask(NeedlePickupTask, kind="needle_drive"):
+    """Needle driving through the suture pad's marks (see the module docstring)."""
+
+    METRICS = (TIME, ECONOMY_ALL, PASSES, ENTRY_ERROR, EXIT_ERROR, TRAUMA, TISSUE_FORCE,
+               *trainer_metrics())  # fmt: skip
+    FILE_FIELDS: ClassVar[dict] = {
+        **NeedlePickupTask.FILE_FIELDS,
+        "pad_center": Vector(2, "x, y"),
+        "pad_top": Number(),
+        "pad_yaw": Number(),
+        "pairs": ListOf(
+            ListOf(Vector(2, "x, y"), min_items=2),
+            min_items=1,
+            what="[[entry x, y], [exit x, y]] pairs (pad frame, m)",
+        ),  # fmt: skip
+        "mark_radius": Number(above=0.0),
+    }
+    FILE_REQUIRED = ("park_center", "park_top", "pad_center", "pad_top", "pairs")
+    #: The needle is what the jaws hold; the skin is what they work on: neither is a
+    #: collision (the pad's firm base is).
+    CONTACT_IGNORE = ("task/needle", "task/pad_v")
+
+    pad_center: tuple[float, float] = (0.0, 0.0)
+    pad_top: float = 0.0
+    pad_yaw: float = 0.0
+    pairs: tuple = (((-0.007, 0.0), (0.007, 0.0)),)
+    mark_radius: float = 0.0025
+    time_limit: float = 180.0
+
+    def __post_init__(self) -> None:
+        center = tuple(float(x) for x in self.pad_center)
+        if len(center) != 2:
+            raise TaskError(f"task {self.name!r}: pad_center must be [x, y] (m)")
+        object.__setattr__(self, "pad_center", center)
+        try:
+            pairs = tuple(tuple((float(a[0]), float(a[1])) for a in pair) for pair in self.pairs)
+            if any(len(pair) != 2 for pair in pairs):
+                raise ValueError("a pair is [[entry x, y], [exit x, y]]")
+            object.__setattr__(self, "pairs", pairs)
+        except (TypeError, ValueError, IndexError) as e:
+            raise TaskError(f"task {self.name!r}: pairs: {e}") from e
+        try:
+            self.pad  # noqa: B018 (built to check it)
+        except ValueError as e:
+            raise TaskError(f"task {self.name!r}: {e}") from e
+        super().__post_init__()
+
+    @cached_property
+    def pad(self) -> SuturePad:
+        return SuturePad(self.pad_center, float(self.pad_top), float(self.pad_yaw),
+                         pairs=self.pairs, mark_radius=float(self.mark_radius))  # fmt: skip
+
+    @cached_property
+    def T_pad_world(self) -> np.ndarray:
+        return np.linalg.inv(self.pad.T_world_pad)
+
+    @property
+    def SCORING(self) -> dict:  # noqa: N802 (the kind's declaration)
+        """Time (100 % at 20 s a pair, 0 % at the time limit), missed pairs (weight 2),
+        entry and exit errors (100 % at 0.5 mm, 0 % at the 2.5 mm mark radius), trauma
+        (100 % at 0.5 mm, 0 % at 3 mm), tissue force (100 % at 0.5 N, 0 % at 3 N), drops,
+        collisions, economy (100 % at 15 cm a pair, 0 % at 80 cm a pair). Our assumptions
+        until an expert reference is shipped."""
+        k = len(self.pairs)
+        t_fail = self.time_limit if self.time_limit > 0 else 90.0 * k
+        return {
+            "metrics": {
+                "completion_time": {"weight": 1.0, "fail": t_fail, "expert": 20.0 * k},
+                "missed_targets": {"weight": 2.0, "fail": float(k), "expert": 0.0},
+                "entry_error": {"weight": 1.0, "fail": self.mark_radius, "expert": 0.0005},
+                "exit_error": {"weight": 1.0, "fail": self.mark_radius, "expert": 0.0005},
+                "tissue_trauma": {"weight": 1.0, "fail": 0.003, "expert": 0.0005},
+                "tissue_force": {"weight": 1.0, "fail": 3.0, "expert": 0.5},
+                "drops": {"weight": 1.0, "fail": 2.0, "expert": 0.0},
+                "instrument_collisions": {"weight": 1.0, "fail": 10.0, "expert": 0.0},
+                "path_length": {"weight": 1.0, "fail": 0.8 * k, "expert": 0.15 * k},
+            }
+        }
+
+    @property
+    def view_points(self) -> np.ndarray:
+        """The needle in its park, and the pad's marks just above the skin."""
+        marks = self.pad.marks_world().reshape(-1, 3) + [0.0, 0.0, 0.002]
+        return np.vstack([super().view_points[:3], marks])
+
+    @property
+    def check_points(self) -> np.ndarray:
+        """The needle's top and every mark."""
+        return self.view_points[1:]
+
+    # ------------------------------------------------------------ Task
+    def draw(self, spec, *, T_world_camera=None, prefix: str = "task/"):
+        """Needle pick-up's park and needle, and the suture pad."""
+        from davinci_sim.tasks.suture_pad import add_suture_pad
+
+        body = super().draw(spec, T_world_camera=T_world_camera, prefix=prefix)
+        add_suture_pad(spec, self.pad, prefix)
+        return body
+
+    def probe(self, model, prefix: str = "task/"):
+        """(:class:`~davinci_sim.tasks.needle_scene.NeedleProbe`,
+        :class:`~davinci_sim.tasks.suture_pad.PadProbe`) of ``model``."""
+        from davinci_sim.tasks.suture_pad import PadProbe
+
+        return super().probe(model, prefix), PadProbe(model, prefix)
+
+    def reset_scene(self, model, data) -> None:
+        """The needle back in its park, the skin at rest."""
+        from davinci_sim.tasks.suture_pad import reset_pad
+
+        reset_pad(model, data)
+        super().reset_scene(model, data)
+
+    def scene_fields(self, model, data, cache: dict) -> dict:
+        """Needle pick-up's fields, the needle's frame and the force on the tissue."""
+        needle, pad = self.cached_probe(model, cache)
+        T = needle.frame(data)
+        return {"objects": T[None, :3, 3].copy(), "grasp": np.array([needle.grasp(data)]),
+                "tools": needle.tool_tips(data), "T_task_object": T,
+                "tissue_force": pad.force(model, data)}  # fmt: skip
+
+    def initial_state(self, n: int) -> DriveState:
+        s = super().initial_state(n)
+        return DriveState(*s[:10], np.zeros(n, dtype=np.int64), no_passage(n))
+
+    def step(self, state: DriveState, sample: Sample):
+        """One sample of n trials (pure; see the module docstring). Observations:
+        ``distance`` (tip to the needle's centre, m), ``handoffs``, ``dropped``, ``passes``
+        (1 at a pass of the next pair), ``entry_error``, ``exit_error``, ``trauma`` (m, at
+        the sample of an exit, else 0), ``missed`` (the pairs not passed, at the sample
+        that finishes)."""
+        if sample.objects is None or sample.grasp is None or sample.T_task_object is None:
+            raise ValueError(f"task {self.name!r} needs the sample's objects, grasp and "
+                             "T_task_object (NeedleDriveTask.scene_fields)")  # fmt: skip
+        n, t = sample.n, sample.time
+        p = np.asarray(sample.objects, dtype=float).reshape(n, 1, 3)
+        start = self.T_world_start[:3, 3]
+        parked = np.linalg.norm(p - start, axis=2) <= self.park_tolerance
+        carry, e = handling_step(
+            Handling(*(a[:, None] for a in (state.t_still, state.owner, state.carried,
+                                            state.handed, state.loose))),
+            grasp=np.asarray(sample.grasp).reshape(n, 1), p=p, p_prev=state.p_prev[:, None],
+            t=t, t_prev=state.t_prev, placed=parked, instruments=len(self.instruments),
+            rest_speed=self.rest_speed, rest_time=self.rest_time,
+        )  # fmt: skip
+        carry, e = Handling(*(a[:, 0] for a in carry)), Events(*(a[:, 0] for a in e))
+        passage, ev = passage_step(state.passage, self.T_pad_world @ sample.T_task_object,
+                                   self.needle, self.pad)  # fmt: skip
+
+        phase = state.phase
+        new = phase.copy()
+        new[(phase == _IDLE) & e.resting & parked[:, 0]] = _READY
+        begin = (phase == _READY) & e.held
+        new[begin] = _RUNNING
+        t_start = np.where(begin, t, state.t_start)
+        running = (phase == _RUNNING) | begin
+        scored = running & ev.passed & (ev.pair == state.next_pair)
+        next_pair = state.next_pair + scored
+        done = next_pair >= len(self.pairs)
+        if self.time_limit > 0:
+            with np.errstate(invalid="ignore"):
+                timeout = t - t_start >= self.time_limit
+        else:
+            timeout = np.zeros(n, dtype=bool)
+        finish = running & (done | timeout)
+        new[finish] = _FINISHED
+        new[phase == _FINISHED] = _RESULTS
+        t_finish = np.where(finish, t, state.t_finish)
+        counted = running  # (errors and trauma of the attempt only)
+        obs = {
+            "distance": np.linalg.norm(p[:, 0] - sample.tip, axis=1),
+            "handoffs": e.handoff.astype(np.int64),
+            "dropped": e.drop.astype(np.int64),
+            "passes": scored.astype(np.int64),
+            "entry_error": np.where(counted & ev.entered, np.nan_to_num(ev.entry_error), 0.0),
+            "exit_error": np.where(counted & ev.exited, np.nan_to_num(ev.exit_error), 0.0),
+            "trauma": np.where(counted & ev.exited, np.nan_to_num(ev.trauma), 0.0),
+            "missed": np.where(finish, len(self.pairs) - next_pair, 0).astype(np.int64),
+        }
+        new_state = DriveState(new, t_start, t_finish, t.astype(float), p[:, 0].copy(), *carry,
+                               next_pair, passage)  # fmt: skip
+        return new_state, obs
+
+    def progress(self, state) -> str:
+        """What to do next, while running."""
+        if int(state.phase[0]) != Phase.RUNNING:
+            return ""
+        k = int(state.next_pair[0])
+        if bool(state.passage.inside[0]):
+            return f"drive the needle round its curve to exit mark {k + 1}"
+        if not state.carried[0]:
+            return "pick the needle up"
+        return f"enter the tissue at entry mark {k + 1} of {len(self.pairs)}"
+
+    def summary(self, row: dict) -> str:
+        return (f"{row['passes']} of {len(self.pairs)} pairs passed, entry error "
+                f"{row['entry_error'] * 1e3:.1f} mm, exit error {row['exit_error'] * 1e3:.1f} "
+                f"mm, trauma {row['tissue_trauma'] * 1e3:.1f} mm, {row['drops']} drops, "
+                f"{row['completion_time']:.1f} s")  # fmt: skip
+
+    _FIELDS = (*NeedlePickupTask._FIELDS, "pad_center", "pad_top", "pad_yaw", "pairs",
+               "mark_radius")  # fmt: skip
+
+    def to_dict(self) -> dict[str, Any]:
+        out = super().to_dict()
+        out["pad_center"] = list(self.pad_center)
+        out["pairs"] = [[list(a) for a in pair] for pair in self.pairs]
+        return out
