@@ -29,6 +29,7 @@ not collide with the skin), so a needle let go in the tissue falls through it (a
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from functools import cached_property
 from typing import Any, ClassVar, NamedTuple
@@ -148,6 +149,10 @@ class NeedleDriveTask(NeedlePickupTask, kind="needle_drive"):
             self.pad  # noqa: B018 (built to check it)
         except ValueError as e:
             raise TaskError(f"task {self.name!r}: {e}") from e
+        for k, (entry, exit_) in enumerate(pairs):
+            if math.dist(entry, exit_) >= 2 * float(self.needle_radius):
+                raise TaskError(f"task {self.name!r}: pairs: pair {k}'s marks are farther "
+                                "apart than the needle's diameter")  # fmt: skip
         super().__post_init__()
 
     @cached_property

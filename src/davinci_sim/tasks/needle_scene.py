@@ -165,6 +165,20 @@ def grasp_pose(T_world_needle: np.ndarray, needle: NeedleSpec, R_world_tip: np.n
     return np.column_stack([np.cross(y, z), y, z]), p - depth * z
 
 
+def driver_grasp(T_world_needle: np.ndarray, needle: NeedleSpec, z_hint, s: float,
+                 depth: float = 0.006) -> tuple[np.ndarray, np.ndarray]:  # fmt: skip
+    """A needle driver's grip at fraction ``s``: ``(R_world_tip, p_world_pivot)`` with the
+    jaws (tip z) along the needle plane's normal, the sign nearer ``z_hint`` (3,), closing
+    (tip y) along the radius, so that the needle lies across the jaws and turning the tip
+    about its own z turns the needle in its plane; the wire ``depth`` (m) along the jaws
+    from the pivot."""
+    R, c = T_world_needle[:3, :3], T_world_needle[:3, 3]
+    p = R @ needle.points(s) + c
+    radial = (p - c) / np.linalg.norm(p - c)
+    z = R[:, 2] if R[:, 2] @ np.asarray(z_hint, dtype=float) >= 0 else -R[:, 2]
+    return np.column_stack([np.cross(radial, z), radial, z]), p - depth * z
+
+
 def add_needle(spec: mujoco.MjSpec, needle: NeedleSpec, park: NeedlePark | None,
                prefix: str = "task/") -> mujoco.MjsBody:  # fmt: skip
     """Add ``needle`` (a free body, ``<prefix>needle``, standing in ``park`` if given,

@@ -167,6 +167,32 @@ class SuturePad:
         return np.array(out, dtype=np.int64)
 
 
+def drive_pose(pad: SuturePad, pair: int, needle, alpha: float, tilt: float = 0.0) -> np.ndarray:
+    """The needle's frame (4×4, world) driven through ``pair``'s marks: its circle crossing
+    the skin's rest surface at the entry and exit marks, its plane containing the line
+    between them, tilted by ``tilt`` (rad) from the vertical about that line, towards the
+    pad's −y; turned by ``alpha`` (rad) about its own centre (its z axis) from the pose
+    with the swage end towards the exit mark level with the centre (at ``alpha`` = 0 the
+    point is towards the entry). The point enters the skin as ``alpha`` passes
+    π − ψ_e and exits as it passes π − ψ_x, the angles of the marks seen from the centre;
+    a ValueError if the marks are farther apart than the needle's diameter."""
+    entry, exit_ = pad.marks[pair]
+    half = float(np.linalg.norm(exit_ - entry)) / 2
+    if half >= needle.radius:
+        raise ValueError(f"pair {pair}'s marks are {2 * half * 1e3:.1f} mm apart: the "
+                         f"needle's circle ({2 * needle.radius * 1e3:.1f} mm across) cannot "
+                         "join them")  # fmt: skip
+    x = (exit_ - entry) / (2 * half)
+    up = np.array([0.0, 0.0, 1.0])
+    y = math.cos(tilt) * up - math.sin(tilt) * np.cross(up, x)  # (in the plane ⟂ x)
+    R0 = np.column_stack([x, y, np.cross(x, y)])
+    c, s = math.cos(alpha), math.sin(alpha)
+    T = np.eye(4)
+    T[:3, :3] = R0 @ np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+    T[:3, 3] = (entry + exit_) / 2 + math.sqrt(needle.radius**2 - half**2) * y
+    return pad.T_world_pad @ T
+
+
 def add_suture_pad(spec: mujoco.MjSpec, pad: SuturePad, prefix: str = "task/") -> mujoco.MjsBody:
     """Add ``pad`` to ``spec``: the body ``<prefix>pad`` (its block, drawn; the firm base,
     kind ``env``; the marks, drawn), the skin's vertex bodies ``<prefix>pad_v<i>`` and the
