@@ -402,3 +402,32 @@ def test_a_scripted_surgeon_drives_the_needle_through_and_pulls_it_out():
         assert op.totals["dropped"] == 0
     finally:
         op.sim.close()
+
+
+def test_a_console_session_reads_the_needle_and_the_pad_from_the_scene():
+    """``serve --task needle_drive``'s system: the park, the needle and the pad drawn in the
+    full scene (every keyframe extended by the needle and the skin), the session sampling
+    them each tick; a reset puts the needle back in its park and the skin at rest."""
+    import mujoco
+
+    from davinci_sim.system import ConsoleDescription, SystemDescription, build_simulation
+    from davinci_sim.system.description import TaskDescription
+
+    console = ConsoleDescription(operator_present=True, teleop_enabled=True)
+    sim = build_simulation(SystemDescription("full", console=console,
+                                             task=TaskDescription("needle_drive")))  # fmt: skip
+    try:
+        session = sim.components["task"]
+        sim.run_for(0.3)
+        assert session.snapshot().phase == "READY"
+        assert sim.model.key_qpos.shape[1] == sim.model.nq
+        task = session.task
+        dofs = skin_dofs(sim.model)
+        q = sim.model.jnt_qposadr[dofs]
+        sim.data.qpos[q[2::3]] -= 0.001  # the skin pushed in
+        task.reset_scene(sim.model, sim.data)
+        assert np.abs(sim.data.qpos[q]).max() == 0.0
+        mujoco.mj_forward(sim.model, sim.data)
+        assert np.allclose(sim.data.flexvert_xpos[:, 2], task.pad.top, atol=1e-9)
+    finally:
+        sim.close()

@@ -106,6 +106,30 @@ def test_task_marks_number_the_peg_rings_and_give_the_needles_pose():
     assert needle["needle"]["normal"] == pytest.approx([0.0, -1.0, 0.0])  # (x flipped: 0, −1)
     centre = T_camera_world[:3, :3] @ centres[0] + T_camera_world[:3, 3]
     assert needle["needle"]["centre"]["p_camera"] == pytest.approx(centre)
+    assert "sutures" not in needle
+
+
+def test_task_marks_give_the_suture_pairs_and_the_one_to_pass():
+    import numpy as np
+
+    from davinci_sim.model.cameras import CameraConfig
+    from davinci_sim.tasks import load_task
+    from davinci_sim.web.view import task_marks
+
+    T_world_camera = np.array([[-1.0, 0, 0, 0.06], [0, 1, 0, 1.2], [0, 0, -1, 1.0], [0, 0, 0, 1]])
+    task = load_task("running_suture")
+    marks = task_marks(task, T_world_camera, CameraConfig(),
+                       progress="enter the tissue at entry mark 3 of 4")  # fmt: skip
+    assert [p["label"] for p in marks["sutures"]] == ["1", "2", "3", "4"]
+    assert marks["current_pair"] == 2
+    T_camera_world = np.linalg.inv(T_world_camera)
+    world = task.pad.marks_world()
+    for pair, (entry, exit_) in zip(marks["sutures"], world, strict=True):
+        assert pair["entry"]["p_camera"] == pytest.approx(T_camera_world[:3, :3] @ entry
+                                                          + T_camera_world[:3, 3])  # fmt: skip
+        assert pair["exit"]["p_camera"] == pytest.approx(T_camera_world[:3, :3] @ exit_
+                                                         + T_camera_world[:3, 3])  # fmt: skip
+    assert task_marks(task, T_world_camera, CameraConfig())["current_pair"] is None
 
 
 def _view(arms=None, teleop_state="ENABLED", on=True, t=10.0) -> dict:

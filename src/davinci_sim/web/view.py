@@ -53,8 +53,10 @@ def task_marks(
     :func:`path_guide`), a peg board's ``pegs`` (their tops; ``target``: a peg to put a
     ring on) and ``rings`` (``objects``: their centres in the task's frame, m), a needle
     exercise's ``needle`` (its ``start`` pose's swage, top and point, its plane's
-    ``normal``, and its ``centre`` now, from ``objects``). None for a task in the camera
-    frame or with nothing to mark."""
+    ``normal``, and its ``centre`` now, from ``objects``), a suture pad's ``sutures`` (each
+    pair's entry and exit marks) and the ``current_pair`` (0-based, from the progress text
+    "… mark k …"; None when it names none). None for a task in the camera frame or with
+    nothing to mark."""
     if task is None or getattr(task, "frame", "world") != "world":
         return None
     T = np.asarray(T_world_camera, dtype=float)
@@ -110,6 +112,14 @@ def task_marks(
             "normal": _vector(R.T @ T_start[:3, 2]),
             "centre": _mark("centre", to_camera(objects)[0], camera) if len(objects) else None,
         }  # fmt: skip
+    pad = getattr(task, "pad", None)
+    if pad is not None:  # (the marks are drawn on the skin: these ring the pair to pass)
+        pairs = to_camera(pad.marks_world().reshape(-1, 3)).reshape(-1, 2, 3)
+        out["sutures"] = [{"label": str(k + 1), "entry": _mark(f"in {k + 1}", e, camera),
+                           "exit": _mark(f"out {k + 1}", x, camera)}
+                          for k, (e, x) in enumerate(pairs)]  # fmt: skip
+        found = re.search(r"mark (\d+)", progress or "")
+        out["current_pair"] = None if found is None else int(found.group(1)) - 1
     return out or None
 
 

@@ -296,9 +296,10 @@ function toDo(task) {
   if (task.progress && kind === "camera_targeting") return `${task.progress}: hold C (camera pedal) and drag the view with the keys`;
   if (task.progress && kind === "needle_targeting") return `${task.progress}, the tool along its stem (turn it with I/K, J/L, U/O)`;
   if (task.progress && kind === "needle_pickup") return `${task.progress}: the jaws across the needle (turn them with I/K, J/L, U/O; E closes and opens them)`;
+  if (task.progress && kind === "needle_drive") return `${task.progress}: turn the needle about its centre with the wrist (I/K, J/L, U/O; E closes and opens the jaws, H switches hands)`;
   if (task.progress) return task.progress;
   if (kind === "peg_transfer" && (task.phase === "IDLE" || task.phase === "READY")) return "pick up a ring to start";
-  if (kind === "needle_pickup" && (task.phase === "IDLE" || task.phase === "READY")) return "pick up the needle to start";
+  if ((kind === "needle_pickup" || kind === "needle_drive") && (task.phase === "IDLE" || task.phase === "READY")) return "pick up the needle to start";
   if (kind === "camera_targeting") return task.phase === "READY" ? "ready: hold C (camera pedal) and move the view to start" : "hold the camera still to start";
   if (task.phase === "IDLE") return "bring the tool to the start to begin";
   if (task.phase === "READY") return "ready: go";
@@ -628,6 +629,15 @@ function drawMarks(ctx, marks, w) {
   for (const ring of marks.rings || []) {
     if (ring.pixel) ctx.fillText(`ring ${ring.label}`, ring.pixel[0] + 12, ring.pixel[1] - 8);
   }
+  (marks.sutures || []).forEach((pair, k) => {  // the pair to pass ringed: in blue, out green
+    if (marks.current_pair !== k) return;
+    for (const [m, color] of [[pair.entry, "#4da3ff"], [pair.exit, "#3ecf8e"]]) {
+      if (!m.pixel) continue;
+      ctx.strokeStyle = ctx.fillStyle = color; ctx.lineWidth = 2;
+      ctx.beginPath(); ctx.arc(m.pixel[0], m.pixel[1], 8, 0, 2 * Math.PI); ctx.stroke();
+      ctx.fillText(m.label, m.pixel[0] + 10, m.pixel[1] + 14);
+    }
+  });
   (marks.targets || []).forEach((m, k) => {
     if (!m.pixel) return;
     const [u, v] = m.pixel;
