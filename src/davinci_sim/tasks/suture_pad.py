@@ -215,6 +215,7 @@ def add_suture_pad(spec: mujoco.MjSpec, pad: SuturePad, prefix: str = "task/") -
                          pos=[0, 0, -(pad.depth + below) / 2],
                          size=[*half, (below - pad.depth) / 2])  # fmt: skip
     contact.apply(base, "env")
+    base.contype, base.conaffinity = 0, contact.TOOL_BIT  # (instruments only, as the skin)
     base.rgba = list(PAD_RGBA)
     for k, pair in enumerate(pad.marks):
         for which, p, rgba in (("entry", pair[0], ENTRY_RGBA), ("exit", pair[1], EXIT_RGBA)):
