@@ -309,7 +309,7 @@ def test_an_instrument_dents_the_skin_locally_and_it_springs_back(operator):
     op.move("PSM1", on + [0, 0, JAW_LENGTH + 0.015])
     op.sim.run_for(0.5)
     assert np.abs(skin(op) - rest).max() < 2e-4
-    assert len(skin_dofs(m)) == 3 * int((~pad.border()).sum())
+    assert len(skin_dofs(m)) == int((~pad.border()).sum())  # (one along the normal each)
 
 
 def test_the_needle_passes_through_the_skin_without_touching_it(operator):
@@ -424,7 +424,7 @@ def test_a_console_session_reads_the_needle_and_the_pad_from_the_scene():
         task = session.task
         dofs = skin_dofs(sim.model)
         q = sim.model.jnt_qposadr[dofs]
-        sim.data.qpos[q[2::3]] -= 0.001  # the skin pushed in
+        sim.data.qpos[q] -= 0.001  # the skin pushed in
         task.reset_scene(sim.model, sim.data)
         assert np.abs(sim.data.qpos[q]).max() == 0.0
         mujoco.mj_forward(sim.model, sim.data)

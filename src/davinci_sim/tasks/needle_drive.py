@@ -37,7 +37,6 @@ from typing import Any, ClassVar, NamedTuple
 import numpy as np
 
 from davinci_sim.tasks.base import Sample, TaskError
-from davinci_sim.tasks.handling import Events, Handling, handling_step
 from davinci_sim.tasks.metrics import Metric, Peak
 from davinci_sim.tasks.needle_pickup import NeedlePickupTask
 from davinci_sim.tasks.peg import ECONOMY_ALL
@@ -45,8 +44,6 @@ from davinci_sim.tasks.schema import ListOf, Number, Vector
 from davinci_sim.tasks.state import Phase
 from davinci_sim.tasks.suture_pad import Passage, SuturePad, no_passage, passage_step
 from davinci_sim.tasks.trainer import TIME, Sum, trainer_metrics
-
-_IDLE, _READY, _RUNNING, _FINISHED, _RESULTS = (int(p) for p in Phase)
 
 
 def _obs(key: str, dtype=float):
@@ -242,52 +239,28 @@ class NeedleDriveTask(NeedlePickupTask, kind="needle_drive"):
         if sample.objects is None or sample.grasp is None or sample.T_task_object is None:
             raise ValueError(f"task {self.name!r} needs the sample's objects, grasp and "
                              "T_task_object (NeedleDriveTask.scene_fields)")  # fmt: skip
-        n, t = sample.n, sample.time
-        p = np.asarray(sample.objects, dtype=float).reshape(n, 1, 3)
-        start = self.T_world_start[:3, 3]
-        parked = np.linalg.norm(p - start, axis=2) <= self.park_tolerance
-        carry, e = handling_step(
-            Handling(*(a[:, None] for a in (state.t_still, state.owner, state.carried,
-                                            state.handed, state.loose))),
-            grasp=np.asarray(sample.grasp).reshape(n, 1), p=p, p_prev=state.p_prev[:, None],
-            t=t, t_prev=state.t_prev, placed=parked, instruments=len(self.instruments),
-            rest_speed=self.rest_speed, rest_time=self.rest_time,
-        )  # fmt: skip
-        carry, e = Handling(*(a[:, 0] for a in carry)), Events(*(a[:, 0] for a in e))
+        t = sample.time
+        p, parked, carry, e = self._handle(state, sample)
         passage, ev = passage_step(state.passage, self.T_pad_world @ sample.T_task_object,
                                    self.needle, self.pad)  # fmt: skip
-
-        phase = state.phase
-        new = phase.copy()
-        new[(phase == _IDLE) & e.resting & parked[:, 0]] = _READY
-        begin = (phase == _READY) & e.held
-        new[begin] = _RUNNING
-        t_start = np.where(begin, t, state.t_start)
-        running = (phase == _RUNNING) | begin
+        new, t_start, running, timeout = self._start(state, e, parked, t)
         scored = running & ev.passed & (ev.pair == state.next_pair)
         next_pair = state.next_pair + scored
-        done = next_pair >= len(self.pairs)
-        if self.time_limit > 0:
-            with np.errstate(invalid="ignore"):
-                timeout = t - t_start >= self.time_limit
-        else:
-            timeout = np.zeros(n, dtype=bool)
-        finish = running & (done | timeout)
-        new[finish] = _FINISHED
-        new[phase == _FINISHED] = _RESULTS
-        t_finish = np.where(finish, t, state.t_finish)
+        finish, t_finish = self._finish(new, state, running,
+                                        (next_pair >= len(self.pairs)) | timeout, t)  # fmt: skip
         counted = running  # (errors and trauma of the attempt only)
         obs = {
-            "distance": np.linalg.norm(p[:, 0] - sample.tip, axis=1),
+            "distance": np.linalg.norm(p - sample.tip, axis=1),
             "handoffs": e.handoff.astype(np.int64),
             "dropped": e.drop.astype(np.int64),
             "passes": scored.astype(np.int64),
-            "entry_error": np.where(counted & ev.entered, np.nan_to_num(ev.entry_error), 0.0),
-            "exit_error": np.where(counted & ev.exited, np.nan_to_num(ev.exit_error), 0.0),
-            "trauma": np.where(counted & ev.exited, np.nan_to_num(ev.trauma), 0.0),
+            # (finite where their events are: nan elsewhere, not taken)
+            "entry_error": np.where(counted & ev.entered, ev.entry_error, 0.0),
+            "exit_error": np.where(counted & ev.exited, ev.exit_error, 0.0),
+            "trauma": np.where(counted & ev.exited, ev.trauma, 0.0),
             "missed": np.where(finish, len(self.pairs) - next_pair, 0).astype(np.int64),
         }
-        new_state = DriveState(new, t_start, t_finish, t.astype(float), p[:, 0].copy(), *carry,
+        new_state = DriveState(new, t_start, t_finish, t.astype(float), p.copy(), *carry,
                                next_pair, passage)  # fmt: skip
         return new_state, obs
 

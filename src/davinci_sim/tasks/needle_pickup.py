@@ -253,41 +253,16 @@ class NeedlePickupTask(Task, kind="needle_pickup"):
         if sample.objects is None or sample.grasp is None:
             raise ValueError(f"task {self.name!r} needs the sample's objects and grasp "
                              "(NeedlePickupTask.scene_fields)")  # fmt: skip
-        n, t = sample.n, sample.time
-        p = np.asarray(sample.objects, dtype=float).reshape(n, 1, 3)
+        t = sample.time
+        p, parked, carry, e = self._handle(state, sample)
         start = self.T_world_start[:3, 3]
-        parked = np.linalg.norm(p - start, axis=2) <= self.park_tolerance
-        carry, e = handling_step(
-            Handling(*(a[:, None] for a in (state.t_still, state.owner, state.carried,
-                                            state.handed, state.loose))),
-            grasp=np.asarray(sample.grasp).reshape(n, 1), p=p, p_prev=state.p_prev[:, None],
-            t=t, t_prev=state.t_prev, placed=parked, instruments=len(self.instruments),
-            rest_speed=self.rest_speed, rest_time=self.rest_time,
-        )  # fmt: skip
-        carry, e = Handling(*(a[:, 0] for a in carry)), Events(*(a[:, 0] for a in e))
-        p = p[:, 0]
         lifted = p[:, 2] >= start[2] + self.lift_height
         holding = carry.handed & e.alone & lifted
         t_held = np.where(holding, np.where(np.isnan(state.t_held), t, state.t_held), np.nan)
         with np.errstate(invalid="ignore"):
             delivered = holding & (t - t_held >= self.hold_time)
-
-        phase = state.phase
-        new = phase.copy()
-        new[(phase == _IDLE) & e.resting & parked[:, 0]] = _READY
-        begin = (phase == _READY) & e.held
-        new[begin] = _RUNNING
-        t_start = np.where(begin, t, state.t_start)
-        running = (phase == _RUNNING) | begin
-        if self.time_limit > 0:
-            with np.errstate(invalid="ignore"):
-                timeout = t - t_start >= self.time_limit
-        else:
-            timeout = np.zeros(n, dtype=bool)
-        finish = running & (delivered | timeout)
-        new[finish] = _FINISHED
-        new[phase == _FINISHED] = _RESULTS
-        t_finish = np.where(finish, t, state.t_finish)
+        new, t_start, running, timeout = self._start(state, e, parked, t)
+        finish, t_finish = self._finish(new, state, running, delivered | timeout, t)
 
         obs = {
             "distance": np.linalg.norm(p - sample.tip, axis=1),
@@ -299,6 +274,48 @@ class NeedlePickupTask(Task, kind="needle_pickup"):
         new_state = NeedleState(new, t_start, t_finish, t.astype(float), p.copy(), *carry,
                                 t_held)  # fmt: skip
         return new_state, obs
+
+    def _handle(self, state, sample: Sample) -> tuple[np.ndarray, np.ndarray, Handling, Events]:
+        """The needle at this sample (:mod:`~davinci_sim.tasks.handling`): its centre
+        (n, 3), whether it is in its park (n,), the carry state and the events."""
+        n = sample.n
+        p = np.asarray(sample.objects, dtype=float).reshape(n, 1, 3)
+        parked = np.linalg.norm(p - self.T_world_start[:3, 3], axis=2) <= self.park_tolerance
+        carry, e = handling_step(
+            Handling(*(a[:, None] for a in (state.t_still, state.owner, state.carried,
+                                            state.handed, state.loose))),
+            grasp=np.asarray(sample.grasp).reshape(n, 1), p=p, p_prev=state.p_prev[:, None],
+            t=sample.time, t_prev=state.t_prev, placed=parked, instruments=len(self.instruments),
+            rest_speed=self.rest_speed, rest_time=self.rest_time,
+        )  # fmt: skip
+        carry, e = Handling(*(a[:, 0] for a in carry)), Events(*(a[:, 0] for a in e))
+        return p[:, 0], parked[:, 0], carry, e
+
+    def _start(self, state, e: Events, parked, t):
+        """IDLE → READY when the needle rests in its park, READY → RUNNING when it is
+        first held: ``(phases, t_start, running, timed out)`` ((n,) arrays)."""
+        phase = state.phase
+        new = phase.copy()
+        new[(phase == _IDLE) & e.resting & parked] = _READY
+        begin = (phase == _READY) & e.held
+        new[begin] = _RUNNING
+        t_start = np.where(begin, t, state.t_start)
+        running = (phase == _RUNNING) | begin
+        if self.time_limit > 0:
+            with np.errstate(invalid="ignore"):
+                timeout = t - t_start >= self.time_limit
+        else:
+            timeout = np.zeros(len(phase), dtype=bool)
+        return new, t_start, running, timeout
+
+    @staticmethod
+    def _finish(new, state, running, ends, t):
+        """RUNNING → FINISHED where ``ends``, FINISHED → RESULTS, in ``new`` (the phases
+        :meth:`_start` gave): ``(finishing (n,), t_finish (n,))``."""
+        finish = running & ends
+        new[finish] = _FINISHED
+        new[state.phase == _FINISHED] = _RESULTS
+        return finish, np.where(finish, t, state.t_finish)
 
     def at_start(self, tip) -> np.ndarray:
         """Tips (n, 3) within 1 cm of :attr:`start` (a session's next repetition also

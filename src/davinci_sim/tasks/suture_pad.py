@@ -3,8 +3,8 @@ it, and the needle's passage through it, read from geometry.
 
 **The skin** is a 2-D MuJoCo flex (``<prefix>pad_skin``): a grid of vertices ``spacing``
 apart over the pad's top, its border pinned to the pad's block, each inner vertex a body on
-three slide joints with a spring to its rest position (``k_normal`` along the pad's normal,
-``k_tangent`` in its plane) and the flex's edges damped. The jaws and shafts of the
+one slide joint along the pad's normal with a spring to its rest position (``k_normal``),
+and the flex's edges damped. The jaws and shafts of the
 instruments collide with the skin's triangles and dent it locally (a foundation of
 springs: a press spreads over the vertices under and next to the jaw, not over the whole
 pad); a firm base ``depth`` below the skin (kind ``env``) stops an instrument pushed through
@@ -16,11 +16,14 @@ it. Why this discretisation, measured with MuJoCo 4 (``docs`` in the note of iss
 * a 3-D flex with trilinear degrees of freedom is cheap but dents as a whole (0.07 mm under
   0.3 N, no local dent); with full degrees of freedom (7×7×3 vertices, 295 dofs) a step took
   713 µs, 7-14× the scene's tick;
-* the skin here: 11×9 vertices, 4 mm apart, 190 dofs; a 3 mm capsule pressed with 0.3 N
-  dents it 0.7 mm under the capsule and 0.2 mm 3.5 mm away, and holds 1 N (1.8 mm). The
-  joint springs are explicit in MuJoCo's step, so the vertex mass keeps ω·Δt ≤ 0.5
-  (checked on construction); MuJoCo refuses joint damping on a flex's vertices, so the
-  edges carry the damping.
+* the skin here: 11×9 vertices, 4 mm apart; with three slide joints per inner vertex
+  (190 dofs) a 3 mm capsule pressed with 0.3 N dented it 0.7 mm under the capsule and
+  0.2 mm 3.5 mm away and held 1 N (1.8 mm), but the scene's step took 2.5× as long
+  (206 µs against 84 µs, ``bench_suture``); one joint per vertex, along the normal (63
+  dofs), keeps the local dent (a foundation of springs) at a third of the dofs. The joint
+  springs are explicit in MuJoCo's step, so the vertex mass keeps ω·Δt ≤ 0.5 (checked on
+  construction); MuJoCo refuses joint damping on a flex's vertices, so the edges carry the
+  damping.
 
 **The needle does not collide with the skin** (the flex's collision bits leave objects
 out): a needle's passage is geometry, as the AccelNet challenge scores it. Its tip entering
@@ -77,18 +80,16 @@ class SuturePad:
     """From the skin down to the firm base."""
     skin_radius: float = 0.0015
     """Half the skin's collision thickness (MuJoCo flex radius)."""
-    vertex_mass: float = 0.0013
+    vertex_mass: float = 0.0007
     k_normal: float = 150.0
     """Each inner vertex's spring to its rest position along the skin's normal, N/m."""
-    k_tangent: float = 300.0
-    """The same in the skin's plane, N/m."""
     edge_damping: float = 0.05
     """Damping of the flex's edge lengths (MuJoCo ``edgedamping``)."""
     mark_radius: float = 0.0025
     """How near a mark the needle must enter and exit (the challenge's ±2.5 mm)."""
 
     def __post_init__(self) -> None:
-        for name in ("spacing", "depth", "skin_radius", "vertex_mass", "k_normal", "k_tangent",
+        for name in ("spacing", "depth", "skin_radius", "vertex_mass", "k_normal",
                      "mark_radius"):  # fmt: skip
             v = getattr(self, name)
             if not (isinstance(v, int | float) and math.isfinite(v) and v > 0):
@@ -101,7 +102,7 @@ class SuturePad:
                              f"{self.spacing} m apart along each side")  # fmt: skip
         if self.skin_radius * 2 >= self.spacing:
             raise ValueError("suture pad skin_radius must be under half the spacing")
-        stiffest = max(self.k_normal, self.k_tangent)
+        stiffest = self.k_normal
         if math.sqrt(stiffest / self.vertex_mass) * TIMESTEP > 0.5:
             raise ValueError(
                 f"suture pad springs of {stiffest} N/m on {self.vertex_mass} kg vertices are "
@@ -236,9 +237,7 @@ def add_suture_pad(spec: mujoco.MjSpec, pad: SuturePad, prefix: str = "task/") -
         v = body.add_body(name=f"{prefix}pad_v{i}", pos=p)
         i_sphere = 0.4 * pad.vertex_mass * pad.skin_radius**2
         set_inertial(v, pad.vertex_mass, np.zeros(3), np.full(3, i_sphere))
-        for axis in ((1, 0, 0), (0, 1, 0), (0, 0, 1)):
-            k = pad.k_normal if axis[2] else pad.k_tangent
-            v.add_joint(type=slide, axis=axis, stiffness=[k, 0, 0])
+        v.add_joint(type=slide, axis=[0, 0, 1], stiffness=[pad.k_normal, 0, 0])
         names.append(v.name)
         local.append(np.zeros(3))
     flex = spec.add_flex(name=f"{prefix}pad_skin")
@@ -259,7 +258,7 @@ def add_suture_pad(spec: mujoco.MjSpec, pad: SuturePad, prefix: str = "task/") -
     for key in spec.keys:
         q = np.asarray(key.qpos, dtype=float)
         if q.size:
-            key.qpos = np.concatenate([q, np.zeros(3 * free)])
+            key.qpos = np.concatenate([q, np.zeros(free)])
     return body
 
 
@@ -353,6 +352,11 @@ def no_passage(n: int) -> Passage:
                    np.full((n, 3), np.nan), nan, nan.copy(), np.full((n, 3), np.nan))  # fmt: skip
 
 
+def _no_events(n: int) -> PassageEvents:
+    off, nan = np.zeros(n, dtype=bool), np.full(n, np.nan)
+    return PassageEvents(off, off, off, off, np.full(n, -1, dtype=np.int64), nan, nan, nan)
+
+
 def circle_deviation(p_needle: np.ndarray, radius: float) -> np.ndarray:
     """Distance of points ``p_needle`` (..., 3, needle frame) from the needle's circle
     (radius ``radius`` about the origin in the x-y plane), m."""
@@ -371,8 +375,9 @@ def passage_step(state: Passage, T_pad_needle: np.ndarray, needle, pad: SuturePa
     mark radius of where it went in. While inside, the trauma is the entry point's distance
     from the needle's circle (0 for a needle turned about its own centre)."""
     T = np.asarray(T_pad_needle, dtype=float).reshape(-1, 4, 4)
-    n = len(T)
     tip = T[:, :3, :3] @ needle.points(1.0) + T[:, :3, 3]
+    if not state.inside.any() and (tip[:, 2] >= 0.0).all():  # (the usual sample: above)
+        return state._replace(p_tip=tip), _no_events(len(T))
     prev = state.p_tip
     marks = pad.marks
     half = np.array(pad.size, dtype=float) / 2
@@ -422,5 +427,4 @@ def passage_step(state: Passage, T_pad_needle: np.ndarray, needle, pad: SuturePa
     p_entry[ended] = np.nan
     entry_error[ended] = np.nan
     trauma[ended] = np.nan
-    del n
     return Passage(inside, pair, p_entry, entry_error, trauma, tip.copy()), events
