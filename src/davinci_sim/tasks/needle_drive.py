@@ -119,9 +119,10 @@ class NeedleDriveTask(NeedlePickupTask, kind="needle_drive"):
         "mark_radius": Number(above=0.0),
     }
     FILE_REQUIRED = ("park_center", "park_top", "pad_center", "pad_top", "pairs")
-    #: The needle is what the jaws hold; the skin is what they work on: neither is a
-    #: collision (the pad's firm base is).
-    CONTACT_IGNORE = ("task/needle", "task/pad_v")
+    #: The needle is what the jaws hold: not a collision. The skin, what they work on, is
+    #: not one either (a flex: ``InstrumentContacts`` leaves its contacts out); the pad's
+    #: firm base is.
+    CONTACT_IGNORE = ("task/needle",)
 
     pad_center: tuple[float, float] = (0.0, 0.0)
     pad_top: float = 0.0

@@ -7,8 +7,9 @@ one slide joint along the pad's normal with a spring to its rest position (``k_n
 and the flex's edges damped. The jaws and shafts of the
 instruments collide with the skin's triangles and dent it locally (a foundation of
 springs: a press spreads over the vertices under and next to the jaw, not over the whole
-pad); a firm base ``depth`` below the skin (kind ``env``) stops an instrument pushed through
-it. Why this discretisation, measured with MuJoCo 4 (``docs`` in the note of issue 24):
+pad); a firm base ``depth`` below the skin (kind ``env``, touching the instruments only)
+stops an instrument pushed through it. Why this discretisation, measured with MuJoCo 4 on
+the 2-core development machine:
 
 * flex ``<elasticity>`` is no longer integrated under ``implicitfast`` (the scene's
   integrator) and explicit Euler at 1 ms was unstable for a skin stiff enough to carry the
