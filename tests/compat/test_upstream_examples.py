@@ -181,8 +181,16 @@ def test_dvrk_arm_test_servo_cp_draws_its_diagonal(system, PyKDL):
             arm.servo_cp(goal)
             arm.setpoint_cp()
             rate.sleep()
+        # The last goal is the start again: on a loaded machine the simulation takes its
+        # goals seconds late (a CI run ended the loop with the setpoint still 52 mm off), so
+        # wait until it is back, not a fixed time (30 s at most: then the check says so).
+        start = np.array([initial.p[0], initial.p[1], initial.p[2]])
+        back = time.monotonic() + 30.0
+        while np.linalg.norm(observer.now("PSM1") - start) >= TOLERANCE / 2:
+            if time.monotonic() > back:
+                break
+            time.sleep(0.05)
         time.sleep(0.2)
-    start = np.array([initial.p[0], initial.p[1], initial.p[2]])
     far = start + [2 * amplitude, 2 * amplitude, 0.0]
     observer.visited_in_order(start, far, start, tolerance=TOLERANCE)
     # The reach is counted from the tip's first time at the start once the loop runs: the
