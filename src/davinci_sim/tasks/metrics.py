@@ -207,6 +207,18 @@ Value = Callable[[Any, "Sample", dict], np.ndarray]
 PairValue = Callable[[Any, "Sample", "Sample", dict], np.ndarray]
 
 
+def observed(key: str, dtype=np.int64) -> Value:
+    """The value a kind's step observes under ``key`` (its ``obs``) as (n,) ``dtype``; zeros
+    where a kind observes no such thing (a kind without objects has no drops)."""
+
+    def value(task, s, obs):
+        v = obs.get(key)
+        return np.zeros(s.n, dtype=dtype) if v is None else np.asarray(v, dtype=dtype)
+
+    value.__name__ = f"observed_{key}"
+    return value
+
+
 def _float_acc(acc) -> bool:
     """``acc + where(False, value, 0)`` is ``acc`` whatever the value's type: float64 (an
     integer running sum would turn float with a float value)."""

@@ -37,21 +37,13 @@ from typing import Any, ClassVar, NamedTuple
 import numpy as np
 
 from davinci_sim.tasks.base import Sample, TaskError
-from davinci_sim.tasks.metrics import Metric, Peak
+from davinci_sim.tasks.metrics import Metric, Peak, observed
 from davinci_sim.tasks.needle_pickup import NeedlePickupTask
 from davinci_sim.tasks.peg import ECONOMY_ALL
 from davinci_sim.tasks.schema import ListOf, Number, Vector
 from davinci_sim.tasks.state import Phase
 from davinci_sim.tasks.suture_pad import Passage, SuturePad, no_passage, passage_step
 from davinci_sim.tasks.trainer import TIME, Sum, trainer_metrics
-
-
-def _obs(key: str, dtype=float):
-    def value(task, s, obs):
-        return np.asarray(obs[key], dtype=dtype)
-
-    value.__name__ = f"observed_{key}"
-    return value
 
 
 def _tissue_force(task, s, obs):
@@ -61,20 +53,20 @@ def _tissue_force(task, s, obs):
 MM = ("mm", 1e3)
 PASSES = Metric(
     "passes", "1", "higher", "pairs of marks the needle was driven through, in order",
-    Sum(_obs("passes", np.int64), True), integer=True,
+    Sum(observed("passes"), True), integer=True,
 )  # fmt: skip
 ENTRY_ERROR = Metric(
     "entry_error", "m", "lower", "largest distance of an entry of the needle's point from its mark",
-    Peak(_obs("entry_error")), report=MM, display=MM,
+    Peak(observed("entry_error", float)), report=MM, display=MM,
 )  # fmt: skip
 EXIT_ERROR = Metric(
     "exit_error", "m", "lower", "largest distance of an exit of the needle's point from its mark",
-    Peak(_obs("exit_error")), report=MM, display=MM,
+    Peak(observed("exit_error", float)), report=MM, display=MM,
 )  # fmt: skip
 TRAUMA = Metric(
     "tissue_trauma", "m", "lower",
     "peak distance of an entry point from the needle's circle while in the tissue",
-    Peak(_obs("trauma")), report=MM, display=MM,
+    Peak(observed("trauma", float)), report=MM, display=MM,
 )  # fmt: skip
 TISSUE_FORCE = Metric(
     "tissue_force", "N", "lower", "peak normal force of the instruments on the tissue",

@@ -50,7 +50,7 @@ from davinci_sim.tasks.exercise_parts import (
     viewer_axes,
     world_points,
 )
-from davinci_sim.tasks.metrics import Metric
+from davinci_sim.tasks.metrics import Metric, observed
 from davinci_sim.tasks.schema import NONNEGATIVE, POINT, ListOf, Number
 from davinci_sim.tasks.state import Phase
 from davinci_sim.tasks.trainer import ECONOMY, TIME, Sum, trainer_metrics
@@ -91,16 +91,9 @@ class EventMean:
         return np.where(count > 0, total / np.maximum(count, 1), np.nan)
 
 
-def _observed(key: str):
-    def value(task, s, obs):
-        return np.asarray(obs[key], dtype=np.int64)
-
-    return value
-
-
 TARGETS_HIT = Metric(
     "targets_hit", "1", "higher", "targets touched with the tool within the angle tolerance",
-    Sum(_observed("hit"), True), integer=True, label="targets hit",
+    Sum(observed("hit"), True), integer=True, label="targets hit",
 )  # fmt: skip
 ORIENTATION_ERROR = Metric(
     "orientation_error", "rad", "lower",

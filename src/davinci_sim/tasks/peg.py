@@ -65,7 +65,7 @@ from davinci_sim.tasks.base import (
     common_to_dict,
 )
 from davinci_sim.tasks.handling import Handling, handling_step, holders
-from davinci_sim.tasks.metrics import Metric, PairSum
+from davinci_sim.tasks.metrics import Metric, PairSum, observed
 from davinci_sim.tasks.schema import (
     NONNEGATIVE,
     Flag,
@@ -82,21 +82,13 @@ from davinci_sim.tasks.trainer import TIME, Sum, trainer_metrics
 _IDLE, _READY, _RUNNING, _FINISHED, _RESULTS = (int(p) for p in Phase)
 
 
-def _observed(key: str):
-    def value(task, s, obs):
-        return np.asarray(obs[key], dtype=np.int64)
-
-    value.__name__ = f"observed_{key}"
-    return value
-
-
 TRANSFERRED = Metric(
     "transferred", "1", "higher", "rings transferred to a target peg (one point per peg)",
-    Sum(_observed("transferred"), True), integer=True, label="rings transferred",
+    Sum(observed("transferred"), True), integer=True, label="rings transferred",
 )  # fmt: skip
 HANDOFFS = Metric(
     "handoffs", "1", "neither", "hand-offs of a carried ring between the instruments",
-    Sum(_observed("handoffs"), True), integer=True, label="hand-offs",
+    Sum(observed("handoffs"), True), integer=True, label="hand-offs",
 )  # fmt: skip
 
 

@@ -46,7 +46,14 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from davinci_sim.tasks.metrics import PATH_METRICS, Metric, PairSum, _always, _float_acc
+from davinci_sim.tasks.metrics import (
+    PATH_METRICS,
+    Metric,
+    PairSum,
+    _always,
+    _float_acc,
+    observed,
+)
 
 if TYPE_CHECKING:
     import mujoco
@@ -150,15 +157,6 @@ def _master(task, s, obs):
     return s.master
 
 
-def _observed(key: str):
-    def value(task, s, obs):
-        v = obs.get(key)
-        return np.zeros(s.n, dtype=np.int64) if v is None else np.asarray(v, dtype=np.int64)
-
-    value.__name__ = f"observed_{key}"
-    return value
-
-
 _BY_NAME = {m.name: m for m in PATH_METRICS}
 
 #: Time to complete and economy of motion: the path kind's declarations (shown in s, cm).
@@ -187,11 +185,11 @@ MASTER_WORKSPACE = Metric(
 )  # fmt: skip
 DROPS = Metric(
     "drops", "1", "lower", "objects dropped (0 for a task without objects)",
-    Sum(_observed("dropped"), True), integer=True,
+    Sum(observed("dropped"), True), integer=True,
 )  # fmt: skip
 MISSED_TARGETS = Metric(
     "missed_targets", "1", "lower", "targets missed (the task's 'missed' observations)",
-    Sum(_observed("missed"), True), integer=True, label="missed targets",
+    Sum(observed("missed"), True), integer=True, label="missed targets",
 )  # fmt: skip
 #: The path kind's missed targets: numbered points 2..N−1 never within ``tube_radius``.
 PATH_MISSED_TARGETS = Metric(
