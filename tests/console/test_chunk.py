@@ -272,3 +272,56 @@ def test_a_python_only_field_keeps_the_python_ticks(served):
     finally:
         haptics.remove_field(name)
     assert chunker.plan() is not None
+
+
+# ---------------------------------------------------------------- the other exercises
+_EXERCISES: dict = {}
+
+
+@pytest.fixture(scope="module", params=["needle_drive", "camera_targeting"])
+def exercise(request):
+    """What ``serve --task <exercise> --home`` ticks, the person holding both handles after
+    taking control: an exercise with objects (the needle, the suture pad's skin, no
+    guidance: ``fixture: none``) and one without (the camera's targets)."""
+    name = request.param
+    if name not in _EXERCISES:
+        sim = build_simulation(
+            SystemDescription(
+                scene="full", keyframe="surgical",
+                console=ConsoleDescription(hand_inputs=("MTML", "MTMR")),
+                task=TaskDescription(name, frame_view=VIEW_DISTANCE), home=True,
+                runner="none", real_time=False,
+            )
+        )  # fmt: skip
+        sim.run_for(8.0)  # homing, the endoscope framed, the tool brought to the start
+        console = sim.components["console"]
+        console.press("operator_present")
+        console.teleop_enable(True)
+        sim.components["MTMR/hand"].grasp()
+        sim.components["MTML/hand"].grasp()
+        teleops = [t for t in console.psm_teleops.values() if t.selected]
+        assert sim.run_until(lambda: all(t.is_following() for t in teleops), 30)
+        sim.run_for(0.3)
+        _EXERCISES[name] = (sim, sim._chunker, sim.get_state())
+    yield _EXERCISES[name]
+
+
+def test_another_exercise_ticks_compiled_as_in_python_its_session_sampled_in_python(exercise):
+    """An exercise's session samples each compiled tick afterwards through its kind's
+    Python step (the needle's pose and the jaws on it as the kernel read them after each
+    step): with the D key held, the same states, events and metrics as Python's ticks, and
+    the kernel ran the ticks."""
+
+    def key(sim):
+        hand = sim.components["MTMR/hand"]
+        assert hand.command([0.02, 0.0, 0.0])
+
+    sim = exercise[0]
+    runs, answers = _both_ways(exercise, 600, before=key)
+    _assert_same_run(*runs)
+    assert sum(a[0] for a in answers) >= 580, answers[:10]
+    session = sim.components["task"]
+    if session.task.objects_probe(sim.model, {}) is not None:
+        # the needle read after each step: it rests in its park, the attempt is ready
+        assert session.monitor.phase == Phase.READY
+        assert np.isfinite(session.monitor.state.p_prev).all()

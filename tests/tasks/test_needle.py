@@ -8,8 +8,11 @@ import math
 
 import numpy as np
 import pytest
+from compiled_reads import objects_read
 from scripted_operator import Operator
 
+from bits import assert_same_bits
+from davinci_sim.console import chunk
 from davinci_sim.tasks import TaskError, load_task, task_from_dict, task_to_dict
 from davinci_sim.tasks.base import Sample
 from davinci_sim.tasks.check import check_task
@@ -302,6 +305,10 @@ def test_a_scripted_operator_picks_the_needle_up_and_hands_it_over(operator):
     op.move("PSM2", op.tip("PSM2")[:3, 3] + [0, 0, 0.02])
     op.grasp("PSM1", 0.85)
     assert op.bits() == PSM2_JAWS | PSM1_JAWS
+    if chunk.COMPILED:  # the console's compiled ticks read what the probe reads
+        for a, b in zip(objects_read(op.probe, op.sim.data), op.probe.read(op.sim.data),
+                        strict=True):  # fmt: skip
+            assert_same_bits(a, b, "reading")
     op.jaw("PSM2", 0.8)
     op.move("PSM2", op.tip("PSM2")[:3, 3] + [0.01, 0, 0.01])
     assert op.bits() == PSM1_JAWS

@@ -102,13 +102,15 @@ class ConsoleChunk:
         w = live_period.warning_address(data)
         ncon = live_period.contact_count_address(data)
         self.available = COMPILED and w is not None and ncon is not None
-        self._address = np.zeros(10, dtype=np.intp)
+        self._address = np.zeros(13, dtype=np.intp)
         if self.available:
             self._address[:9] = [
                 data.ctrl.ctypes.data, data.qpos.ctypes.data, data.qvel.ctypes.data,
                 data.qfrc_bias.ctypes.data, data.qfrc_gravcomp.ctypes.data, w, ncon,
                 data.xfrc_applied.ctypes.data, data.xipos.ctypes.data,
             ]  # fmt: skip
+            self._address[10:] = [data.xpos.ctypes.data, data.xmat.ctypes.data,
+                                  data.site_xpos.ctypes.data]  # fmt: skip
         self._sizes = indices(model.nu, model.nq, model.nv, len(data.warning), 0, model.nbody)
         self._state = np.empty(mujoco.mj_stateSize(model, _SIG))
         self._times = np.zeros(4)
@@ -302,17 +304,18 @@ class ConsoleChunk:
     def _request_row(self, request: SampleRequest | None, rows_of: list[TeleopPSM],
                      following: int, haptics: HapticLoop | None) -> tuple | None:  # fmt: skip
         """The session's sample part: ``(on, teleop, fixture_teleop, watch, tool_geom,
-        other_geom, t, T_tip, T_camera, requested, master, req_now)``. ``rows_of``: the
-        teleoperations of the kernel's rows, the first ``following`` of them followed. The
-        guidance force requested for the session's MTM is the fixture's, or the last one
-        while none renders on it (zero before any: ``live_sample``'s)."""
+        other_geom, t, T_tip, T_camera, requested, master, req_now)`` then its objects'
+        (:func:`_objects_row`). ``rows_of``: the teleoperations of the kernel's rows, the
+        first ``following`` of them followed. The guidance force requested for the
+        session's MTM is the fixture's, or the last one while none renders on it (zero
+        before any: ``live_sample``'s)."""
         K = MAX_TICKS
         names = [t.name for t in rows_of]
         if request is None:
             return (np.zeros(1, dtype=bool), indices(0), indices(-1), np.zeros(1, dtype=bool),
                     np.zeros(1, dtype=bool), np.zeros(1, dtype=bool), np.empty(K),
                     np.empty((K, 4, 4)), np.empty((K, 4, 4)), np.empty((K, 3)),
-                    np.empty((K, 3)), np.zeros(3))  # fmt: skip
+                    np.empty((K, 3)), np.zeros(3), *_objects_row(None))  # fmt: skip
         if request.teleop not in names:
             return None
         mtm = rows_of[names.index(request.teleop)].mtm_name
@@ -329,7 +332,8 @@ class ConsoleChunk:
                 np.ascontiguousarray(request.tool_geom, dtype=bool),
                 np.ascontiguousarray(request.other_geom, dtype=bool), np.empty(K),
                 np.empty((K, 4, 4)), np.empty((K, 4, 4)), np.empty((K, 3)), np.empty((K, 3)),
-                np.zeros(3) if now is None else floats(now[:3]))  # fmt: skip
+                np.zeros(3) if now is None else floats(now[:3]),
+                *_objects_row(request.objects))  # fmt: skip
 
     def _contact_layout(self) -> bool:
         """Whether the kernel can read the contacts' geoms: the address of
@@ -461,9 +465,11 @@ class ConsoleChunk:
             tel.device.rendered(limited, tau, bool(out[3][0]), dev[15].copy(), dev[4])
         rec = plan.rec
         if rec[0][0]:
-            plan.request.take(rec[6][:whole].copy(), rec[8][:whole].copy(),
-                              rec[7][:whole].copy(), rec[9][:whole].copy(),
-                              rec[10][:whole].copy())  # fmt: skip
+            args = (rec[6][:whole].copy(), rec[8][:whole].copy(), rec[7][:whole].copy(),
+                    rec[9][:whole].copy(), rec[10][:whole].copy())  # fmt: skip
+            if rec[16][0]:  # (the objects' readings)
+                args += (tuple(a[:whole].copy() for a in rec[17:21]),)
+            plan.request.take(*args)
 
 
 @dataclass
@@ -483,6 +489,23 @@ class _Plan:
     """What the plan's next calls call (the compiled function, once its first call ran)."""
     started: dict = field(default_factory=dict)
     """Each following teleoperation's fixture filter's ``_started`` (found once)."""
+
+
+def _objects_row(probe) -> tuple:
+    """The request's objects part: ``(bodies, object_of, jaw_bit, tips, flags, xpos, xmat,
+    grasp, tip_out)``: an :class:`~davinci_sim.tasks.objects_probe.ObjectsProbe`'s tables,
+    ``flags`` (whether there are objects, whether a contact with a flex ends the call)
+    and the readings of each tick (:data:`MAX_TICKS` rows); empty for None."""
+    K = MAX_TICKS
+    if probe is None:
+        return (indices(), np.full(1, -1, dtype=np.intp), np.zeros(1, dtype=np.int64),
+                indices(), np.zeros(2, dtype=bool), np.empty((K, 0, 3)), np.empty((K, 0, 9)),
+                np.empty((K, 0), dtype=np.int64), np.empty((K, 0, 3)))  # fmt: skip
+    k, a = len(probe.bodies), len(probe.tips)
+    return (indices(*probe.bodies), np.ascontiguousarray(probe.object_of, dtype=np.intp),
+            np.ascontiguousarray(probe.jaw_bit, dtype=np.int64), indices(*probe.tips),
+            np.array([True, probe.flex_contacts]), np.empty((K, k, 3)), np.empty((K, k, 9)),
+            np.empty((K, k), dtype=np.int64), np.empty((K, a, 3)))  # fmt: skip
 
 
 def _ro(a: np.ndarray) -> np.ndarray:

@@ -117,8 +117,11 @@ def console_chunk(phys, watch, fr, devices, teleops, rec, K):
     fx_state, fx_out, jaw_idx, on)``, two slots as the devices'.
 
     ``rec``: ``(on, teleop, fixture_teleop, ncon_watch, tool_geom, other_geom, t, T_tip,
-    T_camera, requested, master, req_now)``: the task session's samples of each tick
-    (after its step)."""
+    T_camera, requested, master, req_now, bodies, object_of, jaw_bit, tips, objects_flags,
+    xpos, xmat, grasp, tip_out)``: the task session's samples of each tick (after its
+    step), with its kind's objects (``ObjectsProbe.read``) where ``objects_flags[0]``; a
+    contact with a flex ends a call before the tick's post-steps where
+    ``objects_flags[1]``."""
     model, data, address, sizes = phys[P_MODEL], phys[P_DATA], phys[P_ADDRESS], phys[P_SIZES]
     state, sig, warnings = phys[P_STATE], phys[P_SIG], phys[P_WARNINGS]
     qposadr, dofadr, minus_gravcomp = phys[P_QPOSADR], phys[P_DOFADR], phys[P_GRAVCOMP]
@@ -316,7 +319,8 @@ def console_chunk(phys, watch, fr, devices, teleops, rec, K):
         times[1] = t_after
         t_pre = t_after
         qp = numba.carray(f64_at(address[1]), (nq,))
-        if rec[0][0] and _tool_contacts(address, stride, rec[3], rec[4], rec[5]):
+        if rec[0][0] and _tool_contacts(address, stride, rec[3], rec[4], rec[5],
+                                        rec[16][1]):  # fmt: skip
             times[2] = STOP_CONTACT
             return 2 * k + 1  # the instrument touches something: the session measures it
         _frames_at(qp, fr, Q_suj, q_frame_ref, T1, J_none, F_suj)
@@ -379,23 +383,68 @@ def console_chunk(phys, watch, fr, devices, teleops, rec, K):
             for i in range(3):
                 rec[9][k - 1, i] = rec[11][i]
                 rec[10][k - 1, i] = devices[tel[11][0]][19][i, 3]
+            if rec[16][0]:
+                _objects_read(
+                    address,
+                    stride,
+                    rec[12],
+                    rec[13],
+                    rec[14],
+                    rec[15],
+                    rec[17][k - 1],
+                    rec[18][k - 1],
+                    rec[19][k - 1],
+                    rec[20][k - 1],
+                )
     return DONE
 
 
 @numba.njit(cache=True, nogil=True)
-def _tool_contacts(address, stride, watch, tool_geom, other_geom) -> bool:
+def _tool_contacts(address, stride, watch, tool_geom, other_geom, flex) -> bool:
     """Whether a contact of the state now involves the instrument and something it may
-    collide with (``InstrumentContacts.measure`` would count it): the contacts' geom pairs
-    read from ``mjData.contact`` (``address[9]``, ``stride`` bytes apart)."""
+    collide with (``InstrumentContacts.measure`` would count it), or, where ``flex``, a
+    flex (the session measures the force on it): the contacts' geom pairs read from
+    ``mjData.contact`` (``address[9]``, ``stride`` bytes apart; a flex's side is geom −1,
+    the tables' last entry)."""
     ncon = numba.carray(i32_at(address[6]), (1,))[0]
     if ncon == 0 or not watch[0]:
         return False
     for i in range(ncon):
         g = numba.carray(i32_at(address[9] + i * stride), (2,))
         a, b = g[0], g[1]
+        if flex and (a < 0 or b < 0):
+            return True
         if (tool_geom[a] and other_geom[b]) or (tool_geom[b] and other_geom[a]):
             return True
     return False
+
+
+@numba.njit(cache=True, nogil=True)
+def _objects_read(address, stride, bodies, object_of, jaw_bit, tips, xpos, xmat, grasp,
+                  tip_out):  # fmt: skip
+    """``ObjectsProbe.read`` after a step: each object body's ``xpos`` and ``xmat``
+    (``address[10]``, ``address[11]``), the jaw bits of the contacts between an object's
+    geom and a jaw (``object_of``, ``jaw_bit``: per geom, the last entry a flex's side)
+    and the tip sites' ``site_xpos`` (``address[12]``)."""
+    for i in range(bodies.shape[0]):
+        p = numba.carray(f64_at(address[10] + 24 * bodies[i]), (3,))
+        R = numba.carray(f64_at(address[11] + 72 * bodies[i]), (9,))
+        for c in range(3):
+            xpos[i, c] = p[c]
+        for c in range(9):
+            xmat[i, c] = R[c]
+        grasp[i] = 0
+    for i in range(tips.shape[0]):
+        p = numba.carray(f64_at(address[12] + 24 * tips[i]), (3,))
+        for c in range(3):
+            tip_out[i, c] = p[c]
+    ncon = numba.carray(i32_at(address[6]), (1,))[0]
+    for i in range(ncon):
+        g = numba.carray(i32_at(address[9] + i * stride), (2,))
+        for a, b in ((g[0], g[1]), (g[1], g[0])):
+            o, bit = object_of[a], jaw_bit[b]
+            if o >= 0 and bit > 0:
+                grasp[o] |= bit
 
 
 @numba.njit(cache=True, nogil=True)

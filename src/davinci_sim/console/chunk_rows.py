@@ -54,6 +54,12 @@ class SampleRequest:
     last, false: a flex's side of a contact, geom −1)."""
     other_geom: np.ndarray
     """(ngeom + 1,) bool: the geoms whose contact with the instrument counts."""
+    objects: Any = None
+    """The kind's :class:`~davinci_sim.tasks.objects_probe.ObjectsProbe` (None: none): the
+    chunk reads its objects after each step and ``take`` gets the readings as a last
+    argument, ``(xpos (m, k, 3), xmat (m, k, 9), grasp (m, k), tips (m, A, 3))``; a tick
+    with a contact with a flex ends the call before its post-steps where the probe's
+    ``flex_contacts`` says so."""
 
 
 def floats(a) -> np.ndarray:

@@ -23,6 +23,7 @@ from typing import Literal, Protocol, runtime_checkable
 
 import numpy as np
 
+from davinci_sim.geometry.path import Polyline
 from davinci_sim.geometry.so3 import rotate_rows
 
 # (the viscous law's compiled row, compiled or loaded from numba's cache with this module:
@@ -165,8 +166,9 @@ class FixtureField:
 def _compiled_form(field: FixtureField) -> tuple | None:
     """``field``'s compiled row and its arguments (the row, path constants, ``B``, ``G_max``,
     ``transition``, whether summed), or None where it has none: numba off, a fixture other
-    than the seed's viscous law (alone or as a sum of one, one ``B`` and ``G_max``), the
-    camera frame, the measured velocity, a path longer than the brute force serves."""
+    than the seed's viscous law (alone or as a sum of one, one ``B`` and ``G_max``) or no
+    force (an empty sum), the camera frame, the measured velocity, a path longer than the
+    brute force serves."""
     from davinci_sim.haptics.combine import FixtureSum
     from davinci_sim.haptics.viscous import ViscousGuidance
     from davinci_sim.kinematics import jit
@@ -174,6 +176,14 @@ def _compiled_form(field: FixtureField) -> tuple | None:
     if not jit.ENABLED or field.frame != "world" or field.velocity_source != "filtered":
         return None
     fixture, summed = field.fixture, False
+    row = fixture_row.viscous_fixture_force
+    if isinstance(fixture, FixtureSum) and not fixture.fixtures:
+        # No force (a task's ``fixture: none``): the seed's viscous law at (B, G_max) =
+        # (0, 0), Table I's unassisted condition, on any path. Its force is ±0, which the
+        # haptic loop's sum makes +0.0 as it does the empty sum's zeros; the velocity filter
+        # runs as it does for any field.
+        path = fixture_row.path_constants(_NO_PATH)
+        return None if path is None else (row, path, 0.0, 0.0, 0.0, True)
     if isinstance(fixture, FixtureSum) and len(fixture.fixtures) == 1:
         fixture, summed = fixture.fixtures[0], True
     if type(fixture) is not ViscousGuidance:
@@ -183,5 +193,8 @@ def _compiled_form(field: FixtureField) -> tuple | None:
     path = fixture_row.path_constants(fixture.path)
     if path is None:
         return None
-    row = fixture_row.viscous_fixture_force
     return row, path, fixture.B, fixture.G_max, float(fixture.transition), summed
+
+
+#: The path of :func:`_compiled_form`'s zero law (any path serves: its force is zero).
+_NO_PATH = Polyline(np.array([[0.0, 0.0, 0.0], [0.01, 0.0, 0.0]]))

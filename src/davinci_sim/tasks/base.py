@@ -328,9 +328,28 @@ class Task(ABC):
     def scene_fields(self, model, data, cache: dict) -> dict:
         """Optional :class:`Sample` fields the kind reads from the simulation at
         ``data``'s state (e.g. its objects: ``objects``, ``grasp``); ``cache`` is the
-        caller's dict, kept between ticks, for lookups built once per model. Nothing by
-        default: a kind without objects reads nothing."""
-        return {}
+        caller's dict, kept between ticks, for lookups built once per model. A kind with
+        an :meth:`objects_probe` makes them from its reading (:meth:`objects_fields`);
+        nothing by default: a kind without objects reads nothing."""
+        probe = self.objects_probe(model, cache)
+        if probe is None:
+            return {}
+        return self.objects_fields(probe.read(data), model, data, cache)
+
+    def objects_probe(self, model, cache: dict):
+        """The :class:`~davinci_sim.tasks.objects_probe.ObjectsProbe` whose reading makes
+        the kind's scene fields (kept in ``cache``, as :meth:`cached_probe`), or None for a
+        kind without objects. The console's compiled ticks record its reading after each
+        step (:mod:`davinci_sim.console.chunk`)."""
+        return None
+
+    def objects_fields(self, reading, model, data, cache: dict) -> dict:
+        """The sample's scene fields from an
+        :class:`~davinci_sim.tasks.objects_probe.ObjectsReading` taken after a step;
+        ``data`` is that step's state, or None where the reading was recorded by the
+        compiled ticks, which leave to Python every tick with what else the kind measures
+        (a contact with a flex: the probe's ``flex_contacts``)."""
+        raise NotImplementedError(f"{type(self).__name__} has no objects")
 
     def reset_scene(self, model, data) -> None:  # noqa: B027 (an optional hook)
         """Put the task's objects in the simulation (``data``) back at their start poses,

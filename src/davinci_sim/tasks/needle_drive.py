@@ -199,10 +199,13 @@ class NeedleDriveTask(NeedlePickupTask, kind="needle_drive"):
 
     def probe(self, model, prefix: str = "task/"):
         """(:class:`~davinci_sim.tasks.needle_scene.NeedleProbe`,
-        :class:`~davinci_sim.tasks.suture_pad.PadProbe`) of ``model``."""
+        :class:`~davinci_sim.tasks.suture_pad.PadProbe`) of ``model``; the needle's
+        measures the skin's contacts in Python (``flex_contacts``)."""
+        from davinci_sim.tasks.needle_scene import NeedleProbe
         from davinci_sim.tasks.suture_pad import PadProbe
 
-        return super().probe(model, prefix), PadProbe(model, prefix)
+        needle = NeedleProbe(model, self.instruments, prefix, flex_contacts=True)
+        return needle, PadProbe(model, prefix)
 
     def reset_scene(self, model, data) -> None:
         """The needle back in its park, the skin at rest."""
@@ -211,13 +214,21 @@ class NeedleDriveTask(NeedlePickupTask, kind="needle_drive"):
         reset_pad(model, data)
         super().reset_scene(model, data)
 
-    def scene_fields(self, model, data, cache: dict) -> dict:
-        """Needle pick-up's fields, the needle's frame and the force on the tissue."""
-        needle, pad = self.cached_probe(model, cache)
-        T = needle.frame(data)
-        return {"objects": T[None, :3, 3].copy(), "grasp": np.array([needle.grasp(data)]),
-                "tools": needle.tool_tips(data), "T_task_object": T,
-                "tissue_force": pad.force(model, data)}  # fmt: skip
+    def objects_probe(self, model, cache: dict):
+        """The needle's probe (the first of :meth:`probe`'s)."""
+        return self.cached_probe(model, cache)[0]
+
+    def objects_fields(self, reading, model, data, cache: dict) -> dict:
+        """Needle pick-up's fields, the needle's frame and the force on the tissue (none
+        in a recorded reading: the compiled ticks leave a tick with the skin touched to
+        Python)."""
+        from davinci_sim.tasks.objects_probe import frame_of
+
+        fields = super().objects_fields(reading, model, data, cache)
+        fields["T_task_object"] = frame_of(reading.xpos[0], reading.xmat[0])
+        pad = self.cached_probe(model, cache)[1]
+        fields["tissue_force"] = 0.0 if data is None else pad.force(model, data)
+        return fields
 
     def initial_state(self, n: int) -> DriveState:
         s = super().initial_state(n)

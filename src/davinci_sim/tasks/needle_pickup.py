@@ -232,11 +232,14 @@ class NeedlePickupTask(Task, kind="needle_pickup"):
 
         reset_needle(model, data, self.needle, self.park)
 
-    def scene_fields(self, model, data, cache: dict) -> dict:
+    def objects_probe(self, model, cache: dict):
+        """The needle's probe (:meth:`probe`)."""
+        return self.cached_probe(model, cache)
+
+    def objects_fields(self, reading, model, data, cache: dict) -> dict:
         """The sample's ``objects`` (the needle's centre), ``grasp`` and ``tools``."""
-        probe = self.cached_probe(model, cache)
-        return {"objects": probe.frame(data)[None, :3, 3].copy(),
-                "grasp": np.array([probe.grasp(data)]), "tools": probe.tool_tips(data)}  # fmt: skip
+        return {"objects": reading.xpos[:1].copy(), "grasp": reading.grasp[:1].copy(),
+                "tools": reading.tips}  # fmt: skip
 
     def initial_state(self, n: int) -> NeedleState:
         nan = np.full(n, np.nan)

@@ -40,6 +40,7 @@ from davinci_sim.geometry.se3 import rot_z, transform
 from davinci_sim.model import contact
 from davinci_sim.model.patient import TISSUE_SURFACE_Z
 from davinci_sim.model.shapes import set_inertial
+from davinci_sim.tasks.objects_probe import ObjectsProbe, frame_of
 
 #: Contact impedance of the needle's geoms (MuJoCo ``solimp``): the scene's nearly hard
 #: contacts (:data:`davinci_sim.model.contact.CONTACT_SOLIMP`) with dmax 0.9999 and a
@@ -254,46 +255,24 @@ def reset_needle(model: mujoco.MjModel, data: mujoco.MjData, needle: NeedleSpec,
     mujoco.mj_forward(model, data)
 
 
-class NeedleProbe:
+class NeedleProbe(ObjectsProbe):
     """Reads, at a tick, the needle's frame (world, 4×4) and the bit mask of the jaws
-    touching it: bit ``2·a + j`` for jaw ``j`` (0, 1) of instrument ``a`` (index in
-    ``instruments``), as :class:`~davinci_sim.tasks.peg_scene.PegProbe` does for rings."""
+    touching it (:class:`~davinci_sim.tasks.objects_probe.ObjectsProbe` of the one body):
+    bit ``2·a + j`` for jaw ``j`` (0, 1) of instrument ``a`` (index in ``instruments``), as
+    :class:`~davinci_sim.tasks.peg_scene.PegProbe` does for rings. ``flex_contacts``: as
+    the base's (the suture pad's skin)."""
 
-    def __init__(self, model: mujoco.MjModel, instruments, prefix: str = "task/") -> None:
+    def __init__(self, model: mujoco.MjModel, instruments, prefix: str = "task/", *,
+                 flex_contacts: bool = False) -> None:  # fmt: skip
         self.body = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, f"{prefix}needle")
         if self.body < 0:
             raise ValueError("the scene has no needle (draw the task first)")
-        # (one more entry for a contact's geom −1, a flex's side: neither)
-        self.is_needle = np.append(model.geom_bodyid == self.body, False)
-        self.jaw_bit = np.zeros(model.ngeom + 1, dtype=np.int64)
-        for a, psm in enumerate(instruments):
-            for j in (0, 1):
-                gid = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_GEOM, f"{psm}/jaw_{j + 1}")
-                if gid < 0:
-                    raise ValueError(f"the scene has no {psm} jaws")
-                self.jaw_bit[gid] = 1 << (2 * a + j)
-        self.tips = np.array([mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_SITE, f"{p}/tip")
-                              for p in instruments], dtype=np.int64)  # fmt: skip
+        super().__init__(model, [self.body], instruments, flex_contacts=flex_contacts)
 
     def frame(self, data: mujoco.MjData) -> np.ndarray:
         """The needle's frame now (4×4, world, m)."""
-        T = np.eye(4)
-        T[:3, :3] = data.xmat[self.body].reshape(3, 3)
-        T[:3, 3] = data.xpos[self.body]
-        return T
+        return frame_of(data.xpos[self.body], data.xmat[self.body])
 
     def grasp(self, data: mujoco.MjData) -> int:
         """The jaws touching the needle now (bit mask)."""
-        ncon = data.ncon
-        if not ncon:
-            return 0
-        g = data.contact.geom[:ncon]
-        bits = 0
-        for a, b in ((g[:, 0], g[:, 1]), (g[:, 1], g[:, 0])):
-            hit = self.is_needle[a] & (self.jaw_bit[b] > 0)
-            bits |= int(np.bitwise_or.reduce(self.jaw_bit[b][hit], initial=0))
-        return bits
-
-    def tool_tips(self, data: mujoco.MjData) -> np.ndarray:
-        """(A, 3) the instruments' tips now, world frame, m."""
-        return data.site_xpos[self.tips].copy()
+        return int(self.grasps(data)[0])

@@ -325,12 +325,14 @@ class PegTransferTask(Task, kind="peg_transfer"):
 
         reset_rings(model, data, self)
 
-    def scene_fields(self, model, data, cache: dict) -> dict:
-        """The sample's ``objects``, ``grasp`` and ``tools`` (the instruments' tips) at
-        ``data``'s state (the probe kept in ``cache`` per model)."""
-        probe = self.cached_probe(model, cache)
-        objects, grasp = probe.measure(data)
-        return {"objects": objects, "grasp": grasp, "tools": probe.tool_tips(data)}
+    def objects_probe(self, model, cache: dict):
+        """The rings' probe (:meth:`probe`, kept in ``cache`` per model)."""
+        return self.cached_probe(model, cache)
+
+    def objects_fields(self, reading, model, data, cache: dict) -> dict:
+        """The sample's ``objects`` (the rings' centres), ``grasp`` and ``tools`` (the
+        instruments' tips)."""
+        return {"objects": reading.xpos, "grasp": reading.grasp, "tools": reading.tips}
 
     def initial_state(self, n: int) -> PegState:
         k = self.n_rings

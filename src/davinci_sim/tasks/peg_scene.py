@@ -29,6 +29,7 @@ import numpy as np
 
 from davinci_sim.model import contact
 from davinci_sim.model.shapes import set_inertial
+from davinci_sim.tasks.objects_probe import ObjectsProbe
 
 if TYPE_CHECKING:
     from davinci_sim.tasks.peg import PegTransferTask
@@ -152,11 +153,12 @@ def _extend_keyframes(spec: mujoco.MjSpec, qpos_rings: np.ndarray) -> None:
             key.qpos = np.concatenate([q, qpos_rings])
 
 
-class PegProbe:
+class PegProbe(ObjectsProbe):
     """Reads, at a tick, what :class:`~davinci_sim.tasks.peg.PegTransferTask` needs of the
-    simulation: ring centres (world frame, m; the task is in the world frame) and, per
-    ring, the bit mask of the jaws touching it — bit ``2·a + j`` for jaw ``j`` (0, 1) of the
-    task's instrument ``a`` (index in ``task.instruments``).
+    simulation (:class:`~davinci_sim.tasks.objects_probe.ObjectsProbe` of the rings): ring
+    centres (world frame, m; the task is in the world frame) and, per ring, the bit mask of
+    the jaws touching it — bit ``2·a + j`` for jaw ``j`` (0, 1) of the task's instrument
+    ``a`` (index in ``task.instruments``).
 
     Args:
         model: the compiled model (with the task's board drawn).
@@ -166,42 +168,15 @@ class PegProbe:
 
     def __init__(self, model: mujoco.MjModel, task: PegTransferTask, prefix: str = "task/"):
         k = len(task.start_pegs)
-        self.bodies = np.array(
-            [mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, f"{prefix}ring{i + 1}")
-             for i in range(k)], dtype=np.int64)  # fmt: skip
-        if np.any(self.bodies < 0):
+        bodies = [mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, f"{prefix}ring{i + 1}")
+                  for i in range(k)]  # fmt: skip
+        if any(b < 0 for b in bodies):
             raise ValueError(f"task {task.name!r}: the scene has no rings (draw the task first)")
-        # geom -> ring index (or -1); geom -> jaw bit (or 0); one more entry for a contact's
-        # geom −1 (a flex's side)
-        self.ring_of = np.full(model.ngeom + 1, -1, dtype=np.int64)
-        ring_index = {int(b): i for i, b in enumerate(self.bodies)}
-        for g in range(model.ngeom):
-            self.ring_of[g] = ring_index.get(int(model.geom_bodyid[g]), -1)
-        self.jaw_bit = np.zeros(model.ngeom + 1, dtype=np.int64)
-        for a, psm in enumerate(task.instruments):
-            for j in (0, 1):
-                gid = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_GEOM, f"{psm}/jaw_{j + 1}")
-                if gid < 0:
-                    raise ValueError(f"task {task.name!r}: the scene has no {psm} jaws")
-                self.jaw_bit[gid] = 1 << (2 * a + j)
-        self.tips = np.array(
-            [mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_SITE, f"{psm}/tip")
-             for psm in task.instruments], dtype=np.int64)  # fmt: skip
-        """(A,) the tip sites of the task's instruments (economy of motion)."""
-
-    def tool_tips(self, data: mujoco.MjData) -> np.ndarray:
-        """(A, 3) the tips of the task's instruments now, world frame, m."""
-        return data.site_xpos[self.tips].copy()
+        try:
+            super().__init__(model, bodies, task.instruments)
+        except ValueError as e:
+            raise ValueError(f"task {task.name!r}: {e}") from e
 
     def measure(self, data: mujoco.MjData) -> tuple[np.ndarray, np.ndarray]:
         """``(objects (k, 3) ring centres, m; grasp (k,) jaw bit masks)`` now."""
-        objects = data.xpos[self.bodies].copy()
-        grasp = np.zeros(len(self.bodies), dtype=np.int64)
-        ncon = data.ncon
-        if ncon:
-            g = data.contact.geom[:ncon]
-            for a, b in ((g[:, 0], g[:, 1]), (g[:, 1], g[:, 0])):
-                ring, bit = self.ring_of[a], self.jaw_bit[b]
-                hit = (ring >= 0) & (bit > 0)
-                np.bitwise_or.at(grasp, ring[hit], bit[hit])
-        return objects, grasp
+        return data.xpos[self.bodies].copy(), self.grasps(data)

@@ -46,6 +46,7 @@ from davinci_sim.sim.types import ACCEPTED, CommandResult
 from davinci_sim.tasks.base import Sample, Task
 from davinci_sim.tasks.live_path import LivePathTick
 from davinci_sim.tasks.metrics import MetricValues
+from davinci_sim.tasks.objects_probe import ObjectsReading
 from davinci_sim.tasks.scoring import SCORE_COLUMNS
 from davinci_sim.tasks.state import Phase, TaskMonitor
 
@@ -57,6 +58,11 @@ if TYPE_CHECKING:
 #: How far the endoscope looks at a task it frames (:meth:`TaskSession.frame_view`), m: the
 #: seed's 6 x 3 x 2.5 cm path then spans about half the 57° x 45° view.
 VIEW_DISTANCE = 0.13
+
+BRING_ABOVE = 0.03
+"""How far above the task's start and its view points the session's tool crosses to the
+start, m (the joints' interpolation dips the tool ~12 mm below the straight line over the
+~12 cm to a peg board's far side; the jaws are 10.5 mm long)."""
 
 #: The columns of a session's row before the task's metrics.
 SESSION_COLUMNS = ("task", "condition", "repetition")
@@ -271,12 +277,14 @@ class TaskSession:
             self.repetition += 1
             self._restart()  # (the objects stay: a Reset puts them back)
 
-    def _sampled(self, ticked: bool, T_task_camera: np.ndarray, t: float) -> None:
+    def _sampled(self, ticked: bool, T_task_camera: np.ndarray, t: float,
+                 sample: Sample | None = None) -> None:  # fmt: skip
         """The rest of :meth:`post_step` once the compiled tick has (``ticked``) or has not
-        taken the tick's sample: then the monitor observes it."""
+        taken the tick's sample: then the monitor observes ``sample`` (None: the console's
+        now, :func:`live_sample`)."""
         if not ticked:
-            task = self.task
-            sample = live_sample(task, T_task_camera, self.teleop, self.console, t)
+            if sample is None:
+                sample = live_sample(self.task, T_task_camera, self.teleop, self.console, t)
             self.monitor.observe(sample)
             if sample.objects is not None:  # (what the console's page shows of them)
                 self._objects = tuple(tuple(float(x) for x in p) for p in sample.objects[0])
@@ -293,25 +301,35 @@ class TaskSession:
 
         if self._frame_at is not None or self._bringing or self._adaptive is not None:
             return None
-        if not self._recorded:
-            live = self._live_tick
-            if live is None:
-                return None
+        live, task = self._live_tick, self.task
+        if not self._recorded and live is not None:
             prev = live.trial.metrics._prev
             if prev is not None and prev.contacts is None:
                 return None
-        contacts = _contacts(self.sim, self.task)
+        try:  # (the kind's objects, recorded after each step)
+            objects = None if live is not None else task.objects_probe(self.sim.model,
+                                                                       _SCENE_CACHE)  # fmt: skip
+        except ValueError:  # (a scene drawn without them: the Python tick says so)
+            return None
+        contacts = _contacts(self.sim, task)
         return SampleRequest(self.teleop.name, self._take, contacts.tool_geom,
-                             contacts.other_geom)  # fmt: skip
+                             contacts.other_geom, objects)  # fmt: skip
 
-    def _take(self, t, T_cart_camera, T_camera_tip, requested, master) -> None:
+    def _take(self, t, T_cart_camera, T_camera_tip, requested, master,
+              readings: tuple | None = None) -> None:  # fmt: skip
         """:meth:`post_step` of m compiled ticks, in order: their times ``t`` (m,) s, the
         camera in the cart and the tip in the camera (m, 4, 4), the guidance force requested
         ((m, 3) N, or None) and the master's position ((m, 3) m) as each tick left them, no
-        clutch, no contact; the samples in compiled calls up to each change of phase
-        (``LivePathTick.takes``)."""
+        clutch, no contact, and the kind's objects' readings (the
+        :class:`~davinci_sim.tasks.objects_probe.ObjectsReading` fields, each with the m
+        ticks first; None: a kind without objects). The path kind's samples go in compiled
+        calls up to each change of phase (``LivePathTick.takes``); another kind's through
+        its Python step, one at a time."""
         task, live = self.task, self._live_tick
         T_task_camera = task.T_task_cameras(T_cart_camera)
+        if live is None:
+            self._take_each(T_task_camera, t, T_camera_tip, requested, master, readings)
+            return
         T_task_tip = T_task_camera @ T_camera_tip  # (each product as the tick's own @)
         j, m = 0, len(t)
         while j < m:
@@ -331,12 +349,31 @@ class TaskSession:
             j += n
             self._sampled(True, T_task_camera[j - 1], float(t[j - 1]))
 
+    def _take_each(self, T_task_camera, t, T_camera_tip, requested, master, readings) -> None:
+        """:meth:`_take`'s samples one at a time, each as :func:`live_sample` has it."""
+        sim, task = self.sim, self.task
+        for j in range(len(t)):
+            if self._recorded:
+                self._after_result(T_task_camera[j], T_camera_tip[j])
+                continue
+            tip = T_camera_tip[j].copy()
+            tip.setflags(write=False)
+            inputs = (tip, None if requested is None else requested[j], False, master[j],
+                      (0, 0.0))  # fmt: skip
+            extra = {}
+            if readings is not None:
+                reading = ObjectsReading(*(a[j] for a in readings))
+                extra = task.objects_fields(reading, sim.model, None, _SCENE_CACHE)
+            sample = sample_of(T_task_camera[j], inputs, sim.endoscope, float(t[j]), extra)
+            self._sampled(False, T_task_camera[j], float(t[j]), sample)
+
     def _framing(self) -> bool:
         """The session is framing the view: the ECM moves (homing, then to the task) or the
         tool has still to be brought to the start. (A camera exercise is ready as soon as
         the camera is still: its clock must not start with these motions.)"""
         if self._bringing:  # the tool on its way to the start (the session's move_cp)
-            self._bringing = self.teleop.psm.is_busy()
+            if not self.teleop.psm.is_busy():
+                self._bringing = self._bring()
             return self._bringing
         ecm = self.sim.arms.get("ECM")
         return self._frame_at is not None and (self._framed or (ecm is not None and ecm.is_busy()))
@@ -362,13 +399,42 @@ class TaskSession:
         self._frame_at = None
         if self.teleop.is_following():
             return
-        T_task_camera = self.task.T_task_camera(self.sim.T_cart_camera())
+        self._bringing = self._bring()
+
+    def _bring(self) -> bool:
+        """The next of the moves that bring the tool to the task's start (``move_cp``,
+        orientation kept), from where its setpoint is; whether one is under way. Up to the
+        height of :data:`BRING_ABOVE` over the start and over every view point of the
+        task (its pegs' tops, a wall's), across to above the start, down to it: ``move_cp``
+        interpolates the joints, and the tool's way straight to the start swept through
+        peg transfer's pegs and its wall (measured: PSM1 then faulted on its tracking
+        error). Straight to the start if a move above is refused."""
+        psm = self.teleop.psm
+        task = self.task
+        T_task_camera = task.T_task_camera(self.sim.T_cart_camera())
+        T_camera_task = np.linalg.inv(T_task_camera)
+        p_task = (T_task_camera @ np.append(psm.setpoint_cp().T[:3, 3], 1.0))[:3]
+        start = np.asarray(task.start, dtype=float)
+        top = float(np.max(np.asarray(task.view_points, dtype=float)[:, 2]))
+        height = max(p_task[2], start[2] + BRING_ABOVE, top + BRING_ABOVE)
+        above = np.array([start[0], start[1], height])
+        if np.linalg.norm(p_task - start) < 1e-4:
+            return False  # (there)
+        if np.linalg.norm(p_task - above) < 1e-4:
+            plan = [start]  # down
+        elif abs(p_task[2] - height) < 1e-4:
+            plan = [above, start]  # across, else straight
+        else:
+            plan = [np.array([p_task[0], p_task[1], height]), start]  # up, else straight
         goal = psm.setpoint_cp().T.copy()
-        goal[:3, 3] = (np.linalg.inv(T_task_camera) @ np.append(self.task.start, 1.0))[:3]
-        result = psm.move_cp(goal)
-        self._bringing = bool(result)
-        if not result:
-            self.channels.message("warning", result.message, self.sim.time)
+        for i, p in enumerate(plan):
+            goal[:3, 3] = (T_camera_task @ np.append(p, 1.0))[:3]
+            result = psm.move_cp(goal)
+            if result:
+                return True
+            if i == len(plan) - 1:
+                self.channels.message("warning", result.message, self.sim.time)
+        return False
 
     def _record(self, metrics: MetricValues, t: float) -> None:
         row = {"task": self.task.name, "condition": self.condition, "repetition": self.repetition}
