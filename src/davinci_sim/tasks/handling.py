@@ -20,6 +20,8 @@ from typing import NamedTuple
 
 import numpy as np
 
+from davinci_sim.kinematics.jit import jit
+
 
 class Handling(NamedTuple):
     """The carried objects' state: (n, k) arrays."""
@@ -66,7 +68,76 @@ def handling_step(state: Handling, *, grasp, p, p_prev, t, t_prev, placed, instr
                   rest_speed: float, rest_time: float) -> tuple[Handling, Events]:  # fmt: skip
     """One sample of n trials of k objects: ``grasp`` (n, k) jaw bits, ``p`` and ``p_prev``
     (n, k, 3) the centres now and at the previous sample (m), ``t`` and ``t_prev`` (n,) s,
-    ``placed`` (n, k) where each one is now counts as put where it belongs (not a drop)."""
+    ``placed`` (n, k) where each one is now counts as put where it belongs (not a drop).
+
+    Compiled (:func:`handling_rows`, each object of each trial in a loop; a live session
+    steps one trial a tick); :func:`handling_step_arrays` is the same law in numpy, the
+    tests' oracle, bit for bit."""
+    grasp = np.asarray(grasp, dtype=np.int64)
+    n, k = grasp.shape
+    f = lambda a, dtype: np.ascontiguousarray(a, dtype=dtype)  # noqa: E731
+    new = Handling(np.empty((n, k)), np.empty((n, k), dtype=np.int64),
+                   *(np.empty((n, k), dtype=bool) for _ in range(3)))  # fmt: skip
+    e = Events(np.empty((n, k), dtype=bool), np.empty((n, k), dtype=bool),
+               np.empty((n, k), dtype=np.int64),
+               *(np.empty((n, k), dtype=bool) for _ in range(5)))  # fmt: skip
+    handling_rows(
+        f(state.t_still, float), f(state.owner, np.int64), f(state.carried, bool),
+        f(state.handed, bool), f(state.loose, bool), grasp, f(p, float), f(p_prev, float),
+        f(np.reshape(t, -1), float), f(np.reshape(t_prev, -1), float), f(placed, bool),
+        int(instruments), float(rest_speed), float(rest_time), *new, *e,
+    )  # fmt: skip
+    return new, e
+
+
+@jit
+def handling_rows(t_still, owner, carried, handed, loose, grasp, p, p_prev, t, t_prev, placed,
+                  instruments, rest_speed, rest_time, t_still_out, owner_out, carried_out,
+                  handed_out, loose_out, held, alone, who, resting, handoff, land, handed_now,
+                  drop):  # fmt: skip
+    """:func:`handling_step` of (n, k) objects into the ``*_out`` state and the events (see
+    :class:`Handling`, :class:`Events`; the same bits as :func:`handling_step_arrays`)."""
+    n, k = grasp.shape
+    for i in range(n):
+        dt = t[i] - t_prev[i]
+        limit = rest_speed * dt
+        for j in range(k):
+            g = grasp[i, j]
+            holders_, first = 0, 0
+            for a in range(instruments):
+                if ((g >> (2 * a)) & 3) == 3:
+                    holders_ += 1
+                    if first == 0:
+                        first = a + 1
+            is_held, is_alone = holders_ > 0, holders_ == 1
+            w = first if first > 0 else 1  # (argmax of no holder: the first)
+            dx, dy, dz = p[i, j, 0] - p_prev[i, j, 0], p[i, j, 1] - p_prev[i, j, 1], (
+                p[i, j, 2] - p_prev[i, j, 2])  # fmt: skip
+            v2 = (dx * dx + dy * dy) + dz * dz
+            slow = g == 0 and v2 < limit * limit and dt > 0
+            ts = np.nan
+            if slow:
+                ts = t[i] if np.isnan(t_still[i, j]) else t_still[i, j]
+            rests = slow and t[i] - ts >= rest_time
+            hand = carried[i, j] and is_alone and owner[i, j] > 0 and owner[i, j] != w
+            own = w if is_alone else owner[i, j]
+            was_handed = handed[i, j] or hand
+            carry = carried[i, j] or is_held
+            lands = carry and rests
+            drop[i, j] = rests and not placed[i, j] and not loose[i, j]
+            loose_out[i, j] = (not placed[i, j]) if rests else (loose[i, j] and not is_held)
+            t_still_out[i, j] = ts
+            owner_out[i, j] = 0 if lands else own
+            carried_out[i, j] = carry and not lands
+            handed_out[i, j] = was_handed and not lands
+            held[i, j], alone[i, j], who[i, j], resting[i, j] = is_held, is_alone, w, rests
+            handoff[i, j], land[i, j], handed_now[i, j] = hand, lands, was_handed
+
+
+def handling_step_arrays(state: Handling, *, grasp, p, p_prev, t, t_prev, placed,
+                         instruments: int, rest_speed: float,
+                         rest_time: float) -> tuple[Handling, Events]:  # fmt: skip
+    """:func:`handling_step` in numpy (the tests' oracle)."""
     grasp = np.asarray(grasp, dtype=np.int64)
     hold = holders(grasp, instruments)
     held = hold.any(axis=-1)
