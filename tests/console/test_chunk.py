@@ -28,22 +28,26 @@ SIGNATURES: list = []
 BEFORE_CONTROL: list = []
 
 
-@pytest.fixture(scope="module")
-def served():
-    """What ``make run`` ticks, the person holding both handles after taking control."""
+def _serve(task: str, before_control: list | None = None, signatures: list | None = None):
+    """What ``serve --task <task> --home`` ticks, the person holding both handles after
+    taking control: ``(sim, its chunker, the state then)``; ``before_control`` gets the
+    state before, ``signatures`` the kernel's compiled signatures once the system is
+    built (its install compiled or loaded it), before any tick."""
     from davinci_sim.console.chunk_kernel import console_chunk
 
     sim = build_simulation(
         SystemDescription(
             scene="full", keyframe="surgical",
             console=ConsoleDescription(hand_inputs=("MTML", "MTMR")),
-            task=TaskDescription("seed_path", frame_view=VIEW_DISTANCE), home=True,
+            task=TaskDescription(task, frame_view=VIEW_DISTANCE), home=True,
             runner="none", real_time=False,
         )
     )  # fmt: skip
-    SIGNATURES.append(list(console_chunk.signatures))  # (the install compiled or loaded it)
-    sim.run_for(8.0)  # homing, then the endoscope framed on the task
-    BEFORE_CONTROL.append(sim.get_state())
+    if signatures is not None:
+        signatures.append(list(console_chunk.signatures))
+    sim.run_for(8.0)  # homing, the endoscope framed on the task, the tool brought to it
+    if before_control is not None:
+        before_control.append(sim.get_state())
     console = sim.components["console"]
     console.press("operator_present")
     console.teleop_enable(True)
@@ -53,6 +57,12 @@ def served():
     assert sim.run_until(lambda: all(t.is_following() for t in teleops), 30)
     sim.run_for(0.3)
     return sim, sim._chunker, sim.get_state()
+
+
+@pytest.fixture(scope="module")
+def served():
+    """What ``make run`` ticks, the person holding both handles after taking control."""
+    return _serve("seed_path", BEFORE_CONTROL, SIGNATURES)
 
 
 class _Calls:
@@ -285,24 +295,7 @@ def exercise(request):
     guidance: ``fixture: none``) and one without (the camera's targets)."""
     name = request.param
     if name not in _EXERCISES:
-        sim = build_simulation(
-            SystemDescription(
-                scene="full", keyframe="surgical",
-                console=ConsoleDescription(hand_inputs=("MTML", "MTMR")),
-                task=TaskDescription(name, frame_view=VIEW_DISTANCE), home=True,
-                runner="none", real_time=False,
-            )
-        )  # fmt: skip
-        sim.run_for(8.0)  # homing, the endoscope framed, the tool brought to the start
-        console = sim.components["console"]
-        console.press("operator_present")
-        console.teleop_enable(True)
-        sim.components["MTMR/hand"].grasp()
-        sim.components["MTML/hand"].grasp()
-        teleops = [t for t in console.psm_teleops.values() if t.selected]
-        assert sim.run_until(lambda: all(t.is_following() for t in teleops), 30)
-        sim.run_for(0.3)
-        _EXERCISES[name] = (sim, sim._chunker, sim.get_state())
+        _EXERCISES[name] = _serve(name)
     yield _EXERCISES[name]
 
 
