@@ -38,6 +38,7 @@ from davinci_sim.console.chunk_rows import (
     hand_movable,
     indices,
     no_fixture,
+    objects_row,
     teleop_role,
     teleop_row,
 )
@@ -305,17 +306,17 @@ class ConsoleChunk:
                      following: int, haptics: HapticLoop | None) -> tuple | None:  # fmt: skip
         """The session's sample part: ``(on, teleop, fixture_teleop, watch, tool_geom,
         other_geom, t, T_tip, T_camera, requested, master, req_now)`` then its objects'
-        (:func:`_objects_row`). ``rows_of``: the teleoperations of the kernel's rows, the
-        first ``following`` of them followed. The guidance force requested for the
-        session's MTM is the fixture's, or the last one while none renders on it (zero
-        before any: ``live_sample``'s)."""
+        (:func:`~davinci_sim.console.chunk_rows.objects_row`). ``rows_of``: the
+        teleoperations of the kernel's rows, the first ``following`` of them followed. The
+        guidance force requested for the session's MTM is the fixture's, or the last one
+        while none renders on it (zero before any: ``live_sample``'s)."""
         K = MAX_TICKS
         names = [t.name for t in rows_of]
         if request is None:
             return (np.zeros(1, dtype=bool), indices(0), indices(-1), np.zeros(1, dtype=bool),
                     np.zeros(1, dtype=bool), np.zeros(1, dtype=bool), np.empty(K),
                     np.empty((K, 4, 4)), np.empty((K, 4, 4)), np.empty((K, 3)),
-                    np.empty((K, 3)), np.zeros(3), *_objects_row(None))  # fmt: skip
+                    np.empty((K, 3)), np.zeros(3), *objects_row(None, MAX_TICKS))  # fmt: skip
         if request.teleop not in names:
             return None
         mtm = rows_of[names.index(request.teleop)].mtm_name
@@ -333,7 +334,7 @@ class ConsoleChunk:
                 np.ascontiguousarray(request.other_geom, dtype=bool), np.empty(K),
                 np.empty((K, 4, 4)), np.empty((K, 4, 4)), np.empty((K, 3)), np.empty((K, 3)),
                 np.zeros(3) if now is None else floats(now[:3]),
-                *_objects_row(request.objects))  # fmt: skip
+                *objects_row(request.objects, MAX_TICKS))  # fmt: skip
 
     def _contact_layout(self) -> bool:
         """Whether the kernel can read the contacts' geoms: the address of
@@ -489,23 +490,6 @@ class _Plan:
     """What the plan's next calls call (the compiled function, once its first call ran)."""
     started: dict = field(default_factory=dict)
     """Each following teleoperation's fixture filter's ``_started`` (found once)."""
-
-
-def _objects_row(probe) -> tuple:
-    """The request's objects part: ``(bodies, object_of, jaw_bit, tips, flags, xpos, xmat,
-    grasp, tip_out)``: an :class:`~davinci_sim.tasks.objects_probe.ObjectsProbe`'s tables,
-    ``flags`` (whether there are objects, whether a contact with a flex ends the call)
-    and the readings of each tick (:data:`MAX_TICKS` rows); empty for None."""
-    K = MAX_TICKS
-    if probe is None:
-        return (indices(), np.full(1, -1, dtype=np.intp), np.zeros(1, dtype=np.int64),
-                indices(), np.zeros(2, dtype=bool), np.empty((K, 0, 3)), np.empty((K, 0, 9)),
-                np.empty((K, 0), dtype=np.int64), np.empty((K, 0, 3)))  # fmt: skip
-    k, a = len(probe.bodies), len(probe.tips)
-    return (indices(*probe.bodies), np.ascontiguousarray(probe.object_of, dtype=np.intp),
-            np.ascontiguousarray(probe.jaw_bit, dtype=np.int64), indices(*probe.tips),
-            np.array([True, probe.flex_contacts]), np.empty((K, k, 3)), np.empty((K, k, 9)),
-            np.empty((K, k), dtype=np.int64), np.empty((K, a, 3)))  # fmt: skip
 
 
 def _ro(a: np.ndarray) -> np.ndarray:

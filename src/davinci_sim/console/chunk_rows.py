@@ -343,3 +343,19 @@ def _teleop_static(psm: PSM, rows: dict) -> tuple:
     return (cp, indices(*psm._qposadr), indices(*psm._idx), indices(rows[psm.name]),
             np.empty((4, 4)), shaft, limits, np.empty(dof), np.empty((4, 4)), np.empty((6, dof)),
             np.empty((dof, 12)), np.empty(dof), np.empty(dof), indices(*psm.jaw._idx))  # fmt: skip
+
+
+def objects_row(probe, K: int) -> tuple:
+    """The request's objects part: ``(bodies, object_of, jaw_bit, tips, flags, xpos, xmat,
+    grasp, tip_out)``: an :class:`~davinci_sim.tasks.objects_probe.ObjectsProbe`'s tables,
+    ``flags`` (whether there are objects, whether a contact with a flex ends the call)
+    and the readings of each tick (``K`` rows: a call's most ticks); empty for None."""
+    if probe is None:
+        return (indices(), np.full(1, -1, dtype=np.intp), np.zeros(1, dtype=np.int64),
+                indices(), np.zeros(2, dtype=bool), np.empty((K, 0, 3)), np.empty((K, 0, 9)),
+                np.empty((K, 0), dtype=np.int64), np.empty((K, 0, 3)))  # fmt: skip
+    k, a = len(probe.bodies), len(probe.tips)
+    return (indices(*probe.bodies), np.ascontiguousarray(probe.object_of, dtype=np.intp),
+            np.ascontiguousarray(probe.jaw_bit, dtype=np.int64), indices(*probe.tips),
+            np.array([True, probe.flex_contacts]), np.empty((K, k, 3)), np.empty((K, k, 9)),
+            np.empty((K, k), dtype=np.int64), np.empty((K, a, 3)))  # fmt: skip

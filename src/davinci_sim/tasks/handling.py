@@ -20,6 +20,7 @@ from typing import NamedTuple
 
 import numpy as np
 
+from davinci_sim.kinematics import jit as jit_module
 from davinci_sim.kinematics.jit import jit
 
 
@@ -161,3 +162,15 @@ def handling_step_arrays(state: Handling, *, grasp, p, p_prev, t, t_prev, placed
     loose = np.where(resting, ~placed, state.loose & ~held)
     new = Handling(t_still, np.where(land, 0, owner), carried & ~land, handed & ~land, loose)
     return new, Events(held, alone, who, resting, handoff, land, handed, drop)
+
+
+def _warm_up() -> None:
+    """Compile (or load from numba's cache) at import with the callers' one signature."""
+    off = np.zeros((1, 1), dtype=bool)
+    state = Handling(np.full((1, 1), np.nan), np.zeros((1, 1), dtype=np.int64), off, off, off)
+    handling_step(state, grasp=np.zeros((1, 1), dtype=np.int64), p=np.zeros((1, 1, 3)),
+                  p_prev=np.zeros((1, 1, 3)), t=np.zeros(1), t_prev=np.zeros(1), placed=off,
+                  instruments=2, rest_speed=0.01, rest_time=0.1)  # fmt: skip
+
+
+jit_module.warm(_warm_up)
