@@ -413,7 +413,8 @@ class TaskSession:
         task = self.task
         T_task_camera = task.T_task_camera(self.sim.T_cart_camera())
         T_camera_task = np.linalg.inv(T_task_camera)
-        p_task = (T_task_camera @ np.append(psm.setpoint_cp().T[:3, 3], 1.0))[:3]
+        goal = psm.setpoint_cp().T.copy()  # (its orientation kept)
+        p_task = (T_task_camera @ np.append(goal[:3, 3], 1.0))[:3]
         start = np.asarray(task.start, dtype=float)
         top = float(np.max(np.asarray(task.view_points, dtype=float)[:, 2]))
         height = max(p_task[2], start[2] + BRING_ABOVE, top + BRING_ABOVE)
@@ -426,7 +427,6 @@ class TaskSession:
             plan = [above, start]  # across, else straight
         else:
             plan = [np.array([p_task[0], p_task[1], height]), start]  # up, else straight
-        goal = psm.setpoint_cp().T.copy()
         for i, p in enumerate(plan):
             goal[:3, 3] = (T_camera_task @ np.append(p, 1.0))[:3]
             result = psm.move_cp(goal)
