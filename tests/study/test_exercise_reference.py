@@ -17,9 +17,9 @@ from davinci_sim.study.reference import exercise_reference
 from davinci_sim.tasks import load_task, save_task
 from davinci_sim.tasks.scoring import reference_dir
 
-#: The exercises with a shipped expert reference (peg transfer's scripted expert does not
-#: yet finish its attempts reliably: no reference is shipped for it).
-EXERCISES = ("camera_targeting", "ring_walk", "needle_targeting", "needle_pickup")
+#: The exercises with a shipped expert reference (the scripted experts of peg transfer and
+#: of the running suture do not yet finish their attempts reliably: none is shipped).
+EXERCISES = ("camera_targeting", "ring_walk", "needle_targeting", "needle_pickup", "needle_drive")
 
 
 @pytest.mark.parametrize("name", EXERCISES)

@@ -88,9 +88,9 @@ def write_reference(data: dict, path: str | Path) -> Path:
 
 #: The exercises' reference group: fewer attempts than the path task's (a scripted attempt
 #: at the console costs a minute or more of computing, the batch engine's milliseconds):
-#: 3 experts x 2 repetitions (the shipped needle, ring-walk and camera references). Peg
-#: transfer has none shipped yet: its scripted expert does not finish reliably (see
-#: :mod:`davinci_sim.study.experts`).
+#: 3 experts x 2 repetitions (the shipped needle targeting, ring-walk, camera, needle
+#: pick-up and needle-driving references). Peg transfer and the running suture have none
+#: shipped yet (see :mod:`davinci_sim.study.experts`).
 EXERCISE_SUBJECTS, EXERCISE_REPETITIONS = 3, 2
 
 
