@@ -36,7 +36,7 @@ task's teleoperation clutched:
   transferred all three rings; four ended in a tracking fault. In both of expert 3's,
   PSM2's open jaws struck the board on the straight glide to their grasp of the third
   ring: a ring on the board is now reached from above (:data:`ON_BOARD`), the jaws
-  opened there. Since, four of the six finish (two with three clean hand-offs in 62 and
+  opened there. Since then, four of the six finish (two with three clean hand-offs in 62 and
   67 s, two with a ring dropped and picked up again, nine instrument contacts each), and
   two do not (expert 2's first, expert 3's first: not looked into). No peg reference is
   shipped: two clean attempts of six do not make one.
