@@ -413,12 +413,13 @@ def do_peg(stream: Streamer, session, task, done) -> None:
             a = stream.goal[n][:3, 2]
             # A ring on the board is reached from above, the jaws opened there: on a
             # straight glide from afar the open jaws struck the board.
+            approach = p - 0.006 * a
+            above = approach + [0.0, 0.0, ON_BOARD]
             on_board = ring(i)[0][2] < task.board_top + ON_BOARD
-            above = p - 0.006 * a + [0.0, 0.0, ON_BOARD]
             if on_board and np.linalg.norm(tip(n)[:2] - above[:2]) > 0.005:
                 if stream.reach(n, above, 0.003, until=done):
                     return None
-            if jaw(n, opening) or stream.reach(n, p - 0.006 * a, 0.002, until=done):
+            if jaw(n, opening) or stream.reach(n, approach, 0.002, until=done):
                 return None
             if stream.reach(n, p, 0.0007, until=done) or jaw(n, JAW_CLOSED):
                 return None
