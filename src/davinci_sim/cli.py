@@ -977,7 +977,7 @@ def cmd_run(args: argparse.Namespace) -> int:
     options = RunOptions(
         connect=args.connect, scene=args.scene, keyframe=args.keyframe, seed=args.seed,
         console=not args.no_console, home=args.home, rate=args.rate, token=args.token,
-        force_compat=args.force_compat, freeze_heap=True,
+        force_compat=args.force_compat, freeze_heap=True, sim_time=args.sim_time,
     )  # fmt: skip
     try:
         return run_script(args.script, args.args, options)
@@ -1348,6 +1348,13 @@ def build_parser() -> argparse.ArgumentParser:
         "--force-compat",
         action="store_true",
         help="use davinci-sim's crtk and dvrk even if ROS's are installed",
+    )
+    p.add_argument(
+        "--sim-time",
+        action="store_true",
+        help="the script's rates and ral.now() follow the simulation's /clock (ROS's "
+        "use_sim_time), not the wall clock: its loops keep their rate in simulated time "
+        "when the simulation runs below real time",
     )
     p.add_argument("script", help="the Python script")
     p.add_argument("args", nargs=argparse.REMAINDER, help="the script's arguments")

@@ -23,6 +23,41 @@ FAIL_AFTER = 30.0
 START_DEADLINE = 180.0
 
 
+def ros_client(port: int):
+    """A roslibpy client connected to the server on 127.0.0.1:``port``.
+
+    Three CI runs' clients of one test module did not connect in ``ROS_CONNECT_TIMEOUT``
+    (not seen here, alone or loaded); roslibpy's error says nothing more. So a client that
+    does not connect gets one fresh try, with a warning saying whether the server answers a
+    handshake of its own and whether roslibpy's reactor runs; a second failure raises with
+    the same facts."""
+    import warnings
+
+    import roslibpy
+    from twisted.internet import reactor
+
+    for attempt in (1, 2):
+        ros = roslibpy.Ros("127.0.0.1", port)
+        try:
+            ros.run(ROS_CONNECT_TIMEOUT)
+            return ros
+        except roslibpy.core.RosTimeoutError:
+            try:
+                with connect(f"ws://127.0.0.1:{port}", open_timeout=FAIL_AFTER):
+                    server = "the server answers a handshake of its own"
+            except Exception as e:
+                server = f"the server does not answer a handshake ({e!r})"
+            threads = sorted(t.name for t in threading.enumerate())
+            retries = getattr(ros.factory, "retries", "?")
+            facts = (f"roslibpy did not connect to port {port} in {ROS_CONNECT_TIMEOUT} s: "
+                     f"{server}; reactor running={reactor.running}, retries={retries}, "
+                     f"threads={threads}")  # fmt: skip
+            if attempt == 2:
+                raise roslibpy.core.RosTimeoutError(facts) from None
+            warnings.warn(facts + "; trying a fresh client", stacklevel=2)
+    raise AssertionError("unreachable")
+
+
 def wait_for(predicate, timeout=5.0, period=0.01):
     """Poll ``predicate`` until true or ``max(timeout, FAIL_AFTER)`` s pass; returns its last
     value (true as soon as the condition holds)."""

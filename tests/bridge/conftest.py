@@ -9,8 +9,7 @@ import os
 os.environ.setdefault("MUJOCO_GL", "egl")
 
 import pytest  # noqa: E402
-import roslibpy  # noqa: E402
-from bridge_helpers import ROS_CONNECT_TIMEOUT, RawClient  # noqa: E402
+from bridge_helpers import RawClient, ros_client  # noqa: E402
 
 from davinci_sim.bridge import BridgeConfig, RosbridgeServer  # noqa: E402
 from davinci_sim.bridge.dvrk_node import DvrkNode  # noqa: E402
@@ -54,8 +53,7 @@ def make_ros():
     clients = []
 
     def make(server):
-        ros = roslibpy.Ros("127.0.0.1", server.port)
-        ros.run(ROS_CONNECT_TIMEOUT)
+        ros = ros_client(server.port)
         clients.append(ros)
         return ros
 

@@ -7,7 +7,7 @@ import time
 import numpy as np
 import pytest
 import roslibpy
-from bridge_helpers import ROS_CONNECT_TIMEOUT, enable_and_home, wait_for
+from bridge_helpers import enable_and_home, ros_client, wait_for
 from websockets.sync.client import connect
 
 
@@ -196,8 +196,7 @@ def test_slow_client_gets_a_bounded_queue(handle, make_server, make_ros):
 def test_client_disconnecting_mid_stream(handle, make_server, make_ros):
     server = make_server(handle, rate=500)
     for _ in range(3):
-        c = roslibpy.Ros("127.0.0.1", server.port)
-        c.run(ROS_CONNECT_TIMEOUT)
+        c = ros_client(server.port)
         got = []
         roslibpy.Topic(c, "/PSM1/measured_js", "sensor_msgs/JointState").subscribe(got.append)
         roslibpy.Topic(c, "/PSM1/measured_cp", "geometry_msgs/PoseStamped").subscribe(got.append)

@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 import roslibpy
 import yourdfpy
-from bridge_helpers import ROS_CONNECT_TIMEOUT, enable_and_home, wait_for
+from bridge_helpers import ROS_CONNECT_TIMEOUT, enable_and_home, ros_client, wait_for
 
 from davinci_sim.bridge import BridgeConfig, RosbridgeServer
 from davinci_sim.bridge import dvrk_messages as m
@@ -43,8 +43,7 @@ def remote(robot_handle, request):
     server = RosbridgeServer(BridgeConfig(port=0, ros_version=ros_version)).start()
     config = ClientModeConfig(server.url, namespace=namespace, mtms=(), ros_version=ros_version)
     client = RosClientMode(robot_handle, config).start(ROS_CONNECT_TIMEOUT)
-    viewer = roslibpy.Ros("127.0.0.1", server.port)
-    viewer.run(ROS_CONNECT_TIMEOUT)
+    viewer = ros_client(server.port)
     yield client, server, viewer
     viewer.close()
     client.stop()

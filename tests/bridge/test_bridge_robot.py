@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 import roslibpy
 import yourdfpy
-from bridge_helpers import ROS_CONNECT_TIMEOUT, wait_for
+from bridge_helpers import ros_client, wait_for
 
 from davinci_sim.bridge import dvrk_messages as m
 from davinci_sim.bridge.dvrk_node import DvrkNode
@@ -44,8 +44,7 @@ def robot_server(robot_handle, request):
 
 @pytest.fixture(scope="module")
 def ros(robot_server):
-    client = roslibpy.Ros("127.0.0.1", robot_server.port)
-    client.run(ROS_CONNECT_TIMEOUT)
+    client = ros_client(robot_server.port)
     yield client
     client.close()
 
@@ -170,8 +169,7 @@ def test_no_qpos_in_the_snapshots_is_said_once_and_publishes_nothing(caplog):
 
         node = RobotNode(h, sim.model, rate=100.0)
         server = RosbridgeServer(BridgeConfig(port=0), nodes=[node]).start()
-        client = roslibpy.Ros("127.0.0.1", server.port)
-        client.run(ROS_CONNECT_TIMEOUT)
+        client = ros_client(server.port)
         try:
             tf = subscribe(client, "/tf", "tf2_msgs/TFMessage")
             description = subscribe(client, "/robot_description", "std_msgs/String")

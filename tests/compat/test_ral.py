@@ -116,6 +116,50 @@ def test_rate_keeps_its_period_and_catches_up(monkeypatch):
         Rate(0.0)
 
 
+def test_sim_time_follows_the_servers_clock(pipe, monkeypatch):
+    """With ``use_sim_time`` (here from ROS's argument), ``now`` and a rate read ``/clock``:
+    a sleep ends once the clock passes the period's end, never on the wall clock."""
+    p, client = pipe
+
+    def clock(t: float) -> None:
+        sec = int(t)
+        msg = {"clock": {"sec": sec, "nanosec": round((t - sec) * 1e9)}}
+        p.on_frame(json.dumps({"op": "publish", "topic": "/clock", "msg": msg}))
+
+    monkeypatch.setattr(ral_module.sys, "argv", ["x.py", "--ros-args", "-p", "use_sim_time:=true"])
+    r = ral("node", node=client).create_child("PSM1")
+    assert {"op": "subscribe", "topic": "/clock"}.items() <= p.sent[-1].items()
+    assert r.now() == 0.0  # (no clock yet: ROS's time 0)
+    clock(2.0)
+    assert r.now() == 2.0
+    rate = r.create_rate(100.0)  # periods end at 2.01, 2.02
+    passes: list[float] = []
+    sleeper = threading.Thread(target=lambda: [passes.append(rate.sleep() or r.now())
+                                               for _ in range(2)], daemon=True)  # fmt: skip
+    sleeper.start()
+    clock(2.005)
+    time.sleep(0.2)
+    assert passes == []  # 0.2 s of wall time is nothing in simulated time
+    clock(2.012)
+    deadline = time.monotonic() + 30.0
+    while not passes and time.monotonic() < deadline:
+        time.sleep(0.01)
+    assert passes == pytest.approx([2.012])
+    clock(2.021)
+    sleeper.join(30.0)
+    assert passes == pytest.approx([2.012, 2.021])
+    assert ral("wall", node=client, use_sim_time=False).now() == pytest.approx(time.time(), abs=5.0)
+
+
+def test_sim_time_is_asked_for_by_environment_or_ros_argument(monkeypatch):
+    monkeypatch.delenv(ral_module.ENV_SIM_TIME, raising=False)
+    assert not ral_module.sim_time_requested(["x.py", "-a", "PSM1"])
+    assert ral_module.sim_time_requested(["x.py", "--ros-args", "-p", "use_sim_time:=True"])
+    assert not ral_module.sim_time_requested(["x.py", "--ros-args", "-p", "use_sim_time:=false"])
+    monkeypatch.setenv(ral_module.ENV_SIM_TIME, "1")
+    assert ral_module.sim_time_requested(["x.py"])
+
+
 def test_commands_on_the_wire(pipe):
     p, client = pipe
     r = ral("node", node=client).create_child("PSM1")

@@ -31,3 +31,29 @@ def test_console_events_in_process():
         assert v[f"{name}_pressed_released"] == "True True"
     assert v["teleop_enabled"] == "True" and v["teleop_enabled_after_stop"] == "False"
     assert v["power_off_disabled"] == "True"
+
+
+CLOCK_PROBE = """
+import crtk
+ral = crtk.ral("clock_probe")
+rate = ral.create_rate(100)
+rate.sleep()
+t0 = ral.now()
+for _ in range(20):
+    rate.sleep()
+print("now:", t0)
+print("elapsed:", ral.now() - t0)
+print("done")
+"""
+
+
+def test_sim_time_puts_the_scripts_clock_on_the_simulation(tmp_path):
+    """``--sim-time``: the script's ``now`` is the simulation's time (seconds since it
+    started, not since 1970) and 20 sleeps of a 100 Hz rate last 0.2 simulated s."""
+    script = tmp_path / "clock_probe.py"
+    script.write_text(CLOCK_PROBE)
+    v = check(run(["--scene", "psm1", "--sim-time", str(script)]))
+    assert 0.0 < float(v["now"]) < 3600.0
+    assert float(v["elapsed"]) >= 0.2 - 1e-6
+    wall = check(run(["--scene", "psm1", str(script)]))
+    assert float(wall["now"]) > 1e9  # without it, the wall clock (as on the robot)

@@ -540,8 +540,11 @@ def test_a_person_picks_the_needle_up_and_hands_it_over(browser, person):
             except AssertionError:
                 s = p.state()
                 turned = math.degrees(math.asin(min(1.0, np.linalg.norm(turn_of(s, psm)))))
-                raise AssertionError(f"{psm} {1e3 * error(s)} mm off, {turned:.1f}° to turn, "
-                                     f"{s['task']['progress']}") from None  # fmt: skip
+                arms = {k: v["state"] for k, v in s["arms"].items() if k.startswith("PSM")}
+                teleops = {k: (v["state"], v["following"]) for k, v in s["teleops"].items()}
+                raise AssertionError(f"{psm} {1e3 * error(s)} mm off, {turned:.1f}° to turn "
+                                     f"(arms {arms}, teleops {teleops}, t={s['time']:.1f} s, "
+                                     f"{s['task']['progress']!r})") from None  # fmt: skip
 
         def wait(seconds: float):
             p.hold(())

@@ -145,6 +145,8 @@ class DvrkNode:
             bridge.publish(arm.operating_state, m.operating_state(d, s, bridge.now()))
             arm.busy = s.is_busy
         self.tf = bridge.advertise("/tf", "tf2_msgs/TFMessage", node=NODE)
+        # ROS's simulated time (what a node with use_sim_time reads), at the state rate
+        self.clock = bridge.advertise("/clock", "rosgraph_msgs/Clock", node=NODE)
         self._tasks = [
             PeriodicTask(1.0 / self.rate, self._publish_state),
             PeriodicTask(1.0 / self.tf_rate, self._publish_tf),
@@ -202,6 +204,8 @@ class DvrkNode:
         try:
             self._publish_state_topics(snap)
             self.state_time = snap.time
+            if self.clock.subscriptions:  # (after the states: a script woken by it reads them)
+                self.bridge.publish(self.clock, {"clock": self.bridge.dialect.stamp(snap.time)})
         finally:
             # the events this snapshot covers, after its state; then the safety net (which
             # must not publish the snapshot's state ahead of events still held)

@@ -166,6 +166,9 @@ class RunOptions:
     """Run the script within :func:`~davinci_sim.sim.runtime.loop.frozen_heap` (the CLI:
     this process is the script's; a caller running scripts in its own process decides)."""
     force_compat: bool = False
+    sim_time: bool = False
+    """The script's ``ral`` on simulated time (ROS's ``use_sim_time``: its rates and ``now``
+    follow the server's ``/clock``; :mod:`~davinci_sim.compat.ral`)."""
 
 
 def run_script(script: str, args: list[str], options: RunOptions,
@@ -196,6 +199,9 @@ def run_script(script: str, args: list[str], options: RunOptions,
         if options.token:
             connection.send(json.dumps({"op": "auth", "mac": options.token}))
         os.environ[ral_module.ENV_URL] = options.connect or ""
+        if options.sim_time:  # (the script's subprocesses too; restored after)
+            stops.append(_EnvRestore(ral_module.ENV_SIM_TIME))
+            os.environ[ral_module.ENV_SIM_TIME] = "1"
         if options.connect:  # (in this process, the bridge's own log says them)
             echo_arm_messages(client, lambda text: print(text, file=sys.stderr, flush=True))
         ral_module.set_client(client)
@@ -206,6 +212,19 @@ def run_script(script: str, args: list[str], options: RunOptions,
         ral_module.set_client(None)
         for part in reversed(stops):
             part.close() if hasattr(part, "close") else part.stop()
+
+
+class _EnvRestore:
+    """Closing it puts an environment variable back as it was."""
+
+    def __init__(self, name: str) -> None:
+        self.name, self.value = name, os.environ.get(name)
+
+    def close(self) -> None:
+        if self.value is None:
+            os.environ.pop(self.name, None)
+        else:
+            os.environ[self.name] = self.value
 
 
 def echo_arm_messages(client, out: Callable[[str], None]) -> list[str]:
