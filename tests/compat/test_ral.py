@@ -4,6 +4,7 @@ messages read as ROS messages, rates, and the rosbridge ops a client sends."""
 from __future__ import annotations
 
 import json
+import sys
 import threading
 import time
 
@@ -126,7 +127,7 @@ def test_sim_time_follows_the_servers_clock(pipe, monkeypatch):
         msg = {"clock": {"sec": sec, "nanosec": round((t - sec) * 1e9)}}
         p.on_frame(json.dumps({"op": "publish", "topic": "/clock", "msg": msg}))
 
-    monkeypatch.setattr(ral_module.sys, "argv", ["x.py", "--ros-args", "-p", "use_sim_time:=true"])
+    monkeypatch.setattr(sys, "argv", ["x.py", "--ros-args", "-p", "use_sim_time:=true"])
     r = ral("node", node=client).create_child("PSM1")
     assert {"op": "subscribe", "topic": "/clock"}.items() <= p.sent[-1].items()
     assert r.now() == 0.0  # (no clock yet: ROS's time 0)
