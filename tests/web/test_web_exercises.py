@@ -232,10 +232,12 @@ def steer(person: Person, until, step, limit: float = SIM_LIMIT) -> dict:
         person.hold(step(s))
         if s["time"] - shown > 0.5:  # (pytest -s shows how the person gets on)
             shown = s["time"]
-            teleops = {k: v["state"] for k, v in s["teleops"].items()}
+            teleops = {k: (v["state"], v["following"]) for k, v in s["teleops"].items()}
+            tips = {k: np.round(1e3 * np.array(v["p_camera"])) for k, v in s["tips"].items()}
+            hands = {k: np.round(1e3 * np.array(v["target"])) for k, v in s["hands"].items()}
             print(
                 f"t={s['time']:.1f} {s['task']['phase']} {s['task']['progress']!r} "
-                f"{teleops} keys={sorted(person.held)}"
+                f"{teleops} keys={sorted(person.held)} tips_mm={tips} hands_mm={hands}"
             )
         time.sleep(0.03)  # about a frame of the page's state stream
         s = person.state()
@@ -364,27 +366,37 @@ def test_a_person_centres_the_targets_with_the_camera_pedal(task_files, browser,
 
 class Clutch:
     """A person at the edge of a hand's reach: when the hand's target stops moving while
-    move keys are held, they press the clutch (Space) and bring the hand back the opposite
-    way for 1.5 s, the tool (or, with the camera pedal among ``held``, the camera) held
-    still, then let go and carry on. Called with the state and the keys a step would
-    hold; returns the keys to hold."""
+    move keys are held, or what they see stops moving (the hand's tool in the camera frame,
+    still for 1 s while its teleoperation follows: the master stopped at a joint limit while
+    the hand's target dithered beyond it, a loaded run), they press the clutch (Space) and
+    bring the hand back the opposite way for 1.5 s, the tool (or, with the camera pedal
+    among ``held``, the camera) held still, then let go and carry on. Called with the state
+    and the keys a step would hold; returns the keys to hold."""
 
     def __init__(self, hand: str, held=()) -> None:
         self.hand, self.held = hand, set(held)
-        self.since = self.target = self.until = None
+        self.since = self.target = self.until = self.seen = self.seen_since = None
         self.back: set[str] = set()
 
     def __call__(self, s: dict, keys: set[str]) -> set[str]:
         t = s["time"]
         hand = np.array(s["hands"][self.hand]["target"])
+        following = any(v["following"] for v in s["teleops"].values() if v["mtm"] == self.hand)
+        seen = next((np.array(v["p_camera"]) for v in s["tips"].values()
+                     if v.get("mtm") == self.hand and following), None)  # fmt: skip
         if self.until is not None:
             if t < self.until:
                 return {*self.held, "Space", *self.back}
-            self.until = self.since = self.target = None
+            self.until = self.since = self.target = self.seen = None
         moving = {k for k in keys if any(k in pair for pair in MOVE_KEYS)}
+        if seen is None or self.seen is None or np.linalg.norm(seen - self.seen) > 0.0005:
+            self.seen_since, self.seen = t, seen
         if self.target is None or np.linalg.norm(hand - self.target) > 0.002:
             self.since, self.target = t, hand
-        elif moving and t - self.since > 0.4:
+            stalled = seen is not None and t - self.seen_since > 1.0
+        else:
+            stalled = t - self.since > 0.4
+        if moving and stalled:
             opposite = {a: b for pair in MOVE_KEYS for a, b in (pair, pair[::-1])}
             self.until, self.back = t + 1.5, {opposite[k] for k in moving}
         return keys
