@@ -163,15 +163,18 @@ def test_servo_jp_stream_reaches_the_arm(system, ral, psm):
 
 def test_sim_time_reads_the_simulations_clock(system, ral):
     """A script on simulated time (``davinci-sim run --sim-time``) reads ``/clock``: never
-    ahead of the simulation, and its rate's sleeps last their period of simulated time."""
+    ahead of the simulation, and its rate sleeps in simulated time. (A sleep after a late
+    one, the clock having skipped past its period in a burst, returns at once, as ROS's
+    rate does: any two sleeps in a row last at least a period, so the ten after the first
+    one after ``t0`` at least five; a clean clone under load measured 0.09 s for ten.)"""
     r = make_ral("sim_time", use_sim_time=True)
     rate = r.create_rate(100.0)
     rate.sleep()  # (waits for the first /clock: the rate was made before it came)
     t0 = r.now()
     assert 0.0 < t0 <= snap(system).time + 1e-6  # (stamps are whole nanoseconds)
-    for _ in range(10):
+    for _ in range(11):
         rate.sleep()
-    assert r.now() - t0 >= 0.1 - 1e-6
+    assert r.now() - t0 >= 0.05 - 1e-6
     assert r.now() <= snap(system).time + 1e-6
 
 
