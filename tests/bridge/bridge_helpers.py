@@ -52,6 +52,7 @@ def ros_client(port: int):
             facts = (f"roslibpy did not connect to port {port} in {ROS_CONNECT_TIMEOUT} s: "
                      f"{server}; reactor running={reactor.running}, retries={retries}, "
                      f"threads={threads}")  # fmt: skip
+            ros.factory.stopTrying()  # (the failed client would go on reconnecting)
             if attempt == 2:
                 raise roslibpy.core.RosTimeoutError(facts) from None
             warnings.warn(facts + "; trying a fresh client", stacklevel=2)
