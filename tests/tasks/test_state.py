@@ -116,3 +116,32 @@ def test_path_task_step_of_one_trial_is_a_batch_row(task):
         for k in obs1:
             np.testing.assert_array_equal(obs1[k], obs2[k][:1], strict=True)
     assert Phase(int(state1.phase[0])) >= Phase.RUNNING  # the walk went through the phases
+
+
+def test_inactive_trials_keep_their_state_field_by_field_nested_included():
+    """``advance``'s mask keeps an inactive trial's state whatever the fields' shapes: (n,),
+    (n, 3) and a nested state (needle driving's passage), also when n is 3 (where a mask of
+    shape (n,) would broadcast along a (n, 3) field's last axis instead of its rows)."""
+    from typing import NamedTuple
+
+    from davinci_sim.tasks.state import kept_where
+
+    class Inner(NamedTuple):
+        inside: np.ndarray
+        entry: np.ndarray
+
+    class Outer(NamedTuple):
+        phase: np.ndarray
+        p: np.ndarray
+        inner: Inner
+
+    def state(v: float) -> Outer:
+        return Outer(np.full(3, v), np.full((3, 3), v), Inner(np.full(3, v), np.full((3, 2), v)))
+
+    kept = kept_where(np.array([True, False, True]), state(1.0), state(0.0))
+    rows = np.array([1.0, 0.0, 1.0])
+    np.testing.assert_array_equal(kept.phase, rows)
+    np.testing.assert_array_equal(kept.p, np.repeat(rows[:, None], 3, axis=1))
+    np.testing.assert_array_equal(kept.inner.inside, rows)
+    np.testing.assert_array_equal(kept.inner.entry, np.repeat(rows[:, None], 2, axis=1))
+    assert type(kept) is Outer and type(kept.inner) is Inner

@@ -11,11 +11,17 @@ Importing this package registers the ids (``gymnasium.make("DavinciSim/Reach-v0"
 * ``DavinciSim/CameraTargeting-v0`` — centre targets with the endoscope (the ECM, joint
   actions);
 * ``DavinciSim/RingWalk-v0``, ``DavinciSim/NeedleTargeting-v0`` — the ring walk and needle
-  targeting exercises.
+  targeting exercises;
+* ``DavinciSim/NeedlePickup-v0``, ``DavinciSim/NeedleDrive-v0``,
+  ``DavinciSim/RunningSuture-v0`` — needle pick-up and hand-off, needle driving through one
+  pair of marks, the running suture through four: both PSMs moved and turned
+  (:class:`InstrumentsEnv`).
 
 * :class:`DavinciEnv` (base.py) — one environment on a live
   :class:`~davinci_sim.sim.simulation.Simulation`: actions, observations, reset and
   rewards documented there; settings :class:`EnvConfig` (setup.py).
+* :class:`InstrumentsEnv` (instruments.py) — the same with several instruments moved and
+  turned by the actions (``arms``, ``rotation``; any id with those keyword arguments).
 * :class:`DavinciVectorEnv` (vector.py) — N environments stepped as arrays with the
   study's batch laws (Reach and path following), ``gymnasium.make_vec`` or
   :func:`make_vector`.
@@ -29,6 +35,7 @@ from __future__ import annotations
 import gymnasium as gym
 
 from davinci_sim.envs.base import DavinciEnv
+from davinci_sim.envs.instruments import InstrumentsEnv
 from davinci_sim.envs.recording import RecordEpisodes, RecordVectorEpisodes
 from davinci_sim.envs.setup import EnvConfig
 
@@ -44,7 +51,20 @@ ENVIRONMENTS: dict[str, dict] = {
     },
     "DavinciSim/RingWalk-v0": {"task": "ring_walk", "max_episode_steps": 1500},
     "DavinciSim/NeedleTargeting-v0": {"task": "needle_targeting", "max_episode_steps": 1000},
-}
+    # (both hands, turning the wrists: the tasks' time limits at 50 actions/s)
+    "DavinciSim/NeedlePickup-v0": {
+        "task": "needle_pickup", "max_episode_steps": 6000, "arms": ("PSM1", "PSM2"),
+        "rotation": True,
+    },
+    "DavinciSim/NeedleDrive-v0": {
+        "task": "needle_drive", "max_episode_steps": 9000, "arms": ("PSM1", "PSM2"),
+        "rotation": True,
+    },
+    "DavinciSim/RunningSuture-v0": {
+        "task": "running_suture", "max_episode_steps": 30000, "arms": ("PSM1", "PSM2"),
+        "rotation": True,
+    },
+}  # fmt: skip
 #: The ids the vector environment runs (PSM tasks whose samples need no scene objects).
 VECTOR_IDS = ("DavinciSim/Reach-v0", "DavinciSim/PathFollow-v0")
 
@@ -58,7 +78,7 @@ def _register() -> None:
             vector = "davinci_sim.envs.vector:DavinciVectorEnv"
         gym.register(
             env_id,
-            entry_point="davinci_sim.envs.base:DavinciEnv",
+            entry_point="davinci_sim.envs:make_env",
             vector_entry_point=vector,
             kwargs=dict(kwargs),
             # (no TimeLimit wrapper: the environment truncates at its max_episode_steps, the
@@ -68,6 +88,15 @@ def _register() -> None:
 
 
 _register()
+
+
+def make_env(render_mode: str | None = None, **kwargs) -> DavinciEnv:
+    """One environment of ``kwargs`` (:class:`EnvConfig`): an :class:`InstrumentsEnv` when
+    they set ``arms`` or ``rotation``, else a :class:`DavinciEnv` (the registered ids'
+    entry point)."""
+    if kwargs.get("arms") is not None or kwargs.get("rotation"):
+        return InstrumentsEnv(render_mode, **kwargs)
+    return DavinciEnv(render_mode, **kwargs)
 
 
 def make_vector(env_id: str, num_envs: int, **kwargs):
@@ -83,8 +112,10 @@ __all__ = [
     "DavinciEnv",
     "ENVIRONMENTS",
     "EnvConfig",
+    "InstrumentsEnv",
     "RecordEpisodes",
     "RecordVectorEpisodes",
     "VECTOR_IDS",
+    "make_env",
     "make_vector",
 ]

@@ -53,6 +53,7 @@ from gymnasium import spaces
 
 from davinci_sim.envs import control
 from davinci_sim.envs.control import orientation_features
+from davinci_sim.envs.objects import object_features, object_spaces
 from davinci_sim.envs.problems import ReachProblem, TaskProblem
 from davinci_sim.envs.setup import EnvConfig, EnvStart, build_start
 from davinci_sim.kinematics import fk
@@ -82,10 +83,7 @@ def observation_space(start: EnvStart, config: EnvConfig, problem) -> spaces.Dic
         "setpoint": spaces.Box(shape=(3 if config.action_space == "cartesian" else dof,), **box),
         **problem.spaces(),
     }
-    k = getattr(start.task, "n_rings", 0)
-    if k:  # peg transfer: the rings (camera frame, m) and whether a jaw touches each
-        out["objects"] = spaces.Box(shape=(k, 3), **box)
-        out["grasp"] = spaces.Box(low=0.0, high=1.0, shape=(k,), dtype=np.float64)
+    out.update(object_spaces(start.task, (start.psm,)))
     if config.images:
         w, h = config.image_size
         for side in ("left", "right"):
@@ -113,9 +111,13 @@ class DavinciEnv(gym.Env):
     """One environment (see the module docstring); ``**kwargs``: :class:`EnvConfig`."""
 
     metadata = {"render_modes": ["rgb_array"], "render_fps": 50}
+    _PER_INSTRUMENT = False  # (the config's arms and rotation: InstrumentsEnv's)
 
     def __init__(self, render_mode: str | None = None, **kwargs: Any) -> None:
         self.config = config = EnvConfig(**kwargs)
+        if config.per_instrument and not self._PER_INSTRUMENT:
+            raise ValueError("arms and rotation are InstrumentsEnv's (davinci_sim.envs."
+                             "InstrumentsEnv; gymnasium.make picks it)")  # fmt: skip
         if render_mode is not None and render_mode not in self.metadata["render_modes"]:
             raise ValueError(f"render_mode must be None or 'rgb_array', got {render_mode!r}")
         self.render_mode = render_mode
@@ -171,7 +173,7 @@ class DavinciEnv(gym.Env):
         feats = self.problem.features(T[None], T_task_camera)  # (the same for both)
         reward, done, terms = self.problem.outcome(T[None], T_task_camera, feats)
         self._steps += 1
-        fault = self.arm.operating_state().state == ops.FAULT
+        fault = self._faulted()
         terminated = bool(done[0]) or fault
         truncated = not terminated and self._steps >= self.config.max_episode_steps
         info = {k: float(v[0]) for k, v in terms.items()}
@@ -296,14 +298,22 @@ class DavinciEnv(gym.Env):
                 self._goal if self.config.action_space == "cartesian" else self._q_goal
             ).copy(),
         }
-        if "objects" in self.observation_space.spaces:
-            extra = self._start.task.scene_fields(self.sim.model, self.sim.data, self._scene_cache)
-            T_camera_task = np.linalg.inv(T_task_camera)
-            p = np.asarray(extra["objects"], dtype=float).reshape(-1, 3)
-            obs["objects"] = p @ T_camera_task[:3, :3].T + T_camera_task[:3, 3]
-            obs["grasp"] = (np.asarray(extra["grasp"]).reshape(-1) > 0).astype(float)
+        obs.update(self._object_observation(T_task_camera, (self._start.psm,)))
         obs.update({k: v[0] for k, v in feats.items()})
         if self.config.images:
             w, h = self.config.image_size
             obs["left"], obs["right"] = self.sim.render_stereo(w, h)
         return obs
+
+    def _object_observation(self, T_task_camera, arms: tuple[str, ...]) -> dict:
+        """The task's objects as the arms ``arms`` see them (:mod:`davinci_sim.envs.objects`;
+        none for a task without objects)."""
+        task = self._start.task
+        if task is None or task.objects_probe(self.sim.model, self._scene_cache) is None:
+            return {}
+        fields = task.scene_fields(self.sim.model, self.sim.data, self._scene_cache)
+        return object_features(task, fields, np.linalg.inv(T_task_camera), arms)
+
+    def _faulted(self) -> bool:
+        """Whether an arm the actions move is in FAULT (the episode then terminates)."""
+        return self.arm.operating_state().state == ops.FAULT

@@ -18,6 +18,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from davinci_sim.geometry.so3 import rotation_from_vector
+
 #: The physics and servo tick, s (the simulation's 1 kHz).
 TICK = 0.001
 
@@ -69,6 +71,20 @@ def joint_delta(
     a = np.minimum(np.maximum(action, -1.0), 1.0)
     target = np.minimum(np.maximum(goal + max_step * a, qmin), qmax)
     return target - goal
+
+
+def rotation_step(action: np.ndarray, max_step: float) -> np.ndarray:
+    """The orientation goal's turn (..., 3), a rotation vector about the camera's axes in
+    rad, for rotation actions (..., 3) in [-1, 1] (each axis scaled by ``max_step``, rad
+    per control period)."""
+    return max_step * np.minimum(np.maximum(action, -1.0), 1.0)
+
+
+def ramp_rotation(R_from: np.ndarray, omega: np.ndarray, k: int, K: int) -> np.ndarray:
+    """Tick ``k`` (1..K)'s orientation goal (3, 3): ``R_from`` turned by ``(k/K)·omega``
+    (rotation vector, camera frame, rad), at a constant angular velocity over the period
+    (its feed-forward: :func:`feedforward` of ``omega``)."""
+    return rotation_from_vector((k / K) * omega) @ R_from
 
 
 def jaw_angle(action: np.ndarray, jaw_min: float, jaw_max: float) -> np.ndarray:

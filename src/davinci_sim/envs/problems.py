@@ -7,6 +7,9 @@ n rows at once (one implementation for the single and the vector environments).
   (:func:`~davinci_sim.tasks.advance`, as the live session and the study do); the episode
   terminates when the task's phase reaches FINISHED; the reward's terms are the exercise's
   per-sample quantities (its ``distance`` observation, the path's progress) and its finish.
+  Features: ``phase``, ``distance``; path following ``progress`` and ``next_point``; camera
+  targeting ``target``; needle driving ``entry_mark`` and ``exit_mark``, the next pair's
+  marks (the last pair's once all are passed).
 
 Rewards are returned as a sum with each term in ``info`` (``reward_<term>``), as
 Gymnasium's MuJoCo environments do. Positions in features are in the camera frame, m.
@@ -127,6 +130,8 @@ class TaskProblem:
             out["next_point"] = _box(3)
         if self.task.kind == "camera_targeting":
             out["target"] = _box(3)
+        if self.task.kind == "needle_drive":
+            out["entry_mark"], out["exit_mark"] = _box(3), _box(3)
         return out
 
     # ------------------------------------------------------------ episodes
@@ -198,6 +203,11 @@ class TaskProblem:
         if self.task.kind == "camera_targeting":
             k = np.minimum(self.state.target, len(self.task.targets) - 1)
             out["target"] = _transform(np.linalg.inv(T), self.task.targets[k])
+        if self.task.kind == "needle_drive":  # (the marks: task frame, the world's)
+            marks = self.task.pad.marks_world()
+            k = np.minimum(self.state.next_pair, len(marks) - 1)
+            out["entry_mark"] = _transform(np.linalg.inv(T), marks[k, 0])
+            out["exit_mark"] = _transform(np.linalg.inv(T), marks[k, 1])
         return out
 
     def outcome(self, T_camera_tip, T_task_camera=None, features=None):

@@ -60,13 +60,27 @@ class EnvConfig:
     """Reach: the target is drawn uniformly within ± this of the start, per axis, m."""
     reach_tolerance: float = 0.003
     """Reach: within this distance of the target the episode is a success, m."""
+    arms: tuple[str, ...] | None = None
+    """The PSMs the actions move, in order (each its own slice of the action and row of the
+    per-arm observations): the task's PSM and its other instruments (peg transfer, the
+    needle exercises: ``("PSM1", "PSM2")``); None: the task's PSM alone (or the ECM for
+    camera targeting). Given, or with ``rotation``, the environment is an
+    :class:`~davinci_sim.envs.instruments.InstrumentsEnv` (``gymnasium.make`` picks it)."""
+    rotation: bool = False
+    """Cartesian actions also turn each moved tool: three more numbers per arm, a rotation
+    vector about the camera's axes in units of ``max_rotation_step`` (otherwise the
+    orientation the tool has at the start is held)."""
+    max_rotation_step: float = 0.05
+    """Rotation: largest turn per action and axis, rad (2.5 rad/s at 50 Hz)."""
 
     def __post_init__(self) -> None:
         if self.action_space not in ACTION_SPACES:
             raise ValueError(
                 f"action_space must be one of {ACTION_SPACES}, got {self.action_space!r}"
             )
-        for name in ("max_step", "max_joint_step", "workspace", "reach_radius", "reach_tolerance"):
+        names = ("max_step", "max_joint_step", "workspace", "reach_radius", "reach_tolerance",
+                 "max_rotation_step")  # fmt: skip
+        for name in names:
             value = getattr(self, name)
             if not (isinstance(value, int | float) and math.isfinite(value) and value > 0):
                 raise ValueError(f"{name} must be a positive number, got {value!r}")
@@ -74,11 +88,27 @@ class EnvConfig:
             raise ValueError(
                 f"max_episode_steps must be an int >= 1, got {self.max_episode_steps!r}"
             )
+        if self.arms is not None:
+            arms = tuple(self.arms) if isinstance(self.arms, list | tuple) else ()
+            if not arms or not all(isinstance(a, str) and a.startswith("PSM") for a in arms) \
+                    or len(set(arms)) != len(arms):  # fmt: skip
+                raise ValueError(f"arms must be distinct PSM names, e.g. ('PSM1', 'PSM2'), "
+                                 f"got {self.arms!r}")  # fmt: skip
+            object.__setattr__(self, "arms", arms)
+        if self.rotation and self.action_space != "cartesian":
+            raise ValueError("rotation=True turns the tool with Cartesian actions; joint "
+                             "actions turn the wrist's joints already")  # fmt: skip
         w, h = self.image_size
         if not (isinstance(w, int) and isinstance(h, int) and 8 <= w <= 1920 and 8 <= h <= 1080):
             raise ValueError(
                 f"image_size must be (width, height) in pixels, got {self.image_size!r}"
             )
+
+    @property
+    def per_instrument(self) -> bool:
+        """Whether the actions name the instruments they move or turn them
+        (:class:`~davinci_sim.envs.instruments.InstrumentsEnv`'s)."""
+        return self.rotation or self.arms is not None
 
 
 @dataclass

@@ -219,13 +219,9 @@ class NeedleDriveTask(NeedlePickupTask, kind="needle_drive"):
         return self.cached_probe(model, cache)[0]
 
     def objects_fields(self, reading, model, data, cache: dict) -> dict:
-        """Needle pick-up's fields, the needle's frame and the force on the tissue (none
-        in a recorded reading: the compiled ticks leave a tick with the skin touched to
-        Python)."""
-        from davinci_sim.tasks.objects_probe import frame_of
-
+        """Needle pick-up's fields and the force on the tissue (none in a recorded reading:
+        the compiled ticks leave a tick with the skin touched to Python)."""
         fields = super().objects_fields(reading, model, data, cache)
-        fields["T_task_object"] = frame_of(reading.xpos[0], reading.xmat[0])
         pad = self.cached_probe(model, cache)[1]
         fields["tissue_force"] = 0.0 if data is None else pad.force(model, data)
         return fields

@@ -237,9 +237,14 @@ class NeedlePickupTask(Task, kind="needle_pickup"):
         return self.cached_probe(model, cache)
 
     def objects_fields(self, reading, model, data, cache: dict) -> dict:
-        """The sample's ``objects`` (the needle's centre), ``grasp`` and ``tools``."""
+        """The sample's ``objects`` (the needle's centre), ``grasp``, ``tools`` and
+        ``T_task_object`` (the needle's frame: its plane, for a learning environment's
+        observation and the drive's passage)."""
+        from davinci_sim.tasks.objects_probe import frame_of
+
         return {"objects": reading.xpos[:1].copy(), "grasp": reading.grasp[:1].copy(),
-                "tools": reading.tips}  # fmt: skip
+                "tools": reading.tips,
+                "T_task_object": frame_of(reading.xpos[0], reading.xmat[0])}  # fmt: skip
 
     def initial_state(self, n: int) -> NeedleState:
         nan = np.full(n, np.nan)

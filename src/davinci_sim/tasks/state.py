@@ -188,6 +188,15 @@ def measuring(phase) -> np.ndarray:
     return (phase == _RUNNING) | (phase == _FINISHED)
 
 
+def kept_where(active: np.ndarray, new, old):
+    """``new`` state where ``active`` (n,) bool, else ``old``: field by field, a field of
+    any shape (n, ...), a nested state (needle driving's passage) field by field in turn."""
+    if isinstance(new, tuple):
+        return type(new)(*(kept_where(active, a, b) for a, b in zip(new, old, strict=True)))
+    a = np.asarray(new)
+    return np.where(np.reshape(active, (-1,) + (1,) * (a.ndim - 1)), a, old)
+
+
 def advance(task: Task, state, metrics: MetricsAccumulator, sample: Sample, active=None):
     """One sample of n trials through ``task``'s state machine and into ``metrics``.
 
@@ -209,7 +218,7 @@ def advance(task: Task, state, metrics: MetricsAccumulator, sample: Sample, acti
         return stepped
     new, obs = task.step(state, sample)
     if active is not None:
-        new = type(new)(*(np.where(active, a, b) for a, b in zip(new, state, strict=True)))
+        new = kept_where(active, new, state)
     measure = measuring(new.phase)
     if active is not None:
         measure = measure & active
