@@ -10,6 +10,7 @@ parser would scatter the one place a user's options are declared and checked.
 from __future__ import annotations
 
 import argparse
+import math
 import os
 import sys
 import time
@@ -214,6 +215,23 @@ def cmd_demo(args: argparse.Namespace) -> int:
     return 0 if report["homed"] and report.get("refused_ok", True) else 1
 
 
+def serve_scene(args: argparse.Namespace):
+    """``serve``'s scene: the name, or its :class:`~davinci_sim.model.config.SceneConfig` with
+    the robot inaccuracy of ``--joint-errors``/``--random-joint-errors``. ValueError for
+    errors that cannot be."""
+    from davinci_sim.model.config import parse_joint_errors, random_joint_errors, resolve_scene
+
+    errors = parse_joint_errors(getattr(args, "joint_errors", None) or [])
+    seed = getattr(args, "random_joint_errors", None)
+    if seed is not None:
+        if errors:
+            raise ValueError("--joint-errors and --random-joint-errors: give one of them")
+        errors = random_joint_errors(resolve_scene(args.scene).arms, seed)
+    if not errors:
+        return args.scene
+    return resolve_scene(args.scene, joint_errors=errors)
+
+
 def serve_options(args: argparse.Namespace, web: bool):
     """The :class:`~davinci_sim.bridge.app.ServeOptions` of ``serve``'s parsed ``args``
     (``web``: with the web console), as ``cmd_serve`` runs them; the browser test of
@@ -233,7 +251,7 @@ def serve_options(args: argparse.Namespace, web: bool):
     asked = args.console or args.task is not None
     hands = ("MTML", "MTMR") if web and asked and args.ros_connect is None else ()
     return ServeOptions(
-        scene=args.scene,
+        scene=serve_scene(args),
         keyframe=args.keyframe,
         seed=args.seed,
         real_time=not args.fast,
@@ -481,6 +499,10 @@ def _serve_once(args: argparse.Namespace, web: bool, stop, on_exercise) -> int:
             print(f"UDP {arm}: streaming to {ip}:{port}, commands to port {local}", flush=True)
         if "ros_connect" in info:
             print(f"client mode: connected to {info['ros_connect']}", flush=True)
+        for psm, e in getattr(options.scene, "joint_errors", ()):
+            print(f"robot inaccuracy: {psm} joint errors yaw {math.degrees(e[0]):+.2f} deg, "
+                  f"pitch {math.degrees(e[1]):+.2f} deg, insertion {e[2] * 1e3:+.2f} mm",
+                  flush=True)  # fmt: skip
         loop = info.get("loop", {})
         if args.realtime_priority is not None:
             if loop.get("realtime_priority"):
@@ -538,6 +560,10 @@ def _serve_option_problem(args: argparse.Namespace) -> str | None:
         return f"--duration must be a time >= 0 s, got {args.duration:g}"
     if args.condition is not None and args.task is None:
         return "--condition needs --task (the condition of which task?)"
+    try:
+        serve_scene(args)
+    except ValueError as e:
+        return str(e)
     if args.no_console and (args.console or args.task is not None):
         return "--no-console contradicts " + ("--console" if args.console else "--task")
     if args.trainee is not None and args.task is None:
@@ -887,7 +913,7 @@ def _serve_replay(args: argparse.Namespace, recording) -> int:
         return 2
     d = system.description
     options = ServeOptions(
-        scene=d.scene if isinstance(d.scene, str) else "full",
+        scene=d.scene,
         keyframe=d.keyframe,
         seed=d.seed,
         server=not args.no_server,
@@ -1094,6 +1120,23 @@ def build_parser() -> argparse.ArgumentParser:
         "the simulated arms answer to the dVRK's own topic names)",
     )
     p.add_argument("--remote-ros-version", type=int, choices=[1, 2], default=2)
+    p.add_argument(
+        "--joint-errors",
+        action="append",
+        default=[],
+        metavar="PSMn=YAW,PITCH,INSERTION",
+        help="robot inaccuracy: the PSM's links stand at its joints plus these errors (rad, "
+        "rad, m) while it reports and servoes its joints by the nominal kinematics, as the "
+        "AccelNet challenge perturbs its PSMs; repeat per PSM",
+    )
+    p.add_argument(
+        "--random-joint-errors",
+        type=int,
+        default=None,
+        metavar="SEED",
+        help="robot inaccuracy drawn for every PSM of the scene from SEED, uniform within "
+        "±5 deg, ±5 deg, ±5 mm (the challenge's range)",
+    )
     p.add_argument(
         "--no-robot-description",
         action="store_true",

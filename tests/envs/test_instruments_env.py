@@ -187,3 +187,25 @@ def test_settings_it_cannot_run_are_refused():
         )
     finally:
         env.close()
+
+
+def test_with_joint_errors_the_observed_tip_is_what_the_arm_reports_not_where_it_is():
+    """The robot-inaccuracy option: the observation's tip is the arm's own (nominal)
+    kinematics, the episode's start its goal, while the instrument stands millimetres away
+    (its MuJoCo tip site)."""
+    import mujoco
+
+    errors = {"PSM1": (0.044, -0.008, 0.004)}
+    env = DavinciEnv(joint_errors=errors)
+    try:
+        obs, _ = env.reset(seed=0)
+        np.testing.assert_allclose(obs["tip_position"], obs["setpoint"], atol=2e-4)
+        site = mujoco.mj_name2id(env.sim.model, mujoco.mjtObj.mjOBJ_SITE, "PSM1/tip")
+        T = np.linalg.inv(env.sim.T_cart_camera())
+        p_true = T[:3, :3] @ env.sim.data.site_xpos[site] + T[:3, 3]
+        assert np.linalg.norm(p_true - obs["tip_position"]) > 0.005  # m
+        assert env.sim.config.errors_of("PSM1") == errors["PSM1"]
+    finally:
+        env.close()
+    with pytest.raises(ValueError, match="joint_errors"):
+        DavinciEnv(joint_errors={"PSM2": (0.0, 0.0, 0.001)})  # (no PSM2 in Reach's scene)

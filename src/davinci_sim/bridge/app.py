@@ -20,6 +20,7 @@ from dataclasses import dataclass, field
 from typing import Any, Literal
 
 from davinci_sim.bridge.rosbridge.config import BridgeConfig
+from davinci_sim.model.config import SceneConfig
 from davinci_sim.sim.runtime.loop import frozen_heap
 from davinci_sim.system.description import task_condition  # noqa: F401 (the CLI's check)
 
@@ -30,7 +31,8 @@ _log = logging.getLogger("davinci_sim.bridge")
 class ServeOptions:
     """Everything ``davinci-sim serve`` can be told."""
 
-    scene: str = "full"
+    scene: str | SceneConfig = "full"
+    """A scene name or configuration (e.g. with the robot inaccuracy, ``joint_errors``)."""
     keyframe: str = "surgical"
     seed: int = 0
     real_time: bool = True

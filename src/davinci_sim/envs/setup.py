@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -72,6 +73,13 @@ class EnvConfig:
     orientation the tool has at the start is held)."""
     max_rotation_step: float = 0.05
     """Rotation: largest turn per action and axis, rad (2.5 rad/s at 50 Hz)."""
+    joint_errors: Any = ()
+    """The robot's kinematic inaccuracy, per PSM (a mapping or pairs of PSM name and its
+    first three joints' errors, rad, rad, m: :attr:`SceneConfig.joint_errors
+    <davinci_sim.model.config.SceneConfig.joint_errors>`, e.g. from
+    :func:`~davinci_sim.model.config.random_joint_errors`). The observed tips are what the
+    arms report (their nominal kinematics), the objects where they are: an agent must see
+    where its tools are, as on the AccelNet challenge's perturbed robots."""
 
     def __post_init__(self) -> None:
         if self.action_space not in ACTION_SPACES:
@@ -95,6 +103,14 @@ class EnvConfig:
                 raise ValueError(f"arms must be distinct PSM names, e.g. ('PSM1', 'PSM2'), "
                                  f"got {self.arms!r}")  # fmt: skip
             object.__setattr__(self, "arms", arms)
+        errors = self.joint_errors
+        pairs = errors.items() if isinstance(errors, dict) else errors
+        try:
+            object.__setattr__(self, "joint_errors",
+                               tuple((str(n), tuple(e)) for n, e in pairs))  # fmt: skip
+        except (TypeError, ValueError):
+            raise ValueError("joint_errors must map PSM names to three errors (rad, rad, m), "
+                             f"got {errors!r}") from None  # fmt: skip
         if self.rotation and self.action_space != "cartesian":
             raise ValueError("rotation=True turns the tool with Cartesian actions; joint "
                              "actions turn the wrist's joints already")  # fmt: skip
@@ -143,7 +159,7 @@ def scene_of(config: EnvConfig, psm: str, task=None) -> SceneConfig:
     arms = (psm, *getattr(task, "instruments", ()), "ECM")
     return SceneConfig(
         arms=tuple(dict.fromkeys(arms)), include_console=False,
-        include_patient=config.include_patient,
+        include_patient=config.include_patient, joint_errors=config.joint_errors,
     )  # fmt: skip
 
 

@@ -201,7 +201,8 @@ def build_spec(scene: str | SceneConfig = "full", **overrides) -> mujoco.MjSpec:
             if name == "ECM":
                 add_ecm(spec, suj_bodies[-1], arm, s.T_sujtip_rcm, arm.home, cam)
             else:
-                add_psm(spec, suj_bodies[-1], name, arm, s.T_sujtip_rcm, arm.home)
+                add_psm(spec, suj_bodies[-1], name, arm, s.T_sujtip_rcm, arm.home,
+                        config.errors_of(name))  # fmt: skip
     if config.include_patient:
         add_table(world)
         position, yaw = _bead_pose(config)

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import dataclasses
+import math
 from dataclasses import dataclass
 
 from davinci_sim.model.cameras import CameraConfig, ExternalCamera
@@ -12,6 +13,60 @@ ARM_NAMES: tuple[str, ...] = ("PSM1", "PSM2", "PSM3", "ECM", "MTML", "MTMR")
 PATIENT_SIDE_ARMS: tuple[str, ...] = ("ECM", "PSM1", "PSM2", "PSM3")
 """Arms carried by the patient cart's setup joints (SUJ arm order = dVRK plug order)."""
 MTM_NAMES: tuple[str, ...] = ("MTML", "MTMR")
+
+
+def _joint_errors(given, arms: tuple[str, ...]) -> tuple:
+    """:attr:`SceneConfig.joint_errors` checked and in a canonical form (sorted pairs of a
+    PSM of ``arms`` and three floats; zero errors left out). ValueError otherwise."""
+    pairs = given.items() if isinstance(given, dict) else given
+    out = {}
+    try:
+        for name, errors in pairs:
+            values = tuple(float(e) for e in errors)
+            if name not in arms or not str(name).startswith("PSM"):
+                raise ValueError(f"{name!r} is not a PSM of the scene {list(arms)}")
+            if len(values) != 3 or not all(math.isfinite(v) for v in values):
+                raise ValueError(f"{name}: three finite errors (yaw rad, pitch rad, "
+                                 f"insertion m), got {errors!r}")  # fmt: skip
+            if name in out:
+                raise ValueError(f"{name} given twice")
+            if any(values):
+                out[name] = values
+    except (TypeError, ValueError) as e:
+        raise ValueError(f"joint_errors: {e}") from None
+    return tuple(sorted(out.items()))
+
+
+#: The largest joint errors the AccelNet Surgical Robotics Challenge draws for a PSM (its
+#: ``psm_arm.py``: ±5° outer yaw, ±5° outer pitch, ±5 mm insertion): rad, rad, m.
+MAX_JOINT_ERRORS = (math.radians(5.0), math.radians(5.0), 0.005)
+
+
+def random_joint_errors(psms, seed: int, max_errors=MAX_JOINT_ERRORS) -> dict:
+    """Joint errors for each PSM of ``psms`` drawn uniformly within ± ``max_errors`` (rad,
+    rad, m) from ``seed``: a :attr:`SceneConfig.joint_errors` mapping."""
+    import numpy as np
+
+    rng = np.random.default_rng(seed)
+    m = np.asarray(max_errors, dtype=float)
+    return {p: tuple(float(e) for e in rng.uniform(-m, m)) for p in psms if p.startswith("PSM")}
+
+
+def parse_joint_errors(texts) -> dict:
+    """``["PSM1=0.044,-0.008,0.004", ...]`` (rad, rad, m) as a :attr:`SceneConfig.joint_errors`
+    mapping. ValueError, naming the text, for anything else."""
+    out = {}
+    for text in texts:
+        name, _, values = str(text).partition("=")
+        try:
+            errors = tuple(float(v) for v in values.split(","))
+        except ValueError:
+            errors = ()
+        if not name.startswith("PSM") or len(errors) != 3 or name in out:
+            raise ValueError(f"joint errors are PSMn=YAW,PITCH,INSERTION (rad, rad, m), once "
+                             f"per PSM: got {text!r}")  # fmt: skip
+        out[name] = errors
+    return out
 
 
 @dataclass(frozen=True)
@@ -32,6 +87,13 @@ class SceneConfig:
     endoscope: CameraConfig = CameraConfig()
     cameras: tuple[ExternalCamera, ...] = ()
     """Extra named world cameras (the ``overview`` camera is always there)."""
+    joint_errors: tuple[tuple[str, tuple[float, float, float]], ...] = ()
+    """The robots' kinematic inaccuracy, per PSM (a mapping or ``(name, errors)`` pairs):
+    constant errors of its first three joints (outer yaw and pitch, rad; insertion, m), as
+    the AccelNet Surgical Robotics Challenge perturbs its PSMs (up to 5°, 5°, 5 mm). The arm
+    reads and servoes the joint values as before, by its nominal kinematics
+    (``measured_js``, ``measured_cp``, IK), while its links stand at ``q + errors``: the
+    instrument is where the camera sees it, not where the arm reports it. Default: none."""
 
     def __post_init__(self) -> None:
         arms = tuple(self.arms)
@@ -49,6 +111,11 @@ class SceneConfig:
             raise ValueError(f"camera names must be unique and not 'overview', got {names}")
         # Canonical order, so that two configs with the same arms build the same model.
         object.__setattr__(self, "arms", tuple(a for a in ARM_NAMES if a in arms))
+        object.__setattr__(self, "joint_errors", _joint_errors(self.joint_errors, self.arms))
+
+    def errors_of(self, psm: str) -> tuple[float, float, float]:
+        """``psm``'s :attr:`joint_errors` (zeros if none)."""
+        return dict(self.joint_errors).get(psm, (0.0, 0.0, 0.0))
 
     @property
     def patient_side_arms(self) -> tuple[str, ...]:

@@ -12,7 +12,9 @@ dVRK q (dvrk.md 1.1).
   the child frame as the parent's z axis and origin.
 
 The body frames are computed at ``q_ref`` and the joints get ``ref = q_ref``: MuJoCo then
-starts (``qpos0``) at that configuration while q keeps its dVRK meaning.
+starts (``qpos0``) at that configuration while q keeps its dVRK meaning. A kinematic error
+(``q_error``, the robot-inaccuracy option) shifts the refs instead: q still reads as the
+arm's joint value while the links stand at ``q + q_error``.
 """
 
 from __future__ import annotations
@@ -25,7 +27,7 @@ from davinci_sim.kinematics.fk import link_transforms
 from davinci_sim.model.frames import set_pose
 
 
-def add_dh_chain(parent, chain: DHChain, prefix: str, q_ref=None) -> list:
+def add_dh_chain(parent, chain: DHChain, prefix: str, q_ref=None, q_error=None) -> list:
     """Add the bodies and joints of ``chain`` below ``parent``; returns the bodies in order.
 
     Args:
@@ -33,8 +35,13 @@ def add_dh_chain(parent, chain: DHChain, prefix: str, q_ref=None) -> list:
         chain: the DH chain.
         prefix: name prefix, e.g. ``"PSM1"`` or ``"SUJ/PSM1"``.
         q_ref: joint values of the initial configuration (default zeros).
+        q_error: the robot's kinematic error (default zeros), rad or m per joint: the links
+            stand at the chain's configuration ``q + q_error`` when MuJoCo's joint value (what
+            the arm reads and servoes) is ``q`` (each joint's ``ref`` is ``q_ref − q_error``:
+            the bodies, placed at ``q_ref``, turn by ``q − ref``).
     """
     q_ref = np.zeros(chain.dof) if q_ref is None else np.asarray(q_ref, dtype=float)
+    q_error = np.zeros(chain.dof) if q_error is None else np.asarray(q_error, dtype=float)
     links = link_transforms(chain, q_ref)
     bodies = []
     body = parent
@@ -52,7 +59,7 @@ def add_dh_chain(parent, chain: DHChain, prefix: str, q_ref=None) -> list:
             type=mujoco.mjtJoint.mjJNT_HINGE if joint.is_revolute else mujoco.mjtJoint.mjJNT_SLIDE,
             axis=axis,
             pos=pos,
-            ref=float(q_ref[i]),
+            ref=float(q_ref[i] - q_error[i]),
             range=[joint.qmin, joint.qmax],
             limited=mujoco.mjtLimited.mjLIMITED_TRUE,
         )

@@ -57,13 +57,18 @@ def psm_shape(T_sujtip_rcm: np.ndarray) -> RCMArmShape:
     )
 
 
-def add_psm(spec: mujoco.MjSpec, mount, name: str, arm: ArmKinematics, T_sujtip_rcm, q_ref):
-    """Add ``name`` (PSM1/2/3) below the SUJ tip body ``mount``; returns the base body."""
+def add_psm(spec: mujoco.MjSpec, mount, name: str, arm: ArmKinematics, T_sujtip_rcm, q_ref,
+            joint_errors=(0.0, 0.0, 0.0)):  # fmt: skip
+    """Add ``name`` (PSM1/2/3) below the SUJ tip body ``mount``; returns the base body.
+    ``joint_errors``: the kinematic error of the first three joints (outer yaw and pitch,
+    rad; insertion, m; :attr:`~davinci_sim.model.config.SceneConfig.joint_errors`)."""
     chain = arm.chain
+    q_error = np.zeros(chain.dof)
+    q_error[:3] = joint_errors
     shape = psm_shape(np.asarray(T_sujtip_rcm))
     accent = f"carriage_{name}"
     base, bodies = add_rcm_arm(
-        spec, mount, name, chain, T_sujtip_rcm, q_ref, shape, accent, PSM_MASS
+        spec, mount, name, chain, T_sujtip_rcm, q_ref, shape, accent, PSM_MASS, q_error
     )
     _add_carriage(bodies["insertion"], name, shape, accent, chain)
     _add_instrument(bodies, name, arm)

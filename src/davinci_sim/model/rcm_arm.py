@@ -186,16 +186,19 @@ def add_rcm_arm(
     shape: RCMArmShape,
     accent: str,
     masses: dict[str, float],
+    q_error=None,
 ):
     """What a PSM and the ECM have in common: the base body at the RCM below the SUJ tip
     ``mount`` (with an ``<name>/rcm`` site), the DH chain's bodies, the yaw link and
-    parallelogram shapes, and counterbalanced inertials (``masses``: base, yaw, pitch, kg).
+    parallelogram shapes, and counterbalanced inertials (``masses``: base, yaw, pitch, kg);
+    ``q_error``: the chain's kinematic error (:func:`~davinci_sim.model.dh.add_dh_chain`).
     Returns ``(base body, {joint name: body})``."""
     base = mount.add_body(name=f"{name}/base")
     set_pose(base, T_sujtip_rcm)
     rcm = base.add_site(name=f"{name}/rcm", size=[0.006, 0, 0], rgba=[1, 0.2, 0.2, 0.5])
     rcm.group = 5
-    bodies = dict(zip(chain.joint_names, add_dh_chain(base, chain, name, q_ref), strict=True))
+    chain_bodies = add_dh_chain(base, chain, name, q_ref, q_error)
+    bodies = dict(zip(chain.joint_names, chain_bodies, strict=True))
     add_rcm_arm_shapes(spec, name, base, bodies["yaw"], bodies["pitch"], chain, shape, accent)
     set_counterbalanced_inertials(
         chain,
