@@ -201,6 +201,47 @@ def test_instrument_contacts_leave_out_ignored_objects():
     assert with_object[0] == without[0] + 1
 
 
+TWO_ARMS_XML = """
+<mujoco>
+  <worldbody>
+    <geom name="floor" type="plane" size="1 1 0.1"/>
+    <body name="PSM1/roll" pos="0 0 0.015"><freejoint/><geom type="sphere" size="0.02"/></body>
+    <body name="PSM1/base" pos="0.1 0 0.3"><freejoint/><geom type="sphere" size="0.02"/></body>
+    <body name="PSM2/roll" pos="0.1 0 0.33"><freejoint/><geom type="sphere" size="0.02"/></body>
+    <body name="PSM2/base" pos="0.3 0 0.3"><freejoint/><geom type="sphere" size="0.02"/>
+      </body>
+    <body name="PSM2/pitch" pos="0.3 0 0.33"><freejoint/><geom type="sphere" size="0.02"/>
+      </body>
+  </worldbody>
+</mujoco>
+"""
+
+
+def test_a_two_handed_tasks_contacts_count_each_instruments_collisions():
+    """PSM1's tool on the floor, PSM2's tool on PSM1's arm, PSM2's arm on its own arm:
+    PSM1's contacts alone see the floor only; both instruments' see the floor and PSM2's
+    tool on PSM1's arm (not an arm touching itself); the task's metering is both's."""
+    model = mujoco.MjModel.from_xml_string(TWO_ARMS_XML)
+    data = mujoco.MjData(model)
+    mujoco.mj_forward(model, data)
+    assert data.ncon == 3
+    assert InstrumentContacts(model, "PSM1").measure(model, data)[0] == 1
+    both = InstrumentContacts(model, ("PSM1", "PSM2"))
+    assert both.measure(model, data)[0] == 2
+    assert InstrumentContacts(model, "PSM2").measure(model, data)[0] == 1
+    # The compiled ticks' watch: a superset of what is counted.
+    g = data.contact.geom[: data.ncon]
+    watched = (both.tool_geom[g[:, 0]] & both.other_geom[g[:, 1]]) | (
+        both.tool_geom[g[:, 1]] & both.other_geom[g[:, 0]]
+    )
+    assert watched.sum() >= 2
+    from davinci_sim.tasks import load_task
+    from davinci_sim.tasks.trainer import task_instruments
+
+    assert task_instruments(load_task("needle_pickup")) == ("PSM1", "PSM2")
+    assert task_instruments(load_task("seed_path")) == ("PSM1",)
+
+
 def test_the_live_sample_sees_the_instruments_contacts_at_the_console():
     """At the console with the patient side of the scene, the tool (clutched, moved by the
     PSM) driven down onto the bead on the scene's post: the live sample has the jaws'

@@ -401,9 +401,10 @@ def console_chunk(phys, watch, fr, devices, teleops, rec, K):
 
 @numba.njit(cache=True, nogil=True)
 def _tool_contacts(address, stride, watch, tool_geom, other_geom, flex) -> bool:
-    """Whether a contact of the state now involves the instrument and something it may
-    collide with (``InstrumentContacts.measure`` would count it), or, where ``flex``, a
-    flex (the session measures the force on it): the contacts' geom pairs read from
+    """Whether a contact of the state now involves an instrument and something it may
+    collide with (``InstrumentContacts.measure`` may count it: the tables are a superset),
+    or, where ``flex``, a flex (the session measures the force on it): the contacts' geom
+    pairs read from
     ``mjData.contact`` (``address[9]``, ``stride`` bytes apart; a flex's side is geom −1,
     the tables' last entry)."""
     ncon = numba.carray(i32_at(address[6]), (1,))[0]

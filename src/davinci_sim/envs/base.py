@@ -277,10 +277,8 @@ class DavinciEnv(gym.Env):
         if c is None:
             from davinci_sim.tasks import InstrumentContacts
 
-            task = self._start.task
-            c = self._contacts_probe = InstrumentContacts(
-                self.sim.model, task.teleop.psm, task.CONTACT_IGNORE
-            )
+            c = self._contacts_probe = InstrumentContacts.of_task(self.sim.model,
+                                                                  self._start.task)  # fmt: skip
         return c
 
     def _observation(self, T: np.ndarray, T_task_camera, feats) -> dict[str, np.ndarray]:

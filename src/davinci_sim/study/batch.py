@@ -219,7 +219,7 @@ class TrialBatch:
         self.requested = np.zeros((n, 3))
         # The trainer metrics' sample fields: the left image, the instrument's contacts.
         self.camera = sim.endoscope
-        self._contacts = InstrumentContacts(sim.model, task.teleop.psm, task.CONTACT_IGNORE)
+        self._contacts = InstrumentContacts.of_task(sim.model, task)
         self.n_contacts = np.zeros(n, dtype=np.int64)
         self.contact_force = np.zeros(n)
         self._kinematics()

@@ -598,17 +598,17 @@ def live_inputs(task: Task, teleop: TeleopPSM, console: Console) -> tuple:
 _SCENE_CACHE: dict = {}
 
 
-#: InstrumentContacts by (model id, PSM, ignored prefixes): (model, contacts), the few
+#: InstrumentContacts by (model id, PSMs, ignored prefixes): (model, contacts), the few
 #: most recent (building one reads every body's name).
 _CONTACTS: dict[tuple, tuple] = {}
 
 
 def _contacts(sim: Simulation, task: Task):
-    """The :class:`~davinci_sim.tasks.trainer.InstrumentContacts` of ``task``'s PSM in
+    """The :class:`~davinci_sim.tasks.trainer.InstrumentContacts` of ``task``'s instruments in
     ``sim``'s model (built once per model)."""
-    from davinci_sim.tasks.trainer import InstrumentContacts
+    from davinci_sim.tasks.trainer import InstrumentContacts, task_instruments
 
-    key = (id(sim.model), task.teleop.psm, task.CONTACT_IGNORE)
+    key = (id(sim.model), task_instruments(task), task.CONTACT_IGNORE)
     entry = _CONTACTS.get(key)
     if entry is None or entry[0] is not sim.model:  # (an id reused by a new model)
         entry = (sim.model, InstrumentContacts(sim.model, *key[1:]))

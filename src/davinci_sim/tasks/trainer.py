@@ -31,10 +31,11 @@ The master workspace range is a box diagonal, not the diameter of the set of pos
 box is kept from sample to sample (the diameter needs every pair), lies between the
 diameter and √3 times it, and equals it for motion along one line.
 
-Collisions are MuJoCo's contacts (:class:`InstrumentContacts`): of the instrument with
-the table, the patient, the objects of other tasks, and another arm's instrument or the
-endoscope (the model makes instruments of different arms collide,
-:mod:`davinci_sim.model.contact`; a clash of instruments is counted). Metrics read
+Collisions are MuJoCo's contacts (:class:`InstrumentContacts`): of the task's instruments
+(its PSM's and, in a two-handed task, the other's) with the table, the patient, the objects
+of other tasks, and another arm (its instrument included) or the endoscope (the model makes
+instruments of different arms collide, :mod:`davinci_sim.model.contact`; a clash of
+instruments is counted). Metrics read
 optional sample fields (``Metric.needs``): an engine that does not sample one gives nan
 for the metric (unavailable), never a made-up 0.
 """
@@ -213,56 +214,82 @@ def trainer_metrics(*, replace: tuple[Metric, ...] = (), leave_out=()) -> tuple[
 
 
 # ---------------------------------------------------------------- contacts
+def task_instruments(task) -> tuple[str, ...]:
+    """The PSMs whose instruments ``task`` uses: its teleoperated PSM, then its other
+    instruments (peg transfer's, the needle exercises')."""
+    return tuple(dict.fromkeys((task.teleop.psm, *getattr(task, "instruments", ()))))
+
+
 class InstrumentContacts:
-    """The contacts of one PSM's instrument (the bodies from ``<psm>/roll`` down: shaft,
-    wrist, jaws) with anything but its own arm (other arms' instruments and the endoscope
-    included) and the bodies named with one of
-    ``ignore`` (prefixes, e.g. the objects a task grasps): their number and total normal
-    force, N, at the current state of ``data``.
+    """The contacts of the instruments of ``psms`` (each the bodies from ``<psm>/roll``
+    down: shaft, wrist, jaws) with anything but their own arm (another instrument, its arm
+    and the endoscope included) and the bodies named with one of ``ignore`` (prefixes, e.g.
+    the objects a task grasps): their number and total normal force, N, at the current
+    state of ``data``. A clash of two of the instruments is one contact.
 
     Args:
         model: the compiled model.
-        psm: the arm's name (``PSM1``).
+        psms: the arm's name (``PSM1``) or several (a two-handed task's instruments).
         ignore: body-name prefixes whose contacts with the instrument are not collisions.
     """
 
-    def __init__(self, model: mujoco.MjModel, psm: str, ignore: tuple[str, ...] = ()) -> None:
+    def __init__(self, model: mujoco.MjModel, psms: str | tuple[str, ...],
+                 ignore: tuple[str, ...] = ()) -> None:  # fmt: skip
         import mujoco
 
+        psms = (psms,) if isinstance(psms, str) else tuple(psms)
         names = [model.body(i).name for i in range(model.nbody)]
-        root = names.index(f"{psm}/roll") if f"{psm}/roll" in names else None
-        tool = np.zeros(model.nbody, dtype=bool)
-        arm = np.array([n.startswith(f"{psm}/") for n in names])
-        if root is not None:
+        tool_of = np.full(model.nbody, -1, dtype=np.intp)
+        arm_of = np.full(model.nbody, -1, dtype=np.intp)
+        for k, psm in enumerate(psms):
+            arm_of[[n.startswith(f"{psm}/") for n in names]] = k
+            root = names.index(f"{psm}/roll") if f"{psm}/roll" in names else None
+            if root is None:
+                continue
             for i in range(model.nbody):  # parents come before children in MuJoCo's order
-                tool[i] = i == root or (i > 0 and tool[model.body_parentid[i]])
+                if i == root or (i > 0 and tool_of[model.body_parentid[i]] == k):
+                    tool_of[i] = k
         ignored = np.array([bool(ignore) and n.startswith(tuple(ignore)) for n in names])
-        skip = arm | ignored
-        # One more entry, false, for a contact's geom −1: a flex's side of a contact (the
-        # suture pad's skin is what the instruments work on, not a collision).
-        self.tool_geom = np.append(tool[model.geom_bodyid], False)
-        """(ngeom + 1,) geoms of the instrument (the last: no geom, a flex)."""
-        self.other_geom = np.append(~skip[model.geom_bodyid], False)
-        """(ngeom + 1,) geoms whose contact with the instrument counts (the last: a flex)."""
+        # One more entry for a contact's geom −1: a flex's side of a contact (the suture
+        # pad's skin is what the instruments work on, not a collision).
+        self.tool_of = np.append(tool_of[model.geom_bodyid], -1)
+        """(ngeom + 1,) the instrument (index into ``psms``) a geom belongs to, or −1."""
+        self.arm_of = np.append(arm_of[model.geom_bodyid], -1)
+        """(ngeom + 1,) the arm of ``psms`` a geom belongs to, or −1."""
+        self.counts = np.append(~ignored[model.geom_bodyid], False)
+        """(ngeom + 1,) geoms whose contact with an instrument of another arm counts."""
+        self.tool_geom = self.tool_of >= 0
+        """(ngeom + 1,) geoms of an instrument (the compiled ticks' watch)."""
+        self.other_geom = self.counts & (self.arm_of < 0 if len(psms) == 1 else True)
+        """(ngeom + 1,) geoms whose contact with an instrument may count (with several
+        instruments a superset: their own arms' too, which :meth:`measure` leaves out)."""
         self._force = np.zeros(6)
         self._contact_force = mujoco.mj_contactForce
 
     def measure(self, model: mujoco.MjModel, data: mujoco.MjData) -> tuple[int, float]:
-        """(contacts, total normal force, N) of the instrument at ``data``'s state."""
+        """(contacts, total normal force, N) of the instruments at ``data``'s state."""
         ncon = data.ncon
         if ncon == 0:
             return 0, 0.0
         g = data.contact.geom[:ncon]
-        tool = self.tool_geom[g]  # (ncon, 2)
-        if not tool.any():  # (the usual case: contacts elsewhere in the scene)
+        tool = self.tool_of[g]  # (ncon, 2)
+        if not (tool >= 0).any():  # (the usual case: contacts elsewhere in the scene)
             return 0, 0.0
-        other = self.other_geom[g]
-        hit = (tool[:, 0] & other[:, 1]) | (tool[:, 1] & other[:, 0])
+        arm, counts = self.arm_of[g], self.counts[g]
+        hit = ((tool[:, 0] >= 0) & (arm[:, 1] != tool[:, 0]) & counts[:, 1]) | (
+            (tool[:, 1] >= 0) & (arm[:, 0] != tool[:, 1]) & counts[:, 0]
+        )
         force = 0.0
         for i in np.flatnonzero(hit).tolist():
             self._contact_force(model, data, i, self._force)
             force += abs(float(self._force[0]))  # normal component, contact frame
         return int(hit.sum()), force
+
+    @classmethod
+    def of_task(cls, model: mujoco.MjModel, task) -> InstrumentContacts:
+        """The contacts ``task`` meters: of its PSM's instrument and its other instruments'
+        (a two-handed task's: PSM2's collisions count too), its objects left out."""
+        return cls(model, task_instruments(task), task.CONTACT_IGNORE)
 
     def measure_rows(self, models, datas, rows, n_contacts, contact_force) -> None:
         """:meth:`measure` of the simulations ``rows`` (indices into ``models``/``datas``)
