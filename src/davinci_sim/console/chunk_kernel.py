@@ -404,9 +404,8 @@ def _tool_contacts(address, stride, watch, tool_geom, other_geom, flex) -> bool:
     """Whether a contact of the state now involves an instrument and something it may
     collide with (``InstrumentContacts.measure`` may count it: the tables are a superset),
     or, where ``flex``, a flex (the session measures the force on it): the contacts' geom
-    pairs read from
-    ``mjData.contact`` (``address[9]``, ``stride`` bytes apart; a flex's side is geom −1,
-    the tables' last entry)."""
+    pairs read from ``mjData.contact`` (``address[9]``, ``stride`` bytes apart; a flex's
+    side is geom −1, the tables' last entry)."""
     ncon = numba.carray(i32_at(address[6]), (1,))[0]
     if ncon == 0 or not watch[0]:
         return False
