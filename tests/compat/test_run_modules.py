@@ -120,6 +120,8 @@ def test_cli_errors(clean_path, tmp_path, capsys):
     assert "no such script" in capsys.readouterr().err
     script = tmp_path / "x.py"
     script.write_text("print('never')\n")
+    before = os.environ.get("PYTHONPATH")
     assert cli.main(["run", "--connect", "ws://127.0.0.1:9", str(script)]) == 2
     captured = capsys.readouterr()
     assert "cannot connect" in captured.err and "never" not in captured.out
+    assert os.environ.get("PYTHONPATH") == before  # (the script's environment put back)

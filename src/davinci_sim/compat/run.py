@@ -182,8 +182,9 @@ def run_script(script: str, args: list[str], options: RunOptions,
     choice = module_choice(options.force_compat)
     say(f"davinci-sim run: {choice.describe()}")
     install_modules(choice)
+    # (the script's environment, its subprocesses' too; put back as it was afterwards)
+    stops: list = [_EnvRestore("PYTHONPATH"), _EnvRestore(ral_module.ENV_URL)]
     os.environ["PYTHONPATH"] = _python_path(choice)
-    stops: list = []
     try:
         if options.connect:
             connection = WebSocketConnection(options.connect)
