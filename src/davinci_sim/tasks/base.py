@@ -95,8 +95,9 @@ class Sample:
     master: np.ndarray | None = None
     """(n, 3) the master (MTM handle) position in HRSV, m."""
     contacts: np.ndarray | None = None
-    """(n,) int: contacts of the instrument with the scene at this tick (its own arm's and the
-    task's objects' left out, :class:`~davinci_sim.tasks.trainer.InstrumentContacts`)."""
+    """(n,) int: contacts of the task's instruments with the scene at this tick (each one's
+    own arm's and the task's objects' left out,
+    :class:`~davinci_sim.tasks.trainer.InstrumentContacts`)."""
     tool_force: np.ndarray | None = None
     """(n,) total normal force of those contacts on the instrument, N."""
     objects: np.ndarray | None = None

@@ -166,7 +166,7 @@ ECONOMY = _BY_NAME["path_length"]
 
 INSTRUMENT_COLLISIONS = Metric(
     "instrument_collisions", "1", "lower",
-    "contacts of the instrument with the scene (onsets)",
+    "contacts of the instruments with the scene (onsets)",
     PairSum(_contact_onset, True), integer=True, label="collisions", needs=("contacts",),
 )  # fmt: skip
 EXCESSIVE_FORCE = Metric(
