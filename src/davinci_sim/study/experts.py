@@ -36,10 +36,14 @@ task's teleoperation clutched:
   transferred all three rings; four ended in a tracking fault. In both of expert 3's,
   PSM2's open jaws struck the board on the straight glide to their grasp of the third
   ring: a ring on the board is now reached from above (:data:`ON_BOARD`), the jaws
-  opened there. Since then, four of the six finish (two with three clean hand-offs in 62 and
-  67 s, two with a ring dropped and picked up again, nine instrument contacts each), and
-  two do not (expert 2's first, expert 3's first: not looked into). No peg reference is
-  shipped: two clean attempts of six do not make one.
+  opened there. Since then, four of the six finish, all four with three clean hand-offs
+  since PSM2 backs out along its jaws before it moves away from the hand-off (its open
+  jaws, dragged sideways round the ring's tube, pulled the ring out of PSM1's grasp: two
+  of the four had a drop before). Two do not: in expert 2's first a ring slips out of
+  PSM1's jaws as it is lowered over its target peg and falls off the board, PSM1 reaches
+  for it out of range and faults; in expert 3's first a ring falls from PSM2 on the way to
+  the hand-off, PSM1 picks it off the board and faults dragging a jaw on the board as it
+  carries it across. No peg reference is shipped: four of six do not make one.
 
 **The expert's variability** (:class:`Motor`): each attempt draws from the expert's
 parameters (:func:`~davinci_sim.operators.params.sample_experts`; repetition j scales them
@@ -200,20 +204,42 @@ def slerp(R0: np.ndarray, R1: np.ndarray, s: float) -> np.ndarray:
 
 
 class Streamer:
-    """Streams ``servo_cp`` setpoints of PSMs, given in the task's frame, tick by tick."""
+    """Streams ``servo_cp`` setpoints of PSMs, given in the task's frame, tick by tick.
 
-    def __init__(self, sim, motor: Motor, T_camera_task: np.ndarray, arms) -> None:
+    ``sees_tips``: the operator corrects by what it sees of each tool, as on a robot whose
+    kinematics are off (:attr:`SceneConfig.joint_errors
+    <davinci_sim.model.config.SceneConfig.joint_errors>`): after each reach it looks where
+    the tip is (its MuJoCo site), takes the offset from where it sent it as the arm's bias
+    and sends later setpoints that much the other way (:attr:`bias`); a reach ends when the
+    tip it sees is within the tolerance. Off: the tip is taken to be where it was sent (the
+    exact robot; the shipped references)."""
+
+    def __init__(self, sim, motor: Motor, T_camera_task: np.ndarray, arms,
+                 sees_tips: bool = False) -> None:  # fmt: skip
         self.sim, self.motor, self.T = sim, motor, np.asarray(T_camera_task, float)
         self.goal: dict[str, np.ndarray] = {}
         for n in arms:  # the current setpoint, task frame
             self.goal[n] = np.linalg.inv(self.T) @ sim.arms[n].setpoint_cp().T
+        self.sees_tips = bool(sees_tips)
+        self.bias = {n: np.zeros(3) for n in arms}
+        """Per arm: where its tip is seen minus where it was sent, task frame, m."""
 
     def _send(self) -> None:
         t = self.sim.time
         for n, G in self.goal.items():
             H = G.copy()
             H[:3, 3] += self.motor.tremor_at(t)
+            if self.sees_tips:
+                H[:3, 3] -= self.bias[n]
             self.sim.arms[n].servo_cp(self.T @ H)
+
+    def seen_tip(self, arm: str) -> np.ndarray:
+        """Where ``arm``'s tool tip is (its MuJoCo site, as the endoscope shows it), task
+        frame, m."""
+        sim = self.sim
+        p_world = sim.data.site_xpos[sim.model.site(f"{arm}/tip").id]
+        T_task_world = np.linalg.inv(self.T) @ np.linalg.inv(sim.T_cart_camera())
+        return T_task_world[:3, :3] @ p_world + T_task_world[:3, 3]
 
     def wait(self, seconds: float, until=None) -> bool:
         """Hold the setpoints (with tremor) for ``seconds`` or until ``until()``."""
@@ -282,7 +308,12 @@ class Streamer:
             if self.glide({arm: H}, m.duration(float(np.linalg.norm(p - G0[:3, 3])), angle),
                           until):  # fmt: skip
                 return True
-            if np.linalg.norm(p - goal) <= tolerance:
+            if self.sees_tips:  # (the tip as seen: the next setpoints corrected by its offset)
+                seen = self.seen_tip(arm)
+                self.bias[arm] = self.bias[arm] + (seen - p)
+                if np.linalg.norm(seen - goal) <= tolerance:
+                    return False
+            elif np.linalg.norm(p - goal) <= tolerance:
                 return False
             if self.wait(m.delay, until):  # looks, then corrects
                 return True
@@ -668,10 +699,13 @@ class Stage:
     arms: tuple[str, ...]
 
 
-def build_stage(task) -> Stage:
+def build_stage(task, joint_errors=()) -> Stage:
     """The stage of ``task``: the study's set-up (the task's PSM at the start, its
     teleoperation clutched) and a session, the ECM homed for camera targeting; for the
-    two-handed kinds the console's system with both PSMs homed and their objects drawn."""
+    two-handed kinds the console's system with both PSMs homed and their objects drawn.
+    ``joint_errors``: the robot's inaccuracy (:attr:`SceneConfig.joint_errors
+    <davinci_sim.model.config.SceneConfig.joint_errors>`; the experts then correct by what
+    they see, :class:`Streamer`)."""
     from davinci_sim.tasks import install_task
 
     if task.kind in TWO_HANDED:
@@ -679,7 +713,8 @@ def build_stage(task) -> Stage:
         from davinci_sim.system import ConsoleDescription, SystemDescription, build_simulation
         from davinci_sim.system.description import TaskDescription
 
-        scene = SceneConfig(arms=("PSM1", "PSM2", "ECM", task.teleop.mtm), include_patient=False)
+        scene = SceneConfig(arms=("PSM1", "PSM2", "ECM", task.teleop.mtm), include_patient=False,
+                            joint_errors=joint_errors)  # fmt: skip
         console = ConsoleDescription(operator_present=True, teleop_enabled=True)
         sim = build_simulation(SystemDescription(scene, console=console, runner="none",
                                                  task=TaskDescription(task.name)))  # fmt: skip
@@ -696,7 +731,8 @@ def build_stage(task) -> Stage:
     else:
         from davinci_sim.study.trial import build_setup
 
-        setup = build_setup(task)  # (its own: not the trials' cached set-up, it is closed)
+        # (its own: not the trials' cached set-up, it is closed)
+        setup = build_setup(task, joint_errors=joint_errors)
         sim = setup.sim
         setup.teleop.clutch(True)
         session = install_task(sim, task)
@@ -744,7 +780,8 @@ def attempt(stage: Stage, task, motor: Motor) -> dict:
     if task.kind == "camera_targeting":
         do_camera(sim, motor, session, task, done)
     else:
-        stream = Streamer(sim, motor, T_camera_task, stage.arms)
+        stream = Streamer(sim, motor, T_camera_task, stage.arms,
+                          sees_tips=bool(sim.config.joint_errors))  # fmt: skip
         script = {"needle_targeting": do_needle, "ring_walk": do_ring_walk,
                   "peg_transfer": do_peg, "needle_pickup": do_needle_pickup,
                   "needle_drive": do_needle_drive}[task.kind]  # fmt: skip
@@ -755,16 +792,18 @@ def attempt(stage: Stage, task, motor: Motor) -> dict:
     return {"finished": False}
 
 
-def expert_attempts(task, *, subjects: int, repetitions: int, seed: int, progress=None):
+def expert_attempts(task, *, subjects: int, repetitions: int, seed: int, progress=None,
+                    joint_errors=()):  # fmt: skip
     """The attempts of ``subjects`` experts (:func:`sample_experts` of ``seed``) x
     ``repetitions`` at ``task`` (rows, subject-major); each attempt's randomness is keyed
-    by (seed, subject, repetition)."""
+    by (seed, subject, repetition); ``joint_errors``: on an inaccurate robot
+    (:func:`build_stage`)."""
     from davinci_sim.operators.params import sample_experts
 
     if task.kind not in EXERCISES:
         raise ValueError(f"no scripted expert for a {task.kind} task; kinds: {list(EXERCISES)}")
     params = sample_experts(subjects, seed=seed)
-    stage = build_stage(task)
+    stage = build_stage(task, joint_errors)
     rows = []
     try:
         for s in range(subjects):

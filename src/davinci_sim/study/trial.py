@@ -137,14 +137,16 @@ def condition_spec(B: float, G_max: float, *, transition: float = 0.0) -> dict:
             "transition": float(transition)}  # fmt: skip
 
 
-def study_scene(task) -> SceneConfig:
+def study_scene(task, joint_errors=()) -> SceneConfig:
     """The scene of a study trial: the task's PSM, the ECM (camera frame) and the task's MTM
     with the console; no patient (the path floats in free space, nothing to touch), which
-    also spares the contact search."""
-    return SceneConfig(arms=(task.teleop.psm, "ECM", task.teleop.mtm), include_patient=False)
+    also spares the contact search; ``joint_errors``: the robot's inaccuracy
+    (:attr:`SceneConfig.joint_errors`, none by default)."""
+    return SceneConfig(arms=(task.teleop.psm, "ECM", task.teleop.mtm), include_patient=False,
+                       joint_errors=joint_errors)  # fmt: skip
 
 
-def trial_description(task: PathTask, *, seed: int = 0):
+def trial_description(task: PathTask, *, seed: int = 0, joint_errors=()):
     """The system of a study trial: :func:`study_scene` at the task's keyframe, the console
     with a simulated MTM at the task's motion scale (no MTM alignment: the hand holds the
     handle as it is), the operator present and teleoperation enabled; no runner (the
@@ -159,7 +161,8 @@ def trial_description(task: PathTask, *, seed: int = 0):
         teleop_enabled=True,
     )
     return SystemDescription(
-        scene=study_scene(task), keyframe=task.teleop.keyframe, seed=seed, console=console,
+        scene=study_scene(task, joint_errors), keyframe=task.teleop.keyframe, seed=seed,
+        console=console,
         runner="none",
     )  # fmt: skip
 
@@ -230,7 +233,7 @@ def _restore(setup: TrialSetup, state: SimState) -> bool:
     return True
 
 
-def build_setup(task: PathTask, *, seed: int = 0) -> TrialSetup:
+def build_setup(task: PathTask, *, seed: int = 0, joint_errors=()) -> TrialSetup:
     """Build the study scene and bring it to the start of a trial, the same for every trial:
 
     1. enable and home the PSM, then move its tool tip to point 1 (``move_cp``, orientation
@@ -244,7 +247,7 @@ def build_setup(task: PathTask, *, seed: int = 0) -> TrialSetup:
     """
     from davinci_sim.system import install_console_of, new_simulation
 
-    description = trial_description(task, seed=seed)
+    description = trial_description(task, seed=seed, joint_errors=joint_errors)
     sim = new_simulation(description)
     mtm, psm_name = task.teleop.mtm, task.teleop.psm
     psm = sim.arms[psm_name]
