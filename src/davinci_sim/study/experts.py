@@ -480,8 +480,9 @@ def do_peg(stream: Streamer, session, task, done) -> None:
             lambda: jaw("PSM2", JAW_OPEN),
             # (back out along its own jaws first: open jaws dragged sideways around the
             # ring's tube pulled it out of PSM1's grasp)
-            lambda: stream.reach("PSM2", tip("PSM2") - 0.012 * stream.goal["PSM2"][:3, 2], 0.003,
-                                 until=done),  # fmt: skip
+            lambda: stream.reach(
+                "PSM2", tip("PSM2") - 0.012 * stream.goal["PSM2"][:3, 2], 0.003, until=done
+            ),  # fmt: skip
             lambda: stream.reach("PSM2", tip("PSM2") + [0.015, 0, 0.01], 0.003, until=done),
         ]
         for step in steps:
