@@ -209,3 +209,24 @@ def test_with_joint_errors_the_observed_tip_is_what_the_arm_reports_not_where_it
         env.close()
     with pytest.raises(ValueError, match="joint_errors"):
         DavinciEnv(joint_errors={"PSM2": (0.0, 0.0, 0.001)})  # (no PSM2 in Reach's scene)
+
+
+def test_needle_drivings_progress_reward_is_the_share_of_pairs_newly_passed():
+    """The running suture's four pairs: each pair passed gives a quarter of
+    PROGRESS_REWARD once, at the action it is passed; the marks observed are the next
+    pair's (the last pair's once all are passed)."""
+    from davinci_sim.envs.problems import PROGRESS_REWARD, TaskProblem
+    from davinci_sim.tasks import load_task
+
+    task = load_task("running_suture")
+    problem = TaskProblem(task, 1, np.eye(4), camera=None)
+    T_tip = np.eye(4)[None]
+    marks = task.pad.marks_world()
+    rewards = []
+    for passed in (0, 0, 1, 3, 4, 4):
+        problem.state = problem.state._replace(next_pair=np.array([passed]))
+        _, _, terms = problem.outcome(T_tip, np.eye(4))
+        rewards.append(terms["reward_progress"][0])
+        feats = problem.features(T_tip, np.eye(4))
+        np.testing.assert_allclose(feats["entry_mark"][0], marks[min(passed, 3), 0])
+    np.testing.assert_allclose(rewards, np.array([0, 0, 1, 2, 1, 0]) * PROGRESS_REWARD / 4)

@@ -6,10 +6,11 @@ n rows at once (one implementation for the single and the vector environments).
   :class:`~davinci_sim.tasks.Sample` goes through the task's own state machine and metrics
   (:func:`~davinci_sim.tasks.advance`, as the live session and the study do); the episode
   terminates when the task's phase reaches FINISHED; the reward's terms are the exercise's
-  per-sample quantities (its ``distance`` observation, the path's progress) and its finish.
-  Features: ``phase``, ``distance``; path following ``progress`` and ``next_point``; camera
-  targeting ``target``; needle driving ``entry_mark`` and ``exit_mark``, the next pair's
-  marks (the last pair's once all are passed).
+  per-sample quantities (its ``distance`` observation, the path's progress or needle
+  driving's pairs passed) and its finish. Features: ``phase``, ``distance``; path following
+  ``progress`` and ``next_point``; camera targeting ``target``; needle driving
+  ``entry_mark`` and ``exit_mark``, the next pair's marks (the last pair's once all are
+  passed).
 
 Rewards are returned as a sum with each term in ``info`` (``reward_<term>``), as
 Gymnasium's MuJoCo environments do. Positions in features are in the camera frame, m.
@@ -213,7 +214,8 @@ class TaskProblem:
     def outcome(self, T_camera_tip, T_task_camera=None, features=None):
         """``(reward (n,), terminated (n,), terms)``: ``reward_distance`` −(the task's
         ``distance`` in cm), ``reward_progress`` (path: the share of the path newly
-        covered × :data:`PROGRESS_REWARD`), ``reward_finish`` (:data:`SUCCESS_REWARD` at
+        covered × :data:`PROGRESS_REWARD`; needle driving: the share of the pairs newly
+        passed × the same), ``reward_finish`` (:data:`SUCCESS_REWARD` at
         the action the task finishes); terminated once the phase is FINISHED.
         ``features``: :meth:`features` of the same state, if the caller has them."""
         feats = self.features(T_camera_tip, T_task_camera) if features is None else features
@@ -225,6 +227,10 @@ class TaskProblem:
             progress = feats["progress"][:, 0]
             terms["reward_progress"] = PROGRESS_REWARD * (progress - self._progress)
             self._progress = progress.copy()
+        elif self.task.kind == "needle_drive":
+            progress = self.state.next_pair / len(self.task.pairs)
+            terms["reward_progress"] = PROGRESS_REWARD * (progress - self._progress)
+            self._progress = progress.astype(float)
         terms["reward_finish"] = np.where(finish, SUCCESS_REWARD, 0.0)
         self._phase = phase
         return sum(terms.values()), done, terms
