@@ -711,14 +711,18 @@ def build_stage(task, joint_errors=()) -> Stage:
 
     if task.kind in TWO_HANDED:
         from davinci_sim.model import SceneConfig
-        from davinci_sim.system import ConsoleDescription, SystemDescription, build_simulation
+        from davinci_sim.system import ConsoleDescription, SystemDescription
+        from davinci_sim.system.build import install, new_simulation
         from davinci_sim.system.description import TaskDescription
 
         scene = SceneConfig(arms=("PSM1", "PSM2", "ECM", task.teleop.mtm), include_patient=False,
                             joint_errors=joint_errors)  # fmt: skip
         console = ConsoleDescription(operator_present=True, teleop_enabled=True)
-        sim = build_simulation(SystemDescription(scene, console=console, runner="none",
-                                                 task=TaskDescription(task.name)))  # fmt: skip
+        description = SystemDescription(scene, console=console, runner="none",
+                                        task=TaskDescription(task.name))  # fmt: skip
+        # (the task itself, not its name: a task file of the user's is not a shipped name)
+        sim = new_simulation(description, task)
+        install(sim, description, task)
         session = sim.components["task"]
         arms = ("PSM1", "PSM2")
         for n in (*arms, "ECM"):

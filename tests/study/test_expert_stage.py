@@ -1,6 +1,7 @@
-"""A scripted expert on a robot whose kinematics are off (``SceneConfig.joint_errors``, the
-AccelNet challenge's perturbation): it corrects by the tips it sees and still picks the
-needle up and hands it over."""
+"""The scripted experts' stage (``study/experts.py: build_stage``): on a robot whose
+kinematics are off (``SceneConfig.joint_errors``, the AccelNet challenge's perturbation) an
+expert corrects by the tips it sees and still hands the needle over; a two-handed task file
+of the user's gets its stage."""
 
 import numpy as np
 
@@ -30,3 +31,21 @@ def test_an_expert_sees_where_the_tools_are_and_hands_the_needle_over(monkeypatc
     assert stream.sees_tips
     for arm in ("PSM1", "PSM2"):
         assert np.linalg.norm(stream.bias[arm]) > 0.003  # m
+
+
+def test_a_two_handed_task_file_of_the_users_gets_its_stage(tmp_path):
+    """``scripts/expert_reference.py --exercise FILE`` of a two-handed kind: the stage is
+    built from the task itself (a file's name is not a shipped task's)."""
+    import dataclasses
+
+    from davinci_sim.tasks import save_task
+
+    task = dataclasses.replace(load_task("needle_pickup"), name="my_needle", lift_height=0.015)
+    save_task(task, tmp_path / "my_needle.yaml")
+    mine = load_task(str(tmp_path / "my_needle.yaml"))
+    stage = experts.build_stage(mine)
+    try:
+        assert stage.session.task.name == "my_needle"
+        assert stage.session.task.lift_height == 0.015
+    finally:
+        stage.sim.close()
