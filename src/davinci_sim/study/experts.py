@@ -22,9 +22,10 @@ task's teleoperation clutched:
   mark and out at the exit; between pairs PSM2 takes the point and pulls the needle
   through, and hands it back. The shipped reference (3 experts x 2 attempts of seed 9001)
   has 5 finished attempts: entry 0.1-0.5 mm and exit 0.05-0.2 mm off their marks. In
-  the sixth (expert 2's first) PSM2's wrist yaw reached its 80° limit tilting the needle
-  (its grasp, a few degrees off, left no room for the tilt), the needle stayed low and
-  PSM1's driver grip pressed on the park (three tries). The start of the drive is 3 mm
+  the sixth (expert 2's first) the needle PSM2 lifted still touched its park (it slides in
+  the 8 mm grasp), so the tilt turned it in the grasp against the park; the needle stayed
+  low and PSM1's driver grip pressed on the park (three tries). Lifting straight up before
+  tilting did not help (tried, 2026-11-29). The start of the drive is 3 mm
   above the skin (:data:`DRIVE_START`): 1.1 mm above, three of six attempts grazed the
   skin 2-3 mm from the entry mark on the way down;
 * ``peg_transfer`` (and its ICRA variant): PSM2 lifts each ring off its start peg, carries it
