@@ -26,16 +26,23 @@ START_DEADLINE = 180.0
 def ros_client(port: int):
     """A roslibpy client connected to the server on 127.0.0.1:``port``.
 
-    Three CI runs' clients of one test module did not connect in ``ROS_CONNECT_TIMEOUT``
-    (not seen here, alone or loaded); roslibpy's error says nothing more. So a client that
-    does not connect gets one fresh try, with a warning saying whether the server answers a
-    handshake of its own and whether roslibpy's reactor runs; a second failure raises with
-    the same facts."""
+    Clients of one test module did not connect in ``ROS_CONNECT_TIMEOUT`` in three CI runs
+    and once in a clean clone here, with the server answering handshakes and roslibpy's
+    reactor running. roslibpy queues a client's connect in the one reactor thread of the
+    process behind every send queued before it, and a clean clone's log showed 20,194 sends
+    to closed connections drained (each raising and logged) while the client waited: the
+    backlog of earlier tests' streams. So the client waits first for that queue to drain
+    (at most ``ROS_CONNECT_TIMEOUT``); one that does not connect gets one fresh try, with a
+    warning of the facts (the server's own handshake, the reactor, the queue); a second
+    failure raises with them."""
     import warnings
 
     import roslibpy
     from twisted.internet import reactor
 
+    from davinci_sim.bridge.client_mode import send_backlog
+
+    wait_for(lambda: send_backlog() < 100, timeout=ROS_CONNECT_TIMEOUT, period=0.05)
     for attempt in (1, 2):
         ros = roslibpy.Ros("127.0.0.1", port)
         try:
@@ -51,7 +58,7 @@ def ros_client(port: int):
             retries = getattr(ros.factory, "retries", "?")
             facts = (f"roslibpy did not connect to port {port} in {ROS_CONNECT_TIMEOUT} s: "
                      f"{server}; reactor running={reactor.running}, retries={retries}, "
-                     f"threads={threads}")  # fmt: skip
+                     f"queued reactor calls={send_backlog()}, threads={threads}")  # fmt: skip
             ros.factory.stopTrying()  # (the failed client would go on reconnecting)
             if attempt == 2:
                 raise roslibpy.core.RosTimeoutError(facts) from None

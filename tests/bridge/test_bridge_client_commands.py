@@ -251,6 +251,31 @@ def test_a_remote_wrench_on_a_simulated_mtm(make_server, make_ros):
         handle.stop()
 
 
+def test_the_streams_drop_periods_while_the_send_queue_is_full(make_server, make_ros,
+                                                               sim_psm1, monkeypatch):
+    """Streams are latest-wins: while the process's queue of sends is over
+    ``MAX_BACKLOG`` (a remote that reads slower than the streams come) the client mode
+    sends no state and counts the periods it skipped; once it drains, the states flow."""
+    from davinci_sim.bridge import client_mode
+
+    remote_server = make_server()
+    handle = sim_psm1()
+    remote = Remote(make_ros(remote_server))
+    client = RosClientMode(handle, ClientModeConfig(remote_server.url, mtms=()))
+    full = {"on": True}
+    monkeypatch.setattr(client_mode, "send_backlog",
+                        lambda: client_mode.MAX_BACKLOG + 1 if full["on"] else 0)  # fmt: skip
+    try:
+        client.start(ROS_CONNECT_TIMEOUT)
+        remote.listen("/sim/PSM1/measured_js", "sensor_msgs/JointState")
+        assert wait_for(lambda: client.skipped >= 20, 5)
+        assert remote.got["/sim/PSM1/measured_js"] == []
+        full["on"] = False
+        assert wait_for(lambda: len(remote.got["/sim/PSM1/measured_js"]) >= 5, 5)
+    finally:
+        client.stop()
+
+
 def test_serve_in_client_mode_takes_the_remote_commands(make_server, make_ros):
     """``davinci-sim serve --ros-connect URL --namespace /``: a script on the remote system
     homes and moves the simulated PSM1 with the dVRK's own topic names."""

@@ -149,6 +149,21 @@ def default_wrench_source(snap: Snapshot) -> dict[str, np.ndarray]:
     return out
 
 
+#: Sends waiting in the process's Twisted reactor (roslibpy queues each publish there) above
+#: which the client mode skips a period of its streams: a remote that reads slower than the
+#: streams come, or a closed connection, would otherwise grow the queue without bound.
+MAX_BACKLOG = 500
+
+
+def send_backlog() -> int:
+    """Calls queued for the Twisted reactor's thread (roslibpy's sends, connects, closes) in
+    this process; 0 before roslibpy's reactor is imported."""
+    import sys
+
+    reactor = sys.modules.get("twisted.internet.reactor")
+    return len(getattr(reactor, "threadCallQueue", ()))
+
+
 class RosClientMode:
     """The simulator as a client of a remote rosbridge (see the module docstring).
 
@@ -190,6 +205,9 @@ class RosClientMode:
         self._unsubscribe: Callable[[], None] | None = None
         self.received: dict[str, int] = {}
         self.errors = 0
+        self.skipped = 0
+        """Periods whose streamed states were not sent: the connection's queue was full
+        (:data:`MAX_BACKLOG`) or closed."""
         self.prefix = "" if config.namespace == "/" else config.namespace
         snap = handle.snapshot()
         self.arms = config.arms or tuple(
@@ -502,6 +520,15 @@ class RosClientMode:
         ):
             now = time.monotonic()
             try:
+                if not self.ros.is_connected or send_backlog() > MAX_BACKLOG:
+                    # Streams are latest-wins: a period not sent is dropped, not queued
+                    # behind the others (every send waits in one queue with every other
+                    # client's of this process, its connects included).
+                    self.skipped += 1
+                    next_state = next_wrench = now + period
+                    if self.robot is not None:
+                        next_tf = now + period
+                    continue
                 snap = self.handle.snapshot()
                 if now >= next_tf:
                     next_tf = max(next_tf + 1.0 / c.tf_rate, now - period)
