@@ -251,8 +251,9 @@ def test_a_remote_wrench_on_a_simulated_mtm(make_server, make_ros):
         handle.stop()
 
 
-def test_the_streams_drop_periods_while_the_send_queue_is_full(make_server, make_ros,
-                                                               sim_psm1, monkeypatch):
+def test_the_streams_drop_periods_while_the_send_queue_is_full(
+    make_server, make_ros, sim_psm1, monkeypatch
+):
     """Streams are latest-wins: while the process's queue of sends is over
     ``MAX_BACKLOG`` (a remote that reads slower than the streams come) the client mode
     sends no state and counts the periods it skipped; once it drains, the states flow."""

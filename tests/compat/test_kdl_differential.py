@@ -227,6 +227,11 @@ def same(a, b) -> bool:
     if isinstance(a, float) and isinstance(b, float):
         if math.isnan(a) or math.isnan(b):
             return math.isnan(a) and math.isnan(b)
+        if math.isclose(abs(a), math.pi, abs_tol=1e-9) and math.isclose(abs(b), math.pi,
+                                                                         abs_tol=1e-9):  # fmt: skip
+            # (−π and π are one angle: GetRPY's atan2 gives either for a rotation of π, by
+            # the sign of a zero; a clean clone's run saw PyKDL's −π against our π)
+            return True
         return math.isclose(a, b, rel_tol=1e-9, abs_tol=1e-9)
     return a == b
 
