@@ -59,6 +59,13 @@ def test_serve_runs_server_udp_and_stops(make_ros):
             assert wait_for(lambda: states and states[-1]["is_homed"], 10)  # --home
             data, _ = listener.recvfrom(65536)
             assert len(json.loads(data)) == 1
+            # (the served simulation's clock, /clock, moves on after this: serve's rate has a
+            # window of simulated time to measure, however loaded the machine)
+            clock = []
+            roslibpy.Topic(ros, "/clock", "rosgraph_msgs/Clock").subscribe(
+                lambda m: clock.append(m["clock"]["secs"] + 1e-9 * m["clock"]["nsecs"])
+            )
+            assert wait_for(lambda: len(clock) > 1 and clock[-1] >= clock[0] + 0.05, 30)
     finally:
         listener.close()
     assert server.result["done"]["sim_over_wall"] > 0  # the loop ran (its rate: benchmarks/)
