@@ -17,9 +17,10 @@ from davinci_sim.study.reference import exercise_reference
 from davinci_sim.tasks import load_task, save_task
 from davinci_sim.tasks.scoring import reference_dir
 
-#: The exercises with a shipped expert reference (the scripted experts of peg transfer and
-#: of the running suture do not yet finish their attempts reliably: none is shipped).
-EXERCISES = ("camera_targeting", "ring_walk", "needle_targeting", "needle_pickup", "needle_drive")
+#: The exercises with a shipped expert reference (the running suture's scripted expert does
+#: not yet finish its attempts: none is shipped; nor for the ICRA peg board's variant).
+EXERCISES = ("camera_targeting", "ring_walk", "needle_targeting", "needle_pickup", "needle_drive",
+             "peg_transfer")  # fmt: skip
 
 
 @pytest.mark.parametrize("name", EXERCISES)
