@@ -44,7 +44,8 @@ task's teleoperation clutched:
   PSM1's jaws as it is lowered over its target peg and falls off the board, PSM1 reaches
   for it out of range and faults; in expert 3's first a ring falls from PSM2 on the way to
   the hand-off, PSM1 picks it off the board and faults dragging a jaw on the board as it
-  carries it across. No peg reference is shipped: four of six do not make one.
+  carries it across. The shipped peg reference is the four finished attempts' metrics
+  (``tasks/data/reference/peg_transfer.json``: 4 of 6 finished).
 
 **The expert's variability** (:class:`Motor`): each attempt draws from the expert's
 parameters (:func:`~davinci_sim.operators.params.sample_experts`; repetition j scales them
