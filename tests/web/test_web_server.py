@@ -365,15 +365,23 @@ def test_the_wrist_input_unlocks_the_rotation_turns_the_tool_and_release_locks_i
         before = wait_following(page)
         assert locked()
         z0 = np.array(before["tips"]["PSM1"]["z_camera"])
-        turned_for = 0.0
-        last = before["time"]
-        while turned_for < 0.5:  # s of simulated time following while turning
+        # Turn until the teleoperation has followed, unlocked, for 0.5 s of simulated time
+        # with at least three turns sent while it did: the simulation runs as fast as it
+        # goes, and a turn holds only 0.3 s of simulated time (the hand input's dead-man), so
+        # turns sent while it re-aligns may all have run out before it follows.
+        following_since, sent_following = None, 0
+        s = before
+        while following_since is None or s["time"] - following_since < 0.5 or (sent_following < 3):
+            assert s["time"] - before["time"] < 20.0, "the teleoperation did not follow"
             page.send(op="input", mtm="MTMR", axes=[0, 0, 0], turn=[0, 1, 0])
+            if following_since is not None:
+                sent_following += 1
             time.sleep(0.05)
             s = page.latest_state()
-            if s["teleops"]["MTMR_PSM1"]["following"] and not locked():
-                turned_for += s["time"] - last
-            last = s["time"]
+            if not (s["teleops"]["MTMR_PSM1"]["following"] and not locked()):
+                following_since, sent_following = None, 0
+            elif following_since is None:
+                following_since = s["time"]
         time.sleep(0.5)
         z1 = np.array(page.latest_state()["tips"]["PSM1"]["z_camera"])
         swing = np.cross(z0, z1)  # rotation axis x sin(angle), camera frame
