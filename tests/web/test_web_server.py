@@ -256,9 +256,13 @@ def test_the_operators_input_moves_the_tool_right_in_the_image(console):
         p0 = np.array(before["tips"]["PSM1"]["p_camera"])
         u0 = before["tips"]["PSM1"]["pixel"][0]
         # "Right" at full rate, as the page sends it, for 1 s of simulated time (the loop
-        # may run slower than real time on a busy machine).
-        while page.latest_state()["time"] < before["time"] + 1.0:
+        # may run slower than real time on a busy machine) and at least five times (or
+        # faster: as fast as it goes, a fast machine runs 1 s in a few messages, and each
+        # holds only 0.3 s of simulated time).
+        sent = 0
+        while page.latest_state()["time"] < before["time"] + 1.0 or sent < 5:
             page.send(op="input", mtm="MTMR", axes=[1, 0, 0])
+            sent += 1
             time.sleep(0.05)
         after = page.latest_state()
         moved = np.array(after["tips"]["PSM1"]["p_camera"]) - p0
