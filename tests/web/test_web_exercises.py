@@ -370,15 +370,19 @@ class Clutch:
     still for 1 s while its teleoperation follows: the master stopped at a joint limit while
     the hand's target dithered beyond it, a loaded run), they press the clutch (Space) and
     bring the hand back the opposite way for 1.5 s, the tool (or, with the camera pedal
-    among ``held``, the camera) held still, then let go and carry on. Called with the state
-    and the keys a step would hold; returns the keys to hold."""
+    among ``held``, the camera) held still, then let go and carry on. Also when the tool has
+    come no nearer its goal for 1.5 s while move keys are held (``error``, the tool's offset
+    from it, given): the hand stopped at its reach along one axis while the keys of the others
+    dithered it about, which neither of the first two signs shows. Called with the state and
+    the keys a step would hold; returns the keys to hold."""
 
     def __init__(self, hand: str, held=()) -> None:
         self.hand, self.held = hand, set(held)
         self.since = self.target = self.until = self.seen = self.seen_since = None
+        self.nearest = self.nearest_since = None
         self.back: set[str] = set()
 
-    def __call__(self, s: dict, keys: set[str]) -> set[str]:
+    def __call__(self, s: dict, keys: set[str], error=None) -> set[str]:
         t = s["time"]
         hand = np.array(s["hands"][self.hand]["target"])
         following = any(v["following"] for v in s["teleops"].values() if v["mtm"] == self.hand)
@@ -387,7 +391,7 @@ class Clutch:
         if self.until is not None:
             if t < self.until:
                 return {*self.held, "Space", *self.back}
-            self.until = self.since = self.target = self.seen = None
+            self.until = self.since = self.target = self.seen = self.nearest = None
         moving = {k for k in keys if any(k in pair for pair in MOVE_KEYS)}
         if seen is None or self.seen is None or np.linalg.norm(seen - self.seen) > 0.0005:
             self.seen_since, self.seen = t, seen
@@ -396,6 +400,12 @@ class Clutch:
             stalled = seen is not None and t - self.seen_since > 1.0
         else:
             stalled = t - self.since > 0.4
+        if error is not None:
+            e = float(np.linalg.norm(error))
+            if not moving or self.nearest is None or e < self.nearest - 0.0005:
+                self.nearest, self.nearest_since = e, t
+            elif t - self.nearest_since > 1.5:
+                stalled = True
         if moving and stalled:
             opposite = {a: b for pair in MOVE_KEYS for a, b in (pair, pair[::-1])}
             self.until, self.back = t + 1.5, {opposite[k] for k in moving}
@@ -542,7 +552,7 @@ def test_a_person_picks_the_needle_up_and_hands_it_over(browser, person):
                     keys |= keys_toward(screen(turn_of(s, psm)), TURN_KEYS, dead=0.03, share=0.5)
                 if np.linalg.norm(e) < 0.006:
                     keys.add("ShiftLeft")
-                return clutch[psm](s, keys)  # (the hand's reach ends: clutch, come back)
+                return clutch[psm](s, keys, e)  # (the hand's reach ends: clutch, come back)
 
             def done(s):
                 return np.linalg.norm(error(s)) < tolerance and (not turn or aligned(s))
