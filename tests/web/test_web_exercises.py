@@ -370,10 +370,11 @@ class Clutch:
     still for 1 s while its teleoperation follows: the master stopped at a joint limit while
     the hand's target dithered beyond it, a loaded run), they press the clutch (Space) and
     bring the hand back the opposite way for 1.5 s, the tool (or, with the camera pedal
-    among ``held``, the camera) held still, then let go and carry on. Also when the tool has
-    come no nearer its goal for 1.5 s while move keys are held (``error``, the tool's offset
-    from it, given): the hand stopped at its reach along one axis while the keys of the others
-    dithered it about, which neither of the first two signs shows. Called with the state and
+    among ``held``, the camera) held still, then let go and carry on. Also when the tool,
+    3 mm or more from its goal, has come no nearer it for 1.5 s while only move keys are held
+    at full speed (``error``, the tool's offset from it, given): the hand stopped at its reach
+    along one axis while the keys of the others dithered it about, which neither of the first
+    two signs shows. Called with the state and
     the keys a step would hold; returns the keys to hold."""
 
     def __init__(self, hand: str, held=()) -> None:
@@ -400,9 +401,11 @@ class Clutch:
             stalled = seen is not None and t - self.seen_since > 1.0
         else:
             stalled = t - self.since > 0.4
-        if error is not None:
+        if error is not None:  # (only for a plain move: a turn or a slow approach may not near it)
             e = float(np.linalg.norm(error))
-            if not moving or self.nearest is None or e < self.nearest - 0.0005:
+            turning = any(k in pair for k in keys for pair in TURN_KEYS) or "ShiftLeft" in keys
+            if (not moving or turning or e < 0.003 or self.nearest is None
+                    or e < self.nearest - 0.0005):  # fmt: skip
                 self.nearest, self.nearest_since = e, t
             elif t - self.nearest_since > 1.5:
                 stalled = True
