@@ -374,8 +374,8 @@ class Clutch:
     3 mm or more from its goal, has come no nearer it for 1.5 s while only move keys are held
     at full speed (``error``, the tool's offset from it, given): the hand stopped at its reach
     along one axis while the keys of the others dithered it about, which neither of the first
-    two signs shows. Called with the state and
-    the keys a step would hold; returns the keys to hold."""
+    two signs shows. Called with the state and the keys a step would hold; returns the keys to
+    hold."""
 
     def __init__(self, hand: str, held=()) -> None:
         self.hand, self.held = hand, set(held)
