@@ -46,6 +46,7 @@ from __future__ import annotations
 
 import logging
 import queue
+import sys
 import threading
 import time
 from collections.abc import Callable
@@ -158,8 +159,6 @@ MAX_BACKLOG = 500
 def send_backlog() -> int:
     """Calls queued for the Twisted reactor's thread (roslibpy's sends, connects, closes) in
     this process; 0 before roslibpy's reactor is imported."""
-    import sys
-
     reactor = sys.modules.get("twisted.internet.reactor")
     return len(getattr(reactor, "threadCallQueue", ()))
 
