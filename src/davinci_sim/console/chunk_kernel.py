@@ -36,26 +36,32 @@ from __future__ import annotations
 import numba
 import numpy as np
 
-from davinci_sim.console.haptic_row import NOT_FINITE, fixture_render
-from davinci_sim.console.teleop_row import follow_tick
-from davinci_sim.devices.device_row import hand_read_row
-from davinci_sim.devices.hand_input_row import hand_rate_row
-from davinci_sim.kinematics.fk_compiled import tip_pose_row
-from davinci_sim.kinematics.suj import invert_rigid_row
-from davinci_sim.sim.arm_laws import wrist_lock_step as _wrist_lock_step
+from davinci_sim.console.chunk_slots import (
+    STOP_CONTACT,
+    STOP_DIVERGED,
+    STOP_FAULT,
+    STOP_FORCE,
+    STOP_NONE,
+    STOP_TURN,
+    STOP_WRIST,
+    device_read,
+    fixture_force,
+    keep_device,
+    keep_teleop,
+    kinematics,
+    teleop_follow,
+    wrist_lock,
+)
+from davinci_sim.console.haptic_row import NOT_FINITE
 from davinci_sim.sim.live_kernel import frames_at, servo_and_step, step_scratch, watch_passes
 from davinci_sim.sim.rows_kernel import f64_at, i32_at, mj_get_state
 
-#: Why a call stopped before its K ticks (``times[2]``).
-(STOP_NONE, STOP_CANNULA, STOP_GOAL, STOP_JAW, STOP_WRIST, STOP_FAULT, STOP_DIVERGED,
- STOP_CONTACT, STOP_FORCE, STOP_TURN) = range(10)  # fmt: skip
+#: Why a call stopped (``times[2]``: the codes of :mod:`~davinci_sim.console.chunk_slots`).
 STOP_REASONS = (
     "", "the tool in the cannula", "a goal servo_cp has no compiled answer for",
     "a jaw angle to send", "a failed wrist solve", "a tracking fault", "a diverged step",
     "an instrument contact", "a guidance force not finite", "a turned wrist target off",
 )  # fmt: skip
-
-wrist_lock_step = getattr(_wrist_lock_step, "dispatcher", _wrist_lock_step)
 
 #: What a call returns when it ran every tick.
 DONE = -1
@@ -64,28 +70,6 @@ DONE = -1
 (P_MODEL, P_DATA, P_ADDRESS, P_SIZES, P_STATE, P_SIG, P_WARNINGS, P_QPOSADR, P_DOFADR,
  P_GRAVCOMP, P_KP, P_KV, P_EFFORT, P_GRAVITY, P_Q_REF, P_QD_REF, P_TAU_FF, P_DT,
  P_TIMES) = range(19)  # fmt: skip
-
-
-@numba.njit(cache=True, nogil=True)
-def _frames_at(qp, fr, Q_suj, q_frame_ref, T1, J_none, F_suj):
-    """``Simulation._frames`` at the joints ``qp`` (:func:`frames_at` with ``fr``'s plan,
-    key, tolerance and ``frames_out``; then ``computed[0]`` set); returns whether the frames
-    were recomputed."""
-    plan = (fr[0], fr[1], fr[2], fr[3], fr[4], fr[5], fr[6], fr[7], fr[8], fr[9])
-    if not frames_at(qp, fr[10], fr[11], fr[12], plan, fr[13], Q_suj, q_frame_ref, T1, J_none,
-                     F_suj):  # fmt: skip
-        return False
-    fr[14][0] = True
-    return True
-
-
-@numba.njit(cache=True, nogil=True)
-def _kinematics(fk, adr, qp, q, T, J, F):
-    """An arm's measured kinematics (``Arm._measured_kinematics``): its joints ``q`` read
-    from ``qp`` at ``adr``, the tip in its base ``T`` and the spatial Jacobian ``J``."""
-    for i in range(adr.shape[0]):
-        q[i] = qp[adr[i]]
-    tip_pose_row(fk[0], fk[1], fk[2], fk[3], q, T, J, True, F)
 
 
 @numba.njit(cache=True, nogil=True)
@@ -99,7 +83,8 @@ def console_chunk(phys, watch, fr, devices, teleops, rec, K):
     of warnings, the contacts' stride in bytes), the guard's state scratch and signature,
     the warnings it watches, then the servo's arrays (updated in place) and the time step.
     ``watch``: the tracking watch's arrays. ``fr``: the setup-joint frame plan, its key
-    (the joints of the frames held), tolerance, ``frames_out`` and ``computed``.
+    (the joints of the frames held), tolerance, ``frames_out``, ``computed`` and the
+    camera's row of ``frames_out``.
 
     ``devices``: per simulated MTM, ``(fk, adr, vadr, grip_adr, T_ref_base, R_hrsv_base,
     flags, target, impedance, push, R_world_hrsv, p_world_hrsv, body, applied, wrench, q,
@@ -121,7 +106,11 @@ def console_chunk(phys, watch, fr, devices, teleops, rec, K):
     xpos, xmat, grasp, tip_out)``: the task session's samples of each tick (after its
     step), with its kind's objects (``ObjectsProbe.read``) where ``objects_flags[0]``; a
     contact with a flex ends a call before the tick's post-steps where
-    ``objects_flags[1]``."""
+    ``objects_flags[1]``.
+
+    Every array of every tuple is bound to a name here, before the ticks
+    (:mod:`~davinci_sim.console.chunk_slots` says why); the ticks call the slots' laws
+    with them, slot A's then slot B's."""
     model, data, address, sizes = phys[P_MODEL], phys[P_DATA], phys[P_ADDRESS], phys[P_SIZES]
     state, sig, warnings = phys[P_STATE], phys[P_SIG], phys[P_WARNINGS]
     qposadr, dofadr, minus_gravcomp = phys[P_QPOSADR], phys[P_DOFADR], phys[P_GRAVCOMP]
@@ -135,27 +124,80 @@ def console_chunk(phys, watch, fr, devices, teleops, rec, K):
         nu, nv, warnings.shape[0], w_since.shape[0]
     )
     sp = state.ctypes.data
-    # the frames' scratch (Simulation._frames)
-    plan_links, ref_links, frame_adr = fr[0], fr[6], fr[10]
-    frames_out = fr[13]
-    n_suj, n_ref = plan_links.shape[0], ref_links.shape[1]
+    # the frames (Simulation._frames): the plan, its key and tolerance, the output
+    plan = (fr[0], fr[1], fr[2], fr[3], fr[4], fr[5], fr[6], fr[7], fr[8], fr[9])
+    frame_adr, key, tol, frames_out, computed = fr[10], fr[11], fr[12], fr[13], fr[14]
+    camera_row = fr[15][0]
+    n_suj, n_ref = fr[0].shape[0], fr[6].shape[1]
     n_joints = (frame_adr.shape[0] - n_ref) // n_suj
     Q_suj = np.empty((n_suj, n_joints))
     q_frame_ref = np.empty(n_ref)
     T1 = np.empty((4, 4))
     F_suj = np.empty((max(n_joints, 8), 12))
     J_none = np.empty((6, 0))
+    # the slots' arrays: devices A and B, teleoperations A and B and each one's device
+    (fk_a, adr_a, vadr_a, grip_a, Tb_a, Rb_a, flags_a, target_a, imp_a, push_a, Rw_a, pw_a,
+     body_a, applied_a, wrench_a, q_a, T_a, J_a, F_a, Th_a, tw_a, xfrc_a, grip_v_a, lock_a,
+     lflags_a, ltraj_a, lgoal_a, widx_a, idx_a, hand_a, on_a) = devices[0]  # fmt: skip
+    (fk_b, adr_b, vadr_b, grip_b, Tb_b, Rb_b, flags_b, target_b, imp_b, push_b, Rw_b, pw_b,
+     body_b, applied_b, wrench_b, q_b, T_b, J_b, F_b, Th_b, tw_b, xfrc_b, grip_v_b, lock_b,
+     lflags_b, ltraj_b, lgoal_b, widx_b, idx_b, hand_b, on_b) = devices[1]  # fmt: skip
+    lk_a0, lk_a1, lk_a2, lk_a3 = fk_a
+    lk_b0, lk_b1, lk_b2, lk_b3 = fk_b
+    hon_a, hst_a, hpr_a = hand_a
+    hon_b, hst_b, hpr_b = hand_b
+    (wl_a0, wl_a1, wl_a2, wl_a3, wfirst_a, wR_a, wsteps_a, wdamp_a, wlo_a, whi_a, wT_a, wJ_a,
+     wF_a, wA_a, wx_a, wv_a, wacc_a, wratio_a) = lock_a  # fmt: skip
+    (wl_b0, wl_b1, wl_b2, wl_b3, wfirst_b, wR_b, wsteps_b, wdamp_b, wlo_b, whi_b, wT_b, wJ_b,
+     wF_b, wA_b, wx_b, wv_b, wacc_b, wratio_b) = lock_b  # fmt: skip
+    (cp_a, tadr_a, tidx_a, trow_a, Tbr_a, shaft_a, anchors_a, tflags_a, jaw_a, jst_a, lim_a,
+     dev_a, tq_a, tT_a, tJ_a, tF_a, qo_a, qdo_a, fix_a, fst_a, fout_a, jidx_a,
+     ton_a) = teleops[0]  # fmt: skip
+    (cp_b, tadr_b, tidx_b, trow_b, Tbr_b, shaft_b, anchors_b, tflags_b, jaw_b, jst_b, lim_b,
+     dev_b, tq_b, tT_b, tJ_b, tF_b, qo_b, qdo_b, fix_b, fst_b, fout_b, jidx_b,
+     ton_b) = teleops[1]  # fmt: skip
+    c_a0, c_a1, c_a2, c_a3, c_a4, c_a5, c_a6, c_a7, c_a8, c_a9 = cp_a
+    c_b0, c_b1, c_b2, c_b3, c_b4, c_b5, c_b6, c_b7, c_b8, c_b9 = cp_b
+    P0_a, M0_a, Ro_a = anchors_a
+    P0_b, M0_b, Ro_b = anchors_b
+    qmin_a, qmax_a, bound_a = lim_a
+    qmin_b, qmax_b, bound_b = lim_b
+    fon_a, vp_a, vv_a, prev_a = fst_a
+    fon_b, vp_b, vv_b, prev_b = fst_b
+    req_a, limd_a, tau_a, ff_a = fout_a
+    req_b, limd_b, tau_b, ff_b = fout_b
+    (ce_a, ba_a, AE_a, AA_a, EE_a, st_a, ed_a, cu_a, le_a, B_a, G_a, tr_a, su_a, vdt_a, val_a,
+     fsteps_a, ftmax_a) = fix_a  # fmt: skip
+    (ce_b, ba_b, AE_b, AA_b, EE_b, st_b, ed_b, cu_b, le_b, B_b, G_b, tr_b, su_b, vdt_b, val_b,
+     fsteps_b, ftmax_b) = fix_b  # fmt: skip
+    dva, dvb = devices[dev_a[0]], devices[dev_b[0]]  # (each teleoperation's MTM)
+    dl_a0, dl_a1, dl_a2, dl_a3 = dva[0]
+    dl_b0, dl_b1, dl_b2, dl_b3 = dvb[0]
+    dadr_a, dTb_a, dq_a, dT_a, dJ_a, dF_a = dva[1], dva[4], dva[15], dva[16], dva[17], dva[18]
+    dTh_a, dtw_a, dgrip_a, didx_a = dva[19], dva[20], dva[22], dva[28]
+    dadr_b, dTb_b, dq_b, dT_b, dJ_b, dF_b = dvb[1], dvb[4], dvb[15], dvb[16], dvb[17], dvb[18]
+    dTh_b, dtw_b, dgrip_b, didx_b = dvb[19], dvb[20], dvb[22], dvb[28]
+    # the session's sample: its teleoperation, the fixture's and the objects' arrays
+    rec_on, rec_ncon, tool_geom, other_geom = rec[0], rec[3], rec[4], rec[5]
+    r_t, r_tip, r_cam, r_req, r_master, r_now = rec[6], rec[7], rec[8], rec[9], rec[10], rec[11]
+    bodies, object_of, jaw_bit, tips, o_flags = rec[12], rec[13], rec[14], rec[15], rec[16]
+    o_xpos, o_xmat, o_grasp, o_tips = rec[17], rec[18], rec[19], rec[20]
+    rt = teleops[rec[1][0]]
+    rl0, rl1, rl2, rl3 = rt[0][5], rt[0][6], rt[0][7], rt[0][8]
+    radr, rq, rT, rJ, rF, r_row = rt[1], rt[12], rt[13], rt[14], rt[15], rt[3][0]
+    r_Th = devices[rt[11][0]][19]
+    f_rec = rec[2][0]
+    r_req_src = teleops[max(f_rec, 0)][20][0]
     # what a rewound tick puts back: the hands', the jaws' and the locks' state
-    nd, nt = len(devices), len(teleops)
-    keep_applied = np.empty(nd, dtype=np.bool_)
-    keep_wrench = np.empty((nd, 6))
-    keep_lock = np.empty((nd, 3 * devices[0][26].shape[0]))
-    keep_goal = np.empty(nd, dtype=np.bool_)
-    keep_jaw = np.empty((nt, 13))
-    keep_hand = np.empty((nd, 12))
+    m_lock = lgoal_a.shape[0]
+    keep_applied = np.empty(2, dtype=np.bool_)
+    keep_wrench = np.empty((2, 6))
+    keep_lock = np.empty((2, 3 * m_lock))
+    keep_goal = np.empty(2, dtype=np.bool_)
+    keep_jaw = np.empty((2, 13))
+    keep_hand = np.empty((2, 12))
+    keep_fx = np.empty((2, 6))
     t_pre = times[3]  # (the tick's time before its step: the state's, then + dt per step)
-    keep_fx = np.empty((nt, 6))
-    m_lock = devices[0][26].shape[0]
     xfrc_all = numba.carray(f64_at(address[7]), (6 * (sizes[5]),))
     xipos = numba.carray(f64_at(address[8]), (3 * (sizes[5]),))
     for k in range(1, K + 1):
@@ -164,137 +206,61 @@ def console_chunk(phys, watch, fr, devices, teleops, rec, K):
         qb = numba.carray(f64_at(address[3]), (nv,))
         qg = numba.carray(f64_at(address[4]), (nv,))
         w = numba.carray(i32_at(address[5]), (2 * nw,))
-        _frames_at(qp, fr, Q_suj, q_frame_ref, T1, J_none, F_suj)
-        # --- the devices' reads (SimulatedMTM._read): pose, twist, the hand's wrench
-        d = 0
-        for dev in devices:
-            (fk, adr, vadr, grip_adr, T_ref_base, R_hrsv_base, flags, target, impedance,
-             push, R_world_hrsv, p_world_hrsv, body, applied, wrench, q, T, J, F, T_hrsv,
-             twist, xfrc, gripper, lock, lock_flags, lock_traj, lock_goal, wrist_idx, idx,
-             hand, on) = dev  # fmt: skip
-            keep_applied[d] = applied[0]
-            for i in range(6):
-                keep_wrench[d, i] = wrench[i]
-            for i in range(2 * m_lock):
-                keep_lock[d, i] = lock_traj[i]
-            for i in range(m_lock):
-                keep_lock[d, 2 * m_lock + i] = lock_goal[i]
-            keep_goal[d] = lock_flags[1]
-            for i in range(3):
-                keep_hand[d, i] = hand[1][i]
-            for i in range(9):
-                keep_hand[d, 3 + i] = hand[1][12 + i]
-            d += 1
-            if not on[0]:
-                continue
-            if hand[0][0] and t_pre < hand[2][2]:  # the hand moves (HandInput.pre_step)
-                if not hand_rate_row(hand, T_hrsv, target, dt):
-                    times[2] = STOP_TURN
-                    return _undo(2 * k, devices, teleops, keep_applied, keep_wrench, keep_lock,
-                                 keep_goal, keep_jaw, keep_hand)  # fmt: skip
-            _kinematics(fk, adr, qp, q, T, J, F)
-            T_hrsv[:, :] = T_ref_base @ T  # (Arm._measured_T: numpy's product)
-            qd = np.empty(vadr.shape[0])
-            for i in range(vadr.shape[0]):
-                qd[i] = qv[vadr[i]]
-            b = body[0]
-            com = xipos[3 * b : 3 * b + 3]
-            out_w = np.empty(6)
-            if hand_read_row(
-                T_hrsv, R_hrsv_base, J, qd, flags[0], target, flags[1], flags[2], applied[0],
-                impedance, push, R_world_hrsv, p_world_hrsv, com, twist, out_w, xfrc,
-            ):  # fmt: skip
-                applied[0] = False
-                for i in range(6):
-                    wrench[i] = out_w[i]
-                    applied[0] = applied[0] or out_w[i] != 0.0
-                    xfrc_all[6 * b + i] = xfrc[i]
-            g = 0.0  # (Jaw._angle: numpy's sum of a few, in order)
-            for i in range(grip_adr.shape[0]):
-                g += qp[grip_adr[i]]
-            gripper[0] = g
+        if frames_at(qp, frame_adr, key, tol, plan, frames_out, Q_suj, q_frame_ref, T1, J_none,
+                     F_suj):  # fmt: skip
+            computed[0] = True
+        # --- what a rewound tick puts back, then the devices' reads (SimulatedMTM._read)
+        keep_device(0, applied_a, wrench_a, ltraj_a, lgoal_a, lflags_a, hst_a, keep_applied,
+                    keep_wrench, keep_lock, keep_goal, keep_hand)  # fmt: skip
+        keep_device(1, applied_b, wrench_b, ltraj_b, lgoal_b, lflags_b, hst_b, keep_applied,
+                    keep_wrench, keep_lock, keep_goal, keep_hand)  # fmt: skip
+        keep_teleop(0, jaw_a, jst_a, keep_jaw)
+        keep_teleop(1, jaw_b, jst_b, keep_jaw)
+        stop = STOP_NONE
+        if on_a[0] and not device_read(
+            hon_a, hst_a, hpr_a, t_pre, dt, lk_a0, lk_a1, lk_a2, lk_a3, adr_a, vadr_a, grip_a,
+            Tb_a, Rb_a, flags_a, target_a, imp_a, push_a, Rw_a, pw_a, body_a, applied_a,
+            wrench_a, q_a, T_a, J_a, F_a, Th_a, tw_a, xfrc_a, grip_v_a, qp, qv, xipos, xfrc_all,
+        ):  # fmt: skip
+            stop = STOP_TURN
+        elif on_b[0] and not device_read(
+            hon_b, hst_b, hpr_b, t_pre, dt, lk_b0, lk_b1, lk_b2, lk_b3, adr_b, vadr_b, grip_b,
+            Tb_b, Rb_b, flags_b, target_b, imp_b, push_b, Rw_b, pw_b, body_b, applied_b,
+            wrench_b, q_b, T_b, J_b, F_b, Th_b, tw_b, xfrc_b, grip_v_b, qp, qv, xipos, xfrc_all,
+        ):  # fmt: skip
+            stop = STOP_TURN
         # --- the teleoperations (TeleopPSM._run_enabled through follow_tick)
-        t_i = 0
-        for tel in teleops:
-            (cp, adr, idx, row, T_base_ref, shaft, anchors, flags, jaw, jaw_state, limits,
-             device, q, T, J, F, q_out, qd_out, fixture, fx_state, fx_out, _,
-             on) = tel  # fmt: skip
-            for i in range(12):
-                keep_jaw[t_i, i] = jaw[i]
-            keep_jaw[t_i, 12] = tel[9][0]
-            t_i += 1
-            if not on[0]:
-                continue
-            if abs(qp[int(shaft[0])] + shaft[1]) < shaft[2]:
-                times[2] = STOP_CANNULA
-                return _undo(2 * k, devices, teleops, keep_applied, keep_wrench, keep_lock,
-                             keep_goal, keep_jaw, keep_hand)  # fmt: skip
-            invert_rigid_row(frames_out[row[0]], T_base_ref)  # (Arm._T_base_reference)
-            _kinematics((cp[5], cp[6], cp[7], cp[8]), adr, qp, q, T, J, F)
-            dv = devices[device[0]]
-            jaw_now = jaw.copy()
-            jaw_now[1] = dv[22][0]  # the MTM's gripper
-            if not follow_tick(
-                cp[0], cp[1], cp[2], cp[3], cp[4], cp[5], cp[6], cp[7], cp[8], cp[9],
-                T_base_ref, anchors[0], anchors[1], dv[19], anchors[2], dv[20], flags, q, J,
-                limits[0], limits[1], limits[2], q_out, qd_out, jaw_now,
-            ):  # fmt: skip
-                times[2] = STOP_GOAL
-                return _undo(2 * k, devices, teleops, keep_applied, keep_wrench, keep_lock,
-                             keep_goal, keep_jaw, keep_hand)  # fmt: skip
-            if jaw_state[1] == 0.0:  # (the jaw followed: TeleopPSM._ignore_jaw off)
-                angle = jaw_now[11]
-                if angle != jaw_state[0]:  # sent when it changes (Jaw._servo_jp_checked)
-                    if not np.isfinite(angle):  # (refused, with the jaw's message)
-                        times[2] = STOP_JAW
-                        return _undo(2 * k, devices, teleops, keep_applied, keep_wrench,
-                                     keep_lock, keep_goal, keep_jaw, keep_hand)  # fmt: skip
-                    jaw_state[0] = angle
-                    jaw_idx = tel[21]
-                    for i in range(jaw_idx.shape[0]):  # (Jaw._set: finger_setpoints)
-                        effort[jaw_idx[i]] = False
-                        tau_ff[jaw_idx[i]] = 0.0
-                        q_ref[jaw_idx[i]] = 0.5 * angle
-                        qd_ref[jaw_idx[i]] = 0.5 * 0.0
-                for i in range(12):
-                    jaw[i] = jaw_now[i]
-            for i in range(idx.shape[0]):  # (PSM._servo_position)
-                q_ref[idx[i]] = q_out[i]
-                qd_ref[idx[i]] = qd_out[i]
+        if stop == STOP_NONE and ton_a[0]:
+            stop = teleop_follow(
+                c_a0, c_a1, c_a2, c_a3, c_a4, c_a5, c_a6, c_a7, c_a8, c_a9, tadr_a, tidx_a,
+                trow_a[0], Tbr_a, shaft_a, P0_a, M0_a, Ro_a, tflags_a, jaw_a, jst_a, qmin_a,
+                qmax_a, bound_a, tq_a, tT_a, tJ_a, tF_a, qo_a, qdo_a, jidx_a, dgrip_a, dTh_a,
+                dtw_a, qp, frames_out, q_ref, qd_ref, tau_ff, effort,
+            )  # fmt: skip
+        if stop == STOP_NONE and ton_b[0]:
+            stop = teleop_follow(
+                c_b0, c_b1, c_b2, c_b3, c_b4, c_b5, c_b6, c_b7, c_b8, c_b9, tadr_b, tidx_b,
+                trow_b[0], Tbr_b, shaft_b, P0_b, M0_b, Ro_b, tflags_b, jaw_b, jst_b, qmin_b,
+                qmax_b, bound_b, tq_b, tT_b, tJ_b, tF_b, qo_b, qdo_b, jidx_b, dgrip_b, dTh_b,
+                dtw_b, qp, frames_out, q_ref, qd_ref, tau_ff, effort,
+            )  # fmt: skip
         # --- the MTMs' orientation locks (MTM._pre_step)
-        for dev in devices:
-            fk, adr, lock, lock_flags, lock_traj = dev[0], dev[1], dev[23], dev[24], dev[25]
-            lock_goal, wrist_idx = dev[26], dev[27]
-            if not (dev[30][0] and lock_flags[0]):
-                continue
-            (links, modified, tool, identity, first, R_base_goal, steps, damping, lo, hi, Tl,
-             Jl, Fl, A, x, v_max, a_max, ratio) = lock  # fmt: skip
-            n = adr.shape[0]
-            q_seed = np.empty(n)
-            for i in range(n):
-                q_seed[i] = qp[adr[i]]
-            if lock_flags[1]:  # (the last solution seeds the solve: it leads the wrist)
-                for i in range(n - first):
-                    q_seed[first + i] = lock_goal[i]
-            m = n - first
-            goal = np.empty(m)
-            q_l, qd_l = np.empty(m), np.empty(m)
-            if not wrist_lock_step(
-                links, modified, tool, identity, q_seed, first, R_base_goal, steps, damping,
-                lo, hi, Tl, Jl, Fl, A, x, goal, lock_traj[:m], lock_traj[m : 2 * m], v_max,
-                a_max, ratio, dt, q_l, qd_l,
-            ):  # fmt: skip
-                times[2] = STOP_WRIST
-                return _undo(2 * k, devices, teleops, keep_applied, keep_wrench, keep_lock,
-                             keep_goal, keep_jaw, keep_hand)  # fmt: skip
-            for i in range(m):
-                lock_goal[i] = goal[i]
-                lock_traj[i] = q_l[i]
-                lock_traj[m + i] = qd_l[i]
-                effort[wrist_idx[i]] = False
-                q_ref[wrist_idx[i]] = q_l[i]
-                qd_ref[wrist_idx[i]] = qd_l[i]
-            lock_flags[1] = True
+        if stop == STOP_NONE and on_a[0] and lflags_a[0] and not wrist_lock(
+            wl_a0, wl_a1, wl_a2, wl_a3, wfirst_a, wR_a, wsteps_a, wdamp_a, wlo_a, whi_a, wT_a,
+            wJ_a, wF_a, wA_a, wx_a, wv_a, wacc_a, wratio_a, adr_a, lflags_a, ltraj_a, lgoal_a,
+            widx_a, qp, dt, q_ref, qd_ref, effort,
+        ):  # fmt: skip
+            stop = STOP_WRIST
+        if stop == STOP_NONE and on_b[0] and lflags_b[0] and not wrist_lock(
+            wl_b0, wl_b1, wl_b2, wl_b3, wfirst_b, wR_b, wsteps_b, wdamp_b, wlo_b, whi_b, wT_b,
+            wJ_b, wF_b, wA_b, wx_b, wv_b, wacc_b, wratio_b, adr_b, lflags_b, ltraj_b, lgoal_b,
+            widx_b, qp, dt, q_ref, qd_ref, effort,
+        ):  # fmt: skip
+            stop = STOP_WRIST
+        if stop != STOP_NONE:
+            times[2] = stop
+            return _undo(2 * k, devices, teleops, keep_applied, keep_wrench, keep_lock,
+                         keep_goal, keep_jaw, keep_hand)  # fmt: skip
         # --- the guard's save; the tick's time is the state's first entry
         mj_get_state(model, data, sp, sig)
         t = state[0]
@@ -319,84 +285,84 @@ def console_chunk(phys, watch, fr, devices, teleops, rec, K):
         times[1] = t_after
         t_pre = t_after
         qp = numba.carray(f64_at(address[1]), (nq,))
-        if rec[0][0] and _tool_contacts(address, stride, rec[3], rec[4], rec[5],
-                                        rec[16][1]):  # fmt: skip
+        if rec_on[0] and _tool_contacts(address, stride, rec_ncon, tool_geom, other_geom,
+                                        o_flags[1]):  # fmt: skip
             times[2] = STOP_CONTACT
             return 2 * k + 1  # the instrument touches something: the session measures it
-        _frames_at(qp, fr, Q_suj, q_frame_ref, T1, J_none, F_suj)
-        for m in range(nt):  # the fixtures' forces (nothing kept until all are finite)
-            tel = teleops[m]
-            fixture, fx_state, fx_out = tel[18], tel[19], tel[20]
-            on, vf_p, vf_v, previous = fx_state[0], fx_state[1], fx_state[2], fx_state[3]
-            if not (tel[22][0] and on[0]):
-                continue
-            dv = devices[tel[11][0]]
-            _kinematics(dv[0], dv[1], qp, dv[15], dv[16], dv[17], dv[18])  # the MTM's
-            _kinematics((tel[0][5], tel[0][6], tel[0][7], tel[0][8]), tel[1], qp, tel[12],
-                        tel[13], tel[14], tel[15])  # fmt: skip
-            T_camera_tip = frames_out[tel[3][0]] @ tel[13]  # (Arm._measured_T)
-            for i in range(3):
-                keep_fx[m, i] = vf_p[i]
-                keep_fx[m, 3 + i] = vf_v[i]
-            (centre, basis, AE, AA, EE, starts, edges, cumulative, lengths, B, G_max,
-             transition, summed, vf_dt, vf_alpha, steps, ftmax) = fixture  # fmt: skip
-            requested, limited, tau, flags = fx_out[0], fx_out[1], fx_out[2], fx_out[3]
-            result = fixture_render(
-                frames_out[fr[15][0]], T_camera_tip, vf_p, vf_v, on[1], vf_dt, vf_alpha,
-                centre, basis, AE, AA, EE, starts, edges, cumulative, lengths, B, G_max,
-                transition, summed, previous, steps, dv[4], dv[17], ftmax, requested, limited,
-                tau,
+        if frames_at(qp, frame_adr, key, tol, plan, frames_out, Q_suj, q_frame_ref, T1, J_none,
+                     F_suj):  # fmt: skip
+            computed[0] = True
+        # the fixtures' forces (nothing kept until all are finite)
+        T_world_camera = frames_out[camera_row]
+        result, ran_a, ran_b = 0, False, False
+        if ton_a[0] and fon_a[0]:
+            ran_a = True
+            result = fixture_force(
+                0, keep_fx, vp_a, vv_a, fon_a[1], T_world_camera, trow_a[0], frames_out, c_a5,
+                c_a6, c_a7, c_a8, tadr_a, tq_a, tT_a, tJ_a, tF_a, dl_a0, dl_a1, dl_a2, dl_a3,
+                dadr_a, dq_a, dT_a, dJ_a, dF_a, dTb_a, qp, ce_a, ba_a, AE_a, AA_a, EE_a, st_a,
+                ed_a, cu_a, le_a, B_a, G_a, tr_a, su_a, vdt_a, val_a, fsteps_a, ftmax_a,
+                prev_a, req_a, limd_a, tau_a, ff_a,
             )  # fmt: skip
-            if result == NOT_FINITE:  # (the Python path's error and zero sum)
-                for j in range(m + 1):
-                    fs = teleops[j][19]
-                    if teleops[j][22][0] and fs[0][0]:
-                        for i in range(3):
-                            fs[1][i] = keep_fx[j, i]
-                            fs[2][i] = keep_fx[j, 3 + i]
-                times[2] = STOP_FORCE
-                return 2 * k + 1
-            flags[0] = result == 1
-        for tel in teleops:  # (HapticLoop._fixture_render: the device's rendered)
-            fx_state, fx_out = tel[19], tel[20]
-            on, previous, limited, tau = fx_state[0], fx_state[3], fx_out[1], fx_out[2]
-            if not (tel[22][0] and on[0]):
-                continue
-            on[1] = True  # (the filter has started)
-            for i in range(6):
-                previous[i] = limited[i]
-            idx = devices[tel[11][0]][28]
-            for i in range(idx.shape[0]):
-                tau_ff[idx[i]] = tau[i]
+        if result != NOT_FINITE and ton_b[0] and fon_b[0]:
+            ran_b = True
+            result = fixture_force(
+                1, keep_fx, vp_b, vv_b, fon_b[1], T_world_camera, trow_b[0], frames_out, c_b5,
+                c_b6, c_b7, c_b8, tadr_b, tq_b, tT_b, tJ_b, tF_b, dl_b0, dl_b1, dl_b2, dl_b3,
+                dadr_b, dq_b, dT_b, dJ_b, dF_b, dTb_b, qp, ce_b, ba_b, AE_b, AA_b, EE_b, st_b,
+                ed_b, cu_b, le_b, B_b, G_b, tr_b, su_b, vdt_b, val_b, fsteps_b, ftmax_b,
+                prev_b, req_b, limd_b, tau_b, ff_b,
+            )  # fmt: skip
+        if result == NOT_FINITE:  # (the Python path's error and zero sum)
+            _fixtures_back(ran_a, vp_a, vv_a, ran_b, vp_b, vv_b, keep_fx)
+            times[2] = STOP_FORCE
+            return 2 * k + 1
+        # (HapticLoop._fixture_render: the device's rendered)
+        if ton_a[0] and fon_a[0]:
+            _rendered(fon_a, prev_a, limd_a, tau_a, didx_a, tau_ff)
+        if ton_b[0] and fon_b[0]:
+            _rendered(fon_b, prev_b, limd_b, tau_b, didx_b, tau_ff)
         # the session's sample of this tick
-        if rec[0][0]:
-            tel = teleops[rec[1][0]]
-            _kinematics((tel[0][5], tel[0][6], tel[0][7], tel[0][8]), tel[1], qp, tel[12],
-                        tel[13], tel[14], tel[15])  # fmt: skip
-            rec[6][k - 1] = t_after
-            rec[7][k - 1] = frames_out[tel[3][0]] @ tel[13]
-            rec[8][k - 1] = frames_out[fr[15][0]]
-            f = rec[2][0]
-            if f >= 0:
+        if rec_on[0]:
+            kinematics(rl0, rl1, rl2, rl3, radr, qp, rq, rT, rJ, rF)
+            r_t[k - 1] = t_after
+            r_tip[k - 1] = frames_out[r_row] @ rT
+            r_cam[k - 1] = frames_out[camera_row]
+            if f_rec >= 0:
                 for i in range(3):
-                    rec[11][i] = teleops[f][20][0][i]
+                    r_now[i] = r_req_src[i]
             for i in range(3):
-                rec[9][k - 1, i] = rec[11][i]
-                rec[10][k - 1, i] = devices[tel[11][0]][19][i, 3]
-            if rec[16][0]:
-                _objects_read(
-                    address,
-                    stride,
-                    rec[12],
-                    rec[13],
-                    rec[14],
-                    rec[15],
-                    rec[17][k - 1],
-                    rec[18][k - 1],
-                    rec[19][k - 1],
-                    rec[20][k - 1],
-                )
+                r_req[k - 1, i] = r_now[i]
+                r_master[k - 1, i] = r_Th[i, 3]
+            if o_flags[0]:
+                _objects_read(address, stride, bodies, object_of, jaw_bit, tips, o_xpos[k - 1],
+                              o_xmat[k - 1], o_grasp[k - 1], o_tips[k - 1])  # fmt: skip
     return DONE
+
+
+@numba.njit(cache=True, nogil=True)
+def _fixtures_back(ran_a, vp_a, vv_a, ran_b, vp_b, vv_b, keep_fx):
+    """The velocity filters of the fixtures this tick ran (``ran_a``, ``ran_b``) as they
+    were before (a force not finite: the Python tick renders them all again)."""
+    if ran_a:
+        for i in range(3):
+            vp_a[i] = keep_fx[0, i]
+            vv_a[i] = keep_fx[0, 3 + i]
+    if ran_b:
+        for i in range(3):
+            vp_b[i] = keep_fx[1, i]
+            vv_b[i] = keep_fx[1, 3 + i]
+
+
+@numba.njit(cache=True, nogil=True)
+def _rendered(fon, previous, limited, tau, idx, tau_ff):
+    """A fixture's wrench rendered on its MTM: the filter has started, the limited wrench
+    is the next tick's previous, the joint torques are the MTM's feed-forward."""
+    fon[1] = True
+    for i in range(6):
+        previous[i] = limited[i]
+    for i in range(idx.shape[0]):
+        tau_ff[idx[i]] = tau[i]
 
 
 @numba.njit(cache=True, nogil=True)
