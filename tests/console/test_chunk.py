@@ -318,3 +318,30 @@ def test_another_exercise_ticks_compiled_as_in_python_its_session_sampled_in_pyt
         # the needle read after each step: it rests in its park, the attempt is ready
         assert session.monitor.phase == Phase.READY
         assert np.isfinite(session.monitor.state.p_prev).all()
+
+
+@pytest.fixture(scope="module")
+def rota():
+    """What ``serve --task rota_path --home`` ticks (Rota's viscous-elastic fixture on the
+    path), the person holding both handles after taking control."""
+    return _serve("rota_path")
+
+
+def test_rotas_fixture_ticks_compiled_as_in_python(rota):
+    """Rota's fixture (viscous + elastic, capped, scaled: its compiled law) renders in the
+    compiled ticks: with the W key held the tool rises off the path (which runs across the
+    view) and the fixture pulls; the same states, events and metrics as Python's ticks, and
+    the kernel ran them."""
+    from davinci_sim.haptics import fixture_row
+
+    def key(sim):
+        assert sim.components["MTMR/hand"].command([0.0, 0.02, 0.0])
+
+    sim = rota[0]
+    field = sim.components["console"].haptics.entries_for("MTMR")[0].field
+    assert field.compiled_row()[6] == fixture_row.VISCOUS_ELASTIC
+    runs, answers = _both_ways(rota, 600, before=key)
+    _assert_same_run(*runs)
+    assert sum(a[0] for a in answers) >= 580, answers[:10]
+    requested = sim.components["console"].haptics.requested("MTMR")
+    assert requested is not None and requested[1] < -0.01  # it pulls back down to the path

@@ -1,5 +1,7 @@
-"""The seed's viscous fixture as one compiled row (``haptics/fixture_row.py``) against the
-fixture field's Python path, its oracle: the same bits, tick after tick, filter included."""
+"""The fixtures' compiled rows (``haptics/fixture_row.py``) against the fixture field's Python
+path, their oracle: the seed's viscous law the same bits, tick after tick, filter included;
+Rota's viscous-elastic law within 1e-12 N (its ``exp`` is libm's, numpy's differs in the last
+bit)."""
 
 from __future__ import annotations
 
@@ -13,6 +15,7 @@ from davinci_sim.haptics.field import HapticState
 from davinci_sim.haptics.fixture import FixtureField
 from davinci_sim.haptics.spring import SpringGuidance
 from davinci_sim.haptics.viscous import ViscousGuidance
+from davinci_sim.haptics.viscous_elastic import ViscousElasticGuidance, viscous_elastic_guidance
 from davinci_sim.kinematics import jit
 
 ARC = Polyline(
@@ -20,15 +23,16 @@ ARC = Polyline(
 )
 
 
-def _states(n: int, seed: int):
-    """n haptic states of a tip wandering near the arc, seen from a tilted camera."""
+def _states(n: int, seed: int, spread: float = 2e-4):
+    """n haptic states of a tip wandering near the arc (steps of ``spread`` m per axis),
+    seen from a tilted camera."""
     rng = np.random.default_rng(seed)
     T_world_camera = np.eye(4)
     T_world_camera[:3, :3] = so3.rotation_from_vector([0.3, -0.2, 0.5])
     T_world_camera[:3, 3] = [0.01, -0.02, 0.1]
     p_world = np.array([0.03, 0.0, 0.0])
     for _ in range(n):
-        p_world = p_world + rng.normal(0.0, 2e-4, 3)
+        p_world = p_world + rng.normal(0.0, spread, 3)
         T = np.eye(4)
         T[:3, 3] = T_world_camera[:3, :3].T @ (p_world - T_world_camera[:3, 3])
         yield HapticState.from_values(
@@ -60,3 +64,41 @@ def test_fixtures_with_no_compiled_form_keep_the_python_path():
     ):
         field(next(_states(1, seed=2)))
         assert field._row is None
+
+
+@pytest.mark.parametrize("summed", [False, True])
+def test_rotas_viscous_elastic_field_compiled_is_its_numpy_law(summed):
+    """Rota's fixture (viscous uncapped, the logistic elastic pull, the sum capped at 3 N,
+    then scaled) as the compiled row against its numpy law, the oracle: within 1e-12 N over
+    a tip wandering up to ~8 mm off the path (the pull from nothing to nearly its gain),
+    filter included; the elastic part and the cap both act."""
+    law = ViscousElasticGuidance(ARC, B=15.0, elastic_gain=0.8, threshold=0.002, half=0.002,
+                                 slope=500.0, max_force=3.0, assistance=0.5)  # fmt: skip
+    fixture = combine(law) if summed else law
+    compiled, python = FixtureField(fixture), FixtureField(fixture)
+    python._row = None  # (the numpy path)
+    forces = []
+    for k, state in enumerate(_states(400, seed=3, spread=4e-4)):
+        f_c, f_p = compiled(state), python(state)
+        np.testing.assert_allclose(f_c, f_p, rtol=0, atol=1e-12)
+        forces.append(np.linalg.norm(f_p))
+        if k == 200:  # a restored filter goes on the same
+            compiled.set_state(python.get_state())
+    assert (compiled._row is not None) == jit.ENABLED
+    assert max(forces) > 0.3  # the elastic pull (0.8 N x 0.5 far off the path)
+
+
+def test_rotas_law_caps_the_sum_then_scales_it():
+    """The cap on the sum, then the assistance: a fast tip far off the path gets exactly
+    max_force x assistance, in both forms."""
+    from davinci_sim.haptics import fixture_row
+
+    elastic = np.array([0.8, 0.002, 0.002, 500.0, 3.0, 0.25])
+    out = np.empty(3)
+    v, phi = np.array([2.0, 0.0, 0.0]), np.array([0.0, 0.02, 0.0])
+    fixture_row._viscous_elastic_into(v, phi, 40.0, elastic, out)  # (a helper: plain Python)
+    assert np.linalg.norm(out) == pytest.approx(3.0 * 0.25, rel=1e-12)
+    numpy_law = viscous_elastic_guidance(v, phi, B=40.0, elastic_gain=0.8, threshold=0.002,
+                                         half=0.002, slope=500.0, max_force=3.0,
+                                         assistance=0.25)  # fmt: skip
+    np.testing.assert_allclose(out, numpy_law, rtol=0, atol=1e-12)

@@ -25,7 +25,7 @@ from davinci_sim.devices.hand_input import HandInput
 from davinci_sim.devices.simulated import SimulatedMTM
 from davinci_sim.geometry.path import Polyline
 from davinci_sim.haptics.fixture import FixtureField
-from davinci_sim.haptics.fixture_row import path_constants
+from davinci_sim.haptics.fixture_row import VISCOUS, path_constants
 from davinci_sim.kinematics import fk
 from davinci_sim.sim.arms import (
     _LOCK_DAMPING,
@@ -91,7 +91,8 @@ def no_fixture() -> tuple:
     """A fixture of the kernel's types for a teleoperation without one (never used)."""
     path = path_constants(Polyline(np.array([[0.0, 0.0, 0.0], [0.01, 0.0, 0.0]])))
     assert path is not None
-    return (*path, 0.0, 0.0, 0.0, False, 0.001, 0.5, np.zeros(4), np.zeros(7))
+    return (*path, 0.0, 0.0, 0.0, False, VISCOUS, np.zeros(6), 0.001, 0.5, np.zeros(4),
+            np.zeros(7))  # fmt: skip
 
 
 def _lock_on(arm: MTM, servo) -> bool:
@@ -268,9 +269,10 @@ def fixture_part(tel: TeleopPSM, haptics: HapticLoop | None, no_fixture: tuple) 
         return None
     _, _, _, previous, steps, ftmax = args
     vf = field_.row_filter(tel.psm.name)
-    _, path, B, G_max, transition, summed = row
-    constants = (*path, float(B), float(G_max), float(transition), bool(summed),
-                 float(vf.dt), float(vf.alpha), floats(steps), floats(ftmax))  # fmt: skip
+    _, path, B, G_max, transition, summed, law, elastic = row
+    constants = (*path, float(B), float(G_max), float(transition), bool(summed), int(law),
+                 floats(elastic), float(vf.dt), float(vf.alpha), floats(steps),
+                 floats(ftmax))  # fmt: skip
     state = (np.array([True, bool(vf._started)]), vf._p, vf._v, floats(previous))
     return constants, state, out
 

@@ -1,12 +1,12 @@
-"""The haptic loop's tick for one MTM whose one field is the seed's viscous fixture, in one
-compiled call: the fixture's force on the PSM's tool tip, the loop's sum, then the device's
+"""The haptic loop's tick for one MTM whose one field is a fixture with a compiled law (the
+seed's viscous law, Rota's viscous-elastic one), in one compiled call: the fixture's force on the PSM's tool tip, the loop's sum, then the device's
 clamp and Jᵀw on the MTM.
 
 For a following teleoperation the loop (:class:`~davinci_sim.console.haptic_loop.HapticLoop`)
 builds the :class:`~davinci_sim.haptics.field.HapticState`, calls each field, checks and sums
 their wrenches and sends the sum to the device: with the fixture's and the render's compiled
 rows already in place, the Python between them cost ~50 µs a tick. :func:`fixture_render`
-runs that chain — :func:`~davinci_sim.haptics.fixture_row.viscous_fixture_row` (the field's
+runs that chain — :func:`~davinci_sim.haptics.fixture_row.fixture_law_row` (the field's
 row), the sum from zeros (``as_wrench`` then ``total +=``), and
 :func:`~davinci_sim.devices.device_row.render_row` (the device's) — on the same inputs the
 Python path reads (the tip's pose ``Arm._measured_T``, the MTM's kinematics), so the same bits
@@ -22,7 +22,7 @@ import numba
 import numpy as np
 
 from davinci_sim.devices.device_row import render_row
-from davinci_sim.haptics.fixture_row import viscous_fixture_row
+from davinci_sim.haptics.fixture_row import NO_ELASTIC, VISCOUS, fixture_law_row
 from davinci_sim.kinematics import jit
 
 #: What :func:`fixture_render` returns when the fixture's force is not finite (nothing
@@ -33,11 +33,12 @@ NOT_FINITE = -1
 @numba.njit(cache=True, nogil=True)
 def fixture_render(
     T_world_camera, T_camera_tip, vf_p, vf_v, started, vf_dt, vf_alpha, centre, basis, AE,
-    AA, EE, starts, edges, cumulative, lengths, B, G_max, transition, summed, previous,
-    steps, T_ref_base, J, ftmax, requested, limited, tau,
+    AA, EE, starts, edges, cumulative, lengths, B, G_max, transition, summed, law, elastic,
+    previous, steps, T_ref_base, J, ftmax, requested, limited, tau,
 ):  # fmt: skip
-    """One MTM's haptic tick: the viscous fixture's force (N, camera axes; the velocity
-    filter's memory ``vf_p``, ``vf_v`` updated in place) on the tool tip ``T_camera_tip``
+    """One MTM's haptic tick: the fixture's force (its ``law`` and ``elastic`` parameters as
+    :func:`~davinci_sim.haptics.fixture_row.fixture_law_row` takes them; N, camera axes; the
+    velocity filter's memory ``vf_p``, ``vf_v`` updated in place) on the tool tip ``T_camera_tip``
     (4, 4, m), the fixture's path constants in the world frame (the camera's pose in it
     ``T_world_camera``); the loop's sum ``requested`` (6,), N and N·m; then the wrench let
     through ``limited`` (6,) and the MTM's efforts ``tau`` (dof,), :func:`render_row`'s
@@ -48,10 +49,10 @@ def fixture_render(
     f, f_camera = np.empty(3), np.empty(3)
     for i in range(3):
         p_camera[i] = T_camera_tip[i, 3]
-    viscous_fixture_row(
+    fixture_law_row(
         T_world_camera, p_camera, vf_p, vf_v, started, vf_dt, vf_alpha, centre, basis, AE,
-        AA, EE, starts, edges, cumulative, lengths, B, G_max, transition, summed, cp, pt, vt,
-        f, f_camera,
+        AA, EE, starts, edges, cumulative, lengths, B, G_max, transition, summed, law, elastic,
+        cp, pt, vt, f, f_camera,
     )  # fmt: skip
     for i in range(3):
         if not math.isfinite(f_camera[i]):
@@ -82,7 +83,8 @@ def _warm_up() -> None:
         for ftmax in (readonly(np.ones(7)), np.ones(7)):
             args = (
                 readonly(np.eye(4)), readonly(np.eye(4)), np.zeros(3), np.zeros(3), True,
-                0.001, 0.5, *path, 1.0, 1.0, 0.0, True, np.zeros(6), np.ones(4), T_ref_base,
+                0.001, 0.5, *path, 1.0, 1.0, 0.0, True, VISCOUS, NO_ELASTIC.copy(), np.zeros(6),
+                np.ones(4), T_ref_base,
                 readonly(np.zeros((6, 7))), ftmax, np.empty(6), np.empty(6), np.empty(7),
             )  # fmt: skip
             fixture_render(*args)

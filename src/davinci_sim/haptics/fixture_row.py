@@ -10,15 +10,26 @@ of its rows (``study/tick_kernel.py``). Each step is the batch law's operations 
 order (``filtered_velocity_step``, ``rotate_rows``, ``closest_point``, ``_viscous_into``,
 ``FixtureSum``'s sum from zeros), so the bits are those of the Python path
 (``tests/haptics/test_fixture_row.py``).
+
+:func:`fixture_law_row` is the same chain with the law chosen by ``law``: :data:`VISCOUS` (the
+seed's) or :data:`VISCOUS_ELASTIC` (Rota's fixture,
+:class:`~davinci_sim.haptics.viscous_elastic.ViscousElasticGuidance`: the viscous law
+uncapped, the logistic elastic pull, the sum capped and scaled). The elastic law's ``exp``
+is libm's (numpy's SIMD ``exp`` differs from it in the last bit for ~5 % of arguments on
+AVX-512 machines), so its numpy form is the oracle to 1e-12 N, not bit for bit; the live
+field and the console's compiled ticks both call this row, so they agree bit for bit.
 """
 
 from __future__ import annotations
+
+import math
 
 import numpy as np
 
 from davinci_sim.geometry.path import BRUTE_FORCE_MAX_SEGMENTS, Polyline, brute_force_constants
 from davinci_sim.haptics.path_query import _closest_point_into
-from davinci_sim.haptics.viscous import _viscous_into
+from davinci_sim.haptics.viscous import DEFAULT_TRANSITION, _viscous_into
+from davinci_sim.haptics.viscous_elastic import SLOPE_DIVISOR
 from davinci_sim.kinematics.jit import helper, jit, warm
 
 
@@ -31,6 +42,43 @@ def path_constants(path: Polyline) -> tuple | None:
     parts = (path.centre, *brute_force_constants(path), path.starts, path.edges,
              path.cumulative_length, path.segment_lengths)  # fmt: skip
     return tuple(np.array(a, dtype=float, order="C") for a in parts)
+
+
+#: The laws :func:`fixture_law_row` computes (its ``law``).
+VISCOUS, VISCOUS_ELASTIC = 0, 1
+#: The elastic parameters of a law that has none (the rows' one signature).
+NO_ELASTIC = np.zeros(6)
+_EPS = 1e-12
+
+
+def elastic_parameters(law) -> np.ndarray:
+    """A :class:`~davinci_sim.haptics.viscous_elastic.ViscousElasticGuidance`'s parameters
+    as :func:`fixture_law_row` takes them: ``(K_e, threshold, half, slope, max_force,
+    assistance)`` (N, m, m, 1/m, N, 1)."""
+    return np.array([law.elastic_gain, law.threshold, law.half, law.slope, law.max_force,
+                     law.assistance], dtype=float)  # fmt: skip
+
+
+@helper
+def _viscous_elastic_into(v, phi, B, elastic, out):
+    """``viscous_elastic_guidance`` of one row: ``v`` and ``phi`` (3,) m/s and m, ``B``
+    N·s/m, ``elastic`` :func:`elastic_parameters`; the force into ``out`` (3,), N."""
+    gain, threshold, half, slope = elastic[0], elastic[1], elastic[2], elastic[3]
+    max_force, assistance = elastic[4], elastic[5]
+    _viscous_into(v, phi, B, math.inf, DEFAULT_TRANSITION, out)  # (uncapped)
+    dist = math.sqrt((phi[0] * phi[0] + phi[1] * phi[1]) + phi[2] * phi[2])
+    steep = max(slope, 1.0 / half) / SLOPE_DIVISOR
+    z = -steep * (dist - threshold - half)
+    e = math.exp(-abs(z))
+    share = 1.0 / (1.0 + e) if z <= 0 else e / (1.0 + e)
+    pull = gain * share
+    for i in range(3):
+        unit = phi[i] / dist if dist > _EPS else 0.0
+        out[i] = out[i] + pull * unit
+    norm = math.sqrt((out[0] * out[0] + out[1] * out[1]) + out[2] * out[2])
+    scale = max_force / max(norm, _EPS) if norm > max_force else 1.0
+    for i in range(3):
+        out[i] = out[i] * (scale * assistance)
 
 
 @helper
@@ -46,6 +94,22 @@ def viscous_fixture_row(
     frame. The velocity filter's memory ``vf_p``, ``vf_v`` (3,) is updated in place
     (``started``: it has a previous sample; ``vf_dt`` s, ``vf_alpha``); ``cp`` (8,),
     ``pt``, ``vt``, ``f`` (3,) scratch."""
+    fixture_law_row(
+        T_task_camera, p_camera, vf_p, vf_v, started, vf_dt, vf_alpha, centre, basis, AE, AA,
+        EE, starts, edges, cumulative, lengths, B, G_max, transition, summed, VISCOUS,
+        NO_ELASTIC, cp, pt, vt, f, f_camera,
+    )  # fmt: skip
+
+
+@helper
+def fixture_law_row(
+    T_task_camera, p_camera, vf_p, vf_v, started, vf_dt, vf_alpha,
+    centre, basis, AE, AA, EE, starts, edges, cumulative, lengths,
+    B, G_max, transition, summed, law, elastic, cp, pt, vt, f, f_camera,
+):  # fmt: skip
+    """:func:`viscous_fixture_row` with the law ``law`` (:data:`VISCOUS`: ``B``, ``G_max``,
+    ``transition``; :data:`VISCOUS_ELASTIC`: ``B`` and ``elastic``, its
+    :func:`elastic_parameters`)."""
     for i in range(3):  # the velocity filter (VelocityFilter.update)
         p = p_camera[i]
         if started:
@@ -63,7 +127,10 @@ def viscous_fixture_row(
             T_task_camera[i, 2] * vf_v[2]
         )
     _closest_point_into(pt, centre, basis, AE, AA, EE, starts, edges, cumulative, lengths, cp)
-    _viscous_into(vt, cp[3:6], B, G_max, transition, f)
+    if law == VISCOUS_ELASTIC:
+        _viscous_elastic_into(vt, cp[3:6], B, elastic, f)
+    else:
+        _viscous_into(vt, cp[3:6], B, G_max, transition, f)
     if summed:
         for i in range(3):
             f[i] = 0.0 + f[i]  # (FixtureSum: a sum started from zeros)
@@ -74,16 +141,17 @@ def viscous_fixture_row(
 
 
 @jit
-def viscous_fixture_force(
+def fixture_force(
     T_task_camera, p_camera, vf_p, vf_v, started, vf_dt, vf_alpha,
     centre, basis, AE, AA, EE, starts, edges, cumulative, lengths,
-    B, G_max, transition, summed, f_camera,
+    B, G_max, transition, summed, law, elastic, f_camera,
 ):  # fmt: skip
-    """:func:`viscous_fixture_row` of one tip (the live haptic tick), scratch allocated."""
-    viscous_fixture_row(
+    """:func:`fixture_law_row` of one tip (the live haptic tick), scratch allocated."""
+    fixture_law_row(
         T_task_camera, p_camera, vf_p, vf_v, started, vf_dt, vf_alpha,
         centre, basis, AE, AA, EE, starts, edges, cumulative, lengths,
-        B, G_max, transition, summed, np.empty(8), np.empty(3), np.empty(3), np.empty(3), f_camera,
+        B, G_max, transition, summed, law, elastic, np.empty(8), np.empty(3), np.empty(3),
+        np.empty(3), f_camera,
     )  # fmt: skip
 
 
@@ -92,8 +160,8 @@ def _warm_up() -> None:
     live field's argument types."""
     path = path_constants(Polyline(np.array([[0.0, 0.0, 0.0], [0.01, 0.0, 0.0]])))
     assert path is not None
-    viscous_fixture_force(np.eye(4), np.zeros(3), np.zeros(3), np.zeros(3), True, 0.001, 0.5,
-                          *path, 1.0, 1.0, 0.0, True, np.empty(3))  # fmt: skip
+    fixture_force(np.eye(4), np.zeros(3), np.zeros(3), np.zeros(3), True, 0.001, 0.5, *path,
+                  1.0, 1.0, 0.0, True, VISCOUS, NO_ELASTIC.copy(), np.empty(3))  # fmt: skip
 
 
 warm(_warm_up)
