@@ -1,6 +1,6 @@
 """The haptic loop's tick for one MTM whose one field is a fixture with a compiled law (the
-seed's viscous law, Rota's viscous-elastic one), in one compiled call: the fixture's force on the PSM's tool tip, the loop's sum, then the device's
-clamp and Jᵀw on the MTM.
+seed's viscous law, Rota's viscous-elastic one), in one compiled call: the fixture's force
+on the PSM's tool tip, the loop's sum, then the device's clamp and Jᵀw on the MTM.
 
 For a following teleoperation the loop (:class:`~davinci_sim.console.haptic_loop.HapticLoop`)
 builds the :class:`~davinci_sim.haptics.field.HapticState`, calls each field, checks and sums
