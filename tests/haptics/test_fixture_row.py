@@ -102,3 +102,19 @@ def test_rotas_law_caps_the_sum_then_scales_it():
                                          half=0.002, slope=500.0, max_force=3.0,
                                          assistance=0.25)  # fmt: skip
     np.testing.assert_allclose(out, numpy_law, rtol=0, atol=1e-12)
+
+
+def test_a_spring_field_compiled_is_its_numpy_law():
+    """The spring (pull k·φ, damping across the path, capped) as the compiled row against
+    its numpy law within 1e-12 N, a sum of one too; the cap acts."""
+    spring = SpringGuidance(ARC, stiffness=300.0, damping=2.0, max_force=1.0)
+    for fixture in (spring, combine(spring)):
+        compiled, python = FixtureField(fixture), FixtureField(fixture)
+        python._row = None
+        forces = []
+        for state in _states(300, seed=4, spread=4e-4):
+            f_c, f_p = compiled(state), python(state)
+            np.testing.assert_allclose(f_c, f_p, rtol=0, atol=1e-12)
+            forces.append(np.linalg.norm(f_p))
+        assert (compiled._row is not None) == jit.ENABLED
+        assert max(forces) == pytest.approx(1.0, abs=1e-9)  # capped

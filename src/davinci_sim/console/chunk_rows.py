@@ -269,9 +269,9 @@ def fixture_part(tel: TeleopPSM, haptics: HapticLoop | None, no_fixture: tuple) 
         return None
     _, _, _, previous, steps, ftmax = args
     vf = field_.row_filter(tel.psm.name)
-    _, path, B, G_max, transition, summed, law, elastic = row
+    _, path, B, G_max, transition, summed, law, params = row
     constants = (*path, float(B), float(G_max), float(transition), bool(summed), int(law),
-                 floats(elastic), float(vf.dt), float(vf.alpha), floats(steps),
+                 floats(params), float(vf.dt), float(vf.alpha), floats(steps),
                  floats(ftmax))  # fmt: skip
     state = (np.array([True, bool(vf._started)]), vf._p, vf._v, floats(previous))
     return constants, state, out

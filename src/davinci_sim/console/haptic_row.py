@@ -1,5 +1,5 @@
 """The haptic loop's tick for one MTM whose one field is a fixture with a compiled law (the
-seed's viscous law, Rota's viscous-elastic one), in one compiled call: the fixture's force
+seed's viscous law, Rota's viscous-elastic one, a spring), in one compiled call: the fixture's force
 on the PSM's tool tip, the loop's sum, then the device's clamp and Jᵀw on the MTM.
 
 For a following teleoperation the loop (:class:`~davinci_sim.console.haptic_loop.HapticLoop`)
@@ -22,7 +22,7 @@ import numba
 import numpy as np
 
 from davinci_sim.devices.device_row import render_row
-from davinci_sim.haptics.fixture_row import NO_ELASTIC, VISCOUS, fixture_law_row
+from davinci_sim.haptics.fixture_row import NO_PARAMS, VISCOUS, fixture_law_row
 from davinci_sim.kinematics import jit
 
 #: What :func:`fixture_render` returns when the fixture's force is not finite (nothing
@@ -33,10 +33,10 @@ NOT_FINITE = -1
 @numba.njit(cache=True, nogil=True)
 def fixture_render(
     T_world_camera, T_camera_tip, vf_p, vf_v, started, vf_dt, vf_alpha, centre, basis, AE,
-    AA, EE, starts, edges, cumulative, lengths, B, G_max, transition, summed, law, elastic,
+    AA, EE, starts, edges, cumulative, lengths, B, G_max, transition, summed, law, params,
     previous, steps, T_ref_base, J, ftmax, requested, limited, tau,
 ):  # fmt: skip
-    """One MTM's haptic tick: the fixture's force (its ``law`` and ``elastic`` parameters as
+    """One MTM's haptic tick: the fixture's force (its ``law`` and ``params`` as
     :func:`~davinci_sim.haptics.fixture_row.fixture_law_row` takes them; N, camera axes; the
     velocity filter's memory ``vf_p``, ``vf_v`` updated in place) on the tool tip ``T_camera_tip``
     (4, 4, m), the fixture's path constants in the world frame (the camera's pose in it
@@ -51,7 +51,7 @@ def fixture_render(
         p_camera[i] = T_camera_tip[i, 3]
     fixture_law_row(
         T_world_camera, p_camera, vf_p, vf_v, started, vf_dt, vf_alpha, centre, basis, AE,
-        AA, EE, starts, edges, cumulative, lengths, B, G_max, transition, summed, law, elastic,
+        AA, EE, starts, edges, cumulative, lengths, B, G_max, transition, summed, law, params,
         cp, pt, vt, f, f_camera,
     )  # fmt: skip
     for i in range(3):
@@ -83,7 +83,7 @@ def _warm_up() -> None:
         for ftmax in (readonly(np.ones(7)), np.ones(7)):
             args = (
                 readonly(np.eye(4)), readonly(np.eye(4)), np.zeros(3), np.zeros(3), True,
-                0.001, 0.5, *path, 1.0, 1.0, 0.0, True, VISCOUS, NO_ELASTIC.copy(), np.zeros(6),
+                0.001, 0.5, *path, 1.0, 1.0, 0.0, True, VISCOUS, NO_PARAMS.copy(), np.zeros(6),
                 np.ones(4), T_ref_base,
                 readonly(np.zeros((6, 7))), ftmax, np.empty(6), np.empty(6), np.empty(7),
             )  # fmt: skip

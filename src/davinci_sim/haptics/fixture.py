@@ -121,7 +121,7 @@ class FixtureField:
     def compiled_row(self) -> tuple | None:
         """The field's compiled row and its constants (``fixture_row.fixture_force``, the
         path's constants, ``B``, ``G_max``, ``transition``, whether summed, the law and its
-        elastic parameters), or None where it has none (see :func:`_compiled_form`)."""
+        parameters), or None where it has none (see :func:`_compiled_form`)."""
         if self._row is False:
             self._row = _compiled_form(self)
         return self._row  # type: ignore[return-value]
@@ -141,11 +141,11 @@ class FixtureField:
         the same bits, the filter's memory updated in place."""
         f = self.row_filter(state.psm)
         out = np.empty(3)
-        force, path, B, G_max, transition, summed, law, elastic = row
+        force, path, B, G_max, transition, summed, law, params = row
         force(
             np.array(state.T_world_camera, dtype=float), np.array(state.p_camera_tip, dtype=float),
             f._p, f._v, bool(f._started), f.dt, f.alpha, *path, B, G_max, transition, summed,
-            law, elastic, out,
+            law, params, out,
         )  # fmt: skip
         f._started[...] = True
         return out
@@ -167,11 +167,12 @@ class FixtureField:
 
 def _compiled_form(field: FixtureField) -> tuple | None:
     """``field``'s compiled row and its arguments (the row, path constants, ``B``, ``G_max``,
-    ``transition``, whether summed, the law, its elastic parameters), or None where it has
-    none: numba off, a fixture other than the seed's viscous law (one ``B`` and ``G_max``)
-    or Rota's viscous-elastic one (alone or as a sum of one), or no force (an empty sum),
+    ``transition``, whether summed, the law, its parameters), or None where it has none:
+    numba off, a fixture other than the seed's viscous law (one ``B`` and ``G_max``), Rota's
+    viscous-elastic one or a spring (alone or as a sum of one), or no force (an empty sum),
     the camera frame, the measured velocity, a path longer than the brute force serves."""
     from davinci_sim.haptics.combine import FixtureSum
+    from davinci_sim.haptics.spring import SpringGuidance
     from davinci_sim.haptics.viscous import ViscousGuidance
     from davinci_sim.haptics.viscous_elastic import ViscousElasticGuidance
     from davinci_sim.kinematics import jit
@@ -180,7 +181,7 @@ def _compiled_form(field: FixtureField) -> tuple | None:
         return None
     fixture, summed = field.fixture, False
     row = fixture_row.fixture_force
-    viscous, none = fixture_row.VISCOUS, fixture_row.NO_ELASTIC.copy()
+    viscous, none = fixture_row.VISCOUS, fixture_row.NO_PARAMS.copy()
     if isinstance(fixture, FixtureSum) and not fixture.fixtures:
         # No force (a task's ``fixture: none``): the seed's viscous law at (B, G_max) =
         # (0, 0), Table I's unassisted condition, on any path. Its force is ±0, which the
@@ -190,13 +191,16 @@ def _compiled_form(field: FixtureField) -> tuple | None:
         return None if path is None else (row, path, 0.0, 0.0, 0.0, True, viscous, none)
     if isinstance(fixture, FixtureSum) and len(fixture.fixtures) == 1:
         fixture, summed = fixture.fixtures[0], True
-    if type(fixture) is ViscousElasticGuidance:
+    if type(fixture) in (ViscousElasticGuidance, SpringGuidance):
         path = fixture_row.path_constants(fixture.path)
         if path is None:
             return None
-        elastic = fixture_row.elastic_parameters(fixture)
-        return (row, path, float(fixture.B), math.inf, 0.0, summed,
-                fixture_row.VISCOUS_ELASTIC, elastic)  # fmt: skip
+        if type(fixture) is SpringGuidance:
+            law, B = fixture_row.SPRING, 0.0
+        else:
+            law, B = fixture_row.VISCOUS_ELASTIC, float(fixture.B)
+        params = fixture_row.law_parameters(fixture)
+        return row, path, B, math.inf, 0.0, summed, law, params
     if type(fixture) is not ViscousGuidance:
         return None
     if not (isinstance(fixture.B, float) and isinstance(fixture.G_max, float)):

@@ -12,12 +12,15 @@ order (``filtered_velocity_step``, ``rotate_rows``, ``closest_point``, ``_viscou
 (``tests/haptics/test_fixture_row.py``).
 
 :func:`fixture_law_row` is the same chain with the law chosen by ``law``: :data:`VISCOUS` (the
-seed's) or :data:`VISCOUS_ELASTIC` (Rota's fixture,
+seed's), :data:`VISCOUS_ELASTIC` (Rota's fixture,
 :class:`~davinci_sim.haptics.viscous_elastic.ViscousElasticGuidance`: the viscous law
-uncapped, the logistic elastic pull, the sum capped and scaled). The elastic law's ``exp``
-is libm's (numpy's SIMD ``exp`` differs from it in the last bit for ~5 % of arguments on
-AVX-512 machines), so its numpy form is the oracle to 1e-12 N, not bit for bit; the live
-field and the console's compiled ticks both call this row, so they agree bit for bit.
+uncapped, the logistic elastic pull, the sum capped and scaled) or :data:`SPRING`
+(:class:`~davinci_sim.haptics.spring.SpringGuidance`), each with its parameters
+(:func:`law_parameters`). Their numpy forms are the oracles within 1e-12 N, not bit for
+bit (``einsum`` sums in its own order; the elastic law's ``exp``
+is libm's, and numpy's SIMD ``exp`` differs from it in the last bit for ~5 % of arguments
+on AVX-512 machines); the live field and the console's compiled ticks both call this row,
+so they agree bit for bit.
 """
 
 from __future__ import annotations
@@ -45,24 +48,53 @@ def path_constants(path: Polyline) -> tuple | None:
 
 
 #: The laws :func:`fixture_law_row` computes (its ``law``).
-VISCOUS, VISCOUS_ELASTIC = 0, 1
-#: The elastic parameters of a law that has none (the rows' one signature).
-NO_ELASTIC = np.zeros(6)
+VISCOUS, VISCOUS_ELASTIC, SPRING = 0, 1, 2
+#: The parameters of a law that takes none but ``B``, ``G_max`` and ``transition`` (the
+#: rows' one signature: six floats).
+NO_PARAMS = np.zeros(6)
 _EPS = 1e-12
 
 
-def elastic_parameters(law) -> np.ndarray:
-    """A :class:`~davinci_sim.haptics.viscous_elastic.ViscousElasticGuidance`'s parameters
-    as :func:`fixture_law_row` takes them: ``(K_e, threshold, half, slope, max_force,
-    assistance)`` (N, m, m, 1/m, N, 1)."""
+def law_parameters(law) -> np.ndarray:
+    """A fixture law's parameters as :func:`fixture_law_row` takes them (six floats): a
+    :class:`~davinci_sim.haptics.viscous_elastic.ViscousElasticGuidance`'s ``(K_e,
+    threshold, half, slope, max_force, assistance)`` (N, m, m, 1/m, N, 1), a
+    :class:`~davinci_sim.haptics.spring.SpringGuidance`'s ``(stiffness, damping, max_force,
+    transition, 0, 0)`` (N/m, N·s/m, N, m)."""
+    from davinci_sim.haptics.spring import SpringGuidance
+
+    if isinstance(law, SpringGuidance):
+        return np.array([law.stiffness, law.damping, law.max_force, law.transition, 0.0, 0.0],
+                        dtype=float)  # fmt: skip
     return np.array([law.elastic_gain, law.threshold, law.half, law.slope, law.max_force,
                      law.assistance], dtype=float)  # fmt: skip
 
 
 @helper
+def _spring_into(v, phi, params, out):
+    """``spring_guidance`` of one row: ``v`` and ``phi`` (3,) m/s and m, ``params`` its
+    :func:`law_parameters`; the force into ``out`` (3,), N."""
+    k, c, cap, transition = params[0], params[1], params[2], params[3]
+    dist = math.sqrt((phi[0] * phi[0] + phi[1] * phi[1]) + phi[2] * phi[2])
+    safe = max(dist, _EPS)
+    ramp = min(1.0, dist / transition)
+    hx, hy, hz = (phi[0] / safe, phi[1] / safe, phi[2] / safe) if dist > _EPS else (0.0, 0.0, 0.0)
+    along = c * ramp * ((v[0] * hx + v[1] * hy) + v[2] * hz)
+    out[0], out[1], out[2] = (
+        k * phi[0] - along * hx,
+        k * phi[1] - along * hy,
+        k * phi[2] - along * hz,
+    )
+    norm = math.sqrt((out[0] * out[0] + out[1] * out[1]) + out[2] * out[2])
+    scale = cap / max(norm, _EPS) if norm > cap else 1.0
+    for i in range(3):
+        out[i] = out[i] * scale
+
+
+@helper
 def _viscous_elastic_into(v, phi, B, elastic, out):
     """``viscous_elastic_guidance`` of one row: ``v`` and ``phi`` (3,) m/s and m, ``B``
-    N·s/m, ``elastic`` :func:`elastic_parameters`; the force into ``out`` (3,), N."""
+    N·s/m, ``elastic`` its :func:`law_parameters`; the force into ``out`` (3,), N."""
     gain, threshold, half, slope = elastic[0], elastic[1], elastic[2], elastic[3]
     max_force, assistance = elastic[4], elastic[5]
     _viscous_into(v, phi, B, math.inf, DEFAULT_TRANSITION, out)  # (uncapped)
@@ -97,7 +129,7 @@ def viscous_fixture_row(
     fixture_law_row(
         T_task_camera, p_camera, vf_p, vf_v, started, vf_dt, vf_alpha, centre, basis, AE, AA,
         EE, starts, edges, cumulative, lengths, B, G_max, transition, summed, VISCOUS,
-        NO_ELASTIC, cp, pt, vt, f, f_camera,
+        NO_PARAMS, cp, pt, vt, f, f_camera,
     )  # fmt: skip
 
 
@@ -105,11 +137,11 @@ def viscous_fixture_row(
 def fixture_law_row(
     T_task_camera, p_camera, vf_p, vf_v, started, vf_dt, vf_alpha,
     centre, basis, AE, AA, EE, starts, edges, cumulative, lengths,
-    B, G_max, transition, summed, law, elastic, cp, pt, vt, f, f_camera,
+    B, G_max, transition, summed, law, params, cp, pt, vt, f, f_camera,
 ):  # fmt: skip
     """:func:`viscous_fixture_row` with the law ``law`` (:data:`VISCOUS`: ``B``, ``G_max``,
-    ``transition``; :data:`VISCOUS_ELASTIC`: ``B`` and ``elastic``, its
-    :func:`elastic_parameters`)."""
+    ``transition``; :data:`VISCOUS_ELASTIC`: ``B`` and ``params``; :data:`SPRING`:
+    ``params``; ``params``: :func:`law_parameters`)."""
     for i in range(3):  # the velocity filter (VelocityFilter.update)
         p = p_camera[i]
         if started:
@@ -128,7 +160,9 @@ def fixture_law_row(
         )
     _closest_point_into(pt, centre, basis, AE, AA, EE, starts, edges, cumulative, lengths, cp)
     if law == VISCOUS_ELASTIC:
-        _viscous_elastic_into(vt, cp[3:6], B, elastic, f)
+        _viscous_elastic_into(vt, cp[3:6], B, params, f)
+    elif law == SPRING:
+        _spring_into(vt, cp[3:6], params, f)
     else:
         _viscous_into(vt, cp[3:6], B, G_max, transition, f)
     if summed:
@@ -144,13 +178,13 @@ def fixture_law_row(
 def fixture_force(
     T_task_camera, p_camera, vf_p, vf_v, started, vf_dt, vf_alpha,
     centre, basis, AE, AA, EE, starts, edges, cumulative, lengths,
-    B, G_max, transition, summed, law, elastic, f_camera,
+    B, G_max, transition, summed, law, params, f_camera,
 ):  # fmt: skip
     """:func:`fixture_law_row` of one tip (the live haptic tick), scratch allocated."""
     fixture_law_row(
         T_task_camera, p_camera, vf_p, vf_v, started, vf_dt, vf_alpha,
         centre, basis, AE, AA, EE, starts, edges, cumulative, lengths,
-        B, G_max, transition, summed, law, elastic, np.empty(8), np.empty(3), np.empty(3),
+        B, G_max, transition, summed, law, params, np.empty(8), np.empty(3), np.empty(3),
         np.empty(3), f_camera,
     )  # fmt: skip
 
@@ -161,7 +195,7 @@ def _warm_up() -> None:
     path = path_constants(Polyline(np.array([[0.0, 0.0, 0.0], [0.01, 0.0, 0.0]])))
     assert path is not None
     fixture_force(np.eye(4), np.zeros(3), np.zeros(3), np.zeros(3), True, 0.001, 0.5, *path,
-                  1.0, 1.0, 0.0, True, VISCOUS, NO_ELASTIC.copy(), np.empty(3))  # fmt: skip
+                  1.0, 1.0, 0.0, True, VISCOUS, NO_PARAMS.copy(), np.empty(3))  # fmt: skip
 
 
 warm(_warm_up)
