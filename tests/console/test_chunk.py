@@ -345,3 +345,42 @@ def test_rotas_fixture_ticks_compiled_as_in_python(rota):
     assert sum(a[0] for a in answers) >= 580, answers[:10]
     requested = sim.components["console"].haptics.requested("MTMR")
     assert requested is not None and requested[1] < -0.01  # it pulls back down to the path
+
+
+def _user_pull(v, phi, params, out):
+    """k·φ − c·v, N: a user's own law (``haptics/compiled_law.py``)."""
+    for i in range(3):
+        out[i] = params[0] * phi[i] - params[1] * v[i]
+
+
+@pytest.fixture(scope="module")
+def user_law():
+    """``make run``'s console with the task's fixture replaced by a user's compiled law on
+    the same path, the person holding both handles."""
+    from davinci_sim.haptics.compiled_law import UserLawGuidance, compiled_law
+    from davinci_sim.haptics.fixture import FixtureField
+
+    sim, chunker, _ = _serve("seed_path")
+    haptics = sim.components["console"].haptics
+    (name,) = [n for n in haptics.field_names() if haptics.field(n).__class__ is FixtureField]
+    path = haptics.field(name).fixture.fixtures[0].path
+    haptics.remove_field(name)
+    haptics.add_field(FixtureField(UserLawGuidance(path, compiled_law(_user_pull), (200.0, 1.0))),
+                      mtm="MTMR", name="user")  # fmt: skip
+    sim.run_for(0.05)
+    return sim, chunker, sim.get_state()
+
+
+def test_a_users_compiled_law_ticks_compiled_as_in_python(user_law):
+    """A user's law compiled with ``compiled_law`` renders in the console's compiled ticks
+    (through its C callback) as in the Python ticks, bit for bit, the W key held."""
+
+    def key(sim):
+        assert sim.components["MTMR/hand"].command([0.0, 0.02, 0.0])
+
+    sim = user_law[0]
+    runs, answers = _both_ways(user_law, 600, before=key)
+    _assert_same_run(*runs)
+    assert sum(a[0] for a in answers) >= 580, answers[:10]
+    requested = sim.components["console"].haptics.requested("MTMR")
+    assert requested is not None and requested[1] < -0.01  # it pulls back down to the path

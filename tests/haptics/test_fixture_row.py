@@ -7,37 +7,14 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from haptic_states import ARC, states
 
-from davinci_sim.geometry import so3
-from davinci_sim.geometry.path import Polyline
 from davinci_sim.haptics.combine import combine
-from davinci_sim.haptics.field import HapticState
 from davinci_sim.haptics.fixture import FixtureField
 from davinci_sim.haptics.spring import SpringGuidance
 from davinci_sim.haptics.viscous import ViscousGuidance
 from davinci_sim.haptics.viscous_elastic import ViscousElasticGuidance, viscous_elastic_guidance
 from davinci_sim.kinematics import jit
-
-ARC = Polyline(
-    np.stack([[0.03 * np.cos(a), 0.03 * np.sin(a), 0.002 * a] for a in np.linspace(0, 3, 40)])
-)
-
-
-def _states(n: int, seed: int, spread: float = 2e-4):
-    """n haptic states of a tip wandering near the arc (steps of ``spread`` m per axis),
-    seen from a tilted camera."""
-    rng = np.random.default_rng(seed)
-    T_world_camera = np.eye(4)
-    T_world_camera[:3, :3] = so3.rotation_from_vector([0.3, -0.2, 0.5])
-    T_world_camera[:3, 3] = [0.01, -0.02, 0.1]
-    p_world = np.array([0.03, 0.0, 0.0])
-    for _ in range(n):
-        p_world = p_world + rng.normal(0.0, spread, 3)
-        T = np.eye(4)
-        T[:3, 3] = T_world_camera[:3, :3].T @ (p_world - T_world_camera[:3, 3])
-        yield HapticState.from_values(
-            T_camera_tip=T, twist_camera_tip=np.zeros(6), T_world_camera=T_world_camera
-        )
 
 
 @pytest.mark.parametrize("summed", [False, True])
@@ -46,7 +23,7 @@ def test_the_compiled_field_is_the_python_field_bit_for_bit(summed):
     fixture = combine(law) if summed else law
     compiled, python = FixtureField(fixture), FixtureField(fixture)
     python._row = None  # (the Python path)
-    for k, state in enumerate(_states(300, seed=1)):
+    for k, state in enumerate(states(300, seed=1)):
         f_c, f_p = compiled(state), python(state)
         np.testing.assert_array_equal(f_c, f_p)
         if k == 150:  # a restored filter goes on the same
@@ -62,7 +39,7 @@ def test_fixtures_with_no_compiled_form_keep_the_python_path():
         FixtureField(ViscousGuidance(ARC, B=40.0, G_max=3.0), frame="camera"),
         FixtureField(ViscousGuidance(ARC, B=40.0, G_max=3.0), velocity="measured"),
     ):
-        field(next(_states(1, seed=2)))
+        field(next(states(1, seed=2)))
         assert field._row is None
 
 
@@ -78,7 +55,7 @@ def test_rotas_viscous_elastic_field_compiled_is_its_numpy_law(summed):
     compiled, python = FixtureField(fixture), FixtureField(fixture)
     python._row = None  # (the numpy path)
     forces = []
-    for k, state in enumerate(_states(400, seed=3, spread=4e-4)):
+    for k, state in enumerate(states(400, seed=3, spread=4e-4)):
         f_c, f_p = compiled(state), python(state)
         np.testing.assert_allclose(f_c, f_p, rtol=0, atol=1e-12)
         forces.append(np.linalg.norm(f_p))
@@ -112,7 +89,7 @@ def test_a_spring_field_compiled_is_its_numpy_law():
         compiled, python = FixtureField(fixture), FixtureField(fixture)
         python._row = None
         forces = []
-        for state in _states(300, seed=4, spread=4e-4):
+        for state in states(300, seed=4, spread=4e-4):
             f_c, f_p = compiled(state), python(state)
             np.testing.assert_allclose(f_c, f_p, rtol=0, atol=1e-12)
             forces.append(np.linalg.norm(f_p))

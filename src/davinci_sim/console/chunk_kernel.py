@@ -166,9 +166,9 @@ def console_chunk(phys, watch, fr, devices, teleops, rec, K):
     fon_b, vp_b, vv_b, prev_b = fst_b
     req_a, limd_a, tau_a, ff_a = fout_a
     req_b, limd_b, tau_b, ff_b = fout_b
-    (ce_a, ba_a, AE_a, AA_a, EE_a, st_a, ed_a, cu_a, le_a, B_a, G_a, tr_a, su_a, law_a, lp_a,
+    (ce_a, ba_a, AE_a, AA_a, EE_a, st_a, ed_a, cu_a, le_a, B_a, G_a, tr_a, su_a, law_a, lf_a, lp_a,
      vdt_a, val_a, fsteps_a, ftmax_a) = fix_a  # fmt: skip
-    (ce_b, ba_b, AE_b, AA_b, EE_b, st_b, ed_b, cu_b, le_b, B_b, G_b, tr_b, su_b, law_b, lp_b,
+    (ce_b, ba_b, AE_b, AA_b, EE_b, st_b, ed_b, cu_b, le_b, B_b, G_b, tr_b, su_b, law_b, lf_b, lp_b,
      vdt_b, val_b, fsteps_b, ftmax_b) = fix_b  # fmt: skip
     dva, dvb = devices[dev_a[0]], devices[dev_b[0]]  # (each teleoperation's MTM)
     dl_a0, dl_a1, dl_a2, dl_a3 = dva[0]
@@ -301,7 +301,7 @@ def console_chunk(phys, watch, fr, devices, teleops, rec, K):
                 0, keep_fx, vp_a, vv_a, fon_a[1], T_world_camera, trow_a[0], frames_out, c_a5,
                 c_a6, c_a7, c_a8, tadr_a, tq_a, tT_a, tJ_a, tF_a, dl_a0, dl_a1, dl_a2, dl_a3,
                 dadr_a, dq_a, dT_a, dJ_a, dF_a, dTb_a, qp, ce_a, ba_a, AE_a, AA_a, EE_a, st_a,
-                ed_a, cu_a, le_a, B_a, G_a, tr_a, su_a, law_a, lp_a, vdt_a, val_a, fsteps_a,
+                ed_a, cu_a, le_a, B_a, G_a, tr_a, su_a, law_a, lf_a, lp_a, vdt_a, val_a, fsteps_a,
                 ftmax_a, prev_a, req_a, limd_a, tau_a, ff_a,
             )  # fmt: skip
         if result != NOT_FINITE and ton_b[0] and fon_b[0]:
@@ -310,7 +310,7 @@ def console_chunk(phys, watch, fr, devices, teleops, rec, K):
                 1, keep_fx, vp_b, vv_b, fon_b[1], T_world_camera, trow_b[0], frames_out, c_b5,
                 c_b6, c_b7, c_b8, tadr_b, tq_b, tT_b, tJ_b, tF_b, dl_b0, dl_b1, dl_b2, dl_b3,
                 dadr_b, dq_b, dT_b, dJ_b, dF_b, dTb_b, qp, ce_b, ba_b, AE_b, AA_b, EE_b, st_b,
-                ed_b, cu_b, le_b, B_b, G_b, tr_b, su_b, law_b, lp_b, vdt_b, val_b, fsteps_b,
+                ed_b, cu_b, le_b, B_b, G_b, tr_b, su_b, law_b, lf_b, lp_b, vdt_b, val_b, fsteps_b,
                 ftmax_b, prev_b, req_b, limd_b, tau_b, ff_b,
             )  # fmt: skip
         if result == NOT_FINITE:  # (the Python path's error and zero sum)

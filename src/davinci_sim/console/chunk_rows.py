@@ -91,7 +91,7 @@ def no_fixture() -> tuple:
     """A fixture of the kernel's types for a teleoperation without one (never used)."""
     path = path_constants(Polyline(np.array([[0.0, 0.0, 0.0], [0.01, 0.0, 0.0]])))
     assert path is not None
-    return (*path, 0.0, 0.0, 0.0, False, VISCOUS, np.zeros(6), 0.001, 0.5, np.zeros(4),
+    return (*path, 0.0, 0.0, 0.0, False, VISCOUS, 0, np.zeros(6), 0.001, 0.5, np.zeros(4),
             np.zeros(7))  # fmt: skip
 
 
@@ -269,9 +269,9 @@ def fixture_part(tel: TeleopPSM, haptics: HapticLoop | None, no_fixture: tuple) 
         return None
     _, _, _, previous, steps, ftmax = args
     vf = field_.row_filter(tel.psm.name)
-    _, path, B, G_max, transition, summed, law, params = row
+    _, path, B, G_max, transition, summed, law, law_fn, params = row
     constants = (*path, float(B), float(G_max), float(transition), bool(summed), int(law),
-                 floats(params), float(vf.dt), float(vf.alpha), floats(steps),
+                 int(law_fn), floats(params), float(vf.dt), float(vf.alpha), floats(steps),
                  floats(ftmax))  # fmt: skip
     state = (np.array([True, bool(vf._started)]), vf._p, vf._v, floats(previous))
     return constants, state, out

@@ -190,7 +190,7 @@ def fixture_force(m, keep_fx, vf_p, vf_v, started, T_world_camera, frame_row, fr
                   fk_links, fk_modified, fk_tool, fk_identity, adr, q, T, J, F, d_links,
                   d_modified, d_tool, d_identity, d_adr, d_q, d_T, d_J, d_F, d_T_ref_base,
                   qp, centre, basis, AE, AA, EE, starts, edges, cumulative, lengths, B, G_max,
-                  transition, summed, law, params, vf_dt, vf_alpha, steps, ftmax, previous,
+                  transition, summed, law, law_fn, params, vf_dt, vf_alpha, steps, ftmax, previous,
                   requested, limited, tau, out_flags) -> int:  # fmt: skip
     """Teleoperation ``m``'s fixture after the step (``HapticLoop._fixture_render``): its
     MTM's and its PSM's kinematics, the force on the tip in the camera frame
@@ -205,8 +205,8 @@ def fixture_force(m, keep_fx, vf_p, vf_v, started, T_world_camera, frame_row, fr
         keep_fx[m, 3 + i] = vf_v[i]
     result = fixture_render(
         T_world_camera, T_camera_tip, vf_p, vf_v, started, vf_dt, vf_alpha, centre, basis, AE,
-        AA, EE, starts, edges, cumulative, lengths, B, G_max, transition, summed, law, params,
-        previous, steps, d_T_ref_base, d_J, ftmax, requested, limited, tau,
+        AA, EE, starts, edges, cumulative, lengths, B, G_max, transition, summed, law, law_fn,
+        params, previous, steps, d_T_ref_base, d_J, ftmax, requested, limited, tau,
     )  # fmt: skip
     if result != NOT_FINITE:  # (else the caller puts the filters back: Python's tick)
         out_flags[0] = result == 1

@@ -160,12 +160,12 @@ class HapticLoop:
         q, T_ref_base, J, previous, steps, ftmax = args
         psm = teleop.psm
         vf = field_.row_filter(psm.name)
-        _, path, B, G_max, transition, summed, law, params = row
+        _, path, B, G_max, transition, summed, law, law_fn, params = row
         requested, limited, tau = np.empty(6), np.empty(6), np.empty(len(q))
         arguments = (
             T_world_camera, psm._measured_T(), vf._p, vf._v, bool(vf._started), vf.dt, vf.alpha,
-            *path, B, G_max, transition, summed, law, params, previous, steps, T_ref_base, J,
-            ftmax, requested, limited, tau,
+            *path, B, G_max, transition, summed, law, law_fn, params, previous, steps,
+            T_ref_base, J, ftmax, requested, limited, tau,
         )  # fmt: skip
         active = haptic_row.fixture_render(*arguments)
         vf._started[...] = True

@@ -33,10 +33,10 @@ NOT_FINITE = -1
 @numba.njit(cache=True, nogil=True)
 def fixture_render(
     T_world_camera, T_camera_tip, vf_p, vf_v, started, vf_dt, vf_alpha, centre, basis, AE,
-    AA, EE, starts, edges, cumulative, lengths, B, G_max, transition, summed, law, params,
-    previous, steps, T_ref_base, J, ftmax, requested, limited, tau,
+    AA, EE, starts, edges, cumulative, lengths, B, G_max, transition, summed, law, law_fn,
+    params, previous, steps, T_ref_base, J, ftmax, requested, limited, tau,
 ):  # fmt: skip
-    """One MTM's haptic tick: the fixture's force (its ``law`` and ``params`` as
+    """One MTM's haptic tick: the fixture's force (its ``law``, ``law_fn`` and ``params`` as
     :func:`~davinci_sim.haptics.fixture_row.fixture_law_row` takes them; N, camera axes; the
     velocity filter's memory ``vf_p``, ``vf_v`` updated in place) on the tool tip ``T_camera_tip``
     (4, 4, m), the fixture's path constants in the world frame (the camera's pose in it
@@ -51,8 +51,8 @@ def fixture_render(
         p_camera[i] = T_camera_tip[i, 3]
     fixture_law_row(
         T_world_camera, p_camera, vf_p, vf_v, started, vf_dt, vf_alpha, centre, basis, AE,
-        AA, EE, starts, edges, cumulative, lengths, B, G_max, transition, summed, law, params,
-        cp, pt, vt, f, f_camera,
+        AA, EE, starts, edges, cumulative, lengths, B, G_max, transition, summed, law, law_fn,
+        params, cp, pt, vt, f, f_camera,
     )  # fmt: skip
     for i in range(3):
         if not math.isfinite(f_camera[i]):
@@ -83,7 +83,7 @@ def _warm_up() -> None:
         for ftmax in (readonly(np.ones(7)), np.ones(7)):
             args = (
                 readonly(np.eye(4)), readonly(np.eye(4)), np.zeros(3), np.zeros(3), True,
-                0.001, 0.5, *path, 1.0, 1.0, 0.0, True, VISCOUS, NO_PARAMS.copy(), np.zeros(6),
+                0.001, 0.5, *path, 1.0, 1.0, 0.0, True, VISCOUS, 0, NO_PARAMS.copy(), np.zeros(6),
                 np.ones(4), T_ref_base,
                 readonly(np.zeros((6, 7))), ftmax, np.empty(6), np.empty(6), np.empty(7),
             )  # fmt: skip

@@ -120,8 +120,9 @@ class FixtureField:
 
     def compiled_row(self) -> tuple | None:
         """The field's compiled row and its constants (``fixture_row.fixture_force``, the
-        path's constants, ``B``, ``G_max``, ``transition``, whether summed, the law and its
-        parameters), or None where it has none (see :func:`_compiled_form`)."""
+        path's constants, ``B``, ``G_max``, ``transition``, whether summed, the law, a user
+        law's address and the law's parameters), or None where it has none (see
+        :func:`_compiled_form`)."""
         if self._row is False:
             self._row = _compiled_form(self)
         return self._row  # type: ignore[return-value]
@@ -141,11 +142,11 @@ class FixtureField:
         the same bits, the filter's memory updated in place."""
         f = self.row_filter(state.psm)
         out = np.empty(3)
-        force, path, B, G_max, transition, summed, law, params = row
+        force, path, B, G_max, transition, summed, law, law_fn, params = row
         force(
             np.array(state.T_world_camera, dtype=float), np.array(state.p_camera_tip, dtype=float),
             f._p, f._v, bool(f._started), f.dt, f.alpha, *path, B, G_max, transition, summed,
-            law, params, out,
+            law, law_fn, params, out,
         )  # fmt: skip
         f._started[...] = True
         return out
@@ -167,11 +168,13 @@ class FixtureField:
 
 def _compiled_form(field: FixtureField) -> tuple | None:
     """``field``'s compiled row and its arguments (the row, path constants, ``B``, ``G_max``,
-    ``transition``, whether summed, the law, its parameters), or None where it has none:
-    numba off, a fixture other than the seed's viscous law (one ``B`` and ``G_max``), Rota's
-    viscous-elastic one or a spring (alone or as a sum of one), or no force (an empty sum),
-    the camera frame, the measured velocity, a path longer than the brute force serves."""
+    ``transition``, whether summed, the law, a user law's address, its parameters), or None
+    where it has none: numba off, a fixture other than the seed's viscous law (one ``B`` and
+    ``G_max``), Rota's viscous-elastic one, a spring or a user's compiled law (alone or as a
+    sum of one), or no force (an empty sum), the camera frame, the measured velocity, a
+    path longer than the brute force serves."""
     from davinci_sim.haptics.combine import FixtureSum
+    from davinci_sim.haptics.compiled_law import UserLawGuidance
     from davinci_sim.haptics.spring import SpringGuidance
     from davinci_sim.haptics.viscous import ViscousGuidance
     from davinci_sim.haptics.viscous_elastic import ViscousElasticGuidance
@@ -188,7 +191,7 @@ def _compiled_form(field: FixtureField) -> tuple | None:
         # haptic loop's sum makes +0.0 as it does the empty sum's zeros; the velocity filter
         # runs as it does for any field.
         path = fixture_row.path_constants(_NO_PATH)
-        return None if path is None else (row, path, 0.0, 0.0, 0.0, True, viscous, none)
+        return None if path is None else (row, path, 0.0, 0.0, 0.0, True, viscous, 0, none)
     if isinstance(fixture, FixtureSum) and len(fixture.fixtures) == 1:
         fixture, summed = fixture.fixtures[0], True
     if type(fixture) in (ViscousElasticGuidance, SpringGuidance):
@@ -200,7 +203,13 @@ def _compiled_form(field: FixtureField) -> tuple | None:
         else:
             law, B = fixture_row.VISCOUS_ELASTIC, float(fixture.B)
         params = fixture_row.law_parameters(fixture)
-        return row, path, B, math.inf, 0.0, summed, law, params
+        return row, path, B, math.inf, 0.0, summed, law, 0, params
+    if type(fixture) is UserLawGuidance:
+        path = fixture_row.path_constants(fixture.path)
+        if path is None:
+            return None
+        return (row, path, 0.0, math.inf, 0.0, summed, fixture_row.USER, fixture.law.address,
+                fixture.parameters)  # fmt: skip
     if type(fixture) is not ViscousGuidance:
         return None
     if not (isinstance(fixture.B, float) and isinstance(fixture.G_max, float)):
@@ -208,7 +217,7 @@ def _compiled_form(field: FixtureField) -> tuple | None:
     path = fixture_row.path_constants(fixture.path)
     if path is None:
         return None
-    return (row, path, fixture.B, fixture.G_max, float(fixture.transition), summed, viscous,
+    return (row, path, fixture.B, fixture.G_max, float(fixture.transition), summed, viscous, 0,
             none)  # fmt: skip
 
 

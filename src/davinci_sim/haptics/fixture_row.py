@@ -30,6 +30,7 @@ import math
 import numpy as np
 
 from davinci_sim.geometry.path import BRUTE_FORCE_MAX_SEGMENTS, Polyline, brute_force_constants
+from davinci_sim.haptics.compiled_law import call_law
 from davinci_sim.haptics.path_query import _closest_point_into
 from davinci_sim.haptics.viscous import DEFAULT_TRANSITION, _viscous_into
 from davinci_sim.haptics.viscous_elastic import SLOPE_DIVISOR
@@ -48,7 +49,7 @@ def path_constants(path: Polyline) -> tuple | None:
 
 
 #: The laws :func:`fixture_law_row` computes (its ``law``).
-VISCOUS, VISCOUS_ELASTIC, SPRING = 0, 1, 2
+VISCOUS, VISCOUS_ELASTIC, SPRING, USER = 0, 1, 2, 3
 #: The parameters of a law that takes none but ``B``, ``G_max`` and ``transition`` (the
 #: rows' one signature: six floats).
 NO_PARAMS = np.zeros(6)
@@ -128,7 +129,7 @@ def viscous_fixture_row(
     ``pt``, ``vt``, ``f`` (3,) scratch."""
     fixture_law_row(
         T_task_camera, p_camera, vf_p, vf_v, started, vf_dt, vf_alpha, centre, basis, AE, AA,
-        EE, starts, edges, cumulative, lengths, B, G_max, transition, summed, VISCOUS,
+        EE, starts, edges, cumulative, lengths, B, G_max, transition, summed, VISCOUS, 0,
         NO_PARAMS, cp, pt, vt, f, f_camera,
     )  # fmt: skip
 
@@ -137,11 +138,12 @@ def viscous_fixture_row(
 def fixture_law_row(
     T_task_camera, p_camera, vf_p, vf_v, started, vf_dt, vf_alpha,
     centre, basis, AE, AA, EE, starts, edges, cumulative, lengths,
-    B, G_max, transition, summed, law, params, cp, pt, vt, f, f_camera,
+    B, G_max, transition, summed, law, law_fn, params, cp, pt, vt, f, f_camera,
 ):  # fmt: skip
     """:func:`viscous_fixture_row` with the law ``law`` (:data:`VISCOUS`: ``B``, ``G_max``,
     ``transition``; :data:`VISCOUS_ELASTIC`: ``B`` and ``params``; :data:`SPRING`:
-    ``params``; ``params``: :func:`law_parameters`)."""
+    ``params``; ``params``: :func:`law_parameters`; :data:`USER`: the user's compiled law at
+    the address ``law_fn`` with ``params``, :mod:`~davinci_sim.haptics.compiled_law`)."""
     for i in range(3):  # the velocity filter (VelocityFilter.update)
         p = p_camera[i]
         if started:
@@ -163,6 +165,8 @@ def fixture_law_row(
         _viscous_elastic_into(vt, cp[3:6], B, params, f)
     elif law == SPRING:
         _spring_into(vt, cp[3:6], params, f)
+    elif law == USER:
+        call_law(law_fn, vt, cp[3:6], params, f)
     else:
         _viscous_into(vt, cp[3:6], B, G_max, transition, f)
     if summed:
@@ -178,13 +182,13 @@ def fixture_law_row(
 def fixture_force(
     T_task_camera, p_camera, vf_p, vf_v, started, vf_dt, vf_alpha,
     centre, basis, AE, AA, EE, starts, edges, cumulative, lengths,
-    B, G_max, transition, summed, law, params, f_camera,
+    B, G_max, transition, summed, law, law_fn, params, f_camera,
 ):  # fmt: skip
     """:func:`fixture_law_row` of one tip (the live haptic tick), scratch allocated."""
     fixture_law_row(
         T_task_camera, p_camera, vf_p, vf_v, started, vf_dt, vf_alpha,
         centre, basis, AE, AA, EE, starts, edges, cumulative, lengths,
-        B, G_max, transition, summed, law, params, np.empty(8), np.empty(3), np.empty(3),
+        B, G_max, transition, summed, law, law_fn, params, np.empty(8), np.empty(3), np.empty(3),
         np.empty(3), f_camera,
     )  # fmt: skip
 
@@ -195,7 +199,7 @@ def _warm_up() -> None:
     path = path_constants(Polyline(np.array([[0.0, 0.0, 0.0], [0.01, 0.0, 0.0]])))
     assert path is not None
     fixture_force(np.eye(4), np.zeros(3), np.zeros(3), np.zeros(3), True, 0.001, 0.5, *path,
-                  1.0, 1.0, 0.0, True, VISCOUS, NO_PARAMS.copy(), np.empty(3))  # fmt: skip
+                  1.0, 1.0, 0.0, True, VISCOUS, 0, NO_PARAMS.copy(), np.empty(3))  # fmt: skip
 
 
 warm(_warm_up)
