@@ -115,12 +115,52 @@ def test_a_row_needing_the_python_teleoperation_hands_the_tick_over(short_task, 
         python._setup.sim.close()
 
 
+def _two_laws(path, **params):
+    """A sum of two laws: no compiled form (the fixture row computes one law)."""
+    from davinci_sim.haptics.combine import combine
+    from davinci_sim.haptics.spring import SpringGuidance
+    from davinci_sim.haptics.viscous import ViscousGuidance
+
+    return combine(ViscousGuidance(path, B=20.0, G_max=2.0), SpringGuidance(path, stiffness=100.0))
+
+
 def test_a_fixture_without_a_compiled_form_runs_the_python_tick(short_task):
-    spring = {"name": "spring", "type": "spring", "stiffness": 600.0, "damping": 4.0,
-              "max_force": 3.0}  # fmt: skip
-    batch = TrialBatch(_specs(short_task, timeout=0.1, fixture=spring))
+    from davinci_sim.haptics.kinds import register_fixture_kind
+
+    register_fixture_kind("two_laws_test", _two_laws, params=())
+    batch = TrialBatch(_specs(short_task, timeout=0.1, fixture={"type": "two_laws_test"}))
     try:
         assert batch._compiled is None
         batch.run()
     finally:
         batch._setup.sim.close()
+
+
+@pytest.mark.parametrize("fixture", [
+    {"name": "spring", "type": "spring", "stiffness": 600.0, "damping": 4.0, "max_force": 3.0},
+    {"name": "rota", "type": "viscous_elastic", "B": 15.0, "elastic_gain": 0.8,
+     "threshold": 0.002, "half": 0.002, "slope": 500.0, "max_force": 3.0, "assistance": 0.5},
+    {"name": "none", "type": "none"},
+], ids=lambda f: f["name"])  # fmt: skip
+def test_the_other_compiled_laws_tick_as_the_python_ticks(short_task, fixture):
+    """A spring, Rota's viscous-elastic fixture and no fixture run the compiled tick
+    (``fixture_law_row``'s laws); tick by tick within the rounding of the numpy tick."""
+    compiled, python = _pair(_specs(short_task, timeout=1.0, fixture=fixture))
+    try:
+        from davinci_sim.haptics import fixture_row
+
+        code = {"spring": fixture_row.SPRING, "viscous_elastic": fixture_row.VISCOUS_ELASTIC,
+                "none": fixture_row.VISCOUS}[fixture["type"]]  # fmt: skip
+        assert (compiled._compiled["law"] == code).all()
+        while python.active.any():
+            compiled.tick()
+            python.tick()
+            np.testing.assert_array_equal(compiled.active, python.active)
+            for name, atol in STATE.items():
+                np.testing.assert_allclose(getattr(compiled, name), getattr(python, name),
+                                           rtol=0, atol=atol, err_msg=name)  # fmt: skip
+        if fixture["type"] != "none":
+            assert float(np.abs(python.requested).max()) > 0.01  # the fixture pushed
+    finally:
+        compiled._setup.sim.close()
+        python._setup.sim.close()

@@ -5,21 +5,25 @@ per tick, and their warm-up at import. (Beside ``batch.py``, which is long enoug
 Everything after the trainee's hand runs compiled: the teleoperation with its IK
 (``teleop_rows``), then tracking, servo, ``mj_step``, bias forces, both arms' kinematics and
 the haptic loop (``physics_rows``). The trainee and the task's state machine stay Python.
-The batch's numpy tick is the fallback (a fixture other than the viscous law; a tick whose
+The batch's numpy tick is the fallback (a fixture with no compiled law; a tick whose
 teleoperation a row needs Python for) and the tests' oracle.
 """
 
 from __future__ import annotations
 
+import math
 from typing import TYPE_CHECKING
 
 import numpy as np
 
 from davinci_sim.console import teleop_math as tm
 from davinci_sim.geometry.path import Polyline
+from davinci_sim.haptics import fixture_row
 from davinci_sim.haptics.combine import FixtureSum
 from davinci_sim.haptics.fixture_row import path_constants
+from davinci_sim.haptics.spring import SpringGuidance
 from davinci_sim.haptics.viscous import ViscousGuidance
+from davinci_sim.haptics.viscous_elastic import ViscousElasticGuidance
 from davinci_sim.kinematics import fk
 from davinci_sim.kinematics.jit import warmed_up
 from davinci_sim.kinematics.psm_ik import _DEFAULT_TOLERANCE
@@ -40,31 +44,34 @@ else:
 
 def constants(batch: TrialBatch, keys) -> dict | None:
     """``batch``'s constants for :func:`tick`, or None (no numba, or a fixture with no
-    compiled form): every condition's fixture must be the seed's viscous law (alone or as a
-    sum of one) on one path, in the task's frame. Sets ``batch._cond_index``."""
+    compiled form): every condition's fixture must be a law the fixture row computes (the
+    seed's viscous law, Rota's viscous-elastic one or a spring, alone or as a sum of one,
+    on one path, in the task's frame) or none (an empty sum: the viscous law at B = G_max =
+    0, a force of ±0 that the sum makes +0). Sets ``batch._cond_index``."""
     if _KERNELS is None or batch.T_task_camera is None or batch._body is None:
         return None
     laws_of = {}
     for key, fixture in batch.fixtures.items():
         parts = fixture.fixtures if isinstance(fixture, FixtureSum) else (fixture,)
-        if len(parts) != 1 or type(parts[0]) is not ViscousGuidance:
+        law = _row_law(parts)
+        if law is None:
             return None
-        v = parts[0]
-        if not (isinstance(v.B, float) and isinstance(v.G_max, float)):
-            return None
-        laws_of[key] = v
-    paths = {id(v.path) for v in laws_of.values()}
-    if len(paths) != 1:
+        laws_of[key] = law
+    paths = {id(law[4]) for law in laws_of.values() if law[4] is not None}
+    if len(paths) > 1:
         return None
-    path = path_constants(next(iter(laws_of.values())).path)
+    path = path_constants(next((law[4] for law in laws_of.values() if law[4] is not None),
+                               _NO_PATH))  # fmt: skip
     if path is None:
         return None
     order = list(laws_of)
     batch._cond_index = np.array([order.index(k) for k in keys], dtype=np.intp)
     c = {
-        "B": np.array([laws_of[k].B for k in order]),
-        "G_max": np.array([laws_of[k].G_max for k in order]),
-        "transition": np.array([float(laws_of[k].transition) for k in order]),
+        "B": np.array([laws_of[k][0] for k in order]),
+        "G_max": np.array([laws_of[k][1] for k in order]),
+        "transition": np.array([laws_of[k][2] for k in order]),
+        "law": np.array([laws_of[k][3] for k in order], dtype=np.int64),
+        "law_params": np.array([laws_of[k][5] for k in order], dtype=float),
         "path": path,
     }  # fmt: skip
     ik = _ik_packed(batch.psm_chain)
@@ -86,6 +93,32 @@ def constants(batch: TrialBatch, keys) -> dict | None:
     c["clamp"] = (float(lim.max_force), float(lim.max_torque),
                   float(lim.max_force_rate * dt), float(lim.max_torque_rate * dt))  # fmt: skip
     return c
+
+
+#: The path of an empty sum's zero law (any path serves).
+_NO_PATH = Polyline(np.array([[0.0, 0.0, 0.0], [0.01, 0.0, 0.0]]))
+
+
+def _row_law(parts) -> tuple | None:
+    """``(B, G_max, transition, law, path, params)`` of a condition's fixture parts as
+    :func:`~davinci_sim.haptics.fixture_row.fixture_law_row` takes them, or None where it
+    has no compiled law (``path`` None: no force)."""
+    if not parts:
+        return 0.0, 0.0, 0.0, fixture_row.VISCOUS, None, fixture_row.NO_PARAMS.copy()
+    if len(parts) != 1:
+        return None
+    law = parts[0]
+    if type(law) is ViscousGuidance:
+        if not (isinstance(law.B, float) and isinstance(law.G_max, float)):
+            return None
+        return (law.B, law.G_max, float(law.transition), fixture_row.VISCOUS, law.path,
+                fixture_row.NO_PARAMS.copy())  # fmt: skip
+    if type(law) is ViscousElasticGuidance:
+        return (float(law.B), math.inf, 0.0, fixture_row.VISCOUS_ELASTIC, law.path,
+                fixture_row.law_parameters(law))  # fmt: skip
+    if type(law) is SpringGuidance:
+        return 0.0, math.inf, 0.0, fixture_row.SPRING, law.path, fixture_row.law_parameters(law)
+    return None
 
 
 def hand_xfrc(batch: TrialBatch, K: np.ndarray, D: np.ndarray) -> np.ndarray:
@@ -182,7 +215,8 @@ def physics_args(batch: TrialBatch, xfrc: np.ndarray, with_time: bool = False) -
         *c["psm_fk"], batch.T_camera_rcm, batch.T_psm, batch.J_psm,
         *c["mtm_fk"], batch.T_hrsv_mtmbase, mtm_q, mtm_v, batch.T_mtm, batch.J_mtm,
         batch.twist_mtm, vf._p, vf._v, vf._started, vf.dt, vf.alpha,
-        batch.T_task_camera, batch._cond_index, c["B"], c["G_max"], c["transition"],
+        batch.T_task_camera, batch._cond_index, c["B"], c["G_max"], c["transition"], c["law"],
+        c["law_params"],
         *c["path"], batch.requested, batch.wrench_sent, *c["clamp"], mtm_act, ftmax,
     )  # fmt: skip
 
@@ -208,8 +242,8 @@ def _warm_up() -> None:
     head = (i, i, np.zeros((0, 7), dtype=np.intp), 0, b, b, f)
     rest = (
         i, i, f, i, i, True, f, f, b, b, f2, f2, f2, f2, f2, f2, f2, f2, f2, f2, *psm_fk, I4, f3,
-        f3, *mtm_fk, I4, i, i, f3, f3, f2, f2, f2, b, 0.001, 0.5, I4, i, f, f, f, *path, f2, f2,
-        1.0, 1.0, 1.0, 1.0, i, f,
+        f3, *mtm_fk, I4, i, i, f3, f3, f2, f2, f2, b, 0.001, 0.5, I4, i, f, f, f,
+        np.zeros(0, dtype=np.int64), f2, *path, f2, f2, 1.0, 1.0, 1.0, 1.0, i, f,
     )  # fmt: skip
     _KERNELS.teleop_rows(*tp)
     _KERNELS.physics_rows(0.0, *head, *rest)

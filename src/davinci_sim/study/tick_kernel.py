@@ -14,7 +14,7 @@ trainee's plan and noise) and the task's sample (Python: the task's state machin
   squares): it returns True and the caller runs the Python tick's teleoperation instead.
 * :func:`physics_rows` — the PSM's tracking watch, the joint servo, ``mj_step`` of the rows
   still running, the servo's bias forces, both arms' kinematics (``TrialBatch._kinematics``)
-  and the haptic loop (``TrialBatch._haptics``: the velocity filter, the viscous fixture of
+  and the haptic loop (``TrialBatch._haptics``: the velocity filter, the fixture of
   each row's condition in the task's frame, the safety clamp, Jᵀw on the MTM).
 
 Each law is the per-row compiled form of the batch law the Python tick calls (listed at each
@@ -30,7 +30,7 @@ from davinci_sim.console.teleop_row import follow_jaw_row as _follow_jaw
 from davinci_sim.console.teleop_row import follow_pose_row as _follow_pose
 from davinci_sim.console.teleop_row import follow_twist_row as _follow_twist
 from davinci_sim.devices.safety import _clamp_rows
-from davinci_sim.haptics.fixture_row import viscous_fixture_row
+from davinci_sim.haptics.fixture_row import fixture_law_row
 from davinci_sim.kinematics.fk_compiled import tip_pose_row
 from davinci_sim.sim.arm_laws import (
     LIMIT_SLACK,
@@ -75,9 +75,9 @@ PHYSICS_ARGS = (
     "psm_modified", "psm_tool", "psm_identity", "T_camera_rcm", "T_psm", "J_psm", "mtm_links",
     "mtm_modified", "mtm_tool", "mtm_identity", "T_hrsv_mtmbase", "mtm_q", "mtm_v", "T_mtm",
     "J_mtm", "twist_mtm", "vf_p", "vf_v", "vf_started", "vf_dt", "vf_alpha", "T_task_camera",
-    "cond", "B", "G_max", "transition", "centre", "basis", "AE", "AA", "EE", "starts", "edges",
-    "cumulative", "lengths", "requested", "wrench_sent", "max_force", "max_torque",
-    "max_force_step", "max_torque_step", "mtm_act", "ftmax",
+    "cond", "B", "G_max", "transition", "law", "law_params", "centre", "basis", "AE", "AA", "EE",
+    "starts", "edges", "cumulative", "lengths", "requested", "wrench_sent", "max_force",
+    "max_torque", "max_force_step", "max_torque_step", "mtm_act", "ftmax",
 )  # fmt: skip
 
 # Where the kernels read one argument by name: its position in the tuple (numba takes a
@@ -257,7 +257,8 @@ def haptics_row(r, pp, scratch):
     (psm_q, Q, V, tau_ff, psm_links, psm_modified, psm_tool, psm_identity, T_camera_rcm, T_psm,
      J_psm, mtm_links, mtm_modified, mtm_tool, mtm_identity, T_hrsv_mtmbase, mtm_q, mtm_v,
      T_mtm, J_mtm, twist_mtm, vf_p, vf_v, vf_started, vf_dt, vf_alpha, T_task_camera, cond, B,
-     G_max, transition, centre, basis, AE, AA, EE, starts, edges, cumulative, lengths,
+     G_max, transition, law, law_params, centre, basis, AE, AA, EE, starts, edges, cumulative,
+     lengths,
      requested, wrench_sent, max_force, max_torque, max_force_step, max_torque_step, mtm_act,
      ftmax) = (pp[P_PSM_Q], pp[P_Q], pp[P_V], pp[P_TAU_FF], *pp[P_PSM_LINKS:])  # fmt: skip
     _, _, _, _, q, qm, qdm, T, F, cp, pt, vt, f, W, out, R_base_hrsv, tau = scratch
@@ -272,10 +273,11 @@ def haptics_row(r, pp, scratch):
     pose_in_reference_into(T_hrsv_mtmbase, T, T_mtm[r])
     _twist(T_hrsv_mtmbase[:3, :3], J_mtm[r], qdm, twist_mtm[r])
     k = cond[r]
-    viscous_fixture_row(
+    fixture_law_row(
         T_task_camera, T_psm[r, :3, 3], vf_p[r], vf_v[r], vf_started[r], vf_dt, vf_alpha,
         centre, basis, AE, AA, EE, starts, edges, cumulative, lengths,
-        B[k], G_max[k], transition[k], True, cp, pt, vt, f, requested[r],
+        B[k], G_max[k], transition[k], True, law[k], 0, law_params[k], cp, pt, vt, f,
+        requested[r],
     )  # fmt: skip
     vf_started[r] = True
     for i in range(3):
