@@ -322,8 +322,11 @@ def test_crtk_haptic_example_box_holds_an_mtm_pushed_into_its_wall(console):
     pushed = observer.between("MTMR", t_push, t_end) - start
     settled = observer.between("MTMR", t_end - 1.0, t_end) - start
     # The wall holds: never far past it, and in the last second at rest where 3 N balance
-    # 500 N/m past 1 cm (16 mm), no refused (oversized) wrench.
+    # 500 N/m past 1 cm (16 mm), no refused (oversized) wrench. Across the push the box
+    # holds the handle inside its walls and no more: within them nothing pulls it back, so
+    # where it rests in y and z depends on the path it took (0.3 mm alone, 7 mm in a full
+    # suite's timing).
     assert pushed[:, 0].max() < 0.04, pushed[:, 0].max()
     assert np.abs(settled[:, 0] - (dim + 3.0 / 500.0)).max() < 3e-3, settled[:, 0]
-    assert np.abs(settled[:, 1:]).max() < 5e-3
+    assert np.abs(settled[:, 1:]).max() < dim + 3e-3, settled[-1]
     assert not errors, errors[:3]
