@@ -83,6 +83,14 @@ RAY_MODULES = (
 )
 
 
+#: Modules that run first on the other worker, in a process no other module has used: the
+#: dVRK's MTM examples (a teleoperation and a haptic box paced by the wall clock in threads
+#: beside the simulation's) failed two runs in three after the bridge and cli modules had run
+#: in the same process (the MTM moved a fifth of what the hand asked; both this session's
+#: code and the code before it), and passed every time in a fresh one.
+FIRST_MODULES = ("tests/compat/test_upstream_mtm_examples.py",)
+
+
 def _unit(nodeid: str) -> str:
     """The unit of work of a test under xdist: its module, "chromium" for the browser
     tests, "ray" for the tests that start Ray."""
@@ -109,9 +117,9 @@ def pytest_xdist_make_scheduler(config, log):
 
 
 def pytest_collection_modifyitems(config, items):
-    """On an xdist worker: the browser tests first (a stable sort: every module's tests stay
-    together, in their order). A module that drives Chromium must be in
-    :data:`BROWSER_MODULES`. Without xdist the order is pytest's own."""
+    """On an xdist worker: the browser tests first, then :data:`FIRST_MODULES` (a stable
+    sort: every module's tests stay together, in their order). A module that drives
+    Chromium must be in :data:`BROWSER_MODULES`. Without xdist the order is pytest's own."""
     if not os.environ.get("PYTEST_XDIST_WORKER"):
         return
     for item in items:
@@ -121,4 +129,5 @@ def pytest_collection_modifyitems(config, items):
                 f"{item.nodeid.split('::')[0]} drives Chromium: add it to BROWSER_MODULES "
                 "in tests/conftest.py"
             )
-    items.sort(key=lambda item: _unit(item.nodeid) != "chromium")
+    items.sort(key=lambda item: (_unit(item.nodeid) != "chromium",
+                                 item.nodeid.split("::", 1)[0] not in FIRST_MODULES))  # fmt: skip

@@ -255,7 +255,11 @@ def test_dvrk_teleoperation_aligns_then_psm1_follows_mtmr(console):
         wait_sim(handle, 0.5)
         m0, p0 = observer.now("MTMR").copy(), observer.now("PSM1").copy()
         handle.call("MTMR/device", "move_hand", m0 + [0.03, 0.0, 0.0]).result()
-        wait_sim(handle, 2.0)
+        # (until the hand has brought MTMR there: the example's commands come at its own
+        # wall-clock rate, so how much simulated time that takes depends on the pace)
+        moved = lambda: np.linalg.norm(observer.now("MTMR") - m0 - [0.03, 0.0, 0.0]) < 0.002  # noqa: E731
+        wait_sim(handle, 10.0, moved)
+        wait_sim(handle, 0.5)
         m1, p1 = observer.now("MTMR").copy(), observer.now("PSM1").copy()
         coag.publish(Joy(buttons=[0]))
         teleop.stop()
