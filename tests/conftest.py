@@ -85,9 +85,9 @@ RAY_MODULES = (
 
 #: Modules that run first on the other worker, in a process no other module has used: the
 #: dVRK's MTM examples (a teleoperation and a haptic box paced by the wall clock in threads
-#: beside the simulation's) failed two runs in three after the bridge and cli modules had run
-#: in the same process (the MTM moved a fifth of what the hand asked; both this session's
-#: code and the code before it), and passed every time in a fresh one.
+#: beside the simulation's) failed in three runs of three after the bridge and cli modules
+#: had run in the same process (the MTM moved a fifth of what the hand asked; with the code
+#: of 2026-11-30 and with an earlier commit alike), and passed every time in a fresh one.
 FIRST_MODULES = ("tests/compat/test_upstream_mtm_examples.py",)
 
 
