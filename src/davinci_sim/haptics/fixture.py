@@ -24,7 +24,6 @@ from typing import Literal, Protocol, runtime_checkable
 
 import numpy as np
 
-from davinci_sim.geometry.path import Polyline
 from davinci_sim.geometry.so3 import rotate_rows
 
 # (the viscous law's compiled row, compiled or loaded from numba's cache with this module:
@@ -190,7 +189,7 @@ def _compiled_form(field: FixtureField) -> tuple | None:
         # (0, 0), Table I's unassisted condition, on any path. Its force is ±0, which the
         # haptic loop's sum makes +0.0 as it does the empty sum's zeros; the velocity filter
         # runs as it does for any field.
-        path = fixture_row.path_constants(_NO_PATH)
+        path = fixture_row.path_constants(fixture_row.ZERO_LAW_PATH)
         return None if path is None else (row, path, 0.0, 0.0, 0.0, True, viscous, 0, none)
     if isinstance(fixture, FixtureSum) and len(fixture.fixtures) == 1:
         fixture, summed = fixture.fixtures[0], True
@@ -219,7 +218,3 @@ def _compiled_form(field: FixtureField) -> tuple | None:
         return None
     return (row, path, fixture.B, fixture.G_max, float(fixture.transition), summed, viscous, 0,
             none)  # fmt: skip
-
-
-#: The path of :func:`_compiled_form`'s zero law (any path serves: its force is zero).
-_NO_PATH = Polyline(np.array([[0.0, 0.0, 0.0], [0.01, 0.0, 0.0]]))

@@ -54,6 +54,9 @@ VISCOUS, VISCOUS_ELASTIC, SPRING, USER = 0, 1, 2, 3
 #: rows' one signature: six floats).
 NO_PARAMS = np.zeros(6)
 _EPS = 1e-12
+#: The path a zero law runs on (no fixture: the viscous law at B = G_max = 0; any path
+#: serves, its force is ±0).
+ZERO_LAW_PATH = Polyline(np.array([[0.0, 0.0, 0.0], [0.01, 0.0, 0.0]]))
 
 
 def law_parameters(law) -> np.ndarray:

@@ -61,7 +61,7 @@ def constants(batch: TrialBatch, keys) -> dict | None:
     if len(paths) > 1:
         return None
     path = path_constants(next((law[4] for law in laws_of.values() if law[4] is not None),
-                               _NO_PATH))  # fmt: skip
+                               fixture_row.ZERO_LAW_PATH))  # fmt: skip
     if path is None:
         return None
     order = list(laws_of)
@@ -93,10 +93,6 @@ def constants(batch: TrialBatch, keys) -> dict | None:
     c["clamp"] = (float(lim.max_force), float(lim.max_torque),
                   float(lim.max_force_rate * dt), float(lim.max_torque_rate * dt))  # fmt: skip
     return c
-
-
-#: The path of an empty sum's zero law (any path serves).
-_NO_PATH = Polyline(np.array([[0.0, 0.0, 0.0], [0.01, 0.0, 0.0]]))
 
 
 def _row_law(parts) -> tuple | None:
