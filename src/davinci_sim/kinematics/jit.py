@@ -24,6 +24,11 @@ except Exception:  # pragma: no cover - depends on the installation
 ENABLED = numba is not None and os.environ.get("DAVINCI_SIM_JIT", "1") != "0"
 """Whether :func:`jit` compiles (numba importable and not switched off)."""
 
+if ENABLED and os.environ.get("DAVINCI_SIM_REFPRUNE", "1") != "0":
+    from davinci_sim.kinematics.jit_refcounts import install
+
+    install()  # before anything compiles (every module that compiles imports this one)
+
 KERNELS: list = []
 """Every function :func:`jit` compiled or will compile: each module warms its kernels up at
 import (its ``_warm_up``) so that none compiles in a 1 kHz loop; ``ready()`` tells."""

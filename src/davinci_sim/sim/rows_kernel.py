@@ -10,6 +10,8 @@ import numba
 from numba import types
 from numba.extending import intrinsic
 
+import davinci_sim.kinematics.jit  # noqa: F401 (its leaner reference counting, before compiling)
+
 # MuJoCo's ``void mj_step(const mjModel*, mjData*)``, the pointers passed as 64-bit integers
 # (the same registers in the x86-64 and AArch64 calling conventions).
 mj_step = types.ExternalFunction("mj_step", types.void(types.intp, types.intp))

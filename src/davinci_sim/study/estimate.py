@@ -63,9 +63,10 @@ class StudyEstimate:
     def line(self) -> str:
         """The estimate in one line, for the terminal."""
         who = "this process" if self.processes == 1 else f"{self.processes} worker processes"
-        digits = 0 if self.wall_s >= 10 else 1
+        # (two significant digits below 10 s: a short study's 0.03 s is not "0.0 s")
+        wall = f"{self.wall_s:.0f}" if self.wall_s >= 10 else f"{self.wall_s:.2g}"
         return (
-            f"estimate: {self.n_trials} trials on {who}, about {self.wall_s:.{digits}f} s "
+            f"estimate: {self.n_trials} trials on {who}, about {wall} s "
             f"(trials ~{self.trial_sim_s:.1f} s simulated each; a tick here costs "
             f"{self.tick_s * 1e3:.2f} ms + {self.trial_tick_s * 1e6:.0f} µs per running trial)"
         )
