@@ -50,7 +50,7 @@ def _pruned(use: str) -> str:
 
 
 def _counted(text: str, name: str) -> int:
-    return sum(f"ptr {name})" in line and "@NRT_" in line for line in text.splitlines())
+    return sum(f" {name})" in line and "@NRT_" in line for line in text.splitlines())
 
 
 def test_an_argument_used_only_by_compiled_calls_loses_its_counting():
@@ -66,8 +66,8 @@ def test_an_argument_used_only_by_compiled_calls_loses_its_counting():
     [
         "store ptr %arg.b.0, ptr %.ret, align 8",  # returned (or kept) through memory
         "%.9 = insertvalue { ptr, ptr } undef, ptr %arg.b.0, 0",  # put in a tuple
-        "%.9 = phi ptr [ %arg.b.0, %loop ], [ null, %early ]",  # merged with another value
-        "%.9 = select i1 %.6, ptr %arg.b.0, ptr null",
+        "%.9 = phi ptr [ %arg.b.0, %loop ], [ %.local, %early ]",  # merged with another value
+        "%.9 = select i1 %.6, ptr %.local, ptr %arg.b.0",
         "%.9 = icmp eq ptr %arg.b.0, null",
         "tail call void @numba_list_append(ptr %.l, ptr %arg.b.0)",  # a C helper
     ],
@@ -76,6 +76,23 @@ def test_an_argument_that_may_escape_keeps_its_counting(use):
     text = _pruned(use)
     assert _counted(text, "%arg.b.0") == 3  # numba's, as it made it
     assert _counted(text, "%arg.a.0") == 0
+
+
+def test_a_choice_among_arguments_is_counted_with_them():
+    """A ``phi`` or ``select`` among arguments (and null) is always one of them: its
+    counting goes with theirs, or stays with theirs where it escapes."""
+    choose = (
+        "%.9 = phi ptr [ %arg.b.0, %loop ], [ %.10, %early ], [ null, %done ]\n"
+        "  %.10 = select i1 %.6, ptr %arg.a.0, ptr %.9\n"
+        "  tail call void @NRT_incref(ptr %.10)\n"
+        '  %.11 = call i32 @"_ZN5tests5innerB2v2E"(ptr %.r, ptr %.10, ptr %arg.a.4)\n'
+        "  tail call void @NRT_decref(ptr %.10)"
+    )
+    text = _pruned(choose)
+    assert sum("@NRT_" in line for line in text.splitlines()) == 0
+    text = _pruned(choose + "\n  store ptr %.9, ptr %.ret, align 8")
+    assert _counted(text, "%arg.a.0") == 3 and _counted(text, "%arg.b.0") == 3
+    assert _counted(text, "%.10") == 2
 
 
 def test_values_that_are_not_arguments_keep_their_counting():

@@ -170,24 +170,47 @@ def console_chunk(phys, watch, fr, devices, teleops, rec, K):
      vdt_a, val_a, fsteps_a, ftmax_a) = fix_a  # fmt: skip
     (ce_b, ba_b, AE_b, AA_b, EE_b, st_b, ed_b, cu_b, le_b, B_b, G_b, tr_b, su_b, law_b, lf_b, lp_b,
      vdt_b, val_b, fsteps_b, ftmax_b) = fix_b  # fmt: skip
-    dva, dvb = devices[dev_a[0]], devices[dev_b[0]]  # (each teleoperation's MTM)
-    dl_a0, dl_a1, dl_a2, dl_a3 = dva[0]
-    dl_b0, dl_b1, dl_b2, dl_b3 = dvb[0]
-    dadr_a, dTb_a, dq_a, dT_a, dJ_a, dF_a = dva[1], dva[4], dva[15], dva[16], dva[17], dva[18]
-    dTh_a, dtw_a, dgrip_a, didx_a = dva[19], dva[20], dva[22], dva[28]
-    dadr_b, dTb_b, dq_b, dT_b, dJ_b, dF_b = dvb[1], dvb[4], dvb[15], dvb[16], dvb[17], dvb[18]
-    dTh_b, dtw_b, dgrip_b, didx_b = dvb[19], dvb[20], dvb[22], dvb[28]
+    # Each teleoperation's MTM: device A's arrays or B's, chosen array by array (a tuple
+    # chosen at run time would be one value the pruning of reference counts cannot follow:
+    # kinematics/jit_refcounts.py).
+    on_a0, on_b0 = dev_a[0] == 0, dev_b[0] == 0
+    dl_a0, dl_a1 = (lk_a0 if on_a0 else lk_b0), (lk_a1 if on_a0 else lk_b1)
+    dl_a2, dl_a3 = (lk_a2 if on_a0 else lk_b2), (lk_a3 if on_a0 else lk_b3)
+    dl_b0, dl_b1 = (lk_a0 if on_b0 else lk_b0), (lk_a1 if on_b0 else lk_b1)
+    dl_b2, dl_b3 = (lk_a2 if on_b0 else lk_b2), (lk_a3 if on_b0 else lk_b3)
+    dadr_a, dTb_a = (adr_a if on_a0 else adr_b), (Tb_a if on_a0 else Tb_b)
+    dq_a, dT_a, dJ_a = (q_a if on_a0 else q_b), (T_a if on_a0 else T_b), (J_a if on_a0 else J_b)
+    dF_a, dTh_a, dtw_a = (
+        (F_a if on_a0 else F_b),
+        (Th_a if on_a0 else Th_b),
+        (tw_a if on_a0 else tw_b),
+    )
+    dgrip_a, didx_a = (grip_v_a if on_a0 else grip_v_b), (idx_a if on_a0 else idx_b)
+    dadr_b, dTb_b = (adr_a if on_b0 else adr_b), (Tb_a if on_b0 else Tb_b)
+    dq_b, dT_b, dJ_b = (q_a if on_b0 else q_b), (T_a if on_b0 else T_b), (J_a if on_b0 else J_b)
+    dF_b, dTh_b, dtw_b = (
+        (F_a if on_b0 else F_b),
+        (Th_a if on_b0 else Th_b),
+        (tw_a if on_b0 else tw_b),
+    )
+    dgrip_b, didx_b = (grip_v_a if on_b0 else grip_v_b), (idx_a if on_b0 else idx_b)
     # the session's sample: its teleoperation, the fixture's and the objects' arrays
     rec_on, rec_ncon, tool_geom, other_geom = rec[0], rec[3], rec[4], rec[5]
     r_t, r_tip, r_cam, r_req, r_master, r_now = rec[6], rec[7], rec[8], rec[9], rec[10], rec[11]
     bodies, object_of, jaw_bit, tips, o_flags = rec[12], rec[13], rec[14], rec[15], rec[16]
     o_xpos, o_xmat, o_grasp, o_tips = rec[17], rec[18], rec[19], rec[20]
-    rt = teleops[rec[1][0]]
-    rl0, rl1, rl2, rl3 = rt[0][5], rt[0][6], rt[0][7], rt[0][8]
-    radr, rq, rT, rJ, rF, r_row = rt[1], rt[12], rt[13], rt[14], rt[15], rt[3][0]
-    r_Th = devices[rt[11][0]][19]
+    ra = rec[1][0] == 0  # (the session's teleoperation: A or B, array by array as above)
+    rl0, rl1, rl2, rl3 = (
+        (c_a5 if ra else c_b5),
+        (c_a6 if ra else c_b6),
+        (c_a7 if ra else c_b7),
+        (c_a8 if ra else c_b8),
+    )
+    radr, rq, rT = (tadr_a if ra else tadr_b), (tq_a if ra else tq_b), (tT_a if ra else tT_b)
+    rJ, rF, r_row = (tJ_a if ra else tJ_b), (tF_a if ra else tF_b), (trow_a[0] if ra else trow_b[0])
+    r_Th = Th_a if (dev_a[0] if ra else dev_b[0]) == 0 else Th_b
     f_rec = rec[2][0]
-    r_req_src = teleops[max(f_rec, 0)][20][0]
+    r_req_src = req_a if max(f_rec, 0) == 0 else req_b
     # what a rewound tick puts back: the hands', the jaws' and the locks' state
     m_lock = lgoal_a.shape[0]
     keep_applied = np.empty(2, dtype=np.bool_)

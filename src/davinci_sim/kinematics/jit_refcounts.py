@@ -17,8 +17,10 @@ a tuple in memory, its return slot), returns it or merges it with another value.
 :func:`prune_argument_refcounts` removes every increment and decrement of an argument's
 reference only where the argument is used by nothing else than those and as an argument
 of calls to other compiled functions (``_ZN``-mangled, which borrow it the same way):
-any other use (``store``, ``insertvalue``, ``phi``, ``select``, a comparison, a call to
-a C helper) keeps that argument's counting as numba made it. On a raising exit numba
+any other use (``store``, ``insertvalue``, a comparison, a call to a C helper) keeps that
+argument's counting as numba made it. A pointer chosen among arguments (a ``phi`` or
+``select`` whose values are arguments, null or such choices) is always one of them and is
+treated with them, as one group. On a raising exit numba
 leaves the increment unmatched (the reference leaks with the exception); without it,
 nothing leaks there either.
 
@@ -51,31 +53,91 @@ _BORROWING_CALL = re.compile(
 """A call to a numba-compiled function: its arguments are borrowed for the call."""
 
 
+_PHI = re.compile(r'^\s*(%"[^"]*"|%[-\w.$]+) = phi ptr (.*)$')
+_PHI_INCOMING = re.compile(r'\[ (%"[^"]*"|%[-\w.$]+|null), %[^\]]+ \]')
+_SELECT = re.compile(
+    r'^\s*(%"[^"]*"|%[-\w.$]+) = select i1 [^,]+, ptr (%"[^"]*"|%[-\w.$]+|null), '
+    r'ptr (%"[^"]*"|%[-\w.$]+|null)\s*(?:,\s*!.*)?$'
+)
+"""A pointer chosen among others (``phi``, ``select``): group 1 is the value defined."""
+
+
 def _is_argument(name: str) -> bool:
     """Whether ``name`` is one of numba's argument values (``%arg.<name>.<field>``)."""
     return name.startswith(("%arg.", '%"arg.'))
 
 
+def _choices(body: list[str]) -> dict[str, tuple[int, list[str]]]:
+    """The pointers of a function chosen among others (``phi``, ``select``): their line
+    and the values they choose among."""
+    chosen = {}
+    for k in range(1, len(body)):
+        line = body[k]
+        if " = phi ptr " in line:
+            m = _PHI.match(line)
+            if m is not None:
+                chosen[m.group(1)] = (k, _PHI_INCOMING.findall(m.group(2)))
+        elif " = select i1 " in line:
+            m = _SELECT.match(line)
+            if m is not None:
+                chosen[m.group(1)] = (k, [m.group(2), m.group(3)])
+    return chosen
+
+
+def _borrowed(arguments: set[str], chosen: dict[str, tuple[int, list[str]]]) -> set[str]:
+    """The arguments and the pointers that are always one of them (or null): the largest
+    set of choices among arguments, nulls and such choices (a loop's ``phi`` may choose
+    itself)."""
+    borrowed = arguments | set(chosen)
+    changed = True
+    while changed:
+        changed = False
+        for name, (_, values) in chosen.items():
+            if name in borrowed and not all(v in borrowed or v == "null" for v in values):
+                borrowed.discard(name)
+                changed = True
+    return borrowed
+
+
 def _prune_function(body: list[str]) -> set[int]:
     """The lines of one function's text (``define ...`` to ``}``) whose reference counting
-    of an argument may go (see the module docstring)."""
+    of an argument may go (see the module docstring). A pointer that is always one of the
+    arguments (a ``phi`` or ``select`` among them) is counted with them: the arguments it
+    may be and it go together, or stay together where one of them escapes."""
     arguments = {v for v in _VALUE.findall(body[0]) if _is_argument(v)}
     if not arguments:
         return set()
+    chosen = _choices(body)
+    borrowed = _borrowed(arguments, chosen)
+    group = {name: name for name in borrowed}  # (union-find over a choice and its values)
+
+    def root(name: str) -> str:
+        while group[name] != name:
+            group[name] = group[group[name]]
+            name = group[name]
+        return name
+
+    for name, (_, values) in chosen.items():
+        if name in borrowed:
+            for v in values:
+                if v != "null":
+                    group[root(v)] = root(name)
+    choice_lines = {k for name, (k, _) in chosen.items() if name in borrowed}
     counted: dict[str, list[int]] = defaultdict(list)
     escapes: set[str] = set()
     for k in range(1, len(body)):
         line = body[k]
-        if "%arg." not in line and '%"arg.' not in line:
+        op = _REFOP.match(line) if "@NRT_" in line else None
+        if op is not None:
+            if op.group(1) in borrowed:
+                counted[op.group(1)].append(k)
             continue
-        op = _REFOP.match(line)
-        if op is not None and op.group(1) in arguments:
-            counted[op.group(1)].append(k)
+        if k in choice_lines:
             continue
-        used = {v for v in _VALUE.findall(line) if v in arguments}
+        used = {v for v in _VALUE.findall(line) if v in borrowed}
         if used and not _BORROWING_CALL.match(line):
-            escapes |= used
-    return {k for name, lines in counted.items() if name not in escapes for k in lines}
+            escapes |= {root(v) for v in used}
+    return {k for name, lines in counted.items() if root(name) not in escapes for k in lines}
 
 
 def prune_argument_refcounts(ir: str) -> tuple[str, int]:
