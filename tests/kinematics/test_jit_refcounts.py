@@ -11,7 +11,7 @@ import gc
 import numpy as np
 import pytest
 
-from davinci_sim.kinematics import jit
+from davinci_sim.kinematics import jit, jit_refcounts
 from davinci_sim.kinematics.jit_refcounts import install, prune_argument_refcounts
 
 numba = pytest.importorskip("numba")
@@ -160,8 +160,21 @@ def _arguments_counted(dispatcher) -> int:
     return sum("@NRT_incref(ptr" in line and "%arg." in line for line in ir.splitlines())
 
 
-def test_compiled_laws_lose_their_arguments_counting_and_compute_the_same():
+@pytest.fixture
+def pruned_here(monkeypatch):
+    """This module's functions pruned as the package's are (the installed pruning's scope
+    is the package's: a user's numba code keeps numba's counting)."""
     assert install()  # (installed already by the jit module; idempotent)
+    monkeypatch.setattr(jit_refcounts, "SCOPE", (*jit_refcounts.SCOPE, __name__.split(".")[0]))
+
+
+def test_the_installed_pruning_keeps_to_its_scope():
+    ir = _LAW.replace("{USE}", "")
+    assert prune_argument_refcounts(ir, ("davinci_sim",)) == (ir, 0)
+    assert prune_argument_refcounts(ir, ("tests",))[1] == 6  # (_ZN5tests...)
+
+
+def test_compiled_laws_lose_their_arguments_counting_and_compute_the_same(pruned_here):
     q, q_ref, tolerance = np.array([0.0, 0.5, 2.0]), np.zeros(3), np.ones(3)
     results = []
     for ticks in (_ticks, _ticks.py_func):
@@ -182,7 +195,7 @@ def _allocation_balance() -> int:
     return stats.mi_alloc - stats.mi_free
 
 
-def test_arrays_that_escape_stay_alive_and_nothing_leaks():
+def test_arrays_that_escape_stay_alive_and_nothing_leaks(pruned_here):
     gc.collect()
     before = _allocation_balance()
     returned = _returned(np.arange(4.0))

@@ -140,9 +140,22 @@ def _prune_function(body: list[str]) -> set[int]:
     return {k for name, lines in counted.items() if root(name) not in escapes for k in lines}
 
 
-def prune_argument_refcounts(ir: str) -> tuple[str, int]:
+SCOPE: tuple[str, ...] = ("davinci_sim",)
+"""The top-level packages whose compiled functions :func:`install` prunes (numba compiles
+everyone's code in a process: a user's own numba code keeps numba's counting)."""
+
+
+def _in_scope(header: str, scope: tuple[str, ...]) -> bool:
+    """Whether a function's ``define`` line names a function of one of the packages
+    ``scope`` (numba's mangled names start with the module path: ``_ZN11davinci_sim``)."""
+    return any(f"_ZN{len(p)}{p}" in header or f"_ZN7cpython{len(p)}{p}" in header
+               for p in scope)  # fmt: skip
+
+
+def prune_argument_refcounts(ir: str, scope: tuple[str, ...] | None = None) -> tuple[str, int]:
     """``ir`` (an LLVM module's text) with the redundant reference counting of its
-    functions' arguments removed, and how many calls were removed."""
+    functions' arguments removed (of every function, or of the functions of the packages
+    ``scope``), and how many calls were removed."""
     lines = ir.split("\n")
     kept: list[str] = []
     removed = 0
@@ -156,7 +169,7 @@ def prune_argument_refcounts(ir: str) -> tuple[str, int]:
         while end < len(lines) and lines[end] != "}":
             end += 1
         body = lines[i : end + 1]
-        drop = _prune_function(body)
+        drop = _prune_function(body) if scope is None or _in_scope(body[0], scope) else set()
         removed += len(drop)
         kept.extend(line for k, line in enumerate(body) if k not in drop)
         i = end + 1
@@ -164,8 +177,9 @@ def prune_argument_refcounts(ir: str) -> tuple[str, int]:
 
 
 def install() -> bool:
-    """Prune every library numba finalises from now on (idempotent). Returns whether it is
-    installed: False where this numba has no such step (then numba's code stays as it is)."""
+    """Prune the functions of :data:`SCOPE` in every library numba finalises from now on
+    (idempotent). Returns whether it is installed: False where this numba has no such step
+    (then numba's code stays as it is)."""
     try:
         import llvmlite.binding as ll
         from numba.core import codegen
@@ -180,7 +194,7 @@ def install() -> bool:
     def _optimize_final_module(self) -> None:
         optimise(self)
         try:
-            text, removed = prune_argument_refcounts(str(self._final_module))
+            text, removed = prune_argument_refcounts(str(self._final_module), SCOPE)
             if removed:
                 module = ll.parse_assembly(text)
                 module.verify()
