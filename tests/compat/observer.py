@@ -43,6 +43,19 @@ class Observer:
         """Every sampled position of ``arm``, in order."""
         return [p[arm] for _, p in self.samples]
 
+    def wait_near(self, point: np.ndarray, tolerance: float, arm: str = "PSM1",
+                  timeout_s: float = 30.0) -> None:  # fmt: skip
+        """Wait until ``arm``'s sampled position is within ``tolerance`` (m) of ``point``:
+        an example's last goal may still be on its way when it returns (a loaded machine
+        runs the simulation slower than the example's wall-clock pause), so a test waits
+        for the motion, not for a time; after ``timeout_s`` of wall time it stops waiting
+        (the check that follows then says what was reached)."""
+        end = time.monotonic() + timeout_s
+        while np.linalg.norm(self.now(arm) - point) >= tolerance:
+            if time.monotonic() > end:
+                return
+            time.sleep(0.01)
+
     def now(self, arm: str) -> np.ndarray:
         while not self.samples:
             time.sleep(0.002)

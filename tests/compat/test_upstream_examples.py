@@ -99,7 +99,8 @@ def test_crtk_move_cp_example_makes_its_three_moves(system, PyKDL):
         goal.p[1] = start_cp.p[1]
         example.move_cp(goal).wait()
         time.sleep(0.1)
-    start = np.array([setpoint.p[0], setpoint.p[1], setpoint.p[2]])
+        start = np.array([setpoint.p[0], setpoint.p[1], setpoint.p[2]])
+        observer.wait_near(start, TOLERANCE / 2)
     offset = np.array([amplitude, amplitude, 0.0])
     observer.visited_in_order(start + offset, start - offset, start, tolerance=TOLERANCE)
     assert start_cp.p[0] == pytest.approx(start[0])  # the start never moved with the goal
@@ -133,7 +134,8 @@ def test_dvrk_psm_test_moves_right_then_left_then_back(system, PyKDL):
         goal.p[1] = initial.p[1]
         arm.move_cp(goal).wait()
         time.sleep(0.1)
-    start = np.array([initial.p[0], initial.p[1], initial.p[2]])
+        start = np.array([initial.p[0], initial.p[1], initial.p[2]])
+        observer.wait_near(start, TOLERANCE / 2)
     right, left = start - [amplitude, 0.0, 0.0], start + [amplitude, 0.0, 0.0]
     observer.visited_in_order(start, right, left, start, tolerance=TOLERANCE)
 
@@ -185,14 +187,9 @@ def test_dvrk_arm_test_servo_cp_draws_its_diagonal(system, PyKDL, monkeypatch):
             arm.servo_cp(goal)
             arm.setpoint_cp()
             rate.sleep()
-        # The last goal is the start again: it may still be on its way (a loaded machine),
-        # so wait until it is back, not a fixed time (30 s at most: then the check says so).
+        # The last goal is the start again: it may still be on its way (a loaded machine).
         start = np.array([initial.p[0], initial.p[1], initial.p[2]])
-        back = time.monotonic() + 30.0
-        while np.linalg.norm(observer.now("PSM1") - start) >= TOLERANCE / 2:
-            if time.monotonic() > back:
-                break
-            time.sleep(0.05)
+        observer.wait_near(start, TOLERANCE / 2)
         time.sleep(0.2)
     far = start + [2 * amplitude, 2 * amplitude, 0.0]
     observer.visited_in_order(start, far, start, tolerance=TOLERANCE)
