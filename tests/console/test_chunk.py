@@ -7,6 +7,8 @@ components' states and the same events at the same times; ticks the kernel has n
 
 from __future__ import annotations
 
+import gc
+
 import numpy as np
 import pytest
 
@@ -259,6 +261,29 @@ def test_a_live_runners_passes_keep_their_plan_until_a_command(served):
         runs.append((sim.get_state(), [], sim.data.qpos.copy()))
     sim.set_chunker(chunker)
     _assert_same_run(*runs)
+
+
+def test_the_compiled_passes_free_every_allocation_they_make(served):
+    """Over a live runner's passes numba's allocations and frees balance: the reference
+    counts pruned from the kernels (``kinematics/jit_refcounts.py``) leak nothing and free
+    nothing twice."""
+    from numba.core.runtime import _nrt_python, rtsys
+
+    sim, chunker, start = served
+    sim.set_state(start)
+    chunker._cooldown = 0
+    sim.set_chunker(chunker)
+    _nrt_python.memsys_enable_stats()
+    counts = []
+    for p in range(120):
+        if p in (20, 119):  # (after the plan's first passes, and at the end)
+            gc.collect()
+            stats = rtsys.get_allocation_stats()
+            counts.append((stats.mi_alloc, stats.mi_free))
+        sim.advance(4, unchanged=p > 0)
+    (alloc0, free0), (alloc1, free1) = counts
+    assert alloc1 > alloc0  # (the passes allocate: the balance below counts something)
+    assert alloc1 - free1 == alloc0 - free0
 
 
 def test_the_install_compiles_the_one_signature_the_ticks_use(served):
