@@ -70,6 +70,7 @@ def test_an_argument_used_only_by_compiled_calls_loses_its_counting():
         "%.9 = select i1 %.6, ptr %.local, ptr %arg.b.0",
         "%.9 = icmp eq ptr %arg.b.0, null",
         "tail call void @numba_list_append(ptr %.l, ptr %arg.b.0)",  # a C helper
+        'tail call void %.f(ptr %arg.b.0, ptr @"_ZN5tests1fE")',  # a call through a pointer
     ],
 )
 def test_an_argument_that_may_escape_keeps_its_counting(use):

@@ -20,16 +20,16 @@ of calls to other compiled functions (``_ZN``-mangled, which borrow it the same 
 any other use (``store``, ``insertvalue``, a comparison, a call to a C helper) keeps that
 argument's counting as numba made it. A pointer chosen among arguments (a ``phi`` or
 ``select`` whose values are arguments, null or such choices) is always one of them and is
-treated with them, as one group. On a raising exit numba
-leaves the increment unmatched (the reference leaks with the exception); without it,
-nothing leaks there either.
+treated with them, as one group. On a raising exit numba leaves the increment unmatched
+(the reference leaks with the exception); without it, nothing leaks there either.
 
 :func:`install` applies it to every library numba finalises from then on (after numba's
 own optimisation, before the machine code is made and cached); :mod:`davinci_sim.kinematics.jit`
 installs it when numba compiles, unless ``DAVINCI_SIM_REFPRUNE=0``. The arithmetic is
-untouched: the compiled laws give the same bits with or without it
-(``tests/kinematics/test_jit_refcounts.py``). Kernels cached by numba before it was
-installed keep their counting until their module changes.
+untouched: the compiled ticks give the Python ticks' bits with it as before
+(``tests/console/test_chunk.py`` and the other oracles), and their allocations and frees
+balance (``tests/kinematics/test_jit_refcounts.py``, ``test_chunk.py``). Kernels cached by
+numba before it was installed keep their counting until their module changes.
 """
 
 from __future__ import annotations
@@ -48,9 +48,10 @@ _VALUE = re.compile(r'%"[^"]*"|%[-\w.$]+')
 """A local value's name in LLVM's text (``%name`` or ``%"quoted name"``)."""
 
 _BORROWING_CALL = re.compile(
-    r'^\s*(?:%"[^"]*" = |%[-\w.$]+ = )?(?:tail |notail |musttail )?call [^@]*@"?_ZN'
+    r'^\s*(?:%"[^"]*" = |%[-\w.$]+ = )?(?:tail |notail |musttail )?call [^@(]*@"?_ZN'
 )
-"""A call to a numba-compiled function: its arguments are borrowed for the call."""
+"""A direct call to a numba-compiled function: its arguments are borrowed for the call
+(an indirect call, ``call ty %f(...)``, is not one)."""
 
 
 _PHI = re.compile(r'^\s*(%"[^"]*"|%[-\w.$]+) = phi ptr (.*)$')
