@@ -6,7 +6,7 @@ import time
 
 import numpy as np
 import pytest
-from bridge_helpers import enable_and_home, wait_for
+from bridge_helpers import FAIL_AFTER, enable_and_home, wait_for
 
 from davinci_sim.bridge.udp import (
     DEFAULT_PORTS,
@@ -54,7 +54,7 @@ def test_datagrams_and_commands(handle, listener):
         listener.sendto(b'{"state_command": "enable"}', addr)
         listener.sendto(b'{"state_command": "home"}', addr)
         events = []
-        end = time.monotonic() + 10
+        end = time.monotonic() + FAIL_AFTER  # (a hang guard: homing waits on the loop)
         while time.monotonic() < end:
             msg, _ = receive(listener, 1)[0]
             if "operating_state" in msg:
@@ -138,7 +138,7 @@ def test_stop_frees_the_command_port(handle, listener):
     again.close()
 
 
-def _errors(sock, n, timeout=5.0):
+def _errors(sock, n, timeout=FAIL_AFTER):
     """The next ``n`` ``{"error": ...}`` datagrams on ``sock`` (other keys skipped)."""
     out, end = [], time.monotonic() + timeout
     while len(out) < n and time.monotonic() < end:

@@ -273,14 +273,19 @@ def test_the_compiled_passes_free_every_allocation_they_make(served):
     sim.set_state(start)
     chunker._cooldown = 0
     sim.set_chunker(chunker)
+    was_on = _nrt_python.memsys_stats_enabled()
     _nrt_python.memsys_enable_stats()
     counts = []
-    for p in range(120):
-        if p in (20, 119):  # (after the plan's first passes, and at the end)
-            gc.collect()
-            stats = rtsys.get_allocation_stats()
-            counts.append((stats.mi_alloc, stats.mi_free))
-        sim.advance(4, unchanged=p > 0)
+    try:
+        for p in range(120):
+            if p in (20, 119):  # (after the plan's first passes, and at the end)
+                gc.collect()
+                stats = rtsys.get_allocation_stats()
+                counts.append((stats.mi_alloc, stats.mi_free))
+            sim.advance(4, unchanged=p > 0)
+    finally:
+        if not was_on:
+            _nrt_python.memsys_disable_stats()
     (alloc0, free0), (alloc1, free1) = counts
     assert alloc1 > alloc0  # (the passes allocate: the balance below counts something)
     assert alloc1 - free1 == alloc0 - free0

@@ -186,19 +186,27 @@ def test_compiled_laws_lose_their_arguments_counting_and_compute_the_same(pruned
     assert _arguments_counted(_ticks) == 0
 
 
-def _allocation_balance() -> int:
-    """numba's live allocations (its counters switched on: they are off unless
-    ``NUMBA_NRT_STATS``)."""
+@pytest.fixture
+def allocations():
+    """numba's live allocations (mi_alloc − mi_free) as a function, its counters switched
+    on for the test (they are off unless ``NUMBA_NRT_STATS``)."""
     from numba.core.runtime import _nrt_python, rtsys
 
+    was_on = _nrt_python.memsys_stats_enabled()
     _nrt_python.memsys_enable_stats()
-    stats = rtsys.get_allocation_stats()
-    return stats.mi_alloc - stats.mi_free
+
+    def live() -> int:
+        stats = rtsys.get_allocation_stats()
+        return stats.mi_alloc - stats.mi_free
+
+    yield live
+    if not was_on:
+        _nrt_python.memsys_disable_stats()
 
 
-def test_arrays_that_escape_stay_alive_and_nothing_leaks(pruned_here):
+def test_arrays_that_escape_stay_alive_and_nothing_leaks(pruned_here, allocations):
     gc.collect()
-    before = _allocation_balance()
+    before = allocations()
     returned = _returned(np.arange(4.0))
     pair = _paired(np.arange(3.0), np.ones(2))
     listed = _listed(np.full(3, 7.0), np.full(2, 5.0))
@@ -214,4 +222,4 @@ def test_arrays_that_escape_stay_alive_and_nothing_leaks(pruned_here):
     np.testing.assert_array_equal(view, np.arange(1.0, 6.0))
     del returned, pair, listed, view
     gc.collect()
-    assert _allocation_balance() == before
+    assert allocations() == before

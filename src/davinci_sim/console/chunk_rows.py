@@ -23,9 +23,8 @@ from davinci_sim.console.teleop_psm import DISABLED, ENABLED, TeleopPSM
 from davinci_sim.devices import hand_input_row
 from davinci_sim.devices.hand_input import HandInput
 from davinci_sim.devices.simulated import SimulatedMTM
-from davinci_sim.geometry.path import Polyline
 from davinci_sim.haptics.fixture import FixtureField
-from davinci_sim.haptics.fixture_row import VISCOUS, path_constants
+from davinci_sim.haptics.fixture_row import VISCOUS, ZERO_LAW_PATH, path_constants
 from davinci_sim.kinematics import fk
 from davinci_sim.sim.arms import (
     _LOCK_DAMPING,
@@ -89,7 +88,7 @@ def indices(*values) -> np.ndarray:
 
 def no_fixture() -> tuple:
     """A fixture of the kernel's types for a teleoperation without one (never used)."""
-    path = path_constants(Polyline(np.array([[0.0, 0.0, 0.0], [0.01, 0.0, 0.0]])))
+    path = path_constants(ZERO_LAW_PATH)
     assert path is not None
     return (*path, 0.0, 0.0, 0.0, False, VISCOUS, 0, np.zeros(6), 0.001, 0.5, np.zeros(4),
             np.zeros(7))  # fmt: skip

@@ -70,14 +70,13 @@ def _warm_up() -> None:
     camera and tool poses and the MTM's Jacobian read-only (``Simulation._frames``,
     ``Arm._measured_T``, ``_measured_kinematics``), the base frame and effort limits either
     way."""
-    from davinci_sim.geometry.path import Polyline
-    from davinci_sim.haptics.fixture_row import path_constants
+    from davinci_sim.haptics.fixture_row import ZERO_LAW_PATH, path_constants
 
     def readonly(a: np.ndarray) -> np.ndarray:
         a.setflags(write=False)
         return a
 
-    path = path_constants(Polyline(np.array([[0.0, 0.0, 0.0], [0.01, 0.0, 0.0]])))
+    path = path_constants(ZERO_LAW_PATH)
     assert path is not None
     for T_ref_base in (readonly(np.eye(4)), np.eye(4)):
         for ftmax in (readonly(np.ones(7)), np.ones(7)):

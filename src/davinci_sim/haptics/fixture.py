@@ -19,7 +19,6 @@ the hand as computed from the *tool's* motion, as in the seed (no scaling by the
 
 from __future__ import annotations
 
-import math
 from typing import Literal, Protocol, runtime_checkable
 
 import numpy as np
@@ -168,53 +167,31 @@ class FixtureField:
 def _compiled_form(field: FixtureField) -> tuple | None:
     """``field``'s compiled row and its arguments (the row, path constants, ``B``, ``G_max``,
     ``transition``, whether summed, the law, a user law's address, its parameters), or None
-    where it has none: numba off, a fixture other than the seed's viscous law (one ``B`` and
-    ``G_max``), Rota's viscous-elastic one, a spring or a user's compiled law (alone or as a
-    sum of one), or no force (an empty sum), the camera frame, the measured velocity, a
-    path longer than the brute force serves."""
+    where it has none: numba off, a fixture with no compiled law
+    (:func:`~davinci_sim.haptics.fixture_row.compiled_law_of`; alone or as a sum of one),
+    the camera frame, the measured velocity, a path longer than the brute force serves."""
     from davinci_sim.haptics.combine import FixtureSum
-    from davinci_sim.haptics.compiled_law import UserLawGuidance
-    from davinci_sim.haptics.spring import SpringGuidance
-    from davinci_sim.haptics.viscous import ViscousGuidance
-    from davinci_sim.haptics.viscous_elastic import ViscousElasticGuidance
     from davinci_sim.kinematics import jit
 
     if not jit.ENABLED or field.frame != "world" or field.velocity_source != "filtered":
         return None
     fixture, summed = field.fixture, False
     row = fixture_row.fixture_force
-    viscous, none = fixture_row.VISCOUS, fixture_row.NO_PARAMS.copy()
     if isinstance(fixture, FixtureSum) and not fixture.fixtures:
         # No force (a task's ``fixture: none``): the seed's viscous law at (B, G_max) =
         # (0, 0), Table I's unassisted condition, on any path. Its force is ±0, which the
         # haptic loop's sum makes +0.0 as it does the empty sum's zeros; the velocity filter
         # runs as it does for any field.
         path = fixture_row.path_constants(fixture_row.ZERO_LAW_PATH)
-        return None if path is None else (row, path, 0.0, 0.0, 0.0, True, viscous, 0, none)
+        return None if path is None else (row, path, 0.0, 0.0, 0.0, True, fixture_row.VISCOUS,
+                                          0, fixture_row.NO_PARAMS.copy())  # fmt: skip
     if isinstance(fixture, FixtureSum) and len(fixture.fixtures) == 1:
         fixture, summed = fixture.fixtures[0], True
-    if type(fixture) in (ViscousElasticGuidance, SpringGuidance):
-        path = fixture_row.path_constants(fixture.path)
-        if path is None:
-            return None
-        if type(fixture) is SpringGuidance:
-            law, B = fixture_row.SPRING, 0.0
-        else:
-            law, B = fixture_row.VISCOUS_ELASTIC, float(fixture.B)
-        params = fixture_row.law_parameters(fixture)
-        return row, path, B, math.inf, 0.0, summed, law, 0, params
-    if type(fixture) is UserLawGuidance:
-        path = fixture_row.path_constants(fixture.path)
-        if path is None:
-            return None
-        return (row, path, 0.0, math.inf, 0.0, summed, fixture_row.USER, fixture.law.address,
-                fixture.parameters)  # fmt: skip
-    if type(fixture) is not ViscousGuidance:
+    law = fixture_row.compiled_law_of(fixture)
+    if law is None:
         return None
-    if not (isinstance(fixture.B, float) and isinstance(fixture.G_max, float)):
-        return None
-    path = fixture_row.path_constants(fixture.path)
+    code, B, G_max, transition, path_, law_fn, params = law
+    path = fixture_row.path_constants(path_)
     if path is None:
         return None
-    return (row, path, fixture.B, fixture.G_max, float(fixture.transition), summed, viscous, 0,
-            none)  # fmt: skip
+    return row, path, B, G_max, transition, summed, code, law_fn, params

@@ -74,6 +74,33 @@ def law_parameters(law) -> np.ndarray:
                      law.assistance], dtype=float)  # fmt: skip
 
 
+def compiled_law_of(part) -> tuple | None:
+    """The law :func:`fixture_law_row` computes for one fixture (not a sum): ``(law, B,
+    G_max, transition, path, law_fn, params)`` (a user law's address ``law_fn``, 0 for the
+    shipped laws), or None where it has no compiled law: a fixture other than the seed's
+    viscous law (with one ``B`` and ``G_max``), Rota's viscous-elastic one, a spring or a
+    user's compiled law. The one mapping the live field and the study's batch share."""
+    from davinci_sim.haptics.compiled_law import UserLawGuidance
+    from davinci_sim.haptics.spring import SpringGuidance
+    from davinci_sim.haptics.viscous import ViscousGuidance
+    from davinci_sim.haptics.viscous_elastic import ViscousElasticGuidance
+
+    kind = type(part)
+    if kind is ViscousGuidance:
+        if not (isinstance(part.B, float) and isinstance(part.G_max, float)):
+            return None
+        return (VISCOUS, part.B, part.G_max, float(part.transition), part.path, 0,
+                NO_PARAMS.copy())  # fmt: skip
+    if kind is ViscousElasticGuidance:
+        return (VISCOUS_ELASTIC, float(part.B), math.inf, 0.0, part.path, 0,
+                law_parameters(part))  # fmt: skip
+    if kind is SpringGuidance:
+        return SPRING, 0.0, math.inf, 0.0, part.path, 0, law_parameters(part)
+    if kind is UserLawGuidance:
+        return USER, 0.0, math.inf, 0.0, part.path, part.law.address, part.parameters
+    return None
+
+
 @helper
 def _spring_into(v, phi, params, out):
     """``spring_guidance`` of one row: ``v`` and ``phi`` (3,) m/s and m, ``params`` its
@@ -199,7 +226,7 @@ def fixture_force(
 def _warm_up() -> None:
     """Compile (or load from numba's cache) at import, never in the 1 kHz loop, with the
     live field's argument types."""
-    path = path_constants(Polyline(np.array([[0.0, 0.0, 0.0], [0.01, 0.0, 0.0]])))
+    path = path_constants(ZERO_LAW_PATH)
     assert path is not None
     fixture_force(np.eye(4), np.zeros(3), np.zeros(3), np.zeros(3), True, 0.001, 0.5, *path,
                   1.0, 1.0, 0.0, True, VISCOUS, 0, NO_PARAMS.copy(), np.empty(3))  # fmt: skip

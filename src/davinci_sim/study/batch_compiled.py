@@ -11,19 +11,14 @@ teleoperation a row needs Python for) and the tests' oracle.
 
 from __future__ import annotations
 
-import math
 from typing import TYPE_CHECKING
 
 import numpy as np
 
 from davinci_sim.console import teleop_math as tm
-from davinci_sim.geometry.path import Polyline
 from davinci_sim.haptics import fixture_row
 from davinci_sim.haptics.combine import FixtureSum
 from davinci_sim.haptics.fixture_row import path_constants
-from davinci_sim.haptics.spring import SpringGuidance
-from davinci_sim.haptics.viscous import ViscousGuidance
-from davinci_sim.haptics.viscous_elastic import ViscousElasticGuidance
 from davinci_sim.kinematics import fk
 from davinci_sim.kinematics.jit import warmed_up
 from davinci_sim.kinematics.psm_ik import _DEFAULT_TOLERANCE
@@ -98,23 +93,15 @@ def constants(batch: TrialBatch, keys) -> dict | None:
 def _row_law(parts) -> tuple | None:
     """``(B, G_max, transition, law, path, params)`` of a condition's fixture parts as
     :func:`~davinci_sim.haptics.fixture_row.fixture_law_row` takes them, or None where it
-    has no compiled law (``path`` None: no force)."""
+    has no compiled law the batch runs (a user's law keeps the batch on its numpy tick;
+    ``path`` None: no force)."""
     if not parts:
         return 0.0, 0.0, 0.0, fixture_row.VISCOUS, None, fixture_row.NO_PARAMS.copy()
-    if len(parts) != 1:
+    law = fixture_row.compiled_law_of(parts[0]) if len(parts) == 1 else None
+    if law is None or law[0] == fixture_row.USER:
         return None
-    law = parts[0]
-    if type(law) is ViscousGuidance:
-        if not (isinstance(law.B, float) and isinstance(law.G_max, float)):
-            return None
-        return (law.B, law.G_max, float(law.transition), fixture_row.VISCOUS, law.path,
-                fixture_row.NO_PARAMS.copy())  # fmt: skip
-    if type(law) is ViscousElasticGuidance:
-        return (float(law.B), math.inf, 0.0, fixture_row.VISCOUS_ELASTIC, law.path,
-                fixture_row.law_parameters(law))  # fmt: skip
-    if type(law) is SpringGuidance:
-        return 0.0, math.inf, 0.0, fixture_row.SPRING, law.path, fixture_row.law_parameters(law)
-    return None
+    code, B, G_max, transition, path, _, params = law
+    return B, G_max, transition, code, path, params
 
 
 def hand_xfrc(batch: TrialBatch, K: np.ndarray, D: np.ndarray) -> np.ndarray:
@@ -227,7 +214,7 @@ def _warm_up() -> None:
 
     psm, mtm = load_arm("PSM1").chain, load_arm("MTMR").chain
     ik, psm_fk, mtm_fk = _ik_packed(psm), fk._consts(psm).packed, fk._consts(mtm).packed
-    path = path_constants(Polyline(np.array([[0.0, 0.0, 0.0], [0.01, 0.0, 0.0]])))
+    path = path_constants(fixture_row.ZERO_LAW_PATH)
     i, f, b = np.zeros(0, dtype=np.intp), np.zeros(0), np.zeros(0, dtype=bool)
     f2, f3, I4 = np.zeros((0, 6)), np.zeros((0, 4, 4)), np.eye(4)
     tp = (
