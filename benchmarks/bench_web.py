@@ -1,5 +1,8 @@
 """The web console under use: ``serve --task seed_path`` with pages connected, one operating.
 
+``--task`` serves another exercise the same way (``needle_drive``: the needle, its park and
+the suture pad; issue 24's real-time figure), written as ``results/web_<task>.json``.
+
 ``davinci-sim serve`` as ``make run`` starts it (the full scene, the seed's task, the loop in
 its own process at 1 kHz real time, the stereo render pipeline at 30 Hz, the web console
 and its 3-D view), with ``pages`` headless Chromium pages (Playwright, the system's
@@ -68,7 +71,8 @@ def _drawn(pages, seconds: float) -> list[float]:
     return [round((b - a) / elapsed, 2) for a, b in zip(before, after, strict=True)]
 
 
-def main(seconds: float = 10.0, presses: int = 20, pages_n: int = 1, view: str = "page") -> dict:
+def main(seconds: float = 10.0, presses: int = 20, pages_n: int = 1, view: str = "page",
+         task: str = "seed_path") -> dict:  # fmt: skip
     from playwright.sync_api import sync_playwright
 
     from davinci_sim.bridge.app import ServeOptions, serve
@@ -80,7 +84,7 @@ def main(seconds: float = 10.0, presses: int = 20, pages_n: int = 1, view: str =
     if chromium is None:
         raise SystemExit("bench_web needs Chromium (scripts/system-deps.sh installs it)")
     options = ServeOptions(
-        task="seed_path",
+        task=task,
         home=True,
         runner="process",
         images="none",
@@ -108,7 +112,8 @@ def main(seconds: float = 10.0, presses: int = 20, pages_n: int = 1, view: str =
     while "web" not in info and thread.is_alive():
         time.sleep(0.1)
     handle = got["handle"]
-    result: dict = {"machine": machine(), "seconds": seconds, "pages": pages_n, "view": view}
+    result: dict = {"machine": machine(), "seconds": seconds, "pages": pages_n, "view": view,
+                    "task": task}  # fmt: skip
     query = "" if view == "page" else "?view=server"
     ready = "window.davinci.drawn > 0" + (" && window.davinci.view" if view == "page" else "")
     try:
@@ -173,7 +178,7 @@ def main(seconds: float = 10.0, presses: int = 20, pages_n: int = 1, view: str =
                          "endoscope_left_fps": ">= 30", "endoscope_sbs_fps": ">= 25",
                          "view_server_cpu_percent": "<= 5", "bedside_hz": ">= 25",
                          "on_screen_latency_p95_ms": "<= 50"}  # fmt: skip
-    write("web", result)
+    write("web" if task == "seed_path" else f"web_{task}", result)
     return result
 
 
@@ -246,5 +251,6 @@ if __name__ == "__main__":
     parser.add_argument("--presses", type=int, default=20)
     parser.add_argument("--pages", type=int, default=1)
     parser.add_argument("--view", choices=("page", "server"), default="page")
+    parser.add_argument("--task", default="seed_path", help="the exercise served")
     a = parser.parse_args()
-    print(main(a.seconds, a.presses, a.pages, a.view))
+    print(main(a.seconds, a.presses, a.pages, a.view, a.task))

@@ -48,4 +48,5 @@ if __name__ == "__main__":
     bench_study_small.main()  # 1 and 16 trials of the seed task, ~2 min (cold compile incl.)
     bench_realtime.main()  # 60 s of real time (plus warm-up)
     bench_web.main()  # the web console, one page drawing the endoscope, 2 x 10 s
+    bench_web.main(task="needle_drive")  # the same serving the needle and the suture pad
     bench_class.main()  # davinci-sim class: 1, 2, ... trainees until one falls behind, ~8 min
