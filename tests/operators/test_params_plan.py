@@ -117,3 +117,22 @@ def test_the_fitted_population_is_the_table_with_its_profile():
     # (noisier than the table's, a larger novice excess, noise learning less than speed)
     assert ROTA2023.noise_median > 0.23 and ROTA2023.excess_median > 1
     assert 0 < ROTA2023.noise_learning < 1
+
+
+def test_a_trials_pace_is_its_own_lognormal_draw_and_none_in_the_table():
+    from davinci_sim.operators.params import Profile, sample_subjects, trial_pace
+
+    keys = [(5, i, 0, j) for i in range(40) for j in range(1, 101)]
+    np.testing.assert_array_equal(trial_pace(1.0, keys), 1.0)  # (the table: exactly none)
+    pace = trial_pace(1.3, keys)
+    assert np.array_equal(pace, trial_pace(np.full(len(keys), 1.3), keys))  # (its key's)
+    inside = pace[(pace > 1.3**-3) & (pace < 1.3**3)]  # (the rest clipped at ±3 sd)
+    assert len(np.unique(inside)) == len(inside) > 0.99 * len(keys)  # (a draw per trial)
+    assert np.isclose(pace.min(), 1.3**-3, rtol=1e-12) and np.isclose(pace.max(), 1.3**3)
+    # lognormal ×/÷ 1.3: the SD of its log is log 1.3 (4,000 draws: within 4 %)
+    assert abs(np.log(pace).std() / np.log(1.3) - 1.0) < 0.04
+    assert abs(np.log(pace).mean()) < 0.01
+    assert np.all(sample_subjects(3, seed=1).pace_spread == 1.0)
+    assert np.all(sample_subjects(3, seed=1, profile=Profile(pace_spread=1.2)).pace_spread == 1.2)
+    with pytest.raises(ValueError, match="pace_spread"):
+        Profile(pace_spread=0.9)

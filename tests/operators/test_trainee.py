@@ -212,3 +212,19 @@ def test_invalid_construction():
             start_tolerance=0.003,
             noise_keys=[(1,), (2,)],
         )
+
+
+def test_a_trials_pace_scales_its_speed_and_leaves_its_noise_as_it_was():
+    """The pace multiplies the practised speed of each trial (its durations shrink by it);
+    the motor noise and tremor streams of the same keys draw what they drew without it."""
+    p = subjects(4)
+    keys = [(7, i, 0, 3) for i in range(4)]
+    plain = trainee(p, repetition=3, keys=keys)
+    paced = trainee(dataclasses.replace(p, pace_spread=np.full(4, 1.3)), repetition=3, keys=keys)
+    np.testing.assert_array_equal(plain.pace, 1.0)
+    np.testing.assert_array_equal(plain.speed, p.speed / p.practice_factor(np.full(4, 3)))
+    assert np.all(paced.pace != 1.0)
+    np.testing.assert_allclose(paced.speed, plain.speed * paced.pace, rtol=1e-15)
+    np.testing.assert_allclose(paced.durations, plain.durations / paced.pace[:, None], rtol=1e-12)
+    for _ in range(3):
+        np.testing.assert_array_equal(paced._noise.next(), plain._noise.next())

@@ -60,11 +60,16 @@ learning exponent α    uniform 0.2-0.6                power law of practice
                                                      T(j) ∝ 1 + E·j^(−α) (Newell &
                                                      Rosenbloom 1981); exponent range our
                                                      assumption
+trial pace             lognormal 1, ×/÷ 1 (none)      a trial's own speed over the
+(per trial)                                          subject's; none in this table; a
+                                                     fitted profile sets its spread
+                                                     (:attr:`Profile.pace_spread`)
 =====================  ============================  =================================
 
 Nothing here is fitted to the seed's results. A profile fitted to data (:class:`Profile`)
-may change the medians of k, speed and E, the exponent's range, and the noise's share of the
-novice excess (1 in this table: the noise practises as the speed does).
+may change the medians of k, speed and E, the exponent's range, the noise's share of the
+novice excess (1 in this table: the noise practises as the speed does) and the trials' pace
+spread (none in this table: a subject moves at the same practised speed in every trial).
 
 Calibration (issue 11): one parameter, the median of k (:data:`NOISE_MEDIAN`), is set so that
 the trainees' unassisted deviation on the seed's task matches a target; see
@@ -153,6 +158,10 @@ class SubjectParams:
     """Share of the novice excess the motor noise carries, in [0, 1]: the noise
     coefficient is k·(1 + share·E·j^(−α)) (1: the power law's factor, as speed and
     crossover; a population constant, :attr:`Profile.noise_learning`)."""
+    pace_spread: np.ndarray
+    """Spread (×/÷, ≥ 1) of a trial's own pace: each trial's speed is the subject's times a
+    lognormal draw of its own (:func:`trial_pace`; 1: none; a population constant,
+    :attr:`Profile.pace_spread`)."""
 
     def __post_init__(self) -> None:
         sizes = {np.shape(getattr(self, f.name)) for f in fields(self)}
@@ -214,6 +223,9 @@ class Profile:
     noise_learning: float = 1.0
     """Share of the novice excess in the motor noise (:attr:`SubjectParams.noise_learning`;
     1: the table's model, where practice lowers the noise as it raises the speed)."""
+    pace_spread: float = 1.0
+    """Lognormal spread (×/÷) of each trial's pace about the subject's speed
+    (:attr:`SubjectParams.pace_spread`; 1: none, the table's model)."""
 
     def __post_init__(self) -> None:
         low, high = self.exponent_range
@@ -221,6 +233,8 @@ class Profile:
             raise ValueError(f"exponent_range must be 0 <= low <= high, got {self.exponent_range}")
         if not 0 <= self.noise_learning <= 1:
             raise ValueError(f"noise_learning must be in [0, 1], got {self.noise_learning!r}")
+        if not (math.isfinite(self.pace_spread) and self.pace_spread >= 1):
+            raise ValueError(f"pace_spread must be >= 1 (1: none), got {self.pace_spread!r}")
 
 
 #: The module table's trainees (the default population ``trainee``).
@@ -240,11 +254,18 @@ NOVICE = Profile()
 #: Evaluated: mean deviation 2.68 mm (measured 2.57); per day 2.98 / 2.60 / 2.44 / 2.69 mm
 #: (2.80 / 2.56 / 2.38 / 2.55); time 30.7 / 21.7 / 18.9 / 17.3 s (29.4 / 24.3 / 22.5 /
 #: 14.8: a power law cannot follow their day-3 to day-4 drop); 2 of 144 trials unfinished
-#: in 150 s (theirs: none). Not fitted: the spreads (the table's). Not the default: see the
+#: in 150 s (theirs: none). The spreads (``scripts/rota_spreads.py``, 36 simulated subjects
+#: against their 3, ``docs/study/rota_path/README.md``): between subjects the table's (three
+#: subjects' spreads lie at the 10th-31st percentiles of the model's); within a subject the
+#: trial's pace (:func:`trial_pace`), added after the prediction, fitted to the deviation's
+#: trial-to-trial spread (SD of log 0.228): ×/÷ 1.16. Their times vary more from trial to
+#: trial than that gives (0.30 against 0.18), but a pace spread that matched them would make
+#: the deviation vary too much (×/÷ 1.31: 0.31 against 0.23): within a subject the model's
+#: deviation goes with its speed about twice as steeply as theirs. Not the default: see the
 #: held-out comparison, ``docs/study/rota_path/validation.md``.
 ROTA2023 = Profile(
     noise_median=0.472, speed_median=0.01424, excess_median=5.219,
-    exponent_range=(0.2462, 0.7387), noise_learning=0.585,
+    exponent_range=(0.2462, 0.7387), noise_learning=0.585, pace_spread=1.16,
 )  # fmt: skip
 
 
@@ -267,7 +288,25 @@ def sample_subject(seed: int, index: int, profile: Profile = NOVICE) -> dict[str
         "novice_excess": _lognormal(rng, profile.excess_median, 1.3),
         "learning_exponent": float(rng.uniform(*profile.exponent_range)),
         "noise_learning": float(profile.noise_learning),  # (no draw: a population constant)
+        "pace_spread": float(profile.pace_spread),  # (drawn per trial: trial_pace)
     }
+
+
+#: Appended to a trial's noise key for the stream of its pace (:func:`trial_pace`): a stream
+#: of its own, so that the pace leaves the trial's other noise as it was.
+PACE_STREAM = 0x9ACE
+
+
+def trial_pace(pace_spread, keys) -> np.ndarray:
+    """Each trial's pace (n,): ``pace_spread ** z`` with z a standard normal drawn from the
+    trial's own stream (its noise key (ints) and :data:`PACE_STREAM`), clipped to ±3 sd as
+    the table's normals; exactly 1 where the spread is 1. ``pace_spread`` (n,) or scalar,
+    ``keys`` one per trial."""
+    keys = list(keys)
+    spread = np.broadcast_to(np.asarray(pace_spread, dtype=float), (len(keys),))
+    z = np.array([np.random.default_rng([*(int(k) for k in key), PACE_STREAM]).standard_normal()
+                  for key in keys])  # fmt: skip
+    return spread ** np.clip(z, -3.0, 3.0)
 
 
 def sample_subjects(n: int, seed: int = 0, profile: Profile = NOVICE) -> SubjectParams:
@@ -324,7 +363,8 @@ POPULATION_METHODS = {
     "training.md §4; `scripts/fit_rota_trainees.py`): the noise median k to their mean "
     "deviation, the practised speed, the novice excess E and the learning exponent's range "
     "to their four day-mean times, the noise's share of the novice excess to the fall of "
-    "their deviation over the days. Its validation on their held-out assisted group "
+    "their deviation over the days, each trial's own pace (×/÷ 1.16) to their deviation's "
+    "trial-to-trial spread. Its validation on their held-out assisted group "
     "(`docs/study/rota_path/README.md`): the guidance's effect on the deviation predicted, "
     "its effect on speed missed (the guided trainees did not speed up; these do). On a "
     "stand-in for Enayati et al. 2016's task (`docs/study/enayati2016/README.md`) the "

@@ -36,6 +36,9 @@ The model, per trial (the parameters and their sources: :mod:`davinci_sim.operat
    crossover ω_c / P. With reliance on guidance
    (:class:`~davinci_sim.operators.params.Mechanisms`) the crossover and the noise follow
    their own practice count ``own_practice`` (guided trials count less), the speed j.
+   A trial's speed is also its own pace times the subject's (``pace``: a lognormal draw
+   per trial, :func:`~davinci_sim.operators.params.trial_pace`; none in the table's
+   trainees, a fitted profile sets its spread).
 7. **Co-contraction** (optional, :class:`~davinci_sim.operators.params.Mechanisms`): the
    force the MTM applies to the hand above a threshold drives a co-contraction level c
    (first-order lag) that scales the limb's stiffness and damping by 1 + c.
@@ -63,7 +66,12 @@ import numpy as np
 from davinci_sim.geometry.path import Polyline
 from davinci_sim.kinematics import jit
 from davinci_sim.operators.noise import MotorNoise, Tremor, TrialNoise
-from davinci_sim.operators.params import TREMOR_BANDWIDTH_HZ, Mechanisms, SubjectParams
+from davinci_sim.operators.params import (
+    TREMOR_BANDWIDTH_HZ,
+    Mechanisms,
+    SubjectParams,
+    trial_pace,
+)
 from davinci_sim.operators.plan import path_plan, straight_plan, stroke_durations
 
 #: Shortest reach to point 1, s (a minimum-jerk reach of a few mm still takes a while).
@@ -163,7 +171,9 @@ class SyntheticTrainee:
             raise ValueError(f"need one noise key per trial ({n}), got {len(keys)}")
         factor = params.practice_factor(np.broadcast_to(np.asarray(repetition), (n,)))
         self.practice = factor
-        self.speed = params.speed / factor
+        self.pace = trial_pace(params.pace_spread, keys)
+        """Each trial's own pace: its speed over the subject's at this practice (n,)."""
+        self.speed = params.speed / factor * self.pace
         if own_practice is not None:
             own = np.broadcast_to(np.asarray(own_practice, dtype=float), (n,))
             if not np.all(np.isfinite(own) & (own >= 1.0)):
