@@ -226,7 +226,7 @@ class DavinciEnv(gym.Env):
         velocity = control.feedforward(delta, K)
         if self.arm is self.psm:
             jaw = control.jaw_angle(a[-1], self.psm.jaw.spec.qmin, self.psm.jaw.spec.qmax)
-            self.psm.jaw.servo_jp([float(jaw)])
+            self.psm.jaw.servo_jp(float(jaw))  # (a number: the jaw's check without arrays)
         twist = np.concatenate([velocity, np.zeros(3)]) if cfg.action_space == "cartesian" else None
         task = self.problem if isinstance(self.problem, TaskProblem) else None
         # The ticks run compiled while they can (sim/live_period.py); the others, and a tick
@@ -267,8 +267,7 @@ class DavinciEnv(gym.Env):
         rows = slice(ticks.start, ticks.stop)
         T_base_tip, _ = fk.forward_kinematics_and_jacobian(self.psm.chain, samples.q[rows])
         T_camera_tip = samples.frames[rows, 1] @ T_base_tip  # (Arm._measured_T's, row by row)
-        task_of = self._start.task.T_task_camera
-        T_task_camera = np.array([task_of(T) for T in samples.frames[rows, 0]])
+        T_task_camera = self._start.task.T_task_cameras(samples.frames[rows, 0])
         task.after_ticks(samples.t[rows], T_camera_tip, T_task_camera)
 
     @property

@@ -21,6 +21,7 @@ from __future__ import annotations
 import numpy as np
 from gymnasium import spaces
 
+from davinci_sim.haptics.path_query import closest_point
 from davinci_sim.model.cameras import in_left_image
 from davinci_sim.tasks import PathTask, Phase, Sample, advance
 from davinci_sim.tasks.live_path import LivePathTick
@@ -40,6 +41,16 @@ _BIG = 10.0  # bounds of positions (m) in the observation spaces: the scene is m
 
 def _box(*shape: int, low: float = -_BIG, high: float = _BIG) -> spaces.Box:
     return spaces.Box(low, high, shape=shape, dtype=np.float64)
+
+
+def _rigid_inverse(T: np.ndarray) -> np.ndarray:
+    """The inverse of a rigid transform (4, 4) or of each of (n, 4, 4): (Rᵀ, −Rᵀp)."""
+    out = np.zeros_like(T)
+    R_t = np.swapaxes(T[..., :3, :3], -1, -2)
+    out[..., :3, :3] = R_t
+    out[..., :3, 3] = -np.einsum("...ij,...j->...i", R_t, T[..., :3, 3])
+    out[..., 3, 3] = 1.0
+    return out
 
 
 def _transform(T: np.ndarray, p: np.ndarray) -> np.ndarray:
@@ -187,7 +198,7 @@ class TaskProblem:
     def features(self, T_camera_tip, T_task_camera=None) -> dict[str, np.ndarray]:
         T = self.T_task_camera if T_task_camera is None else T_task_camera
         tip = _transform(T, T_camera_tip[:, :3, 3])
-        cp = None if self.path is None else self.path.closest_point(tip)
+        cp = None if self.path is None else closest_point(self.path, tip)  # (compiled, same bits)
         distance = cp.distance if self._distance_of_closest else self.task.distance(tip)
         if self.task.kind == "camera_targeting":  # (about the camera, not the tip)
             _, seen = self.task.step(self.state, self.sample(self.time_now, T_camera_tip, T))
@@ -196,19 +207,20 @@ class TaskProblem:
             "phase": self.state.phase.astype(float)[:, None],
             "distance": np.reshape(distance, (-1, 1)),
         }
+        T_camera_task = _rigid_inverse(T)
         if cp is not None:
             length = self.path.length
             ahead = self.path.point_at(np.minimum(cp.arc_length + LOOKAHEAD, length))
             out["progress"] = (self.state.progress / length)[:, None]
-            out["next_point"] = _transform(np.linalg.inv(T), np.reshape(ahead, (-1, 3)))
+            out["next_point"] = _transform(T_camera_task, np.reshape(ahead, (-1, 3)))
         if self.task.kind == "camera_targeting":
             k = np.minimum(self.state.target, len(self.task.targets) - 1)
-            out["target"] = _transform(np.linalg.inv(T), self.task.targets[k])
+            out["target"] = _transform(T_camera_task, self.task.targets[k])
         if self.task.kind == "needle_drive":  # (the marks: task frame, the world's)
             marks = self.task.pad.marks_world()
             k = np.minimum(self.state.next_pair, len(marks) - 1)
-            out["entry_mark"] = _transform(np.linalg.inv(T), marks[k, 0])
-            out["exit_mark"] = _transform(np.linalg.inv(T), marks[k, 1])
+            out["entry_mark"] = _transform(T_camera_task, marks[k, 0])
+            out["exit_mark"] = _transform(T_camera_task, marks[k, 1])
         return out
 
     def outcome(self, T_camera_tip, T_task_camera=None, features=None):
