@@ -67,14 +67,21 @@ def measured() -> dict:
     return out
 
 
-def simulated(profile: params.Profile, subjects: int, workers: int) -> dict:
+def control_rows(profile: params.Profile, subjects: int, workers: int,
+                 seed: int = SEED) -> list[dict]:  # fmt: skip
+    """The study rows of ``subjects`` trainees of ``profile`` doing the control group's 12
+    unassisted ``rota_path`` trials (3 a day for 4 days), population seed ``seed``."""
     params.POPULATIONS["fit"] = lambda n, seed=0: params.sample_subjects(n, seed, profile)
     config = StudyConfig(
         conditions=[{"type": "none", "name": "control"}], n_subjects=subjects,
         n_repetitions=TRIALS_PER_DAY * DAYS, task="rota_path", design="between",
-        workers=workers, population="fit", seed=SEED, timeout=TIMEOUT,
+        workers=workers, population="fit", seed=seed, timeout=TIMEOUT,
     )  # fmt: skip
-    rows = run_study(config, progress=False).rows
+    return run_study(config, progress=False).rows
+
+
+def simulated(profile: params.Profile, subjects: int, workers: int) -> dict:
+    rows = control_rows(profile, subjects, workers)
     out = {"deviation": 1e3 * np.mean([r["deviation_error"] for r in rows]),
            "finished": np.mean([r["finished"] for r in rows])}  # fmt: skip
     for day in range(1, DAYS + 1):

@@ -32,14 +32,12 @@ from importlib.resources import files
 from pathlib import Path
 
 import numpy as np
+from fit_rota_trainees import DAYS, TRIALS_PER_DAY, control_rows
 
 from davinci_sim.operators import params
-from davinci_sim.study.config import StudyConfig
-from davinci_sim.study.runner import run_study
 
-TRIALS_PER_DAY, DAYS, SEED = 3, 4, 31
-#: As the fit's: long enough that no trial is cut short.
-TIMEOUT = 150.0
+#: Not the fit's seed: other subjects than the ones it was fitted on.
+SEED = 31
 MEASURES = ("deviation_mm", "time_s")
 #: Each measure's field in the data file.
 FIELDS = {"deviation_mm": "mean_deviation_mm", "time_s": "time_s"}
@@ -95,13 +93,7 @@ def measured() -> tuple[dict, np.ndarray]:
 
 def simulated(profile: params.Profile, subjects: int, workers: int) -> dict:
     """``profile``'s control group as (measure → (subjects, 12) array)."""
-    params.POPULATIONS["spreads"] = lambda n, seed=0: params.sample_subjects(n, seed, profile)
-    config = StudyConfig(
-        conditions=[{"type": "none", "name": "control"}], n_subjects=subjects,
-        n_repetitions=TRIALS_PER_DAY * DAYS, task="rota_path", design="between",
-        workers=workers, population="spreads", seed=SEED, timeout=TIMEOUT,
-    )  # fmt: skip
-    rows = run_study(config, progress=False).rows
+    rows = control_rows(profile, subjects, workers, seed=SEED)
     ids = sorted({r["subject"] for r in rows})
     out = {m: np.full((len(ids), TRIALS_PER_DAY * DAYS), np.nan) for m in MEASURES}
     unfinished = 0
