@@ -304,6 +304,8 @@ def trial_pace(pace_spread, keys) -> np.ndarray:
     ``keys`` one per trial."""
     keys = list(keys)
     spread = np.broadcast_to(np.asarray(pace_spread, dtype=float), (len(keys),))
+    if np.all(spread == 1.0):  # (the table's trainees: no stream to open)
+        return np.ones(len(keys))
     z = np.array([np.random.default_rng([*(int(k) for k in key), PACE_STREAM]).standard_normal()
                   for key in keys])  # fmt: skip
     return spread ** np.clip(z, -3.0, 3.0)
