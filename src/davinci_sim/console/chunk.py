@@ -436,7 +436,7 @@ class ConsoleChunk:
             T.setflags(write=False)
             twist.setflags(write=False)
             d._now = t_pre
-            d._input = DeviceInput(T, twist, float(row[22][0]), t_pre)
+            d._input = DeviceInput._checked(T, twist, float(row[22][0]), t_pre)
             d._hand_wrench = row[14].copy()
             d._hand_applied = bool(row[13][0])
             arm = d.arm

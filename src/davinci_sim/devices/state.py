@@ -48,6 +48,18 @@ class DeviceInput:
         if self.buttons:
             object.__setattr__(self, "buttons", dict(self.buttons))
 
+    @classmethod
+    def _checked(cls, T_hrsv_tip: np.ndarray, twist_hrsv_tip: np.ndarray, gripper: float,
+                 timestamp: float) -> DeviceInput:  # fmt: skip
+        """An input of values known to be what ``__post_init__`` makes (read-only float
+        arrays (4, 4) and (6,), a float gripper, no buttons), without checking them again:
+        the console's compiled ticks make one per device and call (what a pass's Python
+        costs)."""
+        out = object.__new__(cls)
+        out.__dict__.update(T_hrsv_tip=T_hrsv_tip, twist_hrsv_tip=twist_hrsv_tip,
+                            gripper=gripper, timestamp=timestamp, buttons={})  # fmt: skip
+        return out
+
     @property
     def position(self) -> np.ndarray:
         return self.T_hrsv_tip[:3, 3]
