@@ -1,6 +1,7 @@
 """The seed's whole study (Table I, 10 subjects × 10 repetitions = 400 trials) on 2 workers:
 wall time against the ≤ 30 s target (issue 20; ≤ 60 s in issue 9) and against its trials'
-bare ``mj_step`` time shared by the workers; the per-tick cost of a batch (200 trials, and
+bare ``mj_step`` time shared by the workers (the step timed alone, and timed while as many
+processes as workers step at once: ``_concurrent``); the per-tick cost of a batch (200 trials, and
 50: the per-trial-tick cost, measurable while the machine is otherwise busy) over as many
 bare ``mj_step`` calls, one tick at a time and a chunk of ticks at a time (``_chunked_``:
 how the study runs, each trial's ticks in a row).
@@ -89,6 +90,49 @@ def mj_step_us(steps: int = 20) -> float:
     return float(np.median(out))
 
 
+def _steps_timed(seconds: float, barrier, out) -> None:
+    """A process of :func:`mj_step_us_concurrent`: the states of :func:`mj_step_us`, then,
+    once every process is ready, bare ``mj_step`` calls timed one by one for ``seconds``
+    (20 from each state in turn, round and round); their median µs into ``out``."""
+    specs = plan_trials(StudyConfig())[:50]
+    batch = TrialBatch(specs)
+    for _ in range(100):
+        batch.tick()
+    pairs = [(m, copy.copy(d)) for m, d in zip(batch.models, batch.datas, strict=True)]
+    starts = [copy.copy(d) for _, d in pairs]
+    times: list[float] = []
+    barrier.wait()
+    end = time.perf_counter() + seconds
+    while time.perf_counter() < end:
+        for (model, data), start in zip(pairs, starts, strict=True):
+            mujoco.mj_copyData(data, model, start)
+            for _ in range(20):
+                t0 = time.perf_counter_ns()
+                mujoco.mj_step(model, data)
+                times.append((time.perf_counter_ns() - t0) / 1000.0)
+    batch._setup.sim.close()
+    out.put(float(np.median(times)))
+
+
+def mj_step_us_concurrent(workers: int, seconds: float = 5.0) -> float:
+    """The median µs of one bare ``mj_step`` of the study's scene with ``workers``
+    processes stepping at once (as the study's workers run): the mean of their medians.
+    On a shared machine one process's step is slower while the others run (caches, memory,
+    the host), so the physics alone of a study on ``workers`` processes is this one's."""
+    import multiprocessing
+
+    ctx = multiprocessing.get_context()
+    barrier, out = ctx.Barrier(workers), ctx.Queue()
+    procs = [ctx.Process(target=_steps_timed, args=(seconds, barrier, out))
+             for _ in range(workers)]  # fmt: skip
+    for p in procs:
+        p.start()
+    medians = [out.get(timeout=120) for _ in procs]
+    for p in procs:
+        p.join()
+    return float(np.mean(medians))
+
+
 def main(output: str | None = None, retention: int = 0, mechanisms: tuple = ()) -> dict:
     config = StudyConfig(workers=2, retention=retention, mechanisms=mechanisms)
     load = os.getloadavg()[0]
@@ -100,6 +144,8 @@ def main(output: str | None = None, retention: int = 0, mechanisms: tuple = ()) 
     sim_time = sum(r["sim_time"] for r in result.rows)
     step_us = mj_step_us()
     mj_step_s = sim_time * 1000.0 * step_us * 1e-6  # (1 kHz: 1000 steps a simulated second)
+    concurrent_us = mj_step_us_concurrent(config.workers)
+    concurrent_s = sim_time * 1000.0 * concurrent_us * 1e-6
     figures = {
         "trials": len(result.rows),
         "retention_repetitions": retention,
@@ -116,6 +162,11 @@ def main(output: str | None = None, retention: int = 0, mechanisms: tuple = ()) 
         "mj_step_us": step_us,
         "mj_step_alone_per_worker_s": mj_step_s / config.workers,
         "study_over_mj_step_alone": wall / (mj_step_s / config.workers),
+        # The same with the step timed while as many processes as workers step at once:
+        # the physics alone of the study's run as its workers share the machine.
+        "mj_step_concurrent_us": concurrent_us,
+        "mj_step_concurrent_per_worker_s": concurrent_s / config.workers,
+        "study_over_mj_step_concurrent": wall / (concurrent_s / config.workers),
         **tick_cost(step_us),
         **tick_cost(step_us, 50),
     }
