@@ -21,6 +21,7 @@ from __future__ import annotations
 import numpy as np
 from gymnasium import spaces
 
+from davinci_sim.geometry.se3 import invert_transform
 from davinci_sim.haptics.path_query import closest_point
 from davinci_sim.model.cameras import in_left_image
 from davinci_sim.tasks import PathTask, Phase, Sample, advance
@@ -41,16 +42,6 @@ _BIG = 10.0  # bounds of positions (m) in the observation spaces: the scene is m
 
 def _box(*shape: int, low: float = -_BIG, high: float = _BIG) -> spaces.Box:
     return spaces.Box(low, high, shape=shape, dtype=np.float64)
-
-
-def _rigid_inverse(T: np.ndarray) -> np.ndarray:
-    """The inverse of a rigid transform (4, 4) or of each of (n, 4, 4): (Rᵀ, −Rᵀp)."""
-    out = np.zeros_like(T)
-    R_t = np.swapaxes(T[..., :3, :3], -1, -2)
-    out[..., :3, :3] = R_t
-    out[..., :3, 3] = -np.einsum("...ij,...j->...i", R_t, T[..., :3, 3])
-    out[..., 3, 3] = 1.0
-    return out
 
 
 def _transform(T: np.ndarray, p: np.ndarray) -> np.ndarray:
@@ -207,7 +198,7 @@ class TaskProblem:
             "phase": self.state.phase.astype(float)[:, None],
             "distance": np.reshape(distance, (-1, 1)),
         }
-        T_camera_task = _rigid_inverse(T)
+        T_camera_task = invert_transform(T)
         if cp is not None:
             length = self.path.length
             ahead = self.path.point_at(np.minimum(cp.arc_length + LOOKAHEAD, length))

@@ -38,11 +38,19 @@ def transform(R=None, p=None) -> np.ndarray:
 
 
 def invert_transform(T: np.ndarray) -> np.ndarray:
-    """Inverse of a rigid 4x4 transform (Rᵀ, −Rᵀp)."""
-    out = np.eye(4)
-    R = T[:3, :3]
-    out[:3, :3] = R.T
-    out[:3, 3] = -R.T @ T[:3, 3]
+    """Inverse of a rigid 4x4 transform (Rᵀ, −Rᵀp), or of each of a stack (..., 4, 4)."""
+    T = np.asarray(T, dtype=float)
+    if T.ndim == 2:
+        out = np.eye(4)
+        R = T[:3, :3]
+        out[:3, :3] = R.T
+        out[:3, 3] = -R.T @ T[:3, 3]
+        return out
+    out = np.zeros_like(T)
+    R_t = np.swapaxes(T[..., :3, :3], -1, -2)
+    out[..., :3, :3] = R_t
+    out[..., :3, 3] = -np.einsum("...ij,...j->...i", R_t, T[..., :3, 3])
+    out[..., 3, 3] = 1.0
     return out
 
 
