@@ -67,14 +67,14 @@ def measured() -> dict:
     return out
 
 
-def control_rows(profile: params.Profile, subjects: int, workers: int,
-                 seed: int = SEED) -> list[dict]:  # fmt: skip
+def control_rows(profile: params.Profile, subjects: int, workers: int, seed: int = SEED,
+                 task: str = "rota_path") -> list[dict]:  # fmt: skip
     """The study rows of ``subjects`` trainees of ``profile`` doing the control group's 12
-    unassisted ``rota_path`` trials (3 a day for 4 days), population seed ``seed``."""
+    unassisted ``task`` trials (3 a day for 4 days), population seed ``seed``."""
     params.POPULATIONS["fit"] = lambda n, seed=0: params.sample_subjects(n, seed, profile)
     config = StudyConfig(
         conditions=[{"type": "none", "name": "control"}], n_subjects=subjects,
-        n_repetitions=TRIALS_PER_DAY * DAYS, task="rota_path", design="between",
+        n_repetitions=TRIALS_PER_DAY * DAYS, task=task, design="between",
         workers=workers, population="fit", seed=seed, timeout=TIMEOUT,
     )  # fmt: skip
     return run_study(config, progress=False).rows

@@ -11,7 +11,11 @@ simplification needs for a 20 µm tolerance (80 of them: under half their vertex
 the shape is theirs), and places it rigidly in our cart (world) frame: turned so that it
 runs across the view (``TURN_DEG``), its bounding box centred beside the seed's path where
 PSM1 reaches every vertex and the `surgical` endoscope sees them (``davinci-sim task check
-rota_path``). Writes ``src/davinci_sim/tasks/data/rota_path.yaml`` (or ``--out``).
+rota_path``). The torus their trainees carried in the jaws (its size from their scene
+``Assets/Training1.unity``: ``TORUS``) and the wrist's turns along the path (their control
+group's mean, ``docs/study/rota_path/wrist.json``, written by ``scripts/rota_wrist.py``)
+make the task's ``carry`` section. Writes ``src/davinci_sim/tasks/data/rota_path.yaml`` (or
+``--out``).
 """
 
 from __future__ import annotations
@@ -19,6 +23,7 @@ from __future__ import annotations
 import argparse
 import importlib.util
 import io
+import json
 from pathlib import Path
 
 import numpy as np
@@ -29,11 +34,19 @@ TRAJECTORY = "Assessment/Evaluation/SubjectA/Training1/Training1_0/Training1_0_t
 TOLERANCE_M = 2e-5
 #: The path's bounding-box centre in the world frame, m (beside the seed's path).
 CENTRE = (0.080, 1.185, 0.810)
-#: The turn about the vertical that places it, deg: its long axis across the view. Placed
-#: unturned, receding from our endoscope as theirs seems to from their camera, the synthetic
-#: trainees finished none of 4 trials (mean deviation 15-22 mm): their plan and corrections
-#: do not handle a path mostly along the line of sight yet (a finding for issue 23's fit).
+#: The turn about the vertical that places it, deg: its long axis across the view. Their
+#: endoscope's line of sight to the path is 99 deg from its long axis (its position solved
+#: from the logs, scripts/rota_wrist.py): across their view too. (Placed unturned, receding
+#: from our endoscope, the synthetic trainees finished none of 4 trials, mean deviation
+#: 15-22 mm: their plan and corrections do not handle a path along the line of sight.)
 TURN_DEG = 90.0
+#: The wrist's turns along the path (scripts/rota_wrist.py).
+WRIST = ROOT / "docs/study/rota_path/wrist.json"
+#: Their torus (the ``Subject`` of ``Assets/Training1.unity``: eight capsule colliders of
+#: radius 0.0843 on an octagon of apothem 0.767, in a parent scaled by 0.008008, Unity
+#: units being metres): tube radius 0.675 mm, centre line 6.14 mm (apothem) to 6.65 mm
+#: (corners) from its centre; a circle of 6.4 mm here. m.
+TORUS = {"torus_radius": 0.0064, "tube_radius": 0.000675}
 
 
 def _source():
@@ -83,6 +96,8 @@ def main() -> None:
     box = (turned.min(axis=0) + turned.max(axis=0)) / 2
     world = turned - box + np.array(CENTRE)
     length = float(np.linalg.norm(np.diff(theirs, axis=0), axis=1).sum())
+    wrist = json.loads(WRIST.read_text())
+    largest = wrist["largest_turn_deg"]
     kept = float(np.linalg.norm(np.diff(world, axis=0), axis=1).sum())
     header = f"""\
 # The Path task of Rota's dVRK-console training study (MSc thesis, Politecnico di Milano
@@ -98,8 +113,10 @@ def main() -> None:
 # vertical (its long axis across the view; TURN_DEG in the script says why), its box
 # centred at {CENTRE} m beside the seed's path, where PSM1 reaches it and
 # the `surgical` endoscope sees it (`davinci-sim task check rota_path`); their camera's
-# pose is not ours.
-# Not modelled yet: the torus their trainees carried in the jaws and its wrist rotations.
+# pose is not ours. The torus carried in the jaws: their scene's (TORUS in the script);
+# the wrist's turns: their control group's mean, from the same commit's logs
+# (docs/study/rota_path/wrist.json; a trial's largest turn: median
+# {largest["median"]:g} deg, {largest["min"]:g}-{largest["max"]:g}).
 """
     lines = [
         "name: rota_path",
@@ -136,6 +153,13 @@ def main() -> None:
             f"max_force: 3.0, assistance: {a:g}}}"
             for a in (1.0, 0.75, 0.5, 0.25)
         ),
+        "carry:                    # their torus, and their control group's wrist turns",
+        f"  torus_radius: {TORUS['torus_radius']}",
+        f"  tube_radius: {TORUS['tube_radius']}",
+        "  grasp_depth: 0.006",
+        f"  progress: [{', '.join(f'{s:g}' for s in wrist['knots'])}]",
+        "  turn:                   # rad, world axes: from the start orientation",
+        *(f"    - [{x:.6f}, {y:.6f}, {z:.6f}]" for x, y, z in wrist["mean_turn_rad"]),
         "visual:",
         "  tube_radius: 0.0006",
         "  marker_radius: 0.0018",

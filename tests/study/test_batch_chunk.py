@@ -39,14 +39,17 @@ def assert_same_batches(a: TrialBatch, b: TrialBatch, where: str) -> None:
 
 
 @pytest.mark.parametrize(
-    ("compiled_task", "mechanisms"),
-    [(True, ()), (False, ()), (True, MECHANISMS)],
-    ids=["task compiled", "task Python", "trainee mechanisms on"],
+    ("compiled_task", "mechanisms", "carried"),
+    [(True, (), False), (False, (), False), (True, MECHANISMS, False), (True, (), True)],
+    ids=["task compiled", "task Python", "trainee mechanisms on", "wrist turning"],
 )
-def test_chunks_are_the_ticks_bit_for_bit(short_task, monkeypatch, compiled_task, mechanisms):
+def test_chunks_are_the_ticks_bit_for_bit(
+    short_task, carry_task, monkeypatch, compiled_task, mechanisms, carried
+):
     """After every chunk the state equals the ticks', the task's samples run by its
     compiled call (``chunk_rows.task_rows``) or by ``advance`` tick by tick; with the
-    trainees' reactions to guidance on (the force they feel, their own practice)."""
+    trainees' reactions to guidance on (the force they feel, their own practice); with a
+    carried object's wrist turns (the hands' targets turning, operators.wrist)."""
     chosen = batch_chunk._tasks_python if compiled_task else batch_chunk._tasks_compiled
 
     def unexpected(*args):
@@ -56,7 +59,8 @@ def test_chunks_are_the_ticks_bit_for_bit(short_task, monkeypatch, compiled_task
         monkeypatch.setattr(batch_chunk, "_tasks_compiled", lambda *args: False)
     else:
         monkeypatch.setattr(batch_chunk, "_tasks_python", unexpected)
-    specs = [dataclasses.replace(s, mechanisms=mechanisms) for s in _specs(short_task)]
+    task = carry_task if carried else short_task
+    specs = [dataclasses.replace(s, mechanisms=mechanisms) for s in _specs(task)]
     chunked, ticked = TrialBatch(specs), TrialBatch(specs)
     try:
         assert batch_chunk.can_chunk(chunked)

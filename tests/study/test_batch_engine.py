@@ -9,6 +9,7 @@ import pytest
 
 import davinci_sim.sim.simulation as simulation
 import davinci_sim.study.trial as trial
+from davinci_sim.geometry.so3 import rotation_vector
 from davinci_sim.operators.params import Mechanisms
 from davinci_sim.study import TrialSpec, run_trial
 from davinci_sim.study.batch import TrialBatch, run_batch
@@ -25,17 +26,24 @@ def _specs(task: str, timeout: float = 60.0) -> list[TrialSpec]:
     ]  # fmt: skip
 
 
-@pytest.mark.parametrize("mechanisms", [(), ("reliance", "stiffening")])
-def test_batch_is_the_live_simulation_to_machine_precision(short_task, monkeypatch, mechanisms):
+@pytest.mark.parametrize(
+    ("carried", "mechanisms"),
+    [(False, ()), (False, ("reliance", "stiffening")), (True, ())],
+    ids=["plain", "mechanisms", "wrist turning"],
+)
+def test_batch_is_the_live_simulation_to_machine_precision(
+    short_task, carry_task, monkeypatch, carried, mechanisms
+):
     """With the base frames held (the live simulation follows every change of the ECM and
     setup joints; the batch holds them, see study.batch), every joint of every trial
     follows the live simulation's to ~1e-12 over a whole second of assisted following;
     with the trainee mechanisms on too (the co-contraction is a law both engines share:
-    the force felt is the wrench the MTM renders, the limb's impedance the trainee's)."""
+    the force felt is the wrench the MTM renders, the limb's impedance the trainee's); with
+    a carried object's wrist turns (the hand's target turning: operators.wrist)."""
     monkeypatch.setattr(simulation, "BASE_FRAME_TOLERANCE", np.inf)
     # Set-ups built here start under the patched tolerance: keep them out of later tests.
     monkeypatch.setattr(trial, "_SETUPS", {})
-    spec = _specs(short_task)[1]
+    spec = _specs(carry_task if carried else short_task)[1]
     if mechanisms:
         spec = dataclasses.replace(spec, mechanisms=mechanisms, own_practice=2.44)
         # A low threshold, so that the short run's guidance (~1 N) makes the arm co-contract.
@@ -69,6 +77,11 @@ def test_batch_is_the_live_simulation_to_machine_precision(short_task, monkeypat
     assert (co[0] > 0.1) == bool(mechanisms)
     if mechanisms:
         assert setup.device.hand.stiffness > params.stiffness[0]
+    # the hands' targets: the same turn in both engines (none without a carried object)
+    turned = np.linalg.norm(rotation_vector(batch.T_hand[0, :3, :3] @ batch.R_hand0[0].T))
+    assert (turned > 0.01) == carried
+    np.testing.assert_allclose(batch.T_hand[0, :3, :3], hand.device._hand_target[:3, :3],
+                               atol=1e-12)  # fmt: skip
     sim.close()
 
 

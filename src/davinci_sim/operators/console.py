@@ -68,6 +68,8 @@ class TraineeHand:
         self.when = when
         self.name = name or f"{device.name}/trainee"
         self.started = False
+        self.R_hand0 = np.eye(3)[None]
+        """The handle's orientation when the hand took it (1, 3, 3), HRSV."""
 
     def pre_step(self, t: float) -> None:
         if not self.started:
@@ -77,14 +79,23 @@ class TraineeHand:
             handle = self.device.input().position
             self.trainee.set_hand_start(handle[None])
             self.device.grasp(handle)
+            # (the orientation the grasp holds: the handle's now, SimulatedMTM._as_target)
+            self.R_hand0 = self.device.arm.measured_cp().T[None, :3, :3].copy()
         tr = self.trainee
         tip = self.psm.measured_cp().T[:3, 3]
+        t = tr.time  # (the step's: command moves it on)
         x_eq = tr.command(tr.dt, tip[None], self.device.wrench()[None, :3])
         K, D = float(tr.stiffness[0]), float(tr.damping[0])
         hand = self.device.hand
         if K != hand.stiffness or D != hand.damping:  # co-contraction (Mechanisms)
             self.device.hand = dataclasses.replace(hand, stiffness=K, damping=D)
-        self.device.move_hand(x_eq[0])
+        if tr.wrist is None:
+            self.device.move_hand(x_eq[0])
+        else:  # the hand turns the handle along the path (operators.wrist)
+            T = np.eye(4)
+            T[:3, :3] = tr.hand_rotations(t, self.R_hand0)[0]
+            T[:3, 3] = x_eq[0]
+            self.device.move_hand(T)
         self.device.push(tr.push_force()[0])
 
     def snapshot(self) -> dict:
@@ -94,8 +105,10 @@ class TraineeHand:
         """Whether the hand has started, and the trainee (deep-copied whole: a pure-numpy
         object with no reference to the simulation, whose state is its plan, delays,
         filters and noise generators)."""
-        return {"started": self.started, "trainee": copy.deepcopy(self.trainee)}
+        return {"started": self.started, "trainee": copy.deepcopy(self.trainee),
+                "R_hand0": self.R_hand0.copy()}  # fmt: skip
 
     def set_state(self, state: dict) -> None:
         self.started = bool(state["started"])
         self.trainee = copy.deepcopy(state["trainee"])
+        self.R_hand0 = np.array(state.get("R_hand0", np.eye(3)[None]), dtype=float)

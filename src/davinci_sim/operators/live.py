@@ -21,6 +21,7 @@ from davinci_sim.devices.simulated import SimulatedMTM
 from davinci_sim.operators.console import TraineeHand, hand_impedance
 from davinci_sim.operators.params import sample_subjects
 from davinci_sim.operators.trainee import SyntheticTrainee, TraineePhase
+from davinci_sim.operators.wrist import WristTurns
 from davinci_sim.sim.types import ACCEPTED, CommandResult
 
 #: How long a trainee whose plan has ended waits for the session's row before letting go, s.
@@ -78,6 +79,9 @@ class SyntheticOperator:
             scale=task.teleop.scale,
             start_tolerance=task.start_tolerance,
             noise_keys=[(self.seed, subject, 1000, practice)],  # not a study trial's key
+            wrist=WristTurns.of(
+                getattr(task, "carry", None), task.T_task_camera(sim.T_cart_camera())
+            ),  # fmt: skip
         )
         if self._hand is not None:
             self.stop()

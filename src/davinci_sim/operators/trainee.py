@@ -45,7 +45,8 @@ The model, per trial (the parameters and their sources: :mod:`davinci_sim.operat
 
 Not modelled: depth misperception in the stereo view, grip changes under force, fatigue,
 clutching (a trainee never clutches: the seed task fits in the MTM's workspace at scale
-0.6), the MTM's orientation.
+0.6), the MTM's orientation beyond a task's planned wrist turns (``wrist``:
+:mod:`davinci_sim.operators.wrist`; the hand holds the handle's orientation otherwise).
 
 Two ways to couple it to an MTM: :meth:`step` integrates the limb itself (the handle follows
 the hand rigidly; put the handle's inertia into ``mass``); or call :meth:`command` each tick
@@ -73,6 +74,7 @@ from davinci_sim.operators.params import (
     trial_pace,
 )
 from davinci_sim.operators.plan import path_plan, straight_plan, stroke_durations
+from davinci_sim.operators.wrist import WristTurns, hand_rotation_row, plan_fraction_row
 
 #: Shortest reach to point 1, s (a minimum-jerk reach of a few mm still takes a while).
 MIN_REACH_TIME = 0.3
@@ -131,6 +133,8 @@ class SyntheticTrainee:
             None: ``repetition`` (no reliance on guidance).
         mechanisms: the reactions to guidance (co-contraction; the reliance is in
             ``own_practice``); None: off.
+        wrist: the hand's turns along the path (a task's carried object,
+            :class:`~davinci_sim.operators.wrist.WristTurns`); None: none.
     """
 
     def __init__(
@@ -149,6 +153,7 @@ class SyntheticTrainee:
         tremor: bool = True,
         own_practice=None,
         mechanisms: Mechanisms | None = None,
+        wrist: WristTurns | None = None,
     ) -> None:
         n = len(params)
         self.n = n
@@ -183,6 +188,9 @@ class SyntheticTrainee:
         self.noise_k = params.noise * params.noise_factor(factor) if motor_noise else np.zeros(n)
         self.crossover = params.crossover / factor
         self.mechanisms = mechanisms or Mechanisms()
+        self.wrist = wrist
+        """The hand's turns along the path (:mod:`davinci_sim.operators.wrist`), None: the
+        hand keeps the handle's orientation."""
         self.co_contraction = np.zeros(n)
         """Co-contraction level c of each trial (stiffness and damping × (1 + c))."""
         self.durations = stroke_durations(np.diff(self.knots), self.speed)
@@ -263,6 +271,20 @@ class SyntheticTrainee:
         phase = np.where(following, TraineePhase.FOLLOWING, phase)
         done = following & (t - self.t_follow >= self.durations.sum(axis=1))
         return np.where(done, TraineePhase.DONE, phase)
+
+    def hand_rotations(self, t: float, R0) -> np.ndarray:
+        """(n, 3, 3) the hands' target orientations (HRSV) at time ``t`` (s): ``R0``
+        (n, 3, 3), the handle's when the hand took it, turned by :attr:`wrist` at the
+        plan's progress then (``R0`` itself without a wrist)."""
+        out = np.array(R0, dtype=float)
+        if self.wrist is None:
+            return out
+        total = self.path.length
+        progress, turn = self.wrist.progress, self.wrist.turn
+        for i in range(self.n):
+            f = plan_fraction_row(self.knots, self.durations[i], t - self.t_follow[i], total)
+            hand_rotation_row(progress, turn, f, out[i].copy(), out[i])
+        return out
 
     def plan(self, t) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Intended tool position and velocity (camera frame) at times ``t`` (n,), and

@@ -43,11 +43,10 @@ def _minimum_jerk(u):
 
 
 @helper
-def _path_plan_row(cum, seglen, starts, edges, knots, T, since, p_out, v_out):
-    """:func:`~davinci_sim.operators.plan.path_plan` of one trial (its stroke durations
-    ``T`` (S,), ``since`` s into the plan) into ``p_out``, ``v_out`` (3,): the path's point
-    and tangent as ``Polyline.point_at``/``tangent_at`` find them (``cum`` its cumulative
-    lengths, ``seglen``, ``starts``, ``edges`` its segments)."""
+def plan_arc_row(knots, T, since):
+    """The planned arc length (m) and speed (m/s) ``since`` s into a trial's strokes of
+    durations ``T`` (S,) between the arc lengths ``knots`` (S + 1,): the ``s`` of
+    :func:`~davinci_sim.operators.plan.path_plan`, before clipping to the path."""
     S = T.shape[0]
     count = 0
     end = T[0]
@@ -66,6 +65,16 @@ def _path_plan_row(cum, seglen, starts, edges, knots, T, since, p_out, v_out):
     length = knots[k + 1] - knots[k]
     s = knots[k] + length * g
     speed = length * dg / T[k] if (u > 0.0 and u < 1.0) else 0.0
+    return s, speed
+
+
+@helper
+def _path_plan_row(cum, seglen, starts, edges, knots, T, since, p_out, v_out):
+    """:func:`~davinci_sim.operators.plan.path_plan` of one trial (its stroke durations
+    ``T`` (S,), ``since`` s into the plan) into ``p_out``, ``v_out`` (3,): the path's point
+    and tangent as ``Polyline.point_at``/``tangent_at`` find them (``cum`` its cumulative
+    lengths, ``seglen``, ``starts``, ``edges`` its segments)."""
+    s, speed = plan_arc_row(knots, T, since)
     # Polyline.point_at / tangent_at: s clipped to the path, its segment by searchsorted
     total = cum[cum.shape[0] - 1]
     if s < 0.0:

@@ -170,6 +170,9 @@ class TrialBatch:
         hand_start = device.input().position
         self.T_hand = np.tile(mtm.measured_cp().T, (n, 1, 1))
         self.T_hand[:, :3, 3] = hand_start
+        self.R_hand0 = self.T_hand[:, :3, :3].copy()
+        """The handle's orientation when the hands took it (n, 3, 3): the wrist's turns
+        (a task's carried object) turn the hands' targets from it."""
         # --- trainees, fixtures, task
         self.T_world_camera = setup.T_world_camera
         self.T_task_camera = setup.T_task_camera
@@ -232,7 +235,7 @@ class TrialBatch:
     #: Arrays with one row per running trial (see :meth:`_compact`).
     _ROWS = (
         "Q", "V", "bias", "xipos", "q_ref", "qd_ref", "tau_ff", "ghost", "jaw_catching_up",
-        "jaw_sent", "wrench_sent", "T_hand", "cond", "t_end", "active", "fault",
+        "jaw_sent", "wrench_sent", "T_hand", "R_hand0", "cond", "t_end", "active", "fault",
         "ticks", "_bad_since", "requested", "T_psm", "J_psm", "T_mtm", "J_mtm", "twist_mtm",
         "index", "n_contacts", "contact_force", "_cond_index",
     )  # fmt: skip
@@ -275,8 +278,11 @@ class TrialBatch:
     def _hand(self) -> np.ndarray:
         """Trainee step and its hand on the handle: ``xfrc_applied`` of the handle (n, 6)."""
         tr = self.trainee
+        t = tr.time  # (the step's: command moves it on)
         x_eq = tr.command(self.dt, self.T_psm[:, :3, 3], self.wrench_sent[:, :3])
         self.T_hand[:, :3, 3] = x_eq
+        if tr.wrist is not None:
+            self.T_hand[:, :3, :3] = tr.hand_rotations(t, self.R_hand0)
         K, D = tr.stiffness, tr.damping  # (the subject's, × (1 + co-contraction))
         if self._compiled is not None:  # (the same floats in one compiled call)
             return batch_compiled.hand_xfrc(self, K, D)

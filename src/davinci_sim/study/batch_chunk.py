@@ -41,6 +41,8 @@ _STATE_SPEC = mujoco.mjtState.mjSTATE_INTEGRATION
 _BATCH = ("Q", "V", "xipos", "bias", "q_ref", "qd_ref", "tau_ff", "T_psm", "J_psm", "T_mtm",
           "J_mtm", "twist_mtm", "ghost", "jaw_catching_up", "jaw_sent", "requested",
           "wrench_sent", "_bad_since", "active", "fault", "T_hand")  # fmt: skip
+#: The wrist's turns of a trainee without any (the chunk's arguments keep their types).
+_NO_KNOTS, _NO_TURNS = np.zeros(2), np.zeros((2, 3))
 #: The trainees' arrays a chunk writes.
 _TRAINEE = ("co_contraction", "_obs", "t_reach", "reach_from", "reach_time", "t_follow",
             "_v_plan", "feedforward_force", "last_tremor_force", "x_eq", "v_eq")  # fmt: skip
@@ -91,7 +93,11 @@ def _chunk(batch: TrialBatch, K: int, white: np.ndarray) -> tuple[int, tuple]:
     feel = tr.mechanisms.stiffening_gain > 0
     tr_args = tr.row_args(Y, F, feel, np.zeros((n, 6)))
     impedance, R, p = batch_compiled.hand_constants(batch)
-    hand = (batch.T_hand, impedance, R, p, batch.xipos)
+    wrist = tr.wrist
+    turning = wrist is not None
+    hand = (batch.T_hand, impedance, R, p, batch.xipos, batch.R_hand0,
+            wrist.progress if turning else _NO_KNOTS, wrist.turn if turning else _NO_TURNS,
+            turning, float(tr.path.length))  # fmt: skip
     xfrc = np.empty((n, 6))
     tip, force, master = np.empty((K, n, 3)), np.empty((K, n, 3)), np.empty((K, n, 3))
     alive = np.empty((K, n), dtype=bool)

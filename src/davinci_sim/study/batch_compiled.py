@@ -239,7 +239,8 @@ def _warm_up() -> None:
             e3, f, e3, f, np.zeros((0, 1)), f2, np.zeros(2), e3, f, f, f, f, f3d, f3d.copy(),
             f3d.copy(), f, e3, e3.copy(), e3.copy(),
         )  # fmt: skip
-        hand = (f3, np.ones(4), np.eye(3), np.zeros(3), e3)
+        hand = (f3, np.ones(4), np.eye(3), np.zeros(3), e3, np.zeros((0, 3, 3)), np.zeros(2),
+                np.zeros((2, 3)), False, 1.0)  # fmt: skip
         records = (np.zeros((1, 0, 3)), np.zeros((1, 0, 3)), np.zeros((1, 0, 3)),
                    np.zeros((1, 0), dtype=bool))  # fmt: skip
         CHUNK.chunk_rows(1, 0.0, 0.001, f, tp, (*head, *rest), trainee, 0, 0.001,

@@ -28,6 +28,7 @@ from davinci_sim.devices.device_row import _xfrc_into
 from davinci_sim.devices.hand import _hand_rows
 from davinci_sim.model.cameras import in_left_image_floats
 from davinci_sim.operators.trainee_row import ARGS, command_row
+from davinci_sim.operators.wrist import hand_rotation_row, plan_fraction_row
 from davinci_sim.sim.rows_kernel import i32_at
 from davinci_sim.study.tick_kernel import (
     P_ACTIVE,
@@ -56,6 +57,8 @@ _hand = _hand_rows.dispatcher
 A_Y, A_FORCE, A_FEEL = ARGS.index("y"), ARGS.index("force"), ARGS.index("feel")
 A_CO_CONTRACTION, A_FEEDFORWARD = ARGS.index("co_contraction"), ARGS.index("feedforward")
 A_LAST_TREMOR, A_X_EQ, A_V_EQ = ARGS.index("last_tremor"), ARGS.index("x_eq"), ARGS.index("v_eq")
+A_KNOTS, A_DURATIONS = ARGS.index("knots"), ARGS.index("durations")
+A_T_FOLLOW = ARGS.index("t_follow")
 
 
 @numba.njit(cache=True, nogil=True)
@@ -71,14 +74,18 @@ def chunk_rows(K, t0, dt, t_end, tp, pp, tr_args, k0, tr_dt, white, stiffness, d
     forces there written here each tick), at step ``k0`` (steps of ``tr_dt`` s), ``white``
     (n, ≥ K, 6) their normals from this chunk's first step;
     ``stiffness``, ``damping`` (n,) the limbs' relaxed values; ``hand``: the hands' targets
-    (n, 4, 4), impedance (4,), HRSV in the world (3, 3), (3,) and the handle bodies' centres
-    (n, 3). ``ncon_at`` (n,): the address of each row's contact count.
+    (n, 4, 4), impedance (4,), HRSV in the world (3, 3), (3,), the handle bodies' centres
+    (n, 3), and the wrist's turns (:mod:`~davinci_sim.operators.wrist`): the handles'
+    orientations when taken (n, 3, 3), the knots (K,) and turns (K, 3), whether the hands
+    turn at all, the path's length (m). ``ncon_at`` (n,): the address of each row's contact count.
 
     Records, per tick j and row: ``tip``, ``force``, ``master`` (K, n, 3) (the PSM tip and
     the MTM handle, camera/HRSV, m; the guidance force, N) and ``alive`` (K, n) (the row
     ran the tick's task). Returns (-1, K) when done, or the row and tick a tick needs Python
     at (the state is then partly advanced: the caller restores it)."""
-    (T_hand, impedance, R_world_hrsv, p_world_hrsv, xipos) = hand
+    (T_hand, impedance, R_world_hrsv, p_world_hrsv, xipos, R_hand0, w_progress, w_turn,
+     turning, total) = hand  # fmt: skip
+    knots, durations, t_follow = tr_args[A_KNOTS], tr_args[A_DURATIONS], tr_args[A_T_FOLLOW]
     active, T_psm, T_mtm, xfrc = pp[P_ACTIVE], pp[P_T_PSM], pp[P_T_MTM], pp[P_XFRC]
     twist_mtm, requested, wrench_sent = pp[P_TWIST_MTM], pp[P_REQUESTED], pp[P_WRENCH_SENT]
     Y, F, feel, co = tr_args[A_Y], tr_args[A_FORCE], tr_args[A_FEEL], tr_args[A_CO_CONTRACTION]
@@ -107,6 +114,9 @@ def chunk_rows(K, t0, dt, t_end, tp, pp, tr_args, k0, tr_dt, white, stiffness, d
             command_row(r, k, k * tr_dt, white[r, j], tr_args, trs)
             for i in range(3):
                 T_hand[r, i, 3] = x_eq[r, i]
+            if turning:  # (SyntheticTrainee.hand_rotations)
+                f = plan_fraction_row(knots, durations[r], k * tr_dt - t_follow[r], total)
+                hand_rotation_row(w_progress, w_turn, f, R_hand0[r], T_hand[r])
             c = 1.0 + co[r]
             Kh[0], Dh[0] = stiffness[r] * c, damping[r] * c
             _hand(T_hand[r : r + 1], True, True, T_mtm[r : r + 1], twist_mtm[r : r + 1], Kh, Dh,

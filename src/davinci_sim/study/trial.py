@@ -274,6 +274,7 @@ def trial_inputs(specs: list[TrialSpec], task: PathTask, T_world_camera, hand_st
     """The trainees of ``specs`` (one batch, one task and seed): ``(params, trainee)``."""
     from davinci_sim.operators import SyntheticTrainee
     from davinci_sim.operators.params import Mechanisms, sample_population
+    from davinci_sim.operators.wrist import WristTurns
 
     seeds = {s.seed for s in specs}
     if len(seeds) != 1:
@@ -298,6 +299,7 @@ def trial_inputs(specs: list[TrialSpec], task: PathTask, T_world_camera, hand_st
         noise_keys=[s.key for s in specs],
         own_practice=[s.practice if s.own_practice is None else s.own_practice for s in specs],
         mechanisms=Mechanisms.named(mechanisms.pop()),
+        wrist=WristTurns.of(task.carry, task.T_task_camera(T_world_camera)),
     )
     return params, trainee
 

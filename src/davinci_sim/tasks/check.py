@@ -9,9 +9,12 @@ orientation at that keyframe (the dVRK's IK: within joint limits, dvrk.md 1.2 an
 inside the image). ``davinci-sim task check FILE`` prints the table; ``study`` and
 ``serve --task`` refuse a task that fails it before any work.
 
-Two optional declarations of a kind widen the check: ``view_directions`` ((k, 3), one per
+Three optional declarations of a kind widen the check: ``view_directions`` ((k, 3), one per
 view point, nan rows for none) — the tool must reach that point *pointing that way* (its
-tip frame's z; the orientation nearest the keyframe's that does); ``camera_targets``
+tip frame's z; the orientation nearest the keyframe's that does); ``view_turns`` ((k, 3),
+rotation vectors in the task's frame, rad, nan rows for none) — the tool must reach that
+point with its keyframe orientation turned by that much (a carried object's wrist turns,
+:mod:`davinci_sim.tasks.carry`); ``camera_targets``
 ((k, 3), with ``depth``, m) — points the operator must centre in the endoscope's view
 from ``depth``: the ECM must reach the camera pose on the line from its RCM through the
 point (its shaft passes through the RCM), and at that pose the point must show at the
@@ -25,6 +28,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from davinci_sim.geometry.so3 import rotation_from_vector
 from davinci_sim.kinematics.ik import inverse_kinematics
 from davinci_sim.model.cameras import project_left
 from davinci_sim.model.config import SceneConfig
@@ -69,9 +73,11 @@ def check_task(task: Task) -> list[PointCheck]:
         out = []
         points = np.asarray(task.check_points, dtype=float).reshape(-1, 3)
         directions = getattr(task, "view_directions", None)
+        turns = getattr(task, "view_turns", None)
         for k, p in enumerate(points, start=1):
             p_camera = (T_camera_task @ np.append(p, 1.0))[:3]
             d = None if directions is None else np.asarray(directions[k - 1], dtype=float)
+            turn = None if turns is None else np.asarray(turns[k - 1], dtype=float)
             why, reached = [], False
             for n in psms:
                 R_keyframe, seed = start[n][0][:3, :3], start[n][1]
@@ -79,6 +85,12 @@ def check_task(task: Task) -> list[PointCheck]:
                 goal[:3, 3] = p_camera
                 if d is not None and np.all(np.isfinite(d)):
                     goal[:3, :3] = _pointing(R_keyframe, T_camera_task[:3, :3] @ d)
+                if turn is not None and np.all(np.isfinite(turn)):
+                    # The turn is in the task's frame, the keyframe's orientation in the camera's.
+                    R_camera_task = T_camera_task[:3, :3]
+                    goal[:3, :3] = (
+                        R_camera_task @ rotation_from_vector(turn) @ R_camera_task.T @ R_keyframe
+                    )
                 # The kinematics' IK, not the arm's command: a point one instrument
                 # cannot reach is no error to log when another does.
                 arm = sim.arms[n]

@@ -53,6 +53,7 @@ from davinci_sim.tasks.base import (
     load_task,
     save_task,
 )
+from davinci_sim.tasks.carry import CARRY_SCHEMA, CarrySpec
 from davinci_sim.tasks.metrics import PATH_METRICS
 from davinci_sim.tasks.schema import NONNEGATIVE, POINT, ListOf, Number, Record, Text, Vector
 from davinci_sim.tasks.state import initial_state, task_step
@@ -101,6 +102,7 @@ class PathTask(Task, kind="path"):
                           "path_rgba": Vector(4, "r, g, b, a", Number(minimum=0.0, maximum=1.0)),
                           "marker_rgba": Vector(4, "r, g, b, a",
                                                 Number(minimum=0.0, maximum=1.0))}),
+        "carry": CARRY_SCHEMA,
     }  # fmt: skip
     """The file's fields besides the common ones (:mod:`davinci_sim.tasks.schema`)."""
     FILE_REQUIRED = ("waypoints",)
@@ -148,6 +150,9 @@ class PathTask(Task, kind="path"):
     conditions: tuple[dict, ...] = ()
     walls: tuple[dict, ...] = ()
     visual: VisualSpec = field(default_factory=VisualSpec)
+    carry: CarrySpec | None = None
+    """An object carried in the jaws and the wrist's turns along the path
+    (:mod:`davinci_sim.tasks.carry`); None: the bare tool."""
     scoring_spec: dict = field(default_factory=dict)
     """The file's ``scoring`` (updates :attr:`SCORING`, :mod:`davinci_sim.tasks.scoring`)."""
 
@@ -289,7 +294,35 @@ class PathTask(Task, kind="path"):
         (:func:`~davinci_sim.tasks.scene.add_path_visual`)."""
         from davinci_sim.tasks.scene import add_path_visual
 
-        return add_path_visual(spec, self, T_world_camera=T_world_camera, prefix=prefix)
+        body = add_path_visual(spec, self, T_world_camera=T_world_camera, prefix=prefix)
+        if self.carry is not None:
+            # The carried object on the task's PSM's wrist (a scene without it: the path).
+            try:
+                wrist = spec.body(f"{self.teleop.psm}/wrist_yaw")
+                site = spec.site(f"{self.teleop.psm}/tip")
+            except Exception:
+                wrist = site = None
+            if wrist is not None and site is not None:
+                self.carry.draw(wrist, site, prefix)
+        return body
+
+    @property
+    def check_points(self) -> np.ndarray:
+        """The :attr:`view_points`, then (with :attr:`carry`) the path's points at the
+        carry's knots of progress, where ``task check`` checks the turned wrist."""
+        if self.carry is None:
+            return np.asarray(self.view_points, dtype=float).reshape(-1, 3)
+        knots = self.path.point_at(np.asarray(self.carry.progress) * self.path.length)
+        return np.concatenate([np.asarray(self.view_points, dtype=float).reshape(-1, 3), knots])
+
+    @property
+    def view_turns(self) -> np.ndarray | None:
+        """(k, 3) per :attr:`check_points`, the tool's turn from its keyframe orientation
+        there (task frame, rad; NaN rows: none), or None without :attr:`carry`."""
+        if self.carry is None:
+            return None
+        none = np.full((len(np.asarray(self.view_points).reshape(-1, 3)), 3), np.nan)
+        return np.concatenate([none, self.carry.turn])
 
     def initial_state(self, n: int):
         """``n`` trials in IDLE (:class:`~davinci_sim.tasks.state.TaskState`)."""
@@ -384,17 +417,20 @@ class PathTask(Task, kind="path"):
             "walls",
             "visual",
             "scoring",
+            "carry",
         }
         check_keys(data, known, required=("name", "waypoints"))
         name = data.get("name", "?")
         kw = common_fields(data)
-        kw.update({k: data[k] for k in known & set(data) if k not in (*_COMMON, "visual")})
+        kw.update({k: data[k] for k in known & set(data) if k not in (*_COMMON, "visual", "carry")})
         try:
             visual = dict(data.get("visual", {}))
             for key in ("path_rgba", "marker_rgba"):
                 if key in visual:
                     visual[key] = tuple(float(x) for x in visual[key])
             kw["visual"] = VisualSpec(**visual)
+            if data.get("carry") is not None:
+                kw["carry"] = CarrySpec.from_dict(data["carry"])
         except TypeError as e:
             raise TaskError(f"task {name!r}: {e}") from e
         return cls(**kw)
@@ -412,6 +448,7 @@ class PathTask(Task, kind="path"):
             "visual": {
                 k: list(v) if isinstance(v, tuple) else v for k, v in vars(self.visual).items()
             },
+            **({} if self.carry is None else {"carry": self.carry.to_dict()}),
         }
 
 
