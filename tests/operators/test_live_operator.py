@@ -6,20 +6,23 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from davinci_sim.geometry.so3 import rotation_vector
 from davinci_sim.system import ConsoleDescription, SystemDescription, TaskDescription
 from davinci_sim.system.build import build_simulation
 
-#: A 3-cm path near where PSM1 homes (the seed's path would take ~4x the simulated time).
+#: A 3-cm path near where PSM1 homes (the seed's path would take ~4x the simulated time);
+#: the same carrying a torus, the wrist turning along it.
 SHORT_TASK = str(Path(__file__).resolve().parents[1] / "study" / "short_path.yaml")
+CARRY_TASK = str(Path(__file__).resolve().parents[1] / "study" / "short_carry.yaml")
 
 
-@pytest.fixture(scope="module")
-def live():
+@pytest.fixture(scope="module", params=[SHORT_TASK, CARRY_TASK], ids=["plain", "carried"])
+def live(request):
     description = SystemDescription(
         scene="psm1_ecm_mtmr",
         home=True,
         runner="none",
-        task=TaskDescription(SHORT_TASK),
+        task=TaskDescription(request.param),
         console=ConsoleDescription(
             hand_inputs=("MTMR",), operator_present=True, teleop_enabled=True
         ),
@@ -38,9 +41,14 @@ def test_a_synthetic_trainee_does_one_repetition_and_lets_go(live):
     assert operator.snapshot()["running"] and device.hand != own  # the subject's impedance
     phases = set()
     end = sim.time + 40.0
+    turned, R0 = 0.0, None
     while operator.running and sim.time < end:
         sim.run_for(0.05)
         phases.add(session.snapshot().phase)
+        target = device.hand_target()
+        if target is not None:  # the hand's target orientation, from when it took the handle
+            R0 = target[:3, :3].copy() if R0 is None else R0
+            turned = max(turned, np.linalg.norm(rotation_vector(target[:3, :3] @ R0.T)))
     assert not operator.running, "the trainee did not finish within 40 s"
     assert {"READY", "RUNNING"} <= phases
     assert len(session.results) == 1
@@ -48,6 +56,9 @@ def test_a_synthetic_trainee_does_one_repetition_and_lets_go(live):
     assert row["condition"] == session.condition
     assert 0 < row["deviation_error"] < 0.005
     assert device.hand == own and device.hand_target() is None  # let go, own hand back
+    # a carried object's task: the hand turned the handle (0.5 rad over the whole path)
+    carried = getattr(session.task, "carry", None) is not None
+    assert (turned > 0.3) == carried and turned < 0.55
 
 
 @pytest.mark.parametrize(
