@@ -258,9 +258,11 @@ def test_the_needle_stands_in_its_park_and_the_attempt_is_ready(operator):
 def test_the_jaws_hold_the_needle_against_gravity_a_push_and_a_torque_until_it_slips(operator):
     """PSM2 grasps the top of the needle and lifts it 2 cm: it moves with the jaws. A 0.5 N
     push along each axis of the tip moves it less than 0.5 mm; 5 mN·m about each axis of the
-    tip turns it less than 2°; 60 mN·m about the wire's axis (the tip's x, the jaws' hinge
-    axis) turns it more than 10° in the jaws (it slips: the stated limit; measured 24°,
-    after holding 20 mN·m there; about the needle plane's normal it held 200 mN·m)."""
+    tip turns it less than 2°, and so does 100 mN·m about the wire's axis (the tip's x, the
+    jaws' hinge axis: the wire does not roll between the jaws, needle_scene.NEEDLE_CONDIM);
+    200 mN·m there turns it more than 10° (it slips: the stated limit; measured 151°, out
+    of the jaws, after holding 150 mN·m; about the plane's normal it slipped 33° at
+    200 mN·m, about the jaws' closing axis it held 200 mN·m)."""
     op, sim = operator, operator.sim
     op.grasp("PSM2", 0.5)
     assert op.bits() == PSM2_JAWS
@@ -282,7 +284,7 @@ def test_the_jaws_hold_the_needle_against_gravity_a_push_and_a_torque_until_it_s
         assert np.linalg.norm(op.in_tip("PSM2")[:3, 3] - before[:3, 3]) < 5e-4, axis
         assert op.bits() == PSM2_JAWS
     for axis, torque, limit in ((0, 0.005, 2.0), (1, 0.005, 2.0), (2, 0.005, 2.0),
-                                (0, 0.06, None)):  # fmt: skip
+                                (0, 0.1, 2.0), (0, 0.2, None)):  # fmt: skip
         before = op.in_tip("PSM2")
         f[body, 3:] = torque * op.tip("PSM2")[:3, axis]
         sim.run_for(0.3)

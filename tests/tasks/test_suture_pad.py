@@ -392,9 +392,11 @@ def test_a_scripted_surgeon_drives_the_needle_through_and_pulls_it_out():
         for deg in np.linspace(20, 195, 30):
             carry("PSM1", pose(deg))
         assert op.totals["passes"] == 1
-        # The point out, 1-2 mm above the skin: PSM2 takes it, deep in its jaws (their tips
-        # clear the skin), and pulls the needle through along its curve.
-        take("PSM2", *driver_grasp(frame(), task.needle, op.tip("PSM2")[:3, 2], 0.92, 0.0085))
+        # The point out, a few mm above the skin: PSM2 takes it from above (its jaws down
+        # the needle's normal, deep in them: their tips clear the skin), and pulls the
+        # needle through along its curve.
+        down = np.array([0.0, 0.0, -1.0])
+        take("PSM2", *driver_grasp(frame(), task.needle, down, 0.92, 0.0085))
         let_go("PSM1")
         for deg in np.linspace(195, 365, 30):
             carry("PSM2", pose(deg))

@@ -16,8 +16,9 @@ jaw) and the needle turned under 1 mN·m. The simulated needle's wire is 1.0 mm 
 it weighs 0.3 g, and its contacts are stiffer than the scene's (:data:`NEEDLE_SOLIMP`, a
 0.3 mm transition width, which dominates the mix with the jaws' by :data:`NEEDLE_SOLMIX`):
 measured ≈ 0.25 mm penetration per jaw; the grasp holds a 0.5 N push and 5 mN·m about any
-axis, and the needle slips about the wire's own axis under 60 mN·m
-(``tests/tasks/test_needle.py``; about its plane's normal it held 200 mN·m).
+axis, 100 mN·m about the wire's own axis (its contacts resist rolling,
+:data:`NEEDLE_CONDIM`), and the needle slips about the wire's axis under 200 mN·m
+(``tests/tasks/test_needle.py``).
 
 **The park** is where a needle exercise starts: a foam block on the tissue pad with a slit
 across its top; the needle stands upright in the slit on its two ends (its plane vertical,
@@ -49,6 +50,12 @@ NEEDLE_SOLIMP = np.array([0.99, 0.9999, 0.0003, 0.5, 2.0])
 #: Mixing weight of the needle's contact parameters against the other geom's (MuJoCo's
 #: ``solmix``: the pair's parameters are the weighted mean): the needle's dominate.
 NEEDLE_SOLMIX = 1000.0
+#: The needle's contacts resist rolling too (MuJoCo's ``condim`` 6: the ``object`` kind's
+#: rolling friction, 0.1 mm). With condim 4 nothing resists the wire rolling between two
+#: flat jaws (a pencil between the palms): held by its point after a drive, with the jaws
+#: pressing on the skin, the needle rolled ~70° about the wire in 2 s in PSM2's grip. A
+#: needle driver's flat, serrated jaws hold a wire on a patch, not a line.
+NEEDLE_CONDIM = 6
 NEEDLE_RGBA = (0.80, 0.82, 0.86, 1.0)
 FOAM_RGBA = (0.30, 0.55, 0.75, 1.0)
 #: Noslip solver iterations of a scene with a needle (as the peg board's rings: the
@@ -200,6 +207,7 @@ def add_needle(spec: mujoco.MjSpec, needle: NeedleSpec, park: NeedlePark | None,
                           fromto=np.concatenate([pts[j], pts[j + 1]]),
                           size=[needle.wire_radius, 0, 0])  # fmt: skip
         contact.apply(g, "object")
+        g.condim = NEEDLE_CONDIM
         g.solimp = NEEDLE_SOLIMP
         g.solmix = NEEDLE_SOLMIX
         g.rgba = list(NEEDLE_RGBA)
