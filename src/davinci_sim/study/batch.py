@@ -107,8 +107,7 @@ class TrialBatch:
         self.specs = list(specs)
         n = self.n = len(specs)
         task = self.task = load_spec_task(specs[0])
-        setup = setup_trial(task)
-        self._setup = setup
+        setup = self._setup = setup_trial(task)
         sim, teleop, device = setup.sim, setup.teleop, setup.device
         psm, mtm = teleop.psm, device.arm
         self.dt = sim.dt
@@ -116,16 +115,14 @@ class TrialBatch:
         self.datas = [copy.copy(sim.data) for _ in range(n)]
         self._body = device.handle_body
         d = sim.data
-        self.Q = np.tile(d.qpos, (n, 1))
-        self.V = np.tile(d.qvel, (n, 1))
+        self.Q, self.V = np.tile(d.qpos, (n, 1)), np.tile(d.qvel, (n, 1))
         self.bias = np.tile(sim.servo.bias(d), (n, 1))
         """The servo's bias forces (JointServo.bias), one row per trial, actuator order."""
         self._qfrc = np.tile(d.qfrc_bias, (n, 1)), np.tile(d.qfrc_gravcomp, (n, 1))
         """MuJoCo's ``qfrc_bias`` and ``qfrc_gravcomp`` of each trial (after its last step)."""
         self.xipos = np.tile(d.xipos[self._body], (n, 1))
         # --- the joint servo (one row per trial)
-        servo = sim.servo
-        self._servo = servo
+        servo = self._servo = sim.servo
         self.q_ref = np.tile(servo.q_ref, (n, 1))
         self.qd_ref = np.tile(servo.qd_ref, (n, 1))
         self.tau_ff = np.tile(servo.tau_ff, (n, 1))
@@ -170,9 +167,7 @@ class TrialBatch:
         hand_start = device.input().position
         self.T_hand = np.tile(mtm.measured_cp().T, (n, 1, 1))
         self.T_hand[:, :3, 3] = hand_start
-        self.R_hand0 = self.T_hand[:, :3, :3].copy()
-        """The handle's orientation when the hands took it (n, 3, 3): the wrist's turns
-        (a task's carried object) turn the hands' targets from it."""
+        self.R_hand0 = self.T_hand[:, :3, :3].copy()  # (turned by the wrist: operators.wrist)
         # --- trainees, fixtures, task
         self.T_world_camera = setup.T_world_camera
         self.T_task_camera = setup.T_task_camera
