@@ -625,7 +625,8 @@ def cmd_task_check(args: argparse.Namespace) -> int:
             if c.pixel is None
             else f"pixel ({c.pixel[0]:.0f}, {c.pixel[1]:.0f})"
         )
-        print(f"  point {c.index}: ({x:+.4f}, {y:+.4f}, {z:+.4f}) m  "
+        turned = "" if c.turned_deg is None else f" (the tool turned {c.turned_deg:.1f}°)"
+        print(f"  point {c.index}{turned}: ({x:+.4f}, {y:+.4f}, {z:+.4f}) m  "
               f"{'reachable' if c.reachable else 'UNREACHABLE: ' + c.why}; "
               f"{'in view' if c.in_view else 'OUT OF VIEW'}, {seen}")  # fmt: skip
     bad = sum(not c.ok for c in checks)

@@ -53,6 +53,9 @@ def test_every_point_is_reachable_and_in_view_with_the_wrist_turned(task):
         [c.p_task for c in checks[80:]],
         task.path.point_at(np.linspace(0, 1, 11) * task.path.length),
     )
+    assert all(c.turned_deg is None for c in checks[:80])
+    turned = np.degrees(np.linalg.norm(task.carry.turn, axis=1))
+    np.testing.assert_allclose([c.turned_deg for c in checks[80:]], turned)
 
 
 def test_a_turn_the_wrist_cannot_make_fails_the_check_at_its_knot(task):

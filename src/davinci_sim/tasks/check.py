@@ -24,6 +24,7 @@ points, numbered on.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -49,6 +50,9 @@ class PointCheck:
     pixel: tuple[float, float] | None
     """Where the left endoscope image shows it (None: behind the camera)."""
     in_view: bool
+    turned_deg: float | None = None
+    """The tool's turn from its keyframe orientation it was checked with (``view_turns``),
+    deg; None: the keyframe's orientation (or ``view_directions``')."""
 
     @property
     def ok(self) -> bool:
@@ -106,7 +110,10 @@ def check_task(task: Task) -> list[PointCheck]:
             shown = None if pixel is None else (float(pixel[0]), float(pixel[1]))
             p_task = (float(p[0]), float(p[1]), float(p[2]))
             why = [] if reached else why
-            out.append(PointCheck(k, p_task, reached, "; ".join(why), shown, bool(in_view)))
+            turned = (None if turn is None or not np.all(np.isfinite(turn))
+                      else math.degrees(float(np.linalg.norm(turn))))  # fmt: skip
+            out.append(PointCheck(k, p_task, reached, "; ".join(why), shown, bool(in_view),
+                                  turned))  # fmt: skip
         targets = getattr(task, "camera_targets", None)
         if targets is not None:
             first = len(out) + 1
