@@ -5,7 +5,9 @@ A task file gives the path's waypoints (the numbered points, m) in a frame (``wo
 cart frame, or ``camera``: the ECM tip), the corner rounding, the tolerances of the task
 states (:mod:`davinci_sim.tasks.state`) and of the metrics (:mod:`davinci_sim.tasks.metrics`),
 the teleoperation it is done with (PSM, MTM, motion scale, start keyframe), its fixture and,
-optionally, a list of fixture conditions for studies, walls, and the look of the path. The
+optionally, a list of fixture conditions for studies, walls, the look of the path, and an
+object carried in the jaws with the wrist turns it asks for (``carry``:
+:mod:`davinci_sim.tasks.carry`). The
 shipped tasks live in ``davinci_sim/tasks/data``: ``seed_path`` reproduces the seed paper's
 task (§II-D); :func:`available_tasks` lists them, :func:`load_task` reads one by name or
 from a path, :meth:`PathTask.to_dict` / :func:`save_task` write one.
