@@ -24,9 +24,12 @@ import argparse
 import importlib.util
 import io
 import json
+import math
 from pathlib import Path
 
 import numpy as np
+
+from davinci_sim.geometry.se3 import rot_z
 
 ROOT = Path(__file__).resolve().parents[1]
 OUT = ROOT / "src/davinci_sim/tasks/data/rota_path.yaml"
@@ -91,8 +94,7 @@ def main() -> None:
                        skiprows=1)  # fmt: skip
     theirs = np.stack([-unity[:, 0], -unity[:, 2], unity[:, 1]], axis=1)
     waypoints = simplified(theirs, TOLERANCE_M)
-    c, s = np.cos(np.radians(TURN_DEG)), np.sin(np.radians(TURN_DEG))
-    turned = waypoints @ np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]]).T
+    turned = waypoints @ rot_z(math.radians(TURN_DEG)).T
     box = (turned.min(axis=0) + turned.max(axis=0)) / 2
     world = turned - box + np.array(CENTRE)
     length = float(np.linalg.norm(np.diff(theirs, axis=0), axis=1).sum())

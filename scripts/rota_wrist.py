@@ -33,12 +33,14 @@ from __future__ import annotations
 
 import argparse
 import csv
-import importlib.util
 import io
 import json
+import math
 from pathlib import Path
 
 import numpy as np
+
+from davinci_sim.geometry.se3 import rot_z
 
 ROOT = Path(__file__).resolve().parents[1]
 OUT = ROOT / "docs/study/rota_path/wrist.json"
@@ -47,20 +49,12 @@ KNOTS = np.linspace(0.0, 1.0, 11)
 START_PROGRESS = 0.02
 
 
-def _script(name: str):
-    spec = importlib.util.spec_from_file_location(name, ROOT / "scripts" / f"{name}.py")
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
-
-
 def unity_to_ours(turn_deg: float) -> np.ndarray:
     """(3, 3) their Unity world axes to ours: x' = −x, y' = −z, z' = y (their
     post-processing's right-handed z-up frame, a reflection), then ``turn_deg`` about the
     vertical (the placement of ``scripts/rota_path_task.py``)."""
-    c, s = np.cos(np.radians(turn_deg)), np.sin(np.radians(turn_deg))
-    turn = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
-    return turn @ np.array([[-1.0, 0.0, 0.0], [0.0, 0.0, -1.0], [0.0, 1.0, 0.0]])
+    reflect = np.array([[-1.0, 0.0, 0.0], [0.0, 0.0, -1.0], [0.0, 1.0, 0.0]])
+    return rot_z(math.radians(turn_deg)) @ reflect
 
 
 def shortest_turn(a: np.ndarray, b: np.ndarray) -> np.ndarray:
@@ -120,7 +114,8 @@ def main() -> None:
     parser.add_argument("--clone", type=Path, required=True, help="a clone of their repository")
     parser.add_argument("--out", type=Path, default=OUT)
     args = parser.parse_args()
-    reference, task = _script("derive_rota_reference"), _script("rota_path_task")
+    import derive_rota_reference as reference  # (scripts/, on the path as this one runs)
+    import rota_path_task as task
     unity = np.loadtxt(io.StringIO(reference.read(args.clone, task.TRAJECTORY)), delimiter=",",
                        skiprows=1)  # fmt: skip
     M = unity_to_ours(task.TURN_DEG)

@@ -7,9 +7,9 @@ from __future__ import annotations
 import mujoco
 import numpy as np
 import pytest
+from drawn import drawn_visual_only
 
 from davinci_sim.haptics.viscous_elastic import ViscousElasticGuidance
-from davinci_sim.model.builder import build_spec
 from davinci_sim.tasks import load_task
 from davinci_sim.tasks.check import check_task
 from davinci_sim.tasks.task import PathTask
@@ -82,13 +82,8 @@ def test_their_torus_and_their_control_groups_wrist_turns(task):
 
 
 def test_the_torus_rides_in_the_jaws_visual_only(task):
-    spec = build_spec("psm1_ecm_mtmr")
-    plain = spec.compile()
-    task.draw(spec)
-    model = spec.compile()
-    torus = [i for i in range(model.ngeom) if model.geom(i).name.startswith("task/carried_torus")]
-    assert len(torus) == 20 and model.nq == plain.nq
-    assert np.all(model.geom_contype[torus] == 0) and np.all(model.geom_conaffinity[torus] == 0)
+    model, torus = drawn_visual_only(task, "task/carried_torus")
+    assert len(torus) == 20
     wrist = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, "PSM1/wrist_yaw")
     assert all(model.body_parentid[model.geom_bodyid[i]] == wrist for i in torus)
     data = mujoco.MjData(model)

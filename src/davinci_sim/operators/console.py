@@ -79,8 +79,7 @@ class TraineeHand:
             handle = self.device.input().position
             self.trainee.set_hand_start(handle[None])
             self.device.grasp(handle)
-            # (the orientation the grasp holds: the handle's now, SimulatedMTM._as_target)
-            self.R_hand0 = self.device.arm.measured_cp().T[None, :3, :3].copy()
+            self.R_hand0 = self.device.hand_target()[None, :3, :3]  # (what the grasp holds)
         tr = self.trainee
         tip = self.psm.measured_cp().T[:3, 3]
         t = tr.time  # (the step's: command moves it on)

@@ -276,14 +276,15 @@ class SyntheticTrainee:
         """(n, 3, 3) the hands' target orientations (HRSV) at time ``t`` (s): ``R0``
         (n, 3, 3), the handle's when the hand took it, turned by :attr:`wrist` at the
         plan's progress then (``R0`` itself without a wrist)."""
-        out = np.array(R0, dtype=float)
+        R0 = np.asarray(R0, dtype=float)
+        out = R0.copy()
         if self.wrist is None:
             return out
         total = self.path.length
         progress, turn = self.wrist.progress, self.wrist.turn
         for i in range(self.n):
             f = plan_fraction_row(self.knots, self.durations[i], t - self.t_follow[i], total)
-            hand_rotation_row(progress, turn, f, out[i].copy(), out[i])
+            hand_rotation_row(progress, turn, f, R0[i], out[i])
         return out
 
     def plan(self, t) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
