@@ -272,6 +272,11 @@ def test_dvrk_teleoperation_aligns_then_psm1_follows_mtmr(console):
 
 
 # ===================================================================== crtk_haptic_example
+#: The longest simulated time between two of the box example's wrenches for a push to count,
+#: s: 10 of its 5 ms periods (a quiet run's longest is 10-15 ms).
+MAX_LOOP_GAP = 0.05
+
+
 def test_crtk_haptic_example_box_holds_an_mtm_pushed_into_its_wall(console):
     handle = console.handle
 
@@ -294,6 +299,7 @@ def test_crtk_haptic_example_box_holds_an_mtm_pushed_into_its_wall(console):
     example.absolute_pub.publish(Bool(data=True))
     dim, gain, rate_hz = 0.01, -500.0, 200
     stop = threading.Event()
+    loop_times: list[float] = []  # the sim time of each wrench the example sent
 
     def box() -> None:  # the example's run_box, until stopped
         center, _ = example.measured_cp()
@@ -308,6 +314,7 @@ def test_crtk_haptic_example_box_holds_an_mtm_pushed_into_its_wall(console):
                 elif distance < -dim:
                     wrench[d] = gain * (distance + dim)
             example.body.servo_cf(wrench)
+            loop_times.append(sim_time(handle))
             rate.sleep()
         example.body.servo_cf([0.0] * 6)
 
@@ -316,13 +323,26 @@ def test_crtk_haptic_example_box_holds_an_mtm_pushed_into_its_wall(console):
         start = observer.now("MTMR").copy()
         thread.start()
         wait_sim(handle, 0.5)
-        t_push = sim_time(handle)
-        handle.call("MTMR/device", "push", [3.0, 0.0, 0.0]).result()  # 3 N along HRSV x
-        wait_sim(handle, 3.0)
-        t_end = sim_time(handle)
+        # The example closes the wall at 200 Hz of wall time. In a full suite on a loaded
+        # machine its thread can stall for a tenth of a simulated second (once in CI: the
+        # unheld handle then ran 11 cm before the next wrench came), which no real-time
+        # loop would survive either; so a push counts for the overshoot only if the loop
+        # kept its period in simulated time, and is tried again (up to three times) if not.
+        for _attempt in range(3):
+            t_push = sim_time(handle)
+            handle.call("MTMR/device", "push", [3.0, 0.0, 0.0]).result()  # 3 N along x
+            wait_sim(handle, 3.0)
+            t_end = sim_time(handle)
+            ticks = np.array([t for t in loop_times if t_push <= t <= t_end])
+            gap = np.diff(np.r_[t_push, ticks, t_end]).max()
+            if gap <= MAX_LOOP_GAP:
+                break
+            handle.call("MTMR/device", "push", [0.0, 0.0, 0.0]).result()
+            wait_sim(handle, 1.0)
         handle.call("MTMR/device", "push", [0.0, 0.0, 0.0]).result()
         stop.set()
         thread.join(5.0)
+    assert gap <= MAX_LOOP_GAP, f"the example's loop stalled {gap:.3f} s in every push"
     pushed = observer.between("MTMR", t_push, t_end) - start
     settled = observer.between("MTMR", t_end - 1.0, t_end) - start
     # The wall holds: never far past it, and in the last second at rest where 3 N balance
