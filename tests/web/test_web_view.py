@@ -106,7 +106,19 @@ def test_task_marks_number_the_peg_rings_and_give_the_needles_pose():
     assert needle["needle"]["normal"] == pytest.approx([0.0, -1.0, 0.0])  # (x flipped: 0, −1)
     centre = T_camera_world[:3, :3] @ centres[0] + T_camera_world[:3, 3]
     assert needle["needle"]["centre"]["p_camera"] == pytest.approx(centre)
-    assert "sutures" not in needle
+    assert "sutures" not in needle and "now" not in needle["needle"]
+    # Where it is now, from its sampled frame: turned 90° about the world's z and moved.
+    T_now = np.eye(4)
+    T_now[:3, :3] = np.array([[0.0, -1, 0], [1, 0, 0], [0, 0, 1]]) @ task.T_world_start[:3, :3]
+    T_now[:3, 3] = task.T_world_start[:3, 3] + [0.01, 0.0, 0.02]
+    now = task_marks(task, T_world_camera, CameraConfig(), objects=centres[:1],
+                     object_frame=T_now)["needle"]["now"]  # fmt: skip
+    for mark, s in zip(now["ends"], (0.0, 0.5, 1.0), strict=True):
+        p_world = T_now[:3, :3] @ task.needle.points(s) + T_now[:3, 3]
+        assert mark["p_camera"] == pytest.approx(T_camera_world[:3, :3] @ p_world
+                                                 + T_camera_world[:3, 3])  # fmt: skip
+    assert now["normal"] == pytest.approx(T_camera_world[:3, :3] @ T_now[:3, 2])
+    assert abs(np.dot(now["normal"], needle["needle"]["normal"])) < 1e-9  # (it turned)
 
 
 def test_task_marks_give_the_suture_pairs_and_the_one_to_pass():

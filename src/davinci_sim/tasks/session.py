@@ -98,6 +98,9 @@ class TaskSessionState:
     objects: tuple = ()
     """A kind with objects (peg transfer's rings): their centres at the last sample, task
     frame, m, one (x, y, z) each (empty for the other kinds)."""
+    object_frame: tuple = ()
+    """A kind whose object's orientation is sampled (the needle): its frame at the last
+    sample, task frame (m), the 4×4 matrix's rows (empty for the other kinds)."""
 
 
 class TaskSession:
@@ -154,6 +157,7 @@ class TaskSession:
         self.repetition = 1
         self._distance = math.nan
         self._objects: tuple = ()
+        self._object_frame: tuple = ()
         self._bringing = False
         """The session's move of the tool to the start is under way."""
         self._recorded = False
@@ -288,6 +292,9 @@ class TaskSession:
             self.monitor.observe(sample)
             if sample.objects is not None:  # (what the console's page shows of them)
                 self._objects = tuple(tuple(float(x) for x in p) for p in sample.objects[0])
+            if sample.T_task_object is not None:  # (the needle: the page shows where it is)
+                T = np.asarray(sample.T_task_object[0], dtype=float).reshape(4, 4)
+                self._object_frame = tuple(tuple(float(x) for x in row) for row in T)
         self._distance = self.monitor.distance
         if self.monitor.phase == Phase.FINISHED and self.monitor.results is not None:
             self._record(self.monitor.results, t)
@@ -507,6 +514,7 @@ class TaskSession:
             progress=self.task.progress(self.monitor.state),
             guidance_B=None if self._adaptive is None else self._adaptive["B"],
             objects=self._objects,
+            object_frame=self._object_frame,
         )
 
     # ------------------------------------------------------------ state

@@ -43,7 +43,8 @@ def path_guide(p_camera, T_world_camera, path, camera: CameraConfig) -> dict:
 
 
 def task_marks(
-    task, T_world_camera, camera: CameraConfig, progress: str = "", objects=()
+    task, T_world_camera, camera: CameraConfig, progress: str = "", objects=(),
+    object_frame=(),
 ) -> dict | None:
     """What the heads-up display marks of an exercise, in the camera frame (m) and the left
     image (pixels): its numbered ``targets`` (with each one's required tool ``direction``,
@@ -53,7 +54,8 @@ def task_marks(
     :func:`path_guide`), a peg board's ``pegs`` (their tops; ``target``: a peg to put a
     ring on) and ``rings`` (``objects``: their centres in the task's frame, m), a needle
     exercise's ``needle`` (its ``start`` pose's swage, top and point, its plane's
-    ``normal``, and its ``centre`` now, from ``objects``), a suture pad's ``sutures`` (each
+    ``normal``, its ``centre`` now, from ``objects``, and with ``object_frame`` (its frame
+    now, 4×4, task frame) where it is ``now``: swage, top, point and ``normal``), a suture pad's ``sutures`` (each
     pair's entry and exit marks) and the ``current_pair`` (0-based, from the progress text
     "… mark k …"; None when it names none). None for a task in the camera frame or with
     nothing to mark."""
@@ -112,6 +114,14 @@ def task_marks(
             "normal": _vector(R.T @ T_start[:3, 2]),
             "centre": _mark("centre", to_camera(objects)[0], camera) if len(objects) else None,
         }  # fmt: skip
+        if len(object_frame):  # (what a person sees of it: its ends and the way it faces)
+            T_now = np.asarray(object_frame, dtype=float).reshape(4, 4)
+            ends = T_now[:3, :3] @ needle.points(np.array([0.0, 0.5, 1.0])).T + T_now[:3, 3:4]
+            out["needle"]["now"] = {
+                "ends": [_mark(k, p, camera) for k, p in zip(("swage", "top", "point"),
+                                                             to_camera(ends.T), strict=True)],
+                "normal": _vector(R.T @ T_now[:3, 2]),
+            }  # fmt: skip
     pad = getattr(task, "pad", None)
     if pad is not None:  # (the marks are drawn on the skin: these ring the pair to pass)
         pairs = to_camera(pad.marks_world().reshape(-1, 3)).reshape(-1, 2, 3)
@@ -198,7 +208,8 @@ def console_view(snap, camera: CameraConfig, task=None) -> dict[str, Any]:
     marks = None
     if ecm is not None:
         marks = task_marks(task, ecm.measured_cp.T, camera, getattr(session, "progress", ""),
-                           getattr(session, "objects", ()))  # fmt: skip
+                           getattr(session, "objects", ()),
+                           getattr(session, "object_frame", ()))  # fmt: skip
     hands = {n.split("/")[0]: dict(s) for n, s in extras.items() if n.endswith("/hand")}
     synthetic = extras.get("synthetic")
     sources = {}
