@@ -55,8 +55,9 @@ def task_marks(
     ring on) and ``rings`` (``objects``: their centres in the task's frame, m), a needle
     exercise's ``needle`` (its ``start`` pose's swage, top and point, its plane's
     ``normal``, its ``centre`` now, from ``objects``, and with ``object_frame`` (its frame
-    now, 4×4, task frame) where it is ``now``: swage, top, point and ``normal``), a suture pad's ``sutures`` (each
-    pair's entry and exit marks) and the ``current_pair`` (0-based, from the progress text
+    now, 4×4, task frame) where it is ``now``: its ``ends``, swage, top and point, and its
+    ``normal``), a suture pad's ``sutures`` (each pair's entry and exit marks) and the
+    ``current_pair`` (0-based, from the progress text
     "… mark k …"; None when it names none). None for a task in the camera frame or with
     nothing to mark."""
     if task is None or getattr(task, "frame", "world") != "world":
