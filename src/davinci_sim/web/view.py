@@ -42,10 +42,8 @@ def path_guide(p_camera, T_world_camera, path, camera: CameraConfig) -> dict:
     }
 
 
-def task_marks(
-    task, T_world_camera, camera: CameraConfig, progress: str = "", objects=(),
-    object_frame=(),
-) -> dict | None:
+def task_marks(task, T_world_camera, camera: CameraConfig, progress: str = "", objects=(),
+               object_frame=()) -> dict | None:  # fmt: skip
     """What the heads-up display marks of an exercise, in the camera frame (m) and the left
     image (pixels): its numbered ``targets`` (with each one's required tool ``direction``,
     unit, camera frame, when the task has ``directions``), the ``current`` one (0-based,
