@@ -302,6 +302,9 @@ def test_a_fixture_set_in_the_page_reaches_the_running_task(console):
     page.page.click("#apply")
     page.wait("window.davinci.last.task.condition === 'viscous(B=70, G_max=6)'")
     assert page.page.inner_text("#repetition").endswith("viscous(B=70, G_max=6)")
+    # (the path's deviation, which the fixture acts on, beside it)
+    assert page.page.inner_text("#deviation-label") == "deviation"
+    assert page.page.inner_text("#deviation").endswith(" mm")
     # Rota's fixture: the sliders are its viscous gain and its cap; the elastic term, theirs
     page.page.select_option("#fixture-type", "viscous_elastic")
     assert page.page.inner_text("#G-label") == "Fmax"

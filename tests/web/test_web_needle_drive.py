@@ -95,6 +95,9 @@ def test_a_person_drives_the_needle_through_the_marks(browser, person):  # noqa:
         p: Person = person(url)
         p.wait("window.davinci.last.task.phase === 'READY'")
         p.take_control()
+        # (the panel shows no "deviation": the tool's distance from where the needle
+        # started means nothing here)
+        assert not p.page.is_visible("#deviation") and p.state()["task"]["distance"] is None
         s = p.state()
         marks = s["task"]["marks"]
         swage, top, point = (np.array(m["p_camera"]) for m in marks["needle"]["start"])

@@ -249,6 +249,9 @@ class Task(ABC):
     """Scored metrics, weights, thresholds: a file's ``scoring:`` (:mod:`~.scoring`)."""
     CONTACT_IGNORE: ClassVar[tuple[str, ...]] = ()
     """Body-name prefixes whose contacts with the instrument are not collisions."""
+    DISTANCE_LABEL: ClassVar[str | None] = "deviation"
+    """What the console's page calls :meth:`distance` (None: it shows none, the distance
+    meaning nothing to a trainee)."""
 
     name: str
     description: str

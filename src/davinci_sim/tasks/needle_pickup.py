@@ -108,6 +108,9 @@ class NeedlePickupTask(Task, kind="needle_pickup"):
     FILE_REQUIRED = ("park_center", "park_top")
     #: The needle is what the jaws are meant to touch: not a collision (the park is).
     CONTACT_IGNORE = ("task/needle",)
+    #: (the tip's distance from the needle's start, an observation for a learning agent:
+    #: no deviation a trainee could read)
+    DISTANCE_LABEL = None
     FIXTURE_TYPES = {"none": set()}
 
     name: str

@@ -120,6 +120,7 @@ class NeedleTargetingTask(Task, kind="needle_targeting"):
     }
     FILE_REQUIRED = ("start", "targets", "directions")
     FIXTURE_TYPES = {"viscous": {"B", "G_max", "transition"}, "none": set()}
+    DISTANCE_LABEL = "to the target"
 
     name: str
     start: np.ndarray

@@ -216,6 +216,9 @@ def console_view(snap, camera: CameraConfig, task=None) -> dict[str, Any]:
         if name.endswith("/device") and hasattr(s, "kind"):
             mtm = name.split("/")[0]
             sources[mtm] = _source(s.kind, mtm in hands, bool(synthetic and synthetic["running"]))
+    # (what the page calls the session's distance: None for a kind where it means nothing
+    # to the trainee, e.g. a needle's distance from where it started)
+    label = getattr(task, "DISTANCE_LABEL", "deviation")
     task = session
     guidance_B = getattr(task, "guidance_B", None)  # (an adaptive condition's B now)
     view = {
@@ -240,7 +243,8 @@ def console_view(snap, camera: CameraConfig, task=None) -> dict[str, Any]:
             "phase": task.phase,
             "repetition": int(task.repetition),
             "completed": int(task.completed),
-            "distance": _finite(task.distance_to_path),
+            "distance": None if label is None else _finite(task.distance_to_path),
+            "distance_label": label,
             "progress": getattr(task, "progress", ""),
             "guidance_B": None if guidance_B is None else _finite(guidance_B),
             "marks": marks,

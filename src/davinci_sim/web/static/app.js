@@ -262,6 +262,9 @@ function onState(s) {
     $("phase").textContent = task.progress ? `${task.phase} · ${task.progress}` : task.phase;
     const B = task.guidance_B == null ? "" : ` (B now ${task.guidance_B.toFixed(1)} N·s/m)`;
     $("repetition").textContent = `${task.repetition} (${task.completed} done) — ${task.condition}${B}`;
+    // (a kind whose tool distance means nothing to a trainee has no label: not shown)
+    $("deviation-label").hidden = $("deviation").hidden = task.distance_label == null;
+    $("deviation-label").textContent = task.distance_label ?? "";
     $("deviation").textContent = task.distance == null ? "–" : `${(1000 * task.distance).toFixed(1)} mm`;
     $("progress").textContent = toDo(task);
     showResult(task.last);
@@ -573,7 +576,7 @@ function drawHud(ctx, s, w) {
   lines.push(`head ${b.operator_present ? "present" : "away"} · clutch ${b.clutch ? "down" : "up"} · camera ${b.camera ? "down" : "up"}`);
   if (state.hand && isOperator()) lines.push(`keys → ${handLabel(state.hand)}${b.camera ? " · camera: both hands" : ""}`);
   if (s.task) {
-    const d = s.task.distance == null ? "" : ` · deviation ${(1000 * s.task.distance).toFixed(1)} mm`;
+    const d = s.task.distance == null ? "" : ` · ${s.task.distance_label} ${(1000 * s.task.distance).toFixed(1)} mm`;
     lines.push(`${s.task.name} · ${s.task.phase} · rep ${s.task.repetition}${d}`);
     if (s.task.progress && s.task.phase === "RUNNING") lines.push(s.task.progress);
   }
@@ -694,7 +697,7 @@ function drawPlot() {
   const t1 = h[h.length - 1].t, t0 = t1 - 10;
   const x = (t) => ((t - t0) / 10) * c.width;
   const series = [
-    { key: "d", max: Math.max(5, ...h.map((p) => p.d ?? 0)), color: "#3ea6ff", label: "deviation (mm)" },
+    { key: "d", max: Math.max(5, ...h.map((p) => p.d ?? 0)), color: "#3ea6ff", label: `${state.last?.task?.distance_label ?? "deviation"} (mm)` },
     { key: "f", max: Math.max(state.forceMax, ...h.map((p) => p.f)), color: "#ffb020", label: "force (N)" },
   ];
   series.forEach((s, k) => {
