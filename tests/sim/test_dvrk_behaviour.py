@@ -101,6 +101,30 @@ def test_an_ik_solution_past_a_limit_is_clipped(psm_sim):
     assert psm.setpoint_jp()[4] == psm.chain.qmax[4]
 
 
+def test_a_servo_stream_rolling_the_tool_past_its_limit_stops_it_there(psm_sim):
+    """dvrk.md 1.8: the IK puts the roll nearest the current one mod 2π and the arm clips
+    it: a stream of goals turning the tool past its ±260° roll holds it at the limit. (The
+    IK took the turn 360° back, within the limit, before: the setpoint jumped a whole turn
+    in one tick and the arm faulted on its roll's tracking error, as a trainee rolling the
+    tool with the wrist keys or a hand turning a carried needle did.)"""
+    psm = psm_sim.arms["PSM1"]
+    q = psm.setpoint_jp()
+    q[3] = 4.3
+    assert psm.move_jp(q)
+    assert psm_sim.run_until(lambda: not psm.is_busy(), 10)
+    rolls = []
+    for roll in np.linspace(4.3, 4.9, 300):  # 0.6 rad over 0.6 s, past 4.538
+        q[3] = roll
+        pose, _ = psm.forward_kinematics(q)
+        psm.servo_cp(pose.T)
+        psm_sim.run_for(0.002)
+        rolls.append(psm.setpoint_jp()[3])
+    assert psm.operating_state().state == "ENABLED"
+    assert np.abs(np.diff(rolls)).max() < 0.01
+    assert rolls[-1] == psm.chain.qmax[3]
+    assert abs(psm.measured_js().position[3] - psm.chain.qmax[3]) < 0.02
+
+
 # ------------------------------------------------------- b. effort-mode setpoints
 def test_in_effort_mode_the_setpoint_follows_the_measured_joints(psm_sim):
     """dVRK PID: a joint in effort mode has setpoint = measured, so setpoint_js/setpoint_cp

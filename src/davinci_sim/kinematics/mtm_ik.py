@@ -19,7 +19,7 @@ from davinci_sim.kinematics.ik_base import (
     IKResult,
     goal_and_seed,
     make_result,
-    nearest_turn_within,
+    nearest_turn,
 )
 
 #: Joint indices (dvrk.md 1.5).
@@ -62,8 +62,8 @@ def mtm_ik_iterative(
     )
     sol = dls_solve(chain, goal, start)
     q = list(sol.q)
-    roll = chain.joints[WRIST_ROLL]
-    q[WRIST_ROLL] = nearest_turn_within(q[WRIST_ROLL], seed[WRIST_ROLL], roll.qmin, roll.qmax)
+    # (dvrk.md 1.8: nearest the current roll mod 2π, within its limits or not, as the PSM's)
+    q[WRIST_ROLL] = nearest_turn(q[WRIST_ROLL], seed[WRIST_ROLL])
     failure = None if sol.converged else f"DLS did not converge in {sol.iterations} iterations"
     return make_result(
         chain,

@@ -12,7 +12,7 @@ polished by the reference DLS iteration, and the messages) is left to the caller
 ``status``. The pieces it shares with the other solvers are the same functions
 (:func:`~davinci_sim.kinematics.jit.helper`): ``tool_origin``, ``rxrz`` and
 ``shaft_angle_pairs`` of :mod:`~davinci_sim.kinematics.rcm`, ``wrap_within``,
-``nearest_turn_within`` and ``pose_errors`` of :mod:`~davinci_sim.kinematics.ik_base`, the FK
+``nearest_turn`` and ``pose_errors`` of :mod:`~davinci_sim.kinematics.ik_base`, the FK
 of :mod:`~davinci_sim.kinematics.fk_compiled`.
 """
 
@@ -25,7 +25,7 @@ import numpy as np
 from davinci_sim.geometry.so3 import mat3_mul
 from davinci_sim.kinematics.fk_compiled import tip_pose_row
 from davinci_sim.kinematics.ik_base import (
-    nearest_turn_within,
+    nearest_turn,
     pose_errors,
     wrap_angle,
     wrap_within,
@@ -64,14 +64,18 @@ def insertion_rule(q3: float, seed3: float, shaft0: float) -> float:
 
 
 @helper
-def normalise_row(q, seed, revolute, lim_lo, lim_hi, roll_qmin, roll_qmax) -> None:
+def normalise_row(q, seed, revolute, lim_lo, lim_hi) -> None:
     """dvrk.md 1.8, in place on ``q`` (6,): revolute joints wrapped (into their limits
     ``lim_lo``/``lim_hi``, slack included, where ±2π allows), then the roll put nearest the
-    seed's roll mod 2π, preferring a turn within its limits."""
+    seed's roll mod 2π. Past the roll's limit (±260°) that turn is out of it, as the dVRK's
+    is, and the arm clips it (``clip_jp`` after the IK): the tool stops turning there.
+    (Another turn within the limit, 360° away, was taken here before: a servo stream that
+    rolled the tool past its limit then asked for a whole turn back in one tick, and the
+    arm faulted on its tracking error.)"""
     for j in range(q.shape[0]):
         if revolute[j]:
             q[j] = wrap_within(q[j], lim_lo[j], lim_hi[j])
-    q[ROLL] = nearest_turn_within(q[ROLL], seed[ROLL], roll_qmin, roll_qmax)
+    q[ROLL] = nearest_turn(q[ROLL], seed[ROLL])
 
 
 @helper
@@ -146,8 +150,8 @@ def closed_form_rows(
     """Row by row, the closed-form PSM IK of goal ``T[i]`` (4, 4) from seed ``S[i]`` (6,).
 
     ``geometry``: cos α (6), sin α (6), θ0 (6), shaft0, a₆, d₆, the yaw/pitch/insertion
-    limits with slack (lo, hi each), the roll's qmin, qmax (no slack); ``tool``: the
-    tooltip rotation transposed (9, row-major) and offset (3); ``revolute``, ``lim_lo``,
+    limits with slack (lo, hi each); ``tool``: the tooltip rotation transposed (9,
+    row-major) and offset (3); ``revolute``, ``lim_lo``,
     ``lim_hi`` (6,): joint kinds and limits with slack; ``fk_*``: the chain packed for
     :func:`~davinci_sim.kinematics.fk_compiled.tip_pose_row`; ``tolerance``: position (m)
     and rotation (rad) acceptance. Writes ``q_out`` (n, 6), ``success`` (n,) (SOLVED rows:
@@ -159,7 +163,6 @@ def closed_form_rows(
     shaft0, a6, d6 = geometry[18], geometry[19], geometry[20]
     shaft_lo = (geometry[21], geometry[23], geometry[25])
     shaft_hi = (geometry[22], geometry[24], geometry[26])
-    roll_qmin, roll_qmax = geometry[27], geometry[28]
     R_tool_T = (tool[0], tool[1], tool[2], tool[3], tool[4], tool[5], tool[6], tool[7], tool[8])
     p_tool = (tool[9], tool[10], tool[11])
     cand = np.empty((8, 4))  # (θ₁, θ₂, q₃, θ₆) per candidate
@@ -254,7 +257,7 @@ def closed_form_rows(
             if any_inside and not inside[c]:
                 continue
             _complete_wrist(ca, sa, t0, R6, cand[c, 0], cand[c, 1], cand[c, 2], cand[c, 3], q)
-            normalise_row(q, seed, revolute, lim_lo, lim_hi, roll_qmin, roll_qmax)
+            normalise_row(q, seed, revolute, lim_lo, lim_hi)
             out = False
             d2 = 0.0
             for j in range(6):

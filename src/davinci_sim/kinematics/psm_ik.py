@@ -65,7 +65,6 @@ from davinci_sim.kinematics.psm_closed_form import (
     MIN_GOAL_DISTANCE_FROM_RCM,
     NO_SOLUTION,
     POLISH,
-    ROLL,
     SAFE_DISTANCE_FROM_RCM,
     SOLVED,
     TOO_CLOSE,
@@ -163,9 +162,8 @@ def _packed(chain: DHChain) -> _Packed:
     p = _PACKED.get(chain)
     if p is None:
         g = psm_geometry(chain)
-        roll = chain.joints[ROLL]
         geometry = [*g.ca, *g.sa, *g.theta0, g.shaft0, g.a6, g.d6]
-        geometry += [x for lo_hi in g.shaft_limits for x in lo_hi] + [roll.qmin, roll.qmax]
+        geometry += [x for lo_hi in g.shaft_limits for x in lo_hi]
         p = _PACKED[chain] = _Packed(
             np.array(geometry, dtype=float),
             np.array([*g.R_tool_T, *g.p_tool], dtype=float),
@@ -195,10 +193,7 @@ def _normalise(chain: DHChain, q, seed) -> list[float]:
     kernel's ``normalise_row``)."""
     p = _packed(chain)
     out = np.array(q, dtype=float)
-    roll = chain.joints[ROLL]
-    normalise_row(
-        out, np.asarray(seed, float), p.revolute, p.lim_lo, p.lim_hi, roll.qmin, roll.qmax
-    )
+    normalise_row(out, np.asarray(seed, float), p.revolute, p.lim_lo, p.lim_hi)
     return out.tolist()
 
 
