@@ -251,7 +251,8 @@ def closed_form_rows(
         any_inside = False
         for c in range(n):
             any_inside = any_inside or inside[c]
-        # -- the in-limit candidate nearest the seed (the first on a tie)
+        # -- the in-limit candidate nearest the seed (the first on a tie); the roll's limit
+        # does not choose: its turn is the one nearest the seed's, which the arm clips
         have, best_out, best_d = False, True, math.inf
         for c in range(n):
             if any_inside and not inside[c]:
@@ -261,7 +262,7 @@ def closed_form_rows(
             out = False
             d2 = 0.0
             for j in range(6):
-                out = out or not (lim_lo[j] <= q[j] <= lim_hi[j])
+                out = out or (j != ROLL and not (lim_lo[j] <= q[j] <= lim_hi[j]))
                 d2 += (q[j] - seed[j]) ** 2
             # min() over (out of limits, distance): the first of the least
             if not have or (best_out and not out) or (out == best_out and d2 < best_d):
