@@ -696,8 +696,10 @@ function drawPlot() {
   if (h.length < 2) return;
   const t1 = h[h.length - 1].t, t0 = t1 - 10;
   const x = (t) => ((t - t0) / 10) * c.width;
+  const label = state.last?.task?.distance_label;
   const series = [
-    { key: "d", max: Math.max(5, ...h.map((p) => p.d ?? 0)), color: "#3ea6ff", label: `${state.last?.task?.distance_label ?? "deviation"} (mm)` },
+    // (a kind without a distance label plots no distance)
+    ...(label == null ? [] : [{ key: "d", max: Math.max(5, ...h.map((p) => p.d ?? 0)), color: "#3ea6ff", label: `${label} (mm)` }]),
     { key: "f", max: Math.max(state.forceMax, ...h.map((p) => p.f)), color: "#ffb020", label: "force (N)" },
   ];
   series.forEach((s, k) => {
