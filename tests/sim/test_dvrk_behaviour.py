@@ -125,6 +125,30 @@ def test_a_servo_stream_rolling_the_tool_past_its_limit_stops_it_there(psm_sim):
     assert abs(psm.measured_js().position[3] - psm.chain.qmax[3]) < 0.02
 
 
+def test_a_servo_goal_past_the_wrists_reach_is_refused_and_the_tool_held(psm_sim):
+    """A goal the wrist can reach only on its other branch (the closed form has no answer on
+    its own: here one a trainee's wrist key asked for with the yaw at its limit) is refused
+    and the tool held, not taken: the roll and yaw would jump ~3 rad in one tick and the arm
+    fault on its tracking error, where the dVRK's IK, iterating from the measured joints,
+    stays on its branch."""
+    psm = psm_sim.arms["PSM1"]
+    here = np.array([0.1254, -0.1418, 0.1947, 0.1432, -1.1436, 1.39])
+    there = np.array([0.1377, -0.2294, 0.203, 3.2672, -1.39, 0.0047])  # (its other branch)
+    assert psm.move_jp(here)
+    assert psm_sim.run_until(lambda: not psm.is_busy(), 10)
+    goal, _ = psm.forward_kinematics(there)
+    for _ in range(100):
+        result = psm.servo_cp(goal.T)
+        psm_sim.run_for(0.002)
+    assert not result and "wrist's reach" in result.message
+    assert psm.operating_state().state == "ENABLED"
+    np.testing.assert_allclose(psm.setpoint_jp()[3:], here[3:], atol=0.02)
+    # (a goal on the wrist's own branch is taken as before)
+    near = here.copy()
+    near[3] += 0.01
+    assert psm.servo_cp(psm.forward_kinematics(near)[0].T)
+
+
 # ------------------------------------------------------- b. effort-mode setpoints
 def test_in_effort_mode_the_setpoint_follows_the_measured_joints(psm_sim):
     """dVRK PID: a joint in effort mode has setpoint = measured, so setpoint_js/setpoint_cp

@@ -335,6 +335,7 @@ class DavinciVectorEnv(VectorEnv):
             q_now = self.Q[:, self.psm_q]
             ik = psm_ik_closed_form_batch(self.chain, self.T_rcm_camera @ T_goal, q_now)
             ok = ik.success & laws.within_limits(ik.q, self.chain.qmin, self.chain.qmax)
+            ok &= ~laws.other_branch_rows(ik.q, q_now)  # (the live servo_cp refuses it: held)
             qd = laws.joint_velocity(self.J_psm, ramp.twist_base)
             set_rows = np.flatnonzero(ok & running)
             self.q_ref[np.ix_(set_rows, self.psm_act)] = ik.q[set_rows]

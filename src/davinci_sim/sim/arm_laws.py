@@ -39,6 +39,14 @@ except (ImportError, AttributeError):  # pragma: no cover - depends on numpy's i
 #: ``TRACKING_FAULT_TIME`` s puts the arm in FAULT, as a PID tracking error does on the dVRK.
 TRACKING_FAULT_TOLERANCE = {"revolute": 0.35, "prismatic": 0.03}
 TRACKING_FAULT_TIME = 0.05
+#: A servo step whose IK answer moves a joint of the PSM's wrist (roll, pitch, yaw) further
+#: than this (rad) from where it is puts the wrist on another branch: the closed form has no
+#: answer left on the branch the wrist is on (a goal past the wrist's reach, e.g. turned on
+#: with the yaw at its limit). Such a step is refused and the tool held: taken, the setpoint
+#: jumped up to 3 rad in one tick and the arm faulted on its tracking error (a trainee
+#: holding a wrist key). The dVRK's IK, iterating from the measured joints, does not leave
+#: the branch either. (A stream's steps are far smaller: past 0.35 rad the arm faults.)
+OTHER_BRANCH = 1.0
 #: Joint limits are checked with this slack (rad, m): a solver's answer on a limit passes.
 LIMIT_SLACK = 1e-9
 #: Joint velocities beyond this (rad/s, m/s) from a square solve mean a singular Jacobian.
@@ -375,3 +383,10 @@ def _warm_up() -> None:
 
 
 warm(_warm_up)
+
+
+def other_branch_rows(q_ik: np.ndarray, q_measured: np.ndarray) -> np.ndarray:
+    """(n,) bool: rows whose PSM IK answer ``q_ik`` (n, 6) moves a wrist joint (roll, wrist
+    pitch, wrist yaw: joints 3-5, dvrk.md 1.2) more than :data:`OTHER_BRANCH` rad from
+    ``q_measured`` (n, 6): a servo goal on the wrist's other branch, refused."""
+    return np.abs(q_ik[:, 3:6] - q_measured[:, 3:6]).max(axis=1) > OTHER_BRANCH

@@ -23,6 +23,7 @@ from davinci_sim.sim.cartesian_kernel import (
     OK,
     cartesian_setpoint_row,
     ik_scratch,
+    other_branch,
     pose_in_reference_into,
 )
 from davinci_sim.sim.rows_kernel import f64_at, mj_step
@@ -90,7 +91,7 @@ def period_rows(
                 if code != OK:  # servo_cp's law (cartesian_kernel): polish or least squares
                     stop[r] = k
                     break
-                ok = success[0]
+                ok = success[0] and not other_branch(q_ik[0], seed[0])  # (else held)
                 for i in range(dof):
                     qi = q_ik[0, i]
                     ok = ok and (qi >= qmin[i] - LIMIT_SLACK) and (qi <= qmax[i] + LIMIT_SLACK)

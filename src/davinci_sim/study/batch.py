@@ -297,8 +297,8 @@ class TrialBatch:
         q_now = self.Q[:, self.psm_q]
         ik = psm_ik_closed_form_batch(self.psm_chain, self.T_rcm_camera @ goal, q_now)
         ok = ik.success & laws.within_limits(ik.q, self.psm_chain.qmin, self.psm_chain.qmax)
-        local = rotate_pairs(self.T_rcm_camera[:3, :3], twist)
-        qd = laws.joint_velocity(self.J_psm, local)
+        ok &= ~laws.other_branch_rows(ik.q, q_now)  # (the live servo_cp refuses it: held)
+        qd = laws.joint_velocity(self.J_psm, rotate_pairs(self.T_rcm_camera[:3, :3], twist))
         rows = np.flatnonzero(ok)
         self.q_ref[np.ix_(rows, self.psm_act)] = ik.q[rows]
         self.qd_ref[np.ix_(rows, self.psm_act)] = qd[rows]
