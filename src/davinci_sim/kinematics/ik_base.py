@@ -157,26 +157,6 @@ def _limits(chain: DHChain) -> tuple[tuple[bool, float, float], ...]:
 
 
 @helper
-def nearest_turn_within(x: float, reference: float, lo: float, hi: float) -> float:
-    """:func:`nearest_turn`, but preferring turns within [lo, hi].
-
-    The dVRK rule is "nearest the current value mod 2π" (dvrk.md 1.8). When that turn is out
-    of the joint limits but another one is not (a roll of ±260° has room for two), the nearest
-    in-limit turn is returned instead of an answer that must then be refused (the lower one
-    on a tie).
-    """
-    base = nearest_turn(x, reference)
-    lo, hi = lo - LIMIT_SLACK, hi + LIMIT_SLACK
-    if lo <= base <= hi:
-        return base
-    best, found = base, False
-    for y in (base - TWO_PI, base + TWO_PI):
-        if lo <= y <= hi and (not found or abs(y - reference) < abs(best - reference)):
-            best, found = y, True
-    return best
-
-
-@helper
 def wrap_within(x: float, lo: float, hi: float) -> float:
     """A revolute joint value wrapped to (−π, π], then moved by ±2π into [lo, hi] when it
     is outside and that is possible (the rule of :func:`wrap_revolute`)."""
