@@ -16,7 +16,6 @@ import re
 
 import numpy as np
 import pytest
-from scipy.spatial.transform import Rotation
 
 pytest.importorskip("playwright.sync_api")
 
@@ -25,6 +24,7 @@ from test_web_exercises import (  # noqa: E402
     TURN_KEYS,
     Clutch,
     Person,
+    _unit,
     browser,  # noqa: F401 (the module's browser fixture)
     keys_toward,
     person,  # noqa: F401 (the page fixture)
@@ -33,6 +33,7 @@ from test_web_exercises import (  # noqa: E402
     steer,
 )
 
+from davinci_sim.geometry.so3 import rotation_from_vector, rotation_vector  # noqa: E402
 from davinci_sim.model.config import SceneConfig  # noqa: E402
 
 #: The needle's plane tilted from the vertical about the marks' line while it goes through
@@ -40,21 +41,9 @@ from davinci_sim.model.config import SceneConfig  # noqa: E402
 TILT = math.radians(45.0)
 
 
-def _unit(v) -> np.ndarray:
-    v = np.asarray(v, dtype=float)
-    return v / np.linalg.norm(v)
-
-
 def _rot(axis, angle: float) -> np.ndarray:
-    """Rotation by ``angle`` (rad) about unit ``axis``."""
-    k = _unit(axis)
-    K = np.array([[0.0, -k[2], k[1]], [k[2], 0.0, -k[0]], [-k[1], k[0], 0.0]])
-    return np.eye(3) + math.sin(angle) * K + (1.0 - math.cos(angle)) * K @ K
-
-
-def _rotvec(R: np.ndarray) -> np.ndarray:
-    """The rotation vector of ``R`` (rad)."""
-    return Rotation.from_matrix(R).as_rotvec()
+    """Rotation by ``angle`` (rad) about ``axis``."""
+    return rotation_from_vector(angle * _unit(axis))
 
 
 def _pose(R, p) -> np.ndarray:
@@ -120,7 +109,7 @@ def test_a_person_drives_the_needle_through_the_marks(browser, person):  # noqa:
 
             def errors(s):
                 T, G = tool(s, psm), goal_of(s)
-                return G[:3, 3] - T[:3, 3], _rotvec(G[:3, :3] @ T[:3, :3].T)
+                return G[:3, 3] - T[:3, 3], rotation_vector(G[:3, :3] @ T[:3, :3].T)
 
             def step(s):
                 e, w = errors(s)
