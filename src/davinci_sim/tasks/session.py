@@ -103,6 +103,11 @@ class TaskSessionState:
     sample, task frame (m), the 4×4 matrix's rows (empty for the other kinds)."""
 
 
+def _rows(a: np.ndarray | None) -> tuple:
+    """A sampled array's rows as tuples of floats (a snapshot's plain values; () for none)."""
+    return () if a is None else tuple(tuple(float(x) for x in row) for row in a.reshape(len(a), -1))
+
+
 class TaskSession:
     """``task`` at ``console``'s teleoperation of the task's PSM; see the module docstring.
 
@@ -156,8 +161,8 @@ class TaskSession:
         self.results: list[dict] = []
         self.repetition = 1
         self._distance = math.nan
-        self._objects: tuple = ()
-        self._object_frame: tuple = ()
+        self._objects: np.ndarray | None = None  # (the last sample's: tuples at a snapshot)
+        self._object_frame: np.ndarray | None = None
         self._bringing = False
         """The session's move of the tool to the start is under way."""
         self._recorded = False
@@ -291,10 +296,9 @@ class TaskSession:
                 sample = live_sample(self.task, T_task_camera, self.teleop, self.console, t)
             self.monitor.observe(sample)
             if sample.objects is not None:  # (what the console's page shows of them)
-                self._objects = tuple(tuple(float(x) for x in p) for p in sample.objects[0])
+                self._objects = np.array(sample.objects[0], dtype=float)
             if sample.T_task_object is not None:  # (the needle: the page shows where it is)
-                T = np.asarray(sample.T_task_object[0], dtype=float).reshape(4, 4)
-                self._object_frame = tuple(tuple(float(x) for x in row) for row in T)
+                self._object_frame = np.array(sample.T_task_object[0], dtype=float)
         self._distance = self.monitor.distance
         if self.monitor.phase == Phase.FINISHED and self.monitor.results is not None:
             self._record(self.monitor.results, t)
@@ -513,8 +517,8 @@ class TaskSession:
             last=dict(self.results[-1]) if self.results else {},
             progress=self.task.progress(self.monitor.state),
             guidance_B=None if self._adaptive is None else self._adaptive["B"],
-            objects=self._objects,
-            object_frame=self._object_frame,
+            objects=_rows(self._objects),
+            object_frame=_rows(self._object_frame),
         )
 
     # ------------------------------------------------------------ state

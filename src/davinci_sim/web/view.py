@@ -106,21 +106,21 @@ def task_marks(task, T_world_camera, camera: CameraConfig, progress: str = "", o
     T_start = getattr(task, "T_world_start", None)
     needle = getattr(task, "needle", None)
     if T_start is not None and needle is not None:  # (not drawn: the needle is in the view)
-        ends = T_start[:3, :3] @ needle.points(np.array([0.0, 0.5, 1.0])).T + T_start[:3, 3:4]
+
+        def ends(T_world_needle) -> list[dict]:  # (its swage, the middle of its arc, point)
+            p = T_world_needle[:3, :3] @ needle.points(np.array([0.0, 0.5, 1.0])).T
+            return [_mark(k, q, camera) for k, q in zip(("swage", "top", "point"),
+                                                        to_camera((p + T_world_needle[:3, 3:4]).T),
+                                                        strict=True)]  # fmt: skip
+
         out["needle"] = {
-            "start": [_mark(k, p, camera) for k, p in zip(("swage", "top", "point"),
-                                                          to_camera(ends.T), strict=True)],
+            "start": ends(T_start),
             "normal": _vector(R.T @ T_start[:3, 2]),
             "centre": _mark("centre", to_camera(objects)[0], camera) if len(objects) else None,
         }  # fmt: skip
         if len(object_frame):  # (what a person sees of it: its ends and the way it faces)
             T_now = np.asarray(object_frame, dtype=float).reshape(4, 4)
-            ends = T_now[:3, :3] @ needle.points(np.array([0.0, 0.5, 1.0])).T + T_now[:3, 3:4]
-            out["needle"]["now"] = {
-                "ends": [_mark(k, p, camera) for k, p in zip(("swage", "top", "point"),
-                                                             to_camera(ends.T), strict=True)],
-                "normal": _vector(R.T @ T_now[:3, 2]),
-            }  # fmt: skip
+            out["needle"]["now"] = {"ends": ends(T_now), "normal": _vector(R.T @ T_now[:3, 2])}
     pad = getattr(task, "pad", None)
     if pad is not None:  # (the marks are drawn on the skin: these ring the pair to pass)
         pairs = to_camera(pad.marks_world().reshape(-1, 3)).reshape(-1, 2, 3)
