@@ -3,11 +3,14 @@ fallback. (In ``kinematics``, the lowest layer that compiles a law; any layer ab
 
 :func:`jit` compiles a function written in numba's subset of Python (scalar loops over
 arrays) the first time it is called, caching the machine code on disk (``cache=True``), so
-tests and processes do not pay the compile time twice. Without numba, with
-``DAVINCI_SIM_JIT=0`` in the environment, or if compiling fails (reported once as a
-warning), the same Python function runs: slower, same results. Compiled code follows
-IEEE arithmetic operation by operation (no ``fastmath``: no reassociation, no fused
-multiply-add), so both paths give the same bits (``tests/kinematics/test_fk_compiled.py``).
+tests and processes do not pay the compile time twice. With ``DAVINCI_SIM_JIT=0`` in the
+environment, or if compiling fails (reported once as a warning), the same Python function
+runs where Python calls it: slower, same results. (numba is a dependency, not an option:
+the compiled tick's own kernels, ``sim/live_kernel.py`` and the like, are numba functions
+that call these kernels compiled, through their ``dispatcher``, whatever the switch says.)
+Compiled code follows IEEE arithmetic operation by operation (no ``fastmath``: no
+reassociation, no fused multiply-add), so both paths give the same bits
+(``tests/kinematics/test_fk_compiled.py``).
 """
 
 from __future__ import annotations
@@ -42,6 +45,8 @@ def jit(fn):
     if not ENABLED:
         fn.py_func = fn
         fn.ready = lambda: True
+        if numba is not None:  # the compiled tick's kernels still call it compiled
+            fn.dispatcher = numba.njit(cache=True)(fn)
         return fn
     compiled = numba.njit(cache=True)(fn)
     current = [None]
@@ -83,7 +88,9 @@ def helper(fn):
     other modules: after changing such a helper, delete the ``__pycache__/*.nbi``/``*.nbc``
     files of the kernels' modules (or compare with ``DAVINCI_SIM_JIT=0``).
     """
-    if ENABLED and fn not in _HELPERS:  # (once: a second registration is a second overload)
+    # (whenever numba is there: the compiled tick's kernels call helpers with the switch off
+    # too; once: a second registration is a second overload)
+    if numba is not None and fn not in _HELPERS:
         from numba.extending import register_jitable
 
         register_jitable(fn)
