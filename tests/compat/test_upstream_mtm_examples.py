@@ -272,8 +272,8 @@ def test_dvrk_teleoperation_aligns_then_psm1_follows_mtmr(console):
 
 
 # ===================================================================== crtk_haptic_example
-#: The longest simulated time between two of the box example's wrenches for the push's
-#: overshoot to be judged, s: 10 of its 5 ms periods (a quiet run's longest is 10-15 ms).
+#: The longest simulated time between two of the box example's wrenches for its loop to count
+#: as keeping its period, s: 10 of its 5 ms periods (a quiet run's longest is 10-15 ms).
 MAX_LOOP_GAP = 0.05
 
 
@@ -318,6 +318,13 @@ def test_crtk_haptic_example_box_holds_an_mtm_pushed_into_its_wall(console):
             rate.sleep()
         example.body.servo_cf([0.0] * 6)
 
+    def loop_gap(t0: float, t1: float) -> float:  # the longest wait for a wrench in [t0, t1]
+        ticks = [t for t in list(loop_times) if t0 <= t <= t1]
+        return float(np.diff(np.r_[t0, ticks, t1]).max())
+
+    def at_rest(window: np.ndarray) -> bool:  # 3 N against 500 N/m past 1 cm: 16 mm, ±3 mm
+        return bool(np.abs(window[:, 0] - (dim + 3.0 / 500.0)).max() < 3e-3)
+
     thread = threading.Thread(target=box, daemon=True)
     with Observer(handle, ("MTMR",)) as observer:
         start = observer.now("MTMR").copy()
@@ -325,25 +332,30 @@ def test_crtk_haptic_example_box_holds_an_mtm_pushed_into_its_wall(console):
         wait_sim(handle, 0.5)
         t_push = sim_time(handle)
         handle.call("MTMR/device", "push", [3.0, 0.0, 0.0]).result()  # 3 N along HRSV x
-        wait_sim(handle, 3.0)
-        t_end = sim_time(handle)
+        # Until the handle has rested for a second while the example's loop kept its period
+        # (its wrenches at most MAX_LOOP_GAP apart): the loop closes the wall at 200 Hz of
+        # wall time, and in a full suite on a loaded machine its thread can stall for
+        # 0.1-0.2 s of simulated time. No real-time loop survives that: meanwhile the unheld
+        # handle runs on (11 cm once), or the last wrench, sent from far past the wall, holds
+        # it back inside until the next one comes.
+        wait_sim(handle, 2.0)
+        while True:
+            t_end = sim_time(handle)
+            settled = observer.between("MTMR", t_end - 1.0, t_end) - start
+            steady = loop_gap(t_end - 1.0, t_end) <= MAX_LOOP_GAP
+            if (steady and at_rest(settled)) or t_end - t_push > 12.0:
+                break
+            wait_sim(handle, 0.25)
         handle.call("MTMR/device", "push", [0.0, 0.0, 0.0]).result()
         stop.set()
         thread.join(5.0)
     pushed = observer.between("MTMR", t_push, t_end) - start
-    settled = observer.between("MTMR", t_end - 1.0, t_end) - start
-    # The wall holds: in the last second at rest where 3 N balance 500 N/m past 1 cm
-    # (16 mm), no refused (oversized) wrench. Across the push the box holds the handle inside
-    # its walls and no more: within them nothing pulls it back, so where it rests in y and z
-    # depends on the path it took (0.3 mm alone, 7 mm in a full suite's timing).
-    # Never far past the wall either, if the example's loop kept its period: it closes the
-    # wall at 200 Hz of wall time, and in a full suite on a loaded machine its thread can
-    # stall for 0.1-0.2 s of simulated time, which no real-time loop survives (the unheld
-    # handle ran 11 cm once before the next wrench came).
-    ticks = np.array([t for t in loop_times if t_push <= t <= t_end])
-    gap = np.diff(np.r_[t_push, ticks, t_end]).max()
-    if gap <= MAX_LOOP_GAP:
-        assert pushed[:, 0].max() < 0.04, pushed[:, 0].max()
-    assert np.abs(settled[:, 0] - (dim + 3.0 / 500.0)).max() < 3e-3, settled[:, 0]
+    # The wall holds: a second at rest where 3 N balance 500 N/m past 1 cm (16 mm), no refused
+    # (oversized) wrench. Within the walls nothing pulls the handle back, so where it rests in
+    # y and z depends on the path it took (0.3 mm alone, 7 mm in a full suite's timing); it
+    # stays inside them. Never far past the wall either, if the loop kept its period all along.
+    assert steady and at_rest(settled), (loop_gap(t_end - 1.0, t_end), settled[:, 0])
     assert np.abs(settled[:, 1:]).max() < dim + 3e-3, settled[-1]
+    if loop_gap(t_push, t_end) <= MAX_LOOP_GAP:
+        assert pushed[:, 0].max() < 0.04, pushed[:, 0].max()
     assert not errors, errors[:3]
