@@ -65,7 +65,8 @@ def pytest_configure(config):
 
 #: The test modules that drive the system's Chromium (each defines ``CHROMIUM``). Under
 #: pytest-xdist they are one unit of work: one worker runs them one after the other, first
-#: (together the longest unit), so that two browsers never share the cores.
+#: (together the longest unit), so that two browsers never share the cores. The exception is
+#: the needle-driving person, two minutes alone (:data:`FIRST_MODULES`): it runs beside them.
 BROWSER_MODULES = (
     "tests/web/test_endoscope_fidelity.py",
     "tests/web/test_scene3d_browser.py",
@@ -88,7 +89,12 @@ RAY_MODULES = (
 #: beside the simulation's) failed in three runs of three after the bridge and cli modules
 #: had run in the same process (the MTM moved a fifth of what the hand asked; with the code
 #: of 2026-11-30 and with an earlier commit alike), and passed every time in a fresh one.
-FIRST_MODULES = ("tests/compat/test_upstream_mtm_examples.py",)
+#: Then the needle-driving person, the longest module (~2 min): queued in its alphabetical
+#: place it started last and ran alone at the end while the other worker idled (2026-11-30).
+FIRST_MODULES = (
+    "tests/compat/test_upstream_mtm_examples.py",
+    "tests/web/test_web_needle_drive.py",
+)
 
 
 def _unit(nodeid: str) -> str:
@@ -117,7 +123,7 @@ def pytest_xdist_make_scheduler(config, log):
 
 
 def pytest_collection_modifyitems(config, items):
-    """On an xdist worker: the browser tests first, then :data:`FIRST_MODULES` (a stable
+    """On an xdist worker: the browser tests first, then :data:`FIRST_MODULES` in order (a stable
     sort: every module's tests stay together, in their order). A module that drives
     Chromium must be in :data:`BROWSER_MODULES`. Without xdist the order is pytest's own."""
     if not os.environ.get("PYTEST_XDIST_WORKER"):
@@ -129,5 +135,6 @@ def pytest_collection_modifyitems(config, items):
                 f"{item.nodeid.split('::')[0]} drives Chromium: add it to BROWSER_MODULES "
                 "in tests/conftest.py"
             )
+    first = {module: k for k, module in enumerate(FIRST_MODULES)}
     items.sort(key=lambda item: (_unit(item.nodeid) != "chromium",
-                                 item.nodeid.split("::", 1)[0] not in FIRST_MODULES))  # fmt: skip
+                                 first.get(item.nodeid.split("::", 1)[0], len(first))))  # fmt: skip
