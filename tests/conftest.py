@@ -65,8 +65,8 @@ def pytest_configure(config):
 
 #: The test modules that drive the system's Chromium (each defines ``CHROMIUM``). Under
 #: pytest-xdist they are one unit of work: one worker runs them one after the other, first
-#: (together the longest unit), so that two browsers never share the cores. The exception is
-#: the needle-driving person, two minutes alone (:data:`FIRST_MODULES`): it runs beside them.
+#: (together the longest unit), so that two browsers never share the cores (nor with
+#: :data:`AFTER_BROWSERS`).
 BROWSER_MODULES = (
     "tests/web/test_endoscope_fidelity.py",
     "tests/web/test_scene3d_browser.py",
@@ -89,12 +89,15 @@ RAY_MODULES = (
 #: beside the simulation's) failed in three runs of three after the bridge and cli modules
 #: had run in the same process (the MTM moved a fifth of what the hand asked; with the code
 #: of 2026-11-30 and with an earlier commit alike), and passed every time in a fresh one.
-#: Then the needle-driving person, the longest module (~2 min): queued in its alphabetical
-#: place it started last and ran alone at the end while the other worker idled (2026-11-30).
-FIRST_MODULES = (
-    "tests/compat/test_upstream_mtm_examples.py",
-    "tests/web/test_web_needle_drive.py",
-)
+FIRST_MODULES = ("tests/compat/test_upstream_mtm_examples.py",)
+
+
+#: Browser modules of their own, each as long as a third of the browser unit (the
+#: needle-driving person, ~2 min): one goes out as soon as the browser unit has finished,
+#: not before. Queued in its alphabetical place it ran last and alone while the other worker
+#: idled (a minute of ``make test``); started beside the browser unit, both ran at half speed
+#: and the run took a minute longer (2026-11-30).
+AFTER_BROWSERS = ("tests/web/test_web_needle_drive.py",)
 
 
 def _unit(nodeid: str) -> str:
@@ -118,12 +121,29 @@ def pytest_xdist_make_scheduler(config, log):
         def _split_scope(self, nodeid: str) -> str:
             return _unit(nodeid)
 
+        def _assign_work_unit(self, node) -> None:
+            """The next unit in order, except for :data:`AFTER_BROWSERS`: first once the
+            browser unit has finished, never while it runs (unless nothing else is left)."""
+            browsing = any(
+                scope == "chromium" and not all(tests.values())
+                for work in self.assigned_work.values()
+                for scope, tests in work.items()
+            )
+            queued = list(self.workqueue)
+            later = [s for s in queued if s in AFTER_BROWSERS]
+            if browsing:
+                pick = next((s for s in queued if s not in AFTER_BROWSERS), queued[0])
+            else:
+                pick = later[0] if later and "chromium" not in queued else queued[0]
+            self.workqueue.move_to_end(pick, last=False)
+            super()._assign_work_unit(node)
+
     config.option.loadscopereorder = False  # (xdist would order the units by test count)
     return ByModule(config, log)
 
 
 def pytest_collection_modifyitems(config, items):
-    """On an xdist worker: the browser tests first, then :data:`FIRST_MODULES` in order (a stable
+    """On an xdist worker: the browser tests first, then :data:`FIRST_MODULES` (a stable
     sort: every module's tests stay together, in their order). A module that drives
     Chromium must be in :data:`BROWSER_MODULES`. Without xdist the order is pytest's own."""
     if not os.environ.get("PYTEST_XDIST_WORKER"):
@@ -135,6 +155,5 @@ def pytest_collection_modifyitems(config, items):
                 f"{item.nodeid.split('::')[0]} drives Chromium: add it to BROWSER_MODULES "
                 "in tests/conftest.py"
             )
-    first = {module: k for k, module in enumerate(FIRST_MODULES)}
     items.sort(key=lambda item: (_unit(item.nodeid) != "chromium",
-                                 first.get(item.nodeid.split("::", 1)[0], len(first))))  # fmt: skip
+                                 item.nodeid.split("::", 1)[0] not in FIRST_MODULES))  # fmt: skip
