@@ -3,7 +3,10 @@ never at its first call: a first call in the simulation's 1 kHz loop stalls it f
 (half a minute on a busy machine with an empty cache) and nothing says why."""
 
 import importlib
+import os
 import pkgutil
+import subprocess
+import sys
 
 import davinci_sim
 from davinci_sim.kinematics import jit
@@ -47,10 +50,6 @@ def test_with_the_switch_off_python_runs_the_laws_and_the_arms_move(tmp_path):
     """``DAVINCI_SIM_JIT=0`` (documented for comparing the compiled laws with their Python
     form) runs: the kernels Python calls are the Python functions, the compiled tick's own
     kernels still call them compiled, and an arm reaches a joint goal."""
-    import os
-    import subprocess
-    import sys
-
     env = dict(os.environ, DAVINCI_SIM_JIT="0")
     out = subprocess.run([sys.executable, "-c", _SWITCHED_OFF], env=env, capture_output=True,
                          text=True, timeout=600, cwd=tmp_path)  # fmt: skip

@@ -27,7 +27,8 @@ except Exception:  # pragma: no cover - depends on the installation
 ENABLED = numba is not None and os.environ.get("DAVINCI_SIM_JIT", "1") != "0"
 """Whether :func:`jit` compiles (numba importable and not switched off)."""
 
-if ENABLED and os.environ.get("DAVINCI_SIM_REFPRUNE", "1") != "0":
+# (whatever the switch: the compiled tick's kernels compile, and enter the cache, alike)
+if numba is not None and os.environ.get("DAVINCI_SIM_REFPRUNE", "1") != "0":
     from davinci_sim.kinematics.jit_refcounts import install
 
     install()  # before anything compiles (every module that compiles imports this one)
