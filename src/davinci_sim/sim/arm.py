@@ -31,7 +31,6 @@ from davinci_sim.kinematics.suj import invert_rigid
 from davinci_sim.sim import arm_laws as laws
 from davinci_sim.sim import operating_state as ops
 from davinci_sim.sim.arm_laws import TRACKING_FAULT_TIME, TRACKING_FAULT_TOLERANCE
-from davinci_sim.sim.cartesian_kernel import other_branch
 from davinci_sim.sim.channels import Channels
 from davinci_sim.sim.servo import ServoJoints
 from davinci_sim.sim.state import capture, restore
@@ -640,7 +639,7 @@ class Arm(ServoJoints):
         q, msg = self._cartesian_goal("servo_cp", T_goal, q_now, checked)
         if q is None:
             return self._refuse("servo_cp", msg)
-        if self.kin.arm_type == "PSM" and other_branch(q, q_now):
+        if self.kin.arm_type == "PSM" and laws.other_branch(q, q_now):
             turn = np.degrees(np.abs(q[3:6] - q_now[3:6]).max())
             return self._refuse("servo_cp", "the goal is past the wrist's reach on its "
                                 f"branch (its IK turns a wrist joint {turn:.0f}°): the tool "

@@ -358,6 +358,32 @@ def within_limits(q: np.ndarray, qmin: np.ndarray, qmax: np.ndarray) -> np.ndarr
     return np.all((q >= qmin - LIMIT_SLACK) & (q <= qmax + LIMIT_SLACK), axis=-1)
 
 
+@helper
+def other_branch(q_ik, q_measured) -> bool:
+    """Whether the PSM IK answer ``q_ik`` (6,) moves a wrist joint (roll, wrist pitch, wrist
+    yaw: joints 3-5, dvrk.md 1.2) more than :data:`OTHER_BRANCH` rad from ``q_measured``
+    (6,): a servo goal on the wrist's other branch, refused (the live servo, its compiled
+    rows and :func:`other_branch_rows`)."""
+    for i in range(3, 6):
+        if abs(q_ik[i] - q_measured[i]) > OTHER_BRANCH:
+            return True
+    return False
+
+
+@jit
+def _other_branch_into(q_ik, q_measured, out) -> None:
+    for r in range(q_ik.shape[0]):
+        out[r] = other_branch(q_ik[r], q_measured[r])
+
+
+def other_branch_rows(q_ik: np.ndarray, q_measured: np.ndarray) -> np.ndarray:
+    """(n,) bool: :func:`other_branch` of each row of ``q_ik`` and ``q_measured`` (n, 6)."""
+    out = np.empty(len(q_ik), dtype=bool)
+    _other_branch_into(np.ascontiguousarray(q_ik, dtype=float),
+                       np.ascontiguousarray(q_measured, dtype=float), out)  # fmt: skip
+    return out
+
+
 def _warm_up() -> None:
     """Compile (or load from numba's cache) at import, with the live arm's argument types,
     never in the 1 kHz loop (:mod:`davinci_sim.kinematics.jit`)."""
@@ -380,13 +406,7 @@ def _warm_up() -> None:
             np.empty(3), np.empty(n - 3), np.zeros(n - 3), np.zeros(n - 3), v, a, 1.0, 0.001,
             np.empty(n - 3), np.empty(n - 3))  # fmt: skip
     wrist_lock_step(*args)
+    other_branch_rows(np.zeros((1, 6)), np.zeros((1, 6)))
 
 
 warm(_warm_up)
-
-
-def other_branch_rows(q_ik: np.ndarray, q_measured: np.ndarray) -> np.ndarray:
-    """(n,) bool: rows whose PSM IK answer ``q_ik`` (n, 6) moves a wrist joint (roll, wrist
-    pitch, wrist yaw: joints 3-5, dvrk.md 1.2) more than :data:`OTHER_BRANCH` rad from
-    ``q_measured`` (n, 6): a servo goal on the wrist's other branch, refused."""
-    return np.abs(q_ik[:, 3:6] - q_measured[:, 3:6]).max(axis=1) > OTHER_BRANCH

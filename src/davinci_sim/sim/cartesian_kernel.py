@@ -16,22 +16,10 @@ from __future__ import annotations
 import numba
 import numpy as np
 
-from davinci_sim.kinematics.psm_closed_form import POLISH, ROLL, SOLVED, closed_form_rows
-from davinci_sim.sim.arm_laws import OTHER_BRANCH, solve_square_into
+from davinci_sim.kinematics.psm_closed_form import POLISH, SOLVED, closed_form_rows
+from davinci_sim.sim.arm_laws import other_branch, solve_square_into
 
 _ik_rows = closed_form_rows.dispatcher  # (the compiled kernel itself, callable from here)
-
-
-@numba.njit(cache=True, nogil=True)
-def other_branch(q_ik, q_measured) -> bool:
-    """Whether the PSM IK answer ``q_ik`` (6,) moves a wrist joint more than
-    :data:`~davinci_sim.sim.arm_laws.OTHER_BRANCH` from ``q_measured`` (6,), rad (the
-    compiled servo's :func:`~davinci_sim.sim.arm_laws.other_branch_rows`)."""
-    for i in range(ROLL, ROLL + 3):
-        if abs(q_ik[i] - q_measured[i]) > OTHER_BRANCH:
-            return True
-    return False
-
 
 #: :func:`cartesian_setpoint_row`'s answers: ``q`` and ``qd`` computed; the IK answer must be
 #: polished by the reference iteration (nothing else computed); the Jacobian is singular for

@@ -18,12 +18,11 @@ import numba
 import numpy as np
 
 from davinci_sim.kinematics.fk_compiled import tip_pose_row
-from davinci_sim.sim.arm_laws import LIMIT_SLACK, tracking_fault_scalar
+from davinci_sim.sim.arm_laws import LIMIT_SLACK, other_branch, tracking_fault_scalar
 from davinci_sim.sim.cartesian_kernel import (
     OK,
     cartesian_setpoint_row,
     ik_scratch,
-    other_branch,
     pose_in_reference_into,
 )
 from davinci_sim.sim.rows_kernel import f64_at, mj_step
