@@ -75,7 +75,10 @@ def served(task_file: str, scene, hands=("MTMR",)):
         render_hz=10.0,
         frame_task=True,
     )
-    parts = [web_part(WebOptions(port=0, frame_rate=10.0), bedside=False)]
+    # (the page draws the endoscope at most 10 times a second: a person here reads the
+    # state stream, and Chromium's software WebGL at 60 poses a second took two thirds of a
+    # core, from the loop and from the other pytest worker)
+    parts = [web_part(WebOptions(port=0, frame_rate=10.0, pose_rate=10.0), bedside=False)]
     with serving(options, parts) as info:
         yield info["web"]
 
