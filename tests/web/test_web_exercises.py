@@ -369,7 +369,7 @@ def test_a_person_centres_the_targets_with_the_camera_pedal(task_files, browser,
 
 class Clutch:
     """A person at the edge of a hand's reach: when the hand's target stops moving while
-    move keys are held, or what they see stops moving (the hand's tool in the camera frame,
+    the same move keys are held, or what they see stops moving (the hand's tool in the camera frame,
     still for 1 s while its teleoperation follows: the master stopped at a joint limit while
     the hand's target dithered beyond it, a loaded run), they press the clutch (Space) and
     bring the hand back the opposite way for 1.5 s, the tool (or, with the camera pedal
@@ -383,7 +383,7 @@ class Clutch:
     def __init__(self, hand: str, held=()) -> None:
         self.hand, self.held = hand, set(held)
         self.since = self.target = self.until = self.seen = self.seen_since = None
-        self.nearest = self.nearest_since = None
+        self.nearest = self.nearest_since = self.moving = None
         self.back: set[str] = set()
 
     def __call__(self, s: dict, keys: set[str], error=None) -> set[str]:
@@ -399,8 +399,11 @@ class Clutch:
         moving = {k for k in keys if any(k in pair for pair in MOVE_KEYS)}
         if seen is None or self.seen is None or np.linalg.norm(seen - self.seen) > 0.0005:
             self.seen_since, self.seen = t, seen
-        if self.target is None or np.linalg.norm(hand - self.target) > 0.002:
-            self.since, self.target = t, hand
+        # (the hand's target still while the same move keys stay down: keys that change
+        # from one look to the next, dithering about a goal, move it less)
+        if (self.target is None or np.linalg.norm(hand - self.target) > 0.002
+                or moving != self.moving):  # fmt: skip
+            self.since, self.target, self.moving = t, hand, moving
             stalled = seen is not None and t - self.seen_since > 1.0
         else:
             stalled = t - self.since > 0.4
