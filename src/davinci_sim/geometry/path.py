@@ -81,6 +81,18 @@ class Polyline:
         v.setflags(write=False)
         object.__setattr__(self, "vertices", v)
 
+    # A pickled copy (a loop process's, a Ray worker's) has its vertices only, read-only as
+    # here: unpickled arrays are writable, and numba compiles a kernel again, for tens of
+    # seconds, for a writable argument where it had a read-only one.
+    def __getstate__(self) -> dict:
+        return {"vertices": self.vertices}
+
+    def __setstate__(self, state: dict) -> None:
+        v = np.array(state["vertices"], dtype=float)
+        v.setflags(write=False)
+        object.__setattr__(self, "vertices", v)
+        object.__setattr__(self, "_cache", {})
+
     # ------------------------------------------------------------ geometry
     @cached_property
     def starts(self) -> np.ndarray:

@@ -19,6 +19,8 @@ import functools
 import os
 import warnings
 
+import numpy as np
+
 try:  # numba is a dependency; the fallback keeps a broken or missing install working
     import numba
 except Exception:  # pragma: no cover - depends on the installation
@@ -32,6 +34,15 @@ if numba is not None and os.environ.get("DAVINCI_SIM_REFPRUNE", "1") != "0":
     from davinci_sim.kinematics.jit_refcounts import install
 
     install()  # before anything compiles (every module that compiles imports this one)
+
+
+def writable(a: np.ndarray) -> np.ndarray:
+    """``a``, or a writable copy of it if it is read-only: numba compiles a kernel once for
+    a writable array argument and again, for seconds to a minute, for a read-only one
+    (a frozen value's, or a module constant's), so that the callers of a kernel give it
+    one kind."""
+    return a if a.flags.writeable else a.copy()
+
 
 KERNELS: list = []
 """Every function :func:`jit` compiled or will compile: each module warms its kernels up at

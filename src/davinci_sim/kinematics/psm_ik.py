@@ -59,7 +59,7 @@ from davinci_sim.kinematics.ik_base import (
     make_result,
     pose_errors,
 )
-from davinci_sim.kinematics.jit import warm
+from davinci_sim.kinematics.jit import warm, writable
 from davinci_sim.kinematics.psm_closed_form import (
     INSERTION,
     MIN_GOAL_DISTANCE_FROM_RCM,
@@ -183,7 +183,7 @@ def _solve_rows(chain: DHChain, T: np.ndarray, S: np.ndarray, tolerance: np.ndar
     status, info = np.empty(n, dtype=np.int64), np.empty((n, 5))
     closed_form_rows(
         p.geometry, p.tool, p.revolute, p.lim_lo, p.lim_hi, *p.fk,
-        T, S, tolerance, q, success, status, info,
+        writable(T), writable(S), writable(tolerance), q, success, status, info,
     )  # fmt: skip
     return q, success, status, info
 

@@ -117,7 +117,10 @@ class Tremor:
         rows = np.asarray(rows, dtype=int)
         out = copy.copy(self)
         out.a1, out.a2, out.gain = self.a1[rows], self.a2[rows], self.gain[rows]
-        out._x, out._y1, out._y2 = self._x[:, rows], self._y1[:, rows], self._y2[:, rows]
+        # (C-ordered: an index along the middle axis can give other strides, and the
+        # study's compiled trainee would compile again for them)
+        out._x, out._y1, out._y2 = (np.ascontiguousarray(a[:, rows])
+                                    for a in (self._x, self._y1, self._y2))  # fmt: skip
         return out
 
     def step(self, white: np.ndarray) -> np.ndarray:

@@ -223,12 +223,12 @@ def next_state(state: TaskState) -> TaskState:
 
 
 def _c(a, dtype, missing=None) -> np.ndarray:
-    """``a`` as a C-ordered array of ``dtype`` (a copy only where it is not one): the
+    """``a`` as a writable C-ordered array of ``dtype`` (a copy only where it is not one): the
     kernel's one signature, whatever views the sample holds; for an optional field the
     sample lacks (``a`` None), zeros of shape ``missing`` (the kernel ignores them)."""
     if a is None:
         return np.zeros(missing, dtype=dtype)
-    return np.ascontiguousarray(a, dtype=dtype)
+    return jit.writable(np.ascontiguousarray(a, dtype=dtype))
 
 
 def advance_rows(task, state: TaskState, metrics, sample, active=None) -> tuple | None:
