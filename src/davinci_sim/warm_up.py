@@ -86,6 +86,22 @@ def warm_up(
     if n < 1:
         raise ValueError(f"processes must be >= 1, got {processes!r}")
     context = multiprocessing.get_context("spawn")  # (fresh interpreters: nothing compiled)
+    failed = [code for code in _run(context, n, modules, extra) if code != 0]
+    if failed:
+        raise RuntimeError(f"warming the kernels up failed in {len(failed)} of {n} processes")
+    # Every warm-up once more, in one process: each loads its kernels from the cache, and
+    # compiles again those whose entry another process dropped (a kernel's cache index is
+    # rewritten whole by each process that saves one of its signatures: two saving at once
+    # can each drop the other's; a second warm-up on the 2-core machine compiled six
+    # signatures again, and `make test`'s pytest controller eleven, 8 s before its workers
+    # could start).
+    if n > 1 and _run(context, 1, modules, extra) != [0]:
+        raise RuntimeError("checking the kernels' cache after the warm-up failed")
+
+
+def _run(context, n: int, modules, extra) -> list[int]:
+    """``n`` processes of :func:`_worker` sharing one counter, their warm-ups deferred;
+    their exit codes once all have finished."""
     counter, lock = context.Value("i", 0, lock=False), context.Lock()
     before = os.environ.get(_DEFER)
     os.environ[_DEFER] = "1"  # (the children's environment, copied at their start)
@@ -102,9 +118,7 @@ def warm_up(
             os.environ[_DEFER] = before
     for w in workers:
         w.join()
-    failed = [w.exitcode for w in workers if w.exitcode != 0]
-    if failed:
-        raise RuntimeError(f"warming the kernels up failed in {len(failed)} of {n} processes")
+    return [w.exitcode for w in workers]
 
 
 def main(argv: list[str] | None = None) -> int:
