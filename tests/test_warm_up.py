@@ -87,3 +87,25 @@ def test_every_module_warms_its_kernels_up_through_jit():
         if line.strip() == "_warm_up()" and not line.startswith(" ")
     ]
     assert not direct, f"call jit.warm(_warm_up) instead: {direct}"
+
+
+#: In a new interpreter, warm-ups deferred (nothing compiles): the warm-ups importing the
+#: warm-up's modules collects, then those of every module of the package.
+_WARM_UPS = """
+import importlib, pkgutil
+import davinci_sim
+from davinci_sim.kinematics import jit
+from davinci_sim.warm_up import KERNEL_MODULES
+for name in KERNEL_MODULES:
+    importlib.import_module(name)
+before = {f"{w.__module__}.{w.__qualname__}" for w in jit.WARM_UPS}
+for module in pkgutil.walk_packages(davinci_sim.__path__, "davinci_sim."):
+    importlib.import_module(module.name)
+print(sorted({f"{w.__module__}.{w.__qualname__}" for w in jit.WARM_UPS} - before))
+"""
+
+
+def test_the_warm_up_imports_every_module_that_has_kernels():
+    """A module outside the warm-up's imports compiles in each process that imports it
+    (``tasks.handling``'s kernel compiled in both of `make test`'s workers)."""
+    assert _python(_WARM_UPS, DAVINCI_SIM_DEFER_WARM_UP="1").strip() == "[]"

@@ -27,6 +27,7 @@ KERNEL_MODULES = (
     "davinci_sim.console",
     "davinci_sim.study.batch",
     "davinci_sim.envs.vector",
+    "davinci_sim.tasks.handling",  # (the exercises that hand objects over)
 )
 
 
