@@ -82,8 +82,8 @@ class Polyline:
         object.__setattr__(self, "vertices", v)
 
     # A pickled copy (a loop process's, a Ray worker's) has its vertices only, read-only as
-    # here: unpickled arrays are writable, and numba compiles a kernel again, for tens of
-    # seconds, for a writable argument where it had a read-only one.
+    # here: unpickled arrays are writable, and numba compiles the closest-point kernel again
+    # for a writable argument where it had a read-only one (kinematics.jit.writable).
     def __getstate__(self) -> dict:
         return {"vertices": self.vertices}
 
