@@ -89,8 +89,8 @@ def test_every_module_warms_its_kernels_up_through_jit():
     assert not direct, f"call jit.warm(_warm_up) instead: {direct}"
 
 
-#: In a new interpreter, warm-ups deferred (nothing compiles): the warm-ups importing the
-#: warm-up's modules collects, then those of every module of the package.
+#: In a new interpreter, warm-ups deferred (nothing compiles): the warm-ups that importing
+#: every module of the package collects and importing the warm-up's modules does not.
 _WARM_UPS = """
 import importlib, pkgutil
 import davinci_sim

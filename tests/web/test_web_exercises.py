@@ -368,17 +368,16 @@ def test_a_person_centres_the_targets_with_the_camera_pedal(task_files, browser,
 
 
 class Clutch:
-    """A person at the edge of a hand's reach: when the hand's target stops moving while
-    the same move keys are held, or what they see stops moving (the hand's tool in the camera frame,
-    still for 1 s while its teleoperation follows: the master stopped at a joint limit while
-    the hand's target dithered beyond it, a loaded run), they press the clutch (Space) and
-    bring the hand back the opposite way for 1.5 s, the tool (or, with the camera pedal
-    among ``held``, the camera) held still, then let go and carry on. Also when the tool,
-    3 mm or more from its goal, has come no nearer it for 1.5 s while only move keys are held
-    at full speed (``error``, the tool's offset from it, given): the hand stopped at its reach
-    along one axis while the keys of the others dithered it about, which neither of the first
-    two signs shows. Called with the state and the keys a step would hold; returns the keys to
-    hold."""
+    """A person at the edge of a hand's reach: when the hand's target stops moving while the same
+    move keys are held, or what they see stops moving (the hand's tool in the camera frame,
+    still for 1 s while its teleoperation follows: the master stopped at a joint limit while the
+    hand's target dithered beyond it, a loaded run), they press the clutch (Space) and bring the
+    hand back the opposite way for 1.5 s, the tool (or, with the camera pedal among ``held``,
+    the camera) held still, then let go and carry on. Also when the tool, 3 mm or more from its
+    goal, has come no nearer it for 1.5 s while only move keys are held at full speed
+    (``error``, the tool's offset from it, given): the hand stopped at its reach along one axis
+    while the keys of the others dithered it about, which neither of the first two signs shows.
+    Called with the state and the keys a step would hold; returns the keys to hold."""
 
     def __init__(self, hand: str, held=()) -> None:
         self.hand, self.held = hand, set(held)
