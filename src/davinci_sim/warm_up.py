@@ -47,10 +47,10 @@ EXTRA_WARM_UPS = (_console_chunk,)
 _DEFER = "DAVINCI_SIM_DEFER_WARM_UP"
 
 
-def _worker(modules, extra, counter, lock) -> None:
+def _worker(modules, extra, counter, lock, compiled) -> None:
     """One process: import ``modules`` (warm-ups deferred), then run their warm-ups and
     ``extra``, last first, whose turn it takes from ``counter`` (shared by the
-    processes)."""
+    processes); adds to ``compiled`` the signatures it compiled (not loaded)."""
     for name in modules:
         importlib.import_module(name)
     from davinci_sim.kinematics import jit
@@ -63,11 +63,19 @@ def _worker(modules, extra, counter, lock) -> None:
             index = counter.value
             counter.value += 1
         if index >= len(jit.WARM_UPS):
-            return
+            break
         try:
             jit.WARM_UPS[-1 - index]()
         except Exception:  # (the module's own import warns of it and takes its Python path)
             continue
+    import gc
+
+    from numba.core.dispatcher import Dispatcher
+
+    misses = sum(sum(d.stats.cache_misses.values()) for d in gc.get_objects()
+                 if isinstance(d, Dispatcher))  # fmt: skip
+    with lock:
+        compiled.value += misses
 
 
 def warm_up(
@@ -87,28 +95,31 @@ def warm_up(
     if n < 1:
         raise ValueError(f"processes must be >= 1, got {processes!r}")
     context = multiprocessing.get_context("spawn")  # (fresh interpreters: nothing compiled)
-    failed = [code for code in _run(context, n, modules, extra) if code != 0]
+    codes, compiled = _run(context, n, modules, extra)
+    failed = [code for code in codes if code != 0]
     if failed:
         raise RuntimeError(f"warming the kernels up failed in {len(failed)} of {n} processes")
-    # Every warm-up once more, in one process: each loads its kernels from the cache, and
-    # compiles again those whose entry another process dropped (a kernel's cache index is
-    # rewritten whole by each process that saves one of its signatures: two saving at once
-    # can each drop the other's; a second warm-up on the 2-core machine compiled six
-    # signatures again, and `make test`'s pytest controller eleven, 8 s before its workers
-    # could start).
-    if n > 1 and _run(context, 1, modules, extra) != [0]:
+    # Where they compiled, every warm-up once more in one process: each loads its kernels
+    # from the cache, and compiles again those whose entry another process dropped (a
+    # kernel's cache index is rewritten whole by each process that saves one of its
+    # signatures: two saving at once can each drop the other's; a second warm-up on the
+    # 2-core machine compiled six signatures again, and `make test`'s pytest controller
+    # eleven, 8 s before its workers could start). Processes that only loaded saved nothing.
+    if n > 1 and compiled and _run(context, 1, modules, extra)[0] != [0]:
         raise RuntimeError("checking the kernels' cache after the warm-up failed")
 
 
-def _run(context, n: int, modules, extra) -> list[int]:
+def _run(context, n: int, modules, extra) -> tuple[list[int], int]:
     """``n`` processes of :func:`_worker` sharing one counter, their warm-ups deferred;
-    their exit codes once all have finished."""
+    their exit codes once all have finished, and the signatures they compiled."""
     counter, lock = context.Value("i", 0, lock=False), context.Lock()
+    compiled = context.Value("i", 0, lock=False)
     before = os.environ.get(_DEFER)
     os.environ[_DEFER] = "1"  # (the children's environment, copied at their start)
     try:
         workers = [
-            context.Process(target=_worker, args=(modules, extra, counter, lock)) for _ in range(n)
+            context.Process(target=_worker, args=(modules, extra, counter, lock, compiled))
+            for _ in range(n)
         ]
         for w in workers:
             w.start()
@@ -119,7 +130,7 @@ def _run(context, n: int, modules, extra) -> list[int]:
             os.environ[_DEFER] = before
     for w in workers:
         w.join()
-    return [w.exitcode for w in workers]
+    return [w.exitcode for w in workers], compiled.value
 
 
 def main(argv: list[str] | None = None) -> int:

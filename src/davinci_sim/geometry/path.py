@@ -83,7 +83,7 @@ class Polyline:
 
     # A pickled copy (a loop process's, a Ray worker's) has its vertices only, read-only as
     # here: unpickled arrays are writable, and numba compiles the closest-point kernel again
-    # for a writable argument where it had a read-only one (kinematics.jit.writable).
+    # for a writable argument where it had a read-only one.
     def __getstate__(self) -> dict:
         return {"vertices": self.vertices}
 

@@ -23,7 +23,7 @@ import numpy as np
 
 from davinci_sim.kinematics import fk_compiled
 from davinci_sim.kinematics.chain import DHChain
-from davinci_sim.kinematics.jit import writable
+from davinci_sim.kinematics.jit import kernel_array
 
 
 @dataclass(frozen=True)
@@ -144,7 +144,7 @@ def _run(
         _check_q(chain, q)  # raises
     batch = q.shape[:-1]
     m = math.prod(batch) if batch else 1
-    Q = writable(np.ascontiguousarray(q).reshape(m, n))
+    Q = kernel_array(q).reshape(m, n)
     T = np.empty((m, 4, 4))
     J = np.empty((m, 6, n if jacobian else 0))
     F = np.empty((m if frames else 1, n, 12))

@@ -36,12 +36,12 @@ if numba is not None and os.environ.get("DAVINCI_SIM_REFPRUNE", "1") != "0":
     install()  # before anything compiles (every module that compiles imports this one)
 
 
-def writable(a: np.ndarray) -> np.ndarray:
-    """``a``, or a writable copy of it if it is read-only: numba compiles a kernel once for
-    a writable array argument and again, for seconds to a minute, for a read-only one
-    (a frozen value's, or a module constant's), so that the callers of a kernel give it
-    one kind."""
-    return a if a.flags.writeable else a.copy()
+def kernel_array(a, dtype=float) -> np.ndarray:
+    """``a`` as the one kind of array the kernels take: C-ordered, writable, of ``dtype`` (a
+    copy only where it is not one). numba compiles a kernel again, for seconds to a minute,
+    for a read-only argument (a frozen value's, a module constant's) or a strided one."""
+    out = np.ascontiguousarray(a, dtype=dtype)
+    return out if out.flags.writeable else out.copy()
 
 
 KERNELS: list = []

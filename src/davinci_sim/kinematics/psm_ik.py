@@ -59,7 +59,7 @@ from davinci_sim.kinematics.ik_base import (
     make_result,
     pose_errors,
 )
-from davinci_sim.kinematics.jit import warm, writable
+from davinci_sim.kinematics.jit import kernel_array, warm
 from davinci_sim.kinematics.psm_closed_form import (
     INSERTION,
     MIN_GOAL_DISTANCE_FROM_RCM,
@@ -183,7 +183,7 @@ def _solve_rows(chain: DHChain, T: np.ndarray, S: np.ndarray, tolerance: np.ndar
     status, info = np.empty(n, dtype=np.int64), np.empty((n, 5))
     closed_form_rows(
         p.geometry, p.tool, p.revolute, p.lim_lo, p.lim_hi, *p.fk,
-        writable(T), writable(S), writable(tolerance), q, success, status, info,
+        kernel_array(T), kernel_array(S), kernel_array(tolerance), q, success, status, info,
     )  # fmt: skip
     return q, success, status, info
 
@@ -337,8 +337,8 @@ def psm_ik_closed_form(
     T, S = check_goal(T_rcm_tip), check_seed(chain, q_seed)
     q, success, status, info = _solve_rows(
         chain,
-        np.ascontiguousarray(T).reshape(1, 4, 4),
-        np.ascontiguousarray(S).reshape(1, 6),
+        T.reshape(1, 4, 4),
+        S.reshape(1, 6),
         _tolerance(position_tolerance, rotation_tolerance),
     )
     if success[0] and status[0] == SOLVED and not info[0, 4]:

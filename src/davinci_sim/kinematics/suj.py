@@ -26,7 +26,7 @@ from davinci_sim.kinematics.arms import SUJArmKinematics, load_arm, load_suj
 from davinci_sim.kinematics.chain import DHChain
 from davinci_sim.kinematics.fk import _consts
 from davinci_sim.kinematics.fk_compiled import tip_pose_row
-from davinci_sim.kinematics.jit import helper, jit, warm, writable
+from davinci_sim.kinematics.jit import helper, jit, kernel_array, warm
 
 
 # --- the kernel ----------------------------------------------------------------------------
@@ -170,7 +170,7 @@ def T_cart_rcm(suj_arm: SUJArmKinematics, q_suj) -> np.ndarray:
     if q.ndim == 0 or q.shape[-1] != n:
         raise ValueError(f"{suj_arm.chain.name}: expected joints (..., {n}), got {q.shape}")
     batch = q.shape[:-1]
-    Q = writable(np.ascontiguousarray(q).reshape(-1, n))
+    Q = kernel_array(q).reshape(-1, n)
     out = np.empty((Q.shape[0], 4, 4))
     T_sujbase = np.ascontiguousarray(suj_arm.T_cart_sujbase, dtype=float)
     _rcm_rows(*_packed_rcm_chain(suj_arm), T_sujbase, Q, out, *_scratch(n))

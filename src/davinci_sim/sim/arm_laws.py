@@ -25,7 +25,7 @@ from davinci_sim.kinematics import fk
 from davinci_sim.kinematics.chain import DHChain
 from davinci_sim.kinematics.fk_compiled import tip_pose_row
 from davinci_sim.kinematics.jit import ENABLED as _COMPILED
-from davinci_sim.kinematics.jit import helper, jit, warm
+from davinci_sim.kinematics.jit import helper, jit, kernel_array, warm
 from davinci_sim.sim.trajectory import step_towards_row
 
 try:  # the gufunc behind np.linalg.solve (see _solve)
@@ -379,8 +379,7 @@ def _other_branch_into(q_ik, q_measured, out) -> None:
 def other_branch_rows(q_ik: np.ndarray, q_measured: np.ndarray) -> np.ndarray:
     """(n,) bool: :func:`other_branch` of each row of ``q_ik`` and ``q_measured`` (n, 6)."""
     out = np.empty(len(q_ik), dtype=bool)
-    _other_branch_into(np.ascontiguousarray(q_ik, dtype=float),
-                       np.ascontiguousarray(q_measured, dtype=float), out)  # fmt: skip
+    _other_branch_into(kernel_array(q_ik), kernel_array(q_measured), out)
     return out
 
 

@@ -91,8 +91,7 @@ class PSM(Arm):
         tw = None if twist is None else as_twist(twist, "twist")[0]
         if T is None or (twist is not None and tw is None):
             return False
-        if not (T.flags.writeable and T.flags.c_contiguous):  # (the kernel's one signature)
-            T = np.array(T, order="C")
+        T = jit.kernel_array(T)  # (the kernel's one signature)
         q, _, J = self._measured_kinematics(jacobian=True)
         constants, bound, q_out, qd_out = self._cp
         feedforward = tw is not None

@@ -42,7 +42,7 @@ import numpy as np
 
 from davinci_sim.kinematics import fk
 from davinci_sim.kinematics.chain import DHChain
-from davinci_sim.kinematics.jit import warmed_up, writable
+from davinci_sim.kinematics.jit import kernel_array, warmed_up
 from davinci_sim.kinematics.psm_ik import _DEFAULT_TOLERANCE
 from davinci_sim.kinematics.psm_ik import _packed as _ik_packed
 from davinci_sim.sim import rows_step
@@ -151,7 +151,7 @@ class ArmChunk:
         except ValueError:
             pass
         else:
-            tol = writable(_DEFAULT_TOLERANCE)  # (as _NO_IK's: one kernel signature)
+            tol = kernel_array(_DEFAULT_TOLERANCE)  # (as _NO_IK's: one kernel signature)
             self._ik = (p.geometry, p.tool, p.revolute, p.lim_lo, p.lim_hi, tol)
 
     def run(self, rows, first, K: int, stop, effort_mode, gravity, Q, V, qfrc_bias,

@@ -228,7 +228,7 @@ def _c(a, dtype, missing=None) -> np.ndarray:
     sample lacks (``a`` None), zeros of shape ``missing`` (the kernel ignores them)."""
     if a is None:
         return np.zeros(missing, dtype=dtype)
-    return jit.writable(np.ascontiguousarray(a, dtype=dtype))
+    return jit.kernel_array(a, dtype)
 
 
 def advance_rows(task, state: TaskState, metrics, sample, active=None) -> tuple | None:
