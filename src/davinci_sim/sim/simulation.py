@@ -31,6 +31,7 @@ from davinci_sim.kinematics import fk
 from davinci_sim.kinematics.arms import load_arm, load_suj
 from davinci_sim.kinematics.suj import T_cart_rcm, frame_plan, frames_into
 from davinci_sim.model import build_spec, resolve_scene
+from davinci_sim.sim import timers
 from davinci_sim.sim.arm import Arm
 from davinci_sim.sim.arms import ECM, MTM, PSM, SUJArm
 from davinci_sim.sim.component import Component, check_component
@@ -89,6 +90,7 @@ class Simulation:
         edit_spec: Callable[[mujoco.MjSpec], None] | None = None,
         **scene_overrides,
     ) -> None:
+        timers.quiet()  # (MuJoCo's stage timers: nothing here reads them; sim/timers.py)
         self.config = resolve_scene(scene, **scene_overrides)
         self.endoscope = self.config.endoscope
         spec = build_spec(self.config)
