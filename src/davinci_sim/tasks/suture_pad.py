@@ -354,8 +354,30 @@ def no_passage(n: int) -> Passage:
 
 
 def _no_events(n: int) -> PassageEvents:
-    off, nan = np.zeros(n, dtype=bool), np.full(n, np.nan)
-    return PassageEvents(off, off, off, off, np.full(n, -1, dtype=np.int64), nan, nan, nan)
+    """The events of a sample where nothing happened, read-only (one per n: the usual
+    sample's, every tick of a live session)."""
+    events = _NO_EVENTS.get(n)
+    if events is None:
+        off, nan = np.zeros(n, dtype=bool), np.full(n, np.nan)
+        minus = np.full(n, -1, dtype=np.int64)
+        for a in (off, nan, minus):
+            a.setflags(write=False)
+        events = _NO_EVENTS[n] = PassageEvents(off, off, off, off, minus, nan, nan, nan)
+    return events
+
+
+_NO_EVENTS: dict[int, PassageEvents] = {}
+_TIPS: dict = {}
+
+
+def _tip_point(needle) -> np.ndarray:
+    """The needle's point in its own frame (``needle.points(1.0)``, read-only), once per
+    needle."""
+    tip = _TIPS.get(needle)
+    if tip is None:
+        tip = _TIPS[needle] = needle.points(1.0)
+        tip.setflags(write=False)
+    return tip
 
 
 def circle_deviation(p_needle: np.ndarray, radius: float) -> np.ndarray:
@@ -376,7 +398,7 @@ def passage_step(state: Passage, T_pad_needle: np.ndarray, needle, pad: SuturePa
     mark radius of where it went in. While inside, the trauma is the entry point's distance
     from the needle's circle (0 for a needle turned about its own centre)."""
     T = np.asarray(T_pad_needle, dtype=float).reshape(-1, 4, 4)
-    tip = T[:, :3, :3] @ needle.points(1.0) + T[:, :3, 3]
+    tip = T[:, :3, :3] @ _tip_point(needle) + T[:, :3, 3]
     if not state.inside.any() and (tip[:, 2] >= 0.0).all():  # (the usual sample: above)
         return state._replace(p_tip=tip), _no_events(len(T))
     prev = state.p_tip
