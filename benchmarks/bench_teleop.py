@@ -11,7 +11,11 @@ A third set-up is what ``make run`` ticks (``serve_seed_path``): the full scene 
 web console's rate inputs on both MTMs (held still: the operator reading the keys), the
 ``seed_path`` task session with its viscous fixture and the endoscope framed on the task,
 both teleoperations following; ``serve_seed_path_trial`` the same while a repetition of the
-task runs (the tool moved off point 1: the session's metrics accumulate every tick).
+task runs (the tool moved off point 1: the session's metrics accumulate every tick);
+``serve_one_pair`` what ``serve --scene psm1_ecm_mtmr --task seed_path --home`` ticks, one
+web-console hand (MTMR) holding still, MTMR -> PSM1 following: the one-pair bar on the
+console's compiled path (the ``one_pair`` set-up's Python hands and field keep every tick in
+Python).
 
 Beside each tick, ``<label>_mj_step_median_us`` is MuJoCo's own ``mj_step`` on the same
 model at the same state (the set-up's state restored before each step, not timed), and
@@ -72,16 +76,18 @@ def teleop_sim(scene: str) -> Simulation:
     return sim
 
 
-def serve_sim(trial: bool = False, task: str = "seed_path") -> Simulation:
+def serve_sim(trial: bool = False, task: str = "seed_path", scene: str = "full",
+              hands: tuple[str, ...] = ("MTML", "MTMR")) -> Simulation:  # fmt: skip
     """What ``make run`` (``serve --task seed_path --home``) ticks, with the person at the
     web console holding both handles still after taking control; with ``trial``, the
     handle moved 3 cm so that the tool left point 1 and a repetition runs (its metrics
-    accumulate every tick); ``task`` another exercise in its place."""
+    accumulate every tick); ``task`` another exercise in its place; ``scene`` and ``hands``
+    another system (``psm1_ecm_mtmr`` with ``("MTMR",)``: one pair)."""
     sim = build_simulation(
         SystemDescription(
-            scene="full",
+            scene=scene,
             keyframe="surgical",
-            console=ConsoleDescription(hand_inputs=("MTML", "MTMR")),
+            console=ConsoleDescription(hand_inputs=hands),
             task=TaskDescription(task, frame_view=VIEW_DISTANCE),
             home=True,
             runner="none",
@@ -92,8 +98,8 @@ def serve_sim(trial: bool = False, task: str = "seed_path") -> Simulation:
     console = sim.components["console"]
     console.press("operator_present")
     console.teleop_enable(True)
-    sim.components["MTMR/hand"].grasp()
-    sim.components["MTML/hand"].grasp()
+    for hand in hands:
+        sim.components[f"{hand}/hand"].grasp()
     teleops = [t for t in console.psm_teleops.values() if t.selected]
     if not sim.run_until(lambda: all(t.is_following() for t in teleops), 30):
         raise RuntimeError("the teleoperations did not start following")
@@ -194,10 +200,13 @@ def main(n: int = 5000) -> None:
         ("full_two_pairs", "full"),
         ("serve_seed_path", "full"),
         ("serve_seed_path_trial", "full"),
+        ("serve_one_pair", "psm1_ecm_mtmr"),
     ):
         bare = Simulation(scene, keyframe="surgical")
         figures.update(summary(time_each(bare.tick, n), f"{label}_bare_tick"))
-        if label.startswith("serve_seed_path"):
+        if label == "serve_one_pair":  # (issue 20's one-pair bar on the console's own path)
+            sim = serve_sim(scene=scene, hands=("MTMR",))
+        elif label.startswith("serve_seed_path"):
             sim = serve_sim(trial=label.endswith("trial"))
         else:
             sim = teleop_sim(scene)
