@@ -21,21 +21,13 @@ life; a :class:`RowStepper` holds its ``MjData`` so that they stay alive. Withou
 
 from __future__ import annotations
 
-import glob
-import os
 import warnings
 
 import mujoco
 import numpy as np
 
 from davinci_sim.kinematics import jit
-
-
-def _library() -> str | None:
-    """The MuJoCo shared library of the installed wheel (the one the bindings use)."""
-    folder = os.path.dirname(mujoco.__file__)
-    found = sorted(glob.glob(os.path.join(folder, "libmujoco.so*")))
-    return found[-1] if found else None
+from davinci_sim.sim.timers import library_path
 
 
 def _compiled_kernel():
@@ -43,7 +35,7 @@ def _compiled_kernel():
     switched off, or no library to bind)."""
     if not jit.ENABLED:
         return None
-    path = _library()
+    path = library_path()
     if path is None:  # pragma: no cover - a wheel without its library beside the bindings
         return None
     try:

@@ -1,4 +1,5 @@
-"""MuJoCo's stage timers (``mjData.timer``), off while the simulator runs.
+"""MuJoCo's library file and its stage timers (``mjData.timer``), off while the simulator
+runs.
 
 MuJoCo times each stage of every step (``mj_step``, ``mj_forward``, collision, the solver,
 ...) through its global clock callback ``mjcb_time``, which MuJoCo's Python bindings point
@@ -28,15 +29,22 @@ _state: dict = {}
 ``clock``: its value as the bindings set it; ``chosen``: the user's choice, once made."""
 
 
+def library_path() -> str | None:
+    """The MuJoCo shared library of the installed wheel (the one the bindings use), or None
+    (a wheel without the file beside the bindings)."""
+    folder = os.path.dirname(mujoco.__file__)
+    found = sorted(glob.glob(os.path.join(folder, "libmujoco.so*")))
+    return found[-1] if found else None
+
+
 def _callback() -> ctypes.c_void_p | None:
     """``mjcb_time`` of the MuJoCo library the bindings use (None: no such library file)."""
     if "callback" not in _state:
-        found = sorted(glob.glob(os.path.join(os.path.dirname(mujoco.__file__),
-                                              "libmujoco.so*")))  # fmt: skip
+        path = library_path()
         callback = None
-        if found:
+        if path is not None:
             try:  # (dlopen of the loaded file: the same library, not a second copy)
-                callback = ctypes.c_void_p.in_dll(ctypes.CDLL(found[-1]), "mjcb_time")
+                callback = ctypes.c_void_p.in_dll(ctypes.CDLL(path), "mjcb_time")
             except (OSError, ValueError):  # pragma: no cover - a library without the symbol
                 callback = None
         _state["callback"] = callback
