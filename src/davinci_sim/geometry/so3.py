@@ -96,7 +96,12 @@ def is_rotation(R, tolerance: float = 1e-6) -> bool:
     r = np.asarray(R, dtype=float)
     if r.shape != (3, 3) or not np.isfinite(r).all():
         return False
-    return bool(np.max(np.abs(r.T @ r - np.eye(3))) <= tolerance and np.linalg.det(r) > 0)
+    if not np.max(np.abs(r.T @ r - np.eye(3))) <= tolerance:
+        return False
+    # Orthonormal within the tolerance: the determinant is ±1, and its sign that of the
+    # triple product (a few µs less than LAPACK's det, the same answer).
+    (a, b, c), (d, e, f), (g, h, i) = r.tolist()
+    return a * (e * i - f * h) - b * (d * i - f * g) + c * (d * h - e * g) > 0
 
 
 def mat3_mul(A: Sequence[float], B: Sequence[float]) -> tuple[float, ...]:
