@@ -17,14 +17,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-
-def cross(a, b) -> np.ndarray:
-    """``np.cross`` of two 3-vectors with its arithmetic (each component one difference of two
-    rounded products, ``a1·b2 − a2·b1``, ...: the same bits), without its axis handling,
-    which cost ~15 µs a call; the camera teleoperation takes five a tick."""
-    a0, a1, a2 = float(a[0]), float(a[1]), float(a[2])
-    b0, b1, b2 = float(b[0]), float(b[1]), float(b[2])
-    return np.array([a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0])
+from davinci_sim.geometry.floats import np_cross
 
 
 def _norm(v: np.ndarray) -> float:
@@ -66,14 +59,14 @@ def hands_geometry(p_hrsv_left: np.ndarray, p_hrsv_right: np.ndarray) -> HandsGe
     right = np.asarray(p_hrsv_right, dtype=float)
     lr = right - left
     c = 0.5 * (left + right)
-    up = _unit(cross(lr, c))
-    side = _unit(cross(c, up))
+    up = _unit(np_cross(lr, c))
+    side = _unit(np_cross(c, up))
     return HandsGeometry(c, up, side, 0.5 * float(side @ lr), 0.5 * float(_unit(c) @ lr))
 
 
 def signed_angle(a: np.ndarray, b: np.ndarray, axis: np.ndarray) -> float:
     """Angle (rad) from ``a`` to ``b`` about ``axis`` (right hand), in ]−π, π]."""
-    return math.atan2(float(cross(a, b) @ axis), float(a @ b))
+    return math.atan2(float(np_cross(a, b) @ axis), float(a @ b))
 
 
 _X, _Y, _Z = np.eye(3)
