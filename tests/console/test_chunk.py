@@ -226,6 +226,28 @@ def test_a_turn_key_held_turns_the_wrist_in_the_compiled_ticks_as_in_python(serv
     assert turned < np.degrees(hand.max_turn_lead) + 1.0  # (held within its lead)
 
 
+def test_the_camera_pedal_moves_the_endoscope_in_the_compiled_ticks_as_in_python(served):
+    """The camera pedal held and the right hand moved (a key held 0.3 s): the camera
+    teleoperation's following ticks — the ECM's goal from the hands, the spring and
+    friction each hand feels, the handles' locks turned with the camera — are the kernel's,
+    the same bits as Python's (the pedal's and the anchor's ticks are Python's)."""
+
+    def camera(sim):
+        sim.components["console"].press("camera")
+        hand = sim.components["MTMR/hand"]
+        assert hand.command([0.03, 0.02, 0.0])
+
+    sim = served[0]
+    q_before = sim.arms["ECM"].measured_js().position.copy()
+    runs, answers = _both_ways(served, 600, before=camera)
+    _assert_same_run(*runs)
+    assert sum(a[0] for a in answers) >= 550, answers[:12]
+    ecm = sim.components["console"].ecm_teleop
+    assert ecm.snapshot().following
+    moved = sim.arms["ECM"].measured_js().position - q_before
+    assert np.abs(moved[:2]).max() > 0.002  # (the camera turned, rad)
+
+
 def test_a_tracking_fault_in_a_call_is_the_python_fault(served):
     def shove(sim):  # a steady shove on the instrument: the tracking error grows, FAULT
         body = sim.model.body("PSM1/roll").id

@@ -2,8 +2,8 @@
 chunker (:meth:`Simulation.advance <davinci_sim.sim.simulation.Simulation.advance>`).
 
 A console whose operator holds the handles still, teleoperating with the seed's guidance on,
-spends its ticks on the same laws every time: each MTM's read, each following teleoperation,
-the MTMs' orientation locks, the watch, the servo, the step, the fixture's force and the task
+spends its ticks on the same laws every time: each MTM's read, each following teleoperation
+(or, while the camera pedal is held, the camera teleoperation), the MTMs' orientation locks, the watch, the servo, the step, the fixture's force and the task
 session's sample. :class:`ConsoleChunk` runs up to :data:`MAX_TICKS` such ticks in one call
 of :func:`~davinci_sim.console.chunk_kernel.console_chunk` whenever every component is in
 that state (:meth:`ConsoleChunk.plan`: idle, or one of the kinds the kernel has); after the
@@ -20,7 +20,6 @@ most that long.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
 
 import mujoco
@@ -29,14 +28,18 @@ import numpy as np
 from davinci_sim.console import haptic_row
 from davinci_sim.console import teleop_psm as teleop_psm_module
 from davinci_sim.console.chunk_rows import (
+    Plan,
     SampleRequest,
     copied,
     device_row,
+    ecm_following,
     ecm_idle,
+    ecm_row,
     filled,
     floats,
     hand_movable,
     indices,
+    keep_camera,
     no_fixture,
     objects_row,
     teleop_role,
@@ -135,9 +138,10 @@ class ConsoleChunk:
             )  # fmt: skip
         self._device_rows: dict[str, tuple] = {}
         self._teleop_rows: dict[str, tuple] = {}
+        self._ecm_rows: dict = {}
         self._no_fixture = no_fixture()
         self._cooldown = 0
-        self._last: _Plan | None = None
+        self._last: Plan | None = None
         if self.available and self._plan_ok:
             self._warm()
 
@@ -161,7 +165,9 @@ class ConsoleChunk:
         if slots_d is not None and slots_t is not None:
             rec = self._request_row(None, [], 0, None)
             assert rec is not None
-            self._run(_Plan([], [], [], None, None, slots_d, slots_t, rec, {}), 0)
+            ecm = ecm_row(None, {}, self._ecm_rows)
+            assert ecm is not None
+            self._run(Plan([], [], [], None, None, slots_d, slots_t, rec, {}, ecm), 0)
 
     # ------------------------------------------------------------ the call
     def __call__(self, n: int, changed: bool = True) -> tuple[int, bool]:
@@ -184,7 +190,7 @@ class ConsoleChunk:
             self._last = plan
         return whole, post
 
-    def plan(self) -> _Plan | None:
+    def plan(self) -> Plan | None:
         """The kernel's arguments for the state now, or None where a tick needs Python."""
         sim = self.sim
         if not (self.available and self._plan_ok) or sim.data is not self._data:
@@ -200,6 +206,7 @@ class ConsoleChunk:
         hands: list[HandInput] = []
         haptics: HapticLoop | None = None
         request: SampleRequest | None = None
+        camera: TeleopECM | None = None
         console = self.console
         for c in sim._components.values():
             if isinstance(c, HandInput):
@@ -222,7 +229,9 @@ class ConsoleChunk:
                 else:
                     idle[c.name] = c
             elif isinstance(c, TeleopECM):
-                if not ecm_idle(c):
+                if ecm_following(c):
+                    camera = c
+                elif not ecm_idle(c):
                     return None
             elif isinstance(c, HapticLoop) and c.console is console:
                 haptics = c
@@ -276,25 +285,33 @@ class ConsoleChunk:
                 return None
             teleop_rows.append((*row[:-1], np.zeros(1, dtype=bool)))
             rows_of.append(tel)
-        if not self._arms_idle(devices, teleops, teleop_rows[: len(teleops)]):
+        ecm = ecm_row(camera, device_of, self._ecm_rows)
+        if ecm is None:
+            return None
+        if not self._arms_idle(devices, teleops, teleop_rows[: len(teleops)], camera):
             return None
         rec = self._request_row(request, rows_of, len(teleops), haptics)
         slots_d, slots_t = filled(device_rows), filled(teleop_rows)
         if rec is None or slots_d is None or slots_t is None:
             return None
-        return _Plan(devices, hands, teleops, haptics, request, slots_d, slots_t, rec, moved)
+        return Plan(devices, hands, teleops, haptics, request, slots_d, slots_t, rec, moved,
+                     ecm, camera)  # fmt: skip
 
     def _arms_idle(self, devices: list[SimulatedMTM], teleops: list[TeleopPSM],
-                   rows: list[tuple]) -> bool:  # fmt: skip
+                   rows: list[tuple], camera: TeleopECM | None) -> bool:  # fmt: skip
         """Whether the arms' pre-steps are the kernel's: an arm no row drives (an idle
         teleoperation's PSM, the ECM, a setup arm, another script's arm) has nothing to do
         (no trajectory or wrench: a move, say a script's ``move_jp``, samples its
-        trajectory in Python), and an MTM's wrench is the one its fixture renders in the
-        kernel every tick, or none."""
+        trajectory in Python), and an MTM's wrench is the one its fixture or the camera
+        teleoperation renders in the kernel every tick, or none."""
         driven = {d.arm.name for d in devices} | {t.psm.name for t in teleops}
+        if camera is not None:
+            driven.add(camera.ecm.name)
         if not all(a._pre_step_idle() for n, a in self.sim.arms.items() if n not in driven):
             return False
         rendered = {row[11][0] for row in rows if row[19][0][0]}  # (devices with a fixture)
+        if camera is not None:  # (both its hands, every tick)
+            rendered |= {i for i, d in enumerate(devices) if d in (camera.left, camera.right)}
         for i, d in enumerate(devices):
             wrench = d.arm._wrench
             if wrench is not None and wrench[1].any() and i not in rendered:
@@ -354,7 +371,7 @@ class ConsoleChunk:
         return True
 
     # ------------------------------------------------------------ run
-    def _run(self, plan: _Plan, K: int) -> tuple[int, bool]:
+    def _run(self, plan: Plan, K: int) -> tuple[int, bool]:
         sim = self.sim
         watch = sim._watch
         watched, since = watch._watched, watch._bad_since
@@ -402,7 +419,7 @@ class ConsoleChunk:
         for name, row in self._rows.items():
             self._frames_out[row] = current[name][0]
 
-    def _args(self, plan: _Plan) -> tuple:
+    def _args(self, plan: Plan) -> tuple:
         """The kernel's arguments but the number of ticks."""
         sim = self.sim
         servo, watch = sim.servo, sim._watch
@@ -416,9 +433,9 @@ class ConsoleChunk:
               watch._bad_since, watch._first_bad, watch._fault)  # fmt: skip
         fr = self._frames  # (the tolerance as it is now: tests and the study's engine set it)
         fr = (*fr[:12], float(simulation_module.BASE_FRAME_TOLERANCE), *fr[13:])
-        return phys, wt, fr, plan.device_rows, plan.teleop_rows, plan.rec
+        return phys, wt, fr, plan.device_rows, plan.teleop_rows, plan.rec, plan.ecm
 
-    def _store(self, plan: _Plan, whole: int) -> None:
+    def _store(self, plan: Plan, whole: int) -> None:
         """What the Python ticks leave in the objects: the last tick's reads, the hands', the
         jaws' and the locks' state; the fixtures' and the session's after each whole tick."""
         t_pre = float(self._times[0])
@@ -448,6 +465,8 @@ class ConsoleChunk:
             if not tel._ignore_jaw:  # (zip: not the fillers)
                 tel._ghost, tel._jaw_catching_up = float(row[8][0]), bool(row[8][2])
                 tel._jaw_sent = float(row[9][0])
+        if plan.camera is not None:  # (its part of the last tick whose pre-steps ran)
+            keep_camera(plan)
         if whole == 0:
             return
         haptics = plan.haptics
@@ -471,28 +490,3 @@ class ConsoleChunk:
             if rec[16][0]:  # (the objects' readings)
                 args += (tuple(a[:whole].copy() for a in rec[17:21]),)
             plan.request.take(*args)
-
-
-@dataclass
-class _Plan:
-    devices: list
-    hands: list
-    teleops: list
-    haptics: Any
-    request: Any
-    device_rows: tuple
-    teleop_rows: tuple
-    rec: tuple
-    moved: dict
-    args: tuple = ()
-    """The kernel's arguments but the number of ticks (set at the plan's first call)."""
-    kernel: Any = None
-    """What the plan's next calls call (the compiled function, once its first call ran)."""
-    started: dict = field(default_factory=dict)
-    """Each following teleoperation's fixture filter's ``_started`` (found once)."""
-
-
-def _ro(a: np.ndarray) -> np.ndarray:
-    a = a.copy()
-    a.setflags(write=False)
-    return a

@@ -7,7 +7,8 @@ One call runs ticks ``1 … K`` of :meth:`Simulation.tick
 simulated MTM read (``SimulatedMTM._read``: the handle's pose and twist, the hand's wrench on
 it, :func:`~davinci_sim.devices.device_row.hand_read_row`), every following teleoperation's
 tick (:func:`~davinci_sim.console.teleop_row.follow_tick`, with the PSM's in-cannula check),
-the MTMs' orientation locks (:func:`~davinci_sim.sim.arm_laws.wrist_lock_step`), the tracking
+the camera teleoperation's while the camera pedal moves the endoscope
+(:func:`~davinci_sim.console.camera_row.ecm_follow`), the MTMs' orientation locks (:func:`~davinci_sim.sim.arm_laws.wrist_lock_step`), the tracking
 watch, the joint servo, the divergence guard's save and ``mj_step``; after the step, the
 setup-joint frames, the haptic loop's fixture on each following MTM
 (:func:`~davinci_sim.console.haptic_row.fixture_render`) and what a task session samples
@@ -36,7 +37,9 @@ from __future__ import annotations
 import numba
 import numpy as np
 
+from davinci_sim.console.camera_row import ecm_follow
 from davinci_sim.console.chunk_slots import (
+    STOP_CAMERA,
     STOP_CONTACT,
     STOP_DIVERGED,
     STOP_FAULT,
@@ -45,11 +48,14 @@ from davinci_sim.console.chunk_slots import (
     STOP_TURN,
     STOP_WRIST,
     device_read,
+    ecm_kept,
     fixture_force,
     keep_device,
     keep_teleop,
     kinematics,
+    objects_read,
     teleop_follow,
+    tool_contacts,
     wrist_lock,
 )
 from davinci_sim.console.haptic_row import NOT_FINITE
@@ -61,6 +67,7 @@ STOP_REASONS = (
     "", "the tool in the cannula", "a goal servo_cp has no compiled answer for",
     "a jaw angle to send", "a failed wrist solve", "a tracking fault", "a diverged step",
     "an instrument contact", "a guidance force not finite", "a turned wrist target off",
+    "a camera goal the compiled law has no answer for",
 )  # fmt: skip
 
 #: What a call returns when it ran every tick.
@@ -73,7 +80,7 @@ DONE = -1
 
 
 @numba.njit(cache=True, nogil=True)
-def console_chunk(phys, watch, fr, devices, teleops, rec, K):
+def console_chunk(phys, watch, fr, devices, teleops, rec, ecm, K):
     """Ticks ``1 … K`` (see the module docstring); returns :data:`DONE`, ``2·k`` (tick k
     not run) or ``2·k + 1`` (tick k's post-steps to run in Python).
 
@@ -107,6 +114,12 @@ def console_chunk(phys, watch, fr, devices, teleops, rec, K):
     step), with its kind's objects (``ObjectsProbe.read``) where ``objects_flags[0]``; a
     contact with a flex ends a call before the tick's post-steps where
     ``objects_flags[1]``.
+
+    ``ecm``: the camera teleoperation's row (:func:`~davinci_sim.console.chunk_rows.
+    ecm_row`): on where it follows, its anchors and constants, the ECM's, the slots of its
+    left and right MTMs, their clamps, then what it writes back and one tick's outputs
+    (:func:`~davinci_sim.console.camera_row.ecm_follow`, after the devices' reads and
+    before the wrist locks, which then lock to its goals).
 
     Every array of every tuple is bound to a name here, before the ticks
     (:mod:`~davinci_sim.console.chunk_slots` says why); the ticks call the slots' laws
@@ -211,6 +224,19 @@ def console_chunk(phys, watch, fr, devices, teleops, rec, K):
     r_Th = Th_a if (dev_a[0] if ra else dev_b[0]) == 0 else Th_b
     f_rec = rec[2][0]
     r_req_src = req_a if max(f_rec, 0) == 0 else req_b
+    # the camera teleoperation's row; its MTMs' arrays chosen array by array (as above)
+    (e_on, e_geo, e_consts, e_fric, e_q0, e_qlim, e_l0, e_l1, e_l2, e_l3, e_T, e_J, e_F,
+     e_Rc0, e_Rm0, e_idx, e_dev, e_prev, e_steps, e_ftl, e_ftr, e_tau_l, e_tau_r, e_active,
+     e_Rlock, e_lim_s, e_tau_sl, e_tau_sr, e_act_s, e_Rlock_s, e_Rgoal_s) = ecm  # fmt: skip
+    el_a = e_dev[0] == 0  # (the left MTM in slot A)
+    eT_l, eT_r = (Th_a if el_a else Th_b), (Th_b if el_a else Th_a)
+    etw_l, etw_r = (tw_a if el_a else tw_b), (tw_b if el_a else tw_a)
+    eRb_l, eRb_r = (Rb_a if el_a else Rb_b), (Rb_b if el_a else Rb_a)
+    eTb_l, eTb_r = (Tb_a if el_a else Tb_b), (Tb_b if el_a else Tb_a)
+    eJ_l, eJ_r = (J_a if el_a else J_b), (J_b if el_a else J_a)
+    eidx_l, eidx_r = (idx_a if el_a else idx_b), (idx_b if el_a else idx_a)
+    eg_l, eg_r = e_Rgoal_s[0], e_Rgoal_s[1]
+    eg_a, eg_b = (eg_l if el_a else eg_r), (eg_r if el_a else eg_l)
     # what a rewound tick puts back: the hands', the jaws' and the locks' state
     m_lock = lgoal_a.shape[0]
     keep_applied = np.empty(2, dtype=np.bool_)
@@ -267,15 +293,28 @@ def console_chunk(phys, watch, fr, devices, teleops, rec, K):
                 qmax_b, bound_b, tq_b, tT_b, tJ_b, tF_b, qo_b, qdo_b, jidx_b, dgrip_b, dTh_b,
                 dtw_b, qp, frames_out, q_ref, qd_ref, tau_ff, effort,
             )  # fmt: skip
-        # --- the MTMs' orientation locks (MTM._pre_step)
+        # --- the camera teleoperation (TeleopECM._run_following)
+        ecm_ran = False
+        if stop == STOP_NONE and e_on[0]:
+            if not ecm_follow(
+                e_geo, e_consts, e_fric, e_q0, e_qlim, e_l0, e_l1, e_l2, e_l3, e_T, e_J, e_F,
+                e_Rc0, e_Rm0, e_idx, eT_l, etw_l, eT_r, etw_r, eRb_l, eRb_r, eTb_l, eTb_r, eJ_l,
+                eJ_r, eidx_l, eidx_r, e_prev, e_steps, e_ftl, e_ftr, e_lim_s, e_tau_sl,
+                e_tau_sr, e_act_s, e_Rlock_s, eg_l, eg_r, q_ref, qd_ref, tau_ff, effort,
+            ):  # fmt: skip
+                stop = STOP_CAMERA
+            ecm_ran = stop == STOP_NONE
+        # --- the MTMs' orientation locks (MTM._pre_step), to the camera's goals if it ran
+        gR_a = eg_a if ecm_ran else wR_a
+        gR_b = eg_b if ecm_ran else wR_b
         if stop == STOP_NONE and on_a[0] and lflags_a[0] and not wrist_lock(
-            wl_a0, wl_a1, wl_a2, wl_a3, wfirst_a, wR_a, wsteps_a, wdamp_a, wlo_a, whi_a, wT_a,
+            wl_a0, wl_a1, wl_a2, wl_a3, wfirst_a, gR_a, wsteps_a, wdamp_a, wlo_a, whi_a, wT_a,
             wJ_a, wF_a, wA_a, wx_a, wv_a, wacc_a, wratio_a, adr_a, lflags_a, ltraj_a, lgoal_a,
             widx_a, qp, dt, q_ref, qd_ref, effort,
         ):  # fmt: skip
             stop = STOP_WRIST
         if stop == STOP_NONE and on_b[0] and lflags_b[0] and not wrist_lock(
-            wl_b0, wl_b1, wl_b2, wl_b3, wfirst_b, wR_b, wsteps_b, wdamp_b, wlo_b, whi_b, wT_b,
+            wl_b0, wl_b1, wl_b2, wl_b3, wfirst_b, gR_b, wsteps_b, wdamp_b, wlo_b, whi_b, wT_b,
             wJ_b, wF_b, wA_b, wx_b, wv_b, wacc_b, wratio_b, adr_b, lflags_b, ltraj_b, lgoal_b,
             widx_b, qp, dt, q_ref, qd_ref, effort,
         ):  # fmt: skip
@@ -303,12 +342,15 @@ def console_chunk(phys, watch, fr, devices, teleops, rec, K):
             times[2] = STOP_DIVERGED  # (undone, for the Python tick's guard)
             return _undo(2 * k, devices, teleops, keep_applied, keep_wrench, keep_lock,
                          keep_goal, keep_jaw, keep_hand)  # fmt: skip
+        if ecm_ran:  # (the tick ran: the camera's outputs are the objects' now)
+            ecm_kept(e_prev, e_lim_s, e_tau_l, e_tau_sl, e_tau_r, e_tau_sr, e_active,
+                      e_act_s, e_Rlock, e_Rlock_s)  # fmt: skip
         # --- after the step: the frames, the haptic loop, the session's sample
         t_after = t + dt  # (mj_step's time += timestep)
         times[1] = t_after
         t_pre = t_after
         qp = numba.carray(f64_at(address[1]), (nq,))
-        if rec_on[0] and _tool_contacts(address, stride, rec_ncon, tool_geom, other_geom,
+        if rec_on[0] and tool_contacts(address, stride, rec_ncon, tool_geom, other_geom,
                                         o_flags[1]):  # fmt: skip
             times[2] = STOP_CONTACT
             return 2 * k + 1  # the instrument touches something: the session measures it
@@ -358,7 +400,7 @@ def console_chunk(phys, watch, fr, devices, teleops, rec, K):
                 r_req[k - 1, i] = r_now[i]
                 r_master[k - 1, i] = r_Th[i, 3]
             if o_flags[0]:
-                _objects_read(address, stride, bodies, object_of, jaw_bit, tips, o_xpos[k - 1],
+                objects_read(address, stride, bodies, object_of, jaw_bit, tips, o_xpos[k - 1],
                               o_xmat[k - 1], o_grasp[k - 1], o_tips[k - 1])  # fmt: skip
     return DONE
 
@@ -386,54 +428,6 @@ def _rendered(fon, previous, limited, tau, idx, tau_ff):
         previous[i] = limited[i]
     for i in range(idx.shape[0]):
         tau_ff[idx[i]] = tau[i]
-
-
-@numba.njit(cache=True, nogil=True)
-def _tool_contacts(address, stride, watch, tool_geom, other_geom, flex) -> bool:
-    """Whether a contact of the state now involves an instrument and something it may
-    collide with (``InstrumentContacts.measure`` may count it: the tables are a superset),
-    or, where ``flex``, a flex (the session measures the force on it): the contacts' geom
-    pairs read from ``mjData.contact`` (``address[9]``, ``stride`` bytes apart; a flex's
-    side is geom −1, the tables' last entry)."""
-    ncon = numba.carray(i32_at(address[6]), (1,))[0]
-    if ncon == 0 or not watch[0]:
-        return False
-    for i in range(ncon):
-        g = numba.carray(i32_at(address[9] + i * stride), (2,))
-        a, b = g[0], g[1]
-        if flex and (a < 0 or b < 0):
-            return True
-        if (tool_geom[a] and other_geom[b]) or (tool_geom[b] and other_geom[a]):
-            return True
-    return False
-
-
-@numba.njit(cache=True, nogil=True)
-def _objects_read(address, stride, bodies, object_of, jaw_bit, tips, xpos, xmat, grasp,
-                  tip_out):  # fmt: skip
-    """``ObjectsProbe.read`` after a step: each object body's ``xpos`` and ``xmat``
-    (``address[10]``, ``address[11]``), the jaw bits of the contacts between an object's
-    geom and a jaw (``object_of``, ``jaw_bit``: per geom, the last entry a flex's side)
-    and the tip sites' ``site_xpos`` (``address[12]``)."""
-    for i in range(bodies.shape[0]):
-        p = numba.carray(f64_at(address[10] + 24 * bodies[i]), (3,))
-        R = numba.carray(f64_at(address[11] + 72 * bodies[i]), (9,))
-        for c in range(3):
-            xpos[i, c] = p[c]
-        for c in range(9):
-            xmat[i, c] = R[c]
-        grasp[i] = 0
-    for i in range(tips.shape[0]):
-        p = numba.carray(f64_at(address[12] + 24 * tips[i]), (3,))
-        for c in range(3):
-            tip_out[i, c] = p[c]
-    ncon = numba.carray(i32_at(address[6]), (1,))[0]
-    for i in range(ncon):
-        g = numba.carray(i32_at(address[9] + i * stride), (2,))
-        for a, b in ((g[0], g[1]), (g[1], g[0])):
-            o, bit = object_of[a], jaw_bit[b]
-            if o >= 0 and bit > 0:
-                grasp[o] |= bit
 
 
 @numba.njit(cache=True, nogil=True)

@@ -2,7 +2,8 @@
 (:func:`~davinci_sim.console.chunk_kernel.console_chunk`): what each kind of component
 gives it — a simulated MTM (its hand, its read, its arm's orientation lock), a following
 teleoperation (its anchors, its jaw, its PSM's servo_cp constants, the fixture the haptic
-loop renders for its MTM) — built from the live objects as their Python ticks read them, or
+loop renders for its MTM), the camera teleoperation while it follows (its anchors, the
+ECM's constants, its hands' clamps) — built from the live objects as their Python ticks read them, or
 None where such a tick needs Python; and which components are idle (their ticks do nothing
 in the chunk's state). Arrays the kernel updates in place are the objects' own where they
 are arrays (the velocity filters), copies otherwise (written back by the chunk).
@@ -10,7 +11,7 @@ are arrays (the velocity filters), copies otherwise (written back by the chunk).
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
@@ -26,6 +27,7 @@ from davinci_sim.devices.simulated import SimulatedMTM
 from davinci_sim.haptics.fixture import FixtureField
 from davinci_sim.haptics.fixture_row import VISCOUS, ZERO_LAW_PATH, path_constants
 from davinci_sim.kinematics import fk
+from davinci_sim.kinematics.arms import load_arm
 from davinci_sim.sim.arms import (
     _LOCK_DAMPING,
     _LOCK_STEPS,
@@ -360,3 +362,115 @@ def objects_row(probe, K: int) -> tuple:
             np.ascontiguousarray(probe.jaw_bit, dtype=np.int64), indices(*probe.tips),
             np.array([True, probe.flex_contacts]), np.empty((K, k, 3)), np.empty((K, k, 9)),
             np.empty((K, k), dtype=np.int64), np.empty((K, a, 3)))  # fmt: skip
+
+
+def ecm_following(tel: TeleopECM) -> bool:
+    """Whether the camera teleoperation's tick is its following tick now (enabled, its
+    anchor set, not clutched, its arms ready)."""
+    if tel._current != ENABLED or tel._desired != ENABLED or not tel._following:
+        return False
+    if tel._clutched or tel._initial is None:
+        return False
+    ecm = tel.ecm.operating_state()
+    return ecm.state == "ENABLED" and ecm.is_homed and tel._devices_ready()
+
+
+def ecm_row(tel: TeleopECM | None, slots: dict[str, int], cache: dict) -> tuple | None:
+    """The camera teleoperation's row: on, :func:`~davinci_sim.console.camera_row.
+    ecm_follow`'s constants, the slots of its left and right MTMs, their clamps and
+    ``ftmax``, then its outputs (:func:`_ecm_outputs`); or None where its tick needs
+    Python: an MTM not in the kernel's ``slots`` (device name → slot), a device that renders
+    its wrench in Python, an ECM with a trajectory or a base frame of its own. ``tel``
+    None: a row of the kernel's types, off."""
+    if tel is None:
+        static = cache.get("ECM/none")
+        if static is None:
+            dof = 7
+            fk_none = fk._consts(load_arm("ECM").chain).packed  # (the types: never used)
+            zero = ((np.zeros(1, dtype=bool), np.zeros(8), np.zeros(4), np.zeros(3),
+                     np.zeros(4), np.zeros((4, 4)), *(copied(a) for a in fk_none),
+                     np.empty((4, 4)), np.empty((6, 4)), np.empty((4, 12)), np.eye(3),
+                     np.zeros((2, 3, 3)), indices(0, 0, 0, 0), indices(0, 1), np.zeros((2, 6)),
+                     np.zeros((2, 4)), np.zeros(dof), np.zeros(dof),
+                     *_ecm_outputs(dof)))  # fmt: skip
+            static = cache["ECM/none"] = zero
+        return static
+    ecm = tel.ecm
+    left, right = tel.left, tel.right
+    if left.name not in slots or right.name not in slots or left is right:
+        return None
+    if ecm._traj is not None or ecm._T_user_base is not None:
+        return None
+    args = [d.render_args() for d in (left, right)]
+    if any(a is None for a in args) or tel._initial is None:
+        return None
+    chain = ecm.chain
+    static = cache.get(tel.name)
+    if static is None or static[0] is not ecm:
+        q_lim = np.array([chain.qmin, chain.qmax, ecm._qmin, ecm._qmax], dtype=float)
+        fk_c = tuple(copied(a) for a in fk._consts(chain).packed)
+        static = cache[tel.name] = (ecm, q_lim, fk_c, np.empty((4, 4)), np.empty((6, ecm.dof)),
+                                    np.empty((ecm.dof, 12)), indices(*ecm._idx))  # fmt: skip
+    _, q_lim, fk_c, T_e, J_e, F_e, ecm_idx = static
+    g = tel._initial
+    config = tel.config
+    geo0 = np.array([*g.center, *g.up, g.half_width, g.half_depth], dtype=float)
+    consts = np.array([tel._scale, config.camera_roll_offset, config.hands_stiffness,
+                       config.haptic_feedback_ratio], dtype=float)  # fmt: skip
+    dof = left.arm.dof
+    return (
+        np.ones(1, dtype=bool), geo0, consts, floats(tel._friction), floats(tel._q0), q_lim,
+        *fk_c, T_e, J_e, F_e, floats(tel._R_base_camera0),
+        np.array([tel._R_mtm0[0], tel._R_mtm0[1]], dtype=float), ecm_idx,
+        indices(slots[left.name], slots[right.name]),
+        np.array([args[0][3], args[1][3]], dtype=float),
+        np.array([args[0][4], args[1][4]], dtype=float), floats(args[0][5]), floats(args[1][5]),
+        *_ecm_outputs(dof),
+    )  # fmt: skip
+
+
+def _ecm_outputs(dof: int) -> tuple:
+    """The camera row's outputs: what the chunk writes back (each hand's efforts, whether
+    its clamp acted, the locked orientations), then one tick's, kept once it has run (the
+    wrenches let through, the efforts, the clamp, the orientations, the locks' goals)."""
+    return (np.zeros(dof), np.zeros(dof), np.zeros(2, dtype=bool), np.zeros((2, 3, 3)),
+            np.zeros((2, 6)), np.zeros(dof), np.zeros(dof), np.zeros(2, dtype=bool),
+            np.zeros((2, 3, 3)), np.zeros((2, 3, 3)))  # fmt: skip
+
+
+def keep_camera(plan: Plan) -> None:
+    """What the camera teleoperation's compiled ticks leave in its MTMs (``plan.camera``'s
+    hands): each device's rendered wrench, its clamp and efforts, and its arm's locked
+    orientation, as its last tick left them."""
+    camera, e = plan.camera, plan.ecm
+    previous, taus, active, R_lock = e[17], (e[21], e[22]), e[23], e[24]
+    for k, d in enumerate((camera.left, camera.right)):
+        dev = plan.device_rows[plan.devices.index(d)]
+        d.rendered(previous[k].copy(), taus[k].copy(), bool(active[k]), dev[15].copy(), dev[4])
+        d.arm._R_lock = R_lock[k].copy()
+
+
+@dataclass
+class Plan:
+    """A :class:`~davinci_sim.console.chunk.ConsoleChunk` plan: the components its kernel
+    ticks for and their rows, as one state of the console has them."""
+
+    devices: list
+    hands: list
+    teleops: list
+    haptics: Any
+    request: Any
+    device_rows: tuple
+    teleop_rows: tuple
+    rec: tuple
+    moved: dict
+    ecm: tuple
+    """The camera teleoperation's row (off where it does not follow)."""
+    camera: Any = None
+    """The camera teleoperation the row follows with, or None."""
+    args: tuple = ()
+    """The kernel's arguments but the number of ticks (set at the plan's first call)."""
+    kernel: Any = None
+    """What the plan's next calls call (the compiled function, once its first call ran)."""
+    started: dict = field(default_factory=dict)
+    """Each following teleoperation's fixture filter's ``_started`` (found once)."""

@@ -10,7 +10,9 @@ functions here take those arrays one by one and do what one slot's part of a tic
 the loop: an MTM's read (:func:`device_read`), its wrist's lock (:func:`wrist_lock`), a
 teleoperation's following tick (:func:`teleop_follow`), its fixture's force
 (:func:`fixture_force`), and what a rewound tick puts back (:func:`keep_device`,
-:func:`keep_teleop`).
+:func:`keep_teleop`); and the tick's other parts: the camera teleoperation's outputs kept
+once a tick has run (:func:`ecm_kept`), the instrument's contacts and the kind's objects
+read after the step (:func:`tool_contacts`, :func:`objects_read`).
 """
 
 from __future__ import annotations
@@ -25,10 +27,11 @@ from davinci_sim.devices.hand_input_row import hand_rate_row
 from davinci_sim.kinematics.fk_compiled import tip_pose_row
 from davinci_sim.kinematics.suj import invert_rigid_row
 from davinci_sim.sim.arm_laws import wrist_lock_step as _wrist_lock_step
+from davinci_sim.sim.rows_kernel import f64_at, i32_at
 
 #: Why a call stopped before its K ticks (``times[2]``).
 (STOP_NONE, STOP_CANNULA, STOP_GOAL, STOP_JAW, STOP_WRIST, STOP_FAULT, STOP_DIVERGED,
- STOP_CONTACT, STOP_FORCE, STOP_TURN) = range(10)  # fmt: skip
+ STOP_CONTACT, STOP_FORCE, STOP_TURN, STOP_CAMERA) = range(11)  # fmt: skip
 
 wrist_lock_step = getattr(_wrist_lock_step, "dispatcher", _wrist_lock_step)
 
@@ -211,3 +214,63 @@ def fixture_force(m, keep_fx, vf_p, vf_v, started, T_world_camera, frame_row, fr
     if result != NOT_FINITE:  # (else the caller puts the filters back: Python's tick)
         out_flags[0] = result == 1
     return result
+
+
+@numba.njit(cache=True, nogil=True)
+def ecm_kept(previous, limited, tau_l, tau_sl, tau_r, tau_sr, active, active_s, R_lock,
+              R_lock_s):  # fmt: skip
+    """A run tick's camera outputs into what the next tick reads and the chunk writes back:
+    the clamps' last wrenches, the efforts, whether each clamp acted, the locks."""
+    previous[:, :] = limited
+    tau_l[:] = tau_sl
+    tau_r[:] = tau_sr
+    active[:] = active_s
+    R_lock[:, :, :] = R_lock_s
+
+
+@numba.njit(cache=True, nogil=True)
+def tool_contacts(address, stride, watch, tool_geom, other_geom, flex) -> bool:
+    """Whether a contact of the state now involves an instrument and something it may
+    collide with (``InstrumentContacts.measure`` may count it: the tables are a superset),
+    or, where ``flex``, a flex (the session measures the force on it): the contacts' geom
+    pairs read from ``mjData.contact`` (``address[9]``, ``stride`` bytes apart; a flex's
+    side is geom −1, the tables' last entry)."""
+    ncon = numba.carray(i32_at(address[6]), (1,))[0]
+    if ncon == 0 or not watch[0]:
+        return False
+    for i in range(ncon):
+        g = numba.carray(i32_at(address[9] + i * stride), (2,))
+        a, b = g[0], g[1]
+        if flex and (a < 0 or b < 0):
+            return True
+        if (tool_geom[a] and other_geom[b]) or (tool_geom[b] and other_geom[a]):
+            return True
+    return False
+
+
+@numba.njit(cache=True, nogil=True)
+def objects_read(address, stride, bodies, object_of, jaw_bit, tips, xpos, xmat, grasp,
+                  tip_out):  # fmt: skip
+    """``ObjectsProbe.read`` after a step: each object body's ``xpos`` and ``xmat``
+    (``address[10]``, ``address[11]``), the jaw bits of the contacts between an object's
+    geom and a jaw (``object_of``, ``jaw_bit``: per geom, the last entry a flex's side)
+    and the tip sites' ``site_xpos`` (``address[12]``)."""
+    for i in range(bodies.shape[0]):
+        p = numba.carray(f64_at(address[10] + 24 * bodies[i]), (3,))
+        R = numba.carray(f64_at(address[11] + 72 * bodies[i]), (9,))
+        for c in range(3):
+            xpos[i, c] = p[c]
+        for c in range(9):
+            xmat[i, c] = R[c]
+        grasp[i] = 0
+    for i in range(tips.shape[0]):
+        p = numba.carray(f64_at(address[12] + 24 * tips[i]), (3,))
+        for c in range(3):
+            tip_out[i, c] = p[c]
+    ncon = numba.carray(i32_at(address[6]), (1,))[0]
+    for i in range(ncon):
+        g = numba.carray(i32_at(address[9] + i * stride), (2,))
+        for a, b in ((g[0], g[1]), (g[1], g[0])):
+            o, bit = object_of[a], jaw_bit[b]
+            if o >= 0 and bit > 0:
+                grasp[o] |= bit
