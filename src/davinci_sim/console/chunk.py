@@ -3,15 +3,16 @@ chunker (:meth:`Simulation.advance <davinci_sim.sim.simulation.Simulation.advanc
 
 A console whose operator holds the handles still, teleoperating with the seed's guidance on,
 spends its ticks on the same laws every time: each MTM's read, each following teleoperation
-(or, while the camera pedal is held, the camera teleoperation), the MTMs' orientation locks, the watch, the servo, the step, the fixture's force and the task
-session's sample. :class:`ConsoleChunk` runs up to :data:`MAX_TICKS` such ticks in one call
-of :func:`~davinci_sim.console.chunk_kernel.console_chunk` whenever every component is in
-that state (:meth:`ConsoleChunk.plan`: idle, or one of the kinds the kernel has); after the
-call it writes back what the Python ticks would have left in the objects (devices' inputs,
-the hands' wrenches, the jaws, the locks, the limiters, the filters) and hands the task
-session its samples, in tick order. Anything else — a key held, a command, a clutch, a
-component the kernel has no form of — ticks in Python (:meth:`Simulation.tick`), the oracle
-the chunk is tested against bit for bit (``tests/console/test_chunk.py``).
+(or, while the camera pedal is held, the camera teleoperation), the MTMs' orientation locks,
+the watch, the servo, the step, the fixture's force and the task session's sample.
+:class:`ConsoleChunk` runs up to :data:`MAX_TICKS` such ticks in one call of
+:func:`~davinci_sim.console.chunk_kernel.console_chunk` whenever every component is in that
+state (:meth:`ConsoleChunk.plan`: idle, or one of the kinds the kernel has); after the call
+it writes back what the Python ticks would have left in the objects (devices' inputs, the
+hands' wrenches, the jaws, the locks, the limiters, the filters) and hands the task session
+its samples, in tick order. Anything else — a key held, a command, a clutch, a component the
+kernel has no form of — ticks in Python (:meth:`Simulation.tick`), the oracle the chunk is
+tested against bit for bit (``tests/console/test_chunk.py``).
 
 A command sent between two calls takes effect at the next one: the live runners' calls are
 at most ``runtime.loop.CHUNK_TICKS`` ticks (4 ms of simulated time), so a command waits at

@@ -4,13 +4,14 @@
 
 One call runs ticks ``1 … K`` of :meth:`Simulation.tick
 <davinci_sim.sim.simulation.Simulation.tick>` for a console in its steady state: every
-simulated MTM read (``SimulatedMTM._read``: the handle's pose and twist, the hand's wrench on
-it, :func:`~davinci_sim.devices.device_row.hand_read_row`), every following teleoperation's
-tick (:func:`~davinci_sim.console.teleop_row.follow_tick`, with the PSM's in-cannula check),
-the camera teleoperation's while the camera pedal moves the endoscope
-(:func:`~davinci_sim.console.camera_row.ecm_follow`), the MTMs' orientation locks (:func:`~davinci_sim.sim.arm_laws.wrist_lock_step`), the tracking
-watch, the joint servo, the divergence guard's save and ``mj_step``; after the step, the
-setup-joint frames, the haptic loop's fixture on each following MTM
+simulated MTM read (``SimulatedMTM._read``: the handle's pose and twist, the hand's wrench
+on it, :func:`~davinci_sim.devices.device_row.hand_read_row`), every following
+teleoperation's tick (:func:`~davinci_sim.console.teleop_row.follow_tick`, with the PSM's
+in-cannula check), the camera teleoperation's while the camera pedal moves the endoscope
+(:func:`~davinci_sim.console.camera_row.ecm_follow`), the MTMs' orientation locks
+(:func:`~davinci_sim.sim.arm_laws.wrist_lock_step`), the tracking watch, the joint servo,
+the divergence guard's save and ``mj_step``; after the step, the setup-joint frames, the
+haptic loop's fixture on each following MTM
 (:func:`~davinci_sim.console.haptic_row.fixture_render`) and what a task session samples
 (the tip in the camera frame, the camera, the guidance force, the master's position), kept
 per tick for the session to take afterwards. Every other component is idle in that state

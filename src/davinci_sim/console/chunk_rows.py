@@ -1,12 +1,12 @@
 """The rows of :class:`~davinci_sim.console.chunk.ConsoleChunk`'s kernel
-(:func:`~davinci_sim.console.chunk_kernel.console_chunk`): what each kind of component
-gives it — a simulated MTM (its hand, its read, its arm's orientation lock), a following
+(:func:`~davinci_sim.console.chunk_kernel.console_chunk`): what each kind of component gives
+it — a simulated MTM (its hand, its read, its arm's orientation lock), a following
 teleoperation (its anchors, its jaw, its PSM's servo_cp constants, the fixture the haptic
-loop renders for its MTM), the camera teleoperation while it follows (its anchors, the
-ECM's constants, its hands' clamps) — built from the live objects as their Python ticks read them, or
-None where such a tick needs Python; and which components are idle (their ticks do nothing
-in the chunk's state). Arrays the kernel updates in place are the objects' own where they
-are arrays (the velocity filters), copies otherwise (written back by the chunk).
+loop renders for its MTM), the camera teleoperation while it follows (its anchors, the ECM's
+constants, its hands' clamps) — built from the live objects as their Python ticks read them,
+or None where such a tick needs Python; and which components are idle (their ticks do
+nothing in the chunk's state). Arrays the kernel updates in place are the objects' own where
+they are arrays (the velocity filters), copies otherwise (written back by the chunk).
 """
 
 from __future__ import annotations
