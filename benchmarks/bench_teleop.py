@@ -15,7 +15,8 @@ task runs (the tool moved off point 1: the session's metrics accumulate every ti
 ``serve_one_pair`` what ``serve --scene psm1_ecm_mtmr --task seed_path --home`` ticks, one
 web-console hand (MTMR) holding still, MTMR -> PSM1 following: the one-pair bar on the
 console's compiled path (the ``one_pair`` set-up's Python hands and field keep every tick in
-Python).
+Python); ``serve_camera`` ``serve_seed_path``'s system with the camera pedal held (the ECM
+teleoperation following both hands, held still).
 
 Beside each tick, ``<label>_mj_step_median_us`` is MuJoCo's own ``mj_step`` on the same
 model at the same state (the set-up's state restored before each step, not timed), and
@@ -116,6 +117,18 @@ def serve_sim(trial: bool = False, task: str = "seed_path", scene: str = "full",
     return sim
 
 
+def camera_sim() -> Simulation:
+    """``serve_sim``'s system with the camera pedal held: the ECM teleoperation following
+    both hands (held still), the PSM teleoperations off."""
+    sim = serve_sim()
+    console = sim.components["console"]
+    console.press("camera")
+    if not sim.run_until(lambda: console.ecm_teleop.snapshot().following, 10):
+        raise RuntimeError("the camera teleoperation did not start following")
+    sim.run_for(0.2)
+    return sim
+
+
 def mj_step_each(sim: Simulation, n: int, warmup: int = 50) -> list[float]:
     """Wall time (µs) of ``n`` bare ``mj_step`` calls on ``sim``'s model, each from ``sim``'s
     current integration state (restored before the step, untimed): the physics of the same
@@ -201,11 +214,14 @@ def main(n: int = 5000) -> None:
         ("serve_seed_path", "full"),
         ("serve_seed_path_trial", "full"),
         ("serve_one_pair", "psm1_ecm_mtmr"),
+        ("serve_camera", "full"),
     ):
         bare = Simulation(scene, keyframe="surgical")
         figures.update(summary(time_each(bare.tick, n), f"{label}_bare_tick"))
         if label == "serve_one_pair":  # (issue 20's one-pair bar on the console's own path)
             sim = serve_sim(scene=scene, hands=("MTMR",))
+        elif label == "serve_camera":
+            sim = camera_sim()
         elif label.startswith("serve_seed_path"):
             sim = serve_sim(trial=label.endswith("trial"))
         else:
@@ -216,10 +232,12 @@ def main(n: int = 5000) -> None:
         figures[f"{label}_teleop_over_bare_ratio"] = tick / figures[f"{label}_bare_tick_median_us"]
         figures[f"{label}_teleop_over_mj_step_ratio"] = tick / figures[f"{label}_mj_step_median_us"]
         figures.update(live_ticks(sim, label, n))
-        teleops = sim.components["console"].psm_teleops.values()
-        following = [t.name for t in teleops if t.is_following()]
+        console = sim.components["console"]
+        following = [t.name for t in console.psm_teleops.values() if t.is_following()]
+        if console.ecm_teleop is not None and console.ecm_teleop.snapshot().following:
+            following.append(console.ecm_teleop.name)
         figures[f"{label}_following"] = ",".join(following)
-        figures[f"{label}_fields"] = ",".join(sim.components["console"].haptics.field_names())
+        figures[f"{label}_fields"] = ",".join(console.haptics.field_names())
         figures[f"{label}_profile_top"] = profile_top(sim.tick)
     figures["target_one_pair_teleop_tick_median_us"] = 100.0
     figures["target_full_two_pairs_teleop_tick_median_us"] = 150.0

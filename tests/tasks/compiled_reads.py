@@ -21,7 +21,7 @@ def _addresses(data) -> tuple[np.ndarray, int]:
 def objects_read(probe, data):
     """``ObjectsProbe.read`` as the kernel reads it after a step: ``(xpos, xmat, grasp,
     tips)``."""
-    from davinci_sim.console.chunk_kernel import _objects_read
+    from davinci_sim.console.chunk_slots import objects_read as _objects_read
 
     address, stride = _addresses(data)
     k, a = len(probe.bodies), len(probe.tips)
@@ -35,7 +35,7 @@ def stops_on_contact(data, contacts, flex: bool) -> bool:
     """Whether the kernel leaves the tick's post-steps to Python for the contacts now (the
     instrument of ``contacts``, an ``InstrumentContacts``; ``flex``: any contact with a
     flex too)."""
-    from davinci_sim.console.chunk_kernel import _tool_contacts
+    from davinci_sim.console.chunk_slots import tool_contacts as _tool_contacts
 
     address, stride = _addresses(data)
     return bool(_tool_contacts(address, stride, np.ones(1, dtype=bool), contacts.tool_geom,
