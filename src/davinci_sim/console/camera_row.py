@@ -149,14 +149,14 @@ def ecm_follow(geo0, consts, friction, q0, q_lim, fk_links, fk_modified, fk_tool
     offset = np.empty(3)
     for i in range(3):
         offset[i] = geo0[6] * side[i] + geo0[7] * c_unit[i]
-    w = np.zeros(6)
+    W = np.zeros((2, 6))  # (each hand's wrench: the force, then no torque)
     for hand in range(2):
         p = p_l if hand == 0 else p_r
         tw = tw_l if hand == 0 else tw_r
         for i in range(3):
             g = c[i] - offset[i] if hand == 0 else c[i] + offset[i]
-            w[i] = consts[3] * (consts[2] * (g - p[i]) - friction[i] * tw[i])
-            if not np.isfinite(w[i]):
+            W[hand, i] = consts[3] * (consts[2] * (g - p[i]) - friction[i] * tw[i])
+            if not np.isfinite(W[hand, i]):
                 return False
     # the camera's turn and the locks' goals (before anything is written)
     tip_pose_row(fk_links, fk_modified, fk_tool, fk_identity, q, T_e, J_e, False, F_e)
@@ -172,22 +172,12 @@ def ecm_follow(geo0, consts, friction, q0, q_lim, fk_links, fk_modified, fk_tool
         tau_ff[j] = 0.0
         q_ref[j] = goal[i]
         qd_ref[j] = 0.0
-    for hand in range(2):
-        p = p_l if hand == 0 else p_r
-        tw = tw_l if hand == 0 else tw_r
-        for i in range(3):
-            g = c[i] - offset[i] if hand == 0 else c[i] + offset[i]
-            w[i] = consts[3] * (consts[2] * (g - p[i]) - friction[i] * tw[i])
-        if hand == 0:
-            active[0] = render_row(w, previous[0], steps[0], Tb_l, J_l, ftmax_l, limited[0],
-                                   tau_l)  # fmt: skip
-            for i in range(dev_idx_l.shape[0]):
-                tau_ff[dev_idx_l[i]] = tau_l[i]
-        else:
-            active[1] = render_row(w, previous[1], steps[1], Tb_r, J_r, ftmax_r, limited[1],
-                                   tau_r)  # fmt: skip
-            for i in range(dev_idx_r.shape[0]):
-                tau_ff[dev_idx_r[i]] = tau_r[i]
+    active[0] = render_row(W[0], previous[0], steps[0], Tb_l, J_l, ftmax_l, limited[0], tau_l)
+    active[1] = render_row(W[1], previous[1], steps[1], Tb_r, J_r, ftmax_r, limited[1], tau_r)
+    for i in range(dev_idx_l.shape[0]):
+        tau_ff[dev_idx_l[i]] = tau_l[i]
+    for i in range(dev_idx_r.shape[0]):
+        tau_ff[dev_idx_r[i]] = tau_r[i]
     R_lock[0], R_lock[1] = R_l, R_r
     R_goal_l[:, :] = Rb_l.T @ R_l
     R_goal_r[:, :] = Rb_r.T @ R_r
