@@ -286,6 +286,8 @@ class ConsoleChunk:
                 return None
             teleop_rows.append((*row[:-1], np.zeros(1, dtype=bool)))
             rows_of.append(tel)
+        if camera is not None and teleops:  # (both render on the MTMs' one clamp: Python's)
+            return None
         ecm = ecm_row(camera, device_of, self._ecm_rows)
         if ecm is None:
             return None
