@@ -402,7 +402,7 @@ def ecm_row(tel: TeleopECM | None, slots: dict[str, int], cache: dict) -> tuple 
     if ecm._traj is not None or ecm._T_user_base is not None:
         return None
     args = [d.render_args() for d in (left, right)]
-    if any(a is None for a in args) or tel._initial is None:
+    if any(a is None for a in args):  # (the anchor: ecm_following checked it)
         return None
     chain = ecm.chain
     static = cache.get(tel.name)
