@@ -232,7 +232,13 @@ def test_a_key_moves_the_tool_right_in_the_image_by_the_scaled_amount(console):
     before = page.wait_following()
     page.page.click("#screen")
     page.page.keyboard.down("KeyD")
+    # Held until the tool is 15 mm on (and 1 s of simulated time at least), as a person
+    # holds a key until the tool is there: a page busy drawing in software may send the
+    # key's refreshes late, and a velocity not refreshed within the hand's dead-man time
+    # stops (twice in eight runs the tool had gone 9 mm in a fixed 1 s hold).
+    x0 = before["tips"]["PSM1"]["p_camera"][0]
     page.wait_sim(1.0)
+    page.wait(f"window.davinci.last.tips.PSM1.p_camera[0] < {x0 - 0.015}")
     page.page.keyboard.up("KeyD")
     after = page.wait_sim(0.8)  # the hand's last input times out, the tool settles
     tool = np.subtract(after["tips"]["PSM1"]["p_camera"], before["tips"]["PSM1"]["p_camera"])
