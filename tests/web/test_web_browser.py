@@ -262,7 +262,9 @@ def test_the_clutch_holds_the_tool_while_the_hand_moves(console):
     page.wait("window.davinci.last.teleops.MTMR_PSM1.clutched")
     before = page.state()
     page.page.keyboard.down("KeyW")
-    page.wait_sim(1.0)
+    y0 = before["teleops"]["MTMR_PSM1"]["p_mtm_hrsv"][1]
+    page.wait_sim(1.0)  # (and until the master is 15 mm up: see the D key's test)
+    page.wait(f"window.davinci.last.teleops.MTMR_PSM1.p_mtm_hrsv[1] > {y0 + 0.015}")
     page.page.keyboard.up("KeyW")
     after = page.wait_sim(0.5)
     page.page.keyboard.up("Space")
@@ -288,7 +290,9 @@ def test_a_scripted_gamepad_moves_the_tool_up(console):
     page.take_control()
     before = page.wait_following()
     page.js("window.fakePad.axes[1] = -1")  # left stick pushed forward: up
-    page.wait_sim(1.0)
+    y0 = before["tips"]["PSM1"]["p_camera"][1]
+    page.wait_sim(1.0)  # (and until the tool is 15 mm up: see the D key's test)
+    page.wait(f"window.davinci.last.tips.PSM1.p_camera[1] > {y0 + 0.015}")
     page.js("window.fakePad.axes[1] = 0")
     after = page.wait_sim(0.8)
     tool = np.subtract(after["tips"]["PSM1"]["p_camera"], before["tips"]["PSM1"]["p_camera"])
