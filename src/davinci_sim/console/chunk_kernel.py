@@ -392,7 +392,7 @@ def console_chunk(phys, watch, fr, devices, teleops, rec, ecm, K):
         if rec_on[0]:
             kinematics(rl0, rl1, rl2, rl3, radr, qp, rq, rT, rJ, rF)
             r_t[k - 1] = t_after
-            r_tip[k - 1] = frames_out[r_row] @ rT
+            np.dot(frames_out[r_row], rT, r_tip[k - 1])  # (@'s gemm, into the record)
             r_cam[k - 1] = frames_out[camera_row]
             if f_rec >= 0:
                 for i in range(3):

@@ -25,6 +25,7 @@ from davinci_sim.console.teleop_row import follow_tick
 from davinci_sim.devices.device_row import hand_read_row
 from davinci_sim.devices.hand_input_row import hand_rate_row
 from davinci_sim.kinematics.fk_compiled import tip_pose_row
+from davinci_sim.kinematics.scratch import local, local_within
 from davinci_sim.kinematics.suj import invert_rigid_row
 from davinci_sim.sim.arm_laws import wrist_lock_step as _wrist_lock_step
 from davinci_sim.sim.rows_kernel import f64_at, i32_at
@@ -88,13 +89,13 @@ def device_read(hand_on, hand_state, hand_params, t_pre, dt, links, modified, to
         if not hand_rate_row((hand_on, hand_state, hand_params), T_hrsv, target, dt):
             return False
     kinematics(links, modified, tool, identity, adr, qp, q, T, J, F)
-    T_hrsv[:, :] = T_ref_base @ T  # (Arm._measured_T: numpy's product)
-    qd = np.empty(vadr.shape[0])
+    np.dot(T_ref_base, T, T_hrsv)  # (Arm._measured_T: numpy's product, the same gemm as @)
+    qd = local_within(16, vadr.shape[0])  # (in the frame, as the other scratch arrays)
     for i in range(vadr.shape[0]):
         qd[i] = qv[vadr[i]]
     b = body[0]
     com = xipos[3 * b : 3 * b + 3]
-    out_w = np.empty(6)
+    out_w = local(6)
     if hand_read_row(
         T_hrsv, R_hrsv_base, J, qd, flags[0], target, flags[1], flags[2], applied[0],
         impedance, push, R_world_hrsv, p_world_hrsv, com, twist, out_w, xfrc,
@@ -127,7 +128,9 @@ def teleop_follow(ik_geometry, ik_tool, ik_revolute, ik_lo, ik_hi, fk_links, fk_
         return STOP_CANNULA
     invert_rigid_row(frames_out[frame_row], T_base_ref)  # (Arm._T_base_reference)
     kinematics(fk_links, fk_modified, fk_tool, fk_identity, adr, qp, q, T, J, F)
-    jaw_now = jaw.copy()
+    jaw_now = local_within(16, jaw.shape[0])
+    for i in range(jaw.shape[0]):
+        jaw_now[i] = jaw[i]
     jaw_now[1] = gripper[0]  # the MTM's gripper
     if not follow_tick(
         ik_geometry, ik_tool, ik_revolute, ik_lo, ik_hi, fk_links, fk_modified, fk_tool,
@@ -162,15 +165,15 @@ def wrist_lock(links, modified, tool, identity, first, R_base_goal, steps, dampi
     joints (seeded with the last solution: it leads the wrist), one step of its trajectory,
     the wrist's references. False (nothing written) where the solve fails."""
     n = adr.shape[0]
-    q_seed = np.empty(n)
+    q_seed = local_within(16, n)
     for i in range(n):
         q_seed[i] = qp[adr[i]]
     if lock_flags[1]:
         for i in range(n - first):
             q_seed[first + i] = lock_goal[i]
     m = n - first
-    goal = np.empty(m)
-    q_l, qd_l = np.empty(m), np.empty(m)
+    goal = local_within(16, m)
+    q_l, qd_l = local_within(16, m), local_within(16, m)
     if not wrist_lock_step(
         links, modified, tool, identity, q_seed, first, R_base_goal, steps, damping, lo, hi, Tl,
         Jl, Fl, A, x, goal, lock_traj[:m], lock_traj[m : 2 * m], v_max, a_max, ratio, dt, q_l,
@@ -202,7 +205,8 @@ def fixture_force(m, keep_fx, vf_p, vf_v, started, T_world_camera, frame_row, fr
     in ``out_flags`` where the force is finite)."""
     kinematics(d_links, d_modified, d_tool, d_identity, d_adr, qp, d_q, d_T, d_J, d_F)
     kinematics(fk_links, fk_modified, fk_tool, fk_identity, adr, qp, q, T, J, F)
-    T_camera_tip = frames_out[frame_row] @ T  # (Arm._measured_T)
+    T_camera_tip = local(4, 4)
+    np.dot(frames_out[frame_row], T, T_camera_tip)  # (Arm._measured_T: @'s gemm)
     for i in range(3):
         keep_fx[m, i] = vf_p[i]
         keep_fx[m, 3 + i] = vf_v[i]

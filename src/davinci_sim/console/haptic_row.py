@@ -24,6 +24,7 @@ import numpy as np
 from davinci_sim.devices.device_row import render_row
 from davinci_sim.haptics.fixture_row import NO_PARAMS, VISCOUS, fixture_law_row
 from davinci_sim.kinematics import jit
+from davinci_sim.kinematics.scratch import local
 
 #: What :func:`fixture_render` returns when the fixture's force is not finite (nothing
 #: rendered: the loop reports the field's error and renders its zero sum in Python).
@@ -45,8 +46,9 @@ def fixture_render(
     (``previous``, ``steps``, ``T_ref_base``, ``J``, ``ftmax`` as it takes them). Returns
     whether the clamp changed the wrench (1 or 0), or :data:`NOT_FINITE` (the filter
     updated and the force in ``requested[:3]``, nothing else)."""
-    p_camera, cp, pt, vt = np.empty(3), np.empty(8), np.empty(3), np.empty(3)
-    f, f_camera = np.empty(3), np.empty(3)
+    # (in the frame: every tick, for each following MTM)
+    p_camera, cp, pt, vt = local(3), local(8), local(3), local(3)
+    f, f_camera = local(3), local(3)
     for i in range(3):
         p_camera[i] = T_camera_tip[i, 3]
     fixture_law_row(

@@ -22,6 +22,7 @@ from __future__ import annotations
 import numba
 import numpy as np
 
+from davinci_sim.kinematics.scratch import local
 from davinci_sim.sim.cartesian_kernel import servo_cp_row
 
 _servo_cp = servo_cp_row  # (a compiled kernel: callable from the kernels below)
@@ -116,8 +117,7 @@ def follow_tick(
     Returns False with nothing computed into ``jaw`` when ``servo_cp`` has no compiled answer
     (the caller runs the Python tick then); True otherwise.
     """
-    goal = np.empty((4, 4))
-    twist = np.empty(6)
+    goal, twist = local(4, 4), local(6)  # (in the frame: every tick)
     scale = flags[0]
     t_locked, r_locked = flags[3] != 0.0, flags[4] != 0.0
     follow_pose_row(T_camera_psm0, T_hrsv_mtm0, T_hrsv_mtm, R_offset, scale, t_locked,

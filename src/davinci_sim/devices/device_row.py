@@ -21,6 +21,7 @@ import numpy as np
 from davinci_sim.devices.hand import _hand_rows
 from davinci_sim.devices.safety import _clamp_rows
 from davinci_sim.kinematics.jit import helper
+from davinci_sim.kinematics.scratch import local
 from davinci_sim.sim.arm_laws import twist_row, wrench_effort_row
 
 _twist = twist_row.dispatcher
@@ -57,16 +58,15 @@ def hand_read_row(
     for i in range(6):
         wrench_out[i] = push[i]
     if hand_on:
-        tip = np.empty((1, 4, 4))
-        goal = np.empty((1, 4, 4))
+        tip, goal = local(1, 4, 4), local(1, 4, 4)  # (in the frame: every tick)
         for i in range(4):
             for m in range(4):
                 tip[0, i, m] = T_hrsv_tip[i, m]
                 goal[0, i, m] = target[i, m] if pull else T_hrsv_tip[i, m]
-        twist = np.empty((1, 6))
+        twist = local(1, 6)
         for i in range(6):
             twist[0, i] = twist_out[i]
-        w = np.empty((1, 6))
+        w = local(1, 6)
         _hand(goal, pull, hold, tip, twist, impedance[0:1], impedance[1:2], impedance[2],
               impedance[3], impedance[4], impedance[5], w)  # fmt: skip
         for i in range(6):
@@ -80,8 +80,7 @@ def _xfrc_into(wrench, T_hrsv_tip, R_world_hrsv, p_world_hrsv, p_world_com, xfrc
     """``hand.handle_xfrc`` of one hand on floats: the wrench's force and torque in world
     axes, the force's moment about the centre of mass ``p_world_com`` (lever × f) added."""
     R = R_world_hrsv
-    f = np.empty(3)
-    lever = np.empty(3)
+    f, lever = local(3), local(3)
     x, y, z = wrench[0], wrench[1], wrench[2]
     px, py, pz = T_hrsv_tip[0, 3], T_hrsv_tip[1, 3], T_hrsv_tip[2, 3]
     u, v, s = wrench[3], wrench[4], wrench[5]
@@ -133,7 +132,7 @@ def render_row(wrench, previous, steps, T_ref_base, J, ftmax, wrench_out, tau_ou
     active = False
     for i in range(6):
         active = active or abs(wrench_out[i] - wrench[i]) > 1e-12
-    R_base_ref = np.empty((3, 3))  # (the wrench's axes in the base: T_ref_base's rotation ᵀ)
+    R_base_ref = local(3, 3)  # (the wrench's axes in the base: T_ref_base's rotation ᵀ)
     for i in range(3):
         for j in range(3):
             R_base_ref[i, j] = T_ref_base[j, i]

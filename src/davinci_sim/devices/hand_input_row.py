@@ -24,6 +24,7 @@ import numpy as np
 
 from davinci_sim.geometry.so3 import angle_between_entries, rotation_from_array
 from davinci_sim.kinematics.jit import helper
+from davinci_sim.kinematics.scratch import local
 
 __all__ = ["STATE_SIZE", "PARAMS_SIZE", "hand_rate_row"]
 
@@ -48,18 +49,18 @@ def hand_rate_row(hand, T_hrsv, target, dt) -> bool:
     written) where the tick is Python's: a turn whose result is not a proper rotation to the
     device's check."""
     state, params = hand[1], hand[2]
-    tgt = np.empty(3)
-    handle = np.empty(3)
+    tgt, handle, lead = local(3), local(3), local(3)  # (in the frame: every tick)
     for i in range(3):
         tgt[i] = state[i] + state[6 + i] * dt
         handle[i] = T_hrsv[i, 3]
-    lead = tgt - handle
+    for i in range(3):
+        lead[i] = tgt[i] - handle[i]
     d = np.sqrt(np.dot(lead, lead))
     if d > params[0]:  # the handle is held back: the hand waits for it
         s = params[0] / d
         for i in range(3):
             tgt[i] = handle[i] + lead[i] * s
-    reach = np.empty(3)
+    reach = local(3)
     for i in range(3):
         reach[i] = tgt[i] - state[3 + i]
     r = np.sqrt(np.dot(reach, reach))
@@ -68,7 +69,9 @@ def hand_rate_row(hand, T_hrsv, target, dt) -> bool:
         for i in range(3):
             tgt[i] = state[3 + i] + reach[i] * s
     turning = state[9] != 0.0 or state[10] != 0.0 or state[11] != 0.0
-    R_target = state[12:21].copy().reshape(3, 3)
+    R_target = local(3, 3)
+    for k in range(9):
+        R_target[k // 3, k % 3] = state[12 + k]
     if turning:  # (HandInput._turn)
         R = _rotation(state[9:12] * dt) @ R_target
         R_handle = T_hrsv[:3, :3].copy()

@@ -20,8 +20,6 @@ from __future__ import annotations
 
 import math
 
-import numpy as np
-
 from davinci_sim.geometry.so3 import mat3_mul
 from davinci_sim.kinematics.fk_compiled import tip_pose_row
 from davinci_sim.kinematics.ik_base import (
@@ -32,6 +30,7 @@ from davinci_sim.kinematics.ik_base import (
 )
 from davinci_sim.kinematics.jit import helper, jit
 from davinci_sim.kinematics.rcm import rxrz, shaft_angle_pairs, tool_origin
+from davinci_sim.kinematics.scratch import local, local_bool
 
 #: ``status`` of a row: the answer is final (``success`` says whether within limits).
 SOLVED = 0
@@ -165,13 +164,14 @@ def closed_form_rows(
     shaft_hi = (geometry[22], geometry[24], geometry[26])
     R_tool_T = (tool[0], tool[1], tool[2], tool[3], tool[4], tool[5], tool[6], tool[7], tool[8])
     p_tool = (tool[9], tool[10], tool[11])
-    cand = np.empty((8, 4))  # (θ₁, θ₂, q₃, θ₆) per candidate
-    inside = np.empty(8, dtype=np.bool_)
-    q = np.empty(6)
-    best = np.empty(6)
-    F = np.empty((4, 4))
-    J = np.empty((6, 0))
-    frames = np.empty((6, 12))
+    cand = local(8, 4)  # (θ₁, θ₂, q₃, θ₆) per candidate
+    inside = local_bool(8)
+    q = local(6)
+    best = local(6)
+    F = local(4, 4)
+    J = local(6, 0)
+    frames = local(6, 12)
+    roots = local(2)
     for r in range(T.shape[0]):
         seed = S[r]
         goal = (
@@ -205,7 +205,6 @@ def closed_form_rows(
         steps = 0
         for i_sigma in range(n_sigma):
             sigma = 1.0 if i_sigma == 0 else -1.0
-            roots = [0.0, 0.0]
             n_roots = 0
             for sgn in (1.0, -1.0):
                 found, th, k = _wrist_root(

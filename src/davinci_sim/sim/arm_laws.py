@@ -26,6 +26,7 @@ from davinci_sim.kinematics.chain import DHChain
 from davinci_sim.kinematics.fk_compiled import tip_pose_row
 from davinci_sim.kinematics.jit import ENABLED as _COMPILED
 from davinci_sim.kinematics.jit import helper, jit, kernel_array, warm
+from davinci_sim.kinematics.scratch import local
 from davinci_sim.sim.trajectory import step_towards_row
 
 try:  # the gufunc behind np.linalg.solve (see _solve)
@@ -154,7 +155,7 @@ def twist_row(R, J, qd, out):
     """:func:`twist_in_reference` of one arm into ``out`` (6,): ``J·q̇`` row by row summed
     left to right from 0 (as numpy sums a row of six or seven), both halves rotated by
     ``R`` as :func:`~davinci_sim.geometry.so3.rotate_pairs` rotates one 6-vector."""
-    v = np.empty(6)
+    v = local(6)  # (in the frame: every tick)
     for k in range(6):
         t = 0.0
         for j in range(J.shape[1]):
@@ -215,10 +216,9 @@ def locked_wrist_goal(links, modified, tool, identity, q, first, R_base_goal, st
     not written) if a solve fails (not for a proper chain: the damped matrix is positive
     definite)."""
     n = q.shape[0]
-    err = np.empty(3)
+    err, M = local(3), local(3, 3)  # (in the frame: every tick, on each MTM)
     for _ in range(steps):
         tip_pose_row(links, modified, tool, identity, q, T, J, True, F)
-        M = np.empty((3, 3))
         for i in range(3):  # R_base_goal · R_base_tipᵀ
             for m in range(3):
                 M[i, m] = (R_base_goal[i, 0] * T[m, 0] + R_base_goal[i, 1] * T[m, 1]) + (

@@ -17,6 +17,7 @@ import numba
 import numpy as np
 
 from davinci_sim.kinematics.psm_closed_form import POLISH, SOLVED, closed_form_rows
+from davinci_sim.kinematics.scratch import local, local_bool, local_int, local_within
 from davinci_sim.sim.arm_laws import other_branch, solve_square_into
 
 _ik_rows = closed_form_rows.dispatcher  # (the compiled kernel itself, callable from here)
@@ -81,12 +82,14 @@ def servo_cp_row(
     ``qd_bound``; False otherwise (the caller runs the Python path, which has the rarer
     answers and the messages). ``T_base_ref``: the reference frame in the arm's base."""
     dof = q.shape[0]
-    T_goal, seed, q_ik, success, status, info = ik_scratch(dof)
+    # (in the frame: this runs every tick; ik_scratch's arrays would be 6 allocations)
+    T_goal, seed, q_ik = local(1, 4, 4), local_within(16, 1, dof), local_within(16, 1, dof)
+    success, status, info = local_bool(1), local_int(1), local(1, 5)
     # T_base_ref · T_ref_goal (IK works in the base frame, dvrk.md 1.8)
     pose_in_reference_into(T_base_ref, T_ref_goal, T_goal[0])
     for i in range(dof):
         seed[0, i] = q[i]
-    twist_base = np.empty(6)
+    twist_base = local(6)
     for h in range(2):  # rotate_pairs(R_ref_base.T, twist): R_base_ref on both halves
         x, y, z = twist_ref[3 * h], twist_ref[3 * h + 1], twist_ref[3 * h + 2]
         for i in range(3):
@@ -95,7 +98,7 @@ def servo_cp_row(
             )
     code = cartesian_setpoint_row(
         ik_geometry, ik_tool, ik_revolute, ik_lo, ik_hi, fk_links, fk_modified, fk_tool,
-        fk_identity, ik_tolerance, T_goal, seed, J, twist_base, np.empty((dof, dof)), q_ik,
+        fk_identity, ik_tolerance, T_goal, seed, J, twist_base, local_within(64, dof, dof), q_ik,
         success, status, info, qd_out,
     )  # fmt: skip
     if code == NEEDS_POLISH or not success[0] or status[0] != SOLVED or info[0, 4] != 0.0:
