@@ -151,20 +151,18 @@ if numba is not None:
 
         return impl3
 
-    @overload(local_bool, prefer_literal=True, inline="always")
-    def _local_bool(n0):
-        count = _constant(n0, "n0")
+    def _one_axis(stack):
+        """The compiled form of a one-axis scratch array whose elements ``stack`` reserves."""
 
-        def impl(n0):
-            return numba.carray(_stack_bool(count), (count,))
+        def typed(n0):
+            count = _constant(n0, "n0")
 
-        return impl
+            def impl(n0):
+                return numba.carray(stack(count), (count,))
 
-    @overload(local_int, prefer_literal=True, inline="always")
-    def _local_int(n0):
-        count = _constant(n0, "n0")
+            return impl
 
-        def impl(n0):
-            return numba.carray(_stack_i64(count), (count,))
+        return typed
 
-        return impl
+    overload(local_bool, prefer_literal=True, inline="always")(_one_axis(_stack_bool))
+    overload(local_int, prefer_literal=True, inline="always")(_one_axis(_stack_i64))
