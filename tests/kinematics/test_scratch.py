@@ -136,7 +136,10 @@ def test_the_per_tick_laws_allocate_nothing_on_the_heap(allocations):
     chain = load_arm("PSM1").chain
     q = np.array([0.1, -0.2, 0.12, 0.3, 0.2, -0.1])  # (a goal at the FK of a q with the tool out)
     T, J = forward_kinematics_and_jacobian(chain, q)
-    args = (*servo_cp_constants(chain), np.eye(4), T, q, J, True, np.zeros(6), chain.qmin,
+    q_measured, J = q.copy(), J.copy()
+    q_measured.setflags(write=False)  # (read-only as the arm's: the warm-up's signature)
+    J.setflags(write=False)
+    args = (*servo_cp_constants(chain), np.eye(4), T, q_measured, J, True, np.zeros(6), chain.qmin,
             chain.qmax, np.ones(6), np.empty(6), np.empty(6))  # fmt: skip
     state, params = np.zeros(STATE_SIZE), np.array([0.01, 0.15, 1e9, 0.3, 1.0])
     state[6] = 0.02  # (the hand moving along x at 20 mm/s)
