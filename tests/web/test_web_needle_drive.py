@@ -256,7 +256,17 @@ def test_a_person_drives_the_needle_through_the_marks(browser, person):  # noqa:
             return s["task"]["phase"] != "RUNNING"
 
         for alpha in np.radians(np.arange(8.0, 206.0, 8.0)):
-            if finished(carry("PSM1", lambda s, a=alpha: drive(a), 0.0006, 3, finished, 0.2)):
+            s = carry("PSM1", lambda s, a=alpha: drive(a), 0.0006, 3, finished, 0.2)
+            # (what the page shows of the point against the skin: in a failure's report, where
+            # the drive went; the skin is level through the marks, `up` its normal)
+            point = needle(s)[:3, 3] - radius * needle(s)[:3, 0]
+            h = float((point - entry) @ up)
+            off = float(np.linalg.norm(point - entry - h * up))
+            print(
+                f"-- turned {math.degrees(alpha):.0f}°: the point {1e3 * h:.1f} mm above the "
+                f"skin, {1e3 * off:.1f} mm from the entry mark; {s['task']['progress']!r}"
+            )
+            if finished(s):
                 break
         s = steer(p, lambda s: s["task"]["completed"] >= 1, lambda s: set())
         p.shot("needle_drive_scored")
