@@ -24,21 +24,21 @@ import numba
 import numpy as np
 
 from davinci_sim.devices.device_row import render_row
-from davinci_sim.geometry.floats import np_maximum, np_minimum
+from davinci_sim.geometry.floats import cross3, det3, np_maximum, np_minimum
 from davinci_sim.kinematics import jit
 from davinci_sim.kinematics.fk_compiled import tip_pose_row
 from davinci_sim.sim.validation import MAX_JOINT_VALUE
 
 _max = jit.helper(np_maximum)
 _min = jit.helper(np_minimum)
+_cross3 = jit.helper(cross3)
+_det3 = jit.helper(det3)
 
 
 @numba.njit(cache=True, nogil=True)
 def _cross(a, b) -> np.ndarray:
     out = np.empty(3)
-    out[0] = a[1] * b[2] - a[2] * b[1]
-    out[1] = a[2] * b[0] - a[0] * b[2]
-    out[2] = a[0] * b[1] - a[1] * b[0]
+    out[0], out[1], out[2] = _cross3(a[0], a[1], a[2], b[0], b[1], b[2])
     return out
 
 
@@ -78,10 +78,9 @@ def _is_rotation(R) -> bool:
                 worst = e
     if not worst <= 1e-6:
         return False
-    a, b, c = R[0, 0], R[0, 1], R[0, 2]
-    d, e, f = R[1, 0], R[1, 1], R[1, 2]
-    g, h, i = R[2, 0], R[2, 1], R[2, 2]
-    return a * (e * i - f * h) - b * (d * i - f * g) + c * (d * h - e * g) > 0
+    return (
+        _det3(R[0, 0], R[0, 1], R[0, 2], R[1, 0], R[1, 1], R[1, 2], R[2, 0], R[2, 1], R[2, 2]) > 0
+    )
 
 
 @numba.njit(cache=True, nogil=True)

@@ -11,6 +11,8 @@ from collections.abc import Sequence
 
 import numpy as np
 
+from davinci_sim.geometry.floats import det3
+
 
 def rotation_angle(R) -> float:
     """Angle (rad, in [0, π]) of the rotation ``R`` (the axis-angle magnitude)."""
@@ -100,8 +102,7 @@ def is_rotation(R, tolerance: float = 1e-6) -> bool:
         return False
     # Orthonormal within the tolerance: the determinant is ±1, and its sign that of the
     # triple product (a few µs less than LAPACK's det, the same answer).
-    (a, b, c), (d, e, f), (g, h, i) = r.tolist()
-    return a * (e * i - f * h) - b * (d * i - f * g) + c * (d * h - e * g) > 0
+    return det3(*r.ravel().tolist()) > 0
 
 
 def mat3_mul(A: Sequence[float], B: Sequence[float]) -> tuple[float, ...]:
