@@ -107,3 +107,47 @@ def test_state_restore_and_reset_are_not_divergences(sim):
     sim.step(5)
     assert sim.recoveries == 1
     assert mujoco.mjtDisableBit.mjDSBL_AUTORESET & sim.model.opt.disableflags
+
+
+def test_an_object_that_keeps_diverging_is_stopped_then_put_back():
+    """A step that diverges again from the restored state (the state itself causes it, as a
+    needle squeezed between two grips does): the first recovery only restores the previous
+    tick, the second also stops the objects, the third puts them back where the model starts
+    them, and the steps after it are stable. Arms' joints are not touched."""
+    from davinci_sim.sim.divergence import DivergenceGuard, Owner, object_dofs
+
+    model = mujoco.MjModel.from_xml_string("""
+    <mujoco><option timestep="0.001"/><worldbody>
+      <body name="arm"><joint name="arm" type="hinge" damping="1"/>
+        <geom type="capsule" size="0.01" fromto="0 0 0 0.1 0 0"/></body>
+      <body name="needle" pos="0 0.2 0"><joint name="needle" type="free"/>
+        <geom type="sphere" size="0.005" mass="0.001"/></body>
+      <body name="bead" pos="0 -0.2 0">
+        <joint name="bead" type="slide" axis="1 0 0" stiffness="1e20"/>
+        <geom type="sphere" size="0.005" mass="0.001"/></body>
+    </worldbody></mujoco>""")  # fmt: skip
+    data = mujoco.MjData(model)
+    guard = DivergenceGuard(model, data)
+    owners = {"arm": Owner(np.array([0]), np.zeros(0, dtype=int))}
+    assert object_dofs(model, owners).tolist() == list(range(1, model.nv))
+    bead = model.jnt_qposadr[model.joint("bead").id]
+    data.qpos[0] = 0.3  # the arm, somewhere
+    data.qpos[bead] = 0.05  # 5 cm off its spring's rest: ~1e24 m/s² a step
+    data.qvel[1:4] = 0.2  # the needle moving
+    mujoco.mj_forward(model, data)
+    streaks, needle_v = [], []
+    for _ in range(6):
+        guard.save(data)
+        mujoco.mj_step(model, data)
+        tripped = guard.tripped()
+        if tripped:
+            guard.recover(data, owners, tripped)
+            streaks.append(guard.streak)
+            needle_v.append(float(np.abs(data.qvel[1:7]).max()))
+        else:
+            streaks.append(0)
+    assert streaks[:3] == [1, 2, 3] and streaks[3:] == [0, 0, 0]
+    assert needle_v[0] > 0.0 and needle_v[1] == 0.0  # stopped at the second
+    assert data.qpos[bead] == pytest.approx(0.0, abs=1e-12)  # back at qpos0 at the third
+    assert data.qpos[0] == pytest.approx(0.3, abs=1e-3)  # the arm's joint left as it was
+    assert guard.recoveries == 3

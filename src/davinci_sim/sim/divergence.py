@@ -120,6 +120,29 @@ def involved_arms(
     return tuple(arms)
 
 
+#: Ticks in a row whose steps diverged after which the objects (the joints no arm owns:
+#: needles, rings, the skin) are stopped with the arms involved, and after which they are
+#: also put back at the model's ``qpos0``: restoring the previous tick alone repeats a
+#: divergence the state itself causes, tick after tick.
+OBJECTS_STOPPED_AFTER = 2
+OBJECTS_RESET_AFTER = 3
+
+
+def object_dofs(model: mujoco.MjModel, owners: dict[str, Owner]) -> np.ndarray:
+    """The dofs no arm owns (free objects, the skin's vertices), sorted."""
+    owned = [o.dofs for o in owners.values()]
+    return np.setdiff1d(np.arange(model.nv), np.concatenate(owned) if owned else [])
+
+
+def _qpos_of_joints(model: mujoco.MjModel, dofs: np.ndarray) -> np.ndarray:
+    """Every ``qpos`` address of the joints of ``dofs`` (a free joint's 7, a ball's 4)."""
+    size = {int(mujoco.mjtJoint.mjJNT_FREE): 7, int(mujoco.mjtJoint.mjJNT_BALL): 4}
+    joints = np.unique(model.dof_jntid[dofs])
+    parts = [model.jnt_qposadr[j] + np.arange(size.get(int(model.jnt_type[j]), 1))
+             for j in joints]  # fmt: skip
+    return np.concatenate(parts) if parts else np.zeros(0, dtype=int)
+
+
 def _qpos_of(data: mujoco.MjData, dofs: np.ndarray) -> np.ndarray:
     model = data.model
     return model.jnt_qposadr[model.dof_jntid[dofs]]
@@ -147,6 +170,9 @@ class DivergenceGuard:
         self._seen = self._counts()
         self.recoveries = 0
         """How many diverged steps were undone."""
+        self.streak = 0
+        """How many ticks in a row the last diverged steps were (1: the last one alone)."""
+        self._last_time = -np.inf
 
     def _counts(self) -> tuple[int, ...]:
         a, b, c, d = self._stats  # every tick: no generator
@@ -202,17 +228,33 @@ class DivergenceGuard:
         and the reason to give them."""
         bad_ctrl = arms_with_bad(data, owners, ("ctrl",))
         bad_after = arms_with_bad(data, owners, ("qpos", "qvel", "qacc"))
+        dt = self._model.opt.timestep
+        self.streak = self.streak + 1 if data.time - self._last_time <= 1.5 * dt else 1
+        self._last_time = data.time
         self.rewind(data)
         bad_before = arms_with_bad(data, owners, ("qpos", "qvel"))
         arms = involved_arms(owners, tripped, bad_ctrl, bad_before, bad_after)
         stop = [owners[a].dofs for a in arms]
+        # The same step diverging again from the restored state (a needle squeezed between
+        # two grips): the free objects are stopped, then put back where they started.
+        then = ""
+        if self.streak >= OBJECTS_STOPPED_AFTER:
+            objects = object_dofs(self._model, owners)
+            stop.append(objects)
+            then = "; the objects stopped"
+            if self.streak >= OBJECTS_RESET_AFTER:
+                q = _qpos_of_joints(self._model, objects)
+                data.qpos[q] = self._model.qpos0[q]
+                then = "; the objects put back where the model starts them"
         self.settle(data, np.concatenate(stop) if stop else np.zeros(0, dtype=int))
         what = ", ".join(tripped)
-        _log.warning(
-            "t = %.3f s: the physics diverged (MuJoCo: bad %s; involved: %s); restored to "
-            "the previous tick",
-            data.time, what, ", ".join(arms) or "no arm",
-        )  # fmt: skip
+        if self.streak <= OBJECTS_RESET_AFTER or self.streak % 1000 == 0:
+            _log.warning(
+                "t = %.3f s: the physics diverged (MuJoCo: bad %s; involved: %s); restored "
+                "to the previous tick%s%s",
+                data.time, what, ", ".join(arms) or "no arm", then,
+                f" ({self.streak} ticks in a row)" if self.streak > 1 else "",
+            )  # fmt: skip
         reason = (
             f"the simulation diverged (MuJoCo: bad {what} values on this arm's joints); "
             "the physics was restored to the previous tick and the joints stopped"
