@@ -151,3 +151,9 @@ def test_an_object_that_keeps_diverging_is_stopped_then_put_back():
     assert data.qpos[bead] == pytest.approx(0.0, abs=1e-12)  # back at qpos0 at the third
     assert data.qpos[0] == pytest.approx(0.3, abs=1e-3)  # the arm's joint left as it was
     assert guard.recoveries == 3
+    # A state restored from earlier (the clock put back): its first divergence is the first.
+    data.time, data.qpos[bead] = 0.0, 0.05
+    guard.save(data)
+    mujoco.mj_step(model, data)
+    guard.recover(data, owners, guard.tripped())
+    assert guard.streak == 1

@@ -229,7 +229,8 @@ class DivergenceGuard:
         bad_ctrl = arms_with_bad(data, owners, ("ctrl",))
         bad_after = arms_with_bad(data, owners, ("qpos", "qvel", "qacc"))
         dt = self._model.opt.timestep
-        self.streak = self.streak + 1 if data.time - self._last_time <= 1.5 * dt else 1
+        since = data.time - self._last_time  # (a restored state can put the clock back)
+        self.streak = self.streak + 1 if 0.0 < since <= 1.5 * dt else 1
         self._last_time = data.time
         self.rewind(data)
         bad_before = arms_with_bad(data, owners, ("qpos", "qvel"))
