@@ -115,6 +115,7 @@ def exercise_reference(
     if subjects < 2 or repetitions < 1:
         raise ValueError("a reference needs at least 2 experts and 1 repetition (an SD)")
     loaded = load_task(task)
+    skipped = not_measured(loaded.kind, loaded.name)
     rows = expert_attempts(loaded, subjects=subjects, repetitions=repetitions, seed=seed,
                            progress=progress)  # fmt: skip
     data = reference_from_rows(
@@ -135,14 +136,14 @@ def exercise_reference(
             f"endpoint SD k*sqrt(A*v*2tau*10/7) with up to {MAX_CORRECTIONS} corrective "
             f"reaches after the visuomotor delay, tremor scaled by the motion scale"
         ),
-        not_measured=not_measured(loaded.kind, loaded.name),
+        not_measured=skipped,
         produced_by=(
             f"scripts/expert_reference.py --exercise {Path(task).name} --subjects "
             f"{subjects} --repetitions {repetitions} --seed {seed}"
         ),
         version=__version__,
     )
-    for name in not_measured(loaded.kind, loaded.name):
+    for name in skipped:
         if name in data["metrics"]:
             data["metrics"][name].update(mean=None, sd=None, n=0)
     return data
