@@ -65,6 +65,29 @@ def test_a_velocity_moves_the_tool_along_the_same_camera_axis_by_the_scale(syste
     assert np.abs(moved_tool[others]).max() < 0.2 * abs(moved_tool[axis])
 
 
+@pytest.mark.parametrize("axis", [0, 1, 2])
+def test_the_handle_moves_with_the_hand_soon_after_a_key(system, axis):
+    """The hand moves with its target (the device's damping acts about the key's
+    velocity), so the handle is under way within 18 ms of simulated time of a key at
+    5 cm/s, and lags the hand by less than the hand's damping alone would hold it back
+    (``D·v/K``, 1.25 mm at the default impedance) plus the MTM's own resistance. A hand
+    damping the handle's motion in space took 23-34 ms."""
+    sim, teleop, hand = system
+    device = teleop.device
+    h0, t0 = device.input().position.copy(), sim.time
+    v = np.zeros(3)
+    v[axis] = 0.05  # m/s in HRSV
+    assert hand.command(v)
+    started = None
+    while sim.time - t0 < 0.25:
+        sim.tick()
+        if started is None and abs(device.input().position[axis] - h0[axis]) > 1e-4:
+            started = sim.time - t0
+    assert started is not None and started <= 0.018
+    lag = hand.snapshot()["target"][axis] - device.input().position[axis]
+    assert 0.0 < lag < 0.0035  # m (the same hand damping in space: 2.5-4.3 mm)
+
+
 def test_the_input_stops_by_itself_after_its_timeout(system):
     sim, teleop, hand = system
     assert hand.command([0.05, 0.0, 0.0])

@@ -100,7 +100,12 @@ def test_bad_hand_inputs_raise_and_change_nothing(mtm_sim):
         device.grasp(np.diag([1.0, 2.0, 1.0, 1.0]))
     with pytest.raises(ValueError, match="3 or 6"):
         device.push([1.0, 2.0])
+    with pytest.raises(ValueError, match="6 finite"):
+        device.move_hand(target[:3, 3] + 0.01, velocity=[0.1, 0.0, np.inf, 0.0, 0.0, 0.0])
+    with pytest.raises(ValueError, match="6 finite"):
+        device.move_hand(target[:3, 3] + 0.01, velocity=[0.1, 0.0, 0.0])
     np.testing.assert_array_equal(device.hand_target(), target)
+    assert not device.get_state()["_hand_velocity"].any()
     with pytest.raises(KeyError, match="MTMs"):
         SimulatedMTM(sim, "MTML")
     with pytest.raises(ValueError, match="damping"):
@@ -132,6 +137,30 @@ def test_hand_law():
     np.testing.assert_allclose(w[3:], [0, 0, imp.rotational_stiffness * 0.2], atol=1e-12)
     assert not hand_wrench(turned, T, np.zeros(6), imp, hold_orientation=False)[3:].any()
     np.testing.assert_allclose(hand_wrench(None, T, np.array([1.0, 0, 0, 0, 0, 0]), imp)[0], -2.0)
+
+
+def test_a_hand_moving_with_its_target_damps_the_handle_only_relative_to_itself(mtm_sim):
+    """A target moved at the handle's own velocity (``move_hand``'s ``velocity``: a rate
+    input's hand moving at its key's speed) pulls nothing and damps nothing: the law is
+    ``K·(p_target − p) + D·(v_target − v)``; the velocity holds for one read, after which
+    the same target at rest damps the handle's motion, ``−D·v``."""
+    sim, device = mtm_sim
+    device.grasp()
+    device.push([0.0, 2.0, 0.0])  # (the handle moving, its wrist turning a little)
+    sim.run_for(0.05)
+    device.push(np.zeros(6))
+    arm = device.arm
+    T, twist = arm._measured_T().copy(), arm._measured_twist().copy()
+    assert np.linalg.norm(twist[:3]) > 0.005  # m/s
+    device.move_hand(T, velocity=twist)  # (the pose and twist the next read measures)
+    sim.tick()
+    np.testing.assert_allclose(device.hand_wrench(), np.zeros(6), atol=1e-9)
+    assert not device.get_state()["_hand_velocity"].any()  # used up
+    T, twist = arm._measured_T().copy(), arm._measured_twist().copy()
+    device.move_hand(T)
+    sim.tick()
+    np.testing.assert_allclose(device.hand_wrench()[:3], -device.hand.damping * twist[:3],
+                               rtol=1e-9)  # fmt: skip
 
 
 def test_the_device_state_restores_the_hand_its_limiter_and_the_hand_mass(mtm_sim):

@@ -450,7 +450,7 @@ class ConsoleChunk:
                 state = row[29][1]
                 hand._target = state[:3].copy()
                 if hand._R_target is not None:
-                    hand._R_target = state[12:].reshape(3, 3).copy()
+                    hand._R_target = state[12:21].reshape(3, 3).copy()
                 d._hand_target = row[7].copy()
             T, twist = row[19].copy(), row[20].copy()
             T.setflags(write=False)
@@ -459,6 +459,7 @@ class ConsoleChunk:
             d._input = DeviceInput._checked(T, twist, float(row[22][0]), t_pre)
             d._hand_wrench = row[14].copy()
             d._hand_applied = bool(row[13][0])
+            d._hand_velocity[:] = 0.0  # (the reads used it up)
             arm = d.arm
             if row[24][0]:
                 m = row[26].shape[0]

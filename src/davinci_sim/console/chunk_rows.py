@@ -163,22 +163,24 @@ def device_row(
         floats(np.eye(4) if target is None else target), impedance, floats(d._push), R_world_hrsv,
         p_world_hrsv, body, np.array([d._hand_applied]), floats(d._hand_wrench), q, T, J, F,
         T_hrsv, twist, xfrc, gripper, lock, lock_flags, lock_traj, lock_goal, wrist_idx, idx,
-        hand_part(rate), np.ones(1, dtype=bool),
+        hand_part(rate, d._hand_velocity), np.ones(1, dtype=bool),
     )  # fmt: skip
 
 
-def hand_part(hand: HandInput | None) -> tuple:
+def hand_part(hand: HandInput | None, velocity: np.ndarray) -> tuple:
     """The rate input's part of its device's row: ``(on, state, params)``: whether it holds
     the handle, and its state and parameters as
-    :func:`~davinci_sim.devices.hand_input_row.hand_rate_row` takes them."""
+    :func:`~davinci_sim.devices.hand_input_row.hand_rate_row` takes them; ``velocity`` the
+    device's hand target's velocity now (6,: its next read's)."""
     on = np.array([hand is not None and hand._holding])
     state, params = np.zeros(hand_input_row.STATE_SIZE), np.zeros(hand_input_row.PARAMS_SIZE)
+    state[21:27] = velocity
     if hand is not None:
         state[:3], state[3:6], state[6:9], state[9:12] = (
             hand._target, hand._origin, hand._v, hand._w)  # fmt: skip
         params[:4] = hand.max_lead, hand.workspace, hand._v_until, hand.max_turn_lead
         if hand._R_target is not None:
-            state[12:] = hand._R_target.ravel()
+            state[12:21] = hand._R_target.ravel()
             params[4] = 1.0
     return on, state, params
 

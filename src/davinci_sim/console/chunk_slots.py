@@ -97,7 +97,8 @@ def device_read(hand_on, hand_state, hand_params, t_pre, dt, links, modified, to
     com = xipos[3 * b : 3 * b + 3]
     out_w = local(6)
     if hand_read_row(
-        T_hrsv, R_hrsv_base, J, qd, flags[0], target, flags[1], flags[2], applied[0],
+        T_hrsv, R_hrsv_base, J, qd, flags[0], target, hand_state[21:27], flags[1], flags[2],
+        applied[0],
         impedance, push, R_world_hrsv, p_world_hrsv, com, twist, out_w, xfrc,
     ):  # fmt: skip
         applied[0] = False

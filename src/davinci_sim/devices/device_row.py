@@ -32,8 +32,8 @@ _effort = wrench_effort_row.dispatcher
 
 @numba.njit(cache=True, nogil=True)
 def hand_read_row(
-    T_hrsv_tip, R_hrsv_base, J, qd, hand_on, target, pull, hold, applied, impedance, push,
-    R_world_hrsv, p_world_hrsv, p_world_com, twist_out, wrench_out, xfrc_out,
+    T_hrsv_tip, R_hrsv_base, J, qd, hand_on, target, velocity, pull, hold, applied, impedance,
+    push, R_world_hrsv, p_world_hrsv, p_world_com, twist_out, wrench_out, xfrc_out,
 ):  # fmt: skip
     """One tick of a simulated MTM's reading.
 
@@ -43,13 +43,19 @@ def hand_read_row(
 
     With ``hand_on`` (the hand holds the handle), a push (``push`` (6,) non-zero) or a wrench
     applied at the last tick (``applied``): ``wrench_out`` = ``push`` + the hand's wrench
-    (towards ``target`` (4, 4) when ``pull``, holding its orientation when ``hold``;
-    ``impedance`` (6,): stiffness N/m, damping N·s/m, rotational stiffness and damping,
-    maximum force N and torque N·m), HRSV axes, and ``xfrc_out`` (6,) that wrench moved to
+    (towards ``target`` (4, 4) when ``pull``, holding its orientation when ``hold``, its
+    damping on the handle's twist relative to the target's ``velocity`` (6,), HRSV, which
+    the read uses up: zeroed, as ``SimulatedMTM._read`` does; ``impedance`` (6,): stiffness
+    N/m, damping N·s/m, rotational stiffness and damping, maximum force N and torque N·m),
+    HRSV axes, and ``xfrc_out`` (6,) that wrench moved to
     the handle body's centre of mass ``p_world_com``, world axes (HRSV placed by
     ``R_world_hrsv``, ``p_world_hrsv``). Returns whether the wrench was computed (else
     ``wrench_out`` and ``xfrc_out`` are untouched)."""
     _twist(R_hrsv_base, J, qd, twist_out)
+    moving = local(6)  # (the target's velocity, used up by this read)
+    for i in range(6):
+        moving[i] = velocity[i]
+        velocity[i] = 0.0
     pushing = False
     for i in range(6):
         pushing = pushing or push[i] != 0.0
@@ -65,7 +71,7 @@ def hand_read_row(
                 goal[0, i, m] = target[i, m] if pull else T_hrsv_tip[i, m]
         twist = local(1, 6)
         for i in range(6):
-            twist[0, i] = twist_out[i]
+            twist[0, i] = twist_out[i] - moving[i]  # (relative to the hand's motion)
         w = local(1, 6)
         _hand(goal, pull, hold, tip, twist, impedance[0:1], impedance[1:2], impedance[2],
               impedance[3], impedance[4], impedance[5], w)  # fmt: skip
@@ -152,7 +158,7 @@ def _warm_up() -> None:
     # (the base frame read-only as the simulation caches it, or writable as a user's)
     for T_ref_base in (readonly(np.eye(4)), np.eye(4)):
         hand_read_row(readonly(np.eye(4)), T_ref_base[:3, :3], readonly(np.zeros((6, 7))),
-                      np.zeros(7), True, np.eye(4), True, True, False, np.ones(6),
+                      np.zeros(7), True, np.eye(4), np.zeros(6), True, True, False, np.ones(6),
                       np.zeros(6), np.eye(3), np.zeros(3), np.zeros(3), np.empty(6),
                       np.empty(6), np.empty(6))  # fmt: skip
     e2, e3, e4 = np.zeros((0, 3)), np.zeros((0, 6)), np.zeros((0, 4, 4))

@@ -77,12 +77,17 @@ def hand_wrenches(
     ``F = K·(p_target − p) − D·v`` and, if ``hold_orientation``,
     ``τ = K_r·rotvec(R_target·Rᵀ) − D_r·ω`` (else only ``−D_r·ω``), each clamped to the
     hand's maximum. ``T_target`` None means the hands rest on the handles without pulling:
-    damping only.
+    damping only. ``v`` and ``ω`` are the handle's motion relative to the hand's own: a hand
+    whose target moves (the live rate input's, ``SimulatedMTM.move_hand``'s velocity)
+    passes the handle's twist less the target's, so that its damping does not hold back a
+    handle moving with it (a limb's impedance acts about its planned motion); the study's
+    trainees pass the handle's twist, their hands' calibrated law.
 
     Args:
         T_target: target poses (n, 4, 4), m, or None.
         T_tip: handle tip poses (n, 4, 4), m.
-        twist_tip: handle tip twists (n, 6), m/s then rad/s.
+        twist_tip: handle tip twists (n, 6), m/s then rad/s, relative to the hand's motion
+            where it moves (see above).
         stiffness, damping: each hand's translational ``K`` (N/m) and ``D`` (N·s/m), (n,)
             (a study's trials differ; the live :class:`~davinci_sim.devices.SimulatedMTM`
             passes its ``impedance``'s, a batch of one).

@@ -5,7 +5,10 @@ input that gives velocities, not poses (keys held down, sticks, a 3-D mouse). :c
 is the simulation component that turns such an input into the simulated hand's target:
 every tick, before the device reads the MTM, it moves the hand's target by ``v · dt`` (HRSV,
 m/s) and sets the gripper, and the hand's spring-damper pulls the MTM handle along
-(:mod:`davinci_sim.devices.hand`). The MTM answers with its own dynamics and the haptic
+(:mod:`davinci_sim.devices.hand`), its damping about the target's own motion (the target's
+velocity goes with it, ``SimulatedMTM.move_hand``): a handle moving with the hand is not
+held back, and it is under way ~12 ms after a key where a hand damping it in space took
+~30 ms. The MTM answers with its own dynamics and the haptic
 loop's forces push back on the handle, so the tool follows the person's input through the
 same device → console → teleoperation path as a real MTM, and a guidance force is felt as
 the handle lagging the hand.
@@ -215,23 +218,27 @@ class HandInput:
             r = float(np.linalg.norm(reach))
             if r > self.workspace:
                 target = self._origin + reach * (self.workspace / r)
+            # The hand moves with its target: the hand's damping acts about this motion
+            # (SimulatedMTM.move_hand's velocity), the turn's only where the wrist turned.
+            velocity = np.zeros(6)
+            velocity[:3] = (target - self._target) / dt
             self._target = target
-            if self._w.any():
-                self._turn(dt)
+            if self._w.any() and self._turn(dt):
+                velocity[3:] = self._w
             if self._R_target is None:
-                self.device.move_hand(target)
+                self.device.move_hand(target, velocity)
             else:
                 T = np.eye(4)
                 T[:3, :3], T[:3, 3] = self._R_target, target
-                self.device.move_hand(T)
+                self.device.move_hand(T, velocity)
         if self._gripper is not None:
             self.device.squeeze(self._gripper)
             self._gripper = None
 
-    def _turn(self, dt: float) -> None:
+    def _turn(self, dt: float) -> bool:
         """Turn the wrist's target by ``angular·dt`` (from the handle's orientation at the
         first turn, when the wrist starts holding), unless it already leads the handle by
-        ``max_turn_lead``."""
+        ``max_turn_lead``; whether it turned."""
         read = self.device.input()
         R_handle = (read.T_hrsv_tip if read is not None else self.device.arm.measured_cp().T)[
             :3, :3
@@ -246,6 +253,8 @@ class HandInput:
             self.max_turn_lead, so3.angle_between(self._R_target, R_handle)
         ):  # (the handle lagging further stops the target, as max_lead does)
             self._R_target = R
+            return True
+        return False
 
     def snapshot(self) -> dict:
         moving = self._time < self._v_until

@@ -12,7 +12,9 @@ own plain sum.
 
 The hand's part of its device's row (``console/chunk_rows.hand_part``) is ``(on, state,
 params)``: ``state`` = target (3, m), origin (3, m), velocity (3, m/s), angular velocity
-(3, rad/s), the wrist's target orientation (9, row-major; HRSV); ``params`` = max lead (m),
+(3, rad/s), the wrist's target orientation (9, row-major; HRSV), the target's velocity
+over the tick (6: m/s, rad/s; ``SimulatedMTM.move_hand``'s, which the device's read uses
+up); ``params`` = max lead (m),
 workspace (m), the time the velocities hold until (s), max turn lead (rad), and 1.0 when the
 wrist's target orientation is held (0.0: none yet, the first turn is Python's: it grasps).
 """
@@ -28,7 +30,7 @@ from davinci_sim.kinematics.scratch import local
 
 __all__ = ["STATE_SIZE", "PARAMS_SIZE", "hand_rate_row"]
 
-STATE_SIZE = 21
+STATE_SIZE = 27
 PARAMS_SIZE = 5
 
 _angle = helper(angle_between_entries)
@@ -47,7 +49,8 @@ def hand_rate_row(hand, T_hrsv, target, dt) -> bool:
     ``T_hrsv``, 4x4 HRSV) and ``workspace`` of where the hand took it; a turn turns
     ``hand[1][12:21]``; the device's target pose ``target`` (4x4) follows. False (nothing
     written) where the tick is Python's: a turn whose result is not a proper rotation to the
-    device's check."""
+    device's check. ``hand[1][21:27]``: the target's velocity over the tick (the turn's
+    angular velocity only where it turned), for the hand's damping."""
     state, params = hand[1], hand[2]
     tgt, handle, lead = local(3), local(3), local(3)  # (in the frame: every tick)
     for i in range(3):
@@ -69,6 +72,7 @@ def hand_rate_row(hand, T_hrsv, target, dt) -> bool:
         for i in range(3):
             tgt[i] = state[3 + i] + reach[i] * s
     turning = state[9] != 0.0 or state[10] != 0.0 or state[11] != 0.0
+    turned = False
     R_target = local(3, 3)
     for k in range(9):
         R_target[k // 3, k % 3] = state[12 + k]
@@ -83,7 +87,10 @@ def hand_rate_row(hand, T_hrsv, target, dt) -> bool:
                     if abs(g - (1.0 if i == j else 0.0)) > _ORTHONORMAL:
                         return False
             R_target = R
+            turned = True
     for i in range(3):
+        state[21 + i] = (tgt[i] - state[i]) / dt
+        state[24 + i] = state[9 + i] if turned else 0.0
         state[i] = tgt[i]
         target[i, 3] = tgt[i]
     if params[4] != 0.0:  # (the wrist's target held: the device's target takes it)

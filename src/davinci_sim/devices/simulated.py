@@ -84,6 +84,9 @@ class SimulatedMTM(MasterDevice):
         self._R_world_hrsv = data.xmat[hrsv].reshape(3, 3).copy()
         self._p_world_hrsv = data.xpos[hrsv].copy()
         self._hand_target: np.ndarray | None = None
+        # The target's velocity over this tick (HRSV: m/s, then rad/s), as its mover says:
+        # the hand's damping acts on the handle's motion relative to it (move_hand).
+        self._hand_velocity = np.zeros(6)
         self._hand_on = False
         self._hold_orientation = True
         self._push = np.zeros(6)
@@ -131,13 +134,34 @@ class SimulatedMTM(MasterDevice):
             ValueError: for a target that is not a proper pose or a finite position.
         """
         self._hand_target = self._as_target(target)
+        self._hand_velocity[:] = 0.0
         self._hold_orientation = bool(hold_orientation)
         self._hold(True)
 
-    def move_hand(self, target) -> None:
+    def move_hand(self, target, velocity=None) -> None:
         """Move the hand's target: a 4x4 pose, or a position (3,) keeping the target
-        orientation. Grasps the handle if the hand was off."""
+        orientation. Grasps the handle if the hand was off.
+
+        ``velocity`` (6,): how fast the target itself moves over this tick (HRSV: m/s, then
+        rad/s; a rate input's hand moving at its key's speed). The hand's damping then acts
+        on the handle's motion relative to the hand, ``D·(v_target − v)``, as a limb's
+        impedance acts about its own planned motion, so a handle moved with the hand is not
+        held back by it (about 25 ms of lag behind a key at the default impedance). It holds
+        for the next read only: a mover sets it every tick it moves. None: a target at
+        rest, ``−D·v``.
+
+        Raises:
+            ValueError: for a target that is not a proper pose or a finite position, or a
+                velocity that is not 6 finite numbers (nothing changed).
+        """
         T = self._as_target(target, keep_orientation=True)
+        if velocity is not None:
+            v = np.asarray(velocity, dtype=float)
+            if v.shape != (6,) or not np.isfinite(v).all():
+                raise ValueError(f"hand velocity must be 6 finite numbers, got {velocity!r}")
+            self._hand_velocity[:] = v
+        else:
+            self._hand_velocity[:] = 0.0
         self._hand_target = T
         self._hold(True)
 
@@ -145,6 +169,7 @@ class SimulatedMTM(MasterDevice):
         """The hand lets go of the handle (pushes stop too)."""
         self._hold(False)
         self._hand_target = None
+        self._hand_velocity[:] = 0.0
         self._push = np.zeros(6)
         self._hand_wrench = np.zeros(6)
         self._hand_applied = False
@@ -206,13 +231,14 @@ class SimulatedMTM(MasterDevice):
                 w += hand_wrenches(
                     target,
                     T[None],
-                    twist[None],
+                    (twist - self._hand_velocity)[None],  # (relative to the hand's motion)
                     (hand.stiffness,),
                     (hand.damping,),
                     hand,
                     hold_orientation=self._hold_orientation,
                 )[0]
             self._apply_hand(w, T)
+        self._hand_velocity[:] = 0.0  # (this tick's: used)
         return DeviceInput(T, twist, arm.gripper.measured_jp(), t)
 
     def _read_compiled(self, T: np.ndarray, t: float) -> DeviceInput:
@@ -233,7 +259,7 @@ class SimulatedMTM(MasterDevice):
         data = self.sim.data
         if _ROW.hand_read_row(
             T, arm.base_frame()[0][:3, :3], J, arm._qd(), self._hand_on,
-            _NO_TARGET if target is None else target, target is not None,
+            _NO_TARGET if target is None else target, self._hand_velocity, target is not None,
             self._hold_orientation, self._hand_applied, impedance[0], self._push,
             self._R_world_hrsv, self._p_world_hrsv, data.xipos[body], twist, w, xfrc,
         ):  # fmt: skip
@@ -388,6 +414,7 @@ class SimulatedMTM(MasterDevice):
     _STATE = MasterDevice._STATE + (
         "hand",
         "_hand_target",
+        "_hand_velocity",
         "_hand_on",
         "_hold_orientation",
         "_push",
