@@ -204,4 +204,7 @@ async def _pipe(reader: asyncio.StreamReader, writer: asyncio.StreamWriter) -> N
     except (ConnectionError, asyncio.CancelledError):
         pass
     finally:
-        writer.close()
+        try:
+            writer.close()
+        except RuntimeError:  # (a pipe left when its loop closed, closed as garbage)
+            pass
