@@ -66,6 +66,7 @@ if TYPE_CHECKING:
 __all__ = ["COMPILED", "IDLE", "MAX_TICKS", "ConsoleChunk", "SampleRequest"]
 
 _KERNEL: Any = None
+_BIND: Any = None
 DONE = -1
 if (
     rows_step.COMPILED
@@ -73,9 +74,10 @@ if (
     and teleop_psm_module._ROW is not None
     and simulated_module._ROW is not None
 ):
-    from davinci_sim.console.chunk_kernel import DONE, console_chunk
+    from davinci_sim.console.chunk_kernel import DONE, console_chunk_bound
+    from davinci_sim.kinematics.bound import bind
 
-    _KERNEL = console_chunk
+    _KERNEL, _BIND = console_chunk_bound, bind
 
 COMPILED = _KERNEL is not None
 """Whether :class:`ConsoleChunk` can run (else the console ticks in Python)."""
@@ -384,14 +386,14 @@ class ConsoleChunk:
                 watched[k] = a._state == ops.ENABLED
                 since[k] = a._tracking_bad_since
             self._sync_frames()
-            plan.args = self._args(plan)
+            # The plan's calls pass the same objects: bound once, each call unboxes one.
+            plan.args = _BIND(self._args(plan))
             kernel = _KERNEL
         self._computed[0] = False
         self._times[3] = sim.data.time
-        code = int(kernel(*plan.args, K))
+        code = int(kernel(plan.args, K))
         if plan.kernel is None and len(_KERNEL.overloads) == 1:
-            # The plan's next calls pass the same objects: the compiled function itself,
-            # without the dispatcher's typing of its 236 arrays (half the call's cost).
+            # (the compiled function itself, without the dispatcher's typing)
             plan.kernel = next(iter(_KERNEL.overloads.values())).entry_point
         if code == DONE:
             whole, post = K, False

@@ -407,6 +407,15 @@ def console_chunk(phys, watch, fr, devices, teleops, rec, ecm, K):
 
 
 @numba.njit(cache=True, nogil=True)
+def console_chunk_bound(bound, K):
+    """:func:`console_chunk` on a plan's arguments bound once
+    (:func:`~davinci_sim.kinematics.bound.bind`): a call unboxes one object, not the rows'
+    ~280 arrays."""
+    a = bound.args
+    return console_chunk(a[0], a[1], a[2], a[3], a[4], a[5], a[6], K)
+
+
+@numba.njit(cache=True, nogil=True)
 def _fixtures_back(ran_a, vp_a, vv_a, ran_b, vp_b, vv_b, keep_fx):
     """The velocity filters of the fixtures this tick ran (``ran_a``, ``ran_b``) as they
     were before (a force not finite: the Python tick renders them all again)."""

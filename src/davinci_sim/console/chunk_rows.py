@@ -470,8 +470,9 @@ class Plan:
     """The camera teleoperation's row (off where it does not follow)."""
     camera: Any = None
     """The camera teleoperation the row follows with, or None."""
-    args: tuple = ()
-    """The kernel's arguments but the number of ticks (set at the plan's first call)."""
+    args: Any = None
+    """The kernel's arguments but the number of ticks, bound
+    (:class:`~davinci_sim.kinematics.bound.Bound`; set at the plan's first call)."""
     kernel: Any = None
     """What the plan's next calls call (the compiled function, once its first call ran)."""
     started: dict = field(default_factory=dict)
