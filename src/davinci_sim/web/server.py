@@ -871,19 +871,20 @@ class WebConsole(AsyncService):
         self._send_scene()
         period = 1.0 / self.options.pose_rate
         last_tick = None
+        latest = getattr(self.handle, "latest_qpos", None)  # (the loop's every tick)
         while True:
             await asyncio.sleep(period)
             clients = [c for c in self._clients.values() if c.authed and c.source == "page"]
             if not clients:
                 continue
-            snap = self._snapshot()
-            qpos = None if snap is None else (snap.extras or {}).get("qpos")
-            if snap is None or qpos is None or snap.tick == last_tick:
+            joints = self._latest_joints(latest)
+            if joints is None or joints[0] == last_tick:
                 continue
-            last_tick = snap.tick
+            tick, t, qpos = joints
+            last_tick = tick
             start = time.perf_counter()
             try:
-                message = poses.message(qpos, snap.tick, snap.time)
+                message = poses.message(qpos, tick, t)
             except ValueError:
                 _log.exception("no pose message")
                 continue
@@ -892,6 +893,22 @@ class WebConsole(AsyncService):
             for client in clients:
                 client.latest["poses"] = message
                 client.wake.set()
+
+    def _latest_joints(self, latest) -> tuple[int, float, np.ndarray] | None:
+        """The joints to draw: ``(tick, time s, qpos)`` the loop wrote last (``latest``: a
+        process runner's every tick, up to a snapshot period fresher), else the latest
+        snapshot's (``extras["qpos"]``); None where there are none."""
+        if latest is not None:
+            try:
+                joints = latest()
+            except Exception as e:  # (the loop stopping)
+                _log.debug("no joints: %s", e)
+                joints = None
+            if joints is not None:
+                return joints
+        snap = self._snapshot()
+        qpos = None if snap is None else (snap.extras or {}).get("qpos")
+        return None if qpos is None else (snap.tick, snap.time, qpos)
 
     def _encode(self, frame, stereo: bool = True) -> bytes:
         from PIL import Image

@@ -155,6 +155,24 @@ def test_the_readers_snapshot_is_the_loops_own():
     local.close()
 
 
+def test_the_latest_joints_are_the_loops_own_after_every_tick():
+    """``latest_qpos``: the joints the loop wrote after its last tick (every tick, where
+    the published state comes every snapshot period), equal to a simulation's at that
+    tick; none once stopped."""
+    with ProcessSimulation(FACTORY, real_time=False, stop_at_tick=73, snapshot_period=0.05,
+                           start_paused=True) as handle:  # fmt: skip
+        assert handle.latest_qpos()[0] == 0  # (written before the first tick)
+        handle.resume()
+        assert handle.wait_stopped(60)
+        tick, t, qpos = handle.latest_qpos()
+    assert handle.latest_qpos() is None
+    local = FACTORY()
+    while local.tick_count < tick:
+        local.tick()
+    assert tick == 73 and t == local.time
+    np.testing.assert_array_equal(qpos, local.data.qpos)
+
+
 def test_a_state_taken_in_one_loop_process_resumes_bit_identically_in_another():
     """A GUI's "restart" or a saved session: the state crosses the pipe (pickled, MjData
     included) and a fresh loop process restored with it runs on exactly as the first did."""

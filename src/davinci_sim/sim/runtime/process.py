@@ -47,6 +47,8 @@ from concurrent.futures import Future
 from dataclasses import dataclass
 from typing import Any
 
+import numpy as np
+
 from davinci_sim.sim.handle import (
     ArmSnapshot,
     EventCallback,
@@ -198,6 +200,7 @@ class ProcessSimulation:
         self._reader: threading.Thread | None = None
         self._buffers: dict[str, SharedBuffer] = {}
         self._state: LatestSlot | None = None
+        self._qpos: LatestSlot | None = None
         self._mirror = None
         self._snap_lock = threading.Lock()
         self._mirror_lock = threading.Lock()
@@ -236,6 +239,7 @@ class ProcessSimulation:
             raise LoopProcessError(f"the loop process failed to start:\n{payload}")
         self.info = payload
         self._state = LatestSlot(self._buffers["state"])
+        self._qpos = LatestSlot(self._buffers["qpos"])
         from davinci_sim.sim.simulation import Simulation
 
         self._mirror = Simulation(payload["scene"], edit_spec=self._mirror_edit)
@@ -334,6 +338,19 @@ class ProcessSimulation:
             snap = self._rebuild(pickle.loads(data[STATE_HEADER.size :]))
             self._snap_cache = (key, snap)
             return snap
+
+    def latest_qpos(self) -> tuple[int, float, np.ndarray] | None:
+        """The joint positions the loop wrote after its last tick (every tick, where the
+        published state comes every ``snapshot_period``): ``(tick, time s, qpos)``, or None
+        before the first or once stopped. For a view drawn from the joints (the page's
+        endoscope): up to a snapshot period fresher than :meth:`snapshot`'s."""
+        with self._snap_lock:  # (stop closes the buffers)
+            slot = self._qpos if self._state is not None else None
+            message = None if slot is None else slot.read()
+        if message is None:
+            return None
+        tick, t, nq = QPOS_HEADER.unpack_from(message)
+        return tick, t, np.frombuffer(message, np.float64, nq, QPOS_HEADER.size).copy()
 
     def subscribe(self, callback: EventCallback) -> Callable[[], None]:
         """Events as ``callback(source, event, payload)``; callbacks run in this handle's
