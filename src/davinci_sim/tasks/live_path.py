@@ -182,8 +182,9 @@ class LivePathTick:
         if not has_master:
             metrics._missing.add("master_workspace")  # (no master: mark_missing)
         metrics._prev_in = measured
-        if last >= 0:  # (the last measured sample: the metrics' previous one)
-            row = tuple(a[last : last + 1].copy() for a in arrays)
+        if last >= 0:  # (the last measured sample: the metrics' previous one; views of
+            # this call's own new arrays, which nothing writes again)
+            row = tuple(a[last : last + 1] for a in arrays)
             time, tip, force_row, clutch, visible, master_row, count, tool = row
             metrics._prev = self._own_prev = self._sample(
                 time, tip, force_row, clutch, visible, master_row if has_master else None,
