@@ -88,6 +88,27 @@ def test_the_handle_moves_with_the_hand_soon_after_a_key(system, axis):
     assert 0.0 < lag < 0.0035  # m (the same hand damping in space: 2.5-4.3 mm)
 
 
+def test_a_hand_held_back_damps_the_handle_in_space(system):
+    """Moving freely, the hand gives its device the key's velocity (its damping acts about
+    it); held back by its lead on the handle, it gives none: a hand pushing on a held
+    handle damps it as at rest."""
+    sim, teleop, hand = system
+    device = teleop.device
+    v = np.array([0.0, 0.03, 0.0])
+    assert hand.command(v)
+    hand.pre_step(sim.time)
+    np.testing.assert_array_equal(device.get_state()["_hand_velocity"], np.r_[v, 0, 0, 0])
+    sim.tick()  # (the device's read uses it up)
+    assert not device.get_state()["_hand_velocity"].any()
+    lead, hand.max_lead = hand.max_lead, 1e-5  # m: the handle now holds the hand back
+    try:
+        assert hand.command(v)
+        hand.pre_step(sim.time)
+        assert not device.get_state()["_hand_velocity"].any()
+    finally:
+        hand.max_lead = lead
+
+
 def test_the_input_stops_by_itself_after_its_timeout(system):
     sim, teleop, hand = system
     assert hand.command([0.05, 0.0, 0.0])

@@ -212,16 +212,22 @@ class HandInput:
             target = self._target + self._v * dt
             lead = target - handle
             d = float(np.linalg.norm(lead))
+            free = True  # (the hand moves at the key's velocity)
             if d > self.max_lead:  # the handle is held back: the hand waits for it
                 target = handle + lead * (self.max_lead / d)
+                free = False
             reach = target - self._origin
             r = float(np.linalg.norm(reach))
             if r > self.workspace:
                 target = self._origin + reach * (self.workspace / r)
-            # The hand moves with its target: the hand's damping acts about this motion
-            # (SimulatedMTM.move_hand's velocity), the turn's only where the wrist turned.
+                free = False
+            # A hand moving freely moves with its target: its damping acts about the key's
+            # velocity (SimulatedMTM.move_hand's), the turn's where the wrist turned. A hand
+            # held back (its lead or its workspace) damps the handle's motion in space, as
+            # at rest: a hand pushing on a held handle is not a spring without damping.
             velocity = np.zeros(6)
-            velocity[:3] = (target - self._target) / dt
+            if free:
+                velocity[:3] = self._v
             self._target = target
             if self._w.any() and self._turn(dt):
                 velocity[3:] = self._w

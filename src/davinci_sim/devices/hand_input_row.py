@@ -49,8 +49,9 @@ def hand_rate_row(hand, T_hrsv, target, dt) -> bool:
     ``T_hrsv``, 4x4 HRSV) and ``workspace`` of where the hand took it; a turn turns
     ``hand[1][12:21]``; the device's target pose ``target`` (4x4) follows. False (nothing
     written) where the tick is Python's: a turn whose result is not a proper rotation to the
-    device's check. ``hand[1][21:27]``: the target's velocity over the tick (the turn's
-    angular velocity only where it turned), for the hand's damping."""
+    device's check. ``hand[1][21:27]``: the target's velocity over the tick, for the hand's
+    damping: the key's where the hand moved freely (not held back by its lead or its
+    workspace), the turn's where the wrist turned, else 0."""
     state, params = hand[1], hand[2]
     tgt, handle, lead = local(3), local(3), local(3)  # (in the frame: every tick)
     for i in range(3):
@@ -59,10 +60,12 @@ def hand_rate_row(hand, T_hrsv, target, dt) -> bool:
     for i in range(3):
         lead[i] = tgt[i] - handle[i]
     d = np.sqrt(np.dot(lead, lead))
+    free = True  # (the hand moves at the key's velocity)
     if d > params[0]:  # the handle is held back: the hand waits for it
         s = params[0] / d
         for i in range(3):
             tgt[i] = handle[i] + lead[i] * s
+        free = False
     reach = local(3)
     for i in range(3):
         reach[i] = tgt[i] - state[3 + i]
@@ -71,6 +74,7 @@ def hand_rate_row(hand, T_hrsv, target, dt) -> bool:
         s = params[1] / r
         for i in range(3):
             tgt[i] = state[3 + i] + reach[i] * s
+        free = False
     turning = state[9] != 0.0 or state[10] != 0.0 or state[11] != 0.0
     turned = False
     R_target = local(3, 3)
@@ -89,7 +93,7 @@ def hand_rate_row(hand, T_hrsv, target, dt) -> bool:
             R_target = R
             turned = True
     for i in range(3):
-        state[21 + i] = (tgt[i] - state[i]) / dt
+        state[21 + i] = state[6 + i] if free else 0.0
         state[24 + i] = state[9 + i] if turned else 0.0
         state[i] = tgt[i]
         target[i, 3] = tgt[i]
