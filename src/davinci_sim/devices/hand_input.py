@@ -5,10 +5,10 @@ input that gives velocities, not poses (keys held down, sticks, a 3-D mouse). :c
 is the simulation component that turns such an input into the simulated hand's target:
 every tick, before the device reads the MTM, it moves the hand's target by ``v · dt`` (HRSV,
 m/s) and sets the gripper, and the hand's spring-damper pulls the MTM handle along
-(:mod:`davinci_sim.devices.hand`), its damping about the target's own motion (the target's
-velocity goes with it, ``SimulatedMTM.move_hand``): a handle moving with the hand is not
-held back, and it is under way ~12 ms after a key where a hand damping it in space took
-~30 ms. The MTM answers with its own dynamics and the haptic
+(:mod:`davinci_sim.devices.hand`). While the hand moves freely its damping acts about the
+target's own motion (the target's velocity goes with it, ``SimulatedMTM.move_hand``): a
+handle moving with the hand is not held back, and it is under way ~12 ms after a key where a
+hand damping it in space took ~30 ms. The MTM answers with its own dynamics and the haptic
 loop's forces push back on the handle, so the tool follows the person's input through the
 same device → console → teleoperation path as a real MTM, and a guidance force is felt as
 the handle lagging the hand.

@@ -14,9 +14,9 @@ The hand's part of its device's row (``console/chunk_rows.hand_part``) is ``(on,
 params)``: ``state`` = target (3, m), origin (3, m), velocity (3, m/s), angular velocity
 (3, rad/s), the wrist's target orientation (9, row-major; HRSV), the target's velocity
 over the tick (6: m/s, rad/s; ``SimulatedMTM.move_hand``'s, which the device's read uses
-up); ``params`` = max lead (m),
-workspace (m), the time the velocities hold until (s), max turn lead (rad), and 1.0 when the
-wrist's target orientation is held (0.0: none yet, the first turn is Python's: it grasps).
+up); ``params`` = max lead (m), workspace (m), the time the velocities hold until (s), max
+turn lead (rad), and 1.0 when the wrist's target orientation is held (0.0: none yet, the
+first turn is Python's: it grasps).
 """
 
 from __future__ import annotations
