@@ -23,7 +23,11 @@ server's JPEG frames). It measures:
   input is seen moving (``transport``: page → server → loop) and when PSM1's tool tip has
   moved 0.1 mm (``motion``: the transport plus the simulated hand, MTM and PSM dynamics); the
   page's log of drawn frames (wall time, simulation time drawn) gives when that motion was
-  first on screen (``on_screen``); 20 presses, p50 and p95 (target: p95 <= 50 ms).
+  first on screen (``on_screen``); 20 presses, p50 and p95 (target: p95 <= 50 ms). The tip's
+  motion is read from the joints the loop writes after every tick (``latest_qpos``: PSM1's
+  forward kinematics, its base frame held for the press), not from the state it publishes
+  every 10 ms, which put the motion up to 10 ms late and its simulation time with it
+  (``*_snapshot_*``: the same presses timed that way, as the figures before 2026-12-01).
 """
 
 from __future__ import annotations
@@ -185,10 +189,20 @@ def main(seconds: float = 10.0, presses: int = 20, pages_n: int = 1, view: str =
 def _latencies(page, handle, presses: int) -> dict:
     """Key press (page wall time) -> hand input seen in the loop, -> tip moved 0.1 mm, and
     -> the first frame drawn of a simulation time at or after that motion."""
+    from davinci_sim.kinematics.fk import forward_kinematics
+
+    arm = handle._mirror.arms["PSM1"]  # (its chain and joint addresses: read, not its state)
+    adr = arm._qposadr
+
+    def tip(qpos) -> np.ndarray:  # in PSM1's base: the press moves its joints only
+        return forward_kinematics(arm.chain, qpos[adr])[:3, 3]
+
     transport, motion, moved_at = [], [], []
+    snapshot_motion, snapshot_moved_at = [], []
     for _ in range(presses):
         snap = handle.snapshot()
         p0 = np.array(snap.arms["PSM1"].measured_cp.position)
+        q_tip0 = tip(handle.latest_qpos()[2])
         page.click("#screen")
         t_key = (
             page.evaluate(
@@ -199,17 +213,24 @@ def _latencies(page, handle, presses: int) -> dict:
             )
             / 1000.0
         )
-        seen = moved = moved_sim = None
+        seen = moved = moved_sim = snap_moved = snap_moved_sim = None
         end = time.time() + 2.0
-        while time.time() < end and moved is None:
+        while time.time() < end and (moved is None or snap_moved is None):
+            latest = handle.latest_qpos()
             snap = handle.snapshot()
             now = time.time()
             hand = snap.extras.get("MTMR/hand", {})
             if seen is None and any(hand.get("velocity", (0, 0, 0))):
                 seen = now
+            if (
+                moved is None
+                and latest is not None
+                and (np.linalg.norm(tip(latest[2]) - q_tip0) > 1e-4)
+            ):
+                moved, moved_sim = now, latest[1]
             p = np.array(snap.arms["PSM1"].measured_cp.position)
-            if np.linalg.norm(p - p0) > 1e-4:
-                moved, moved_sim = now, snap.time
+            if snap_moved is None and np.linalg.norm(p - p0) > 1e-4:
+                snap_moved, snap_moved_sim = now, snap.time
             time.sleep(0.0005)
         page.evaluate("window.dispatchEvent(new KeyboardEvent('keyup', {code: 'KeyD', key: 'd'}))")
         if seen is not None:
@@ -217,6 +238,9 @@ def _latencies(page, handle, presses: int) -> dict:
         if moved is not None:
             motion.append(1000 * (moved - t_key))
             moved_at.append((1000 * t_key, moved_sim))
+        if snap_moved is not None:
+            snapshot_motion.append(1000 * (snap_moved - t_key))
+            snapshot_moved_at.append((1000 * t_key, snap_moved_sim))
         time.sleep(0.6)  # the tool settles; the next press starts from rest
         # Back to the left, so 20 presses do not walk the tool out of the workspace.
         page.evaluate(
@@ -226,11 +250,16 @@ def _latencies(page, handle, presses: int) -> dict:
         page.evaluate("window.dispatchEvent(new KeyboardEvent('keyup', {code: 'KeyA', key: 'a'}))")
         time.sleep(0.6)
     log = page.evaluate("window.davinci.drawLog")  # [wall ms, sim time drawn s]
-    on_screen = []
-    for t_key_ms, sim in moved_at:
-        shown = [wall for wall, t in log if wall >= t_key_ms and t is not None and t >= sim]
-        if shown:
-            on_screen.append(min(shown) - t_key_ms)
+
+    def first_shown(moments) -> list[float]:
+        out = []
+        for t_key_ms, sim in moments:
+            shown = [wall for wall, t in log if wall >= t_key_ms and t is not None and t >= sim]
+            if shown:
+                out.append(min(shown) - t_key_ms)
+        return out
+
+    on_screen, snapshot_on_screen = first_shown(moved_at), first_shown(snapshot_moved_at)
     return {
         "presses": presses,
         "on_screen_latency_p50_ms": _percentile(on_screen, 50),
@@ -242,6 +271,10 @@ def _latencies(page, handle, presses: int) -> dict:
         "motion_latency_p95_ms": _percentile(motion, 95),
         "motion_latency_samples": len(motion),
         "latency_mean_ms": statistics.fmean(motion) if motion else float("nan"),
+        "snapshot_on_screen_latency_p50_ms": _percentile(snapshot_on_screen, 50),
+        "snapshot_on_screen_latency_p95_ms": _percentile(snapshot_on_screen, 95),
+        "snapshot_motion_latency_p50_ms": _percentile(snapshot_motion, 50),
+        "snapshot_motion_latency_p95_ms": _percentile(snapshot_motion, 95),
     }
 
 
