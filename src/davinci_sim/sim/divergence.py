@@ -79,7 +79,7 @@ def arms_with_bad(data: mujoco.MjData, owners: dict[str, Owner], fields) -> list
             if f == "ctrl":
                 x = data.ctrl[o.actuators]
             elif f == "qpos":
-                x = data.qpos[_qpos_of(data, o.dofs)]
+                x = data.qpos[_qpos_of_joints(data.model, o.dofs)]
             else:
                 x = getattr(data, f)[o.dofs]
             if _bad(x):
@@ -141,11 +141,6 @@ def _qpos_of_joints(model: mujoco.MjModel, dofs: np.ndarray) -> np.ndarray:
     parts = [model.jnt_qposadr[j] + np.arange(size.get(int(model.jnt_type[j]), 1))
              for j in joints]  # fmt: skip
     return np.concatenate(parts) if parts else np.zeros(0, dtype=int)
-
-
-def _qpos_of(data: mujoco.MjData, dofs: np.ndarray) -> np.ndarray:
-    model = data.model
-    return model.jnt_qposadr[model.dof_jntid[dofs]]
 
 
 class DivergenceGuard:
