@@ -700,23 +700,26 @@ def cmd_study(args: argparse.Namespace) -> int:
     if out.exists() and not out.is_dir():  # say so before hours of trials, not after
         print(f"davinci-sim study: the output {out} exists and is not a folder", file=sys.stderr)
         return 2
-    if args.record is not None and args.engine != "batch":
-        print("davinci-sim study: --record needs the batch engine", file=sys.stderr)
-        return 2
+    from davinci_sim.study.console_trial import CONSOLE_KINDS
     from davinci_sim.tasks import TaskError, load_task
     from davinci_sim.tasks.check import task_problem
 
     try:  # the task, loaded and checked here, before any worker starts
         task = load_task(args.task if not Path(args.task).suffix else Path(args.task))
-        if task.kind != "path":  # the synthetic trainees follow a path
+        if task.kind not in ("path", *CONSOLE_KINDS):
             problem = (f"task {task.name!r} is a {task.kind} exercise; the study's synthetic "
-                       "trainees, engines and report do path tasks (kind 'path') only")  # fmt: skip
+                       f"trainees do path tasks and {', '.join(CONSOLE_KINDS)}")  # fmt: skip
         else:
             problem = task_problem(task)
     except (TaskError, ValueError, OSError) as e:
         problem = str(e)
     if problem is not None:
         print(f"davinci-sim study: {problem}", file=sys.stderr)
+        return 2
+    if args.engine is None:  # (a needle exercise's trainees run on the live engine only)
+        args.engine = "batch" if task.kind == "path" else "live"
+    if args.record is not None and args.engine != "batch":
+        print("davinci-sim study: --record needs the batch engine (path tasks)", file=sys.stderr)
         return 2
     try:
         # The task's conditions unless the command line gives some (pairs, names, entries).
@@ -795,7 +798,7 @@ def _run_study(args: argparse.Namespace, config, store) -> int:
         previous = None
     try:
         todo = [s for i, s in enumerate(plan_trials(config)) if i not in store.rows]
-        if todo:
+        if todo and config.kind == "path":  # (calibrated on a path trial's set-up)
             print(estimate_study(config, todo).line(), flush=True)
         result = run_study(config, progress=not args.no_progress, done=dict(store.rows),
                            on_row=store.append, record=args.record)  # fmt: skip
@@ -1334,13 +1337,18 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--backend", default="local", choices=["local", "ray"])
     p.add_argument(
         "--engine",
-        default="batch",
+        default=None,
         choices=["batch", "live"],
         help="batch: trials stepped together (fast); live: one full simulation per trial "
-        "(the slow reference)",
+        "(the slow reference); default batch for a path task, live for a needle exercise "
+        "(its only engine)",
     )
     p.add_argument(
-        "--timeout", type=float, default=60.0, help="simulated seconds before a trial is unfinished"
+        "--timeout",
+        type=float,
+        default=60.0,
+        help="simulated seconds before a trial is unfinished (path tasks; a needle exercise "
+        "ends at its own time limit)",
     )
     p.add_argument("--output", "-o", default="study", help="output folder")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")

@@ -66,6 +66,34 @@ def test_follow_pose_scale_offset_and_locks():
     )
 
 
+@given(axes, angles, axes, angles, st.floats(0.05, 1.0),
+       st.tuples(*[st.floats(-0.05, 0.05)] * 3))  # fmt: skip
+def test_lead_pose_is_what_following_maps_to_the_goal(a1, t1, a2, t2, scale, dp):
+    """A hand aiming at lead_pose's MTM pose puts the tool at the goal (the scripted
+    trainees' way through the console)."""
+    R_mtm0, R_psm0 = rotation_about(a1, t1), rotation_about([0, 1, 0], 0.7)
+    T_psm0 = pose(R_psm0, [0.01, 0.02, 0.15])
+    T_mtm0 = pose(R_mtm0, [0.1, 0.0, 0.4])
+    offset = tm.alignment_offset(R_mtm0, R_psm0)
+    goal = pose(rotation_about(a2, t2) @ R_psm0, T_psm0[:3, 3] + np.asarray(dp))
+    T_mtm = tm.lead_pose(T_psm0, T_mtm0, goal, offset, scale)
+    np.testing.assert_allclose(tm.follow_pose(T_psm0, T_mtm0, T_mtm, offset, scale), goal,
+                               atol=1e-12)  # fmt: skip
+    assert so3.is_rotation(T_mtm[:3, :3])
+
+
+def test_lead_pose_refuses_a_scale_that_is_not_positive():
+    for bad in (0.0, -0.2, math.nan, math.inf):
+        with pytest.raises(ValueError, match="positive"):
+            tm.lead_pose(np.eye(4), np.eye(4), np.eye(4), np.eye(3), bad)
+
+
+def test_gripper_for_jaw_inverts_the_jaw_mapping():
+    s, o = tm.jaw_mapping(math.radians(80.0), math.radians(-5.0), math.radians(60.0))
+    for jaw in (-0.35, 0.0, 0.8, 1.3):
+        assert tm.gripper_for_jaw(jaw, s, o) * s + o == pytest.approx(jaw, abs=1e-15)
+
+
 def test_follow_twist_scales_the_linear_part_and_respects_locks():
     tw = np.array([0.1, 0.2, 0.3, 1.0, 2.0, 3.0])
     np.testing.assert_allclose(tm.follow_twist(tw, 0.2), [0.02, 0.04, 0.06, 0, 0, 0])

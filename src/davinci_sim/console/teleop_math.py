@@ -64,6 +64,30 @@ def follow_pose(
     return T
 
 
+def lead_pose(
+    T_camera_psm0: np.ndarray,
+    T_hrsv_mtm0: np.ndarray,
+    T_camera_psm: np.ndarray,
+    R_offset: np.ndarray,
+    scale: float,
+) -> np.ndarray:
+    """The MTM pose (HRSV, 4x4) that :func:`follow_pose` (unlocked) maps to the PSM goal
+    ``T_camera_psm``: what a hand on the MTM aims at to put the tool there.
+
+    Translation ``p_mtm0 + (p_psm − p_psm0)/scale``; rotation ``R_psm·R_offsetᵀ``.
+
+    Raises:
+        ValueError: a scale that is not a positive finite number.
+    """
+    s = float(scale)
+    if not (math.isfinite(s) and s > 0.0):
+        raise ValueError(f"the motion scale must be a positive number, got {scale!r}")
+    T = np.eye(4)
+    T[:3, 3] = T_hrsv_mtm0[:3, 3] + (T_camera_psm[:3, 3] - T_camera_psm0[:3, 3]) / s
+    T[:3, :3] = T_camera_psm[:3, :3] @ R_offset.T
+    return T
+
+
 def follow_twist(
     twist_hrsv_mtm: np.ndarray,
     scale,
@@ -90,6 +114,12 @@ def jaw_mapping(jaw_qmax: float, gripper_zero: float, gripper_max: float) -> tup
     (dvrk.md 4.2; 80°/60° ≈ 1.333 for the large needle driver)."""
     s = jaw_qmax / (gripper_max - gripper_zero)
     return s, -gripper_zero * s
+
+
+def gripper_for_jaw(jaw: float, jaw_scale: float, jaw_offset: float) -> float:
+    """The gripper opening (rad) whose jaw angle is ``jaw`` under :func:`jaw_mapping`'s
+    ``jaw = jaw_scale·gripper + jaw_offset`` (before the jaw's limits)."""
+    return (float(jaw) - jaw_offset) / jaw_scale
 
 
 def follow_jaw(

@@ -144,11 +144,36 @@ class StudyConfig:
             raise StudyError(f"transition must be a number >= 0 (m), got {t!r}")
         conditions = resolve_conditions(self.conditions, self.task, transition=t)
         object.__setattr__(self, "conditions", conditions)
+        self._check_kind()
         if self.design == "rota" and (len(conditions) < 2 or self.retention):
             raise StudyError(
                 "the rota design needs two or more conditions (the control group's, then the "
                 "assisted group's days) and no retention blocks"
             )
+
+    def _check_kind(self) -> None:
+        """Refuse what the task's kind cannot run: the path trainees step on both engines;
+        the needle exercises' trainees (:mod:`davinci_sim.study.console_trial`) on the live
+        one, without the path trainees' mechanisms or the rota design."""
+        from davinci_sim.study.console_trial import CONSOLE_KINDS
+
+        kind = study_task(self.task).kind
+        if kind == "path":
+            return
+        if kind not in CONSOLE_KINDS:
+            raise StudyError(f"task {self.task!r} is a {kind} exercise; the study's synthetic "
+                             f"trainees do path tasks and {', '.join(CONSOLE_KINDS)}")  # fmt: skip
+        if self.engine != "live":
+            raise StudyError(f"a {kind} study runs on the live engine (engine 'live'): the "
+                             "batch engine steps the path trainees")  # fmt: skip
+        if self.mechanisms or self.design == "rota":
+            raise StudyError(f"a {kind} study has no trainee mechanisms and no rota design "
+                             "(the path trainees' and Rota's path protocol)")  # fmt: skip
+
+    @property
+    def kind(self) -> str:
+        """The kind of the study's task (``path``, ``needle_drive``, ...)."""
+        return study_task(self.task).kind
 
     @property
     def days(self) -> int:

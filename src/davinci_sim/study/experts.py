@@ -105,6 +105,13 @@ import numpy as np
 from davinci_sim.geometry.so3 import rotation_from_vector, rotation_vector
 from davinci_sim.operators.noise import MUSCLE_TIME_CONSTANT
 from davinci_sim.operators.params import SubjectParams
+from davinci_sim.tasks.needle_drive import (
+    DRIVE_GRIP,
+    DRIVE_GRIP_DEPTH,
+    DRIVE_OUT,
+    DRIVE_START,
+    DRIVE_TILT,
+)
 
 #: Mean speed of a reach over the practised path-following speed (assumption, see above).
 REACH_SPEED_FACTOR = 3.0
@@ -253,6 +260,14 @@ class Streamer:
         self.bias = {n: np.zeros(3) for n in arms}
         """Per arm: where its tip is seen minus where it was sent, task frame, m."""
 
+    #: Whether a reach looks at the tip only after the visuomotor delay (the tool still
+    #: moving behind a hand on the MTM) rather than as soon as its setpoint arrives.
+    LOOKS_AFTER_DELAY = False
+
+    def set_jaw(self, arm: str, angle: float) -> None:
+        """``arm``'s jaw to ``angle``, rad (``servo_jp``)."""
+        self.sim.arms[arm].jaw.servo_jp(angle)
+
     def _send(self) -> None:
         t = self.sim.time
         for n, G in self.goal.items():
@@ -337,6 +352,8 @@ class Streamer:
             if self.glide({arm: H}, m.duration(float(np.linalg.norm(p - G0[:3, 3])), angle),
                           until):  # fmt: skip
                 return True
+            if self.LOOKS_AFTER_DELAY and self.wait(m.delay, until):
+                return True
             if self.sees_tips:  # (the tip as seen: the next setpoints corrected by its offset)
                 seen = self.seen_tip(arm)
                 self.bias[arm] = self.bias[arm] + (seen - p)
@@ -344,7 +361,7 @@ class Streamer:
                     return False
             elif np.linalg.norm(p - goal) <= tolerance:
                 return False
-            if self.wait(m.delay, until):  # looks, then corrects
+            if not self.LOOKS_AFTER_DELAY and self.wait(m.delay, until):  # looks, corrects
                 return True
         return False
 
@@ -455,7 +472,7 @@ def do_peg(stream: Streamer, session, task, done) -> None:
         return pts[0] if far_from is None else max(pts, key=lambda p: np.linalg.norm(p - far_from))
 
     def jaw(n, angle):
-        sim.arms[n].jaw.servo_jp(angle)
+        stream.set_jaw(n, angle)
         return stream.wait(0.1, until=done)
 
     probe = task.probe(m)
@@ -551,7 +568,7 @@ def do_needle_pickup(stream: Streamer, session, task, done) -> None:
     giver, taker = task.instruments
 
     def jaw(n, angle):
-        sim.arms[n].jaw.servo_jp(angle)
+        stream.set_jaw(n, angle)
         return stream.wait(0.1, until=done)
 
     def held(n) -> bool:  # both of n's jaws touch the needle (the expert looks)
@@ -590,17 +607,15 @@ def do_needle_pickup(stream: Streamer, session, task, done) -> None:
     stream.wait(task.hold_time + 1.0, until=done)
 
 
-#: The needle's plane in a drive, tilted from the vertical about the line between the
-#: marks towards the instruments (rad): the needle driver's jaws along its normal are then
-#: 45° off the vertical, in reach of the PSM's wrist from its shaft.
-DRIVE_TILT = math.radians(45.0)
-#: The needle's turn about its centre (:func:`~davinci_sim.tasks.suture_pad.drive_pose`):
-#: the point 32° of the turn before the entry mark (3 mm above the skin: at 10° before,
-#: 1.1 mm above, an expert's 0.5 mm aim and a few degrees of grip carried the point
-#: into the skin 3 mm from the mark on the way down), the point 15° past level after the
-#: exit (the needle driver's grasp near the swage still clear of the skin), and the
-#: whole needle out, rad.
-DRIVE_START, DRIVE_OUT, DRIVE_THROUGH = (math.radians(a) for a in (0.0, 205.0, 370.0))
+#: The drive (the needle's plane tilted 45° towards the instruments, turned about its
+#: centre from DRIVE_START to DRIVE_OUT, held near its swage: the task's guidance follows
+#: the same, :data:`~davinci_sim.tasks.needle_drive.DRIVE_TILT`). DRIVE_START puts the
+#: point 32° of the turn before the entry mark (3 mm above the skin: at 10° before, 1.1 mm
+#: above, an expert's 0.5 mm aim and a few degrees of grip carried the point into the
+#: skin 3 mm from the mark on the way down), DRIVE_OUT 15° past level after the exit (the
+#: needle driver's grasp near the swage still clear of the skin); at DRIVE_THROUGH (rad)
+#: the whole needle is out.
+DRIVE_THROUGH = math.radians(370.0)
 #: Where PSM2 hands the needle back to PSM1 between pairs (rad, a drive pose's angle, in
 #: the air over the next pair): as at the drive's exit, so that each arm's grip is where it
 #: was when PSM2 took the point (the needle as it comes through has the point on PSM1's side
@@ -646,7 +661,7 @@ def do_needle_drive(stream: Streamer, session, task, done) -> None:
         return T
 
     def jaw(n, angle) -> bool:
-        sim.arms[n].jaw.servo_jp(angle)
+        stream.set_jaw(n, angle)
         return stream.wait(0.1, until=done)
 
     def held(n) -> bool:
@@ -722,8 +737,8 @@ def do_needle_drive(stream: Streamer, session, task, done) -> None:
                     second, up @ drive_pose(task.pad, k, task.needle, DRIVE_THROUGH, DRIVE_TILT),
                     0.003) or turn(second, k, DRIVE_THROUGH, HAND_BACK, up):  # fmt: skip
                 return
-        if not take(first, lambda: driver_grasp(frame(), task.needle, tip(first)[:3, 2], 0.12,
-                                                0.006)):  # fmt: skip
+        if not take(first, lambda: driver_grasp(frame(), task.needle, tip(first)[:3, 2], DRIVE_GRIP,
+                                                DRIVE_GRIP_DEPTH)):  # fmt: skip
             return
         if let_go(second, JAW_OPEN if k == 0 else JAW_WIDE):
             return

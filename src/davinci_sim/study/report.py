@@ -65,10 +65,11 @@ TIMING_COLUMNS = ("wall_time",)
 ALPHA = 0.05
 
 
-def write_csv(rows: list[dict], path: Path) -> None:
-    """``rows`` as CSV in ``path``, written whole or not at all (:func:`atomic_path`)."""
+def write_csv(rows: list[dict], path: Path, columns=COLUMNS) -> None:
+    """``rows`` as CSV in ``path`` (``columns``: a path study's by default), written whole or
+    not at all (:func:`atomic_path`)."""
     with atomic_path(path) as tmp, open(tmp, "w", newline="") as f:
-        w = csv.DictWriter(f, fieldnames=COLUMNS)
+        w = csv.DictWriter(f, fieldnames=columns)
         w.writeheader()
         for r in rows:
             w.writerow({k: (repr(v) if isinstance(v, float) else v) for k, v in r.items()})
@@ -485,7 +486,12 @@ def _report_end(L: list[str], result: StudyResult) -> None:
 
 def write_outputs(result: StudyResult, folder) -> list[Path]:
     """Write ``trials.csv``, the three figures and ``report.md`` into ``folder``, each whole
-    or not at all (a temporary file in ``folder``, then renamed)."""
+    or not at all (a temporary file in ``folder``, then renamed). A needle exercise's study
+    has its own (:mod:`davinci_sim.study.exercise_report`)."""
+    if result.config.kind != "path":
+        from davinci_sim.study.exercise_report import write_exercise_outputs
+
+        return write_exercise_outputs(result, folder)
     folder = Path(folder)
     folder.mkdir(parents=True, exist_ok=True)
     write_csv(result.rows, folder / "trials.csv")

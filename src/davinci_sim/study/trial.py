@@ -308,10 +308,19 @@ def trial_row(spec: TrialSpec, task: PathTask, result, i: int, finished: bool) -
     """The CSV row of trial ``i`` of a batch's metrics ``result`` (an (n,) array per metric
     name) without timings: the spec's fields, then ``task``'s declared metrics, then the
     attempt's ``score`` and ``passed`` (:meth:`~davinci_sim.tasks.base.Task.score`)."""
+    row = spec_columns(spec, task.name, finished)
+    row.update(metric_row(task.METRICS, result, i))
+    row.update(task.score(row, bool(finished)))
+    return row
+
+
+def spec_columns(spec: TrialSpec, task_name: str, finished: bool) -> dict:
+    """The columns of a trial's row before its metrics: the spec's fields, the task's name
+    and whether the attempt finished."""
     from davinci_sim.haptics.kinds import describe_fixture
 
     params = {k: v for k, v in spec.fixture.items() if k != "name"}
-    row = {
+    return {
         "subject": spec.subject,
         "condition": spec.condition,
         "condition_name": spec.condition_name or spec.fixture.get("name", ""),
@@ -326,12 +335,9 @@ def trial_row(spec: TrialSpec, task: PathTask, result, i: int, finished: bool) -
         "own_practice": spec.practice if spec.own_practice is None else spec.own_practice,
         "mechanisms": "+".join(spec.mechanisms),
         "seed": spec.seed,
-        "task": task.name,
+        "task": task_name,
         "finished": bool(finished),
     }
-    row.update(metric_row(task.METRICS, result, i))
-    row.update(task.score(row, bool(finished)))
-    return row
 
 
 def load_spec_task(spec: TrialSpec) -> PathTask:
@@ -343,12 +349,17 @@ def run_trial(spec: TrialSpec) -> dict:
     with :mod:`davinci_sim.study.batch`, which must give the same results).
 
     Returns its row: the spec's fields, ``finished``, the metrics, ``sim_time`` (s, from
-    the trainee taking the handle to the end) and ``wall_time`` (s, set-up included)."""
+    the trainee taking the handle to the end) and ``wall_time`` (s, set-up included). A
+    needle exercise's trial is :func:`~davinci_sim.study.console_trial.run_console_trial`'s."""
     from davinci_sim.haptics.fixture import FixtureField
     from davinci_sim.operators.console import TraineeHand, hand_impedance
 
     wall0 = time.perf_counter()
     task = load_spec_task(spec)
+    if task.kind != "path":  # (a needle exercise: its trainee works both MTMs)
+        from davinci_sim.study.console_trial import run_console_trial
+
+        return run_console_trial(spec)
     setup = setup_trial(task)
     sim, device, teleop = setup.sim, setup.device, setup.teleop
     mtm, psm = task.teleop.mtm, task.teleop.psm

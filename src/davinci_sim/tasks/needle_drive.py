@@ -23,6 +23,12 @@ circle while the point is in the tissue, m, shown in mm), the peak force of the
 instruments on the tissue (N), and the trainer metrics (drops, missed pairs, collisions,
 excessive force, out of view, master workspace).
 
+**Guidance** (a fixture of the user's, :meth:`NeedleDriveTask.guidance`): any guidance
+kind of :mod:`davinci_sim.haptics.kinds` but the adaptive (its B follows a path metric)
+along :meth:`NeedleDriveTask.drive_path`, the path the driving instrument's tool tip takes
+as it turns the needle along its own curve through each pair (the drive of the scripted
+expert, :mod:`davinci_sim.study.experts`), on the task's MTM.
+
 What the simulation does not do yet: the tissue does not hold the needle (the needle does
 not collide with the skin), so a needle let go in the tissue falls through it (a drop).
 """
@@ -49,6 +55,20 @@ from davinci_sim.tasks.trainer import TIME, Sum, trainer_metrics
 def _tissue_force(task, s, obs):
     return np.asarray(s.tissue_force, dtype=float)
 
+
+#: The drive of :meth:`NeedleDriveTask.drive_path` (and of the scripted expert): the
+#: needle's plane tilted from the vertical about the line between the marks towards the
+#: instruments (rad; the needle driver's jaws along its normal are then 45° off the
+#: vertical, in reach of the PSM's wrist from its shaft), turned about its centre from
+#: :data:`DRIVE_START` to :data:`DRIVE_OUT` (rad, :func:`~davinci_sim.tasks.suture_pad.
+#: drive_pose`'s angles: the point 3 mm above the skin before the entry mark, then out
+#: past the exit, 15° past level), held by the needle driver at :data:`DRIVE_GRIP` of its
+#: length from the swage, the wire :data:`DRIVE_GRIP_DEPTH` m into the jaws.
+DRIVE_TILT = math.radians(45.0)
+DRIVE_START, DRIVE_OUT = 0.0, math.radians(205.0)
+DRIVE_GRIP, DRIVE_GRIP_DEPTH = 0.12, 0.006
+#: Vertices of :meth:`NeedleDriveTask.drive_path` per pair (5° apart).
+DRIVE_PATH_POINTS = 42
 
 MM = ("mm", 1e3)
 PASSES = Metric(
@@ -187,6 +207,44 @@ class NeedleDriveTask(NeedlePickupTask, kind="needle_drive"):
     def check_points(self) -> np.ndarray:
         """The needle's top and every mark."""
         return self.view_points[1:]
+
+    # ------------------------------------------------------------ guidance
+    @cached_property
+    def drive_path(self):
+        """The driving instrument's tool tip (its jaws' pivot, world, m) as it drives the
+        needle through each pair in turn (see :data:`DRIVE_TILT`): a circle about the
+        needle's centre, one arc per pair, joined by straight lines from one pair's exit to
+        the next pair's start (above the skin). A :class:`~davinci_sim.geometry.path.
+        Polyline`."""
+        from davinci_sim.geometry.path import Polyline
+        from davinci_sim.tasks.suture_pad import drive_pose
+
+        s = self.needle.points(DRIVE_GRIP)
+        points = []
+        for k in range(len(self.pairs)):
+            for a in np.linspace(DRIVE_START, DRIVE_OUT, DRIVE_PATH_POINTS):
+                T = drive_pose(self.pad, k, self.needle, float(a), DRIVE_TILT)
+                # (the jaws along the needle's normal, their tips down: the pivot above)
+                z = T[:3, 2] if T[2, 2] < 0.0 else -T[:3, 2]
+                points.append(T[:3, :3] @ s + T[:3, 3] - DRIVE_GRIP_DEPTH * z)
+        return Polyline(np.array(points))
+
+    def fixture_keys(self, kind: str) -> set[str] | None:
+        """Any guidance kind of :mod:`davinci_sim.haptics.kinds` (built in, registered, or
+        an importable ``module:Name``) but ``adaptive``, along :attr:`drive_path`."""
+        from davinci_sim.haptics.kinds import fixture_kind
+
+        if kind == "adaptive":
+            raise KeyError("an adaptive fixture follows a path task's deviation; a needle "
+                           "drive offers the other kinds along its drive path")  # fmt: skip
+        k = fixture_kind(kind)  # KeyError: no such kind
+        return None if k.params is None else set(k.params)
+
+    def guidance(self, spec: dict):
+        """The guidance of ``spec`` along :attr:`drive_path` (None for ``none``)."""
+        from davinci_sim.haptics.kinds import build_fixture
+
+        return build_fixture(spec, self.drive_path)
 
     # ------------------------------------------------------------ Task
     def draw(self, spec, *, T_world_camera=None, prefix: str = "task/"):
