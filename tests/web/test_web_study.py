@@ -44,6 +44,21 @@ def test_a_small_study_reports_progress_and_its_outputs():
     job.close()
 
 
+def test_the_study_tab_runs_a_needle_exercise_on_the_live_engine():
+    """A needle exercise's study (its trainee on both MTMs, live engine) from the tab: the
+    exercise's own columns and report."""
+    messages, done, notify = collector()
+    job = StudyJob("needle_pickup", notify)
+    assert job.start(subjects=1, repetitions=1) is None
+    assert done.wait(600), "the study did not end"
+    final = messages[-1]
+    assert final["state"] == "done", final
+    assert final["total"] == 1 and "needle_pickup" in final["report"]
+    header = job.file("trials.csv").decode().splitlines()[0].split(",")
+    assert "handoffs" in header and "deviation_error" not in header
+    job.close()
+
+
 @pytest.mark.parametrize(
     "subjects, repetitions, words",
     [(0, 1, "subjects"), (11, 1, "subjects"), (1, 0, "repetitions"), (1, 6, "repetitions")],

@@ -66,8 +66,7 @@ ALPHA = 0.05
 
 
 def write_csv(rows: list[dict], path: Path, columns=COLUMNS) -> None:
-    """``rows`` as CSV in ``path`` (``columns``: a path study's by default), written whole or
-    not at all (:func:`atomic_path`)."""
+    """``rows`` as CSV in ``path`` (``columns``: a path study's), whole or not at all."""
     with atomic_path(path) as tmp, open(tmp, "w", newline="") as f:
         w = csv.DictWriter(f, fieldnames=columns)
         w.writeheader()
@@ -486,12 +485,11 @@ def _report_end(L: list[str], result: StudyResult) -> None:
 
 def write_outputs(result: StudyResult, folder) -> list[Path]:
     """Write ``trials.csv``, the three figures and ``report.md`` into ``folder``, each whole
-    or not at all (a temporary file in ``folder``, then renamed). A needle exercise's study
-    has its own (:mod:`davinci_sim.study.exercise_report`)."""
+    or not at all (temporary files renamed); a needle exercise's: :mod:`.exercise_report`."""
     if result.config.kind != "path":
-        from davinci_sim.study.exercise_report import write_exercise_outputs
+        from davinci_sim.study.exercise_report import write_exercise_outputs as write
 
-        return write_exercise_outputs(result, folder)
+        return write(result, folder)
     folder = Path(folder)
     folder.mkdir(parents=True, exist_ok=True)
     write_csv(result.rows, folder / "trials.csv")

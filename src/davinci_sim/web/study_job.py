@@ -62,17 +62,20 @@ class StudyJob:
         if not 1 <= repetitions <= MAX_REPETITIONS:
             return f"repetitions must be in 1..{MAX_REPETITIONS}"
         from davinci_sim.study import StudyConfig, StudyError
+        from davinci_sim.study.console_trial import CONSOLE_KINDS
         from davinci_sim.tasks import TaskError, load_task
 
-        try:  # the study's trials, engines and report are the path kind's
+        try:  # the study's trainees do path tasks and the needle exercises
             kind = load_task(self.task if not Path(self.task).suffix else Path(self.task)).kind
         except (TaskError, OSError) as e:
             return str(e)
-        if kind != "path":
-            return f"the study runs path tasks; {self.task!r} is a {kind} exercise"
-        try:
+        if kind not in ("path", *CONSOLE_KINDS):
+            return (f"the study runs path tasks and {', '.join(CONSOLE_KINDS)}; {self.task!r} "
+                    f"is a {kind} exercise")  # fmt: skip
+        try:  # (a needle exercise's trainees run on the live engine only)
             config = StudyConfig(n_subjects=subjects, n_repetitions=repetitions,
-                                 task=self.task, seed=seed, workers=1)  # fmt: skip
+                                 task=self.task, seed=seed, workers=1,
+                                 engine="batch" if kind == "path" else "live")  # fmt: skip
         except (StudyError, ValueError) as e:
             return str(e)
         if self._tmp is not None:
