@@ -50,14 +50,14 @@ def _task(result: StudyResult):
 
 
 def plot_scores(result: StudyResult, folder: Path) -> Path:
-    """``scores_per_repetition.png``: the mean score (%) over subjects per repetition, a
-    line per condition (practice blocks)."""
+    """``scores_per_repetition.png``: the mean score (%) of the finished attempts per
+    repetition, a line per condition (practice blocks)."""
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    cfg, rows = result.config, block_rows(result.rows, "practice")
+    cfg, rows = result.config, [r for r in block_rows(result.rows, "practice") if r["finished"]]
     fig, ax = plt.subplots(figsize=(6.0, 3.6))
     reps = np.arange(1, cfg.n_repetitions + 1)
     for c, label in enumerate(short_labels(cfg.conditions)):
@@ -134,14 +134,16 @@ def write_exercise_report(result: StudyResult, path: Path) -> None:
         "",
         "## Summary",
         "",
-        "Means over subjects of each subject's mean over its repetitions (± sd over subjects).",
+        "Means over subjects of each subject's mean over its finished repetitions (± sd over "
+        "subjects; an unfinished attempt's metrics are of the part it did, left out here).",
         "",
         "| condition | "
         + "".join(f"{m.label} ({m.report[0]}) | " for m in shown)
         + "score (%) | passed | finished |",
         "|---|" + "---|" * (len(shown) + 3),
     ]
-    tables = {m: subject_means(rows, m, n, C)
+    finished = [r for r in rows if r["finished"]]  # (an unfinished attempt's part: no mean)
+    tables = {m: subject_means(finished, m, n, C)
               for m in {*(x.name for x in shown), *TESTED}}  # fmt: skip
     for c in range(C):
 
@@ -185,7 +187,8 @@ def write_exercise_report(result: StudyResult, path: Path) -> None:
         "## Files",
         "",
         "- `trials.csv`: one row per trial, every metric of the exercise",
-        "- `scores_per_repetition.png`: the mean score per repetition and condition",
+        "- `scores_per_repetition.png`: the mean score of the finished attempts per "
+        "repetition and condition",
         "",
     ]
     write_text_atomic(path, "\n".join(L))
