@@ -20,30 +20,27 @@ task's teleoperation clutched:
 * ``needle_drive`` (and the running suture): PSM2 lifts the needle and tilts its plane,
   PSM1 takes it in a needle driver's grip and turns it about its centre in at the entry
   mark and out at the exit; between pairs PSM2 takes the point and pulls the needle
-  through, and hands it back. The shipped reference (3 experts x 2 attempts of seed 9001)
-  has 5 finished attempts: entry 0.1-0.5 mm and exit 0.05-0.2 mm off their marks. In
-  the sixth (expert 2's first) the needle PSM2 lifted still touched its park (it slides in
-  the 8 mm grasp), so the tilt turned it in the grasp against the park; the needle stayed
-  low and PSM1's driver grip pressed on the park (three tries). Lifting straight up before
-  tilting did not help (tried, 2026-11-29). The start of the drive is 3 mm
+  through, and hands it back. The shipped reference (3 experts x 2 attempts of seed 9001):
+  all 6 attempts finished, entry and exit 0.04-0.06 mm off their marks, 0.14 mm of trauma.
+  PSM1 holds the wire 8.5 mm into its 10 mm jaws (:data:`DRIVE_GRIP_DEPTH`): at 6 mm the
+  jaw past the wire, 45° down along the needle's normal, pressed on the skin for the last
+  ~60° of the turn and pushed PSM1's wrist off its setpoint (entry 0.37 mm, trauma 0.44 mm
+  then; in the running suture a wrist tracking fault). The start of the drive is 3 mm
   above the skin (:data:`DRIVE_START`): 1.1 mm above, three of six attempts grazed the
   skin 2-3 mm from the entry mark on the way down. **The running suture** (four pairs):
   PSM2 takes the point from above (its jaws down the needle's normal: along PSM2's own
   direction they came from under the skin), and before each later pair turns the needle
   back in the air over it to the pose of the drive's exit (:data:`HAND_BACK`), where PSM1
-  takes it and turns it to the drive's start. Grips that close wider than :data:`JAW_HELD`
-  are taken again. The shipped reference rests on
-  **2 of its 6 attempts** (3 experts x 2 of seed 9001): 129 ± 10 s, 1.33 m of tip path,
-  entries 0.8 mm and exits 0.8 mm off their marks, 1.0 mm of trauma, no drop. Of the other
-  four, two ended in a wrist tracking fault (PSM1 pressing its jaws on the skin at the end
-  of a drive; PSM2 backing out of the point it let go, the wire lying along one jaw after
-  the pull), two in a drop at a hand-back. The needle is too short for the bite: a 14 mm
-  bite leaves ~65° of the 26 mm half circle outside, and PSM1's grip near the swage goes
-  under the skin at ~191° while the point is out far enough for PSM2 only after ~175°; at
-  205° (:data:`DRIVE_OUT`) PSM1's jaws ride on the skin (peak 193 N, contacts counted as
-  collisions), so the reference leaves those metrics out (:data:`NOT_MEASURED_OF_TASK`).
-  At 180-192° (tried) the attempts dropped the needle at the hand-backs instead, and one
-  squeezed it until the physics diverged;
+  takes it; PSM2 lets go, moves out of the way (:data:`RETREAT`), and PSM1 turns the
+  needle to the drive's start. Grips that close wider than :data:`JAW_HELD` are taken
+  again. The shipped reference rests on **4 of its 6 attempts** (3 experts x 2 of seed
+  9001): 133 ± 6 s, 1.31 m of tip path, entries 0.5 mm and exits 0.2 mm off their marks,
+  0.15 mm of trauma, no drop. The other two end at the first hand-back, as PSM2 lets go:
+  in one PSM1's new grip does not hold and the needle falls; in the other the wire stays
+  on one of PSM2's jaws and, as PSM2 backs away, drags PSM1's wrist into a tracking fault.
+  The arms also press on the pad and touch each other on the way (~20 N of peak tissue
+  force, 360-410 collision onsets an attempt, not traced to their moments), so the
+  reference leaves those metrics out (:data:`NOT_MEASURED_OF_TASK`);
 * ``peg_transfer`` (and its ICRA variant): PSM2 lifts each ring off its start peg, carries it
   to the middle (over the wall), hands it to PSM1, which threads it on a target peg. **Not
   yet reliable**: the open jaw inside a ring's hole reached its peg and the arm stalled
@@ -146,9 +143,9 @@ NOT_MEASURED_OF_KIND = {
 #: ... and those of one task.
 NOT_MEASURED_OF_TASK = {
     "running_suture": {
-        name: "the scripted driver's jaws, near the swage, press on the skin while the point "
-        "is taken (a 14 mm bite leaves the 26 mm needle too little arc outside for both "
-        "grips), and the instruments touch at the hand-backs: the script's, not an expert's"
+        name: "the scripted arms press on the pad and touch each other on the way (~20 N "
+        "of peak tissue force, 360-410 collision onsets an attempt, not traced to their "
+        "moments): the script's, not an expert's"
         for name in ("tissue_force", "instrument_collisions", "excessive_force")
     },
 }
@@ -629,6 +626,10 @@ JAW_HELD = 0.35
 #: The jaws opened wide (rad; the dVRK's jaw opens to 80°, dvrk.md §1.2): PSM2 letting go of
 #: the point that PSM1's grip also holds.
 JAW_WIDE = math.radians(75.0)
+#: How far PSM2 moves out of the way after a hand-back (m, away from PSM1's tip and up):
+#: 12 mm back along its jaws leaves it in reach of PSM1's turn of the needle in the air
+#: (the needle sweeps a circle 16.6 mm across about its centre).
+RETREAT = 0.02
 #: Straight down (world): the point that came out is taken from above.
 DOWN = np.array([0.0, 0.0, -1.0])
 
@@ -689,6 +690,14 @@ def do_needle_drive(stream: Streamer, session, task, done) -> None:
         back = stream.goal[n][:3, 3] - 0.012 * stream.goal[n][:3, 2]
         return jaw(n, opening) or stream.reach(n, back, 0.003, until=done)
 
+    def clear_of(n, other) -> np.ndarray:
+        """Where n's tip goes out of the way of ``other``'s turn of the needle in the air
+        (m): :data:`RETREAT` away from ``other``'s tip across the table and up."""
+        away = tip(n)[:3, 3] - tip(other)[:3, 3]
+        away[2] = 0.0
+        away /= max(float(np.linalg.norm(away)), 1e-9)
+        return stream.goal[n][:3, 3] + RETREAT * (away + [0.0, 0.0, 1.0]) / math.sqrt(2.0)
+
     def carry(n, T_goal, tolerance) -> bool:
         """n, holding the needle, reaches for the pose that puts it at ``T_goal``."""
         G = T_goal @ np.linalg.inv(frame()) @ tip(n)
@@ -741,6 +750,8 @@ def do_needle_drive(stream: Streamer, session, task, done) -> None:
                                                 DRIVE_GRIP_DEPTH)):  # fmt: skip
             return
         if let_go(second, JAW_OPEN if k == 0 else JAW_WIDE):
+            return
+        if k > 0 and stream.reach(second, clear_of(second, first), 0.003, until=done):
             return
         if k > 0 and turn(first, k, HAND_BACK, DRIVE_START, up):
             return

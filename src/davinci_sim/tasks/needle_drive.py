@@ -63,10 +63,14 @@ def _tissue_force(task, s, obs):
 #: :data:`DRIVE_START` to :data:`DRIVE_OUT` (rad, :func:`~davinci_sim.tasks.suture_pad.
 #: drive_pose`'s angles: the point 3 mm above the skin before the entry mark, then out
 #: past the exit, 15° past level), held by the needle driver at :data:`DRIVE_GRIP` of its
-#: length from the swage, the wire :data:`DRIVE_GRIP_DEPTH` m into the jaws.
+#: length from the swage, the wire :data:`DRIVE_GRIP_DEPTH` m into the jaws (from their
+#: pivot; they are 10 mm long). At 6 mm into them, the 4 mm of jaw past the wire, pointing
+#: 45° down along the plane's normal, pressed on the skin for the last ~60° of the turn
+#: (measured: up to 20 N on one jaw, PSM1's wrist pitch pushed 0.37 rad off its setpoint,
+#: a tracking fault); at 8.5 mm, 1.5 mm is past it.
 DRIVE_TILT = math.radians(45.0)
 DRIVE_START, DRIVE_OUT = 0.0, math.radians(205.0)
-DRIVE_GRIP, DRIVE_GRIP_DEPTH = 0.12, 0.006
+DRIVE_GRIP, DRIVE_GRIP_DEPTH = 0.12, 0.0085
 #: Vertices of :meth:`NeedleDriveTask.drive_path` per pair (5° apart).
 DRIVE_PATH_POINTS = 42
 
