@@ -42,6 +42,7 @@ from typing import Any, ClassVar, NamedTuple
 
 import numpy as np
 
+from davinci_sim.model.psm import JAW_LENGTH
 from davinci_sim.tasks.base import Sample, TaskError
 from davinci_sim.tasks.metrics import Metric, Peak, observed
 from davinci_sim.tasks.needle_pickup import NeedlePickupTask
@@ -63,14 +64,14 @@ def _tissue_force(task, s, obs):
 #: :data:`DRIVE_START` to :data:`DRIVE_OUT` (rad, :func:`~davinci_sim.tasks.suture_pad.
 #: drive_pose`'s angles: the point 3 mm above the skin before the entry mark, then out
 #: past the exit, 15° past level), held by the needle driver at :data:`DRIVE_GRIP` of its
-#: length from the swage, the wire :data:`DRIVE_GRIP_DEPTH` m into the jaws (from their
-#: pivot; they are 10 mm long). At 6 mm into them, the 4 mm of jaw past the wire, pointing
+#: length from the swage, the wire :data:`DRIVE_GRIP_DEPTH` m into the jaws from their
+#: pivot, 1.5 mm of jaw past it. 6 mm into the 10 mm jaws, the 4 mm past the wire, pointing
 #: 45° down along the plane's normal, pressed on the skin for the last ~60° of the turn
 #: (measured: up to 20 N on one jaw, PSM1's wrist pitch pushed 0.37 rad off its setpoint,
-#: a tracking fault); at 8.5 mm, 1.5 mm is past it.
+#: a tracking fault).
 DRIVE_TILT = math.radians(45.0)
 DRIVE_START, DRIVE_OUT = 0.0, math.radians(205.0)
-DRIVE_GRIP, DRIVE_GRIP_DEPTH = 0.12, 0.0085
+DRIVE_GRIP, DRIVE_GRIP_DEPTH = 0.12, JAW_LENGTH - 0.0015
 #: Vertices of :meth:`NeedleDriveTask.drive_path` per pair (5° apart).
 DRIVE_PATH_POINTS = 42
 
