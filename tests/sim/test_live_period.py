@@ -28,8 +28,26 @@ def _snapshot(sim) -> dict:
         "effort": servo.effort_mode.copy(),
         "since": [a._tracking_bad_since for a in sim.arms.values()],
         "states": [a.operating_state().state for a in sim.arms.values()],
-        "frames_key": sim._base_frames.get("frames", (b"",))[0],
+        # What the next reader sees (the compiled period leaves them computed at the joints
+        # now, a Python tick at its start's): the frames and each arm's kinematics.
+        **_readings(sim),
     }
+
+
+def _readings(sim) -> dict:
+    """The base frames and the arms' measured kinematics at the joints now, as the
+    simulation's readers get them (its caches or computed)."""
+    out = {}
+    if sim._frame_plan is not None:
+        frames = sim._frames()
+        out["frames_key"] = sim._base_frames["frames"][0]
+        out["frame_camera"] = frames["camera"].copy()
+        for name in sim._frame_plan.arms:
+            out[f"frame_{name}"] = frames[name][0].copy()
+    for name, arm in sim.arms.items():
+        _, T, J = arm._measured_kinematics()
+        out[f"T_{name}"], out[f"J_{name}"] = T.copy(), J.copy()
+    return out
 
 
 def _assert_same(a: dict, b: dict) -> None:
@@ -190,10 +208,16 @@ def test_ticks_stay_in_python_while_anything_else_needs_them(psm_sim):
 
 
 def test_the_kernel_keeps_its_one_compiled_signature(psm_sim):
-    sim, psm = psm_sim, psm_sim.arms["PSM1"]
-    period = ArmPeriod(sim, psm)
-    run_period(sim, psm, K, period=period, **_cartesian_ramp(psm, [0.001, 0.0, 0.0]))
-    assert len(live_period._KERNEL.signatures) == 1
+    """A PSM's Cartesian period and the ECM's joint period (no IK, no frame plan of its
+    own) bind arguments of one type: the kernel compiled once, at import."""
+    sim, psm, ecm = psm_sim, psm_sim.arms["PSM1"], psm_sim.arms["ECM"]
+    run_period(sim, psm, K, period=ArmPeriod(sim, psm),
+               **_cartesian_ramp(psm, [0.001, 0.0, 0.0]))  # fmt: skip
+    q, period = ecm.setpoint_js().position, ArmPeriod(sim, ecm)
+    assert period.ready(cartesian=False)
+    run_period(sim, ecm, K, period=period, cartesian=False, start=q,
+               delta=np.full(4, 1e-4), velocity=np.full(4, 1e-4 / (K * 0.001)))  # fmt: skip
+    assert len(live_period._BOUND_KERNEL.signatures) == 1
 
 
 def test_the_warning_counters_are_found_and_left_unchanged(psm_sim):

@@ -225,8 +225,12 @@ class DavinciEnv(gym.Env):
             start = self._q_goal
         velocity = control.feedforward(delta, K)
         if self.arm is self.psm:
-            jaw = control.jaw_angle(a[-1], self.psm.jaw.spec.qmin, self.psm.jaw.spec.qmax)
-            self.psm.jaw.servo_jp(float(jaw))  # (a number: the jaw's check without arrays)
+            spec = self.psm.jaw.spec
+            jaw = float(control.jaw_angle(a[-1], spec.qmin, spec.qmax))
+            if self.psm._not_ready():  # (refused, with its message)
+                self.psm.jaw.servo_jp(jaw)
+            else:  # finite (the action is), clipped to the limits as servo_jp clips it
+                self.psm.jaw._servo_jp_checked(min(max(jaw, spec.qmin), spec.qmax))
         twist = np.concatenate([velocity, np.zeros(3)]) if cfg.action_space == "cartesian" else None
         task = self.problem if isinstance(self.problem, TaskProblem) else None
         # The ticks run compiled while they can (sim/live_period.py); the others, and a tick

@@ -163,6 +163,15 @@ class Arm(ServoJoints):
             c = self._kin_cache = [key, q, T, J]
         return c[1], c[2], c[3]
 
+    def _keep_kinematics(self, T_base_tip: np.ndarray, J: np.ndarray) -> None:
+        """Hold ``(T_base_tip, J)`` as :meth:`_measured_kinematics`' answer at the measured
+        joints now: computed by the same compiled law elsewhere (the compiled control
+        period's last tick, :mod:`davinci_sim.sim.live_period`); the arrays are kept."""
+        q = self._q()
+        for a in (q, T_base_tip, J):
+            a.setflags(write=False)
+        self._kin_cache = [q.tobytes(), q, T_base_tip, J]
+
     def _qd(self) -> np.ndarray:
         return self._sim.data.qvel[self._dofadr]
 

@@ -56,7 +56,8 @@ def live_period(
     T_base_ref, R_ref_goal, start, delta, velocity, feedforward, twist_ref, qmin, qmax, bound,
     frames, plan_links, plan_modified, plan_tools, plan_tools_identity, plan_T_cart_sujbase,
     plan_reference, ref_links, ref_modified, ref_tool, ref_tool_identity, frame_adr, key, tol,
-    frames_out, arm_row, computed, record, camera_row, rec_t, rec_q, rec_frames,
+    frames_out, arm_row, computed, record, camera_row, rec_t, rec_q, rec_frames, T_final,
+    J_final,
 ):  # fmt: skip
     """Ticks ``first`` … ``K`` (see the module docstring); returns :data:`DONE` or the
     tick the caller must run in Python.
@@ -87,7 +88,12 @@ def live_period(
     step): the time (``rec_t[k - 1]``, s), the arm's joints (``rec_q[k - 1]``) and the
     frames (``rec_frames[k - 1]``: the camera, row ``camera_row`` of ``frames_out``, then
     the arm's base frame); tick k stops there (returns k) if that step left contacts
-    (``address[6]``: ``mjData.ncon``), whose forces only the state itself can tell."""
+    (``address[6]``: ``mjData.ncon``), whose forces only the state itself can tell.
+
+    After the last tick (:data:`DONE`), what the first reader of the state asks for next,
+    at the joints the last step left: the frames (as above: ``computed[0]`` True when
+    recomputed) and the arm's measured kinematics, ``T_final`` (4, 4), the tip in its base
+    frame, and ``J_final`` (6, dof), the spatial Jacobian (``Arm._measured_kinematics``)."""
     nu, nq, nv, nw = sizes[0], sizes[1], sizes[2], sizes[3]
     dof = arm_act.shape[0]
     q_arm = np.empty(dof)
@@ -176,7 +182,42 @@ def live_period(
             ctrl, bias_before, gravcomp_before, counts, counts_after,
         ):  # fmt: skip
             return k  # diverged: undone, for the Python tick's guard
+    qp = numba.carray(f64_at(address[1]), (nq,))
+    if frames and frames_at(
+        qp, frame_adr, key, tol, (plan_links, plan_modified, plan_tools, plan_tools_identity,
+        plan_T_cart_sujbase, plan_reference, ref_links, ref_modified, ref_tool,
+        ref_tool_identity), frames_out, Q_suj, q_frame_ref, T1, J_none, F_suj,
+    ):  # fmt: skip
+        computed[0] = True
+    for i in range(dof):
+        q_arm[i] = qp[arm_q[i]]
+    tip_pose_row(fk_links, fk_modified, fk_tool, fk_identity, q_arm, T_final, J_final, True, F)
     return DONE
+
+
+@numba.njit(cache=True, nogil=True)
+def live_period_bound(bound, first, K, cartesian, feedforward, frames, tol, record, camera_row):
+    """:func:`live_period` on an :class:`~davinci_sim.sim.live_period.ArmPeriod`'s arguments
+    bound once (:func:`~davinci_sim.kinematics.bound.bind`): a call unboxes one object and
+    the ticks' flags, not ~90 arguments. ``bound.args``: the physics (``model`` …
+    ``warnings``), the servo's, the watch's, the arm's (``arm_act`` … ``fk_identity``), the
+    IK's constants, the goal's buffers (``T_base_ref``, ``R_ref_goal``, ``start``,
+    ``delta``, ``velocity``, ``twist_ref``, then ``qmin``, ``qmax``, ``bound``), the frame
+    plan's (``plan_links`` … ``frame_adr``, ``key``, ``frames_out``, ``arm_row``,
+    ``computed``), the samples' (``rec_t``, ``rec_q``, ``rec_frames``) and the final
+    kinematics' (``T_final``, ``J_final``) tuples."""
+    p, sv, wt, am, ik, g, pl, rc, fin = bound.args
+    return live_period(
+        p[0], p[1], p[2], p[3], p[4], p[5], p[6], first, K,
+        sv[0], sv[1], sv[2], sv[3], sv[4], sv[5], sv[6], sv[7], sv[8], sv[9],
+        wt[0], wt[1], wt[2], wt[3], wt[4], wt[5], wt[6], wt[7],
+        am[0], am[1], am[2], am[3], am[4], am[5], am[6], am[7], am[8], cartesian,
+        ik[0], ik[1], ik[2], ik[3], ik[4], ik[5],
+        g[0], g[1], g[2], g[3], g[4], feedforward, g[5], g[6], g[7], g[8],
+        frames, pl[0], pl[1], pl[2], pl[3], pl[4], pl[5], pl[6], pl[7], pl[8], pl[9], pl[10],
+        pl[11], tol, pl[12], pl[13], pl[14], record, camera_row, rc[0], rc[1], rc[2],
+        fin[0], fin[1],
+    )  # fmt: skip
 
 
 @numba.njit(cache=True, nogil=True)

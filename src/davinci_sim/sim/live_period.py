@@ -44,11 +44,14 @@ if TYPE_CHECKING:
     from davinci_sim.sim.simulation import Simulation
 
 _KERNEL: Any = None
+_BOUND_KERNEL: Any = None
+_BIND: Any = None
 DONE = -1
 if rows_step.COMPILED:  # (MuJoCo's library is loaded into LLVM's symbols by rows_step)
-    from davinci_sim.sim.live_kernel import DONE, live_period
+    from davinci_sim.kinematics.bound import bind
+    from davinci_sim.sim.live_kernel import DONE, live_period, live_period_bound
 
-    _KERNEL = live_period
+    _KERNEL, _BOUND_KERNEL, _BIND = live_period, live_period_bound, bind
 
 COMPILED = _KERNEL is not None
 """Whether :class:`ArmPeriod` can run (else callers tick in Python)."""
@@ -177,6 +180,51 @@ class ArmPeriod:
             self._frames_out = np.empty((0, 4, 4))
             self._key = np.empty(0)
         self._computed = np.zeros(1, dtype=bool)
+        # The goal's buffers, written at each call (the kernel's arrays bound once).
+        n = max(3, arm.dof)
+        self._goal = (np.empty((4, 4)), np.empty((3, 3)), np.empty(n), np.empty(n),
+                      np.empty(arm.dof), np.empty(6))  # fmt: skip
+        self._final = (np.empty((4, 4)), np.empty((6, arm.dof)))  # (T_base_tip, J)
+        self._bounds: dict[int, tuple] = {}  # id(samples) -> (samples, objects, bound)
+        self._samples: dict[int, PeriodSamples] = {}
+
+    def samples(self, K: int) -> PeriodSamples:
+        """This period's buffer of samples for periods of ``K`` ticks (the same object at
+        every call: :meth:`run` binds it once; its rows are overwritten by the next run)."""
+        out = self._samples.get(K)
+        if out is None:
+            out = self._samples[K] = PeriodSamples.empty(K, self.arm.dof)
+        return out
+
+    def _bound(self, samples: PeriodSamples):
+        """The kernel's arguments but the period's flags, bound once per ``samples`` buffer
+        (and per servo and watch: the simulation's own, built with it)."""
+        sim = self.sim
+        objects = (sim.servo, sim._watch)
+        entry = self._bounds.get(id(samples))
+        if entry is not None and entry[0] is samples and entry[1][0] is objects[0] \
+                and entry[1][1] is objects[1]:  # fmt: skip
+            return entry[2]
+        servo, watch = objects
+        args = (
+            (self._model._address, self._data._address, self._address, self._sizes,
+             self._state, _SIG, self._warnings),
+            (*self._servo, servo.kp, servo.kv, servo.effort_mode, servo.gravity_compensation,
+             servo.q_ref, servo.qd_ref, servo.tau_ff),
+            (watch._adr, watch._idx, watch._tol, watch._starts, watch._watched,
+             watch._bad_since, watch._first_bad, watch._fault),
+            (*self._arm, *self._shaft, *self._fk),
+            self._ik,
+            (*self._goal, *self._limits),
+            (*self._plan, self._key, self._frames_out, self._plan_row, self._computed),
+            (samples.t, samples.q, samples.frames),
+            self._final,
+        )  # fmt: skip
+        if len(self._bounds) >= 8:  # (callers' own buffers, one after another)
+            self._bounds.clear()
+        bound = _BIND(args)
+        self._bounds[id(samples)] = (samples, objects, bound)
+        return bound
 
     def _frames(self) -> bool | None:
         """How a Cartesian period gets the arm's base frame: held (False: a base frame the
@@ -226,7 +274,7 @@ class ArmPeriod:
         (``first`` … the last − 1: the state after each of them, as :class:`PeriodSamples`
         has it) is kept in it; the last one's is the state as it is when this returns."""
         sim, arm = self.sim, self.arm
-        servo, watch = sim.servo, sim._watch
+        watch = sim._watch
         arms = watch.arms
         watched, since = watch._watched, watch._bad_since
         for k, a in enumerate(arms):
@@ -247,20 +295,21 @@ class ArmPeriod:
         samples = record if recording else _NO_RECORD
         self._computed[0] = False
         n = 3 if cartesian else dof
-        stop = _KERNEL(
-            self._model._address, self._data._address, self._address, self._sizes, self._state,
-            _SIG, self._warnings, first, K, *self._servo, servo.kp, servo.kv,
-            servo.effort_mode, servo.gravity_compensation, servo.q_ref, servo.qd_ref,
-            servo.tau_ff, watch._adr, watch._idx, watch._tol, watch._starts, watched, since,
-            watch._first_bad, watch._fault, *self._arm, *self._shaft, *self._fk, cartesian,
-            *self._ik, _f64(T_base_ref, (4, 4)), _f64(R_ref_goal, (3, 3)), _f64(start, (n,)),
-            _f64(delta, (n,)), _f64(None if cartesian else velocity, (dof,)), feedforward,
-            _f64(twist_ref, (6,)), *self._limits, frames, *self._plan, self._key,
-            float(simulation.BASE_FRAME_TOLERANCE), self._frames_out, self._plan_row,
-            self._computed, recording, camera_row, samples.t, samples.q, samples.frames,
+        T_buf, R_buf, start_buf, delta_buf, velocity_buf, twist_buf = self._goal
+        _put(T_buf, T_base_ref, (4, 4))
+        _put(R_buf, R_ref_goal, (3, 3))
+        _put(start_buf[:n], start, (n,))
+        _put(delta_buf[:n], delta, (n,))
+        _put(velocity_buf, None if cartesian else velocity, (dof,))
+        _put(twist_buf, twist_ref, (6,))
+        stop = _BOUND_KERNEL(
+            self._bound(samples), first, K, cartesian, feedforward, frames,
+            float(simulation.BASE_FRAME_TOLERANCE), recording, camera_row,
         )  # fmt: skip
         if self._computed[0]:  # the frames the kernel computed last: the simulation's now
             sim._keep_frames(self._key.tobytes(), self._frames_out.copy())
+        if stop == DONE:  # the arm's kinematics at the joints now, as the next reader's
+            arm._keep_kinematics(self._final[0].copy(), self._final[1].copy())
         ran = (K if stop == DONE else stop - 1) - first + 1
         sim.tick_count += ran
         for k, a in enumerate(arms):
@@ -312,7 +361,7 @@ def run_period(
     record = None
     if after_tick is not None:
         if recorded is not None and period is not None and period.can_record(cartesian):
-            record = PeriodSamples.empty(K, arm.dof)
+            record = period.samples(K)
         else:
             period = None  # (every tick sampled in Python)
     T_goal = np.eye(4)
@@ -342,12 +391,13 @@ def run_period(
         k += 1
 
 
-def _f64(x, shape) -> np.ndarray:
-    """``x`` as a new C-ordered, writable float64 array of ``shape`` (zeros for None): the
-    kernel's one compiled signature, whatever the caller's array."""
+def _put(buffer: np.ndarray, x, shape) -> None:
+    """``x`` (any array-like of ``shape``; zeros for None) into the kernel's float64
+    ``buffer``: its one compiled signature, whatever the caller's array."""
     if x is None:
-        return np.zeros(shape)
-    return np.array(x, dtype=float, order="C").reshape(shape)
+        buffer[...] = 0.0
+    else:
+        buffer[...] = np.asarray(x, dtype=float).reshape(shape)
 
 
 def _writable(constants) -> tuple:
@@ -358,18 +408,23 @@ def _writable(constants) -> tuple:
 def _warm_up() -> None:
     """Compile (or load from numba's cache) at import with the callers' one signature, on no
     tick (no simulation is touched), as :mod:`davinci_sim.sim.rows_step` does."""
-    if _KERNEL is None:
+    if _BOUND_KERNEL is None:
         return
     i, f, b = np.zeros(0, dtype=np.intp), np.zeros(0), np.zeros(0, dtype=bool)
     i64 = np.zeros(1, dtype=np.int64)
-    _KERNEL(
-        0, 0, np.zeros(7, dtype=np.intp), np.zeros(4, dtype=np.intp), f, _SIG, i, 1, 0,
-        i, i, True, f, f, b, b, f, f, f, i64, i64, f, i64, b, f, i64, b, i, i, -1, 0.0, 0.0,
-        np.zeros((6, 0)), True, np.eye(4), True, True, *_NO_IK, np.eye(4), np.eye(3), f, f, f,
-        True, np.zeros(6), f, f, f, False, *_NO_PLAN, f, 0.0, np.empty((0, 4, 4)), -1,
-        np.zeros(1, dtype=bool), False, 0, _NO_RECORD.t, _NO_RECORD.q, _NO_RECORD.frames,
+    args = (
+        (0, 0, np.zeros(7, dtype=np.intp), np.zeros(4, dtype=np.intp), f, _SIG, i),
+        (i, i, True, f, f, b, b, f, f, f),
+        (i64, i64, f, i64, b, f, i64, b),
+        (i, i, -1, 0.0, 0.0, np.zeros((6, 0)), True, np.eye(4), True),
+        _NO_IK,
+        (np.eye(4), np.eye(3), f, f, f, np.zeros(6), f, f, f),
+        (*_NO_PLAN, f, np.empty((0, 4, 4)), -1, np.zeros(1, dtype=bool)),
+        (_NO_RECORD.t, _NO_RECORD.q, _NO_RECORD.frames),
+        (np.empty((4, 4)), np.empty((6, 0))),
     )  # fmt: skip
+    _BOUND_KERNEL(_BIND(args), 1, 0, True, False, False, 0.0, False, 0)
 
 
 if COMPILED and not warmed_up(_warm_up, "the live control period cannot be compiled: Python ticks"):
-    _KERNEL, COMPILED = None, False
+    _KERNEL, _BOUND_KERNEL, COMPILED = None, None, False
