@@ -20,3 +20,21 @@ def test_benchmark_imports(path, monkeypatch):
         assert callable(module.main), f"{path.name} has no main()"
     finally:
         sys.modules.pop(path.stem, None)
+
+
+@pytest.mark.parametrize(
+    ("argv", "said"),
+    [
+        (["HEAD"], "usage"),
+        (["HEAD", "--"], "no command"),
+        (["HEAD", "--rounds", "0", "--", "true"], "at least 1"),
+    ],
+)
+def test_the_ab_tool_refuses_a_call_it_cannot_run(argv, said, monkeypatch):
+    monkeypatch.syspath_prepend(str(BENCHMARKS))
+    ab = importlib.import_module("ab")
+    try:
+        with pytest.raises(SystemExit, match=said):
+            ab.main(argv)
+    finally:
+        sys.modules.pop("ab", None)
