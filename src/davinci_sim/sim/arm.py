@@ -157,20 +157,18 @@ class Arm(ServoJoints):
             # (q read-only after the call: the kernel's compiled signature is the writable
             # one its warm-up compiled, not a second one compiled inside the loop.)
             T, J = laws.tip_kinematics(self.chain, q)
-            q.setflags(write=False)
-            T.setflags(write=False)
-            J.setflags(write=False)
-            c = self._kin_cache = [key, q, T, J]
+            c = self._keep_kinematics(q, T, J)
         return c[1], c[2], c[3]
 
-    def _keep_kinematics(self, T_base_tip: np.ndarray, J: np.ndarray) -> None:
-        """Hold ``(T_base_tip, J)`` as :meth:`_measured_kinematics`' answer at the measured
-        joints now: computed by the same compiled law elsewhere (the compiled control
-        period's last tick, :mod:`davinci_sim.sim.live_period`); the arrays are kept."""
-        q = self._q()
+    def _keep_kinematics(self, q: np.ndarray, T_base_tip: np.ndarray, J: np.ndarray) -> list:
+        """Hold ``(T_base_tip, J)`` (made read-only, kept) as :meth:`_measured_kinematics`'
+        answer at the measured joints ``q``: computed here, or by the same compiled law
+        elsewhere (the compiled control period's last tick,
+        :mod:`davinci_sim.sim.live_period`)."""
         for a in (q, T_base_tip, J):
             a.setflags(write=False)
-        self._kin_cache = [q.tobytes(), q, T_base_tip, J]
+        c = self._kin_cache = [q.tobytes(), q, T_base_tip, J]
+        return c
 
     def _qd(self) -> np.ndarray:
         return self._sim.data.qvel[self._dofadr]

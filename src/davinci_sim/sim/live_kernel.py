@@ -115,6 +115,8 @@ def live_period(
     T1 = np.empty((4, 4))
     F_suj = np.empty((max(n_joints, 8), 12))
     J_none = np.empty((6, 0))
+    plan = (plan_links, plan_modified, plan_tools, plan_tools_identity, plan_T_cart_sujbase,
+            plan_reference, ref_links, ref_modified, ref_tool, ref_tool_identity)  # fmt: skip
     for k in range(first, K + 1):
         qp = numba.carray(f64_at(address[1]), (nq,))
         qv = numba.carray(f64_at(address[2]), (nv,))
@@ -124,9 +126,7 @@ def live_period(
         s = k / K  # (envs.control.ramp's arithmetic)
         # --- the arm's setpoint: servo_cp or servo_jp, as the Python path accepts it
         if frames and frames_at(  # the base frame at the joints now (Simulation._frames)
-            qp, frame_adr, key, tol, (plan_links, plan_modified, plan_tools,
-            plan_tools_identity, plan_T_cart_sujbase, plan_reference, ref_links, ref_modified,
-            ref_tool, ref_tool_identity), frames_out, Q_suj, q_frame_ref, T1, J_none, F_suj,
+            qp, frame_adr, key, tol, plan, frames_out, Q_suj, q_frame_ref, T1, J_none, F_suj,
         ):  # fmt: skip
             invert_rigid_row(frames_out[arm_row], T_base_ref)  # (Arm._T_base_reference)
             computed[0] = True
@@ -184,10 +184,8 @@ def live_period(
             return k  # diverged: undone, for the Python tick's guard
     qp = numba.carray(f64_at(address[1]), (nq,))
     if frames and frames_at(
-        qp, frame_adr, key, tol, (plan_links, plan_modified, plan_tools, plan_tools_identity,
-        plan_T_cart_sujbase, plan_reference, ref_links, ref_modified, ref_tool,
-        ref_tool_identity), frames_out, Q_suj, q_frame_ref, T1, J_none, F_suj,
-    ):  # fmt: skip
+        qp, frame_adr, key, tol, plan, frames_out, Q_suj, q_frame_ref, T1, J_none, F_suj
+    ):
         computed[0] = True
     for i in range(dof):
         q_arm[i] = qp[arm_q[i]]

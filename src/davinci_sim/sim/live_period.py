@@ -43,17 +43,16 @@ if TYPE_CHECKING:
     from davinci_sim.sim.arm import Arm
     from davinci_sim.sim.simulation import Simulation
 
-_KERNEL: Any = None
 _BOUND_KERNEL: Any = None
 _BIND: Any = None
 DONE = -1
 if rows_step.COMPILED:  # (MuJoCo's library is loaded into LLVM's symbols by rows_step)
     from davinci_sim.kinematics.bound import bind
-    from davinci_sim.sim.live_kernel import DONE, live_period, live_period_bound
+    from davinci_sim.sim.live_kernel import DONE, live_period_bound
 
-    _KERNEL, _BOUND_KERNEL, _BIND = live_period, live_period_bound, bind
+    _BOUND_KERNEL, _BIND = live_period_bound, bind
 
-COMPILED = _KERNEL is not None
+COMPILED = _BOUND_KERNEL is not None
 """Whether :class:`ArmPeriod` can run (else callers tick in Python)."""
 
 _SIG = int(mujoco.mjtState.mjSTATE_INTEGRATION)  # (the divergence guard's state)
@@ -185,7 +184,7 @@ class ArmPeriod:
         self._goal = (np.empty((4, 4)), np.empty((3, 3)), np.empty(n), np.empty(n),
                       np.empty(arm.dof), np.empty(6))  # fmt: skip
         self._final = (np.empty((4, 4)), np.empty((6, arm.dof)))  # (T_base_tip, J)
-        self._bounds: dict[int, tuple] = {}  # id(samples) -> (samples, objects, bound)
+        self._bounds: dict[int, tuple] = {}  # id(samples) -> (samples, bound)
         self._samples: dict[int, PeriodSamples] = {}
 
     def samples(self, K: int) -> PeriodSamples:
@@ -198,14 +197,11 @@ class ArmPeriod:
 
     def _bound(self, samples: PeriodSamples):
         """The kernel's arguments but the period's flags, bound once per ``samples`` buffer
-        (and per servo and watch: the simulation's own, built with it)."""
-        sim = self.sim
-        objects = (sim.servo, sim._watch)
+        (the servo's and the watch's arrays are the simulation's own, built with it)."""
         entry = self._bounds.get(id(samples))
-        if entry is not None and entry[0] is samples and entry[1][0] is objects[0] \
-                and entry[1][1] is objects[1]:  # fmt: skip
-            return entry[2]
-        servo, watch = objects
+        if entry is not None and entry[0] is samples:
+            return entry[1]
+        servo, watch = self.sim.servo, self.sim._watch
         args = (
             (self._model._address, self._data._address, self._address, self._sizes,
              self._state, _SIG, self._warnings),
@@ -223,7 +219,7 @@ class ArmPeriod:
         if len(self._bounds) >= 8:  # (callers' own buffers, one after another)
             self._bounds.clear()
         bound = _BIND(args)
-        self._bounds[id(samples)] = (samples, objects, bound)
+        self._bounds[id(samples)] = (samples, bound)
         return bound
 
     def _frames(self) -> bool | None:
@@ -309,7 +305,7 @@ class ArmPeriod:
         if self._computed[0]:  # the frames the kernel computed last: the simulation's now
             sim._keep_frames(self._key.tobytes(), self._frames_out.copy())
         if stop == DONE:  # the arm's kinematics at the joints now, as the next reader's
-            arm._keep_kinematics(self._final[0].copy(), self._final[1].copy())
+            arm._keep_kinematics(arm._q(), self._final[0].copy(), self._final[1].copy())
         ran = (K if stop == DONE else stop - 1) - first + 1
         sim.tick_count += ran
         for k, a in enumerate(arms):
@@ -427,4 +423,4 @@ def _warm_up() -> None:
 
 
 if COMPILED and not warmed_up(_warm_up, "the live control period cannot be compiled: Python ticks"):
-    _KERNEL, _BOUND_KERNEL, COMPILED = None, None, False
+    _BOUND_KERNEL, COMPILED = None, False
