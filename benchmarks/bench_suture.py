@@ -9,7 +9,9 @@ pad), ``needle_pickup`` (the park and the needle: the same scene without the pad
 passes of ``CHUNK_TICKS`` ticks (``live_tick``), and MuJoCo's own ``mj_step`` at the same
 state. Then the physics alone with PSM1's closed jaws pressed 2 mm into the skin (contacts
 with the flex every step): ``pressed_tick`` against ``clear_tick``, the same scene with the
-jaws 15 mm above it. ``python benchmarks/bench_suture.py`` writes ``results/suture.json``.
+jaws 15 mm above it. Last, the live passes of ``needle_drive`` with the person's right hand
+holding PSM1's tool down on the skin (``pressing_live_tick``) against MuJoCo's step at that
+state. ``python benchmarks/bench_suture.py`` writes ``results/suture.json``.
 """
 
 from __future__ import annotations
@@ -77,6 +79,39 @@ def pressed_figures(n: int) -> dict:
         sim.close()
 
 
+def pressing_figures(n: int) -> dict:
+    """What ``serve --task needle_drive`` ticks while the person's right hand holds PSM1's
+    tool down on the skin (every step has contacts with it): the live runners' passes and
+    MuJoCo's own step at that state."""
+    sim = serve_sim(task="needle_drive")
+    try:
+        probe = sim.components["task"].task.probe(sim.model)
+        device = sim.components["MTMR/device"]
+        scale = sim.components["console"].psm_teleops["MTMR_PSM1"].config.scale
+        site, pad = sim.model.site("PSM1/tip").id, sim.components["task"].task.pad
+        goal = np.array([pad.center[0], pad.center[1], pad.top + 0.012])  # world, m
+        for _ in range(60):  # the hand brings the tool down, 4 mm at most a move
+            if probe.read(sim.data).flex_force > 0.2:
+                break
+            step = goal - sim.data.site_xpos[site]
+            if np.linalg.norm(step) < 0.001:
+                goal[2] -= 0.001
+            step *= min(1.0, 0.004 / max(np.linalg.norm(step), 1e-9))
+            T = device.input().T_hrsv_tip.copy()
+            T[:3, 3] += sim.T_cart_camera()[:3, :3].T @ step / scale
+            device.move_hand(T)
+            sim.run_for(0.2)
+        sim.run_for(0.3)
+        passes = time_each(lambda: sim.advance(CHUNK_TICKS, unchanged=True), n // CHUNK_TICKS)
+        out = summary([p / CHUNK_TICKS for p in passes], "pressing_live_tick")
+        out.update(summary(mj_step_each(sim, n), "pressing_mj_step"))
+        out["pressing_contacts"] = int(sim.data.ncon)
+        out["pressing_skin_force_N"] = probe.read(sim.data).flex_force
+        return out
+    finally:
+        sim.close()
+
+
 def main(n: int = 3000) -> None:
     logging.getLogger("davinci_sim").setLevel(logging.ERROR)
     figures: dict = {"load_average_before": os.getloadavg()[0]}
@@ -91,6 +126,7 @@ def main(n: int = 3000) -> None:
     figures["pressed_over_clear_ratio"] = (
         figures["pressed_tick_median_us"] / figures["clear_tick_median_us"]
     )
+    figures.update(pressing_figures(n))
     figures["target_drive_over_without_ratio"] = 2.0
     figures["load_average_after"] = os.getloadavg()[0]
     write("suture", figures)

@@ -376,6 +376,65 @@ def test_another_exercise_ticks_compiled_as_in_python_its_session_sampled_in_pyt
 
 
 @pytest.fixture(scope="module")
+def needle_drive():
+    """The ``exercise`` fixture's needle driving."""
+    if "needle_drive" not in _EXERCISES:
+        _EXERCISES["needle_drive"] = _serve("needle_drive")
+    return _EXERCISES["needle_drive"]
+
+
+def test_the_tool_pressing_the_skin_ticks_compiled_as_in_python(needle_drive):
+    """Needle driving with PSM1's tool brought down onto the suture pad's skin by the right
+    hand: every tick touches the skin, and the compiled ticks measure what the session
+    samples (the force on the skin, the instruments' contacts) as the Python ticks do,
+    bit for bit, without leaving the ticks to Python."""
+    sim, chunker, start = needle_drive
+    session = sim.components["task"]
+    sim.set_state(start)
+    probe = session.task.probe(sim.model)
+    console, device = sim.components["console"], sim.components["MTMR/device"]
+    scale = console.psm_teleops["MTMR_PSM1"].config.scale
+    site, pad = sim.model.site("PSM1/tip").id, session.task.pad
+    goal = np.array([pad.center[0], pad.center[1], pad.top + 0.012])  # world, m
+    for _ in range(60):  # the hand brings the tool down, 4 mm at most a move
+        if probe.read(sim.data).flex_force > 0.2:
+            break
+        step = goal - sim.data.site_xpos[site]
+        if np.linalg.norm(step) < 0.001:
+            goal[2] -= 0.001
+        step *= min(1.0, 0.004 / max(np.linalg.norm(step), 1e-9))
+        T = device.input().T_hrsv_tip.copy()
+        T[:3, 3] += sim.T_cart_camera()[:3, :3].T @ step / scale
+        device.move_hand(T)
+        sim.run_for(0.2)
+    assert probe.read(sim.data).flex_force > 0.2
+    samples: list = []
+
+    def record(sim):  # what the session samples each tick, in this run
+        monitor, seen = session.monitor, []
+        samples.append(seen)
+        observe = type(monitor).observe
+
+        def observing(sample, active=None):
+            seen.append((int(sample.contacts[0]), float(sample.tool_force[0]),
+                         float(sample.tissue_force[0])))  # fmt: skip
+            return observe(monitor, sample, active)
+
+        monitor.observe = observing
+
+    try:
+        runs, answers = _both_ways((sim, chunker, sim.get_state()), 300, before=record)
+    finally:
+        session.monitor.__dict__.pop("observe", None)
+    _assert_same_run(*runs)
+    assert sum(a[0] for a in answers) >= 290, answers[:10]
+    python, compiled = samples
+    assert len(python) == 300 and compiled == python
+    assert min(f for _, _, f in python) > 0.05  # (the skin pressed every tick)
+    assert sim.arms["PSM1"].operating_state().state == "ENABLED"
+
+
+@pytest.fixture(scope="module")
 def rota():
     """What ``serve --task rota_path --home`` ticks (Rota's viscous-elastic fixture on the
     path), the person holding both handles after taking control."""

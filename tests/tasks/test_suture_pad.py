@@ -6,9 +6,10 @@ state machine (one pair, the running suture's four in order)."""
 import dataclasses
 import math
 
+import mujoco
 import numpy as np
 import pytest
-from compiled_reads import stops_on_contact
+from compiled_reads import contacts_measured, stops_on_contact
 from scripted_operator import Operator
 
 from davinci_sim.console import chunk
@@ -300,19 +301,26 @@ def test_an_instrument_dents_the_skin_locally_and_it_springs_back(operator):
     near, far = xy < 0.004, xy > 0.012
     assert dent[near].min() < -0.0008
     assert np.abs(dent[far]).max() < 0.25 * abs(dent[near].min())
-    probe = task.probe(m)[1]
-    assert probe.force(m, d) > 0.05
+    # the force on the skin: each contact with the flex's normal force (MuJoCo's own)
+    probe = task.probe(m)
+    f6, on_skin = np.zeros(6), 0.0
+    for i in range(d.ncon):
+        if probe.flex in d.contact.flex[i]:
+            mujoco.mj_contactForce(m, d, i, f6)
+            on_skin += abs(f6[0])
+    assert on_skin > 0.05
+    assert probe.read(d).flex_force == pytest.approx(on_skin, rel=1e-12)
     sample = task.scene_fields(m, d, {})
-    assert sample["tissue_force"] == pytest.approx(probe.force(m, d))
+    assert sample["tissue_force"] == probe.read(d).flex_force
     from davinci_sim.tasks.trainer import InstrumentContacts
 
     contacts = InstrumentContacts(m, "PSM1", task.CONTACT_IGNORE)
     count, _ = contacts.measure(m, d)
     assert count == 0  # (the skin is what the instruments work on)
-    if chunk.COMPILED:  # the console's compiled ticks leave this tick to Python (its force)
-        assert task.objects_probe(m, {}).flex_contacts
-        assert stops_on_contact(d, contacts, flex=True)
-        assert not stops_on_contact(d, contacts, flex=False)
+    if chunk.COMPILED:  # the console's compiled ticks measure the same, bit for bit
+        assert not stops_on_contact(d, contacts)
+        measured = contacts_measured(m, d, contacts, probe.flex)
+        assert measured == (*contacts.measure(m, d), probe.read(d).flex_force)
     op.move("PSM1", on + [0, 0, JAW_LENGTH + 0.015])
     op.sim.run_for(0.5)
     assert np.abs(skin(op) - rest).max() < 2e-4
@@ -337,7 +345,7 @@ def test_the_needle_passes_through_the_skin_without_touching_it(operator):
     assert not (d.contact.flex[: d.ncon] >= 0).any()
     assert np.abs(skin(op) - rest).max() < 1e-9
     task.reset_scene(m, d)
-    assert np.allclose(task.probe(m)[0].frame(d), task.T_world_start, atol=1e-9)
+    assert np.allclose(task.probe(m).frame(d), task.T_world_start, atol=1e-9)
 
 
 def test_a_scripted_surgeon_drives_the_needle_through_and_pulls_it_out():
@@ -351,7 +359,7 @@ def test_a_scripted_surgeon_drives_the_needle_through_and_pulls_it_out():
     task = load_task("needle_drive")
     op = Operator(task, counts=("dropped", "passes", "handoffs"))
     try:
-        needle_probe = task.probe(op.sim.model)[0]
+        needle_probe = task.probe(op.sim.model)
 
         def frame():
             return needle_probe.frame(op.sim.data)

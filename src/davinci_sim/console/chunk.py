@@ -109,14 +109,14 @@ class ConsoleChunk:
         w = live_period.warning_address(data)
         ncon = live_period.contact_count_address(data)
         self.available = COMPILED and w is not None and ncon is not None
-        self._address = np.zeros(13, dtype=np.intp)
+        self._address = np.zeros(14, dtype=np.intp)
         if self.available:
             self._address[:9] = [
                 data.ctrl.ctypes.data, data.qpos.ctypes.data, data.qvel.ctypes.data,
                 data.qfrc_bias.ctypes.data, data.qfrc_gravcomp.ctypes.data, w, ncon,
                 data.xfrc_applied.ctypes.data, data.xipos.ctypes.data,
             ]  # fmt: skip
-            self._address[10:] = [data.xpos.ctypes.data, data.xmat.ctypes.data,
+            self._address[10:13] = [data.xpos.ctypes.data, data.xmat.ctypes.data,
                                   data.site_xpos.ctypes.data]  # fmt: skip
         self._sizes = indices(model.nu, model.nq, model.nv, len(data.warning), 0, model.nbody)
         self._state = np.empty(mujoco.mj_stateSize(model, _SIG))
@@ -338,7 +338,7 @@ class ConsoleChunk:
             return (np.zeros(1, dtype=bool), indices(0), indices(-1), np.zeros(1, dtype=bool),
                     np.zeros(1, dtype=bool), np.zeros(1, dtype=bool), np.empty(K),
                     np.empty((K, 4, 4)), np.empty((K, 4, 4)), np.empty((K, 3)),
-                    np.empty((K, 3)), np.zeros(3), *objects_row(None, MAX_TICKS))  # fmt: skip
+                    np.empty((K, 3)), np.zeros(3), *objects_row(None, None, MAX_TICKS))  # fmt: skip
         if request.teleop not in names:
             return None
         mtm = rows_of[names.index(request.teleop)].mtm_name
@@ -356,22 +356,23 @@ class ConsoleChunk:
                 np.ascontiguousarray(request.other_geom, dtype=bool), np.empty(K),
                 np.empty((K, 4, 4)), np.empty((K, 4, 4)), np.empty((K, 3)), np.empty((K, 3)),
                 np.zeros(3) if now is None else floats(now[:3]),
-                *objects_row(request.objects, MAX_TICKS))  # fmt: skip
+                *objects_row(request.objects, request.contacts, MAX_TICKS))  # fmt: skip
 
     def _contact_layout(self) -> bool:
-        """Whether the kernel can read the contacts' geoms: the address of
-        ``mjData.contact[0].geom`` and the contacts' stride (bytes), taken from the
-        bindings' view of the contacts the first time there are some (they live at the start
-        of the data's arena, where every step puts them)."""
+        """Whether the kernel can read the contacts' geoms and flexes: the addresses of
+        ``mjData.contact[0].geom`` and ``.flex`` and the contacts' stride (bytes), taken
+        from the bindings' view of the contacts the first time there are some (they live at
+        the start of the data's arena, where every step puts them)."""
         if self._address[9]:
             return True
         data = self._data
         if data.ncon == 0:
             return False
-        geom = data.contact.geom
-        if geom.strides[1] != 4 or geom.dtype != np.int32:
-            return False
-        self._address[9] = geom.ctypes.data
+        geom, flex = data.contact.geom, data.contact.flex
+        for a in (geom, flex):
+            if a.strides != geom.strides or a.strides[1] != 4 or a.dtype != np.int32:
+                return False
+        self._address[9], self._address[13] = geom.ctypes.data, flex.ctypes.data
         self._sizes[4] = geom.strides[0]
         return True
 
@@ -491,8 +492,11 @@ class ConsoleChunk:
             tel.device.rendered(limited, tau, bool(out[3][0]), dev[15].copy(), dev[4])
         rec = plan.rec
         if rec[0][0]:
-            args = (rec[6][:whole].copy(), rec[8][:whole].copy(), rec[7][:whole].copy(),
-                    rec[9][:whole].copy(), rec[10][:whole].copy())  # fmt: skip
-            if rec[16][0]:  # (the objects' readings)
-                args += (tuple(a[:whole].copy() for a in rec[17:21]),)
-            plan.request.take(*args)
+            readings = contacts = None
+            if rec[16][0]:  # (the objects' readings, the force on the flex last)
+                readings = tuple(a[:whole].copy() for a in (*rec[17:21], rec[22]))
+            if rec[16][1]:  # (the contacts measured)
+                contacts = (rec[27][:whole].copy(), rec[28][:whole].copy())
+            plan.request.take(rec[6][:whole].copy(), rec[8][:whole].copy(),
+                              rec[7][:whole].copy(), rec[9][:whole].copy(),
+                              rec[10][:whole].copy(), readings, contacts)  # fmt: skip

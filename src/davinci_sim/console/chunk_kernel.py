@@ -27,8 +27,11 @@ failed wrist solve, a tracking fault, a step that raises one of the divergence g
 warnings, a turned wrist target the device would refuse — the call returns ``2·k`` with
 tick k not run (its pre-step's writes are the Python tick's own, equal, or put back);
 where the tick's step ran but a post-step has no compiled form (the instrument touches
-something: the session measures its contacts; a guidance force that is not finite),
-``2·k + 1``: the caller runs tick k's post-steps in Python. :data:`DONE` when all K ran.
+something and the session, the path kind's, measures its contacts in Python; a guidance
+force that is not finite), ``2·k + 1``: the caller runs tick k's post-steps in Python.
+:data:`DONE` when all K ran. The other kinds' sessions have the kernel measure the contacts
+after each step (the instruments' and the suture pad's skin's), so a tool working on the
+skin stays in the compiled ticks.
 
 Module-level functions, so that numba's on-disk cache keeps them between processes.
 """
@@ -48,6 +51,7 @@ from davinci_sim.console.chunk_slots import (
     STOP_NONE,
     STOP_TURN,
     STOP_WRIST,
+    contacts_measure,
     device_read,
     ecm_kept,
     fixture_force,
@@ -87,7 +91,8 @@ def console_chunk(phys, watch, fr, devices, teleops, rec, ecm, K):
 
     ``phys``: the C pointers of the model and data, the buffers' addresses (``ctrl``,
     ``qpos``, ``qvel``, ``qfrc_bias``, ``qfrc_gravcomp``, the warning statistics, ``ncon``,
-    ``xfrc_applied``, ``xipos``, the first contact's geoms), the sizes (nu, nq, nv, number
+    ``xfrc_applied``, ``xipos``, the first contact's geoms, the bodies' ``xpos`` and
+    ``xmat``, ``site_xpos``, the first contact's flexes), the sizes (nu, nq, nv, number
     of warnings, the contacts' stride in bytes), the guard's state scratch and signature,
     the warnings it watches, then the servo's arrays (updated in place) and the time step.
     ``watch``: the tracking watch's arrays. ``fr``: the setup-joint frame plan, its key
@@ -111,10 +116,12 @@ def console_chunk(phys, watch, fr, devices, teleops, rec, ecm, K):
 
     ``rec``: ``(on, teleop, fixture_teleop, ncon_watch, tool_geom, other_geom, t, T_tip,
     T_camera, requested, master, req_now, bodies, object_of, jaw_bit, tips, objects_flags,
-    xpos, xmat, grasp, tip_out)``: the task session's samples of each tick (after its
-    step), with its kind's objects (``ObjectsProbe.read``) where ``objects_flags[0]``; a
-    contact with a flex ends a call before the tick's post-steps where
-    ``objects_flags[1]``.
+    xpos, xmat, grasp, tip_out, flex, flex_out, tool_of, arm_of, counts, f6, count_out,
+    force_out)``: the task session's samples of each tick (after its step), with its kind's
+    objects (``ObjectsProbe.read``) where ``objects_flags[0]``, and, where
+    ``objects_flags[1]``, the instruments' contacts and the force on the flex measured
+    (:func:`~davinci_sim.console.chunk_slots.contacts_measure`); else an instrument's
+    contact ends a call before the tick's post-steps.
 
     ``ecm``: the camera teleoperation's row (:func:`~davinci_sim.console.chunk_rows.
     ecm_row`): on where it follows, its anchors and constants, the ECM's, the slots of its
@@ -213,6 +220,8 @@ def console_chunk(phys, watch, fr, devices, teleops, rec, ecm, K):
     r_t, r_tip, r_cam, r_req, r_master, r_now = rec[6], rec[7], rec[8], rec[9], rec[10], rec[11]
     bodies, object_of, jaw_bit, tips, o_flags = rec[12], rec[13], rec[14], rec[15], rec[16]
     o_xpos, o_xmat, o_grasp, o_tips = rec[17], rec[18], rec[19], rec[20]
+    o_flex, o_flex_out, c_tool, c_arm, c_counts = rec[21], rec[22], rec[23], rec[24], rec[25]
+    c_f6, c_count, c_force = rec[26], rec[27], rec[28]
     ra = rec[1][0] == 0  # (the session's teleoperation: A or B, array by array as above)
     rl0, rl1, rl2, rl3 = (
         (c_a5 if ra else c_b5),
@@ -351,8 +360,10 @@ def console_chunk(phys, watch, fr, devices, teleops, rec, ecm, K):
         times[1] = t_after
         t_pre = t_after
         qp = numba.carray(f64_at(address[1]), (nq,))
-        if rec_on[0] and tool_contacts(address, stride, rec_ncon, tool_geom, other_geom,
-                                        o_flags[1]):  # fmt: skip
+        if rec_on[0] and o_flags[1]:  # (the contacts measured for the session)
+            contacts_measure(model, data, address, stride, c_tool, c_arm, c_counts, o_flex[0],
+                             c_f6, k - 1, c_count, c_force, o_flex_out)  # fmt: skip
+        elif rec_on[0] and tool_contacts(address, stride, rec_ncon, tool_geom, other_geom):
             times[2] = STOP_CONTACT
             return 2 * k + 1  # the instrument touches something: the session measures it
         if frames_at(qp, frame_adr, key, tol, plan, frames_out, Q_suj, q_frame_ref, T1, J_none,

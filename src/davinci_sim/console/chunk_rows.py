@@ -43,10 +43,12 @@ class SampleRequest:
     """What a component samples after every step (``chunk_part()``'s answer of a task
     session): the tool of ``teleop`` (its PSM's tip in the camera frame), the guidance force
     its MTM's haptic loop requested and its master's position; the chunk calls
-    ``take(t, T_cart_camera, T_camera_tip, requested, master)`` after each call with its m
-    whole ticks' samples in order: (m,) s, (m, 4, 4), (m, 4, 4), (m, 3) N, (m, 3) m. A tick
-    whose step leaves a contact of the instrument with something it counts ends the call
-    before its post-steps (the session measures it in Python)."""
+    ``take(t, T_cart_camera, T_camera_tip, requested, master, readings, contacts)`` after
+    each call with its m whole ticks' samples in order: (m,) s, (m, 4, 4), (m, 4, 4),
+    (m, 3) N, (m, 3) m, the objects' readings (below; None without objects) and the
+    contacts measured (below; None where not measured). Without ``contacts``, a tick whose
+    step leaves a contact of the instrument with something it counts ends the call before
+    its post-steps (the session measures it in Python)."""
 
     teleop: str
     take: Any
@@ -57,10 +59,12 @@ class SampleRequest:
     """(ngeom + 1,) bool: the geoms whose contact with the instrument counts."""
     objects: Any = None
     """The kind's :class:`~davinci_sim.tasks.objects_probe.ObjectsProbe` (None: none): the
-    chunk reads its objects after each step and ``take`` gets the readings as a last
-    argument, ``(xpos (m, k, 3), xmat (m, k, 9), grasp (m, k), tips (m, A, 3))``; a tick
-    with a contact with a flex ends the call before its post-steps where the probe's
-    ``flex_contacts`` says so."""
+    chunk reads its objects after each step and ``take`` gets the readings,
+    ``(xpos (m, k, 3), xmat (m, k, 9), grasp (m, k), tips (m, A, 3), flex_force (m,))``."""
+    contacts: Any = None
+    """The instruments' :class:`~davinci_sim.tasks.trainer.InstrumentContacts` (None: not
+    measured): the chunk measures them after each step, as its ``measure`` does, and
+    ``take`` gets ``(count (m,), force (m,) N)``."""
 
 
 def floats(a) -> np.ndarray:
@@ -350,20 +354,34 @@ def _teleop_static(psm: PSM, rows: dict) -> tuple:
             np.empty((dof, 12)), np.empty(dof), np.empty(dof), indices(*psm.jaw._idx))  # fmt: skip
 
 
-def objects_row(probe, K: int) -> tuple:
-    """The request's objects part: ``(bodies, object_of, jaw_bit, tips, flags, xpos, xmat,
-    grasp, tip_out)``: an :class:`~davinci_sim.tasks.objects_probe.ObjectsProbe`'s tables,
-    ``flags`` (whether there are objects, whether a contact with a flex ends the call)
-    and the readings of each tick (``K`` rows: a call's most ticks); empty for None."""
+def objects_row(probe, contacts, K: int) -> tuple:
+    """The request's objects and contacts part: ``(bodies, object_of, jaw_bit, tips, flags,
+    xpos, xmat, grasp, tip_out, flex, flex_out, tool_of, arm_of, counts, f6, count_out,
+    force_out)``: an :class:`~davinci_sim.tasks.objects_probe.ObjectsProbe`'s tables,
+    ``flags`` (whether there are objects, whether the contacts are measured), the readings
+    of each tick (``K`` rows: a call's most ticks), the probe's flex (−1: none) and its
+    force each tick, then an :class:`~davinci_sim.tasks.trainer.InstrumentContacts`'
+    tables, the force scratch and each tick's count and force; empty for None."""
     if probe is None:
-        return (indices(), np.full(1, -1, dtype=np.intp), np.zeros(1, dtype=np.int64),
+        part = (indices(), np.full(1, -1, dtype=np.intp), np.zeros(1, dtype=np.int64),
                 indices(), np.zeros(2, dtype=bool), np.empty((K, 0, 3)), np.empty((K, 0, 9)),
-                np.empty((K, 0), dtype=np.int64), np.empty((K, 0, 3)))  # fmt: skip
-    k, a = len(probe.bodies), len(probe.tips)
-    return (indices(*probe.bodies), np.ascontiguousarray(probe.object_of, dtype=np.intp),
-            np.ascontiguousarray(probe.jaw_bit, dtype=np.int64), indices(*probe.tips),
-            np.array([True, probe.flex_contacts]), np.empty((K, k, 3)), np.empty((K, k, 9)),
-            np.empty((K, k), dtype=np.int64), np.empty((K, a, 3)))  # fmt: skip
+                np.empty((K, 0), dtype=np.int64), np.empty((K, 0, 3)), indices(-1),
+                np.zeros(K))  # fmt: skip
+    else:
+        k, a = len(probe.bodies), len(probe.tips)
+        part = (indices(*probe.bodies), np.ascontiguousarray(probe.object_of, dtype=np.intp),
+                np.ascontiguousarray(probe.jaw_bit, dtype=np.int64), indices(*probe.tips),
+                np.array([True, False]), np.empty((K, k, 3)), np.empty((K, k, 9)),
+                np.empty((K, k), dtype=np.int64), np.empty((K, a, 3)), indices(probe.flex),
+                np.zeros(K))  # fmt: skip
+    if contacts is None:
+        return (*part, indices(-1), indices(-1), np.zeros(1, dtype=bool), np.zeros(6),
+                np.zeros(K, dtype=np.int64), np.zeros(K))  # fmt: skip
+    part[4][1] = True
+    return (*part, np.ascontiguousarray(contacts.tool_of, dtype=np.intp),
+            np.ascontiguousarray(contacts.arm_of, dtype=np.intp),
+            np.ascontiguousarray(contacts.counts, dtype=bool), np.zeros(6),
+            np.zeros(K, dtype=np.int64), np.zeros(K))  # fmt: skip
 
 
 def ecm_following(tel: TeleopECM) -> bool:

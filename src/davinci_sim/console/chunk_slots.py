@@ -28,7 +28,7 @@ from davinci_sim.kinematics.fk_compiled import tip_pose_row
 from davinci_sim.kinematics.scratch import local, local_within
 from davinci_sim.kinematics.suj import invert_rigid_row
 from davinci_sim.sim.arm_laws import wrist_lock_step as _wrist_lock_step
-from davinci_sim.sim.rows_kernel import f64_at, i32_at
+from davinci_sim.sim.rows_kernel import f64_at, i32_at, mj_contact_force
 
 #: Why a call stopped before its K ticks (``times[2]``).
 (STOP_NONE, STOP_CANNULA, STOP_GOAL, STOP_JAW, STOP_WRIST, STOP_FAULT, STOP_DIVERGED,
@@ -234,23 +234,57 @@ def ecm_kept(previous, limited, tau_l, tau_sl, tau_r, tau_sr, active, active_s, 
 
 
 @numba.njit(cache=True, nogil=True)
-def tool_contacts(address, stride, watch, tool_geom, other_geom, flex) -> bool:
+def tool_contacts(address, stride, watch, tool_geom, other_geom) -> bool:
     """Whether a contact of the state now involves an instrument and something it may
-    collide with (``InstrumentContacts.measure`` may count it: the tables are a superset),
-    or, where ``flex``, a flex (the session measures the force on it): the contacts' geom
-    pairs read from ``mjData.contact`` (``address[9]``, ``stride`` bytes apart; a flex's
-    side is geom −1, the tables' last entry)."""
+    collide with (``InstrumentContacts.measure`` may count it: the tables are a superset):
+    the contacts' geom pairs read from ``mjData.contact`` (``address[9]``, ``stride`` bytes
+    apart; a flex's side is geom −1, the tables' last entry: neither)."""
     ncon = numba.carray(i32_at(address[6]), (1,))[0]
     if ncon == 0 or not watch[0]:
         return False
     for i in range(ncon):
         g = numba.carray(i32_at(address[9] + i * stride), (2,))
         a, b = g[0], g[1]
-        if flex and (a < 0 or b < 0):
-            return True
         if (tool_geom[a] and other_geom[b]) or (tool_geom[b] and other_geom[a]):
             return True
     return False
+
+
+@numba.njit(cache=True, nogil=True)
+def contacts_measure(model, data, address, stride, tool_of, arm_of, counts, flex, f6, k,
+                     out_count, out_force, out_flex):  # fmt: skip
+    """What the session measures of the contacts after a step, as Python measures them:
+    ``InstrumentContacts.measure``'s number of the instruments' contacts that count and
+    their total normal force (N; its tables ``tool_of``, ``arm_of``, ``counts``, per geom,
+    the last entry a flex's side) into ``out_count[k]`` and ``out_force[k]``, and
+    ``ObjectsProbe.read``'s normal force of the contacts with the flex ``flex`` (N; none if
+    negative) into ``out_flex[k]``. The contacts' geoms and flexes are read from
+    ``mjData.contact`` (``address[9]`` and ``address[13]``, ``stride`` bytes apart), their
+    forces with MuJoCo's ``mj_contactForce`` (into the scratch ``f6``), summed in the
+    contacts' order (Python's sums, the same bits)."""
+    ncon = numba.carray(i32_at(address[6]), (1,))[0]
+    count, force, on_flex = 0, 0.0, 0.0
+    for i in range(ncon):
+        g = numba.carray(i32_at(address[9] + i * stride), (2,))
+        a, b = g[0], g[1]
+        ta, tb = tool_of[a], tool_of[b]
+        hit = (ta >= 0 and arm_of[b] != ta and counts[b]) or (
+            tb >= 0 and arm_of[a] != tb and counts[a]
+        )
+        touched = False
+        if flex >= 0:
+            fx = numba.carray(i32_at(address[13] + i * stride), (2,))
+            touched = fx[0] == flex or fx[1] == flex
+        if hit or touched:
+            mj_contact_force(model, data, i, f6.ctypes.data)
+            if hit:
+                count += 1
+                force += abs(f6[0])
+            if touched:
+                on_flex += abs(f6[0])
+    out_count[k] = count
+    out_force[k] = force
+    out_flex[k] = on_flex
 
 
 @numba.njit(cache=True, nogil=True)

@@ -23,6 +23,11 @@ mj_get_state = types.ExternalFunction(
 mj_set_state = types.ExternalFunction(
     "mj_setState", types.void(types.intp, types.intp, types.intp, types.int32)
 )
+# ``void mj_contactForce(const mjModel*, const mjData*, int id, mjtNum result[6])``: contact
+# ``id``'s force in its contact frame (the normal component first).
+mj_contact_force = types.ExternalFunction(
+    "mj_contactForce", types.void(types.intp, types.intp, types.int32, types.intp)
+)
 
 
 def _pointer(nbtype, what: str):

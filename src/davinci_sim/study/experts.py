@@ -649,7 +649,7 @@ def do_needle_drive(stream: Streamer, session, task, done) -> None:
 
     sim = stream.sim
     m, d = sim.model, sim.data
-    probe = task.probe(m)[0]
+    probe = task.probe(m)
     second, first = task.instruments  # (PSM2 lifts it, PSM1 drives it)
     sites = {n: m.site(f"{n}/tip").id for n in task.instruments}
 

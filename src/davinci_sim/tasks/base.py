@@ -351,8 +351,7 @@ class Task(ABC):
         """The sample's scene fields from an
         :class:`~davinci_sim.tasks.objects_probe.ObjectsReading` taken after a step;
         ``data`` is that step's state, or None where the reading was recorded by the
-        compiled ticks, which leave to Python every tick with what else the kind measures
-        (a contact with a flex: the probe's ``flex_contacts``)."""
+        compiled ticks (the reading then holds all the kind reads of the step)."""
         raise NotImplementedError(f"{type(self).__name__} has no objects")
 
     def reset_scene(self, model, data) -> None:  # noqa: B027 (an optional hook)

@@ -261,14 +261,12 @@ class NeedleDriveTask(NeedlePickupTask, kind="needle_drive"):
         return body
 
     def probe(self, model, prefix: str = "task/"):
-        """(:class:`~davinci_sim.tasks.needle_scene.NeedleProbe`,
-        :class:`~davinci_sim.tasks.suture_pad.PadProbe`) of ``model``; the needle's
-        measures the skin's contacts in Python (``flex_contacts``)."""
+        """The needle's :class:`~davinci_sim.tasks.needle_scene.NeedleProbe` of ``model``,
+        its readings with the normal force of the contacts with the skin (the flex
+        ``<prefix>pad_skin``)."""
         from davinci_sim.tasks.needle_scene import NeedleProbe
-        from davinci_sim.tasks.suture_pad import PadProbe
 
-        needle = NeedleProbe(model, self.instruments, prefix, flex_contacts=True)
-        return needle, PadProbe(model, prefix)
+        return NeedleProbe(model, self.instruments, prefix, flex=f"{prefix}pad_skin")
 
     def reset_scene(self, model, data) -> None:
         """The needle back in its park, the skin at rest."""
@@ -277,16 +275,11 @@ class NeedleDriveTask(NeedlePickupTask, kind="needle_drive"):
         reset_pad(model, data)
         super().reset_scene(model, data)
 
-    def objects_probe(self, model, cache: dict):
-        """The needle's probe (the first of :meth:`probe`'s)."""
-        return self.cached_probe(model, cache)[0]
-
     def objects_fields(self, reading, model, data, cache: dict) -> dict:
-        """Needle pick-up's fields and the force on the tissue (none in a recorded reading:
-        the compiled ticks leave a tick with the skin touched to Python)."""
+        """Needle pick-up's fields and the instruments' normal force on the tissue (the
+        reading's force on the skin, N)."""
         fields = super().objects_fields(reading, model, data, cache)
-        pad = self.cached_probe(model, cache)[1]
-        fields["tissue_force"] = 0.0 if data is None else pad.force(model, data)
+        fields["tissue_force"] = float(reading.flex_force)
         return fields
 
     def initial_state(self, n: int) -> DriveState:

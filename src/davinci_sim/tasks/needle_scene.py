@@ -267,15 +267,15 @@ class NeedleProbe(ObjectsProbe):
     """Reads, at a tick, the needle's frame (world, 4×4) and the bit mask of the jaws
     touching it (:class:`~davinci_sim.tasks.objects_probe.ObjectsProbe` of the one body):
     bit ``2·a + j`` for jaw ``j`` (0, 1) of instrument ``a`` (index in ``instruments``), as
-    :class:`~davinci_sim.tasks.peg_scene.PegProbe` does for rings. ``flex_contacts``: as
-    the base's (the suture pad's skin)."""
+    :class:`~davinci_sim.tasks.peg_scene.PegProbe` does for rings. ``flex``: as the base's
+    (the suture pad's skin, whose contacts' force the reading sums)."""
 
     def __init__(self, model: mujoco.MjModel, instruments, prefix: str = "task/", *,
-                 flex_contacts: bool = False) -> None:  # fmt: skip
+                 flex: str | None = None) -> None:  # fmt: skip
         self.body = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, f"{prefix}needle")
         if self.body < 0:
             raise ValueError("the scene has no needle (draw the task first)")
-        super().__init__(model, [self.body], instruments, flex_contacts=flex_contacts)
+        super().__init__(model, [self.body], instruments, flex=flex)
 
     def frame(self, data: mujoco.MjData) -> np.ndarray:
         """The needle's frame now (4×4, world, m)."""

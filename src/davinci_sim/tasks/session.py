@@ -324,22 +324,26 @@ class TaskSession:
             return None
         contacts = _contacts(self.sim, task)
         return SampleRequest(self.teleop.name, self._take, contacts.tool_geom,
-                             contacts.other_geom, objects)  # fmt: skip
+                             contacts.other_geom, objects,
+                             contacts if live is None else None)  # fmt: skip
 
     def _take(self, t, T_cart_camera, T_camera_tip, requested, master,
-              readings: tuple | None = None) -> None:  # fmt: skip
+              readings: tuple | None = None, contacts: tuple | None = None) -> None:  # fmt: skip
         """:meth:`post_step` of m compiled ticks, in order: their times ``t`` (m,) s, the
         camera in the cart and the tip in the camera (m, 4, 4), the guidance force requested
         ((m, 3) N, or None) and the master's position ((m, 3) m) as each tick left them, no
-        clutch, no contact, and the kind's objects' readings (the
+        clutch, the kind's objects' readings (the
         :class:`~davinci_sim.tasks.objects_probe.ObjectsReading` fields, each with the m
-        ticks first; None: a kind without objects). The path kind's samples go in compiled
-        calls up to each change of phase (``LivePathTick.takes``); another kind's through
-        its Python step, one at a time."""
+        ticks first; None: a kind without objects) and the instruments' contacts (their
+        number and force, N, each (m,); None: no contact). The path kind's samples go in
+        compiled calls up to each change of phase (``LivePathTick.takes``); another kind's
+        through its Python step, one at a time (its contacts measured)."""
         task, live = self.task, self._live_tick
         T_task_camera = task.T_task_cameras(T_cart_camera)
         if live is None:
-            self._take_each(T_task_camera, t, T_camera_tip, requested, master, readings)
+            assert contacts is not None  # (chunk_part asks for them)
+            self._take_each(T_task_camera, t, T_camera_tip, requested, master, readings,
+                            contacts)  # fmt: skip
             return
         T_task_tip = T_task_camera @ T_camera_tip  # (each product as the tick's own @)
         j, m = 0, len(t)
@@ -360,9 +364,11 @@ class TaskSession:
             j += n
             self._sampled(True, T_task_camera[j - 1], float(t[j - 1]))
 
-    def _take_each(self, T_task_camera, t, T_camera_tip, requested, master, readings) -> None:
+    def _take_each(self, T_task_camera, t, T_camera_tip, requested, master, readings,
+                   contacts) -> None:  # fmt: skip
         """:meth:`_take`'s samples one at a time, each as :func:`live_sample` has it."""
         sim, task = self.sim, self.task
+        count, force = contacts
         for j in range(len(t)):
             if self._recorded:
                 self._after_result(T_task_camera[j], T_camera_tip[j])
@@ -370,7 +376,7 @@ class TaskSession:
             tip = T_camera_tip[j].copy()
             tip.setflags(write=False)
             inputs = (tip, None if requested is None else requested[j], False, master[j],
-                      (0, 0.0))  # fmt: skip
+                      (int(count[j]), float(force[j])))  # fmt: skip
             extra = {}
             if readings is not None:
                 reading = ObjectsReading(*(a[j] for a in readings))

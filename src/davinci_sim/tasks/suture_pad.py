@@ -283,29 +283,6 @@ def skin_dofs(model: mujoco.MjModel, prefix: str = "task/") -> np.ndarray:
                     dtype=np.int64)  # fmt: skip
 
 
-class PadProbe:
-    """Reads, at a tick, the instruments' total normal force on the skin (N) from
-    MuJoCo's contacts with the flex."""
-
-    def __init__(self, model: mujoco.MjModel, prefix: str = "task/") -> None:
-        self.flex = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_FLEX, f"{prefix}pad_skin")
-        if self.flex < 0:
-            raise ValueError("the scene has no suture pad (draw the task)")
-        self._f6 = np.zeros(6)
-
-    def force(self, model: mujoco.MjModel, data: mujoco.MjData) -> float:
-        """Total normal force of the contacts on the skin now, N."""
-        ncon = data.ncon
-        if not ncon:
-            return 0.0
-        hit = np.flatnonzero((data.contact.flex[:ncon] == self.flex).any(axis=1))
-        total = 0.0
-        for i in hit.tolist():
-            mujoco.mj_contactForce(model, data, i, self._f6)
-            total += abs(float(self._f6[0]))
-        return total
-
-
 # ---------------------------------------------------------------- the needle's passage
 class Passage(NamedTuple):
     """A needle's passage through the skin, for n trials ((n,) arrays, ``p_entry`` and
