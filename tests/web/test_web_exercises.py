@@ -386,6 +386,10 @@ class Clutch:
     goal, has come no nearer it for 1.5 s while only move keys are held at full speed
     (``error``, the tool's offset from it, given): the hand stopped at its reach along one axis
     while the keys of the others dithered it about, which neither of the first two signs shows.
+    While the hand's teleoperation aligns the master (``ALIGNING_MTM``, after taking control or
+    a clutch) they hold no move key: the master turns itself to the tool's orientation, and a
+    hand moving it meanwhile keeps it from getting there (the target then looks stuck, and
+    clutching to bring the hand back starts the alignment over).
     Called with the state and the keys a step would hold; returns the keys to hold."""
 
     def __init__(self, hand: str, held=()) -> None:
@@ -405,6 +409,10 @@ class Clutch:
                 return {*self.held, "Space", *self.back}
             self.until = self.since = self.target = self.seen = self.nearest = None
         moving = {k for k in keys if any(k in pair for pair in MOVE_KEYS)}
+        if any(v["state"] == "ALIGNING_MTM" for v in s["teleops"].values()
+               if v["mtm"] == self.hand):  # fmt: skip
+            self.since = self.target = self.seen = self.nearest = None
+            return keys - moving
         if seen is None or self.seen is None or np.linalg.norm(seen - self.seen) > 0.0005:
             self.seen_since, self.seen = t, seen
         # (the hand's target still while the same move keys stay down: keys that change
