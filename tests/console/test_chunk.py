@@ -434,6 +434,52 @@ def test_the_tool_pressing_the_skin_ticks_compiled_as_in_python(needle_drive):
     assert sim.arms["PSM1"].operating_state().state == "ENABLED"
 
 
+@pytest.mark.parametrize("task", ["seed_path", "needle_drive"])
+def test_the_clutch_held_ticks_compiled_as_in_python(served, needle_drive, task):
+    """The clutch pedal pressed with the D key held (the hand brings the master back while
+    the tools stay), on the seed's path during a repetition: the same states, events and
+    samples (the clutch among them: a press the path's metrics count) as Python's ticks,
+    and the kernel ran the ticks after the pedal's."""
+    system = served if task == "seed_path" else needle_drive
+    sim = system[0]
+    console, session = sim.components["console"], sim.components["task"]
+    samples: list = []
+
+    def clutch(sim):
+        if task == "seed_path":  # the tool off point 1: a repetition runs
+            device = sim.components["MTMR/device"]
+            T = device.input().T_hrsv_tip.copy()
+            T[2, 3] += 0.03
+            device.move_hand(T)
+            sim.advance(600)
+            assert session.monitor.phase == Phase.RUNNING
+        console.press("clutch")
+        assert sim.components["MTMR/hand"].command([0.02, 0.0, 0.0])
+        seen = []
+        samples.append(seen)
+        monitor = session.monitor
+        observe = type(monitor).observe
+
+        def observing(sample, active=None):  # (the kinds sampled through their Python step)
+            seen.append(bool(sample.clutch[0]))
+            return observe(monitor, sample, active)
+
+        monitor.observe = observing
+
+    try:
+        runs, answers = _both_ways(system, 600, before=clutch)
+        assert all(t.is_clutched() for t in console.psm_teleops.values() if t.selected)
+    finally:
+        session.monitor.__dict__.pop("observe", None)
+        console.release("clutch")
+    _assert_same_run(*runs)
+    assert sum(a[0] for a in answers) >= 580, answers[:10]
+    python, compiled = samples
+    assert compiled == python
+    if task == "needle_drive":
+        assert len(python) == 600 and all(python[5:])
+
+
 @pytest.fixture(scope="module")
 def rota():
     """What ``serve --task rota_path --home`` ticks (Rota's viscous-elastic fixture on the

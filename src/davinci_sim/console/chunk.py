@@ -277,7 +277,7 @@ class ConsoleChunk:
             off = [next(iter(idle))]
         for name in off:
             tel = idle.get(name)
-            if tel is None or tel._clutched:  # (the session samples the clutch: Python's)
+            if tel is None:
                 return None
             i = device_of.get(tel.device.name)
             row = None if i is None else teleop_row(
@@ -299,8 +299,13 @@ class ConsoleChunk:
         slots_d, slots_t = filled(device_rows), filled(teleop_rows)
         if rec is None or slots_d is None or slots_t is None:
             return None
+        clutch = (
+            request is not None
+            and idle.get(request.teleop) is not None
+            and bool(idle[request.teleop]._clutched)
+        )  # (a following teleoperation is not clutched)
         return Plan(devices, hands, teleops, haptics, request, slots_d, slots_t, rec, moved,
-                     ecm, camera)  # fmt: skip
+                     ecm, camera, clutch=clutch)  # fmt: skip
 
     def _arms_idle(self, devices: list[SimulatedMTM], teleops: list[TeleopPSM],
                    rows: list[tuple], camera: TeleopECM | None) -> bool:  # fmt: skip
@@ -499,4 +504,5 @@ class ConsoleChunk:
                 contacts = (rec[27][:whole].copy(), rec[28][:whole].copy())
             plan.request.take(rec[6][:whole].copy(), rec[8][:whole].copy(),
                               rec[7][:whole].copy(), rec[9][:whole].copy(),
-                              rec[10][:whole].copy(), readings, contacts)  # fmt: skip
+                              rec[10][:whole].copy(), readings, contacts,
+                              plan.clutch)  # fmt: skip

@@ -43,12 +43,13 @@ class SampleRequest:
     """What a component samples after every step (``chunk_part()``'s answer of a task
     session): the tool of ``teleop`` (its PSM's tip in the camera frame), the guidance force
     its MTM's haptic loop requested and its master's position; the chunk calls
-    ``take(t, T_cart_camera, T_camera_tip, requested, master, readings, contacts)`` after
-    each call with its m whole ticks' samples in order: (m,) s, (m, 4, 4), (m, 4, 4),
-    (m, 3) N, (m, 3) m, the objects' readings (below; None without objects) and the
-    contacts measured (below; None where not measured). Without ``contacts``, a tick whose
-    step leaves a contact of the instrument with something it counts ends the call before
-    its post-steps (the session measures it in Python)."""
+    ``take(t, T_cart_camera, T_camera_tip, requested, master, readings, contacts, clutch)``
+    after each call with its m whole ticks' samples in order: (m,) s, (m, 4, 4), (m, 4, 4),
+    (m, 3) N, (m, 3) m, the objects' readings (below; None without objects), the contacts
+    measured (below; None where not measured) and whether the teleoperation is clutched
+    (the same for the call: a pedal's press or release is a Python tick's). Without
+    ``contacts``, a tick whose step leaves a contact of the instrument with something it
+    counts ends the call before its post-steps (the session measures it in Python)."""
 
     teleop: str
     take: Any
@@ -495,3 +496,5 @@ class Plan:
     """What the plan's next calls call (the compiled function, once its first call ran)."""
     started: dict = field(default_factory=dict)
     """Each following teleoperation's fixture filter's ``_started`` (found once)."""
+    clutch: bool = False
+    """The session's teleoperation clutched (not following): its samples' clutch."""

@@ -328,22 +328,24 @@ class TaskSession:
                              contacts if live is None else None)  # fmt: skip
 
     def _take(self, t, T_cart_camera, T_camera_tip, requested, master,
-              readings: tuple | None = None, contacts: tuple | None = None) -> None:  # fmt: skip
+              readings: tuple | None = None, contacts: tuple | None = None,
+              clutch: bool = False) -> None:  # fmt: skip
         """:meth:`post_step` of m compiled ticks, in order: their times ``t`` (m,) s, the
         camera in the cart and the tip in the camera (m, 4, 4), the guidance force requested
-        ((m, 3) N, or None) and the master's position ((m, 3) m) as each tick left them, no
-        clutch, the kind's objects' readings (the
+        ((m, 3) N, or None) and the master's position ((m, 3) m) as each tick left them, the
+        kind's objects' readings (the
         :class:`~davinci_sim.tasks.objects_probe.ObjectsReading` fields, each with the m
-        ticks first; None: a kind without objects) and the instruments' contacts (their
-        number and force, N, each (m,); None: no contact). The path kind's samples go in
-        compiled calls up to each change of phase (``LivePathTick.takes``); another kind's
-        through its Python step, one at a time (its contacts measured)."""
+        ticks first; None: a kind without objects), the instruments' contacts (their
+        number and force, N, each (m,); None: not measured, the ticks had none) and the
+        clutch (the same for all m). The path kind's samples go in compiled calls up to each
+        change of phase (``LivePathTick.takes``; one at a time while clutched); another
+        kind's through its Python step, one at a time (its contacts measured)."""
         task, live = self.task, self._live_tick
         T_task_camera = task.T_task_cameras(T_cart_camera)
         if live is None:
             assert contacts is not None  # (chunk_part asks for them)
             self._take_each(T_task_camera, t, T_camera_tip, requested, master, readings,
-                            contacts)  # fmt: skip
+                            contacts, clutch)  # fmt: skip
             return
         T_task_tip = T_task_camera @ T_camera_tip  # (each product as the tick's own @)
         j, m = 0, len(t)
@@ -353,19 +355,20 @@ class TaskSession:
                 j += 1
                 continue
             force = None if requested is None else requested[j:]
-            n = live.takes(T_task_camera[j:], T_task_tip[j:], T_camera_tip[j:], t[j:], force,
-                           master[j:])  # fmt: skip
-            if n == 0:  # (the first sample of a trial: one tick)
+            n = 0 if clutch else live.takes(T_task_camera[j:], T_task_tip[j:],
+                                            T_camera_tip[j:], t[j:], force,
+                                            master[j:])  # fmt: skip
+            if n == 0:  # (the first sample of a trial, or clutched: one tick)
                 tip = T_camera_tip[j].copy()
                 tip.setflags(write=False)
-                inputs = (tip, None if force is None else force[0], False, master[j], (0, 0.0))
+                inputs = (tip, None if force is None else force[0], clutch, master[j], (0, 0.0))
                 live.tick(T_task_camera[j], inputs, float(t[j]))
                 n = 1
             j += n
             self._sampled(True, T_task_camera[j - 1], float(t[j - 1]))
 
     def _take_each(self, T_task_camera, t, T_camera_tip, requested, master, readings,
-                   contacts) -> None:  # fmt: skip
+                   contacts, clutch: bool) -> None:  # fmt: skip
         """:meth:`_take`'s samples one at a time, each as :func:`live_sample` has it."""
         sim, task = self.sim, self.task
         count, force = contacts
@@ -375,7 +378,7 @@ class TaskSession:
                 continue
             tip = T_camera_tip[j].copy()
             tip.setflags(write=False)
-            inputs = (tip, None if requested is None else requested[j], False, master[j],
+            inputs = (tip, None if requested is None else requested[j], clutch, master[j],
                       (int(count[j]), float(force[j])))  # fmt: skip
             extra = {}
             if readings is not None:
