@@ -10,13 +10,19 @@ the watch, the servo, the step, the fixture's force and the task session's sampl
 state (:meth:`ConsoleChunk.plan`: idle, or one of the kinds the kernel has); after the call
 it writes back what the Python ticks would have left in the objects (devices' inputs, the
 hands' wrenches, the jaws, the locks, the limiters, the filters) and hands the task session
-its samples, in tick order. Anything else — a key held, a command, a clutch, a component the
-kernel has no form of — ticks in Python (:meth:`Simulation.tick`), the oracle the chunk is
+its samples, in tick order (a key held and the clutch held included). Anything else — a
+pedal's press, a command, a master aligning, a component the kernel has no form of — ticks
+in Python (:meth:`Simulation.tick`), the oracle the chunk is
 tested against bit for bit (``tests/console/test_chunk.py``).
 
 A command sent between two calls takes effect at the next one: the live runners' calls are
 at most ``runtime.loop.CHUNK_TICKS`` ticks (4 ms of simulated time), so a command waits at
 most that long.
+
+Size: about 500 lines because the plan (which states the kernel ticks, each check a reason to
+leave a tick to Python), the call and the write-back (what the Python ticks would have left
+in the same objects) are one contract: a state the plan admits is a state the write-back
+must cover. The rows themselves are built in :mod:`~davinci_sim.console.chunk_rows`.
 """
 
 from __future__ import annotations
