@@ -25,6 +25,7 @@ from bench_teleop import mj_step_each, serve_sim
 from common import summary, time_each, write
 from davinci_sim.model import SceneConfig
 from davinci_sim.model.psm import JAW_LENGTH
+from davinci_sim.operators.guide import guide_tool
 from davinci_sim.sim.runtime.loop import CHUNK_TICKS
 from davinci_sim.sim.simulation import Simulation
 from davinci_sim.tasks import load_task
@@ -85,22 +86,9 @@ def pressing_figures(n: int) -> dict:
     MuJoCo's own step at that state."""
     sim = serve_sim(task="needle_drive")
     try:
-        probe = sim.components["task"].task.probe(sim.model)
-        device = sim.components["MTMR/device"]
-        scale = sim.components["console"].psm_teleops["MTMR_PSM1"].config.scale
-        site, pad = sim.model.site("PSM1/tip").id, sim.components["task"].task.pad
-        goal = np.array([pad.center[0], pad.center[1], pad.top + 0.012])  # world, m
-        for _ in range(60):  # the hand brings the tool down, 4 mm at most a move
-            if probe.read(sim.data).flex_force > 0.2:
-                break
-            step = goal - sim.data.site_xpos[site]
-            if np.linalg.norm(step) < 0.001:
-                goal[2] -= 0.001
-            step *= min(1.0, 0.004 / max(np.linalg.norm(step), 1e-9))
-            T = device.input().T_hrsv_tip.copy()
-            T[:3, 3] += sim.T_cart_camera()[:3, :3].T @ step / scale
-            device.move_hand(T)
-            sim.run_for(0.2)
+        probe, pad = sim.components["task"].task.probe(sim.model), sim.components["task"].task.pad
+        above = [pad.center[0], pad.center[1], pad.top + 0.012]  # world, m
+        guide_tool(sim, "MTMR_PSM1", above, lambda: probe.read(sim.data).flex_force > 0.2)
         sim.run_for(0.3)
         passes = time_each(lambda: sim.advance(CHUNK_TICKS, unchanged=True), n // CHUNK_TICKS)
         out = summary([p / CHUNK_TICKS for p in passes], "pressing_live_tick")

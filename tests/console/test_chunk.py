@@ -14,6 +14,7 @@ import pytest
 
 from bits import assert_same_bits
 from davinci_sim.console import chunk
+from davinci_sim.operators.guide import guide_tool
 from davinci_sim.system import (
     ConsoleDescription,
     SystemDescription,
@@ -391,23 +392,9 @@ def test_the_tool_pressing_the_skin_ticks_compiled_as_in_python(needle_drive):
     sim, chunker, start = needle_drive
     session = sim.components["task"]
     sim.set_state(start)
-    probe = session.task.probe(sim.model)
-    console, device = sim.components["console"], sim.components["MTMR/device"]
-    scale = console.psm_teleops["MTMR_PSM1"].config.scale
-    site, pad = sim.model.site("PSM1/tip").id, session.task.pad
-    goal = np.array([pad.center[0], pad.center[1], pad.top + 0.012])  # world, m
-    for _ in range(60):  # the hand brings the tool down, 4 mm at most a move
-        if probe.read(sim.data).flex_force > 0.2:
-            break
-        step = goal - sim.data.site_xpos[site]
-        if np.linalg.norm(step) < 0.001:
-            goal[2] -= 0.001
-        step *= min(1.0, 0.004 / max(np.linalg.norm(step), 1e-9))
-        T = device.input().T_hrsv_tip.copy()
-        T[:3, 3] += sim.T_cart_camera()[:3, :3].T @ step / scale
-        device.move_hand(T)
-        sim.run_for(0.2)
-    assert probe.read(sim.data).flex_force > 0.2
+    probe, pad = session.task.probe(sim.model), session.task.pad
+    above = [pad.center[0], pad.center[1], pad.top + 0.012]  # world, m
+    assert guide_tool(sim, "MTMR_PSM1", above, lambda: probe.read(sim.data).flex_force > 0.2)
     samples: list = []
 
     def record(sim):  # what the session samples each tick, in this run

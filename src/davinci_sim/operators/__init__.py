@@ -9,6 +9,8 @@
 * :func:`run_ideal` — trainees on an ideal teleoperation, without the simulator (offline.py).
 * :class:`TraineeHand`, :func:`hand_impedance` — one trainee's hand on a simulated MTM of the
   console: the same teleoperation and force-field path as a person (console.py).
+* :func:`~davinci_sim.operators.guide.guide_tool` — a scripted hand that brings a
+  teleoperated tool to a point through its MTM (guide.py).
 """
 
 from davinci_sim.operators.console import TraineeHand, hand_impedance
