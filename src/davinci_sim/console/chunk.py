@@ -305,11 +305,8 @@ class ConsoleChunk:
         slots_d, slots_t = filled(device_rows), filled(teleop_rows)
         if rec is None or slots_d is None or slots_t is None:
             return None
-        clutch = (
-            request is not None
-            and idle.get(request.teleop) is not None
-            and bool(idle[request.teleop]._clutched)
-        )  # (a following teleoperation is not clutched)
+        sampled = None if request is None else idle.get(request.teleop)
+        clutch = sampled is not None and bool(sampled._clutched)  # (a follower is not)
         return Plan(devices, hands, teleops, haptics, request, slots_d, slots_t, rec, moved,
                      ecm, camera, clutch=clutch)  # fmt: skip
 
