@@ -6,6 +6,11 @@ import threading
 
 import pytest
 
+# As ``import davinci_sim`` sets it: a test module that imports mujoco first (the fidelity
+# test renders with MuJoCo's own Renderer) would otherwise get GLFW, which needs a display,
+# when it runs alone.
+os.environ.setdefault("MUJOCO_GL", "egl")
+
 
 def _serialised(parse):
     """``ast.parse`` one thread at a time. CPython 3.11's ``ast`` keeps the depth of the tree

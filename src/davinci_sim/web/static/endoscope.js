@@ -11,16 +11,49 @@
 // shininess (x 128), MuJoCo's headlight (a directional light from the eye along its view,
 // with its ambient) and the model's lights (spot: the cosine to the axis raised to the
 // exponent inside the cutoff, attenuation 1/(a0 + a1 d + a2 d^2)). It is evaluated per
-// vertex here (VERTEX_GLSL), the cheap way on a software WebGL, where three.js's per-pixel
+// vertex here (vertexGlsl), the cheap way on a software WebGL, where three.js's per-pixel
 // Phong with the scene's three spot lights took 230 ms a frame; so a large flat face (a
 // box's: four corners) lacks the spot's highlight the server's image shows in its middle.
 
 const MAX_LIGHTS = 4;  // the headlight and the model's lights (the scene has three)
 
-const VERTEX_GLSL = `
+// The scene message's lights as the shader takes them: MuJoCo's headlight (a directional
+// light along the eye's view) first, then the model's, at most MAX_LIGHTS.
+function sceneLights(m) {
+  const head = { ...m.headlight, directional: true, attenuation: [1, 0, 0], cutoff_deg: 180, exponent: 0 };
+  return [head, ...m.lights].slice(0, MAX_LIGHTS);
+}
+
+// The vertex shader of a scene's lights (lightUniforms' list: the headlight first): the law
+// above, one block per active light with its kind fixed, a spot's attenuation left out where
+// it is MuJoCo's default (1, 0, 0: a factor of exactly 1). A loop over the lights with a
+// branch on each one's kind took ~5 ms more a left-eye frame on Chromium's software WebGL
+// (2-core machine, ~15k vertices); this draws the same pixels. An inactive light adds
+// nothing (its colours are zero), so it has no block.
+function vertexGlsl(lights) {
+  const blocks = lights.map((l, k) => {
+    if (!l.active) return "";
+    let where;
+    if (l.directional) {
+      where = `    vec3 l = -lightDir[${k}]; float factor = 1.0;\n`;
+    } else {
+      const [a0, a1, a2] = l.attenuation;
+      where = `    vec3 d = lightPos[${k}] - world.xyz; float dist = length(d); vec3 l = d / dist;\n` +
+        (a0 === 1 && a1 === 0 && a2 === 0 ? "    float factor = 1.0;\n"
+          : `    vec3 a = lightAttenuation[${k}];\n` +
+            "    float factor = 1.0 / max(a.x + a.y * dist + a.z * dist * dist, 1e-6);\n") +
+        `    float cosAxis = dot(-l, lightDir[${k}]);\n` +
+        `    factor *= cosAxis >= lightCosCutoff[${k}] ? pow(max(cosAxis, 0.0), lightExponent[${k}]) : 0.0;\n`;
+    }
+    return `  {\n${where}` +
+      "    float nl = max(dot(n, l), 0.0);\n" +
+      "    float nh = max(dot(n, normalize(l + v)), 0.0);\n" +
+      `    vec3 spec = nl > 0.0 ? lightSpecular[${k}] * material.x * pow(nh, material.y) : vec3(0.0);\n` +
+      `    c += factor * (lightAmbient[${k}] * rgba.rgb + nl * lightDiffuse[${k}] * rgba.rgb + spec);\n  }\n`;
+  });
+  return `
 attribute vec4 rgba;
 attribute vec2 material;  // specular, shininess (x 128)
-uniform int nLights;
 uniform vec3 lightPos[${MAX_LIGHTS}];
 uniform vec3 lightDir[${MAX_LIGHTS}];
 uniform vec3 lightAmbient[${MAX_LIGHTS}];
@@ -29,35 +62,16 @@ uniform vec3 lightSpecular[${MAX_LIGHTS}];
 uniform vec3 lightAttenuation[${MAX_LIGHTS}];
 uniform float lightCosCutoff[${MAX_LIGHTS}];
 uniform float lightExponent[${MAX_LIGHTS}];
-uniform float lightDirectional[${MAX_LIGHTS}];
 varying vec4 shade;
 void main() {
   vec4 world = modelMatrix * vec4(position, 1.0);
   vec3 n = normalize(mat3(modelMatrix) * normal);
   vec3 v = normalize(cameraPosition - world.xyz);
   vec3 c = vec3(0.0);
-  for (int k = 0; k < ${MAX_LIGHTS}; k++) {
-    if (k >= nLights) break;
-    vec3 l; float factor = 1.0;
-    if (lightDirectional[k] > 0.5) {
-      l = -lightDir[k];
-    } else {
-      vec3 d = lightPos[k] - world.xyz;
-      float dist = length(d);
-      l = d / dist;
-      vec3 a = lightAttenuation[k];
-      factor = 1.0 / max(a.x + a.y * dist + a.z * dist * dist, 1e-6);
-      float cosAxis = dot(-l, lightDir[k]);
-      factor *= cosAxis >= lightCosCutoff[k] ? pow(max(cosAxis, 0.0), lightExponent[k]) : 0.0;
-    }
-    float nl = max(dot(n, l), 0.0);
-    float nh = max(dot(n, normalize(l + v)), 0.0);
-    vec3 spec = nl > 0.0 ? lightSpecular[k] * material.x * pow(nh, material.y) : vec3(0.0);
-    c += factor * (lightAmbient[k] * rgba.rgb + nl * lightDiffuse[k] * rgba.rgb + spec);
-  }
-  shade = vec4(min(c, vec3(1.0)), rgba.a);
+${blocks.join("")}  shade = vec4(min(c, vec3(1.0)), rgba.a);
   gl_Position = projectionMatrix * viewMatrix * world;
 }`;
+}
 
 const FRAGMENT_GLSL = `
 varying vec4 shade;
@@ -187,7 +201,9 @@ export class EndoscopeView {
       this.scene.add(group);
       this.bodies.set(Number(id), group);
     }
-    this.lights = this.lightUniforms(sceneMessage);
+    const lights = sceneLights(sceneMessage);
+    this.lights = this.lightUniforms(lights);
+    const vertexShader = vertexGlsl(lights);
     // One mesh per body and kind (opaque, transparent): its geoms merged in the body's frame,
     // with their colours and materials as vertex attributes. On Chromium's software WebGL a
     // left-eye frame took 25 ms so (24 draw calls) and 33 ms with the static geoms one mesh
@@ -207,7 +223,7 @@ export class EndoscopeView {
     for (const part of parts.values()) {
       const material = new THREE.ShaderMaterial({
         uniforms: this.lights,  // (shared: one update reaches every material)
-        vertexShader: VERTEX_GLSL, fragmentShader: FRAGMENT_GLSL,
+        vertexShader, fragmentShader: FRAGMENT_GLSL,
         transparent: part.transparent,
       });
       const mesh = new THREE.Mesh(mergeGeoms(THREE, part.items), material);
@@ -221,11 +237,9 @@ export class EndoscopeView {
     this.targets = null;
   }
 
-  // The lights' uniforms: 0 is the headlight (its direction set per eye), then the model's.
-  lightUniforms(m) {
+  // The lights' uniforms (sceneLights' list: 0 is the headlight, its direction set per eye).
+  lightUniforms(all) {
     const THREE = this.THREE;
-    const all = [{ ...m.headlight, directional: true, attenuation: [1, 0, 0], cutoff_deg: 180, exponent: 0 },
-      ...m.lights].slice(0, MAX_LIGHTS);
     const vec = (f) => ({ value: all.map((l) => (l.active ? new THREE.Vector3(...f(l)) : new THREE.Vector3())) });
     return {
       nLights: { value: all.length },
@@ -237,7 +251,6 @@ export class EndoscopeView {
       lightAttenuation: { value: all.map((l) => new THREE.Vector3(...l.attenuation)) },
       lightCosCutoff: { value: all.map((l) => Math.cos((Math.min(l.cutoff_deg, 180) * Math.PI) / 180)) },
       lightExponent: { value: all.map((l) => l.exponent) },
-      lightDirectional: { value: all.map((l) => (l.directional ? 1 : 0)) },
     };
   }
 
