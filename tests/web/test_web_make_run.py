@@ -28,9 +28,17 @@ HERE = ["--port", "0", "--web-port", "0"]
 
 @pytest.fixture(scope="module")
 def make_run():
-    options, parts = serve_setup(build_parser().parse_args(MAKE_RUN + HERE), web=True)
+    """What ``make run`` serves; the exercises a page chooses are kept in ``info["chosen"]``
+    (``serve`` would restart with one: :func:`davinci_sim.cli.serve`)."""
+    chosen: list[str] = []
+
+    def on_exercise(name: str) -> None:
+        chosen.append(name)
+
+    args = build_parser().parse_args(MAKE_RUN + HERE)
+    options, parts = serve_setup(args, web=True, on_exercise=on_exercise)
     with serving(options, parts, start_timeout=180) as info:
-        yield info
+        yield {**info, "chosen": chosen}
 
 
 @pytest.fixture(scope="module")
@@ -75,6 +83,32 @@ def test_take_control_wait_then_the_tool_follows_the_keys_without_a_fault(
         assert tool[0] < -0.01, tool
         assert page.js("document.getElementById('problems').hidden")
         page.page.screenshot(path=str(tmp_path / "make_run_after_D.png"))
+        assert page.errors == []
+    finally:
+        page.release()
+        page.close()
+
+
+def test_the_exercise_dropdown_shows_the_exercise_served(make_run, chromium):
+    """A choice in the dropdown goes to the server, which restarts with it; until then, and
+    when it is refused (the page does not operate), the dropdown shows the exercise served."""
+    page = Console(chromium, make_run["web"])
+    chosen = make_run["chosen"]
+    try:
+        page.wait("window.davinci.last.task !== null", 180)
+        served = page.js("document.getElementById('exercise').value")
+        assert served == "seed_path" and not page.js(
+            "document.getElementById('exercise-row').hidden"
+        )
+        page.page.select_option("#exercise", "needle_drive")  # not the operator: refused
+        page.wait("document.getElementById('messages').textContent.includes('take control')")
+        assert page.js("document.getElementById('exercise').value") == served
+        assert chosen == []
+        page.take_control()
+        page.page.select_option("#exercise", "needle_drive")
+        page.wait("document.getElementById('messages').textContent.includes('switching to')")
+        assert chosen == ["needle_drive"]
+        assert page.js("document.getElementById('exercise').value") == served
         assert page.errors == []
     finally:
         page.release()

@@ -804,9 +804,14 @@ function setupPanels() {
   };
   $("hud").onchange = drawOverlay;
   $("xr").onclick = toggleHeadset;
+  // The dropdown shows the exercise served: a choice goes to the server and the dropdown
+  // turns back; it shows the new one when the server has restarted with it (its hello), and
+  // a refused choice (not the operator) leaves nothing changed but the message.
   $("exercise").onchange = () => {
     const name = $("exercise").value;
-    if (name && name !== state.hello?.task?.name) send({ op: "exercise", task: name });
+    const served = state.hello?.task?.name;
+    if (served) $("exercise").value = served;
+    if (name && name !== served) send({ op: "exercise", task: name });
   };
   const body = $("keymap").querySelector("tbody");
   for (const k of KEYMAP) {
