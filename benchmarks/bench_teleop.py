@@ -25,7 +25,8 @@ on top of the physics (issue 20's bar: ≤ 1.5 both pairs, ≤ 1.3 one pair). Th
 ``Simulation.tick``, one at a time in Python (the oracle). ``<label>_live_tick`` is the tick
 as the live runners run it: passes of ``CHUNK_TICKS`` (4) ticks through
 ``Simulation.advance``, the console's compiled calls wherever its state allows
-(``console/chunk.py``; ``<label>_compiled_share`` of the ticks), per tick;
+(``console/chunk.py``; ``<label>_compiled_share`` of the ticks), their write-back into the
+components at the end of each 10 ms snapshot period (``LoopRunner.run``), per tick;
 ``<label>_chunk32_tick`` a script's passes of 32 ticks.
 
 Each set-up is also profiled (cProfile, 1000 ticks): the JSON keeps the top entries by own
@@ -47,6 +48,7 @@ import numpy as np
 
 from common import summary, time_each, write
 from davinci_sim.sim.runtime.loop import CHUNK_TICKS
+from davinci_sim.sim.runtime.process import LoopOptions
 from davinci_sim.sim.simulation import Simulation
 from davinci_sim.system import (
     ConsoleDescription,
@@ -150,26 +152,39 @@ def mj_step_each(sim: Simulation, n: int, warmup: int = 50) -> list[float]:
 
 
 def live_ticks(sim: Simulation, label: str, n: int) -> dict:
-    """The tick as the live runners run it: passes of ``CHUNK_TICKS`` ticks through
-    ``Simulation.advance`` (the console's compiled calls where its state allows, else
-    Python's ticks), per tick; the same with a script's passes of 32 ticks; the share of
+    """The tick as the live runners run it: their snapshot periods (10 ticks), each in passes
+    of ``CHUNK_TICKS`` ticks through ``Simulation.advance`` (the console's compiled calls
+    where its state allows, else Python's ticks), the write-back deferred to the period's
+    last pass (``LoopRunner.run``), per tick; a script's passes of 32 ticks; the share of
     ticks the compiled calls ran; both over the set-up's ``mj_step``."""
     chunker = sim.chunker
     ran = [0, 0]
 
-    def counted(k: int, changed: bool = True) -> tuple[int, bool]:
-        whole, post = chunker(k, changed)
+    def counted(k: int, changed: bool = True, **kwargs) -> tuple[int, bool]:
+        whole, post = chunker(k, changed, **kwargs)
         ran[0] += whole + int(post)
         return whole, post
 
     out: dict = {}
     if chunker is not None:
+        counted.flush = chunker.flush  # type: ignore[attr-defined]
         sim.set_chunker(counted)
     start = sim.tick_count
-    for name, k in (("live_tick", CHUNK_TICKS), ("chunk32_tick", 32)):
+    period = round(LoopOptions().snapshot_period / sim.dt)
+
+    def live_period() -> None:
         # (unchanged: nothing but the passes runs between them, as a live runner's idle loop)
-        passes = time_each(lambda k=k: sim.advance(k, unchanged=True), max(1, n // k),
-                           warmup=max(1, 200 // k))  # fmt: skip
+        done = 0
+        while done < period:
+            k = min(CHUNK_TICKS, period - done)
+            done += k
+            sim.advance(k, unchanged=True, defer=done < period)
+
+    def script() -> None:
+        sim.advance(32, unchanged=True)
+
+    for name, k, run in (("live_tick", period, live_period), ("chunk32_tick", 32, script)):
+        passes = time_each(run, max(1, n // k), warmup=max(1, 200 // k))
         out.update(summary([p / k for p in passes], f"{label}_{name}"))
         out[f"{label}_{name}_over_mj_step_ratio"] = out[
             f"{label}_{name}_median_us"

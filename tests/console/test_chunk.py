@@ -286,6 +286,64 @@ def test_a_live_runners_passes_keep_their_plan_until_a_command(served):
     _assert_same_run(*runs)
 
 
+def test_a_live_runners_periods_write_back_at_their_ends_as_the_python_ticks(served):
+    """The live runner (``LoopRunner``, passes of 4 ticks, snapshots every 10) leaves the
+    chunk's write-back (the objects, the session's samples and events) to each period's end
+    or to a call served through ``execute``: a repetition running, a key held and the
+    scale set between two passes, as the same ticks in Python; at a period's end the
+    components are written back (what the runners publish), in between the physics and
+    the tick count are current."""
+    from davinci_sim.sim.handle import execute
+    from davinci_sim.sim.runtime.loop import CHUNK_TICKS, LoopRunner
+
+    sim, chunker, start = served
+    runs, seen, waiting = [], [], []
+    for compiled in (False, True):
+        sim.set_state(start)
+        chunker._cooldown = 0
+        sim.set_chunker(chunker if compiled else None)
+        events, ends = _events(sim)
+        t0 = sim.tick_count
+        device = sim.components["MTMR/device"]
+        T = device.input().T_hrsv_tip.copy()
+        T[2, 3] += 0.03  # (the tool off point 1: a repetition starts, its metrics run)
+        device.move_hand(T)
+
+        def serve(sim=sim, t0=t0) -> bool:
+            tick = sim.tick_count - (t0 + -t0 % 10)  # (from the first period's end)
+            if tick == 404:  # (a pass's start both ways: a period's end + 4)
+                assert execute(sim, "console", "set_scale", (0.5,), {})
+            elif tick == 604:
+                assert execute(sim, "MTML/hand", "command", ([0.0, 0.02, 0.0],), {})
+            elif tick == 904:
+                assert execute(sim, "MTML/hand", "command", ([0.0, 0.0, 0.0],), {})
+            else:
+                return sim.tick_count == t0
+            return True
+
+        def published(sim=sim, compiled=compiled) -> None:
+            if not compiled:
+                return
+            if sim.tick_count % 10 == 0:  # (a period's end: what the runners publish)
+                seen.append((chunker._pending, sim.components["task"].snapshot()))
+            else:
+                waiting.append(chunker._pending is not None)
+
+        runner = LoopRunner(sim, real_time=False, chunk=CHUNK_TICKS if compiled else 1)
+        runner.run(ticks=1500, before_tick=serve, after_tick=published, every=10)
+        runs.append((sim.get_state(), list(events), sim.data.qpos.copy()))
+        for end in ends:
+            end()
+    sim.set_chunker(chunker)
+    _assert_same_run(*runs)
+    assert sim.components["task"].monitor.phase in (Phase.RUNNING, Phase.FINISHED)
+    # (the write-back waited within the periods; at their ends it was done, and the
+    # snapshots follow the repetition's metrics as they go)
+    assert len(waiting) > 200 and sum(waiting) > 0.9 * len(waiting)
+    assert len(seen) >= 149 and all(pending is None for pending, _ in seen)
+    assert len({snap.distance_to_path for _, snap in seen}) > 10
+
+
 def test_the_compiled_passes_free_every_allocation_they_make(served):
     """Over a live runner's passes numba's allocations and frees balance: the reference
     counts pruned from the kernels (``kinematics/jit_refcounts.py``) leak nothing and free

@@ -17,7 +17,11 @@ tested against bit for bit (``tests/console/test_chunk.py``).
 
 A command sent between two calls takes effect at the next one: the live runners' calls are
 at most ``runtime.loop.CHUNK_TICKS`` ticks (4 ms of simulated time), so a command waits at
-most that long.
+most that long. Between the ends of their snapshot periods the live runners defer the
+write-back (``defer``): the calls keep the session's samples, and :meth:`ConsoleChunk.flush`
+writes the objects back and hands the session all the samples at once where something reads
+them (the period's end, where the runner publishes; a served call; a Python tick; a new
+plan), so the Python between two calls is a few copies.
 
 Size: about 500 lines because the plan (which states the kernel ticks, each check a reason to
 leave a tick to Python), the call and the write-back (what the Python ticks would have left
@@ -151,6 +155,10 @@ class ConsoleChunk:
         self._no_fixture = no_fixture()
         self._cooldown = 0
         self._last: Plan | None = None
+        self._pending: Plan | None = None
+        """The plan of the deferred calls (``defer``) whose write-back waits for :meth:`flush`."""
+        self._samples: list[tuple] = []
+        """The session's samples of those calls, in order (copies: each call refills the rows)."""
         if self.available and self._plan_ok:
             self._warm()
 
@@ -179,13 +187,16 @@ class ConsoleChunk:
             self._run(Plan([], [], [], None, None, slots_d, slots_t, rec, {}, ecm), 0)
 
     # ------------------------------------------------------------ the call
-    def __call__(self, n: int, changed: bool = True) -> tuple[int, bool]:
+    def __call__(self, n: int, changed: bool = True, defer: bool = False) -> tuple[int, bool]:
         """Up to ``min(n, MAX_TICKS)`` ticks; ``changed`` False when nothing but this
         chunker's own calls has run since its last call (no Python tick, no command), which
-        then ran all its ticks: its plan still holds (the rows are what the objects hold)."""
+        then ran all its ticks: its plan still holds (the rows are what the objects hold).
+        ``defer``: a call that runs all its ticks leaves its write-back (the objects, the
+        session's samples) to :meth:`flush`, which the next call that plans runs first."""
         plan = None if changed else self._last
         self._last = None
         if plan is None:
+            self.flush()  # (planning reads the objects)
             if self._cooldown > 0:  # (not ready lately: do not ask at every tick)
                 self._cooldown -= 1
                 return 0, False
@@ -194,7 +205,7 @@ class ConsoleChunk:
                 self._cooldown = _COOLDOWN
                 return 0, False
         K = min(int(n), MAX_TICKS)
-        whole, post = self._run(plan, K)
+        whole, post = self._run(plan, K, defer)
         if whole == K and not post:
             self._last = plan
         return whole, post
@@ -385,7 +396,7 @@ class ConsoleChunk:
         return True
 
     # ------------------------------------------------------------ run
-    def _run(self, plan: Plan, K: int) -> tuple[int, bool]:
+    def _run(self, plan: Plan, K: int, defer: bool = False) -> tuple[int, bool]:
         sim = self.sim
         watch = sim._watch
         watched, since = watch._watched, watch._bad_since
@@ -416,8 +427,29 @@ class ConsoleChunk:
                 a._tracking_bad_since = float(since[k])
         if pre:
             sim.tick_count += pre
-            self._store(plan, whole)
+            if defer and whole == K and not post:
+                # (the rows keep the last tick's reads until the next call: only the
+                # session's samples of each call must be kept)
+                if plan.rec[0][0]:
+                    self._samples.append(_samples_of(plan.rec, whole))
+                self._pending = plan
+            else:  # (after the deferred calls' samples, of the same plan: planning flushes)
+                samples, self._samples = self._samples, []
+                deferred, self._pending = self._pending is not None, None
+                if whole and plan.rec[0][0]:
+                    samples.append(_samples_of(plan.rec, whole))
+                self._store(plan, bool(whole) or deferred, samples)
         return whole, post
+
+    def flush(self) -> None:
+        """The deferred calls' write-back (``defer``): the objects as their last tick left
+        them, the session's samples of all of them in order. A no-op when none waits."""
+        plan = self._pending
+        if plan is None:
+            return
+        self._pending = None
+        samples, self._samples = self._samples, []
+        self._store(plan, True, samples)
 
     def _sync_frames(self) -> None:
         """The frames the simulation holds now into the kernel's (it compares its joints
@@ -449,9 +481,11 @@ class ConsoleChunk:
         fr = (*fr[:12], float(simulation_module.BASE_FRAME_TOLERANCE), *fr[13:])
         return phys, wt, fr, plan.device_rows, plan.teleop_rows, plan.rec, plan.ecm
 
-    def _store(self, plan: Plan, whole: int) -> None:
+    def _store(self, plan: Plan, fixtures: bool, samples: list[tuple]) -> None:
         """What the Python ticks leave in the objects: the last tick's reads, the hands', the
-        jaws' and the locks' state; the fixtures' and the session's after each whole tick."""
+        jaws' and the locks' state; with ``fixtures`` (a whole tick ran since the last
+        store: the rows' fixture outputs are its last one's) the fixtures'; the session's
+        ``samples`` (:func:`_samples_of` of each call, in order)."""
         t_pre = float(self._times[0])
         for h in plan.hands:
             h._time = t_pre
@@ -482,12 +516,10 @@ class ConsoleChunk:
                 tel._jaw_sent = float(row[9][0])
         if plan.camera is not None:  # (its part of the last tick whose pre-steps ran)
             keep_camera(plan)
-        if whole == 0:
-            return
         haptics = plan.haptics
         for tel, row in zip(plan.teleops, plan.teleop_rows, strict=False):
             state, out = row[19], row[20]
-            if not state[0][0]:
+            if not (fixtures and state[0][0]):
                 continue
             started = plan.started.get(tel.name)
             if started is None:  # (the fixture's velocity filter: it has started)
@@ -498,14 +530,32 @@ class ConsoleChunk:
             haptics._requested[tel.mtm_name] = requested
             dev = plan.device_rows[row[11][0]]
             tel.device.rendered(limited, tau, bool(out[3][0]), dev[15].copy(), dev[4])
-        rec = plan.rec
-        if rec[0][0]:
-            readings = contacts = None
-            if rec[16][0]:  # (the objects' readings, the force on the flex last)
-                readings = tuple(a[:whole].copy() for a in (*rec[17:21], rec[22]))
-            if rec[16][1]:  # (the contacts measured)
-                contacts = (rec[27][:whole].copy(), rec[28][:whole].copy())
-            plan.request.take(rec[6][:whole].copy(), rec[8][:whole].copy(),
-                              rec[7][:whole].copy(), rec[9][:whole].copy(),
-                              rec[10][:whole].copy(), readings, contacts,
-                              plan.clutch)  # fmt: skip
+        if samples:
+            taken = samples[0] if len(samples) == 1 else _joined(samples)
+            plan.request.take(*taken, plan.clutch)
+
+
+def _samples_of(rec: tuple, whole: int) -> tuple:
+    """The session's samples of a call's ``whole`` ticks, copied from its row ``rec``:
+    ``SampleRequest.take``'s arguments but the clutch (times, camera in the cart, tip in
+    the camera, requested force, master; the objects' readings and the contacts, or None)."""
+    readings = contacts = None
+    if rec[16][0]:  # (the objects' readings, the force on the flex last)
+        readings = tuple(a[:whole].copy() for a in (*rec[17:21], rec[22]))
+    if rec[16][1]:  # (the contacts measured)
+        contacts = (rec[27][:whole].copy(), rec[28][:whole].copy())
+    return (rec[6][:whole].copy(), rec[8][:whole].copy(), rec[7][:whole].copy(),
+            rec[9][:whole].copy(), rec[10][:whole].copy(), readings, contacts)  # fmt: skip
+
+
+def _joined(samples: list[tuple]) -> tuple:
+    """:func:`_samples_of` of several calls as one, in order."""
+    first = samples[0]
+    out = [np.concatenate([s[i] for s in samples]) for i in range(5)]
+    for i in (5, 6):
+        if first[i] is None:
+            out.append(None)
+        else:
+            out.append(tuple(np.concatenate([s[i][j] for s in samples])
+                             for j in range(len(first[i]))))  # fmt: skip
+    return tuple(out)

@@ -44,7 +44,8 @@ class SampleRequest:
     session): the tool of ``teleop`` (its PSM's tip in the camera frame), the guidance force
     its MTM's haptic loop requested and its master's position; the chunk calls
     ``take(t, T_cart_camera, T_camera_tip, requested, master, readings, contacts, clutch)``
-    after each call with its m whole ticks' samples in order: (m,) s, (m, 4, 4), (m, 4, 4),
+    after each call (or, deferred, at its flush, for the calls since) with their m whole
+    ticks' samples in order: (m,) s, (m, 4, 4), (m, 4, 4),
     (m, 3) N, (m, 3) m, the objects' readings (below; None without objects), the contacts
     measured (below; None where not measured) and whether the teleoperation is clutched
     (the same for the call: a pedal's press or release is a Python tick's). Without

@@ -151,6 +151,7 @@ def arm_snapshot(name: str, arm) -> ArmSnapshot:
 
 def take_snapshot(sim: Simulation) -> Snapshot:
     """The :class:`Snapshot` of ``sim`` now (call from the loop's thread)."""
+    sim.flush()
     arms = {name: arm_snapshot(name, arm) for name, arm in sim.arms.items()}
     extras = {name: comp.snapshot() for name, comp in sim.components.items()}
     return Snapshot(sim.time, sim.tick_count, arms, extras)
@@ -188,7 +189,9 @@ def resolve_target(sim: Simulation, target: str) -> object:
 
 def execute(sim: Simulation, target: str, method: str, args: tuple, kwargs: dict) -> Any:
     """Run one call in the loop's thread. Only public methods can be called; the call is
-    logged first when the simulation has an input log (:mod:`~davinci_sim.sim.inputs`)."""
+    logged first when the simulation has an input log (:mod:`~davinci_sim.sim.inputs`).
+    The components are written back first (:meth:`Simulation.flush`): the call reads them."""
+    sim.flush()
     if method.startswith("_"):
         raise AttributeError(f"{method!r} is not a public method")
     fn = getattr(resolve_target(sim, target), method, None)

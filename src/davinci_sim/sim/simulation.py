@@ -150,6 +150,8 @@ class Simulation:
 
     def tick(self) -> None:
         """One 1 ms tick: components → arm setpoints → watch → servo → physics → components."""
+        if self._chunker is not None:  # (its deferred write-back first: the tick reads it)
+            self.flush()
         if self._initial_components is None:  # the components as assembled: for reset()
             self._initial_components = dict(self._capture_components(strict=False))
         t = self.data.time
@@ -192,16 +194,24 @@ class Simulation:
         """``n`` ticks (:meth:`advance`)."""
         self.advance(n)
 
-    def advance(self, n: int, *, unchanged: bool = False) -> None:
+    def advance(self, n: int, *, unchanged: bool = False, defer: bool = False) -> None:
         """``n`` ticks: in the chunker's compiled calls where it has them (a console in its
         steady state, :mod:`davinci_sim.console.chunk`: the same ticks, bit for bit), else
         one :meth:`tick` at a time. ``unchanged``: nothing has touched the simulation since
-        the last ``advance`` (the live runners know: no call served in between)."""
+        the last ``advance`` (the live runners know: no call served in between). ``defer``:
+        the chunker may leave what its calls write back into the components (their reads,
+        the task session's samples, its events) until :meth:`flush`, which the next tick,
+        a changed ``advance``, a served call and the state's capture run first: the live
+        runners defer between the ends of their snapshot periods, where nothing but the
+        kernel reads the components."""
         done, changed = 0, not unchanged
         while done < n:
             chunker = self._chunker
             if chunker is not None:
-                ran, post = chunker(n - done, changed)
+                if defer:
+                    ran, post = chunker(n - done, changed, defer=True)
+                else:
+                    ran, post = chunker(n - done, changed)
                 done += ran
                 changed = post or not ran
                 if post:  # (the next tick's step ran: its post-steps are Python's)
@@ -223,8 +233,18 @@ class Simulation:
         """Run :meth:`advance`'s ticks through ``chunker`` (``chunker(n, changed) ->
         (ticks, post)``: at most n ticks run whole, and whether the next one's step ran too,
         its post-steps left to the caller; ``changed`` False when nothing but its own calls
-        ran since its last one), or None: every tick in Python."""
+        ran since its last one; with ``defer=True`` (:meth:`advance`'s) it may leave its
+        write-back to its ``flush()``), or None: every tick in Python."""
+        self.flush()
         self._chunker = chunker
+
+    def flush(self) -> None:
+        """What the chunker's deferred calls (``advance(defer=True)``) left to write back,
+        written back now: the components as the ticks left them, the task session's samples
+        taken, its events emitted. A no-op when nothing waits."""
+        flush = getattr(self._chunker, "flush", None)
+        if flush is not None:
+            flush()
 
     def run_for(self, seconds: float) -> None:
         """Tick for ``seconds`` of simulation time."""
@@ -407,6 +427,7 @@ class Simulation:
         Raises:
             TypeError: if a component has no ``get_state``.
         """
+        self.flush()
         return self._capture(strict=True)
 
     def set_state(self, state: SimState) -> None:
@@ -420,6 +441,7 @@ class Simulation:
                 restore.
             ValueError: for a state of another scene or of other components.
         """
+        self.flush()  # (the ticks before it completed: their write-back must not follow it)
         if not isinstance(state, SimState):
             raise TypeError(f"set_state needs a SimState, got {type(state).__name__}")
         if state.signature != self.signature:

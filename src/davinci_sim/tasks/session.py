@@ -237,14 +237,15 @@ class TaskSession:
             self.task.reset_scene(self.sim.model, self.sim.data)
         except ValueError as e:  # (a scene drawn without the task's objects)
             self.channels.message("warning", f"{self.name}: {e}", self.sim.time)
-        self._restart()
+        self._restart(self.sim.time)
         return ACCEPTED
 
-    def _restart(self) -> None:
-        """Back to IDLE for the next repetition (the objects left where they are)."""
+    def _restart(self, t: float) -> None:
+        """Back to IDLE for the next repetition (the objects left where they are); ``t``: the
+        simulated time it happens at (s)."""
         self.monitor.reset()
         self._recorded = False
-        self.channels.message("status", f"repetition {self.repetition}: reset", self.sim.time)
+        self.channels.message("status", f"repetition {self.repetition}: reset", t)
 
     def report(self, level: str, text: str) -> CommandResult:
         """Put ``text`` on the session's message channel at ``level`` (``error``,
@@ -269,22 +270,23 @@ class TaskSession:
         task = self.task
         T_task_camera = task.T_task_camera(self.sim.T_cart_camera())
         if self._recorded:
-            self._after_result(T_task_camera, self.teleop.psm.measured_cp().T)
+            self._after_result(T_task_camera, self.teleop.psm.measured_cp().T, t)
             return
         ticked = self._live_tick is not None and self._live_tick.tick(
             T_task_camera, live_inputs(task, self.teleop, self.console), t
         )
         self._sampled(ticked, T_task_camera, t)
 
-    def _after_result(self, T_task_camera: np.ndarray, T_camera_tip: np.ndarray) -> None:
-        """A tick once the repetition's result is in: the tool's distance to the path; back
-        to the start, the next repetition."""
+    def _after_result(self, T_task_camera: np.ndarray, T_camera_tip: np.ndarray,
+                      t: float) -> None:  # fmt: skip
+        """A tick once the repetition's result is in (its time ``t``, s): the tool's distance
+        to the path; back to the start, the next repetition."""
         task = self.task
         tip = (T_task_camera @ T_camera_tip)[:3, 3]
         self._distance = float(task.distance(tip)[0])
         if task.at_start(tip)[0]:
             self.repetition += 1
-            self._restart()  # (the objects stay: a Reset puts them back)
+            self._restart(t)  # (the objects stay: a Reset puts them back)
 
     def _sampled(self, ticked: bool, T_task_camera: np.ndarray, t: float,
                  sample: Sample | None = None) -> None:  # fmt: skip
@@ -351,7 +353,7 @@ class TaskSession:
         j, m = 0, len(t)
         while j < m:
             if self._recorded:
-                self._after_result(T_task_camera[j], T_camera_tip[j])
+                self._after_result(T_task_camera[j], T_camera_tip[j], float(t[j]))
                 j += 1
                 continue
             force = None if requested is None else requested[j:]
@@ -374,7 +376,7 @@ class TaskSession:
         count, force = contacts
         for j in range(len(t)):
             if self._recorded:
-                self._after_result(T_task_camera[j], T_camera_tip[j])
+                self._after_result(T_task_camera[j], T_camera_tip[j], float(t[j]))
                 continue
             tip = T_camera_tip[j].copy()
             tip.setflags(write=False)

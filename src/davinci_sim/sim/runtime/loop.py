@@ -272,7 +272,12 @@ class LoopRunner:
         simulation's chunker may keep its plan). A pass ends at every multiple of ``every``
         ticks (a runner's snapshot period) and before each tick a call is scheduled for; the
         period statistics count each of its ticks, with its share of the pass's period and
-        compute time.
+        compute time. Between the period's ends the chunker's calls leave their write-back
+        into the components until the pass that ends the period, or until a call needs it
+        (``Simulation.advance(defer=True)``; a call served through ``execute`` or scheduled
+        here flushes it first): ``after_tick`` and ``until`` see the components as the last
+        period's end left them, but the physics, the arms' joints and the tick count as
+        they are.
         """
         if ticks is None and until is None:
             raise ValueError("run needs ticks or until")
@@ -291,6 +296,7 @@ class LoopRunner:
             if before_tick is not None:
                 served = before_tick() is not False  # (may schedule calls for this very tick)
             while scheduled and scheduled[0][0] <= sim.tick_count:
+                sim.flush()  # (what the call reads, written back)
                 heapq.heappop(scheduled)[2]()
                 served = True
             k = 1
@@ -303,11 +309,14 @@ class LoopRunner:
             if k == 1:
                 sim.tick()
             else:
-                sim.advance(k, unchanged=not served)
+                # The write-back of the chunker's calls waits for the pass that ends the
+                # period (before_tick's calls flush it first; after_tick publishes then).
+                sim.advance(k, unchanged=not served, defer=(sim.tick_count + k) % every != 0)
                 if pacer is not None:
                     pacer.skip(k - 1)  # (the next pass starts at the next tick's time)
             if after_tick is not None:
                 after_tick()
             self.recorder.tick(start, clock(), k)  # (the recorder may be replaced meanwhile)
             n += k
+        sim.flush()
         return self.recorder.statistics()
