@@ -44,11 +44,10 @@ class SampleRequest:
     session): the tool of ``teleop`` (its PSM's tip in the camera frame), the guidance force
     its MTM's haptic loop requested and its master's position; the chunk calls
     ``take(t, T_cart_camera, T_camera_tip, requested, master, readings, contacts, clutch)``
-    after each call (or, deferred, at its flush, for the calls since) with their m whole
-    ticks' samples in order: (m,) s, (m, 4, 4), (m, 4, 4),
-    (m, 3) N, (m, 3) m, the objects' readings (below; None without objects), the contacts
-    measured (below; None where not measured) and whether the teleoperation is clutched
-    (the same for the call: a pedal's press or release is a Python tick's). Without
+    after each call (deferred: at its flush) with the m whole ticks' samples since, in order:
+    (m,) s, (m, 4, 4), (m, 4, 4), (m, 3) N, (m, 3) m, the objects' readings (below; None
+    without objects), the contacts measured (below; None where not measured), the clutch
+    (the same for the calls: a pedal's press or release is a Python tick's). Without
     ``contacts``, a tick whose step leaves a contact of the instrument with something it
     counts ends the call before its post-steps (the session measures it in Python)."""
 

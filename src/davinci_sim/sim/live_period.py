@@ -256,6 +256,20 @@ class ArmPeriod:
         can read ``mjData.ncon``."""
         return self.records and cartesian and self.cartesian_ok and self._frames() is True
 
+    def record_last(self, record: PeriodSamples, k: int) -> bool:
+        """Row ``k`` of ``record`` after a recorded :meth:`run` that ran tick ``k`` last: the
+        state now, as the kernel keeps each tick's sample (at the next tick's start, so never
+        the last one's); False (nothing kept) where that step left contacts, whose forces
+        only the state itself can tell."""
+        data = self.sim.data
+        if data.ncon:
+            return False
+        record.t[k] = data.time
+        record.q[k] = data.qpos[self._arm[1]]
+        record.frames[k, 0] = self._frames_out[len(self.sim._frame_plan.arms)]
+        record.frames[k, 1] = self._frames_out[self._plan_row]
+        return True
+
     def run(self, first: int, K: int, *, cartesian: bool, start, delta, velocity=None,
             R_ref_goal=None, twist_ref=None,
             record: PeriodSamples | None = None) -> int:  # fmt: skip
@@ -351,7 +365,9 @@ def run_period(
     ``recorded(samples, ticks)`` where ``period`` :meth:`~ArmPeriod.can_record`: each call's
     ticks but its last are given to it afterwards (``ticks``, a range of tick numbers, the
     rows of ``samples``: :class:`PeriodSamples`, in order), then ``after_tick()`` samples the
-    last one from the state itself, before any later tick runs."""
+    last one from the state itself, before any later tick runs; a call that ends the period
+    gives its last tick too where its step left no contacts
+    (:meth:`~ArmPeriod.record_last`), with no ``after_tick()``."""
     ramp = {"cartesian": cartesian, "start": start, "delta": delta, "velocity": velocity,
             "R_ref_goal": R_ref_goal, "twist_ref": twist_ref}  # fmt: skip
     record = None
@@ -369,6 +385,9 @@ def run_period(
             stop = period.run(k, K, record=record, **ramp)
             last = K if stop == DONE else stop - 1
             if record is not None and last >= k:
+                if stop == DONE and period.record_last(record, K):
+                    recorded(record, range(k, K + 1))
+                    return
                 if last > k:
                     recorded(record, range(k, last))
                 after_tick()
