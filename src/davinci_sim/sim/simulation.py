@@ -383,6 +383,7 @@ class Simulation:
             KeyError: if ``before``/``after`` names no component.
         """
         check_component(component)
+        self.flush()  # (the components as the ticks left them, before the set changes)
         name = component.name
         if name in self._components:
             raise ValueError(
@@ -416,6 +417,7 @@ class Simulation:
         """
         if name not in self._components:
             raise KeyError(f"no component {name!r}; components: {list(self._components)}")
+        self.flush()
         self._added_states.pop(name, None)
         return self._components.pop(name)
 
@@ -495,6 +497,7 @@ class Simulation:
             ValueError: for an unknown keyframe.
             TypeError: if a component cannot save or restore its state.
         """
+        self.flush()
         key = -1
         if keyframe is not None and keyframe != self.keyframe:
             key = mujoco.mj_name2id(self.model, mujoco.mjtObj.mjOBJ_KEY, keyframe)
