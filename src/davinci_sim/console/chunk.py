@@ -155,6 +155,7 @@ class ConsoleChunk:
         self._no_fixture = no_fixture()
         self._cooldown = 0
         self._last: Plan | None = None
+        self._frames_new = False  # (the kernel computed frames the simulation has yet to keep)
         self._pending: Plan | None = None
         """The plan of the deferred calls (``defer``) whose write-back waits for :meth:`flush`."""
         self._samples: list[tuple] = []
@@ -420,26 +421,36 @@ class ConsoleChunk:
         else:
             whole, post = code // 2 - 1, code % 2 == 1
         pre = whole + (1 if post else 0)  # ticks whose pre-steps and step ran
-        if self._computed[0]:
+        self._frames_new = self._frames_new or bool(self._computed[0])
+        sim.tick_count += pre
+        if pre and defer and whole == K and not post:
+            # (the rows, the watch's arrays and the frames keep the last tick's until the
+            # next call: only the session's samples of each call must be kept)
+            if plan.rec[0][0]:
+                self._samples.append(_samples_of(plan.rec, whole))
+            self._pending = plan
+            return whole, post
+        self._store_watch()
+        if pre:  # (after the deferred calls' samples, of the same plan: planning flushes)
+            samples, self._samples = self._samples, []
+            deferred, self._pending = self._pending is not None, None
+            if whole and plan.rec[0][0]:
+                samples.append(_samples_of(plan.rec, whole))
+            self._store(plan, bool(whole) or deferred, samples)
+        return whole, post
+
+    def _store_watch(self) -> None:
+        """The watch's and the frames' part of the write-back: each watched arm's time of a
+        tracking error above its bound, the base frames the kernel computed last."""
+        sim = self.sim
+        if self._frames_new:
             sim._keep_frames(self._key.tobytes(), self._frames_out.copy())
+            self._frames_new = False
+        watch = sim._watch
+        watched, since = watch._watched, watch._bad_since
         for k, a in enumerate(watch.arms):
             if watched[k]:
                 a._tracking_bad_since = float(since[k])
-        if pre:
-            sim.tick_count += pre
-            if defer and whole == K and not post:
-                # (the rows keep the last tick's reads until the next call: only the
-                # session's samples of each call must be kept)
-                if plan.rec[0][0]:
-                    self._samples.append(_samples_of(plan.rec, whole))
-                self._pending = plan
-            else:  # (after the deferred calls' samples, of the same plan: planning flushes)
-                samples, self._samples = self._samples, []
-                deferred, self._pending = self._pending is not None, None
-                if whole and plan.rec[0][0]:
-                    samples.append(_samples_of(plan.rec, whole))
-                self._store(plan, bool(whole) or deferred, samples)
-        return whole, post
 
     def flush(self) -> None:
         """The deferred calls' write-back (``defer``): the objects as their last tick left
@@ -449,6 +460,7 @@ class ConsoleChunk:
             return
         self._pending = None
         samples, self._samples = self._samples, []
+        self._store_watch()
         self._store(plan, True, samples)
 
     def _sync_frames(self) -> None:
