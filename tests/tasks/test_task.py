@@ -139,3 +139,29 @@ def test_invalid_task_files_say_what_is_wrong(task, patch, message):
 def test_unknown_task_lists_the_shipped_ones():
     with pytest.raises(TaskError, match="seed_path"):
         load_task("no_such_task")
+
+
+def test_the_panel_names_the_next_point_of_the_path_while_a_repetition_runs(task):
+    """The console's "to do" while the seed's path runs: the next numbered point past the
+    furthest the tool has come (a point within the finish's tolerance counts as reached);
+    nothing before the repetition starts or once it is over."""
+    from davinci_sim.tasks.state import Phase, TaskState
+
+    arcs = task.marker_arc_lengths  # (points 1-5 along the path, m)
+
+    def at(phase, furthest):
+        return task.progress(TaskState(np.array([int(phase)], dtype=np.int8), np.array([0.0]),
+                                       np.array([np.nan]), np.array([furthest])))  # fmt: skip
+
+    assert len(arcs) == 5
+    assert at(Phase.IDLE, 0.0) == at(Phase.READY, 0.0) == at(Phase.FINISHED, arcs[-1]) == ""
+    assert at(Phase.RUNNING, 0.0) == "follow the path to point 2 of 5"
+    assert (
+        at(Phase.RUNNING, arcs[1] - 2 * task.finish_tolerance) == "follow the path to point 2 of 5"
+    )
+    assert (
+        at(Phase.RUNNING, arcs[1] - 0.5 * task.finish_tolerance)
+        == "follow the path to point 3 of 5"
+    )
+    assert at(Phase.RUNNING, arcs[3] + 0.001) == "follow the path to point 5 of 5"
+    assert at(Phase.RUNNING, arcs[-1]) == "follow the path to point 5 of 5"

@@ -58,7 +58,7 @@ from davinci_sim.tasks.base import (
 from davinci_sim.tasks.carry import CARRY_SCHEMA, CarrySpec
 from davinci_sim.tasks.metrics import PATH_METRICS
 from davinci_sim.tasks.schema import NONNEGATIVE, POINT, ListOf, Number, Record, Text, Vector
-from davinci_sim.tasks.state import initial_state, task_step
+from davinci_sim.tasks.state import Phase, initial_state, task_step
 from davinci_sim.tasks.trainer import PATH_MISSED_TARGETS, trainer_metrics
 
 #: A crawl along the path, m/s: the path kind's completion time scoring 0 % is its length
@@ -359,6 +359,17 @@ class PathTask(Task, kind="path"):
             f"deviation {row['deviation_error'] * 1e3:.2f} mm,"
             f" {row['completion_time']:.2f} s; back to point 1 for the next"
         )
+
+    def progress(self, state) -> str:
+        """``follow the path to point k of N`` while a repetition runs: the first numbered
+        point past the furthest the tool has come along the path (within the finish's
+        tolerance: a point the tool is at counts as reached)."""
+        if int(state.phase[0]) != Phase.RUNNING:
+            return ""
+        arcs = self.marker_arc_lengths
+        reached = float(state.progress[0]) + self.finish_tolerance
+        k = int(np.searchsorted(arcs, reached, side="right"))  # (points reached: 1 at least)
+        return f"follow the path to point {min(max(k, 1), len(arcs) - 1) + 1} of {len(arcs)}"
 
     def at_start(self, tip) -> np.ndarray:
         p = np.asarray(tip, dtype=float).reshape(-1, 3)
