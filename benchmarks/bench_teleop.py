@@ -160,15 +160,20 @@ def live_ticks(sim: Simulation, label: str, n: int) -> dict:
     chunker = sim.chunker
     ran = [0, 0]
 
-    def counted(k: int, changed: bool = True, **kwargs) -> tuple[int, bool]:
-        whole, post = chunker(k, changed, **kwargs)
-        ran[0] += whole + int(post)
-        return whole, post
+    class Counted:
+        """The chunker, its ticks counted."""
+
+        def __call__(self, k: int, changed: bool = True, **kwargs) -> tuple[int, bool]:
+            whole, post = chunker(k, changed, **kwargs)
+            ran[0] += whole + int(post)
+            return whole, post
+
+        def flush(self) -> None:
+            chunker.flush()
 
     out: dict = {}
     if chunker is not None:
-        counted.flush = chunker.flush  # type: ignore[attr-defined]
-        sim.set_chunker(counted)
+        sim.set_chunker(Counted())
     start = sim.tick_count
     period = round(LoopOptions().snapshot_period / sim.dt)
 

@@ -529,9 +529,9 @@ class ConsoleChunk:
         if plan.camera is not None:  # (its part of the last tick whose pre-steps ran)
             keep_camera(plan)
         haptics = plan.haptics
-        for tel, row in zip(plan.teleops, plan.teleop_rows, strict=False):
+        for tel, row in zip(plan.teleops, plan.teleop_rows, strict=False) if fixtures else ():
             state, out = row[19], row[20]
-            if not (fixtures and state[0][0]):
+            if not state[0][0]:
                 continue
             started = plan.started.get(tel.name)
             if started is None:  # (the fixture's velocity filter: it has started)

@@ -166,10 +166,10 @@ class ArmPeriod:
         # The base frame: constant (no setup joints), or the simulation's frame plan's row.
         plan = sim._frame_plan
         self._on_suj = f"SUJ/{arm.name}" in sim.arms
-        self._plan_row = -1
+        self._plan_row = self._camera_row = -1
         if self._on_suj and plan is not None and arm.name in plan.arms:
             k = len(plan.arms)
-            self._plan_row = k + 2 + plan.arms.index(arm.name)
+            self._plan_row, self._camera_row = k + 2 + plan.arms.index(arm.name), k
             self._plan = (*_writable(plan.args), plan.reference, *_writable(plan.ref_args),
                           np.array(sim._frame_adr, dtype=np.intp))  # fmt: skip
             self._frames_out = np.empty((2 * k + 2, 4, 4))
@@ -266,7 +266,7 @@ class ArmPeriod:
             return False
         record.t[k] = data.time
         record.q[k] = data.qpos[self._arm[1]]
-        record.frames[k, 0] = self._frames_out[len(self.sim._frame_plan.arms)]
+        record.frames[k, 0] = self._frames_out[self._camera_row]
         record.frames[k, 1] = self._frames_out[self._plan_row]
         return True
 
@@ -297,7 +297,7 @@ class ArmPeriod:
         if frames:  # the joints of the simulation's current frames (just asked for)
             self._key[:] = np.frombuffer(sim._base_frames["frames"][0])
         recording = record is not None and frames and self.records
-        camera_row = len(sim._frame_plan.arms) if recording else 0
+        camera_row = self._camera_row if recording else 0
         if recording:  # (the kernel keeps them from the frames it holds: the current ones)
             current = sim._base_frames["frames"][1]
             self._frames_out[camera_row] = current["camera"]

@@ -584,7 +584,7 @@ def _apply_realtime_priority(options: LoopOptions, applied: dict) -> None:
 
 
 def _published_state(sim) -> bytes:
-    sim.flush()  # (the components as the ticks left them: the loop flushes here anyway)
+    sim.flush()  # (the components as the ticks left them; a no-op at a period's end)
     d = sim.data
     servo = sim.servo
     arrays = {
