@@ -525,7 +525,7 @@ def test_a_person_picks_the_needle_up_and_hands_it_over(browser, person):
     """Looking at the needle standing in its foam block, the person turns the right hand's
     wrist (the wrist keys) until PSM1's jaws open across the needle's plane (the tip's y
     along its normal) while bringing them above the top of its arc, goes down along the
-    jaws until the wire is 6 mm into them, closes them (E) and lifts it 12 mm: the needle
+    jaws until the wire is 6 mm into them, closes them (E) and lifts it 16 mm: the needle
     comes up with the jaws. Then the left hand (H): PSM2's jaws turned across the needle
     the same way, onto its wire near the swage, closed; the right hand again (H) opens
     PSM1's jaws (E) and backs off. PSM2 holds the needle alone: the attempt is scored with
@@ -609,10 +609,11 @@ def test_a_person_picks_the_needle_up_and_hands_it_over(browser, person):
 
         s = grasp("PSM1", 0.5)
         c0, lift_from = centre(s), frame(s, "PSM1")[0]
-        go("PSM1", lambda s: lift_from + 0.012 * up, tolerance=0.002)
+        # 16 mm: the task wants it 10 mm up (world), and the hand-off may let it sag a little
+        go("PSM1", lambda s: lift_from + 0.016 * up, tolerance=0.002)
         s = wait(0.3)
         p.shot("needle_pickup_lifted")
-        assert (centre(s) - c0) @ up > 0.008  # it came up with the jaws
+        assert (centre(s) - c0) @ up > 0.012  # it came up with the jaws
         assert s["task"]["phase"] == "RUNNING"
         assert p.panel("progress").startswith("hand the needle to the other instrument: the jaws")
 
