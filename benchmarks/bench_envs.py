@@ -30,13 +30,14 @@ import time
 from collections.abc import Callable
 from pathlib import Path
 
+import davinci_sim  # noqa: F401  (before mujoco: sets MUJOCO_GL for its images)
+
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 import mujoco  # noqa: E402
 import mujoco.batch  # noqa: E402
 import numpy as np  # noqa: E402
 
-import davinci_sim  # noqa: E402, F401  (sets MUJOCO_GL)
 from common import write  # noqa: E402
 from davinci_sim.envs import ENVIRONMENTS  # noqa: E402
 from davinci_sim.envs.base import DavinciEnv  # noqa: E402

@@ -1,5 +1,9 @@
 """Sensors: endoscope images, named monitoring cameras, instrument contact forces."""
 
+import os
+import subprocess
+import sys
+
 import numpy as np
 import pytest
 from sim_helpers import home
@@ -123,3 +127,26 @@ def test_closing_a_renderer_survives_another_being_collected_meanwhile():
     renderer._mjr_context = CollectOnFree(renderer._mjr_context)
     closing.close()  # (raised EGLError before CameraRenderer.close made its context current)
     assert closing._cameras is None and not holder
+
+
+def test_rendering_without_an_opengl_context_says_how_to_get_one():
+    """A program that imports mujoco before davinci_sim, headless, with MUJOCO_GL unset:
+    MuJoCo took GLFW, which cannot start without a display; rendering says to set MUJOCO_GL
+    (or to import davinci_sim first) instead of MuJoCo's bare FatalError."""
+    script = (
+        "import mujoco\n"
+        "from davinci_sim.sim.sensors import CameraRenderer\n"
+        "m = mujoco.MjModel.from_xml_string("
+        "'<mujoco><worldbody><camera name=\"c\"/></worldbody></mujoco>')\n"
+        "try:\n"
+        "    CameraRenderer(m).render(mujoco.MjData(m), 'c', 32, 24)\n"
+        "except RuntimeError as e:\n"
+        "    print('refused:', e)\n"
+    )
+    unset = ("MUJOCO_GL", "DISPLAY", "WAYLAND_DISPLAY", "PYOPENGL_PLATFORM")
+    env = {k: v for k, v in os.environ.items() if k not in unset}
+    out = subprocess.run([sys.executable, "-c", script], env=env, capture_output=True,
+                         text=True, timeout=120)  # fmt: skip
+    assert out.returncode == 0, out.stderr
+    assert "refused: MuJoCo has no OpenGL context" in out.stdout
+    assert "MUJOCO_GL=egl" in out.stdout and "mujoco.glfw" in out.stdout

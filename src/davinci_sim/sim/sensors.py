@@ -65,6 +65,27 @@ def contact_force(
     return total
 
 
+def _renderer(model: mujoco.MjModel, height: int, width: int) -> mujoco.Renderer:
+    """``mujoco.Renderer``, or a RuntimeError saying why MuJoCo has no OpenGL context: it
+    takes its backend from ``MUJOCO_GL`` when it is first imported, so a program that imports
+    mujoco before davinci_sim (which sets ``MUJOCO_GL=egl`` when unset) without a display
+    gets GLFW, which cannot start headless."""
+    try:
+        return mujoco.Renderer(model, height, width)
+    except mujoco.FatalError as e:
+        if "OpenGL platform library" not in str(e):
+            raise
+        from mujoco.rendering.classic import gl_context
+
+        backend = getattr(getattr(gl_context, "GLContext", None), "__module__", "unknown")
+        raise RuntimeError(
+            f"MuJoCo has no OpenGL context to render with (its backend: {backend}). MuJoCo "
+            "chooses it when it is first imported: set MUJOCO_GL=egl (or osmesa) in the "
+            "environment, or import davinci_sim before mujoco (it sets MUJOCO_GL=egl when "
+            "unset)"
+        ) from e
+
+
 class CameraRenderer:
     """Offscreen renderer for named cameras of one model, one GL context per image size.
 
@@ -99,7 +120,7 @@ class CameraRenderer:
             if fast:  # the sample count is read when the GL context is made
                 vis.quality.offsamples = 0
             try:
-                self._renderers[key] = mujoco.Renderer(self._model, height, width)
+                self._renderers[key] = _renderer(self._model, height, width)
             finally:
                 vis.quality.offsamples = samples
         r = self._renderers[key]
