@@ -228,3 +228,35 @@ def test_the_loop_gets_sched_fifo_once_its_simulation_is_built():
         while handle.snapshot().tick < tick + 200 and time.monotonic() < deadline:
             time.sleep(0.01)
         assert handle.snapshot().tick >= tick + 200  # the real-time loop runs
+
+
+def test_a_stepped_loop_ticks_what_it_is_asked_for_and_serves_calls_between():
+    """``stepped``: no tick until ``advance``; each advance runs exactly its ticks after the
+    ones asked for before, its future answered once the state there is published; a call
+    sent before an advance is served before its ticks (the clutch pressed at the start of
+    the third advance's ticks, not after them), and calls are served while the loop waits."""
+    with pytest.raises(ValueError, match="real_time"):
+        ProcessSimulation(FACTORY, stepped=True)
+    with ProcessSimulation(FACTORY, real_time=False, stepped=True) as handle:
+        assert handle.stepped
+        start = handle.snapshot().tick
+        time.sleep(0.3)  # (wall time passes; simulated time does not)
+        assert handle.snapshot().tick == start
+        assert handle.call("console", "emulate_operator_present", [1]).result(10)
+        assert handle.call("console", "teleop_enable", True).result(10)
+        first = handle.advance(0.031)  # 31 ticks: not a multiple of the snapshot period
+        second = handle.advance(0.05)
+        assert first.result(30) == start + 31
+        assert second.result(30) == start + 81
+        assert handle.snapshot().tick == start + 81  # (published where it stopped)
+        clutch = handle.call("console", "emulate_clutch", [1])
+        third = handle.advance(0.001)
+        assert clutch.result(10) is None or clutch.result(10)
+        assert third.result(30) == start + 82
+        snap = handle.snapshot()
+        assert snap.tick == start + 82 and snap.extras["console"].buttons["clutch"]
+        with pytest.raises(ValueError, match="seconds"):
+            handle.advance(0.0)
+    with ProcessSimulation(FACTORY, real_time=False) as free:
+        with pytest.raises(RuntimeError, match="not stepped"):
+            free.advance(0.01)

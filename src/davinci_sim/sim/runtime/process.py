@@ -94,6 +94,8 @@ class LoopOptions:
     spin: float | None = None
     """s; None: :func:`_default_spin`."""
     max_lag: float = DEFAULT_MAX_LAG
+    stepped: bool = False
+    """Tick only up to the ticks :meth:`ProcessSimulation.advance` asks for."""
 
 
 def _default_spin(chunk: int, sim, realtime_priority: bool) -> float:
@@ -143,6 +145,9 @@ class ProcessSimulation:
             of 95% of a core).
         state_capacity: bytes for one published state.
         start_timeout: s to wait for the child to build the simulation.
+        stepped: the loop ticks (as fast as it can) only up to the ticks :meth:`advance`
+            asks for, serving calls while it waits: a page or a script that must see each
+            state before the simulation goes on (the browser tests' persons).
     """
 
     def __init__(
@@ -163,9 +168,12 @@ class ProcessSimulation:
         spin: float | None = None,
         state_capacity: int = 4 << 20,
         start_timeout: float = 120.0,
+        stepped: bool = False,
     ) -> None:
         if not callable(factory):
             raise TypeError(f"factory must be callable, got {factory!r}")
+        if stepped and real_time:
+            raise ValueError("a stepped loop runs as fast as it can: real_time must be False")
         if not (math.isfinite(snapshot_period) and snapshot_period > 0):
             raise ValueError(f"snapshot_period must be > 0 s, got {snapshot_period!r}")
         if render_hz is not None and not (math.isfinite(render_hz) and render_hz > 0):
@@ -179,6 +187,7 @@ class ProcessSimulation:
             cpu=loop_cpu,
             realtime_priority=realtime_priority,
             spin=spin,
+            stepped=stepped,
         )
         self._render_hz = render_hz
         self._render_model = render_model
@@ -378,6 +387,22 @@ class ProcessSimulation:
         """Start ticking (after ``start_paused``)."""
         if self.is_running:
             self._send(("resume",))
+
+    @property
+    def stepped(self) -> bool:
+        """Whether the loop ticks only when :meth:`advance` asks (``stepped``)."""
+        return self._options.stepped
+
+    def advance(self, seconds: float) -> Future:
+        """A stepped loop: tick ``seconds`` of simulated time more (rounded to ticks, at
+        least one) after the ticks already asked for; calls sent before this are served
+        before its ticks. The future gives the tick reached, once the state there is
+        published (:meth:`snapshot` reads it)."""
+        if not self.stepped:
+            raise RuntimeError("advance: this loop is not stepped (it ticks by itself)")
+        if not (math.isfinite(seconds) and seconds > 0):
+            raise ValueError(f"advance: seconds must be > 0, got {seconds!r}")
+        return self._request(("advance", max(1, round(seconds / self.info["dt"]))))
 
     def reset_period_statistics(self) -> None:
         """Start the period statistics afresh (e.g. after a warm-up), from the next tick."""
@@ -668,6 +693,8 @@ def _loop_main(factory, options: LoopOptions, conn, paths: dict) -> None:
         )
         stop = [False]
         paused = [options.start_paused]
+        horizon = [sim.tick_count]  # (stepped: the loop ticks up to it)
+        advances: deque = deque()  # (stepped: (tick, call id) answered once reached)
 
         def reply(call_id: int, fn) -> None:
             try:
@@ -695,6 +722,10 @@ def _loop_main(factory, options: LoopOptions, conn, paths: dict) -> None:
                     runner.recorder = PeriodRecorder(
                         sim.dt, real_time=options.real_time, buffer=buffers["stats"].mm
                     )
+                elif kind == "advance":
+                    _, call_id, ticks = message
+                    horizon[0] = max(horizon[0], sim.tick_count) + ticks
+                    advances.append((horizon[0], call_id))
                 elif kind == "resume":
                     paused[0] = False
                 elif kind == "stop":
@@ -712,8 +743,11 @@ def _loop_main(factory, options: LoopOptions, conn, paths: dict) -> None:
 
         def after() -> None:
             qpos_slot.write(QPOS_HEADER.pack(sim.tick_count, sim.time, sim.model.nq), sim.data.qpos)
-            if sim.tick_count % snapshot_ticks == 0:
+            reached = bool(advances) and sim.tick_count >= advances[0][0]
+            if sim.tick_count % snapshot_ticks == 0 or reached:
                 state_slot.write(_published_state(sim))
+            while advances and sim.tick_count >= advances[0][0]:  # (the state published)
+                outgoing.append(("result", advances.popleft()[1], True, sim.tick_count))
             if outgoing:
                 flush()
 
@@ -729,8 +763,19 @@ def _loop_main(factory, options: LoopOptions, conn, paths: dict) -> None:
                 serve()
                 flush()
         with frozen_heap():  # no full collection over the model and system mid-run
-            stats = runner.run(until=done, before_tick=serve, after_tick=after,
-                               every=snapshot_ticks)  # fmt: skip
+            if options.stepped:
+                while not done():
+                    if advances:  # (as fast as it can, to the first advance's tick)
+                        runner.run(ticks=advances[0][0] - sim.tick_count, until=done,
+                                   before_tick=serve, after_tick=after,
+                                   every=snapshot_ticks)  # fmt: skip
+                    elif conn.poll(0.002):
+                        serve()
+                        flush()
+                stats = runner.recorder.statistics()
+            else:
+                stats = runner.run(until=done, before_tick=serve, after_tick=after,
+                                   every=snapshot_ticks)  # fmt: skip
         state_slot.write(_published_state(sim))
         flush()
         if dropped[0]:
