@@ -146,8 +146,8 @@ class ProcessSimulation:
         state_capacity: bytes for one published state.
         start_timeout: s to wait for the child to build the simulation.
         stepped: the loop ticks (as fast as it can) only up to the ticks :meth:`advance`
-            asks for, serving calls while it waits: a page or a script that must see each
-            state before the simulation goes on (the browser tests' persons).
+            asks for, serving calls while it waits: for a script that must see each state
+            before the simulation goes on (not yet used by ``serve``).
     """
 
     def __init__(
