@@ -23,7 +23,7 @@ writes the objects back and hands the session all the samples at once where some
 them (the period's end, where the runner publishes; a served call; a Python tick; a new
 plan), so the Python between two calls is a few copies.
 
-Size: about 560 lines because the plan (which states the kernel ticks, each check a reason to
+Size: about 570 lines because the plan (which states the kernel ticks, each check a reason to
 leave a tick to Python), the call and the write-back (what the Python ticks would have left
 in the same objects) are one contract: a state the plan admits is a state the write-back
 must cover. The rows themselves are built in :mod:`~davinci_sim.console.chunk_rows`.

@@ -693,7 +693,6 @@ def _loop_main(factory, options: LoopOptions, conn, paths: dict) -> None:
         )
         stop = [False]
         paused = [options.start_paused]
-        horizon = [sim.tick_count]  # (stepped: the loop ticks up to it)
         advances: deque = deque()  # (stepped: (tick, call id) answered once reached)
 
         def reply(call_id: int, fn) -> None:
@@ -723,9 +722,9 @@ def _loop_main(factory, options: LoopOptions, conn, paths: dict) -> None:
                         sim.dt, real_time=options.real_time, buffer=buffers["stats"].mm
                     )
                 elif kind == "advance":
-                    _, call_id, ticks = message
-                    horizon[0] = max(horizon[0], sim.tick_count) + ticks
-                    advances.append((horizon[0], call_id))
+                    _, call_id, ticks = message  # (after the ticks asked for before)
+                    last = advances[-1][0] if advances else sim.tick_count
+                    advances.append((last + ticks, call_id))
                 elif kind == "resume":
                     paused[0] = False
                 elif kind == "stop":
