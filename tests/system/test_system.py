@@ -99,6 +99,9 @@ def test_devices_teleop_scale_and_home_from_the_description():
         DeviceDescription("bluetooth")
     with pytest.raises(ValueError, match="render_hz needs a runner"):
         SystemDescription(runner="none", render_hz=30)
+    for runner, real_time in (("thread", False), ("process", True)):
+        with pytest.raises(ValueError, match="stepped needs the process runner"):
+            SystemDescription(runner=runner, real_time=real_time, stepped=True)
 
 
 def test_task_conditions():

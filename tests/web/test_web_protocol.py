@@ -59,6 +59,8 @@ def test_good_messages_parse_to_their_checked_fields():
         (msg(op="trainee", name="a\nb"), "control characters"),
         (msg(op="synthetic", action="start", subject=-1), "subject must be >= 0"),
         (msg(op="arms", action="explode"), "action must be one of"),
+        (msg(op="advance", seconds=-0.1), "seconds must be in (0, 10]"),
+        (msg(op="advance"), "'seconds' is required"),
     ],
 )
 def test_bad_messages_are_refused_with_a_reason(text, words):
@@ -81,7 +83,7 @@ def test_every_op_accepts_its_required_fields_only_message():
         "task": {"action": "reset"}, "exercise": {"task": "ring_walk"},
         "trainee": {"name": ""}, "teleop": {},
         "arms": {"action": "home"}, "recover": {}, "synthetic": {"action": "stop"},
-        "ping": {"t": 1.5},
+        "ping": {"t": 1.5}, "advance": {"seconds": 0.04},
         "study": {"action": "start", "subjects": 1, "repetitions": 1}, "view": {"stereo": True},
     }  # fmt: skip
     assert set(samples) == set(OPS)

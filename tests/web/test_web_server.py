@@ -398,3 +398,82 @@ def test_the_wrist_input_unlocks_the_rotation_turns_the_tool_and_release_locks_i
         assert locked()
     finally:
         page.close()
+
+
+def test_advance_is_refused_by_a_console_that_keeps_its_own_time(console):
+    web, _ = console
+    page = Page(web)
+    try:
+        assert page.next("welcome") and page.hello["stepped"] is False
+        page.send(op="advance", seconds=0.1)
+        assert "keeps time by itself" in page.next("advanced")["refused"]
+        for seconds, words in ((0, "seconds must be in (0"), (11, "seconds must be in (0")):
+            page.send(op="advance", seconds=seconds)
+            assert words in page.next("error")["message"]
+    finally:
+        page.close()
+
+
+@pytest.fixture(scope="module")
+def stepped():
+    """A stepped console (the loop in its own process ticks only what pages ask for)."""
+    description = SystemDescription(
+        scene="psm1_ecm_mtmr",
+        home=True,
+        console=ConsoleDescription(hand_inputs=("MTMR",)),
+        runner="process",
+        real_time=False,
+        stepped=True,
+    )
+    system = build_system(description, start=True)
+    web = WebConsole(system.handle, WebOptions(port=0), hand_mtms=("MTMR",)).start()
+    yield web, system
+    web.stop()
+    system.stop()
+
+
+def advance(page: Page, seconds: float) -> dict:
+    """``advance`` by ``seconds``: the state there (the last before ``advanced``; states on
+    the way may come before it), with ``advanced``'s tick."""
+    page.send(op="advance", seconds=seconds)
+    messages = [page.receive()]
+    while messages[-1]["op"] != "advanced":
+        messages.append(page.receive())
+    assert messages[-2]["op"] == "state", messages[-2]
+    return {**messages[-2], "tick": messages[-1]["tick"]}
+
+
+def test_a_stepped_console_ticks_what_a_page_asks_and_answers_with_the_state_there(stepped):
+    """``advance``: the simulated time the page asks for passes, no more; the page gets the
+    state there before ``advanced`` (the other pages get the state too); the hand's
+    dead-man counts simulated time, so a page that holds a key sends its input again
+    before each advance (as the page's ``window.davinci.advance`` does)."""
+    web, system = stepped
+    page, other = Page(web), Page(web)
+    try:
+        assert page.hello["stepped"] is True
+        first = page.next("state")
+        time.sleep(0.3)  # (wall time passes; the simulation does not)
+        assert system.handle.snapshot().time == pytest.approx(first["time"], abs=1e-9)
+        there = advance(page, 0.25)
+        assert there["time"] == pytest.approx(first["time"] + 0.25, abs=1e-9)
+        assert there["tick"] == system.handle.snapshot().tick
+        other.next("state", where=lambda m: m["time"] == there["time"])
+
+        page.take_control()
+        hand = lambda m: np.array(m["hands"]["MTMR"]["target"])  # noqa: E731
+        start = advance(page, 0.01)
+        # One input, then 1 s: the hand moves 0.3 s of it (its dead-man), then stops ...
+        page.send(op="input", mtm="MTMR", axes=[0, 0, 1])
+        once = advance(page, 1.0)
+        # ... held back out through 0.6 s, sent again before each 0.1 s: all the way.
+        for _ in range(6):
+            page.send(op="input", mtm="MTMR", axes=[0, 0, -1])
+            held = advance(page, 0.1)
+        page.send(op="input", mtm="MTMR", axes=[0, 0, 0])
+        speed = web.options.hand_speed  # m/s at full input, along the camera's z ("in")
+        assert hand(once)[2] - hand(start)[2] == pytest.approx(0.3 * speed, rel=0.1)
+        assert hand(held)[2] - hand(once)[2] == pytest.approx(-0.6 * speed, rel=0.1)
+    finally:
+        page.close()
+        other.close()

@@ -36,6 +36,9 @@ class ServeOptions:
     keyframe: str = "surgical"
     seed: int = 0
     real_time: bool = True
+    stepped: bool = False
+    """Process runner, ``real_time`` off: the simulation ticks only when asked (the web
+    console's ``advance`` op; :attr:`~davinci_sim.system.SystemDescription.stepped`)."""
     home: bool = False
     """Enable and home every arm at start."""
     server: bool = True
@@ -159,6 +162,7 @@ def serve_description(options: ServeOptions):
         home=options.home,
         runner=options.runner,
         real_time=options.real_time,
+        stepped=options.stepped,
         # Snapshots cost ~0.2 ms of the loop for the full system with the console: take them
         # at the publish rate, not every tick, so the 1 kHz loop keeps its margin.
         snapshot_period=1.0 / max(options.rate, 1.0),

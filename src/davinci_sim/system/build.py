@@ -310,6 +310,7 @@ def build_system(description: SystemDescription, *, start: bool = False) -> Syst
             start_paused=description.start_paused,
             realtime_priority=description.realtime_priority,
             loop_cpu=description.loop_cpu,
+            stepped=description.stepped,
         )
         system = System(description, None, handle)
     else:

@@ -118,6 +118,10 @@ class SystemDescription:
     """The loop in a thread of this process, in its own process, or none (the caller ticks
     the simulation itself, e.g. the demo)."""
     real_time: bool = True
+    stepped: bool = False
+    """Process runner, not real time: the loop ticks only the simulated time its handle's
+    ``advance(seconds)`` asks for (a script that looks at each state before it acts, as
+    the browser tests' persons do, runs at the machine's speed, not the wall clock's)."""
     start_paused: bool = False
     """The runner waits for ``handle.resume()`` before its first tick (inputs scheduled with
     ``handle.call_at`` first make a reproducible run)."""
@@ -150,6 +154,8 @@ class SystemDescription:
             raise ValueError(f"render_hz must be > 0 or None, got {self.render_hz!r}")
         if self.render_hz is not None and self.runner == "none":
             raise ValueError("render_hz needs a runner (thread or process)")
+        if self.stepped and (self.runner != "process" or self.real_time):
+            raise ValueError("stepped needs the process runner and real_time=False")
         if self.realtime_priority is not None and not (1 <= self.realtime_priority <= 99):
             raise ValueError(f"realtime_priority must be in 1..99, got {self.realtime_priority}")
 

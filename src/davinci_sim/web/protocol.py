@@ -35,6 +35,10 @@ Ops (fields; units):
   is encoded and sent only while some page does), and who draws its endoscope: the server
   (JPEG frames) or the page itself (the scene once, then pose messages).
 - ``ping`` (``t``: number, the page's clock, ms): answered with ``pong`` (latency).
+- ``advance`` (``seconds``: number in (0, 10], s of simulated time): a stepped server
+  (``hello``'s ``stepped``; ``ServeOptions.stepped``) ticks that much more and sends the
+  page the state there, then ``advanced`` (``tick``); any other answers ``advanced`` with
+  ``refused`` (why). For scripts at the page (``window.davinci.advance(s)``), any page.
 """
 
 from __future__ import annotations
@@ -162,6 +166,10 @@ def _condition(value):
     raise ProtocolError(f"condition must be a name or a fixture entry, got {value!r}")
 
 
+#: The most simulated time one ``advance`` asks for, s (a script steps; it does not run a
+#: stepped server for minutes in one message).
+MAX_ADVANCE = 10.0
+
 #: op -> {field: (checker, required)}
 OPS: dict[str, dict[str, tuple[Any, bool]]] = {
     "hello": {"token": (_text("token", 256), False)},
@@ -200,6 +208,9 @@ OPS: dict[str, dict[str, tuple[Any, bool]]] = {
         "source": (_choice("source", VIEW_SOURCES), False),
     },
     "ping": {"t": (_number("t"), True)},
+    # A stepped server only (``ServeOptions.stepped``, for scripted pages): tick this much
+    # simulated time more, s; answered with the state there and an ``advanced`` message.
+    "advance": {"seconds": (_number("seconds", 0.0, MAX_ADVANCE, lo_open=True), True)},
 }
 
 #: Ops that act on the simulation: only the operator may send them.

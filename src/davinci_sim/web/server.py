@@ -490,6 +490,8 @@ class WebConsole(AsyncService):
             "records": self.records is not None,
             "page_view": self._model_source is not None and three_dir() is not None,
             "exercises": list(self.exercises),
+            # (a stepped simulation ticks only what pages ask for: the op "advance")
+            "stepped": getattr(self.handle, "stepped", False) is True,
         }
         task = self.task
         if task is not None:
@@ -591,6 +593,9 @@ class WebConsole(AsyncService):
             return
         if command.op == "control":
             await self._control(client, command.args["take"])
+            return
+        if command.op == "advance":  # (any page: a script waits before it takes control)
+            await self._advance(client, command.args["seconds"])
             return
         if command.op in OPERATOR_OPS and self.operator != client.id:
             who = "nobody" if self.operator is None else f"page {self.operator}"
@@ -787,17 +792,48 @@ class WebConsole(AsyncService):
             if snap.tick == last_tick:
                 continue
             last_tick = snap.tick
-            try:
-                view = console_view(snap, self.camera, self.task)
-            except Exception:  # a bug in the view must not end the stream
-                _log.exception("cannot make the page's state")
-                continue
-            view["problems"] = problems(view, dict(self._messages))
-            view["op"] = "state"
-            view["operator"] = self.operator
-            view["pages"] = len(self._clients)
+            view = self._state_message(snap)
+            if view is not None:
+                self._broadcast(view, latest="state")
+
+    def _state_message(self, snap) -> dict | None:
+        """The page's ``state`` message of ``snap`` (None if the view cannot be made)."""
+        try:
+            view = console_view(snap, self.camera, self.task)
+        except Exception:  # a bug in the view must not end the stream
+            _log.exception("cannot make the page's state")
+            return None
+        view["problems"] = problems(view, dict(self._messages))
+        view["op"] = "state"
+        view["operator"] = self.operator
+        view["pages"] = len(self._clients)
+        self._stats["states"] += 1
+        return view
+
+    async def _advance(self, client: _Client, seconds: float) -> None:
+        """A stepped server (``ServeOptions.stepped``): tick ``seconds`` of simulated time
+        more, then send ``client`` the state there and ``advanced`` (in that order; the
+        other pages get the state as usual). Refused with ``advanced``'s ``refused`` when
+        the simulation keeps time by itself."""
+        if getattr(self.handle, "stepped", False) is not True:
+            why = ("advance: this console's simulation keeps time by itself (only a server "
+                   "started stepped, for scripted pages, ticks on request)")  # fmt: skip
+            self._push(client, {"op": "advanced", "refused": why})
+            return
+        try:
+            tick = await asyncio.wrap_future(self.handle.advance(seconds))
+        except Exception as e:  # (a loop that stopped: the page is told, the server goes on)
+            self._push(client, {"op": "advanced", "refused": f"advance: {e}"})
+            return
+        snap = self._snapshot()
+        view = None if snap is None else self._state_message(snap)
+        if view is not None:
+            self._collect_rows(snap)
             self._broadcast(view, latest="state")
-            self._stats["states"] += 1
+            mine = client.latest.pop("state", None)
+            if mine is not None:  # (this page's state goes before its answer, never after)
+                client.queue.append(mine)
+        self._push(client, {"op": "advanced", "tick": int(tick)})
 
     def _collect_rows(self, snap) -> None:
         task = (snap.extras or {}).get("task")

@@ -10,7 +10,13 @@ import pytest
 from davinci_sim.console import SIMULATED_SYSTEM
 from davinci_sim.sim.runtime import LoopProcessError, ProcessSimulation
 from davinci_sim.sim.simulation import Simulation
-from davinci_sim.system import ConsoleDescription, SystemDescription, build_simulation
+from davinci_sim.system import (
+    ConsoleDescription,
+    SystemDescription,
+    TaskDescription,
+    build_simulation,
+)
+from davinci_sim.tasks.session import VIEW_DISTANCE
 
 FACTORY = functools.partial(
     build_simulation,
@@ -260,3 +266,24 @@ def test_a_stepped_loop_ticks_what_it_is_asked_for_and_serves_calls_between():
     with ProcessSimulation(FACTORY, real_time=False) as free:
         with pytest.raises(RuntimeError, match="not stepped"):
             free.advance(0.01)
+
+
+def test_calls_a_stepped_loop_serves_while_it_waits_reach_its_compiled_ticks():
+    """A console in its steady state runs its ticks in the compiled engine, which keeps its
+    plan while no call is served: calls served while a stepped loop waits for an advance
+    must count as served for its first ticks (the web console's person took control
+    between two advances, and the teleoperation, told to enable, stayed DISABLED)."""
+    task = TaskDescription("needle_targeting", frame_view=VIEW_DISTANCE)
+    console = ConsoleDescription(hand_inputs=("MTMR",))
+    description = SystemDescription("psm1_ecm_mtmr", console=console, task=task, home=True)
+    factory = functools.partial(build_simulation, description)
+    with ProcessSimulation(factory, real_time=False, stepped=True) as handle:
+        handle.advance(0.5).result(60)
+        while handle.snapshot().extras["task"].phase != "READY":  # (the tool at its start)
+            assert handle.advance(0.5).result(60) < 30_000
+        assert handle.snapshot().extras["MTMR_PSM1"].current_state == "DISABLED"
+        for call in [("console", "press", "operator_present"), ("console", "teleop_enable", True)]:
+            assert handle.call(*call).result(10)
+        time.sleep(0.2)  # (served while the loop waits: the advance comes after)
+        handle.advance(0.2).result(60)
+        assert handle.snapshot().extras["MTMR_PSM1"].current_state != "DISABLED"

@@ -763,13 +763,20 @@ def _loop_main(factory, options: LoopOptions, conn, paths: dict) -> None:
                 flush()
         with frozen_heap():  # no full collection over the model and system mid-run
             if options.stepped:
+                waited = [False]  # (calls served while waiting: the next pass must see them)
+
+                def serve_pass() -> bool:
+                    served = serve() or waited[0]
+                    waited[0] = False
+                    return served
+
                 while not done():
                     if advances:  # (as fast as it can, to the first advance's tick)
                         runner.run(ticks=advances[0][0] - sim.tick_count, until=done,
-                                   before_tick=serve, after_tick=after,
+                                   before_tick=serve_pass, after_tick=after,
                                    every=snapshot_ticks)  # fmt: skip
                     elif conn.poll(0.002):
-                        serve()
+                        waited[0] = serve() or waited[0]
                         flush()
                 stats = runner.recorder.statistics()
             else:

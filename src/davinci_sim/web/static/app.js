@@ -39,6 +39,7 @@ function connect() {
   };
   ws.onclose = () => {
     setConnection("disconnected — retrying", "bad");
+    while (advancing.length) advancing.shift().reject(new Error("advance: the connection closed"));
     setTimeout(connect, 1000);
   };
   ws.onmessage = (event) => {
@@ -97,6 +98,7 @@ function onMessage(m) {
       break;
     case "pong": state.rtt = performance.now() - m.t; break;
     case "study": onStudy(m); break;
+    case "advanced": onAdvanced(m); break;
     default: break;
   }
 }
@@ -901,6 +903,24 @@ function sendInput(force) {
     const gripper = mtm === handMtm() ? state.gripper : state.grippers[mtm];
     send({ op: "input", mtm, axes, turn, ...(gripper == null ? {} : { gripper }) });
   }
+}
+
+// A stepped server (serve's `stepped`: scripts, such as the browser tests' persons, that look
+// at each state before they act): tick `seconds` of simulated time more. Resolves with the
+// state there. The held input goes again first: the hand stops 0.3 s of simulated time after
+// its last input, however long the script took to look.
+const advancing = [];
+state.advance = (seconds) => new Promise((resolve, reject) => {
+  sendInput(true);
+  if (!send({ op: "advance", seconds })) reject(new Error("advance: the page is not connected"));
+  else advancing.push({ resolve, reject });
+});
+
+function onAdvanced(m) {
+  const waiting = advancing.shift();
+  if (!waiting) return;
+  if (m.refused) waiting.reject(new Error(m.refused));
+  else waiting.resolve(state.last);
 }
 
 function firstGamepad() {
