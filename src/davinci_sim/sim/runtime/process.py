@@ -147,7 +147,8 @@ class ProcessSimulation:
         start_timeout: s to wait for the child to build the simulation.
         stepped: the loop ticks (as fast as it can) only up to the ticks :meth:`advance`
             asks for, serving calls while it waits: for a script that must see each state
-            before the simulation goes on (not yet used by ``serve``).
+            before the simulation goes on (``serve``'s ``stepped``: the web console's
+            ``advance`` op).
     """
 
     def __init__(
