@@ -241,6 +241,10 @@ def serve_options(args: argparse.Namespace, web: bool):
     from davinci_sim.bridge.udp import parse_ports
 
     runner = args.runner or ("process" if web else "thread")
+    if args.stepped and not web:
+        raise ValueError("--stepped: the web console's pages advance the simulation; drop --no-web")
+    if args.stepped and runner != "process":
+        raise ValueError("--stepped runs the loop in its own process: drop --runner thread")
     # The console and pedals (/console/*, /footpedals/*) by default, as the dVRK's system
     # serves them, whenever the scene has an MTM and a PSM to teleoperate.
     console = args.task is not None or (
@@ -254,7 +258,8 @@ def serve_options(args: argparse.Namespace, web: bool):
         scene=serve_scene(args),
         keyframe=args.keyframe,
         seed=args.seed,
-        real_time=not args.fast,
+        real_time=not (args.fast or args.stepped),
+        stepped=args.stepped,
         home=args.home,
         server=not args.no_server,
         bridge=BridgeConfig(
@@ -1060,6 +1065,13 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--keyframe", default="surgical", choices=["surgical", "home"])
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--fast", action="store_true", help="as fast as possible, not real time")
+    p.add_argument(
+        "--stepped",
+        action="store_true",
+        help="the simulation ticks only the time a page asks for (the web console's advance "
+        "op; window.davinci.advance(seconds) in the page): for scripts that drive the page "
+        "and look at each state before they act",
+    )
     p.add_argument("--home", action="store_true", help="enable and home every arm at start")
     p.add_argument(
         "--host", default="127.0.0.1", help="interface to bind (default loopback; 0.0.0.0 for all)"

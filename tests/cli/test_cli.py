@@ -144,6 +144,8 @@ def test_the_taken_port_message_says_9090_is_rosbridge_s_and_works_without_a_hol
         (["serve", "--task", "seed_path", "--trainee", " "], "non-empty"),
         (["serve", "--task", "seed_path", "--trainee", "a\tb"], "printable"),
         (["serve", "--task", "seed_path", "--records", "{folder}"], "records file"),
+        (["serve", "--stepped", "--no-web"], "the web console's pages advance"),
+        (["serve", "--stepped", "--runner", "thread"], "drop --runner thread"),
     ],
 )
 def test_bad_records_options_fail_in_one_line_before_any_work(argv, words, capsys, tmp_path):
@@ -163,6 +165,7 @@ def test_bad_records_options_fail_in_one_line_before_any_work(argv, words, capsy
         (["--scene", "psm1"], False, ()),  # nothing to teleoperate
         (["--console"], True, ("MTML", "MTMR")),  # asked for: the web console's hands too
         (["--console", "--no-web"], True, ()),
+        (["--console", "--stepped"], True, ("MTML", "MTMR")),
     ],
 )
 def test_serve_serves_the_console_and_pedals_by_default(monkeypatch, argv, console, hands):
@@ -182,6 +185,9 @@ def test_serve_serves_the_console_and_pedals_by_default(monkeypatch, argv, conso
     options = seen["options"]
     assert options.console is console
     assert options.hand_inputs == hands
+    stepped = "--stepped" in argv  # (the loop in its own process, ticking on request)
+    assert (options.stepped, options.real_time) == (stepped, not stepped)
+    assert options.runner == ("process" if "--no-web" not in argv else "thread")
 
 
 def test_serve_no_console_contradicts_console_and_task(capsys):
