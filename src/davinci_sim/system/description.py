@@ -120,8 +120,8 @@ class SystemDescription:
     real_time: bool = True
     stepped: bool = False
     """Process runner, not real time: the loop ticks only the simulated time its handle's
-    ``advance(seconds)`` asks for (a script that looks at each state before it acts, as
-    the browser tests' persons do, runs at the machine's speed, not the wall clock's)."""
+    ``advance(seconds)`` asks for (a script that looks at each state before it acts then
+    sees every state it asked for, at the machine's speed, however busy the machine is)."""
     start_paused: bool = False
     """The runner waits for ``handle.resume()`` before its first tick (inputs scheduled with
     ``handle.call_at`` first make a reproducible run)."""
