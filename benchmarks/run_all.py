@@ -21,6 +21,7 @@ import bench_recording  # noqa: E402
 import bench_records  # noqa: E402
 import bench_render  # noqa: E402
 import bench_state  # noqa: E402
+import bench_stepped  # noqa: E402
 import bench_study  # noqa: E402
 import bench_study_small  # noqa: E402
 import bench_suture  # noqa: E402
@@ -49,4 +50,5 @@ if __name__ == "__main__":
     bench_realtime.main()  # 60 s of real time (plus warm-up)
     bench_web.main()  # the web console, one page drawing the endoscope, 2 x 10 s
     bench_web.main(task="needle_drive")  # the same serving the needle and the suture pad
+    bench_stepped.main()  # a script at the page of serve --stepped: a look's cost, ~1 min
     bench_class.main()  # davinci-sim class: 1, 2, ... trainees until one falls behind, ~8 min
