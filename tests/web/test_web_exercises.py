@@ -70,8 +70,8 @@ def served(task_file: str, scene, hands=("MTMR",), stepped: bool = False):
         home=True,
         runner="process",
         # A person's pace: the keys act at the simulation's own speed. (Stepped, a person
-        # who looks every 40 ms of simulated time was slower here than at real time: each
-        # look's round trip through the page and the server took 25-35 ms.)
+        # who looks every 40 ms of simulated time ran at 0.8x real time here: a look's round
+        # trip through the page and the server costs 20-30 ms, bench_stepped.)
         real_time=not stepped,
         stepped=stepped,
         images="none",
