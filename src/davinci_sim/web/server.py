@@ -218,6 +218,7 @@ class WebConsole(AsyncService):
         self._ids = itertools.count(1)
         self._port: int | None = None
         self._completed = 0
+        self._state_tick: int | None = None  # (the tick of the last state sent to the pages)
         self._stats = {"frames_encoded": 0, "encode_time": 0.0, "states": 0, "poses": 0,
                        "pose_time": 0.0}  # fmt: skip
         self._model_source = model
@@ -780,7 +781,6 @@ class WebConsole(AsyncService):
 
     async def _state_loop(self) -> None:
         period = 1.0 / self.options.state_rate
-        last_tick = None
         while True:
             await asyncio.sleep(period)
             if not self._clients:
@@ -789,15 +789,16 @@ class WebConsole(AsyncService):
             if snap is None:
                 continue
             self._collect_rows(snap)
-            if snap.tick == last_tick:
+            if snap.tick == self._state_tick:  # (sent already, by this loop or an advance)
                 continue
-            last_tick = snap.tick
             view = self._state_message(snap)
             if view is not None:
                 self._broadcast(view, latest="state")
 
     def _state_message(self, snap) -> dict | None:
-        """The page's ``state`` message of ``snap`` (None if the view cannot be made)."""
+        """The page's ``state`` message of ``snap`` (None if the view cannot be made), its
+        tick noted as sent."""
+        self._state_tick = snap.tick
         try:
             view = console_view(snap, self.camera, self.task)
         except Exception:  # a bug in the view must not end the stream
