@@ -906,8 +906,9 @@ function sendInput(force) {
 }
 
 // A stepped server (serve --stepped: for scripts that look at each state before they act):
-// tick `seconds` of simulated time more. Resolves with the state there. The held input goes again first: the hand stops 0.3 s of simulated time after
-// its last input, however long the script took to look.
+// tick `seconds` of simulated time more. Resolves with the state there. The held input goes
+// again first: the hand stops 0.3 s of simulated time after its last input, however long the
+// script took to look.
 const advancing = [];
 state.advance = (seconds) => new Promise((resolve, reject) => {
   sendInput(true);
