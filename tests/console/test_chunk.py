@@ -36,7 +36,7 @@ def _serve(task: str, before_control: list | None = None, signatures: list | Non
     taking control: ``(sim, its chunker, the state then)``; ``before_control`` gets the
     state before, ``signatures`` the kernel's compiled signatures once the system is
     built (its install compiled or loaded it), before any tick."""
-    from davinci_sim.console.chunk_kernel import console_chunk_bound
+    from davinci_sim.console.chunk_kernel import console_chunk
 
     sim = build_simulation(
         SystemDescription(
@@ -47,7 +47,7 @@ def _serve(task: str, before_control: list | None = None, signatures: list | Non
         )
     )  # fmt: skip
     if signatures is not None:
-        signatures.append(list(console_chunk_bound.signatures))
+        signatures.append(list(console_chunk.signatures))
     sim.run_for(8.0)  # homing, the endoscope framed on the task, the tool brought to it
     if before_control is not None:
         before_control.append(sim.get_state())
@@ -375,14 +375,14 @@ def test_the_compiled_passes_free_every_allocation_they_make(served):
 def test_the_install_compiles_the_one_signature_the_ticks_use(served):
     """The console's install compiled (or loaded) the kernel with the signature its calls
     use: none is compiled inside the 1 kHz loop (a minute's stall on a clean checkout)."""
-    from davinci_sim.console.chunk_kernel import console_chunk_bound
+    from davinci_sim.console.chunk_kernel import console_chunk
     from davinci_sim.kinematics.bound import bind
 
     sim = served[0]
     binds = len(bind.signatures)
     sim.advance(50)
     assert len(SIGNATURES[0]) == 1
-    assert list(console_chunk_bound.signatures) == SIGNATURES[0]
+    assert list(console_chunk.signatures) == SIGNATURES[0]
     assert len(bind.signatures) == binds
 
 

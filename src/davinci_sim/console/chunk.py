@@ -84,10 +84,10 @@ if (
     and teleop_psm_module._ROW is not None
     and simulated_module._ROW is not None
 ):
-    from davinci_sim.console.chunk_kernel import DONE, console_chunk_bound
+    from davinci_sim.console.chunk_kernel import DONE, console_chunk
     from davinci_sim.kinematics.bound import bind
 
-    _KERNEL, _BIND = console_chunk_bound, bind
+    _KERNEL, _BIND = console_chunk, bind
 
 COMPILED = _KERNEL is not None
 """Whether :class:`ConsoleChunk` can run (else the console ticks in Python)."""

@@ -33,7 +33,10 @@ force that is not finite), ``2·k + 1``: the caller runs tick k's post-steps in 
 after each step (the instruments' and the suture pad's skin's), so a tool working on the
 skin stays in the compiled ticks.
 
-Module-level functions, so that numba's on-disk cache keeps them between processes.
+Module-level functions, so that numba's on-disk cache keeps them between processes. What
+the compile costs (the longest of the warm-up's, ``davinci_sim.warm_up``) grows with the
+arrays a call passes: the helpers take a few arrays each, never a slot's whole tuple
+(:func:`_undo`: 13 s of compile when it took the devices' and teleoperations' tuples).
 """
 
 from __future__ import annotations
@@ -61,6 +64,8 @@ from davinci_sim.console.chunk_slots import (
     objects_read,
     teleop_follow,
     tool_contacts,
+    undo_device,
+    undo_teleop,
     wrist_lock,
 )
 from davinci_sim.console.haptic_row import NOT_FINITE
@@ -85,9 +90,15 @@ DONE = -1
 
 
 @numba.njit(cache=True, nogil=True)
-def console_chunk(phys, watch, fr, devices, teleops, rec, ecm, K):
+def console_chunk(bound, K):
     """Ticks ``1 … K`` (see the module docstring); returns :data:`DONE`, ``2·k`` (tick k
     not run) or ``2·k + 1`` (tick k's post-steps to run in Python).
+
+    ``bound``: the plan's arguments bound once (:func:`~davinci_sim.kinematics.bound.bind`:
+    a call unboxes one object, not the rows' ~280 arrays), ``bound.args`` ``(phys, watch,
+    fr, devices, teleops, rec, ecm)``. (One compiled function, not a wrapper around a kernel
+    taking the seven: numba optimizes and generates the machine code of a caller's whole
+    module again with its callees', and the wrapper's cost the warm-up ~10 s.)
 
     ``phys``: the C pointers of the model and data, the buffers' addresses (``ctrl``,
     ``qpos``, ``qvel``, ``qfrc_bias``, ``qfrc_gravcomp``, the warning statistics, ``ncon``,
@@ -132,6 +143,7 @@ def console_chunk(phys, watch, fr, devices, teleops, rec, ecm, K):
     Every array of every tuple is bound to a name here, before the ticks
     (:mod:`~davinci_sim.console.chunk_slots` says why); the ticks call the slots' laws
     with them, slot A's then slot B's."""
+    phys, watch, fr, devices, teleops, rec, ecm = bound.args
     model, data, address, sizes = phys[P_MODEL], phys[P_DATA], phys[P_ADDRESS], phys[P_SIZES]
     state, sig, warnings = phys[P_STATE], phys[P_SIG], phys[P_WARNINGS]
     qposadr, dofadr, minus_gravcomp = phys[P_QPOSADR], phys[P_DOFADR], phys[P_GRAVCOMP]
@@ -256,6 +268,9 @@ def console_chunk(phys, watch, fr, devices, teleops, rec, ecm, K):
     keep_jaw = np.empty((2, 13))
     keep_hand = np.empty((2, 12))
     keep_fx = np.empty((2, 6))
+    undo_a = (on_a, applied_a, wrench_a, ltraj_a, lgoal_a, lflags_a, hon_a, hst_a, hpr_a, target_a)
+    undo_b = (on_b, applied_b, wrench_b, ltraj_b, lgoal_b, lflags_b, hon_b, hst_b, hpr_b, target_b)
+    ujaw_a, ujaw_b = (ton_a, jaw_a, jst_a), (ton_b, jaw_b, jst_b)
     t_pre = times[3]  # (the tick's time before its step: the state's, then + dt per step)
     xfrc_all = numba.carray(f64_at(address[7]), (6 * (sizes[5]),))
     xipos = numba.carray(f64_at(address[8]), (3 * (sizes[5]),))
@@ -331,8 +346,8 @@ def console_chunk(phys, watch, fr, devices, teleops, rec, ecm, K):
             stop = STOP_WRIST
         if stop != STOP_NONE:
             times[2] = stop
-            return _undo(2 * k, devices, teleops, keep_applied, keep_wrench, keep_lock,
-                         keep_goal, keep_jaw, keep_hand)  # fmt: skip
+            return _undo(2 * k, undo_a, undo_b, ujaw_a, ujaw_b, keep_applied, keep_wrench,
+                         keep_lock, keep_goal, keep_jaw, keep_hand)  # fmt: skip
         # --- the guard's save; the tick's time is the state's first entry
         mj_get_state(model, data, sp, sig)
         t = state[0]
@@ -341,8 +356,8 @@ def console_chunk(phys, watch, fr, devices, teleops, rec, ecm, K):
         if not watch_passes(qp, w_adr, q_ref, w_idx, w_tol, effort, w_starts, w_watched,
                             w_since, t, w_first_bad, w_fault, since):  # fmt: skip
             times[2] = STOP_FAULT
-            return _undo(2 * k, devices, teleops, keep_applied, keep_wrench, keep_lock,
-                         keep_goal, keep_jaw, keep_hand)  # fmt: skip
+            return _undo(2 * k, undo_a, undo_b, ujaw_a, ujaw_b, keep_applied, keep_wrench,
+                         keep_lock, keep_goal, keep_jaw, keep_hand)  # fmt: skip
         # --- the servo (the bias forces of the last step) and the step
         if not servo_and_step(
             model, data, address, qp, qv, qb, qg, qposadr, dofadr, minus_gravcomp, q_ref,
@@ -350,8 +365,8 @@ def console_chunk(phys, watch, fr, devices, teleops, rec, ecm, K):
             bias_before, gravcomp_before, counts, counts_after,
         ):  # fmt: skip
             times[2] = STOP_DIVERGED  # (undone, for the Python tick's guard)
-            return _undo(2 * k, devices, teleops, keep_applied, keep_wrench, keep_lock,
-                         keep_goal, keep_jaw, keep_hand)  # fmt: skip
+            return _undo(2 * k, undo_a, undo_b, ujaw_a, ujaw_b, keep_applied, keep_wrench,
+                         keep_lock, keep_goal, keep_jaw, keep_hand)  # fmt: skip
         if ecm_ran:  # (the tick ran: the camera's outputs are the objects' now)
             ecm_kept(e_prev, e_lim_s, e_tau_l, e_tau_sl, e_tau_r, e_tau_sr, e_active,
                       e_act_s, e_Rlock, e_Rlock_s)  # fmt: skip
@@ -418,15 +433,6 @@ def console_chunk(phys, watch, fr, devices, teleops, rec, ecm, K):
 
 
 @numba.njit(cache=True, nogil=True)
-def console_chunk_bound(bound, K):
-    """:func:`console_chunk` on a plan's arguments bound once
-    (:func:`~davinci_sim.kinematics.bound.bind`): a call unboxes one object, not the rows'
-    ~280 arrays."""
-    a = bound.args
-    return console_chunk(a[0], a[1], a[2], a[3], a[4], a[5], a[6], K)
-
-
-@numba.njit(cache=True, nogil=True)
 def _fixtures_back(ran_a, vp_a, vv_a, ran_b, vp_b, vv_b, keep_fx):
     """The velocity filters of the fixtures this tick ran (``ran_a``, ``ran_b``) as they
     were before (a force not finite: the Python tick renders them all again)."""
@@ -452,43 +458,15 @@ def _rendered(fon, previous, limited, tau, idx, tau_ff):
 
 
 @numba.njit(cache=True, nogil=True)
-def _undo(code, devices, teleops, keep_applied, keep_wrench, keep_lock, keep_goal, keep_jaw,
-          keep_hand):  # fmt: skip
+def _undo(code, undo_a, undo_b, jaw_a, jaw_b, keep_applied, keep_wrench, keep_lock, keep_goal,
+          keep_jaw, keep_hand):  # fmt: skip
     """Put the hands', the locks' and the jaws' state back as they were at the tick's start
-    (for the Python tick to run it); returns ``code``."""
-    d = 0
-    for dev in devices:
-        applied, wrench, lock_flags = dev[13], dev[14], dev[24]
-        lock_traj, lock_goal = dev[25], dev[26]
-        if not dev[30][0]:  # (a slot's filler shares its arrays with a real row)
-            d += 1
-            continue
-        applied[0] = keep_applied[d]
-        for i in range(6):
-            wrench[i] = keep_wrench[d, i]
-        for i in range(lock_traj.shape[0]):
-            lock_traj[i] = keep_lock[d, i]
-        for i in range(lock_goal.shape[0]):
-            lock_goal[i] = keep_lock[d, lock_traj.shape[0] + i]
-        lock_flags[1] = keep_goal[d]
-        hand, target = dev[29], dev[7]
-        for i in range(3):  # (the hand's target: HandInput._target and the device's)
-            hand[1][i] = keep_hand[d, i]
-            if hand[0][0]:
-                target[i, 3] = keep_hand[d, i]
-        for i in range(9):  # (and the wrist's, when it holds one)
-            hand[1][12 + i] = keep_hand[d, 3 + i]
-            if hand[0][0] and hand[2][4] != 0.0:
-                target[i // 3, i % 3] = keep_hand[d, 3 + i]
-        d += 1
-    t_i = 0
-    for tel in teleops:
-        jaw = tel[8]
-        if not tel[22][0]:
-            t_i += 1
-            continue
-        for i in range(12):
-            jaw[i] = keep_jaw[t_i, i]
-        tel[9][0] = keep_jaw[t_i, 12]
-        t_i += 1
+    (for the Python tick to run it); returns ``code``. ``undo_a``, ``undo_b``: devices A's
+    and B's arrays :func:`~davinci_sim.console.chunk_slots.undo_device` takes; ``jaw_a``,
+    ``jaw_b``: teleoperations A's and B's for :func:`~davinci_sim.console.chunk_slots.
+    undo_teleop` (a few arrays each, not the slots' whole tuples: smaller code to compile)."""
+    undo_device(0, *undo_a, keep_applied, keep_wrench, keep_lock, keep_goal, keep_hand)
+    undo_device(1, *undo_b, keep_applied, keep_wrench, keep_lock, keep_goal, keep_hand)
+    undo_teleop(0, *jaw_a, keep_jaw)
+    undo_teleop(1, *jaw_b, keep_jaw)
     return code

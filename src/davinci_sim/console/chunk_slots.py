@@ -76,6 +76,45 @@ def keep_teleop(t, jaw, jaw_state, keep_jaw):
 
 
 @numba.njit(cache=True, nogil=True)
+def undo_device(d, on, applied, wrench, lock_traj, lock_goal, lock_flags, hand_on, hand_state,
+                hand_params, target, keep_applied, keep_wrench, keep_lock, keep_goal,
+                keep_hand):  # fmt: skip
+    """Device ``d``'s state put back from row ``d`` of the ``keep_*`` arrays
+    (:func:`keep_device`'s), the hand's target included where the rate input holds it; a
+    slot's filler (``on[0]`` False) shares its arrays with a real row: left alone."""
+    if not on[0]:
+        return
+    m = lock_goal.shape[0]
+    applied[0] = keep_applied[d]
+    for i in range(6):
+        wrench[i] = keep_wrench[d, i]
+    for i in range(2 * m):
+        lock_traj[i] = keep_lock[d, i]
+    for i in range(m):
+        lock_goal[i] = keep_lock[d, 2 * m + i]
+    lock_flags[1] = keep_goal[d]
+    for i in range(3):  # (the hand's target: HandInput._target and the device's)
+        hand_state[i] = keep_hand[d, i]
+        if hand_on[0]:
+            target[i, 3] = keep_hand[d, i]
+    for i in range(9):  # (and the wrist's, when it holds one)
+        hand_state[12 + i] = keep_hand[d, 3 + i]
+        if hand_on[0] and hand_params[4] != 0.0:
+            target[i // 3, i % 3] = keep_hand[d, 3 + i]
+
+
+@numba.njit(cache=True, nogil=True)
+def undo_teleop(t, on, jaw, jaw_state, keep_jaw):
+    """Teleoperation ``t``'s jaw state put back from row ``t`` of ``keep_jaw``
+    (:func:`keep_teleop`'s); a slot's filler left alone."""
+    if not on[0]:
+        return
+    for i in range(12):
+        jaw[i] = keep_jaw[t, i]
+    jaw_state[0] = keep_jaw[t, 12]
+
+
+@numba.njit(cache=True, nogil=True)
 def device_read(hand_on, hand_state, hand_params, t_pre, dt, links, modified, tool, identity,
                 adr, vadr, grip_adr, T_ref_base, R_hrsv_base, flags, target, impedance, push,
                 R_world_hrsv, p_world_hrsv, body, applied, wrench, q, T, J, F, T_hrsv, twist,
