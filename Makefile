@@ -40,7 +40,7 @@ install-dev: $(DEV_STAMP)
 # The web console with the seed's task: open the printed URL in a browser. The loop process
 # asks for real-time priority (granted to root or with CAP_SYS_NICE; else normal priority).
 # The numba kernels compile on every core first (davinci_sim.warm_up: on a fresh clone about
-# two and a half minutes, 2026-12-03; afterwards it finds them cached in a few seconds).
+# two minutes, 2026-12-03; afterwards it finds them cached in a few seconds).
 run: install
 	@$(BIN)/python -m davinci_sim.warm_up || true
 	$(BIN)/davinci-sim serve --task seed_path --home --realtime-priority 50

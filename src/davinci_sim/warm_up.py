@@ -10,7 +10,8 @@ then takes the next one not yet taken, until none is left: the last imported fir
 that the kernels that compose the others (the study's chunk, the longest) start at once. A
 warm-up whose callees another process compiled already loads them from the cache; a few
 are compiled twice. On the 2-core machine: 58 s instead of 106 s on a clean checkout when
-this was written; 158 s on 2026-12-03, the compiled engine's kernels since added.
+this was written; 108 s on 2026-12-03, the compiled engine's kernels since added (the
+console's chunk, ~90 s of one process, sets it; the other process's work is about as long).
 Afterwards every import loads its kernels from the cache: the test workers, servers and
 studies start in seconds.
 """
