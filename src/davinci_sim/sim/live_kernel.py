@@ -47,20 +47,20 @@ def _warning_counts(w, watched, out):
 
 
 @numba.njit(cache=True, nogil=True)
-def live_period(
-    model, data, address, sizes, state, state_sig, warnings, first, K,
-    qposadr, dofadr, minus_gravcomp, kp, kv, effort, gravity, q_ref, qd_ref, tau_ff,
-    w_adr, w_idx, w_tol, w_starts, w_watched, w_since, w_first_bad, w_fault,
-    arm_act, arm_q, shaft_q, shaft_offset, shaft_min, fk_links, fk_modified, fk_tool,
-    fk_identity, cartesian, ik_geometry, ik_tool, ik_revolute, ik_lo, ik_hi, ik_tolerance,
-    T_base_ref, R_ref_goal, start, delta, velocity, feedforward, twist_ref, qmin, qmax, bound,
-    frames, plan_links, plan_modified, plan_tools, plan_tools_identity, plan_T_cart_sujbase,
-    plan_reference, ref_links, ref_modified, ref_tool, ref_tool_identity, frame_adr, key, tol,
-    frames_out, arm_row, computed, record, camera_row, rec_t, rec_q, rec_frames, T_final,
-    J_final,
-):  # fmt: skip
+def live_period(args, first, K, cartesian, feedforward, frames, tol, record, camera_row):
     """Ticks ``first`` … ``K`` (see the module docstring); returns :data:`DONE` or the
     tick the caller must run in Python.
+
+    ``args``: an :class:`~davinci_sim.sim.live_period.ArmPeriod`'s arguments bound once
+    (:func:`~davinci_sim.kinematics.bound.bind`: a call unboxes one object and the ticks'
+    flags, not ~90 arguments; one function, not a wrapper around a kernel taking them, whose
+    module numba would optimize and generate again). ``args.args``: the physics (``model``
+    … ``warnings``), the servo's, the watch's, the arm's (``arm_act`` … ``fk_identity``),
+    the IK's constants, the goal's buffers (``T_base_ref``, ``R_ref_goal``, ``start``,
+    ``delta``, ``velocity``, ``twist_ref``, then ``qmin``, ``qmax``, ``bound``), the frame
+    plan's (``plan_links`` … ``frame_adr``, ``key``, ``frames_out``, ``arm_row``,
+    ``computed``), the samples' (``rec_t``, ``rec_q``, ``rec_frames``) and the final
+    kinematics' (``T_final``, ``J_final``) tuples.
 
     ``model``, ``data``: the C pointers; ``address``: the buffers of ``ctrl``, ``qpos``,
     ``qvel``, ``qfrc_bias``, ``qfrc_gravcomp`` and the warning statistics; ``sizes``:
@@ -94,6 +94,20 @@ def live_period(
     at the joints the last step left: the frames (as above: ``computed[0]`` True when
     recomputed) and the arm's measured kinematics, ``T_final`` (4, 4), the tip in its base
     frame, and ``J_final`` (6, dof), the spatial Jacobian (``Arm._measured_kinematics``)."""
+    (model, data, address, sizes, state, state_sig, warnings), sv, wt, am, ik, g, pl, rc, fin = (
+        args.args
+    )
+    qposadr, dofadr, minus_gravcomp, kp, kv, effort, gravity, q_ref, qd_ref, tau_ff = sv
+    w_adr, w_idx, w_tol, w_starts, w_watched, w_since, w_first_bad, w_fault = wt
+    (arm_act, arm_q, shaft_q, shaft_offset, shaft_min, fk_links, fk_modified, fk_tool,
+     fk_identity) = am  # fmt: skip
+    ik_geometry, ik_tool, ik_revolute, ik_lo, ik_hi, ik_tolerance = ik
+    T_base_ref, R_ref_goal, start, delta, velocity, twist_ref, qmin, qmax, bound = g
+    (plan_links, plan_modified, plan_tools, plan_tools_identity, plan_T_cart_sujbase,
+     plan_reference, ref_links, ref_modified, ref_tool, ref_tool_identity, frame_adr, key,
+     frames_out, arm_row, computed) = pl  # fmt: skip
+    rec_t, rec_q, rec_frames = rc
+    T_final, J_final = fin
     nu, nq, nv, nw = sizes[0], sizes[1], sizes[2], sizes[3]
     dof = arm_act.shape[0]
     q_arm = np.empty(dof)
@@ -191,31 +205,6 @@ def live_period(
         q_arm[i] = qp[arm_q[i]]
     tip_pose_row(fk_links, fk_modified, fk_tool, fk_identity, q_arm, T_final, J_final, True, F)
     return DONE
-
-
-@numba.njit(cache=True, nogil=True)
-def live_period_bound(bound, first, K, cartesian, feedforward, frames, tol, record, camera_row):
-    """:func:`live_period` on an :class:`~davinci_sim.sim.live_period.ArmPeriod`'s arguments
-    bound once (:func:`~davinci_sim.kinematics.bound.bind`): a call unboxes one object and
-    the ticks' flags, not ~90 arguments. ``bound.args``: the physics (``model`` …
-    ``warnings``), the servo's, the watch's, the arm's (``arm_act`` … ``fk_identity``), the
-    IK's constants, the goal's buffers (``T_base_ref``, ``R_ref_goal``, ``start``,
-    ``delta``, ``velocity``, ``twist_ref``, then ``qmin``, ``qmax``, ``bound``), the frame
-    plan's (``plan_links`` … ``frame_adr``, ``key``, ``frames_out``, ``arm_row``,
-    ``computed``), the samples' (``rec_t``, ``rec_q``, ``rec_frames``) and the final
-    kinematics' (``T_final``, ``J_final``) tuples."""
-    p, sv, wt, am, ik, g, pl, rc, fin = bound.args
-    return live_period(
-        p[0], p[1], p[2], p[3], p[4], p[5], p[6], first, K,
-        sv[0], sv[1], sv[2], sv[3], sv[4], sv[5], sv[6], sv[7], sv[8], sv[9],
-        wt[0], wt[1], wt[2], wt[3], wt[4], wt[5], wt[6], wt[7],
-        am[0], am[1], am[2], am[3], am[4], am[5], am[6], am[7], am[8], cartesian,
-        ik[0], ik[1], ik[2], ik[3], ik[4], ik[5],
-        g[0], g[1], g[2], g[3], g[4], feedforward, g[5], g[6], g[7], g[8],
-        frames, pl[0], pl[1], pl[2], pl[3], pl[4], pl[5], pl[6], pl[7], pl[8], pl[9], pl[10],
-        pl[11], tol, pl[12], pl[13], pl[14], record, camera_row, rc[0], rc[1], rc[2],
-        fin[0], fin[1],
-    )  # fmt: skip
 
 
 @numba.njit(cache=True, nogil=True)

@@ -48,9 +48,9 @@ _BIND: Any = None
 DONE = -1
 if rows_step.COMPILED:  # (MuJoCo's library is loaded into LLVM's symbols by rows_step)
     from davinci_sim.kinematics.bound import bind
-    from davinci_sim.sim.live_kernel import DONE, live_period_bound
+    from davinci_sim.sim.live_kernel import DONE, live_period
 
-    _BOUND_KERNEL, _BIND = live_period_bound, bind
+    _BOUND_KERNEL, _BIND = live_period, bind
 
 COMPILED = _BOUND_KERNEL is not None
 """Whether :class:`ArmPeriod` can run (else callers tick in Python)."""
