@@ -97,8 +97,8 @@ def console_chunk(bound, K):
     ``bound``: the plan's arguments bound once (:func:`~davinci_sim.kinematics.bound.bind`:
     a call unboxes one object, not the rows' ~280 arrays), ``bound.args`` ``(phys, watch,
     fr, devices, teleops, rec, ecm)``. (One compiled function, not a wrapper around a kernel
-    taking the seven: numba optimizes and generates the machine code of a caller's whole
-    module again with its callees', and the wrapper's cost the warm-up ~10 s.)
+    taking the seven: numba optimizes a caller's whole module again, its callees' code
+    included, and generates its machine code; such a wrapper cost the warm-up ~10 s.)
 
     ``phys``: the C pointers of the model and data, the buffers' addresses (``ctrl``,
     ``qpos``, ``qvel``, ``qfrc_bias``, ``qfrc_gravcomp``, the warning statistics, ``ncon``,
