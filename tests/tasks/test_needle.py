@@ -5,7 +5,9 @@ needle out of its park and hands it over."""
 
 import dataclasses
 import math
+from pathlib import Path
 
+import mujoco
 import numpy as np
 import pytest
 from compiled_reads import objects_read
@@ -13,6 +15,7 @@ from scripted_operator import Operator
 
 from bits import assert_same_bits
 from davinci_sim.console import chunk
+from davinci_sim.model.config import SceneConfig
 from davinci_sim.tasks import TaskError, load_task, task_from_dict, task_to_dict
 from davinci_sim.tasks.base import Sample
 from davinci_sim.tasks.check import check_task
@@ -343,10 +346,69 @@ def test_a_console_session_reads_the_needle_from_the_scene():
         assert session.monitor.observations["held"][0] == 0
         assert sim.model.nkey >= 2 and sim.model.key_qpos.shape[1] == sim.model.nq
         probe = session.task.probe(sim.model)
-        T_start = probe.frame(sim.data)
+        T_start = session.task.T_world_start  # (at rest it sits ~15 µm into the foam)
+        assert np.allclose(probe.frame(sim.data), T_start, atol=5e-5)
         q = sim.model.jnt_qposadr[sim.model.joint("task/needle").id]
         sim.data.qpos[q : q + 3] += [0.02, 0.0, 0.01]  # knocked out of the park
         session.task.reset_scene(sim.model, sim.data)
         assert np.allclose(probe.frame(sim.data), T_start, atol=1e-9)
     finally:
         sim.close()
+
+
+#: A person's grasp at the park, recorded (see the test below): the scene's joints by name,
+#: then PSM1's joint references (rad, m) from the teleoperation, one row per pass of the
+#: loop (``t``: s after the joints were taken; row k holds from ``t[k]`` on).
+PARK_GRASP = Path(__file__).parent / "data" / "needle_park_grasp.npz"
+
+
+def test_a_persons_grasp_lifts_the_needle_out_of_its_foam_without_wedging_it():
+    """Recorded from the browser person who picks the needle up
+    (``tests/web/test_web_exercises.py``) on a stepped console, where PSM1 faulted: the
+    joints of its scene (``serve --task needle_pickup`` with both hands) at t = 11.1 s, just
+    before the right hand's E closes PSM1's jaws (open 60°) across the top of the needle's
+    arc, and PSM1's joint references over the next 0.9 s (the close, then the first of the
+    lift). Replayed through the simulator's joint servo, the other joints held: the needle
+    comes up with the jaws, the park's foam pushes on it with a few newtons at most, and the
+    insertion tracks its reference. (In a slit as hard as the needle's own contacts the
+    closing jaws wedged the needle's two ends between its walls: 507 N, the needle held
+    down, the insertion 4.6 mm behind its reference in this record and 31 mm, PSM1's
+    tracking fault, 5 s later.)"""
+    from davinci_sim.sim.servo import JointServo
+    from davinci_sim.system.build import scene_model
+    from davinci_sim.system.description import SystemDescription, TaskDescription
+
+    rec = np.load(PARK_GRASP)
+    scene = SceneConfig(arms=("PSM1", "PSM2", "ECM", "MTML", "MTMR"))
+    m = scene_model(SystemDescription(scene=scene, task=TaskDescription("needle_pickup")))
+    d = mujoco.MjData(m)
+    i = v = 0
+    for name in rec["joints"]:
+        j = m.joint(str(name)).id
+        nq, nv = {0: (7, 6), 1: (4, 3)}.get(int(m.jnt_type[j]), (1, 1))
+        d.qpos[m.jnt_qposadr[j] : m.jnt_qposadr[j] + nq] = rec["qpos"][i : i + nq]
+        d.qvel[m.jnt_dofadr[j] : m.jnt_dofadr[j] + nv] = rec["qvel"][v : v + nv]
+        i, v = i + nq, v + nv
+    assert (i, v) == (len(rec["qpos"]), len(rec["qvel"])) == (m.nq, m.nv)
+    mujoco.mj_forward(m, d)
+    servo = JointServo(m)
+    servo.q_ref[:] = d.qpos[servo.qposadr]  # (everyone else holds still)
+    psm1 = servo.indices([str(a) for a in rec["actuators"]])
+    insertion = list(rec["actuators"]).index("PSM1/insertion")
+    park = {g for g in range(m.ngeom) if m.geom(g).name.startswith("task/park")}
+    needle = m.body("task/needle").id
+    z0, t0 = d.xpos[needle][2], d.time
+    push, lag, wrench = 0.0, 0.0, np.zeros(6)
+    for _ in range(int(round(rec["t"][-1] / m.opt.timestep))):
+        k = int(np.searchsorted(rec["t"], d.time - t0 + 1e-9, side="right")) - 1
+        servo.q_ref[psm1], servo.qd_ref[psm1] = rec["q_ref"][max(k, 0)], rec["qd_ref"][max(k, 0)]
+        servo.apply(d)
+        mujoco.mj_step(m, d)
+        lag = max(lag, abs(d.qpos[servo.qposadr[psm1[insertion]]] - servo.q_ref[psm1[insertion]]))
+        for c in range(d.ncon):
+            if {int(d.contact[c].geom1), int(d.contact[c].geom2)} & park:
+                mujoco.mj_contactForce(m, d, c, wrench)
+                push = max(push, abs(wrench[0]))
+    assert d.xpos[needle][2] - z0 > 0.005  # up with the jaws
+    assert push < 5.0, push  # N
+    assert lag < 0.001, lag  # m

@@ -556,8 +556,10 @@ def do_needle_pickup(stream: Streamer, session, task, done) -> None:
     from the swage and lifts it 2 cm, the second (PSM1) grasps it near its point, the first
     lets go and moves away; the second holds it (the session finishes the attempt after the
     task's hold time). The grasps are half the needle apart: closer, the two instruments'
-    jaws touched at the hand-off (counted as collisions). A grasp that does not hold is
-    tried again from the needle's pose then."""
+    jaws touched at the hand-off (counted as collisions). Each grasp looks at the needle
+    again from 12 mm back before going in (the other hand may have moved it); a grasp that
+    does not hold (a jaw off the wire, or the jaws closed wider than :data:`JAW_HELD`: the
+    wire at their tips) is tried again from the needle's pose then."""
     from davinci_sim.tasks.needle_scene import grasp_pose
 
     sim = stream.sim
@@ -581,10 +583,12 @@ def do_needle_pickup(stream: Streamer, session, task, done) -> None:
                 return None
             if stream.reach(n, pivot - 0.012 * R[:, 2], 0.002, R_goal=R, until=done):
                 return None
+            # (a look again before going in: the needle may have moved since)
+            pivot = grasp_pose(probe.frame(sim.data), task.needle, R, s, depth)[1]
             if stream.reach(n, pivot, 0.0007, until=done) or jaw(n, JAW_CLOSED):
                 return None
-            if held(n):
-                return True
+            if held(n) and sim.arms[n].jaw.measured_js().position[0] < JAW_HELD:
+                return True  # (wider: the wire at the jaws' tips, a grip that lets go)
             if stream.reach(n, stream.goal[n][:3, 3] - 0.012 * R[:, 2], 0.002, until=done):
                 return None
         return False

@@ -23,7 +23,9 @@ axis, 100 mN·m about the wire's own axis (its contacts resist rolling,
 **The park** is where a needle exercise starts: a foam block on the tissue pad with a slit
 across its top; the needle stands upright in the slit on its two ends (its plane vertical,
 the middle of the arc up), so that the jaws, pointing down, close across the wire at the
-top of the arc without digging into the block.
+top of the arc without digging into the block. The block is foam, not steel: its contacts
+(with the needle and with the jaws) are its own, softer and more slippery than the scene's
+(:data:`FOAM_SOLIMP`).
 
 :class:`NeedleProbe` is a task's view of the simulation at a tick: the needle's frame and
 which jaws touch it, from MuJoCo's contacts.
@@ -58,6 +60,18 @@ NEEDLE_SOLMIX = 1000.0
 NEEDLE_CONDIM = 6
 NEEDLE_RGBA = (0.80, 0.82, 0.86, 1.0)
 FOAM_RGBA = (0.30, 0.55, 0.75, 1.0)
+#: The park's foam: contact impedance 0.95 → 0.99 over 1 mm of penetration (MuJoCo
+#: ``solimp``) with a 4 ms time constant (``solref``; the scene's contacts: 0.99 → 0.999
+#: over 0.5 mm, 3 ms), and friction 0.4 (steel on foam; the scene's environment 0.8). Its
+#: geoms' ``priority`` makes these the parameters of their every contact (MuJoCo takes the
+#: higher-priority geom's instead of mixing), the needle's stiff ones included. With the
+#: needle's parameters the slit held like steel: a person's jaws closing across the wire
+#: wedged its two ends between the walls (~500 N), and lifting it held the tool back until
+#: PSM1 faulted on its insertion's tracking error (``tests/tasks/test_needle.py``).
+FOAM_SOLIMP = np.array([0.95, 0.99, 0.001, 0.5, 2.0])
+FOAM_SOLREF = np.array([0.004, 1.0])
+FOAM_FRICTION = np.array([0.4, 0.005, 0.0001])
+FOAM_PRIORITY = 1
 #: Noslip solver iterations of a scene with a needle (as the peg board's rings: the
 #: solver that stops a held object creeping out of a grasp).
 NOSLIP_ITERATIONS = 10
@@ -224,7 +238,7 @@ def add_needle(spec: mujoco.MjSpec, needle: NeedleSpec, park: NeedlePark | None,
 
 def _add_park(world, needle: NeedleSpec, park: NeedlePark, prefix: str) -> None:
     """The foam block: a base from the tissue up to the slit's bottom, and a wall on either
-    side of the slit up to the top (kind ``env``)."""
+    side of the slit up to the top (kind ``env``, with the foam's contacts)."""
     box = mujoco.mjtGeom.mjGEOM_BOX
     block = world.add_body(name=f"{prefix}park")
     block.pos = [park.center[0], park.center[1], 0.0]
@@ -244,6 +258,8 @@ def _add_park(world, needle: NeedleSpec, park: NeedlePark, prefix: str) -> None:
     for name, pos, size in parts:
         g = block.add_geom(name=f"{prefix}park_{name}", type=box, pos=pos, size=size)
         contact.apply(g, "env")
+        g.priority = FOAM_PRIORITY
+        g.solimp, g.solref, g.friction = FOAM_SOLIMP, FOAM_SOLREF, FOAM_FRICTION
         g.rgba = list(FOAM_RGBA)
 
 
