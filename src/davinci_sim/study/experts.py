@@ -34,10 +34,12 @@ task's teleoperation clutched:
   takes it; PSM2 lets go, moves out of the way (:data:`RETREAT`), and PSM1 turns the
   needle to the drive's start. Grips that close wider than :data:`JAW_HELD` are taken
   again. The shipped reference rests on **4 of its 6 attempts** (3 experts x 2 of seed
-  9001): 133 ± 6 s, 1.31 m of tip path, entries 0.5 mm and exits 0.2 mm off their marks,
-  0.15 mm of trauma, no drop. The other two end at the first hand-back, as PSM2 lets go:
-  in one PSM1's new grip does not hold and the needle falls; in the other the wire stays
-  on one of PSM2's jaws and, as PSM2 backs away, drags PSM1's wrist into a tracking fault.
+  9001): 130 ± 6 s, 1.30 m of tip path, entries 1.1 mm and exits 0.25 mm off their marks,
+  0.33 mm of trauma, no drop; one of the other two ends in a tracking fault of PSM1's
+  insertion. (Before the park's foam, ``needle_scene.FOAM_SOLIMP``, the two ended at the
+  first hand-back as PSM2 let go: PSM1's new grip did not hold and the needle fell, or the
+  wire stayed on one of PSM2's jaws and, as PSM2 backed away, dragged PSM1's wrist into a
+  tracking fault.)
   The arms also press on the pad and touch each other on the way (~20 N of peak tissue
   force, 360-410 collision onsets an attempt, not traced to their moments), so the
   reference leaves those metrics out (:data:`NOT_MEASURED_OF_TASK`);
