@@ -465,6 +465,9 @@ class Simulation:
                 raise TypeError(f"component {name!r} ({type(component).__name__}) has no set_state")
             if isinstance(component_state, Unavailable):
                 raise TypeError(f"no state of component {name!r}: {component_state.reason}")
+        if not state.components:  # (nothing that can refuse: no backup to take)
+            self._restore(state)
+            return
         backup = self._capture(strict=False)
         try:
             self._restore(state)
