@@ -36,7 +36,8 @@ task's teleoperation clutched:
   again. The shipped reference rests on **4 of its 6 attempts** (3 experts x 2 of seed
   9001): 130 ± 6 s, 1.30 m of tip path, entries 1.1 mm and exits 0.25 mm off their marks,
   0.33 mm of trauma, no drop; one of the other two ends in a tracking fault of PSM1's
-  insertion. (Before the park's foam, ``needle_scene.FOAM_SOLIMP``, the two ended at the
+  insertion (reaching for its driver grip at the second hand-back, PSM1 pressed a jaw into
+  the skin, ~100 N). (Before the park's foam, ``needle_scene.FOAM_SOLIMP``, the two ended at the
   first hand-back as PSM2 let go: PSM1's new grip did not hold and the needle fell, or the
   wire stayed on one of PSM2's jaws and, as PSM2 backed away, dragged PSM1's wrist into a
   tracking fault.)
