@@ -389,7 +389,9 @@ def test_a_persons_grasp_lifts_the_needle_out_of_its_foam_without_wedging_it():
         d.qpos[m.jnt_qposadr[j] : m.jnt_qposadr[j] + nq] = rec["qpos"][i : i + nq]
         d.qvel[m.jnt_dofadr[j] : m.jnt_dofadr[j] + nv] = rec["qvel"][v : v + nv]
         i, v = i + nq, v + nv
-    assert (i, v) == (len(rec["qpos"]), len(rec["qvel"])) == (m.nq, m.nv)
+    assert (i, v) == (len(rec["qpos"]), len(rec["qvel"])) == (m.nq, m.nv), (
+        "the scene's joints are not those of the recording (made on the scene of 2026-12-03)"
+    )
     mujoco.mj_forward(m, d)
     servo = JointServo(m)
     servo.q_ref[:] = d.qpos[servo.qposadr]  # (everyone else holds still)
