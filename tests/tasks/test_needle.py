@@ -382,10 +382,11 @@ def test_a_persons_grasp_lifts_the_needle_out_of_its_foam_without_wedging_it():
     scene = SceneConfig(arms=("PSM1", "PSM2", "ECM", "MTML", "MTMR"))
     m = scene_model(SystemDescription(scene=scene, task=TaskDescription("needle_pickup")))
     d = mujoco.MjData(m)
+    sizes = {int(mujoco.mjtJoint.mjJNT_FREE): (7, 6), int(mujoco.mjtJoint.mjJNT_BALL): (4, 3)}
     i = v = 0
     for name in rec["joints"]:
         j = m.joint(str(name)).id
-        nq, nv = {0: (7, 6), 1: (4, 3)}.get(int(m.jnt_type[j]), (1, 1))
+        nq, nv = sizes.get(int(m.jnt_type[j]), (1, 1))  # (qpos, qvel) entries of the joint
         d.qpos[m.jnt_qposadr[j] : m.jnt_qposadr[j] + nq] = rec["qpos"][i : i + nq]
         d.qvel[m.jnt_dofadr[j] : m.jnt_dofadr[j] + nv] = rec["qvel"][v : v + nv]
         i, v = i + nq, v + nv
