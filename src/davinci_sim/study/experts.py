@@ -573,9 +573,6 @@ def do_needle_pickup(stream: Streamer, session, task, done) -> None:
         stream.set_jaw(n, angle)
         return stream.wait(0.1, until=done)
 
-    def held(n) -> bool:  # both of n's jaws touch the needle (the expert looks)
-        return (probe.grasp(sim.data) >> (2 * task.instruments.index(n))) & 3 == 3
-
     def grasp(n, s, depth) -> bool | None:
         """n's open jaws to the needle at fraction s, the wire ``depth`` m into them,
         closed: True if held, None if the attempt ended."""
@@ -590,8 +587,8 @@ def do_needle_pickup(stream: Streamer, session, task, done) -> None:
             pivot = grasp_pose(probe.frame(sim.data), task.needle, R, s, depth)[1]
             if stream.reach(n, pivot, 0.0007, until=done) or jaw(n, JAW_CLOSED):
                 return None
-            if held(n) and sim.arms[n].jaw.measured_js().position[0] < JAW_HELD:
-                return True  # (wider: the wire at the jaws' tips, a grip that lets go)
+            if gripped(sim, probe, task.instruments, n):
+                return True
             if stream.reach(n, stream.goal[n][:3, 3] - 0.012 * R[:, 2], 0.002, until=done):
                 return None
         return False
@@ -641,6 +638,21 @@ RETREAT = 0.02
 DOWN = np.array([0.0, 0.0, -1.0])
 
 
+def touching(sim, probe, instruments, n) -> bool:
+    """Whether both of instrument ``n``'s jaws touch the needle now (``probe``: the task's
+    :class:`~davinci_sim.tasks.needle_scene.NeedleProbe`; ``instruments``: its order of the
+    jaw bits): what the expert sees."""
+    return (probe.grasp(sim.data) >> (2 * instruments.index(n))) & 3 == 3
+
+
+def gripped(sim, probe, instruments, n) -> bool:
+    """Whether ``n`` holds the needle in a grip that holds: both jaws on it, closed to less
+    than :data:`JAW_HELD` (wider, the wire is at their tips: a grip that lets go)."""
+    return touching(sim, probe, instruments, n) and (
+        sim.arms[n].jaw.measured_js().position[0] < JAW_HELD
+    )
+
+
 def do_needle_drive(stream: Streamer, session, task, done) -> None:
     """PSM2 lifts the needle out of its park and tilts its plane (:data:`DRIVE_TILT`);
     PSM1 takes it in a needle driver's grip near the swage (the jaws across the needle,
@@ -672,9 +684,6 @@ def do_needle_drive(stream: Streamer, session, task, done) -> None:
         stream.set_jaw(n, angle)
         return stream.wait(0.1, until=done)
 
-    def held(n) -> bool:
-        return (probe.grasp(d) >> (2 * task.instruments.index(n))) & 3 == 3
-
     def take(n, grip) -> bool | None:
         """n's open jaws to ``grip`` ((R, pivot) from the needle now), closed: True if
         held, None if the attempt ended; a grasp that does not hold is tried again (from
@@ -686,7 +695,7 @@ def do_needle_drive(stream: Streamer, session, task, done) -> None:
                 return None
             if stream.reach(n, pivot, 0.0007, until=done) or jaw(n, JAW_CLOSED):
                 return None
-            if held(n) and sim.arms[n].jaw.measured_js().position[0] < JAW_HELD:
+            if gripped(sim, probe, task.instruments, n):
                 return True
             if jaw(n, JAW_OPEN) or stream.reach(n, pivot - 0.012 * R[:, 2], 0.002, until=done):
                 return None
@@ -717,7 +726,7 @@ def do_needle_drive(stream: Streamer, session, task, done) -> None:
         needle that turned in the grip is turned back)."""
         angles = np.linspace(a_from, a_to, max(2, int(abs(a_to - a_from) / math.radians(5))))
         for a in angles[1:]:
-            if not held(n):  # (dropped: the attempt cannot go on)
+            if not touching(sim, probe, task.instruments, n):  # (dropped: it cannot go on)
                 return True
             T_needle_tip = np.linalg.inv(frame()) @ tip(n)
             G = drive_pose(task.pad, pair, task.needle, float(a), DRIVE_TILT) @ T_needle_tip
