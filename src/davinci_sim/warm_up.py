@@ -30,6 +30,7 @@ KERNEL_MODULES = (
     "davinci_sim.study.batch",
     "davinci_sim.envs.vector",
     "davinci_sim.tasks.handling",  # (the exercises that hand objects over)
+    "davinci_sim.tasks.needle_row",  # (the needle exercises' steps)
 )
 
 

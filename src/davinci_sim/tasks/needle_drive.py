@@ -42,10 +42,12 @@ from typing import Any, ClassVar, NamedTuple
 
 import numpy as np
 
+from davinci_sim.kinematics.jit import kernel_array
 from davinci_sim.model.psm import JAW_LENGTH
 from davinci_sim.tasks.base import Sample, TaskError
 from davinci_sim.tasks.metrics import Metric, Peak, observed
-from davinci_sim.tasks.needle_pickup import NeedlePickupTask
+from davinci_sim.tasks.needle_pickup import NeedlePickupTask, _kernel_state
+from davinci_sim.tasks.needle_row import drive_rows
 from davinci_sim.tasks.peg import ECONOMY_ALL
 from davinci_sim.tasks.schema import ListOf, Number, Vector
 from davinci_sim.tasks.state import Phase
@@ -291,7 +293,46 @@ class NeedleDriveTask(NeedlePickupTask, kind="needle_drive"):
         ``distance`` (tip to the needle's centre, m), ``handoffs``, ``dropped``, ``passes``
         (1 at a pass of the next pair), ``entry_error``, ``exit_error``, ``trauma`` (m, at
         the sample of an exit, else 0), ``missed`` (the pairs not passed, at the sample
-        that finishes)."""
+        that finishes). One compiled call (:func:`~davinci_sim.tasks.needle_row.drive_rows`);
+        :meth:`step_arrays` is the same in numpy."""
+        if sample.T_task_object is None:
+            raise ValueError(f"task {self.name!r} needs the sample's objects, grasp and "
+                             "T_task_object (NeedleDriveTask.scene_fields)")  # fmt: skip
+        t, objects, grasp, tip = self._sample_arrays(sample)
+        n = len(t)
+        T_pad_needle = kernel_array(np.reshape(self.T_pad_world @ sample.T_task_object,
+                                               (n, 4, 4)))  # fmt: skip
+        passage = Passage(*(np.array(a, dtype=dtype, order="C") for a, dtype in  # (copies)
+                            zip(state.passage, (bool, np.int64, float, float, float, float),
+                                strict=True)))  # fmt: skip
+        new = DriveState(np.empty(n, dtype=np.int8), np.empty(n), np.empty(n), t,
+                         objects.copy(), np.empty(n), np.empty(n, dtype=np.int64),
+                         *(np.empty(n, dtype=bool) for _ in range(3)),
+                         np.empty(n, dtype=np.int64), passage)  # fmt: skip
+        obs = {"distance": np.empty(n), "handoffs": np.empty(n, dtype=np.int64),
+               "dropped": np.empty(n, dtype=np.int64), "passes": np.empty(n, dtype=np.int64),
+               "entry_error": np.empty(n), "exit_error": np.empty(n), "trauma": np.empty(n),
+               "missed": np.empty(n, dtype=np.int64)}  # fmt: skip
+        tip_point, marks, (half_x, half_y) = self._passage_constants
+        drive_rows(self._start_point, float(self.park_tolerance), float(self.time_limit),
+                   len(self.instruments), float(self.rest_speed), float(self.rest_time),
+                   len(self.pairs), T_pad_needle, tip_point, marks, half_x, half_y,
+                   float(self.pad.mark_radius), float(self.needle.radius),
+                   *_kernel_state(state[:10]), kernel_array(state.next_pair, np.int64), t,
+                   objects, grasp, tip, new.phase, new.t_start, new.t_finish, *new[5:11],
+                   *passage, *obs.values())  # fmt: skip
+        return new, obs
+
+    @cached_property
+    def _passage_constants(self) -> tuple:
+        """The needle's point in its own frame (3,), the pad's marks (P, 2, 3) and half
+        extent (m) as :func:`~davinci_sim.tasks.needle_row.drive_rows` takes them."""
+        return (np.array(self.needle.points(1.0), dtype=float).reshape(3),
+                np.array(self.pad.marks, dtype=float),
+                tuple(float(h) for h in np.array(self.pad.size, dtype=float) / 2))  # fmt: skip
+
+    def step_arrays(self, state: DriveState, sample: Sample):
+        """:meth:`step` in numpy (the tests' oracle: the same bits)."""
         if sample.objects is None or sample.grasp is None or sample.T_task_object is None:
             raise ValueError(f"task {self.name!r} needs the sample's objects, grasp and "
                              "T_task_object (NeedleDriveTask.scene_fields)")  # fmt: skip

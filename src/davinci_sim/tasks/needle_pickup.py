@@ -40,6 +40,7 @@ from typing import Any, ClassVar, NamedTuple
 
 import numpy as np
 
+from davinci_sim.kinematics.jit import kernel_array
 from davinci_sim.tasks.base import (
     Sample,
     Task,
@@ -50,6 +51,7 @@ from davinci_sim.tasks.base import (
 )
 from davinci_sim.tasks.exercise_parts import positive
 from davinci_sim.tasks.handling import Events, Handling, handling_step
+from davinci_sim.tasks.needle_row import pickup_rows
 from davinci_sim.tasks.needle_scene import NeedlePark, NeedleSpec
 from davinci_sim.tasks.peg import ECONOMY_ALL, HANDOFFS, _AnyMapping
 from davinci_sim.tasks.schema import NONNEGATIVE, ListOf, Number, Text, Vector
@@ -260,7 +262,43 @@ class NeedlePickupTask(Task, kind="needle_pickup"):
         """One sample of n trials (pure; see the module docstring). Observations:
         ``distance`` (tip to the needle's centre, m), ``handoffs``, ``dropped`` (events at
         this sample), ``missed`` (1 at the sample that finishes without a delivery),
-        ``held`` (1 + holding instrument's index, 0: none; 3: both)."""
+        ``held`` (1 + holding instrument's index, 0: none; 3: both). One compiled call
+        (:func:`~davinci_sim.tasks.needle_row.pickup_rows`); :meth:`step_arrays` is the same
+        in numpy."""
+        t, objects, grasp, tip = self._sample_arrays(sample)
+        n = len(t)
+        new = NeedleState(np.empty(n, dtype=np.int8), np.empty(n), np.empty(n), t,
+                          objects.copy(), np.empty(n), np.empty(n, dtype=np.int64),
+                          *(np.empty(n, dtype=bool) for _ in range(3)), np.empty(n))  # fmt: skip
+        obs = {"distance": np.empty(n),
+               **{k: np.empty(n, dtype=np.int64) for k in ("handoffs", "dropped", "missed",
+                                                            "held")}}  # fmt: skip
+        pickup_rows(self._start_point, float(self.park_tolerance), float(self.lift_height),
+                    float(self.hold_time), float(self.time_limit), len(self.instruments),
+                    float(self.rest_speed), float(self.rest_time), *_kernel_state(state[:10]),
+                    kernel_array(state.t_held), t, objects, grasp, tip, new.phase,
+                    new.t_start, new.t_finish, *new[5:], *obs.values())  # fmt: skip
+        return new, obs
+
+    @cached_property
+    def _start_point(self) -> np.ndarray:
+        """The needle's start centre (3,), world, m (a kernel's argument)."""
+        return np.array(self.T_world_start[:3, 3], dtype=float)
+
+    def _sample_arrays(self, sample: Sample) -> tuple:
+        """The sample's time (n,), needle centre (n, 3), jaw bits (n,) and tip (n, 3) as
+        the kernels take them (the time a copy: it becomes the state's)."""
+        if sample.objects is None or sample.grasp is None:
+            raise ValueError(f"task {self.name!r} needs the sample's objects and grasp "
+                             "(NeedlePickupTask.scene_fields)")  # fmt: skip
+        n = sample.n
+        return (np.array(sample.time, dtype=float).reshape(n),
+                kernel_array(np.reshape(sample.objects, (n, 3))),
+                kernel_array(np.reshape(sample.grasp, n), np.int64),
+                kernel_array(sample.tip))  # fmt: skip
+
+    def step_arrays(self, state: NeedleState, sample: Sample):
+        """:meth:`step` in numpy (the tests' oracle: the same bits)."""
         if sample.objects is None or sample.grasp is None:
             raise ValueError(f"task {self.name!r} needs the sample's objects and grasp "
                              "(NeedlePickupTask.scene_fields)")  # fmt: skip
@@ -380,3 +418,12 @@ class NeedlePickupTask(Task, kind="needle_pickup"):
             v = getattr(self, k)
             out[k] = list(v) if isinstance(v, tuple) else v
         return out
+
+
+def _kernel_state(state) -> tuple:
+    """A needle state's first ten arrays (phase … loose) as the kernels take them (the same
+    arrays where they already are: a step's own outputs)."""
+    phase, *floats3, p_prev, t_still, owner, carried, handed, loose = state
+    return (kernel_array(phase, np.int8), *(kernel_array(a) for a in floats3),
+            kernel_array(p_prev), kernel_array(t_still), kernel_array(owner, np.int64),
+            *(kernel_array(a, bool) for a in (carried, handed, loose)))  # fmt: skip

@@ -375,7 +375,10 @@ def passage_step(state: Passage, T_pad_needle: np.ndarray, needle, pad: SuturePa
     mark radius of where it went in. While inside, the trauma is the entry point's distance
     from the needle's circle (0 for a needle turned about its own centre)."""
     T = np.asarray(T_pad_needle, dtype=float).reshape(-1, 4, 4)
-    tip = T[:, :3, :3] @ _tip_point(needle) + T[:, :3, 3]
+    # (R @ point + o summed in index order, as the compiled step sums it: numpy's matmul
+    # may not: tasks/needle_row.py)
+    R, p, point = T[:, :3, :3], T[:, :3, 3], _tip_point(needle)
+    tip = ((R[:, :, 0] * point[0] + R[:, :, 1] * point[1]) + R[:, :, 2] * point[2]) + p
     if not state.inside.any() and (tip[:, 2] >= 0.0).all():  # (the usual sample: above)
         return state._replace(p_tip=tip), _no_events(len(T))
     prev = state.p_tip
@@ -405,8 +408,8 @@ def passage_step(state: Passage, T_pad_needle: np.ndarray, needle, pad: SuturePa
     trauma[down] = 0.0
 
     # The trauma while inside: the entry point against the needle's circle.
-    R, p = T[:, :3, :3], T[:, :3, 3]
-    e_needle = np.einsum("nji,nj->ni", R, p_entry - p)  # R^T (p_entry - p)
+    d = p_entry - p
+    e_needle = (R[:, 0, :] * d[:, 0:1] + R[:, 1, :] * d[:, 1:2]) + R[:, 2, :] * d[:, 2:3]  # Rᵀd
     dev = circle_deviation(e_needle, needle.radius)
     trauma = np.where(inside, np.fmax(trauma, dev), trauma)
 
