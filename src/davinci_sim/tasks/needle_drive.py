@@ -307,8 +307,9 @@ class NeedleDriveTask(NeedlePickupTask, kind="needle_drive"):
                                 strict=True)))  # fmt: skip
         new = DriveState(np.empty(n, dtype=np.int8), np.empty(n), np.empty(n), t,
                          objects.copy(), np.empty(n), np.empty(n, dtype=np.int64),
-                         *(np.empty(n, dtype=bool) for _ in range(3)),
-                         np.empty(n, dtype=np.int64), passage)  # fmt: skip
+                         np.empty(n, dtype=bool), np.empty(n, dtype=bool),
+                         np.empty(n, dtype=bool), np.empty(n, dtype=np.int64),
+                         passage)  # fmt: skip
         obs = {"distance": np.empty(n), "handoffs": np.empty(n, dtype=np.int64),
                "dropped": np.empty(n, dtype=np.int64), "passes": np.empty(n, dtype=np.int64),
                "entry_error": np.empty(n), "exit_error": np.empty(n), "trauma": np.empty(n),

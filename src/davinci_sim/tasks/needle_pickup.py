@@ -269,7 +269,8 @@ class NeedlePickupTask(Task, kind="needle_pickup"):
         n = len(t)
         new = NeedleState(np.empty(n, dtype=np.int8), np.empty(n), np.empty(n), t,
                           objects.copy(), np.empty(n), np.empty(n, dtype=np.int64),
-                          *(np.empty(n, dtype=bool) for _ in range(3)), np.empty(n))  # fmt: skip
+                          np.empty(n, dtype=bool), np.empty(n, dtype=bool),
+                          np.empty(n, dtype=bool), np.empty(n))  # fmt: skip
         obs = {"distance": np.empty(n),
                **{k: np.empty(n, dtype=np.int64) for k in ("handoffs", "dropped", "missed",
                                                             "held")}}  # fmt: skip

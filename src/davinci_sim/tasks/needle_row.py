@@ -78,6 +78,22 @@ def _start(phase: int, resting: bool, parked: bool, held: bool, t: float, t_star
     return new, t0, phase == _RUNNING or begin, timeout
 
 
+@helper
+def _finish(i, ph, t0, finish, phase, t_finish, t, objects, tip, new_phase, new_start,
+            new_finish, distance) -> None:  # fmt: skip
+    """Trial ``i``'s phase after :func:`_start`'s ``ph``: FINISHED where it ``finish``-es,
+    RESULTS after FINISHED (``NeedlePickupTask._finish``); its start and finish times and the
+    tip's distance to the needle's centre (m)."""
+    if finish:
+        ph = _FINISHED
+    if phase[i] == _FINISHED:
+        ph = _RESULTS
+    new_phase[i], new_start[i] = ph, t0
+    new_finish[i] = t[i] if finish else t_finish[i]
+    distance[i] = _norm3(objects[i, 0] - tip[i, 0], objects[i, 1] - tip[i, 1],
+                         objects[i, 2] - tip[i, 2])  # fmt: skip
+
+
 @jit
 def pickup_rows(start, park_tolerance, lift_height, hold_time, time_limit, instruments,
                 rest_speed, rest_time, phase, t_start, t_finish, t_prev, p_prev, t_still, owner,
@@ -104,14 +120,9 @@ def pickup_rows(start, park_tolerance, lift_height, hold_time, time_limit, instr
         ph, t0, running, timeout = _start(phase[i], resting[i], parked[i], held[i], ti,
                                           t_start[i], time_limit)  # fmt: skip
         finish = running and (delivered or timeout)
-        if finish:
-            ph = _FINISHED
-        if phase[i] == _FINISHED:
-            ph = _RESULTS
-        new_phase[i], new_start[i], new_held[i] = ph, t0, th
-        new_finish[i] = ti if finish else t_finish[i]
-        distance[i] = _norm3(objects[i, 0] - tip[i, 0], objects[i, 1] - tip[i, 1],
-                             objects[i, 2] - tip[i, 2])  # fmt: skip
+        _finish(i, ph, t0, finish, phase, t_finish, t, objects, tip, new_phase, new_start,
+                new_finish, distance)  # fmt: skip
+        new_held[i] = th
         handoffs[i], dropped[i] = handoff[i], drop[i]
         missed[i] = finish and not delivered
         held_by[i] = (who[i] if alone[i] else 3) if held[i] else 0
@@ -211,14 +222,9 @@ def drive_rows(start, park_tolerance, time_limit, instruments, rest_speed, rest_
         scored = running and ev[3] != 0 and int(ev[4]) == next_pair[i]
         k = next_pair[i] + (1 if scored else 0)
         finish = running and (k >= pairs or timeout)
-        if finish:
-            ph = _FINISHED
-        if phase[i] == _FINISHED:
-            ph = _RESULTS
-        new_phase[i], new_start[i], new_pair[i] = ph, t0, k
-        new_finish[i] = ti if finish else t_finish[i]
-        distance[i] = _norm3(objects[i, 0] - tip[i, 0], objects[i, 1] - tip[i, 1],
-                             objects[i, 2] - tip[i, 2])  # fmt: skip
+        _finish(i, ph, t0, finish, phase, t_finish, t, objects, tip, new_phase, new_start,
+                new_finish, distance)  # fmt: skip
+        new_pair[i] = k
         handoffs[i], dropped[i], passes[i] = handoff[i], drop[i], scored
         entry_obs[i] = ev[5] if running and ev[0] != 0 else 0.0
         exit_obs[i] = ev[6] if running and ev[1] != 0 else 0.0
